@@ -1,0 +1,2 @@
+//! no_std acquisition core (being built).
+#![no_std]

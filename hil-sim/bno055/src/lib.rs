@@ -1,0 +1,2 @@
+//! Register-level simulated BNO055 (being built).
+#![no_std]

@@ -1,0 +1,1 @@
+//! robimu host library.
