@@ -1,1 +1,8 @@
-//! Simulated hardware (being built).
+//! Simulated robimu hardware for tests and demos without a board.
+//!
+//! * [`device`]: the real firmware core ([`robimu_firmware::Acquisition`])
+//!   over the register-level simulated BNO055, in a background thread, with
+//!   its serial side on a pseudo-terminal that a host opens like `/dev/ttyUSB0`.
+#![deny(missing_docs)]
+
+pub mod device;

@@ -1,1 +1,7 @@
 //! robimu host library.
+
+pub mod link;
+pub mod model;
+pub mod problem;
+pub mod session;
+pub mod solver;

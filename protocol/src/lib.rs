@@ -1,11 +1,41 @@
 //! Wire protocol between the robimu IMU board and the host.
 //!
-//! The message table lives in [`messages`]. Framing, CRC and the streaming
-//! decoder are documented in their own modules.
+//! * [`messages`]: the message table ([`DeviceMessage`], [`HostMessage`]).
+//! * [`frame`]: framing — `COBS(version ++ postcard(message) ++ CRC-32C) ++ 0x00`
+//!   — and [`encode`] into a caller's buffer, with the worst-case frame sizes.
+//! * [`decoder`]: the streaming [`Decoder`] (fixed buffer, resynchronising,
+//!   with [`DecoderStats`]).
+//! * [`error`]: [`WireError`], every way a frame can fail.
+//!
+//! `no_std` without allocation; the `use-std` feature adds
+//! [`encode_to_vec`] and `std` error support in dependencies.
 #![cfg_attr(not(feature = "use-std"), no_std)]
 #![deny(unsafe_code, missing_docs)]
+// Input bytes must never be able to panic the firmware.
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::indexing_slicing,
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic
+    )
+)]
 
+pub mod decoder;
+pub mod error;
+pub mod frame;
 pub mod messages;
+
+pub use decoder::{Decoder, DecoderStats, DeviceDecoder, Frames, HostDecoder};
+pub use error::WireError;
+#[cfg(feature = "use-std")]
+pub use frame::encode_to_vec;
+pub use frame::{
+    crc32c, encode, encode_device, encode_host, max_frame_len, DELIMITER, DEVICE_MAX_FRAME_LEN,
+    DEVICE_MAX_PAYLOAD_LEN, HOST_MAX_FRAME_LEN, HOST_MAX_PAYLOAD_LEN, MAX_FRAME_LEN,
+    MIN_DECODED_LEN,
+};
 pub use messages::*;
 
 /// Protocol version carried in every frame. Bump on any incompatible change

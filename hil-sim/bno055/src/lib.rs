@@ -1,2 +1,27 @@
-//! Register-level simulated BNO055 (being built).
+//! Register-level simulated Bosch BNO055, as an `embedded_hal::i2c::I2c` device.
+//!
+//! [`Bno055Sim`] answers on one 7-bit address with the BNO055 register map
+//! (datasheet BST-BNO055-DS000, section 4): two pages selected by `PAGE_ID`
+//! (0x07), identity registers, `OPR_MODE` rules (configuration registers only
+//! writable in CONFIG mode), `SYS_TRIGGER` reset, auto-incrementing bursts, and
+//! the AMG data registers, filled from a [`SampleSource`] whenever a burst read
+//! starts at a data register. For tests it can also refuse transactions while
+//! "booting" and fail transactions on demand ([`Bno055Sim::fail_next`]).
+//!
+//! The simulator has no clock: busy periods are counted in bus transactions.
 #![no_std]
+#![deny(unsafe_code, missing_docs)]
+
+#[cfg(feature = "alloc")]
+extern crate alloc;
+#[cfg(test)]
+extern crate std;
+
+mod error;
+pub mod regs;
+mod sim;
+mod source;
+
+pub use error::SimError;
+pub use sim::Bno055Sim;
+pub use source::{ConstantSource, RawReading, SampleSource, SineSource};

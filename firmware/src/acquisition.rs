@@ -1,0 +1,596 @@
+//! The acquisition core: sensor, schedule, link and commands.
+//!
+//! # Loop
+//!
+//! The board calls [`Acquisition::start`] once and then
+//! [`Acquisition::poll`] as often as it can (a busy loop, or on timer and
+//! UART interrupts). Each poll
+//!
+//! 1. reads the host bytes already received and answers complete commands;
+//! 2. retries a down sensor when its back-off has elapsed;
+//! 3. if the next sample deadline ([`crate::schedule`]) has passed, reads one
+//!    sample (one I²C burst), timestamps it with the clock read just before
+//!    the burst, and queues an `ImuSample` frame;
+//! 4. when due, checks that the chip is still in AMG mode and queues a `Status`;
+//! 5. writes queued bytes only while the port reports `WriteReady`.
+//!
+//! Nothing waits on the link or the bus beyond one transaction; the exceptions
+//! are configuration (`Configure`, about 40 ms of mode-switch delays) and
+//! re-initialisation (the chip's 650 ms reset time).
+//!
+//! # Sequence numbers and drops
+//!
+//! `seq` numbers sample *slots* (deadlines): it advances by one per deadline,
+//! whether the reading was sent, dropped for lack of queue space, missed
+//! because the loop was late, or lost to a failed read. Each of those
+//! failures adds one to `samples_dropped`, so on a lossless link the gaps in
+//! `seq` add up to exactly `samples_dropped`.
+//!
+//! # I²C errors
+//!
+//! A failed sample read is retried at once, up to `read_attempts` times;
+//! every failed transaction counts in `i2c_errors`. After
+//! `reinit_after_failures` consecutive lost samples, or when the periodic
+//! check finds the chip out of AMG mode (it reset itself), the sensor is
+//! re-initialised (soft reset and configuration), `sensor_reinits` counts
+//! it, and a fresh `DeviceInfo` is sent. While the sensor is down, slots are
+//! dropped and re-initialisation is retried every `reinit_backoff_ms`.
+//! Errors while waiting for the chip to boot in [`Acquisition::start`] are
+//! expected (it does not answer for about 650 ms) and not counted.
+
+use embedded_hal::delay::DelayNs;
+use embedded_hal::i2c::I2c;
+use embedded_io::{Read, ReadReady, Write, WriteReady};
+use robimu_protocol::{
+    encode_device, CommandError, CommandKind, CommandResult, DeviceInfo, DeviceMessage,
+    HostDecoder, HostMessage, ImuSample, Pong, SensorConfig, Status, DELIMITER,
+    DEVICE_MAX_FRAME_LEN, PROTOCOL_VERSION,
+};
+
+use crate::config::sensor_config_valid;
+use crate::schedule::Schedule;
+use crate::sensor::{AmgReading, Identity, Sensor};
+use crate::tx_queue::TxQueue;
+use crate::{regs, Clock, Config, Error, FIRMWARE_VERSION};
+
+/// Transmit queue size, bytes: six of the longest device frames.
+pub const TX_QUEUE_LEN: usize = 6 * DEVICE_MAX_FRAME_LEN;
+/// Queue bytes that sample frames may not use, kept for replies and status.
+pub const TX_RESERVE: usize = 2 * DEVICE_MAX_FRAME_LEN;
+/// Host bytes read per chunk.
+const RX_CHUNK_LEN: usize = 32;
+/// Chunks read per poll at most (bounds the time spent on input).
+const RX_CHUNKS_PER_POLL: usize = 4;
+/// Wait between attempts while the chip boots, ms.
+const BOOT_RETRY_MS: u32 = 10;
+/// Longest status period honoured, ms (wrapping comparisons need < 2³¹ µs).
+const MAX_STATUS_PERIOD_MS: u32 = 30 * 60 * 1000;
+
+/// Whether wrapping time `now` has reached `t` (within ±35 minutes).
+fn reached(now: u32, t: u32) -> bool {
+    now.wrapping_sub(t) <= i32::MAX as u32
+}
+
+/// The acquisition core over a BNO055 bus `I2C`, a delay `D`, a serial port
+/// `S` and a microsecond clock `C`.
+pub struct Acquisition<I2C, D, S, C> {
+    sensor: Sensor<I2C>,
+    delay: D,
+    serial: S,
+    clock: C,
+    config: Config,
+    identity: Identity,
+    sensor_ready: bool,
+    streaming: bool,
+    schedule: Schedule,
+    next_seq: u32,
+    temperature: i8,
+    /// Samples until the next temperature read (0: read with the next sample).
+    temp_countdown: u16,
+    /// Consecutive samples lost to read failures.
+    failed_samples: u32,
+    next_reinit_us: u32,
+    next_status_us: u32,
+    counters: Status,
+    control_dropped: u32,
+    /// Lone delimiters queued for resynchronisation, not counted as frames.
+    uncounted_delimiters: u32,
+    tx: TxQueue<TX_QUEUE_LEN>,
+    rx: HostDecoder,
+}
+
+impl<I2C, D, S, C> Acquisition<I2C, D, S, C>
+where
+    I2C: I2c,
+    D: DelayNs,
+    S: Read + ReadReady + Write + WriteReady,
+    C: Clock,
+{
+    /// A core that has not touched the bus or the port yet; call
+    /// [`start`](Self::start) next.
+    pub fn new(i2c: I2C, delay: D, serial: S, clock: C, config: Config) -> Self {
+        Self {
+            sensor: Sensor::new(i2c, config.i2c_address),
+            delay,
+            serial,
+            clock,
+            config,
+            identity: Identity::default(),
+            sensor_ready: false,
+            streaming: false,
+            schedule: Schedule::new(config.sensor.sample_rate_hz, 0),
+            next_seq: 0,
+            temperature: 0,
+            temp_countdown: 0,
+            failed_samples: 0,
+            next_reinit_us: 0,
+            next_status_us: 0,
+            counters: Status::default(),
+            control_dropped: 0,
+            uncounted_delimiters: 0,
+            tx: TxQueue::new(),
+            rx: HostDecoder::new(),
+        }
+    }
+
+    /// Boots the sensor and announces the device.
+    ///
+    /// Retries for up to `boot_timeout_ms` while the chip does not answer (or
+    /// answers with a wrong `CHIP_ID`) after power-up, then soft-resets it
+    /// (650 ms), configures AMG mode, the ranges and bandwidths of
+    /// `config.sensor` and the units (m/s², rad/s, °C). Then queues a lone
+    /// delimiter (so the host drops any partial frame) and a `DeviceInfo`,
+    /// starts streaming if `autostart`, and writes what the port accepts.
+    ///
+    /// # Errors
+    ///
+    /// Why the sensor is not ready. The core stays usable either way: it
+    /// answers the host, and retries the sensor every `reinit_backoff_ms`
+    /// and on `Start`. [`Error::InvalidSampleRate`] if the configured rate is
+    /// outside 1..=1000 Hz (the sensor is up, but streaming waits for a valid
+    /// `Configure`).
+    pub fn start(&mut self) -> Result<(), Error> {
+        self.queue_delimiter();
+        let result = self.boot();
+        self.queue_info();
+        let rate_valid = sensor_config_valid(&self.config.sensor);
+        if self.config.autostart && rate_valid {
+            self.begin_streaming();
+        }
+        self.flush();
+        match result {
+            Ok(()) if !rate_valid => {
+                Err(Error::InvalidSampleRate(self.config.sensor.sample_rate_hz))
+            }
+            other => other,
+        }
+    }
+
+    /// One turn of the loop (see the [module documentation](self)).
+    pub fn poll(&mut self) {
+        self.receive();
+        let now = self.clock.now_us();
+        self.counters.t_us = now;
+        if !self.sensor_ready && reached(now, self.next_reinit_us) {
+            self.reinitialise();
+        }
+        if self.streaming {
+            self.sample_if_due();
+        }
+        self.status_if_due();
+        self.flush();
+    }
+
+    /// The health counters (`t_us` is the time of the last poll).
+    pub fn status(&self) -> Status {
+        Status {
+            streaming: self.streaming,
+            ..self.counters
+        }
+    }
+
+    /// Replies and status frames that did not fit the transmit queue (not
+    /// in [`Status`]; normally 0).
+    pub fn control_frames_dropped(&self) -> u32 {
+        self.control_dropped
+    }
+
+    /// Whether samples are being streamed.
+    pub fn is_streaming(&self) -> bool {
+        self.streaming
+    }
+
+    /// Whether the sensor is initialised and configured.
+    pub fn sensor_ready(&self) -> bool {
+        self.sensor_ready
+    }
+
+    /// The settings in force.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// The identity read at the last (re-)initialisation (zeros before one succeeded).
+    pub fn identity(&self) -> Identity {
+        self.identity
+    }
+
+    /// The next sample deadline on the device clock, µs (wrapping), while
+    /// streaming: a board may sleep until then or until a UART interrupt.
+    pub fn next_deadline_us(&self) -> Option<u32> {
+        self.streaming.then(|| self.schedule.next_deadline_us())
+    }
+
+    /// Bytes waiting in the transmit queue.
+    pub fn tx_queued(&self) -> usize {
+        self.tx.len()
+    }
+
+    /// The `DeviceInfo` the core sends: identity, settings and the scales of
+    /// the raw counts (0.01 m/s², 1/900 rad/s and 1 °C per count, from
+    /// `UNIT_SEL`; the BNO055 scales its output registers independently of
+    /// the range).
+    pub fn device_info(&self) -> DeviceInfo {
+        DeviceInfo {
+            firmware_version: FIRMWARE_VERSION,
+            protocol_version: PROTOCOL_VERSION,
+            chip_id: self.identity.chip_id,
+            accel_id: self.identity.accel_id,
+            mag_id: self.identity.mag_id,
+            gyro_id: self.identity.gyro_id,
+            sw_revision: self.identity.sw_revision,
+            bootloader_revision: self.identity.bootloader_revision,
+            config: self.config.sensor,
+            accel_scale_mps2_per_lsb: regs::ACCEL_SCALE_MPS2_PER_LSB,
+            gyro_scale_rads_per_lsb: regs::GYRO_SCALE_RADS_PER_LSB,
+            temp_scale_c_per_lsb: regs::TEMP_SCALE_C_PER_LSB,
+        }
+    }
+
+    /// Gives back the bus, delay, port and clock.
+    pub fn release(self) -> (I2C, D, S, C) {
+        (self.sensor.release(), self.delay, self.serial, self.clock)
+    }
+
+    // ----- sensor -------------------------------------------------------
+
+    /// Retries [`bring_up`](Self::bring_up) while the chip boots.
+    fn boot(&mut self) -> Result<(), Error> {
+        let mut waited_ms = 0u32;
+        loop {
+            match self.bring_up() {
+                Ok(()) => return Ok(()),
+                Err(Error::Bus(_) | Error::WrongChipId(_))
+                    if waited_ms < self.config.boot_timeout_ms =>
+                {
+                    self.delay.delay_ms(BOOT_RETRY_MS);
+                    waited_ms = waited_ms.saturating_add(BOOT_RETRY_MS);
+                }
+                Err(e) => {
+                    self.sensor_down();
+                    return Err(e);
+                }
+            }
+        }
+    }
+
+    /// One attempt at initialising and configuring the sensor.
+    fn bring_up(&mut self) -> Result<(), Error> {
+        self.sensor_ready = false;
+        let identity = self.sensor.init(&mut self.delay)?;
+        self.identity = identity;
+        self.sensor
+            .configure(&self.config.sensor, false, &mut self.delay)?;
+        self.sensor_ready = true;
+        self.failed_samples = 0;
+        Ok(())
+    }
+
+    /// Re-initialises after failures; counts it and announces the device.
+    fn reinitialise(&mut self) {
+        match self.bring_up() {
+            Ok(()) => {
+                self.counters.sensor_reinits = self.counters.sensor_reinits.wrapping_add(1);
+                self.queue_info();
+            }
+            Err(e) => {
+                self.count_error(&e);
+                self.sensor_down();
+            }
+        }
+    }
+
+    fn sensor_down(&mut self) {
+        self.sensor_ready = false;
+        let backoff_us = self
+            .config
+            .reinit_backoff_ms
+            .min(MAX_STATUS_PERIOD_MS)
+            .saturating_mul(1000);
+        self.next_reinit_us = self.clock.now_us().wrapping_add(backoff_us);
+    }
+
+    fn count_error(&mut self, e: &Error) {
+        if e.is_bus() {
+            self.count_i2c_error();
+        }
+    }
+
+    fn count_i2c_error(&mut self) {
+        self.counters.i2c_errors = self.counters.i2c_errors.wrapping_add(1);
+    }
+
+    // ----- sampling -----------------------------------------------------
+
+    fn begin_streaming(&mut self) {
+        let now = self.clock.now_us();
+        self.streaming = true;
+        self.schedule = Schedule::new(self.config.sensor.sample_rate_hz, now);
+        self.temp_countdown = 0;
+        self.failed_samples = 0;
+        self.next_status_us = now.wrapping_add(self.status_period_us());
+    }
+
+    fn sample_if_due(&mut self) {
+        let now = self.clock.now_us();
+        let Some(missed) = self.schedule.poll(now) else {
+            return;
+        };
+        self.drop_slots(missed);
+        if !self.sensor_ready {
+            self.drop_slots(1);
+            return;
+        }
+        let Some((t_us, reading)) = self.read_with_retries() else {
+            self.drop_slots(1);
+            self.failed_samples = self.failed_samples.saturating_add(1);
+            if self.failed_samples >= u32::from(self.config.reinit_after_failures.max(1)) {
+                self.reinitialise();
+            }
+            return;
+        };
+        self.failed_samples = 0;
+        self.read_temperature_if_due();
+        let sample = ImuSample {
+            seq: self.next_seq,
+            t_us,
+            accel_raw: reading.accel,
+            gyro_raw: reading.gyro,
+            temp_raw: self.temperature,
+        };
+        self.next_seq = self.next_seq.wrapping_add(1);
+        let mut buf = [0u8; DEVICE_MAX_FRAME_LEN];
+        let queued = match encode_device(&DeviceMessage::Sample(sample), &mut buf) {
+            Ok(frame) => self.tx.push_with_reserve(frame, TX_RESERVE),
+            Err(_) => false,
+        };
+        if queued {
+            self.counters.samples_sent = self.counters.samples_sent.wrapping_add(1);
+        } else {
+            self.counters.samples_dropped = self.counters.samples_dropped.wrapping_add(1);
+        }
+    }
+
+    /// Skips `n` slots: their sequence numbers are used up and they count as dropped.
+    fn drop_slots(&mut self, n: u32) {
+        self.next_seq = self.next_seq.wrapping_add(n);
+        self.counters.samples_dropped = self.counters.samples_dropped.wrapping_add(n);
+    }
+
+    /// The burst read, retried; returns the clock just before the successful burst.
+    fn read_with_retries(&mut self) -> Option<(u32, AmgReading)> {
+        for _ in 0..self.config.read_attempts.max(1) {
+            let t_us = self.clock.now_us();
+            match self.sensor.read() {
+                Ok(reading) => return Some((t_us, reading)),
+                Err(_) => self.count_i2c_error(),
+            }
+        }
+        None
+    }
+
+    /// Reads `TEMP` about once a second (the BNO055 updates it at 1 Hz);
+    /// on failure keeps the last value and tries again with the next sample.
+    fn read_temperature_if_due(&mut self) {
+        if self.temp_countdown > 0 {
+            self.temp_countdown -= 1;
+            return;
+        }
+        match self.sensor.read_temperature() {
+            Ok(t) => {
+                self.temperature = t;
+                self.temp_countdown = self.config.sensor.sample_rate_hz.saturating_sub(1);
+            }
+            Err(_) => self.count_i2c_error(),
+        }
+    }
+
+    // ----- status -------------------------------------------------------
+
+    fn status_period_us(&self) -> u32 {
+        self.config.status_period_ms.min(MAX_STATUS_PERIOD_MS) * 1000
+    }
+
+    fn status_if_due(&mut self) {
+        let period = self.status_period_us();
+        if !self.streaming || period == 0 {
+            return;
+        }
+        let now = self.clock.now_us();
+        if !reached(now, self.next_status_us) {
+            return;
+        }
+        self.next_status_us = self.next_status_us.wrapping_add(period);
+        if reached(now, self.next_status_us) {
+            // More than a period late: restart the cadence from now.
+            self.next_status_us = now.wrapping_add(period);
+        }
+        if self.sensor_ready {
+            match self.sensor.check_amg() {
+                Ok(()) => {}
+                Err(e @ Error::Bus(_)) => self.count_error(&e),
+                // Out of AMG mode: the chip reset itself.
+                Err(_) => self.reinitialise(),
+            }
+        }
+        self.queue_status();
+    }
+
+    // ----- commands -----------------------------------------------------
+
+    fn receive(&mut self) {
+        let mut chunk = [0u8; RX_CHUNK_LEN];
+        for _ in 0..RX_CHUNKS_PER_POLL {
+            if !matches!(self.serial.read_ready(), Ok(true)) {
+                return;
+            }
+            let n = match self.serial.read(&mut chunk) {
+                Ok(n) if n > 0 => n,
+                _ => return,
+            };
+            let mut rest = chunk.get(..n).unwrap_or(&[]);
+            while !rest.is_empty() {
+                let (outcome, tail) = self.rx.push(rest);
+                rest = tail;
+                match outcome {
+                    Some(Ok(message)) => self.handle(message),
+                    Some(Err(_)) => {
+                        self.counters.rx_errors = self.counters.rx_errors.wrapping_add(1);
+                    }
+                    None => {}
+                }
+            }
+        }
+    }
+
+    fn handle(&mut self, message: HostMessage) {
+        match message {
+            HostMessage::Configure(sensor) => {
+                let result = self.configure(sensor);
+                self.queue_result(CommandKind::Configure, result);
+                if result.is_ok() {
+                    self.queue_info();
+                }
+            }
+            HostMessage::Start => {
+                let result = self.start_streaming();
+                self.queue_result(CommandKind::Start, result);
+            }
+            HostMessage::Stop => {
+                self.streaming = false;
+                self.queue_result(CommandKind::Stop, Ok(()));
+            }
+            HostMessage::Ping { nonce } => {
+                let t_us = self.clock.now_us();
+                self.queue_control(&DeviceMessage::Pong(Pong { nonce, t_us }));
+            }
+            HostMessage::GetInfo => self.queue_info(),
+            HostMessage::GetStatus => {
+                self.counters.t_us = self.clock.now_us();
+                self.queue_status();
+            }
+        }
+    }
+
+    fn configure(&mut self, sensor: SensorConfig) -> Result<(), CommandError> {
+        if self.streaming {
+            return Err(CommandError::Busy);
+        }
+        if !sensor_config_valid(&sensor) {
+            return Err(CommandError::InvalidConfig);
+        }
+        let previous = self.config.sensor;
+        self.config.sensor = sensor;
+        let result = if self.sensor_ready {
+            self.sensor.configure(&sensor, true, &mut self.delay)
+        } else {
+            self.bring_up()
+        };
+        match result {
+            Ok(()) => Ok(()),
+            Err(e) => {
+                self.count_error(&e);
+                self.config.sensor = previous;
+                self.sensor_down();
+                Err(CommandError::SensorFault)
+            }
+        }
+    }
+
+    fn start_streaming(&mut self) -> Result<(), CommandError> {
+        if self.streaming {
+            return Ok(());
+        }
+        if !sensor_config_valid(&self.config.sensor) {
+            return Err(CommandError::InvalidConfig);
+        }
+        if !self.sensor_ready {
+            self.reinitialise();
+            if !self.sensor_ready {
+                return Err(CommandError::SensorFault);
+            }
+        }
+        self.begin_streaming();
+        Ok(())
+    }
+
+    // ----- link ---------------------------------------------------------
+
+    fn queue_delimiter(&mut self) {
+        if self.tx.push(&[DELIMITER]) {
+            self.uncounted_delimiters = self.uncounted_delimiters.wrapping_add(1);
+        }
+    }
+
+    fn queue_info(&mut self) {
+        self.queue_control(&DeviceMessage::Info(self.device_info()));
+    }
+
+    fn queue_status(&mut self) {
+        self.queue_control(&DeviceMessage::Status(self.status()));
+    }
+
+    fn queue_result(&mut self, command: CommandKind, result: Result<(), CommandError>) {
+        self.queue_control(&DeviceMessage::CommandResult(CommandResult {
+            command,
+            result,
+        }));
+    }
+
+    /// Queues a reply or status frame; it may use the reserve.
+    fn queue_control(&mut self, message: &DeviceMessage) {
+        let mut buf = [0u8; DEVICE_MAX_FRAME_LEN];
+        let queued = match encode_device(message, &mut buf) {
+            Ok(frame) => self.tx.push(frame),
+            Err(_) => false,
+        };
+        if !queued {
+            self.control_dropped = self.control_dropped.wrapping_add(1);
+        }
+    }
+
+    /// Writes queued bytes while the port is ready; counts completed frames
+    /// by their delimiters. Never calls the port's blocking `flush`.
+    fn flush(&mut self) {
+        while !self.tx.is_empty() {
+            if !matches!(self.serial.write_ready(), Ok(true)) {
+                return;
+            }
+            let front = self.tx.front();
+            let written = match self.serial.write(front) {
+                Ok(n) if n > 0 => n.min(front.len()),
+                _ => return,
+            };
+            let delimiters = front
+                .get(..written)
+                .unwrap_or(&[])
+                .iter()
+                .filter(|&&b| b == DELIMITER)
+                .count() as u32;
+            let resync = delimiters.min(self.uncounted_delimiters);
+            self.uncounted_delimiters -= resync;
+            self.counters.frames_sent = self.counters.frames_sent.wrapping_add(delimiters - resync);
+            self.tx.consume(written);
+        }
+    }
+}

@@ -1,0 +1,288 @@
+//! A simulated IMU board on a pseudo-terminal.
+//!
+//! [`SimDevice::spawn`] runs the firmware's acquisition core in a thread:
+//! its bus is a [`Bno055Sim`] fed by a [`SampleSource`], its delay is
+//! `thread::sleep`, its clock is [`DriftingClock`] (host monotonic time with
+//! an offset and a rate error), and its serial port is the master side of a
+//! pseudo-terminal pair. The slave side's path ([`SimDevice::port_path`]) is
+//! what a host opens, exactly as it would open a USB serial adapter.
+//!
+//! The master is non-blocking: when no host reads, the pty buffer (about
+//! 20 KiB on Linux) fills and the core sees a backed-up link, dropping and
+//! counting samples, as on the real board.
+
+use std::os::unix::io::{AsRawFd, RawFd};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+
+use embedded_hal::delay::DelayNs;
+use nix::errno::Errno;
+use nix::fcntl::{fcntl, FcntlArg, OFlag};
+use nix::poll::{poll, PollFd, PollFlags};
+use robimu_bno055_sim::{Bno055Sim, SampleSource, SineSource};
+use robimu_firmware::{Acquisition, Clock, Config};
+use robimu_protocol::Status;
+use serialport::{SerialPort, TTYPort};
+
+/// Why the simulated device could not be started.
+#[derive(Debug, thiserror::Error)]
+pub enum SimDeviceError {
+    /// The pseudo-terminal pair could not be created.
+    #[error("cannot create a pseudo-terminal pair: {0}")]
+    Pty(#[from] serialport::Error),
+    /// The pseudo-terminal has no slave path.
+    #[error("the pseudo-terminal slave has no path")]
+    NoPath,
+    /// The master could not be made non-blocking.
+    #[error("cannot make the pseudo-terminal master non-blocking: {0}")]
+    NonBlocking(#[source] Errno),
+    /// The device thread could not be started.
+    #[error("cannot start the device thread: {0}")]
+    Thread(#[source] std::io::Error),
+}
+
+/// What to simulate.
+pub struct SimDeviceConfig {
+    /// The readings the simulated BNO055 serves.
+    pub source: Box<dyn SampleSource + Send>,
+    /// The firmware settings (address, rate, status period, autostart, …).
+    pub config: Config,
+    /// Device clock at spawn time, µs.
+    pub clock_offset_us: u64,
+    /// Device clock rate error, ppm (positive: the device clock runs fast).
+    pub clock_drift_ppm: f64,
+    /// Transactions the simulated chip refuses after power-up (the real chip
+    /// needs about 650 ms; the core retries every 10 ms).
+    pub boot_busy_transactions: u32,
+    /// Sleep between two polls of the core.
+    pub poll_interval: Duration,
+}
+
+impl SimDeviceConfig {
+    /// `source` with the default firmware settings, a clock without offset
+    /// or drift, a chip that answers at once, and polls every 200 µs.
+    pub fn new(source: Box<dyn SampleSource + Send>) -> Self {
+        Self {
+            source,
+            config: Config::default(),
+            clock_offset_us: 0,
+            clock_drift_ppm: 0.0,
+            boot_busy_transactions: 0,
+            poll_interval: Duration::from_micros(200),
+        }
+    }
+}
+
+impl Default for SimDeviceConfig {
+    /// [`SineSource`] readings with [`SimDeviceConfig::new`]'s settings.
+    fn default() -> Self {
+        Self::new(Box::new(SineSource::default()))
+    }
+}
+
+/// Host monotonic time as a device clock: `offset + (1 + drift·10⁻⁶)·elapsed`,
+/// wrapping at 2³² µs.
+#[derive(Debug, Clone, Copy)]
+pub struct DriftingClock {
+    start: Instant,
+    offset_us: u64,
+    drift_ppm: f64,
+}
+
+impl DriftingClock {
+    /// A clock reading `offset_us` now and running `drift_ppm` fast.
+    pub fn new(offset_us: u64, drift_ppm: f64) -> Self {
+        Self {
+            start: Instant::now(),
+            offset_us,
+            drift_ppm,
+        }
+    }
+
+    /// Unwrapped device time, µs.
+    pub fn now_us_u64(&self) -> u64 {
+        let elapsed_us = self.start.elapsed().as_nanos() as f64 / 1000.0;
+        self.offset_us + (elapsed_us * (1.0 + self.drift_ppm * 1e-6)) as u64
+    }
+}
+
+impl Clock for DriftingClock {
+    fn now_us(&mut self) -> u32 {
+        self.now_us_u64() as u32
+    }
+}
+
+/// `DelayNs` by sleeping the thread.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SleepDelay;
+
+impl DelayNs for SleepDelay {
+    fn delay_ns(&mut self, ns: u32) {
+        thread::sleep(Duration::from_nanos(u64::from(ns)));
+    }
+}
+
+/// A failed read or write on the pseudo-terminal master.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PtyError(pub Errno);
+
+impl embedded_io::Error for PtyError {
+    fn kind(&self) -> embedded_io::ErrorKind {
+        embedded_io::ErrorKind::Other
+    }
+}
+
+/// The device side of the link: the pty master, non-blocking, as an
+/// embedded-io port.
+///
+/// With no host attached the master cannot be read (`EIO`): that reads as
+/// "no data". Writes go to the pty buffer until it is full (`EAGAIN`: not
+/// ready), like a USB serial adapter nobody reads.
+pub struct PtySerial {
+    master: TTYPort,
+}
+
+impl PtySerial {
+    fn fd(&self) -> RawFd {
+        self.master.as_raw_fd()
+    }
+
+    /// Whether `poll` reports any of `events` now (no waiting).
+    fn ready(&self, events: PollFlags) -> Result<bool, PtyError> {
+        let mut fds = [PollFd::new(self.fd(), events)];
+        match poll(&mut fds, 0) {
+            Ok(0) | Err(Errno::EINTR) => Ok(false),
+            Ok(_) => Ok(fds[0].revents().is_some_and(|r| r.intersects(events))),
+            Err(e) => Err(PtyError(e)),
+        }
+    }
+}
+
+impl embedded_io::ErrorType for PtySerial {
+    type Error = PtyError;
+}
+
+impl embedded_io::ReadReady for PtySerial {
+    fn read_ready(&mut self) -> Result<bool, PtyError> {
+        self.ready(PollFlags::POLLIN)
+    }
+}
+
+impl embedded_io::Read for PtySerial {
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, PtyError> {
+        match nix::unistd::read(self.fd(), buf) {
+            Ok(n) => Ok(n),
+            // No data yet, or no host attached.
+            Err(Errno::EAGAIN | Errno::EIO | Errno::EINTR) => Ok(0),
+            Err(e) => Err(PtyError(e)),
+        }
+    }
+}
+
+impl embedded_io::WriteReady for PtySerial {
+    fn write_ready(&mut self) -> Result<bool, PtyError> {
+        self.ready(PollFlags::POLLOUT)
+    }
+}
+
+impl embedded_io::Write for PtySerial {
+    fn write(&mut self, buf: &[u8]) -> Result<usize, PtyError> {
+        match nix::unistd::write(self.fd(), buf) {
+            Ok(n) => Ok(n),
+            Err(Errno::EAGAIN | Errno::EINTR) => Ok(0),
+            Err(e) => Err(PtyError(e)),
+        }
+    }
+
+    fn flush(&mut self) -> Result<(), PtyError> {
+        Ok(())
+    }
+}
+
+/// The acquisition core as the simulated device runs it.
+pub type SimCore =
+    Acquisition<Bno055Sim<Box<dyn SampleSource + Send>>, SleepDelay, PtySerial, DriftingClock>;
+
+/// A running simulated device; stopped on [`stop`](Self::stop) or drop.
+pub struct SimDevice {
+    port_path: String,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Status>>,
+}
+
+impl SimDevice {
+    /// Creates the pseudo-terminal and starts the device thread, which boots
+    /// the core ([`Acquisition::start`]) and then polls it.
+    ///
+    /// # Errors
+    ///
+    /// [`SimDeviceError`] if the pty or the thread cannot be created.
+    pub fn spawn(config: SimDeviceConfig) -> Result<Self, SimDeviceError> {
+        let (master, slave) = TTYPort::pair()?;
+        let port_path = slave.name().ok_or(SimDeviceError::NoPath)?;
+        // The host opens the slave by path; the raw mode `pair` set persists.
+        drop(slave);
+        fcntl(master.as_raw_fd(), FcntlArg::F_SETFL(OFlag::O_NONBLOCK))
+            .map_err(SimDeviceError::NonBlocking)?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let stop_flag = stop.clone();
+        let thread = thread::Builder::new()
+            .name("robimu-sim-device".into())
+            .spawn(move || run(config, PtySerial { master }, &stop_flag))
+            .map_err(SimDeviceError::Thread)?;
+        Ok(Self {
+            port_path,
+            stop,
+            thread: Some(thread),
+        })
+    }
+
+    /// Path of the serial port to open (e.g. `/dev/pts/7`).
+    pub fn port_path(&self) -> &str {
+        &self.port_path
+    }
+
+    /// Stops the device and returns its final health counters.
+    ///
+    /// # Panics
+    ///
+    /// Re-raises a panic of the device thread (a firmware bug).
+    pub fn stop(mut self) -> Status {
+        self.halt().unwrap_or_default()
+    }
+
+    fn halt(&mut self) -> Option<Status> {
+        self.stop.store(true, Ordering::Relaxed);
+        let thread = self.thread.take()?;
+        match thread.join() {
+            Ok(status) => Some(status),
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    }
+}
+
+impl Drop for SimDevice {
+    fn drop(&mut self) {
+        if !thread::panicking() {
+            self.halt();
+        } else {
+            self.stop.store(true, Ordering::Relaxed);
+        }
+    }
+}
+
+fn run(config: SimDeviceConfig, serial: PtySerial, stop: &AtomicBool) -> Status {
+    let sim = Bno055Sim::new(config.config.i2c_address, config.source)
+        .booting_for(config.boot_busy_transactions);
+    let clock = DriftingClock::new(config.clock_offset_us, config.clock_drift_ppm);
+    let mut core: SimCore = Acquisition::new(sim, SleepDelay, serial, clock, config.config);
+    // A boot failure leaves the core answering the host and retrying.
+    let _ = core.start();
+    while !stop.load(Ordering::Relaxed) {
+        core.poll();
+        thread::sleep(config.poll_interval);
+    }
+    core.status()
+}

@@ -1,0 +1,607 @@
+//! Predicted IMU measurement z = [s̃; ω̃] = `[ax, ay, az, gx, gy, gz]` at one
+//! sample (paper eq. (10); MODEL.md §4) with exact Jacobians ∂z/∂x, ∂z/∂q,
+//! ∂z/∂q̇, ∂z/∂q̈.
+//!
+//! The joint state is q(t_i + τ) and its derivatives; so
+//! ∂z/∂τ = ∂z/∂q·q̇ + ∂z/∂q̇·q̈ + ∂z/∂q̈·q⃛, and for the spline coefficient
+//! c_{j,i} (joint j, basis i; [`super::spline`]) at t = t_i + τ:
+//! ∂z/∂c_{j,i} = ∂z/∂q_j·N_i(t) + ∂z/∂q̇_j·Ṅ_i(t) + ∂z/∂q̈_j·N̈_i(t).
+//!
+//! Usage: build a [`MeasurementModel`] once per x, then per sample evaluate the
+//! spline ([`super::spline::Spline::evaluate`]) and call
+//! [`MeasurementModel::jacobians`] with a reused [`MeasurementJacobians`].
+//!
+//! # Method
+//!
+//! Every parameter that moves the chain — joint angle q_j or generalized error
+//! ε_ik — is a screw along the product of exponentials (3): its spatial twist
+//! S = (w, v) in the base frame (w the unit axis, v = c × w for a point c on
+//! it; w = 0 and v = direction for the translations ε_i1..3). With the spatial
+//! velocity V = Σ_j S_j q̇_j, the spatial acceleration
+//! V̇ = Σ_j A_j, A_j = S_j q̈_j + [V_{<j}, S_j] q̇_j, and the Lie bracket
+//! [S1, S2] = (w1×w2, w1×v2 − w2×v1), the derivative with respect to a screw
+//! k on link i is (Jacobi identity; V_≤, V_> split at link i):
+//!
+//! ```text
+//! ∂V/∂θ_k = [S_k, V_>],     ∂V̇/∂θ_k = [S_k, V̇_>] − [[S_k, V_≤], V_>]
+//! ∂p/∂θ_k = w_k × p + v_k,  ∂R/∂θ_k = [w_k]× R
+//! ```
+//!
+//! and ω_n = V_w, ṗ = V_v + ω_n × p, p̈ = V̇_v + ω̇_n × p + ω_n × ṗ,
+//! ω = Rᵀ ω_n, s = Rᵀ (p̈ − g) (eq. (5)), z through eq. (6). All exact; the
+//! generic [`predict_generic`] (eq. (4) recursion, any [`Scalar`]) is an
+//! independent second implementation used by the tests with [`super::jet::Jet`].
+
+use super::geom::{self, add, cross, mul_mtv, mul_mv, scale, sub, Iso, M3, V3};
+use super::imu::{self, ImuError, ImuIntrinsics};
+use super::jet::Scalar;
+use super::kinematics::{imu_motion, JointState};
+use super::params::{ModelParams, Offsets, ParamLayout, ParamLengthError};
+use super::robot::{DhLink, Robot};
+use super::MAX_JOINTS;
+
+/// Why a measurement model cannot be built for a parameter vector.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// x has the wrong length.
+    #[error(transparent)]
+    ParamLength(#[from] ParamLengthError),
+    /// Gravity or sensor parameters are out of their domain.
+    #[error(transparent)]
+    Imu(#[from] ImuError),
+    /// The layout was built for a robot with another number of links.
+    #[error("parameter layout has {layout} links but the robot has {robot}")]
+    LayoutMismatch {
+        /// Links in the layout.
+        layout: usize,
+        /// Links in the robot.
+        robot: usize,
+    },
+}
+
+/// The predicted measurement and its Jacobians at one sample. Columns are
+/// `[f64; 6]` in z order `[ax, ay, az, gx, gy, gz]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeasurementJacobians {
+    /// Predicted z.
+    pub z: [f64; 6],
+    /// ∂z/∂x, one column per entry of x (τ column included).
+    pub dz_dx: Vec<[f64; 6]>,
+    /// ∂z/∂q_j, j < n.
+    pub dz_dq: [[f64; 6]; MAX_JOINTS],
+    /// ∂z/∂q̇_j, j < n.
+    pub dz_dqd: [[f64; 6]; MAX_JOINTS],
+    /// ∂z/∂q̈_j, j < n.
+    pub dz_dqdd: [[f64; 6]; MAX_JOINTS],
+}
+
+impl MeasurementJacobians {
+    /// Storage for a parameter vector of `n_params` entries (allocate once, reuse).
+    pub fn new(n_params: usize) -> Self {
+        Self {
+            z: [0.0; 6],
+            dz_dx: vec![[0.0; 6]; n_params],
+            dz_dq: [[0.0; 6]; MAX_JOINTS],
+            dz_dqd: [[0.0; 6]; MAX_JOINTS],
+            dz_dqdd: [[0.0; 6]; MAX_JOINTS],
+        }
+    }
+}
+
+/// Spatial twist (w, v).
+#[derive(Clone, Copy, Debug, Default)]
+struct Tw {
+    w: V3,
+    v: V3,
+}
+
+impl Tw {
+    #[inline(always)]
+    fn add(self, o: Tw) -> Tw {
+        Tw {
+            w: add(self.w, o.w),
+            v: add(self.v, o.v),
+        }
+    }
+    #[inline(always)]
+    fn sub(self, o: Tw) -> Tw {
+        Tw {
+            w: sub(self.w, o.w),
+            v: sub(self.v, o.v),
+        }
+    }
+    #[inline(always)]
+    fn scale(self, s: f64) -> Tw {
+        Tw {
+            w: scale(self.w, s),
+            v: scale(self.v, s),
+        }
+    }
+    /// Lie bracket [self, o] = (w1×w2, w1×v2 − w2×v1).
+    #[inline(always)]
+    fn bracket(self, o: Tw) -> Tw {
+        Tw {
+            w: cross(self.w, o.w),
+            v: sub(cross(self.w, o.v), cross(o.w, self.v)),
+        }
+    }
+}
+
+const NONE: usize = usize::MAX;
+
+/// Per-link constants for the current x.
+#[derive(Clone, Copy, Debug)]
+struct LinkConst {
+    theta0: f64,
+    ca: f64,
+    sa: f64,
+    a: f64,
+    d: f64,
+    /// (ε_i1, ε_i2, ε_i3).
+    t: V3,
+    /// Ry(ε4)·Rz(ε5)·Rx(ε6).
+    e_rot: M3,
+    e_rot_identity: bool,
+    /// ε5 axis in the frame after the translation: Ry(ε4) e_z.
+    ax5: V3,
+    /// ε6 axis: Ry(ε4)·Rz(ε5) e_x.
+    ax6: V3,
+    /// Column of ε_i1..6 in x, or NONE.
+    cols: [usize; 6],
+}
+
+/// Per-sensor constants: M = KΓR, ∂M/∂r, and K, Γ, R for the intrinsic columns.
+#[derive(Clone, Copy, Debug)]
+struct SensorConst {
+    m: M3,
+    dm_dr: [M3; 3],
+    gr: M3,
+    r: M3,
+    k: V3,
+    b: V3,
+}
+
+impl SensorConst {
+    fn new(s: &ImuIntrinsics) -> Self {
+        let gamma = s.gamma_matrix();
+        let kmat = [[s.k[0], 0.0, 0.0], [0.0, s.k[1], 0.0], [0.0, 0.0, s.k[2]]];
+        let kg = geom::mul_mm(&kmat, &gamma);
+        let (rz, ry, rx) = (
+            geom::rot_z(s.r[0]),
+            geom::rot_y(s.r[1]),
+            geom::rot_x(s.r[2]),
+        );
+        let r = s.rotation();
+        let hat = |a: V3| [[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]];
+        let (ex, ey, ez) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+        let d_rz = geom::mul_mm(&hat(ez), &r);
+        let d_ry = geom::mul_mm(&geom::mul_mm(&rz, &hat(ey)), &geom::mul_mm(&ry, &rx));
+        let d_rx = geom::mul_mm(&r, &hat(ex));
+        Self {
+            m: geom::mul_mm(&kg, &r),
+            dm_dr: [
+                geom::mul_mm(&kg, &d_rz),
+                geom::mul_mm(&kg, &d_ry),
+                geom::mul_mm(&kg, &d_rx),
+            ],
+            gr: geom::mul_mm(&gamma, &r),
+            r,
+            k: s.k,
+            b: s.b,
+        }
+    }
+
+    /// Columns ∂z/∂(γ, r, k, b) (12 × 3-vectors) for the physical vector v.
+    #[inline(always)]
+    fn intrinsic_columns(&self, v: V3, out: &mut [[f64; 6]], row: usize) {
+        let u = mul_mv(&self.r, v);
+        let w = mul_mv(&self.gr, v);
+        let k = self.k;
+        let mut put = |c: usize, d: V3| {
+            let col = &mut out[c];
+            *col = [0.0; 6];
+            col[row..row + 3].copy_from_slice(&d);
+        };
+        put(0, [0.0, k[1] * u[0], 0.0]);
+        put(1, [0.0, 0.0, -k[2] * u[0]]);
+        put(2, [0.0, 0.0, k[2] * u[1]]);
+        for i in 0..3 {
+            put(3 + i, mul_mv(&self.dm_dr[i], v));
+        }
+        put(6, [w[0], 0.0, 0.0]);
+        put(7, [0.0, w[1], 0.0]);
+        put(8, [0.0, 0.0, w[2]]);
+        put(9, [1.0, 0.0, 0.0]);
+        put(10, [0.0, 1.0, 0.0]);
+        put(11, [0.0, 0.0, 1.0]);
+    }
+}
+
+/// The measurement model prepared for one parameter vector x (build once per
+/// x, then evaluate any number of samples; evaluation does not allocate).
+#[derive(Clone, Debug)]
+pub struct MeasurementModel {
+    n: usize,
+    links: [LinkConst; MAX_JOINTS],
+    g: V3,
+    dg: [V3; 2],
+    accel: SensorConst,
+    gyro: SensorConst,
+    offsets: Offsets,
+    params: ModelParams,
+}
+
+/// Chain state for one sample (spatial quantities about the base origin).
+struct Walk {
+    /// Twists of the real joints.
+    s: [Tw; MAX_JOINTS],
+    /// Σ_{l ≤ i} S_l q̇_l.
+    v_le: [Tw; MAX_JOINTS],
+    /// Σ_{l ≤ i} A_l.
+    a_le: [Tw; MAX_JOINTS],
+    /// Rotation of the ideal frame i (after T_i, before E_i).
+    rg: [M3; MAX_JOINTS],
+    /// Origin of the real frame i (after Trans(ε_i1..3)).
+    ph: [V3; MAX_JOINTS],
+    r: M3,
+    p: V3,
+}
+
+/// Everything at one sample that the derivatives need. Twists here are
+/// re-expressed about the IMU origin p (a constant shift of the coordinate
+/// origin, which preserves brackets), so p-terms vanish: ṗ = V_v,
+/// p̈ = V̇_v + ω_n × ṗ.
+struct Motion {
+    /// V, V̇ about p.
+    v: Tw,
+    vd: Tw,
+    pd: V3,
+    /// p̈ − g.
+    f: V3,
+    /// M_a Rᵀ, M_ω Rᵀ.
+    ba: M3,
+    bw: M3,
+    /// ω (IMU frame), s.
+    omega: V3,
+    s: V3,
+}
+
+#[inline(always)]
+fn mul_m_mt(a: &M3, b: &M3) -> M3 {
+    // A Bᵀ
+    let mut c = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            c[i][j] = geom::dot(a[i], b[j]);
+        }
+    }
+    c
+}
+
+/// Re-expresses a spatial twist about the point p: (w, v + w × p).
+#[inline(always)]
+fn shift(x: Tw, p: V3) -> Tw {
+    Tw {
+        w: x.w,
+        v: add(x.v, cross(x.w, p)),
+    }
+}
+
+/// The v part of the bracket [a, b]: a_w × b_v − b_w × a_v.
+#[inline(always)]
+fn bracket_v(a: Tw, b: Tw) -> V3 {
+    sub(cross(a.w, b.v), cross(b.w, a.v))
+}
+
+impl MeasurementModel {
+    /// Prepares the model for parameter vector `x` (in `layout` order).
+    pub fn new(robot: &Robot, layout: &ParamLayout, x: &[f64]) -> Result<Self, ModelError> {
+        let n = robot.dof();
+        if layout.n_links() != n {
+            return Err(ModelError::LayoutMismatch {
+                layout: layout.n_links(),
+                robot: n,
+            });
+        }
+        let params = layout.unpack(x)?;
+        let g = imu::gravity(params.g_xy, robot.gravity())?;
+        let gz = g[2];
+        // ∂g/∂g_x = (1, 0, g_x/√(g0² − g_x² − g_y²)) = (1, 0, −g_x/g_z).
+        let dg = [[1.0, 0.0, -g[0] / gz], [0.0, 1.0, -g[1] / gz]];
+        let empty = LinkConst {
+            theta0: 0.0,
+            ca: 1.0,
+            sa: 0.0,
+            a: 0.0,
+            d: 0.0,
+            t: [0.0; 3],
+            e_rot: geom::identity(),
+            e_rot_identity: true,
+            ax5: [0.0, 0.0, 1.0],
+            ax6: [1.0, 0.0, 0.0],
+            cols: [NONE; 6],
+        };
+        let mut links = [empty; MAX_JOINTS];
+        for (i, (dh, e)) in robot.links().iter().zip(&params.eps).enumerate() {
+            let ry = geom::rot_y(e[3]);
+            let ryz = geom::mul_mm(&ry, &geom::rot_z(e[4]));
+            let mut cols = [NONE; 6];
+            for (k, c) in cols.iter_mut().enumerate() {
+                if let Some(ix) = layout.eps_index(i + 1, k + 1) {
+                    *c = ix;
+                }
+            }
+            links[i] = LinkConst {
+                theta0: dh.theta0,
+                ca: dh.alpha.cos(),
+                sa: dh.alpha.sin(),
+                a: dh.a,
+                d: dh.d,
+                t: [e[0], e[1], e[2]],
+                e_rot: geom::mul_mm(&ryz, &geom::rot_x(e[5])),
+                e_rot_identity: e[3] == 0.0 && e[4] == 0.0 && e[5] == 0.0,
+                ax5: geom::col(&ry, 2),
+                ax6: geom::col(&ryz, 0),
+                cols,
+            };
+        }
+        Ok(Self {
+            n,
+            links,
+            g,
+            dg,
+            accel: SensorConst::new(&params.accel),
+            gyro: SensorConst::new(&params.gyro),
+            offsets: layout.offsets(),
+            params,
+        })
+    }
+
+    /// Number of joints n.
+    pub fn dof(&self) -> usize {
+        self.n
+    }
+    /// Length of x.
+    pub fn n_params(&self) -> usize {
+        self.offsets.len
+    }
+    /// The typed view of x this model was built from.
+    pub fn params(&self) -> &ModelParams {
+        &self.params
+    }
+    /// Gravity g in the base frame (eq. (5)).
+    pub fn gravity(&self) -> V3 {
+        self.g
+    }
+
+    /// Walks the chain: frames, joint twists, V and A prefix sums.
+    #[inline(always)]
+    fn walk(&self, js: &JointState, wk: &mut Walk) {
+        let (mut vsum, mut asum) = (Tw::default(), Tw::default());
+        let (mut r, mut p) = (geom::identity(), [0.0; 3]);
+        for i in 0..self.n {
+            let l = &self.links[i];
+            let w = geom::col(&r, 2);
+            let sj = Tw { w, v: cross(p, w) };
+            let aj = sj.scale(js.qdd[i]).add(vsum.bracket(sj).scale(js.qd[i]));
+            vsum = vsum.add(sj.scale(js.qd[i]));
+            asum = asum.add(aj);
+            wk.s[i] = sj;
+            wk.v_le[i] = vsum;
+            wk.a_le[i] = asum;
+            // R_G = R·Rz(θ)·Rx(α), p_G = p + R·(a c, a s, d).
+            let (st, ct) = (js.q[i] + l.theta0).sin_cos();
+            let mz = [
+                [ct, -st * l.ca, st * l.sa],
+                [st, ct * l.ca, -ct * l.sa],
+                [0.0, l.sa, l.ca],
+            ];
+            let rg = geom::mul_mm(&r, &mz);
+            let pg = add(p, mul_mv(&r, [l.a * ct, l.a * st, l.d]));
+            let ph = add(pg, mul_mv(&rg, l.t));
+            wk.rg[i] = rg;
+            wk.ph[i] = ph;
+            r = if l.e_rot_identity {
+                rg
+            } else {
+                geom::mul_mm(&rg, &l.e_rot)
+            };
+            p = ph;
+        }
+        wk.r = r;
+        wk.p = p;
+    }
+
+    #[inline(always)]
+    fn new_walk() -> Walk {
+        Walk {
+            s: [Tw::default(); MAX_JOINTS],
+            v_le: [Tw::default(); MAX_JOINTS],
+            a_le: [Tw::default(); MAX_JOINTS],
+            rg: [[[0.0; 3]; 3]; MAX_JOINTS],
+            ph: [[0.0; 3]; MAX_JOINTS],
+            r: [[0.0; 3]; 3],
+            p: [0.0; 3],
+        }
+    }
+
+    #[inline(always)]
+    fn motion(&self, wk: &Walk) -> Motion {
+        let n = self.n;
+        let v = shift(wk.v_le[n - 1], wk.p);
+        let vd = shift(wk.a_le[n - 1], wk.p);
+        let pd = v.v;
+        let pdd = add(vd.v, cross(v.w, pd));
+        let f = sub(pdd, self.g);
+        let omega = mul_mtv(&wk.r, v.w);
+        let s = mul_mtv(&wk.r, f);
+        Motion {
+            v,
+            vd,
+            pd,
+            f,
+            ba: mul_m_mt(&self.accel.m, &wk.r),
+            bw: mul_m_mt(&self.gyro.m, &wk.r),
+            omega,
+            s,
+        }
+    }
+
+    /// Pose of the IMU frame and the IMU-frame inertial quantities (ω, s)
+    /// (eq. (3), (5)) at the joint state.
+    pub fn inertial(&self, js: &JointState) -> (Iso, V3, V3) {
+        let mut wk = Self::new_walk();
+        self.walk(js, &mut wk);
+        let mo = self.motion(&wk);
+        (Iso { r: wk.r, p: wk.p }, mo.omega, mo.s)
+    }
+
+    /// Predicted z = [s̃; ω̃] at the joint state q(t_i + τ) (eq. (6), (10)).
+    pub fn predict(&self, js: &JointState) -> [f64; 6] {
+        let mut wk = Self::new_walk();
+        self.walk(js, &mut wk);
+        let mo = self.motion(&wk);
+        self.output(&mo)
+    }
+
+    #[inline(always)]
+    fn output(&self, mo: &Motion) -> [f64; 6] {
+        let a = add(mul_mv(&self.accel.m, mo.s), self.accel.b);
+        let w = add(mul_mv(&self.gyro.m, mo.omega), self.gyro.b);
+        [a[0], a[1], a[2], w[0], w[1], w[2]]
+    }
+
+    /// z and all Jacobians at the joint state (q, q̇, q̈, q⃛ at t_i + τ).
+    ///
+    /// # Panics
+    /// If `out` was not sized for this model's x (`MeasurementJacobians::new(self.n_params())`).
+    #[track_caller]
+    pub fn jacobians(&self, js: &JointState, out: &mut MeasurementJacobians) {
+        assert_eq!(
+            out.dz_dx.len(),
+            self.offsets.len,
+            "Jacobian storage sized for another x"
+        );
+        let mut wk = Self::new_walk();
+        self.walk(js, &mut wk);
+        let mo = self.motion(&wk);
+        out.z = self.output(&mo);
+        let n = self.n;
+        let p = wk.p;
+        let (v, vd) = (mo.v, mo.vd);
+        let (omega_n, alpha_n) = (v.w, vd.w);
+
+        let mut vle_prev = Tw::default();
+        for i in 0..n {
+            // Split at link i, about p: V_≤, V_>, and X = V̇_> − [V_≤, V_>].
+            let vle = shift(wk.v_le[i], p);
+            let vgt = v.sub(vle);
+            let x = vd.sub(shift(wk.a_le[i], p)).sub(vle.bracket(vgt));
+            // Position-like screw on link i (twist about p) → dz:
+            // ∂V = [S, V_>], ∂V̇_v = [S, X]_v + [V_≤, ∂V]_v, ∂p = S_v.
+            let screw = |sk: Tw| -> [f64; 6] {
+                let dv = sk.bracket(vgt);
+                let dvd_v = add(bracket_v(sk, x), bracket_v(vle, dv));
+                let dp = sk.v;
+                let dpd = add(dv.v, cross(omega_n, dp));
+                let dpdd = add(
+                    add(dvd_v, cross(alpha_n, dp)),
+                    add(cross(dv.w, mo.pd), cross(omega_n, dpd)),
+                );
+                let da = mul_mv(&mo.ba, sub(dpdd, cross(sk.w, mo.f)));
+                let dw = mul_mv(&mo.bw, sub(dv.w, cross(sk.w, omega_n)));
+                [da[0], da[1], da[2], dw[0], dw[1], dw[2]]
+            };
+            let sj = shift(wk.s[i], p);
+            out.dz_dq[i] = screw(sj);
+            let l = &self.links[i];
+            let rg = &wk.rg[i];
+            let c = sub(wk.ph[i], p);
+            for k in 0..6 {
+                let col = l.cols[k];
+                if col == NONE {
+                    continue;
+                }
+                let tw = match k {
+                    0..=2 => {
+                        // Translation (w = 0): ∂V = (0, −V_>w × d), no gyro effect.
+                        let d = geom::col(rg, k);
+                        let dv_v = cross(d, vgt.w);
+                        let dvd_v = add(cross(d, x.w), cross(vle.w, dv_v));
+                        let dpd = add(dv_v, cross(omega_n, d));
+                        let dpdd = add(add(dvd_v, cross(alpha_n, d)), cross(omega_n, dpd));
+                        let da = mul_mv(&mo.ba, dpdd);
+                        out.dz_dx[col] = [da[0], da[1], da[2], 0.0, 0.0, 0.0];
+                        continue;
+                    }
+                    _ => {
+                        let ax = match k {
+                            3 => geom::col(rg, 1),
+                            4 => mul_mv(rg, l.ax5),
+                            _ => mul_mv(rg, l.ax6),
+                        };
+                        Tw {
+                            w: ax,
+                            v: cross(c, ax),
+                        }
+                    }
+                };
+                out.dz_dx[col] = screw(tw);
+            }
+            // Joint rate: ∂V/∂q̇_j = S_j, ∂V̇/∂q̇_j = [V_<, S_j] + [S_j, V_>];
+            // joint acceleration: ∂V̇/∂q̈_j = S_j.
+            let dvd_v = add(bracket_v(vle_prev, sj), bracket_v(sj, vgt));
+            let dpd = sj.v;
+            let dpdd = add(dvd_v, add(cross(sj.w, mo.pd), cross(omega_n, dpd)));
+            let da = mul_mv(&mo.ba, dpdd);
+            let dw = mul_mv(&mo.bw, sj.w);
+            out.dz_dqd[i] = [da[0], da[1], da[2], dw[0], dw[1], dw[2]];
+            let da = mul_mv(&mo.ba, dpd);
+            out.dz_dqdd[i] = [da[0], da[1], da[2], 0.0, 0.0, 0.0];
+            vle_prev = vle;
+        }
+        let o = &self.offsets;
+        for (c, dg) in self.dg.iter().enumerate() {
+            let da = mul_mv(&mo.ba, *dg);
+            out.dz_dx[o.g_xy + c] = [-da[0], -da[1], -da[2], 0.0, 0.0, 0.0];
+        }
+        let mut tau = [0.0; 6];
+        for j in 0..n {
+            for (r, t) in tau.iter_mut().enumerate() {
+                *t += out.dz_dq[j][r] * js.qd[j]
+                    + out.dz_dqd[j][r] * js.qdd[j]
+                    + out.dz_dqdd[j][r] * js.qddd[j];
+            }
+        }
+        out.dz_dx[o.tau] = tau;
+        self.accel
+            .intrinsic_columns(mo.s, &mut out.dz_dx[o.gamma_a..o.gamma_a + 12], 0);
+        self.gyro
+            .intrinsic_columns(mo.omega, &mut out.dz_dx[o.gamma_w..o.gamma_w + 12], 3);
+    }
+}
+
+/// Reference prediction over any [`Scalar`]: eq. (3)–(6) via
+/// [`imu_motion`] (the eq. (4) recursion) and [`imu`]; with a
+/// [`super::jet::Jet`] it gives exact derivatives by forward-mode AD.
+///
+/// # Panics
+/// If the slices do not have one entry per link.
+#[track_caller]
+pub fn predict_generic<S: Scalar>(
+    links: &[DhLink],
+    g0: f64,
+    params: &ModelParams<S>,
+    q: &[S],
+    qd: &[S],
+    qdd: &[S],
+) -> Result<[S; 6], ImuError> {
+    let m = imu_motion(links, &params.eps, q, qd, qdd);
+    let g = imu::gravity(params.g_xy, g0)?;
+    let (omega, s) = imu::inertial(&m.pose.r, m.omega_n, m.a_n, g);
+    Ok(imu::sensor_output(&params.accel, &params.gyro, omega, s))
+}
+
+#[cfg(test)]
+#[path = "measurement_tests.rs"]
+mod tests;

@@ -1,0 +1,160 @@
+//! The session directory, the interchange format of recordings and
+//! simulations (MODEL.md §7):
+//!
+//! * `session.toml` — [`SessionMeta`]
+//! * `joints.csv` — `t,q1,…,qn` (s, rad)
+//! * `imu.csv` — `t,ax,ay,az,gx,gy,gz` (s, m/s², rad/s)
+//! * `tracker.csv` — optional, `t,px,py,pz,qw,qx,qy,qz`
+//! * `truth.toml` — optional, simulated sessions only ([`Truth`])
+//!
+//! Reading validates everything a later stage relies on and names the file and
+//! line of the first problem. Writing goes through [`SessionWriter`], which
+//! appends rows and flushes, so that a recording killed mid-run leaves a
+//! readable session.
+
+mod error;
+mod meta;
+mod table;
+mod truth;
+mod writer;
+
+use std::path::{Path, PathBuf};
+
+pub use error::SessionError;
+pub use meta::{NoiseOverride, SessionMeta, SESSION_FORMAT};
+pub use table::{parse_table, read_table, Columns, Table};
+pub use truth::Truth;
+pub use writer::SessionWriter;
+
+/// `imu.csv` value columns.
+pub const IMU_COLUMNS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
+/// `tracker.csv` value columns.
+pub const TRACKER_COLUMNS: [&str; 7] = ["px", "py", "pz", "qw", "qx", "qy", "qz"];
+
+/// File names inside a session directory.
+pub mod files {
+    /// Metadata.
+    pub const META: &str = "session.toml";
+    /// Joint samples.
+    pub const JOINTS: &str = "joints.csv";
+    /// IMU samples.
+    pub const IMU: &str = "imu.csv";
+    /// External tracker poses (validation only).
+    pub const TRACKER: &str = "tracker.csv";
+    /// True parameters (simulations only).
+    pub const TRUTH: &str = "truth.toml";
+}
+
+/// A session loaded into memory.
+#[derive(Debug, Clone)]
+pub struct Session {
+    /// The directory it was read from.
+    pub dir: PathBuf,
+    /// `session.toml`.
+    pub meta: SessionMeta,
+    /// `joints.csv`: columns `q1..qn`.
+    pub joints: Table,
+    /// `imu.csv`: columns [`IMU_COLUMNS`].
+    pub imu: Table,
+    /// `tracker.csv`, when present.
+    pub tracker: Option<Table>,
+    /// `truth.toml`, when present.
+    pub truth: Option<Truth>,
+}
+
+impl Session {
+    /// Read and validate the session in `dir`.
+    pub fn load(dir: &Path) -> Result<Self, SessionError> {
+        if !dir.is_dir() {
+            return Err(SessionError::file(
+                dir,
+                "not a session directory (it does not exist or is not a directory)",
+            ));
+        }
+        let meta = SessionMeta::read(&dir.join(files::META))?;
+        let joints = read_table(&dir.join(files::JOINTS), Columns::Joints)?;
+        let imu = read_table(&dir.join(files::IMU), Columns::Fixed(&IMU_COLUMNS))?;
+        let tracker_path = dir.join(files::TRACKER);
+        let tracker = if tracker_path.exists() {
+            Some(read_table(&tracker_path, Columns::Fixed(&TRACKER_COLUMNS))?)
+        } else {
+            None
+        };
+        let truth_path = dir.join(files::TRUTH);
+        let truth = if truth_path.exists() {
+            Some(Truth::read(&truth_path)?)
+        } else {
+            None
+        };
+        if let Some(noise) = &meta.noise {
+            if let Some(sq) = &noise.sigma_q {
+                if sq.len() != joints.width() {
+                    return Err(SessionError::file(
+                        dir.join(files::META),
+                        format!(
+                            "[noise] sigma_q has {} values but joints.csv has {} joints",
+                            sq.len(),
+                            joints.width()
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            meta,
+            joints,
+            imu,
+            tracker,
+            truth,
+        })
+    }
+
+    /// Number of joints in `joints.csv`.
+    pub fn joint_count(&self) -> usize {
+        self.joints.width()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, text: &str) {
+        std::fs::write(dir.join(name), text).unwrap();
+    }
+
+    #[test]
+    fn load_minimal_session_and_report_missing_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let e = Session::load(d).unwrap_err();
+        assert!(e.to_string().contains("session.toml"), "{e}");
+        write(
+            d,
+            "session.toml",
+            "format = \"robimu-session/1\"\nrobot = \"aubo_i5\"\n",
+        );
+        let e = Session::load(d).unwrap_err();
+        assert!(e.to_string().contains("joints.csv"), "{e}");
+        write(d, "joints.csv", "t,q1,q2\n0,0,0\n1,0.1,0.2\n");
+        write(d, "imu.csv", "t,ax,ay,az,gx,gy,gz\n0.5,0,0,9.81,0,0,0\n");
+        let s = Session::load(d).unwrap();
+        assert_eq!(s.joint_count(), 2);
+        assert_eq!(s.imu.row(0), [0.0, 0.0, 9.81, 0.0, 0.0, 0.0]);
+        assert!(s.tracker.is_none() && s.truth.is_none());
+        write(
+            d,
+            "session.toml",
+            "format = \"robimu-session/1\"\nrobot = \"aubo_i5\"\n[noise]\nsigma_q = [1e-4]\n",
+        );
+        let e = Session::load(d).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("sigma_q has 1 values but joints.csv has 2"),
+            "{e}"
+        );
+        let e = Session::load(&d.join("nope")).unwrap_err();
+        assert!(e.to_string().contains("not a session directory"), "{e}");
+    }
+}

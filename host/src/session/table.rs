@@ -1,0 +1,285 @@
+//! Time-series CSV tables (`joints.csv`, `imu.csv`, `tracker.csv`; MODEL.md §7).
+//!
+//! A table is a header naming its required columns first (extra columns after
+//! them are allowed and ignored), then one row per sample in time order.
+//! Lines starting with `#` are comments. Every value must be a finite number;
+//! time must never decrease. Errors name the file and the line.
+
+use std::path::Path;
+
+use super::SessionError;
+
+/// A time-ordered table of samples with a fixed number of value columns.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Table {
+    /// Column names of the values (without `t`), as in the header.
+    pub columns: Vec<String>,
+    /// Sample times, seconds, non-decreasing.
+    pub t: Vec<f64>,
+    /// Values, row-major: row `i` is `values[i * width .. (i + 1) * width]`.
+    pub values: Vec<f64>,
+}
+
+impl Table {
+    /// Number of value columns.
+    pub fn width(&self) -> usize {
+        self.columns.len()
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Whether the table has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Row `i` of the values.
+    ///
+    /// # Panics
+    /// If `i >= self.len()`.
+    #[track_caller]
+    pub fn row(&self, i: usize) -> &[f64] {
+        let w = self.width();
+        &self.values[i * w..(i + 1) * w]
+    }
+
+    /// Time span `(first, last)` of the rows, or `None` when empty.
+    pub fn span(&self) -> Option<(f64, f64)> {
+        Some((*self.t.first()?, *self.t.last()?))
+    }
+}
+
+/// Which value columns a table must start with.
+#[derive(Debug, Clone, Copy)]
+pub enum Columns<'a> {
+    /// Exactly these names, in this order, after `t`.
+    Fixed(&'a [&'a str]),
+    /// `q1, q2, …` — as many as the header has, at least one.
+    Joints,
+}
+
+/// Read a table from `path`. See the module doc for the rules.
+pub fn read_table(path: &Path, columns: Columns<'_>) -> Result<Table, SessionError> {
+    let file = std::fs::File::open(path).map_err(|e| SessionError::io(path, e))?;
+    parse_table(std::io::BufReader::new(file), path, columns)
+}
+
+/// Parse a table from any reader; `path` is only used in error messages.
+pub fn parse_table(
+    reader: impl std::io::Read,
+    path: &Path,
+    columns: Columns<'_>,
+) -> Result<Table, SessionError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .has_headers(true)
+        .flexible(true)
+        .from_reader(reader);
+    let header = rdr.headers().map_err(|e| csv_error(path, e))?.clone();
+    if header.is_empty() || header.iter().all(str::is_empty) {
+        return Err(SessionError::file(
+            path,
+            "the file is empty (no header line)",
+        ));
+    }
+    let names = required_columns(&header, columns)
+        .map_err(|m| SessionError::line(path, header_line(&header), m))?;
+    let width = names.len();
+    let mut table = Table {
+        columns: names,
+        ..Table::default()
+    };
+    let mut record = csv::StringRecord::new();
+    loop {
+        match rdr.read_record(&mut record) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => return Err(csv_error(path, e)),
+        }
+        let line = record.position().map_or(0, |p| p.line());
+        if record.len() < width + 1 {
+            return Err(SessionError::line(
+                path,
+                line,
+                format!(
+                    "expected at least {} fields, found {}",
+                    width + 1,
+                    record.len()
+                ),
+            ));
+        }
+        for (k, field) in record.iter().take(width + 1).enumerate() {
+            let v: f64 = field.parse().map_err(|_| {
+                let col = if k == 0 { "t" } else { &table.columns[k - 1] };
+                SessionError::line(
+                    path,
+                    line,
+                    format!("column `{col}`: `{field}` is not a number"),
+                )
+            })?;
+            if !v.is_finite() {
+                let col = if k == 0 { "t" } else { &table.columns[k - 1] };
+                return Err(SessionError::line(
+                    path,
+                    line,
+                    format!("column `{col}`: {field} is not a finite number"),
+                ));
+            }
+            if k == 0 {
+                if let Some(&prev) = table.t.last() {
+                    if v < prev {
+                        return Err(SessionError::line(
+                            path,
+                            line,
+                            format!("time goes backwards: t = {v} after t = {prev}"),
+                        ));
+                    }
+                }
+                table.t.push(v);
+            } else {
+                table.values.push(v);
+            }
+        }
+    }
+    if table.is_empty() {
+        return Err(SessionError::file(path, "no data rows after the header"));
+    }
+    Ok(table)
+}
+
+fn header_line(header: &csv::StringRecord) -> u64 {
+    header.position().map_or(1, |p| p.line())
+}
+
+fn required_columns(
+    header: &csv::StringRecord,
+    columns: Columns<'_>,
+) -> Result<Vec<String>, String> {
+    let got: Vec<&str> = header.iter().collect();
+    if got.first() != Some(&"t") {
+        return Err(format!(
+            "the header must start with `t`, found `{}`",
+            got.first().copied().unwrap_or("")
+        ));
+    }
+    match columns {
+        Columns::Fixed(names) => {
+            for (i, name) in names.iter().enumerate() {
+                match got.get(i + 1) {
+                    Some(g) if g == name => {}
+                    Some(g) => {
+                        return Err(format!(
+                            "column {} must be `{name}`, found `{g}` (expected header `t,{}`)",
+                            i + 2,
+                            names.join(",")
+                        ))
+                    }
+                    None => {
+                        return Err(format!(
+                            "missing column `{name}` (expected header `t,{}`)",
+                            names.join(",")
+                        ))
+                    }
+                }
+            }
+            Ok(names.iter().map(|s| s.to_string()).collect())
+        }
+        Columns::Joints => {
+            let n = got[1..]
+                .iter()
+                .enumerate()
+                .take_while(|(i, g)| **g == format!("q{}", i + 1))
+                .count();
+            if n == 0 {
+                return Err("missing joint columns: expected header `t,q1,q2,…`".into());
+            }
+            Ok((1..=n).map(|i| format!("q{i}")).collect())
+        }
+    }
+}
+
+fn csv_error(path: &Path, e: csv::Error) -> SessionError {
+    let line = e.position().map(|p| p.line());
+    let message = match e.kind() {
+        csv::ErrorKind::Utf8 { .. } => "the line is not valid UTF-8".to_string(),
+        csv::ErrorKind::Io(_) => e.to_string(),
+        _ => e.to_string(),
+    };
+    match (e.into_kind(), line) {
+        (csv::ErrorKind::Io(io), _) => SessionError::io(path, io),
+        (_, Some(line)) => SessionError::line(path, line, message),
+        (_, None) => SessionError::file(path, message),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str, columns: Columns<'_>) -> Result<Table, SessionError> {
+        parse_table(text.as_bytes(), Path::new("x.csv"), columns)
+    }
+
+    #[test]
+    fn reads_joint_table_with_comments_and_extra_columns() {
+        let t = parse(
+            "# recorded by hand\nt,q1,q2,extra\n0.0,1,2,zz\n# mid comment\n0.5, 3 ,4,\n",
+            Columns::Joints,
+        )
+        .unwrap();
+        assert_eq!(t.columns, ["q1", "q2"]);
+        assert_eq!(t.t, [0.0, 0.5]);
+        assert_eq!(t.row(1), [3.0, 4.0]);
+    }
+
+    #[test]
+    fn errors_name_file_and_line() {
+        let e = parse("t,ax\n0,1\n1,nan\n", Columns::Fixed(&["ax"])).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.csv:3: column `ax`: nan is not a finite number"
+        );
+        let e = parse("t,ax\n0,1\n1,abc\n", Columns::Fixed(&["ax"])).unwrap_err();
+        assert_eq!(e.to_string(), "x.csv:3: column `ax`: `abc` is not a number");
+        let e = parse("t,ax\n0,1\n-1,2\n", Columns::Fixed(&["ax"])).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.csv:3: time goes backwards: t = -1 after t = 0"
+        );
+        let e = parse("t,ax,ay\n0,1,2\n1,2\n", Columns::Fixed(&["ax", "ay"])).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.csv:3: expected at least 3 fields, found 2"
+        );
+    }
+
+    #[test]
+    fn header_problems_are_reported() {
+        let e = parse("t,ax,gy\n", Columns::Fixed(&["ax", "ay"])).unwrap_err();
+        assert!(
+            e.to_string().contains("column 3 must be `ay`, found `gy`"),
+            "{e}"
+        );
+        let e = parse("t,ax\n", Columns::Fixed(&["ax", "ay"])).unwrap_err();
+        assert!(e.to_string().contains("missing column `ay`"), "{e}");
+        let e = parse("time,q1\n0,0\n", Columns::Joints).unwrap_err();
+        assert!(e.to_string().contains("must start with `t`"), "{e}");
+        let e = parse("t,a1\n0,0\n", Columns::Joints).unwrap_err();
+        assert!(e.to_string().contains("missing joint columns"), "{e}");
+        let e = parse("", Columns::Joints).unwrap_err();
+        assert!(e.to_string().contains("empty"), "{e}");
+        let e = parse("t,q1\n", Columns::Joints).unwrap_err();
+        assert!(e.to_string().contains("no data rows"), "{e}");
+    }
+
+    #[test]
+    fn invalid_utf8_is_an_error_not_a_panic() {
+        let bytes = b"t,q1\n0,\xff\xfe\n";
+        let e = parse_table(&bytes[..], Path::new("x.csv"), Columns::Joints).unwrap_err();
+        assert!(e.to_string().starts_with("x.csv:2:"), "{e}");
+    }
+}

@@ -1,0 +1,88 @@
+//! `truth.toml`: the true value of every parameter of x, for simulated
+//! sessions (MODEL.md §7): one `name = value` line each, §5 names, SI units.
+
+use std::path::Path;
+
+use super::meta::toml_error;
+use super::SessionError;
+
+/// Parameter name → true value, in file order.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Truth {
+    /// `(name, value)` pairs in file order.
+    pub values: Vec<(String, f64)>,
+}
+
+impl Truth {
+    /// The true value of `name`, if listed.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.values.iter().find(|(n, _)| n == name).map(|(_, v)| *v)
+    }
+
+    /// Read `path`.
+    pub fn read(path: &Path) -> Result<Self, SessionError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    /// Parse; `path` only names the file in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, SessionError> {
+        let table: toml::Table = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
+        // `preserve_order` keeps the table in file order.
+        let mut values = Vec::with_capacity(table.len());
+        for (name, value) in &table {
+            let v = match value {
+                toml::Value::Float(f) => *f,
+                toml::Value::Integer(i) => *i as f64,
+                other => {
+                    return Err(SessionError::file(
+                        path,
+                        format!("`{name}` must be a number, found {}", other.type_str()),
+                    ))
+                }
+            };
+            if !v.is_finite() {
+                return Err(SessionError::file(
+                    path,
+                    format!("`{name}` = {v} is not finite"),
+                ));
+            }
+            values.push((name.clone(), v));
+        }
+        Ok(Self { values })
+    }
+
+    /// The TOML text: one `name = value` line each, values with full precision.
+    pub fn to_toml(&self) -> String {
+        let mut s = String::from("# true parameter values (SI units), MODEL.md §5 names\n");
+        for (n, v) in &self.values {
+            s.push_str(&format!("{n} = {v:?}\n"));
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_exact_and_ordered() {
+        let t = Truth {
+            values: vec![
+                ("tau".into(), -2.718281828459045),
+                ("eps_1_1".into(), 1e-4),
+                ("k_a_x".into(), 1.0),
+            ],
+        };
+        let back = Truth::parse(&t.to_toml(), Path::new("truth.toml")).unwrap();
+        assert_eq!(back, t);
+        assert_eq!(back.get("tau"), Some(-2.718281828459045));
+    }
+
+    #[test]
+    fn rejects_non_numbers() {
+        let e = Truth::parse("tau = \"x\"\n", Path::new("truth.toml")).unwrap_err();
+        assert!(e.to_string().contains("`tau` must be a number"), "{e}");
+    }
+}

@@ -1,0 +1,459 @@
+//! The normal matrix of the calibration problem and its factorisation.
+//!
+//! Ordering the unknowns as θ = [c, x] — the spline coefficients c first,
+//! basis function by basis function, then the model parameters x — makes the
+//! Gauss–Newton matrix an *arrowhead*:
+//!
+//! ```text
+//!     A = [ A_cc  A_cx ]     A_cc: banded (every residual touches p+1
+//!         [ A_xc  A_xx ]           consecutive basis functions), nc × nc
+//!                            A_cx: dense border, nc × nx
+//!                            A_xx: dense corner, nx × nx
+//! ```
+//!
+//! It is factored as a banded Cholesky L Lᵀ = A_cc, the border W = L⁻¹ A_cx,
+//! and the dense Cholesky of the Schur complement S = A_xx − Wᵀ W
+//! (the information about x with c marginalised out). S⁻¹ is the marginal
+//! covariance of x, the paper's (24). Cost: O(nc·w² + nc·w·nx + nc·nx²).
+//!
+//! Storage of the band: row `i` keeps columns `i−w ..= i` in ascending order at
+//! `band[i·(w+1) ..]`, the diagonal last; entries with negative column index are
+//! padding and stay zero.
+
+use faer::linalg::solvers::{DenseSolveCore, Llt, Solve};
+use faer::{Mat, MatRef, Side};
+
+/// A symmetric arrowhead matrix (see the module doc). Only the lower band,
+/// the border and the full corner are stored.
+#[derive(Debug, Clone)]
+pub struct ArrowMatrix {
+    nc: usize,
+    w: usize,
+    nx: usize,
+    band: Vec<f64>,
+    border: Vec<f64>,
+    corner: Mat<f64>,
+}
+
+/// Failure of a factorisation: the matrix is not numerically positive definite.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum FactorError {
+    /// A pivot of the banded part was not positive.
+    #[error(
+        "the trajectory block of the normal matrix is not positive definite at column {column}"
+    )]
+    BandNotPositiveDefinite {
+        /// The spline-coefficient column.
+        column: usize,
+    },
+    /// The Schur complement (information about x) is not positive definite.
+    #[error("the information about the model parameters is not positive definite")]
+    SchurNotPositiveDefinite,
+}
+
+impl ArrowMatrix {
+    /// A zero matrix with `nc` band unknowns of half-bandwidth `w` and `nx`
+    /// border unknowns.
+    pub fn zeros(nc: usize, w: usize, nx: usize) -> Self {
+        Self {
+            nc,
+            w,
+            nx,
+            band: vec![0.0; nc * (w + 1)],
+            border: vec![0.0; nc * nx],
+            corner: Mat::zeros(nx, nx),
+        }
+    }
+
+    /// Band size, half-bandwidth and border size.
+    pub fn dims(&self) -> (usize, usize, usize) {
+        (self.nc, self.w, self.nx)
+    }
+
+    /// Set every entry to zero, keeping the storage.
+    pub fn clear(&mut self) {
+        self.band.fill(0.0);
+        self.border.fill(0.0);
+        self.corner.fill(0.0);
+    }
+
+    #[inline]
+    fn band_index(&self, i: usize, j: usize) -> usize {
+        debug_assert!(j <= i && i - j <= self.w && i < self.nc);
+        i * (self.w + 1) + (j + self.w - i)
+    }
+
+    /// Entry (i, j) of A, for any i, j (zero outside the stored pattern).
+    pub fn get(&self, i: usize, j: usize) -> f64 {
+        let (nc, w) = (self.nc, self.w);
+        match (i < nc, j < nc) {
+            (true, true) => {
+                let (i, j) = if i >= j { (i, j) } else { (j, i) };
+                if i - j > w {
+                    0.0
+                } else {
+                    self.band[self.band_index(i, j)]
+                }
+            }
+            (true, false) => self.border[i * self.nx + (j - nc)],
+            (false, true) => self.border[j * self.nx + (i - nc)],
+            (false, false) => self.corner[(i - nc, j - nc)],
+        }
+    }
+
+    /// Add a dense symmetric block `local` whose rows/columns are the band
+    /// unknowns `c0 .. c0 + nl` followed by the border unknowns `x_index`
+    /// (indices into x). Only the lower triangle of `local` is read.
+    ///
+    /// # Panics
+    /// If the band unknowns leave the band (`nl > w + 1`) or the matrix, or if
+    /// `local` is not `(nl + x_index.len())` square.
+    #[track_caller]
+    pub fn add_local(&mut self, c0: usize, nl: usize, x_index: &[usize], local: MatRef<'_, f64>) {
+        let nb = x_index.len();
+        assert!(
+            nl <= self.w + 1 && c0 + nl <= self.nc,
+            "band block out of range"
+        );
+        assert!(
+            local.nrows() == nl + nb && local.ncols() == nl + nb,
+            "local block shape"
+        );
+        for a in 0..nl {
+            let i = c0 + a;
+            for b in 0..=a {
+                let k = self.band_index(i, c0 + b);
+                self.band[k] += local[(a, b)];
+            }
+            for (b, &xb) in x_index.iter().enumerate() {
+                self.border[i * self.nx + xb] += local[(nl + b, a)];
+            }
+        }
+        for (a, &xa) in x_index.iter().enumerate() {
+            for (b, &xb) in x_index.iter().enumerate().take(a + 1) {
+                let v = local[(nl + a, nl + b)];
+                self.corner[(xa, xb)] += v;
+                if xa != xb {
+                    self.corner[(xb, xa)] += v;
+                }
+            }
+        }
+    }
+
+    /// Add `v` to the band entry (i, j), `j ≤ i ≤ j + w` (and so to (j, i)).
+    ///
+    /// # Panics
+    /// In debug builds, if (i, j) is outside the stored band.
+    #[inline]
+    pub fn add_cc(&mut self, i: usize, j: usize, v: f64) {
+        let k = self.band_index(i, j);
+        self.band[k] += v;
+    }
+
+    /// Add every entry of `other` (same dimensions) to `self`.
+    ///
+    /// # Panics
+    /// If the dimensions differ.
+    #[track_caller]
+    pub fn add_assign(&mut self, other: &ArrowMatrix) {
+        assert_eq!(self.dims(), other.dims());
+        for (a, b) in self.band.iter_mut().zip(&other.band) {
+            *a += b;
+        }
+        for (a, b) in self.border.iter_mut().zip(&other.border) {
+            *a += b;
+        }
+        self.corner += &other.corner;
+    }
+
+    /// Add `v` to the corner entry (k, l) and, when k ≠ l, to (l, k).
+    pub fn add_xx(&mut self, k: usize, l: usize, v: f64) {
+        self.corner[(k, l)] += v;
+        if k != l {
+            self.corner[(l, k)] += v;
+        }
+    }
+
+    /// The diagonal of A.
+    pub fn diagonal(&self) -> Vec<f64> {
+        let mut d: Vec<f64> = (0..self.nc)
+            .map(|i| self.band[self.band_index(i, i)])
+            .collect();
+        d.extend((0..self.nx).map(|k| self.corner[(k, k)]));
+        d
+    }
+
+    /// Add `d[i]` to the diagonal entry i (Levenberg–Marquardt damping).
+    ///
+    /// # Panics
+    /// If `d.len()` is not `nc + nx`.
+    #[track_caller]
+    pub fn add_diagonal(&mut self, d: &[f64]) {
+        assert_eq!(d.len(), self.nc + self.nx);
+        for i in 0..self.nc {
+            let k = self.band_index(i, i);
+            self.band[k] += d[i];
+        }
+        for k in 0..self.nx {
+            self.corner[(k, k)] += d[self.nc + k];
+        }
+    }
+
+    /// The marginal information about x: S = A_xx − A_xc A_cc⁻¹ A_cx.
+    pub fn schur_complement(&self) -> Result<Mat<f64>, FactorError> {
+        let (l, w) = self.factor_parts()?;
+        Ok(self.schur_from(&l, &w))
+    }
+
+    /// Factor A (see the module doc).
+    pub fn factor(&self) -> Result<ArrowFactor, FactorError> {
+        let (l, w) = self.factor_parts()?;
+        let s = self.schur_from(&l, &w);
+        let llt = s
+            .llt(Side::Lower)
+            .map_err(|_| FactorError::SchurNotPositiveDefinite)?;
+        Ok(ArrowFactor {
+            nc: self.nc,
+            bw: self.w,
+            nx: self.nx,
+            l,
+            w,
+            s,
+            llt,
+        })
+    }
+
+    /// Banded Cholesky of A_cc and W = L⁻¹ A_cx.
+    fn factor_parts(&self) -> Result<(Vec<f64>, Vec<f64>), FactorError> {
+        let (nc, bw, nx) = (self.nc, self.w, self.nx);
+        let r = bw + 1;
+        let mut l = self.band.clone();
+        for i in 0..nc {
+            let j0 = i.saturating_sub(bw);
+            for j in j0..=i {
+                // L[i][j] = (A[i][j] − Σ_{k=max(i,j)-w}^{j-1} L[i][k] L[j][k]) / L[j][j]
+                let k0 = i.saturating_sub(bw);
+                let mut s = l[i * r + (j + bw - i)];
+                let ri = i * r + bw - i; // + k gives L[i][k]
+                let rj = j * r + bw - j;
+                for k in k0..j {
+                    s -= l[ri + k] * l[rj + k];
+                }
+                if j == i {
+                    if !(s > 0.0) || !s.is_finite() {
+                        return Err(FactorError::BandNotPositiveDefinite { column: i });
+                    }
+                    l[i * r + bw] = s.sqrt();
+                } else {
+                    l[i * r + (j + bw - i)] = s / l[j * r + bw];
+                }
+            }
+        }
+        // Forward substitution, row by row, all nx columns at once.
+        let mut w = self.border.clone();
+        for i in 0..nc {
+            let (done, rest) = w.split_at_mut(i * nx);
+            let row = &mut rest[..nx];
+            for k in i.saturating_sub(bw)..i {
+                let lik = l[i * r + (k + bw - i)];
+                if lik != 0.0 {
+                    let wk = &done[k * nx..(k + 1) * nx];
+                    for (a, b) in row.iter_mut().zip(wk) {
+                        *a -= lik * b;
+                    }
+                }
+            }
+            let d = l[i * r + bw];
+            for a in row.iter_mut() {
+                *a /= d;
+            }
+        }
+        Ok((l, w))
+    }
+
+    fn schur_from(&self, _l: &[f64], w: &[f64]) -> Mat<f64> {
+        let (nc, nx) = (self.nc, self.nx);
+        let wm = MatRef::from_row_major_slice(w, nc, nx);
+        let mut s = self.corner.clone();
+        faer::linalg::matmul::matmul(
+            s.as_mut(),
+            faer::Accum::Add,
+            wm.transpose(),
+            wm,
+            -1.0,
+            faer::Par::Seq,
+        );
+        s
+    }
+}
+
+/// A factored [`ArrowMatrix`].
+#[derive(Debug)]
+pub struct ArrowFactor {
+    nc: usize,
+    bw: usize,
+    nx: usize,
+    l: Vec<f64>,
+    w: Vec<f64>,
+    s: Mat<f64>,
+    llt: Llt<f64>,
+}
+
+impl ArrowFactor {
+    /// Solve A δ = rhs in place (`rhs.len() == nc + nx`).
+    ///
+    /// # Panics
+    /// If `rhs` has the wrong length.
+    #[track_caller]
+    pub fn solve_in_place(&self, rhs: &mut [f64]) {
+        let (nc, bw, nx) = (self.nc, self.bw, self.nx);
+        assert_eq!(rhs.len(), nc + nx);
+        let r = bw + 1;
+        let (rc, rx) = rhs.split_at_mut(nc);
+        // L y_c = r_c
+        for i in 0..nc {
+            let mut s = rc[i];
+            for k in i.saturating_sub(bw)..i {
+                s -= self.l[i * r + (k + bw - i)] * rc[k];
+            }
+            rc[i] = s / self.l[i * r + bw];
+        }
+        // S δx = r_x − Wᵀ y_c
+        for i in 0..nc {
+            let yi = rc[i];
+            if yi != 0.0 {
+                for (a, b) in rx.iter_mut().zip(&self.w[i * nx..(i + 1) * nx]) {
+                    *a -= b * yi;
+                }
+            }
+        }
+        let mut col = faer::Mat::from_fn(nx, 1, |i, _| rx[i]);
+        self.llt.solve_in_place(col.as_mut());
+        for (i, v) in rx.iter_mut().enumerate() {
+            *v = col[(i, 0)];
+        }
+        // Lᵀ δc = y_c − W δx
+        for i in 0..nc {
+            let wi = &self.w[i * nx..(i + 1) * nx];
+            rc[i] -= wi.iter().zip(rx.iter()).map(|(a, b)| a * b).sum::<f64>();
+        }
+        for i in (0..nc).rev() {
+            let v = rc[i] / self.l[i * r + bw];
+            rc[i] = v;
+            for k in i.saturating_sub(bw)..i {
+                rc[k] -= self.l[i * r + (k + bw - i)] * v;
+            }
+        }
+    }
+
+    /// The Schur complement S (information about x, c marginalised out).
+    pub fn schur(&self) -> MatRef<'_, f64> {
+        self.s.as_ref()
+    }
+
+    /// S⁻¹: the marginal covariance of x (the paper's (24)).
+    pub fn covariance_x(&self) -> Mat<f64> {
+        self.llt.inverse()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A random SPD arrowhead built from random local blocks, as assembly does.
+    fn random_arrow(nc: usize, w: usize, nx: usize, seed: u64) -> ArrowMatrix {
+        let mut state = seed;
+        let mut rnd = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        let mut a = ArrowMatrix::zeros(nc, w, nx);
+        let nl = w + 1;
+        let xs: Vec<usize> = (0..nx).collect();
+        for c0 in 0..=(nc - nl) {
+            // local = JᵀJ of a random 2·(nl+nx) × (nl+nx) Jacobian
+            let m = nl + nx;
+            let j = Mat::from_fn(2 * m, m, |_, _| rnd());
+            let local = j.transpose() * &j;
+            a.add_local(c0, nl, &xs, local.as_ref());
+        }
+        a
+    }
+
+    fn dense(a: &ArrowMatrix) -> Mat<f64> {
+        let n = a.nc + a.nx;
+        Mat::from_fn(n, n, |i, j| a.get(i, j))
+    }
+
+    #[test]
+    fn solve_matches_dense_cholesky() {
+        for &(nc, w, nx, seed) in &[(30, 3, 5, 1), (50, 7, 0, 2), (12, 11, 4, 3), (40, 5, 9, 4)] {
+            let a = random_arrow(nc, w, nx, seed);
+            let d = dense(&a);
+            let f = a.factor().unwrap();
+            let rhs: Vec<f64> = (0..nc + nx).map(|i| (i as f64 * 0.37).sin()).collect();
+            let mut x = rhs.clone();
+            f.solve_in_place(&mut x);
+            // residual of the solve, against the dense matrix
+            let xm = Mat::from_fn(nc + nx, 1, |i, _| x[i]);
+            let r = &d * &xm;
+            for i in 0..nc + nx {
+                assert!(
+                    (r[(i, 0)] - rhs[i]).abs() < 1e-9 * (1.0 + rhs[i].abs()),
+                    "row {i}"
+                );
+            }
+            // and against faer's dense solver
+            let reference = d
+                .llt(Side::Lower)
+                .unwrap()
+                .solve(Mat::from_fn(nc + nx, 1, |i, _| rhs[i]));
+            for i in 0..nc + nx {
+                assert!((reference[(i, 0)] - x[i]).abs() < 1e-9 * (1.0 + x[i].abs()));
+            }
+            if nx > 0 {
+                // covariance of x = the x-block of the dense inverse
+                let inv = d.llt(Side::Lower).unwrap().inverse();
+                let cov = f.covariance_x();
+                for i in 0..nx {
+                    for j in 0..nx {
+                        let e = inv[(nc + i, nc + j)];
+                        assert!((cov[(i, j)] - e).abs() < 1e-9 * (1.0 + e.abs()));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn damping_and_diagonal() {
+        let mut a = random_arrow(10, 2, 3, 9);
+        let before = a.diagonal();
+        a.add_diagonal(&vec![1.5; 13]);
+        let after = a.diagonal();
+        for (b, c) in before.iter().zip(&after) {
+            assert!((c - b - 1.5).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn indefinite_band_is_reported_with_its_column() {
+        let mut a = ArrowMatrix::zeros(4, 1, 1);
+        let mut d = vec![1.0; 5];
+        d[2] = -1.0;
+        a.add_diagonal(&d);
+        assert_eq!(
+            a.factor().unwrap_err(),
+            FactorError::BandNotPositiveDefinite { column: 2 }
+        );
+        let mut b = ArrowMatrix::zeros(3, 1, 2);
+        b.add_diagonal(&[1.0, 1.0, 1.0, 1.0, 0.0]);
+        assert_eq!(
+            b.factor().unwrap_err(),
+            FactorError::SchurNotPositiveDefinite
+        );
+    }
+}

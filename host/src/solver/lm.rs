@@ -1,0 +1,420 @@
+//! Levenberg–Marquardt on an arrowhead-structured least-squares problem.
+//!
+//! Minimises J(θ) = ½‖r(θ)‖². Each iteration solves
+//! (A + λ·D) δ = −g with A = JᵀJ, g = Jᵀr and D = diag(A) (Marquardt's scaling,
+//! so the damping does not depend on the units of θ), accepts the step when
+//! the cost decreases, and updates λ by Nielsen's rule from the gain ratio
+//! ρ = (actual decrease) / (decrease predicted by the quadratic model).
+//!
+//! Termination (Ceres-style): the relative cost decrease of an accepted step
+//! falls below `function_tolerance`, the scaled step below
+//! `parameter_tolerance`, the scaled gradient below `gradient_tolerance`, or
+//! `max_iterations` is reached.
+
+use super::arrow::{ArrowFactor, ArrowMatrix, FactorError};
+
+/// A problem the solver can drive.
+pub trait LeastSquares {
+    /// The error of an evaluation (outside the domain, …).
+    type Error: std::error::Error + Send + Sync + 'static;
+    /// Called at the start of every iteration, with the current θ (e.g. to
+    /// choose which samples enter the cost).
+    fn begin_iteration(&mut self, theta: &[f64]) -> Result<(), Self::Error>;
+    /// Cost ½‖r‖² at θ. An error means θ is not acceptable (the step is rejected).
+    fn cost(&self, theta: &[f64]) -> Result<f64, Self::Error>;
+    /// Cost, Gauss–Newton matrix and gradient at θ.
+    fn linearize(&self, theta: &[f64], a: &mut ArrowMatrix, g: &mut [f64]) -> Result<f64, Self::Error>;
+    /// Storage for [`Self::linearize`].
+    fn new_matrix(&self) -> ArrowMatrix;
+}
+
+/// Solver settings.
+#[derive(Debug, Clone)]
+pub struct LmOptions {
+    /// Most iterations (linearisations).
+    pub max_iterations: usize,
+    /// Stop when an accepted step lowers the cost by less than this fraction.
+    pub function_tolerance: f64,
+    /// Stop when ‖δ_k / (|θ_k| + s_k)‖∞ is below this.
+    pub parameter_tolerance: f64,
+    /// Stop when max |g_k| / √A_kk (the gradient in whitened units) is below this.
+    pub gradient_tolerance: f64,
+    /// Initial damping λ.
+    pub initial_lambda: f64,
+}
+
+impl Default for LmOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 100,
+            function_tolerance: 1e-10,
+            parameter_tolerance: 1e-12,
+            gradient_tolerance: 1e-10,
+            initial_lambda: 1e-4,
+        }
+    }
+}
+
+impl LmOptions {
+    /// Check that every setting is usable.
+    pub fn validate(&self) -> Result<(), String> {
+        let pos = |v: f64| v.is_finite() && v >= 0.0;
+        if self.max_iterations == 0 {
+            return Err("max_iterations must be at least 1".into());
+        }
+        if !(pos(self.function_tolerance) && pos(self.parameter_tolerance) && pos(self.gradient_tolerance)) {
+            return Err("tolerances must be finite and non-negative".into());
+        }
+        if !(self.initial_lambda.is_finite() && self.initial_lambda > 0.0) {
+            return Err("initial_lambda must be positive".into());
+        }
+        Ok(())
+    }
+}
+
+/// One line of the iteration log.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IterationRecord {
+    /// Iteration number, from 1.
+    pub iteration: usize,
+    /// Cost after the iteration.
+    pub cost: f64,
+    /// Scaled step length ‖√D δ‖ of the last step tried.
+    pub step_norm: f64,
+    /// Damping used for the last step tried.
+    pub lambda: f64,
+    /// Gradient in whitened units, max |g_k|/√A_kk, at the start of the iteration.
+    pub gradient_norm: f64,
+    /// Steps tried in this iteration (1 + rejections).
+    pub tries: usize,
+}
+
+/// Why the solver stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Termination {
+    /// Relative cost decrease below the function tolerance.
+    FunctionTolerance,
+    /// Step below the parameter tolerance.
+    ParameterTolerance,
+    /// Gradient below the gradient tolerance.
+    GradientTolerance,
+    /// Iteration limit reached before convergence.
+    MaxIterations,
+    /// No step lowered the cost even with very strong damping.
+    NoProgress,
+}
+
+impl Termination {
+    /// Whether this counts as convergence.
+    pub fn converged(self) -> bool {
+        !matches!(self, Termination::MaxIterations | Termination::NoProgress)
+    }
+}
+
+impl std::fmt::Display for Termination {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Termination::FunctionTolerance => "converged (cost change below tolerance)",
+            Termination::ParameterTolerance => "converged (step below tolerance)",
+            Termination::GradientTolerance => "converged (gradient below tolerance)",
+            Termination::MaxIterations => "stopped at the iteration limit without converging",
+            Termination::NoProgress => "stopped: no step lowers the cost",
+        })
+    }
+}
+
+/// What the solver did.
+#[derive(Debug, Clone)]
+pub struct LmSummary {
+    /// Cost at the start.
+    pub initial_cost: f64,
+    /// Cost at the end.
+    pub final_cost: f64,
+    /// The iteration log.
+    pub iterations: Vec<IterationRecord>,
+    /// Why it stopped.
+    pub termination: Termination,
+}
+
+impl std::fmt::Display for LmSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "{:>4} {:>14} {:>10} {:>9} {:>10}", "iter", "cost", "step", "lambda", "gradient")?;
+        for r in &self.iterations {
+            writeln!(
+                f,
+                "{:>4} {:>14.6e} {:>10.3e} {:>9.1e} {:>10.3e}",
+                r.iteration, r.cost, r.step_norm, r.lambda, r.gradient_norm
+            )?;
+        }
+        write!(
+            f,
+            "cost {:.6e} -> {:.6e}: {}",
+            self.initial_cost, self.final_cost, self.termination
+        )
+    }
+}
+
+/// Why the solver could not run at all.
+#[derive(Debug, thiserror::Error)]
+pub enum LmError<E: std::error::Error + 'static> {
+    /// The problem could not be evaluated at the starting point.
+    #[error("the problem cannot be evaluated at the starting point: {0}")]
+    Start(#[source] E),
+    /// The options are invalid.
+    #[error("invalid solver options: {0}")]
+    Options(String),
+    /// The undamped normal matrix at the solution is singular.
+    #[error(transparent)]
+    Factor(#[from] FactorError),
+}
+
+/// The solution: θ, the summary, and the factored normal matrix at θ.
+pub struct LmSolution {
+    /// The estimate.
+    pub theta: Vec<f64>,
+    /// The run.
+    pub summary: LmSummary,
+    /// The undamped Gauss–Newton matrix at θ, factored (for covariances).
+    pub factor: ArrowFactor,
+}
+
+/// Run Levenberg–Marquardt from `theta`. `report` sees every iteration.
+pub fn solve<P: LeastSquares>(
+    problem: &mut P,
+    mut theta: Vec<f64>,
+    opts: &LmOptions,
+    mut report: impl FnMut(&IterationRecord),
+) -> Result<LmSolution, LmError<P::Error>> {
+    opts.validate().map_err(LmError::Options)?;
+    let n = theta.len();
+    let mut a = problem.new_matrix();
+    let mut g = vec![0.0; n];
+    let mut lambda = opts.initial_lambda;
+    let mut nu = 2.0;
+    problem.begin_iteration(&theta).map_err(LmError::Start)?;
+    let initial_cost = problem.cost(&theta).map_err(LmError::Start)?;
+    let mut log = Vec::new();
+    let mut termination = Termination::MaxIterations;
+    let mut delta = vec![0.0; n];
+    'outer: for iteration in 1..=opts.max_iterations {
+        if iteration > 1 {
+            // the selected sample set may change with θ; the cost is re-evaluated below
+            problem.begin_iteration(&theta).map_err(LmError::Start)?;
+        }
+        let mut cost = problem.linearize(&theta, &mut a, &mut g).map_err(LmError::Start)?;
+        let diag = a.diagonal();
+        let dmax = diag.iter().cloned().fold(0.0f64, f64::max);
+        let d: Vec<f64> = diag.iter().map(|&v| v.max(1e-12 * dmax).max(1e-300)).collect();
+        let gnorm = g
+            .iter()
+            .zip(&d)
+            .map(|(gk, dk)| gk.abs() / dk.sqrt())
+            .fold(0.0f64, f64::max);
+        if gnorm < opts.gradient_tolerance {
+            termination = Termination::GradientTolerance;
+            log.push(IterationRecord {
+                iteration,
+                cost,
+                step_norm: 0.0,
+                lambda,
+                gradient_norm: gnorm,
+                tries: 0,
+            });
+            report(log.last().expect("pushed"));
+            break;
+        }
+        let mut tries = 0;
+        loop {
+            tries += 1;
+            let mut damped = a.clone();
+            let damping: Vec<f64> = d.iter().map(|v| lambda * v).collect();
+            damped.add_diagonal(&damping);
+            let step_ok = match damped.factor() {
+                Ok(f) => {
+                    for (dk, gk) in delta.iter_mut().zip(&g) {
+                        *dk = -gk;
+                    }
+                    f.solve_in_place(&mut delta);
+                    delta.iter().all(|v| v.is_finite())
+                }
+                Err(_) => false,
+            };
+            let mut new_cost = f64::INFINITY;
+            let mut predicted = 0.0;
+            let mut step_norm = f64::INFINITY;
+            let candidate: Vec<f64> = theta.iter().zip(&delta).map(|(t, dt)| t + dt).collect();
+            if step_ok {
+                // predicted decrease of the quadratic model: −gᵀδ − ½δᵀAδ = ½δᵀ(λD)δ − ½gᵀδ
+                let gd: f64 = g.iter().zip(&delta).map(|(a, b)| a * b).sum();
+                let dd: f64 = delta.iter().zip(&damping).map(|(x, l)| l * x * x).sum();
+                predicted = 0.5 * (dd - gd);
+                step_norm = delta.iter().zip(&d).map(|(x, dk)| dk * x * x).sum::<f64>().sqrt();
+                if let Ok(c) = problem.cost(&candidate) {
+                    new_cost = c;
+                }
+            }
+            let rho = if predicted > 0.0 { (cost - new_cost) / predicted } else { -1.0 };
+            if new_cost.is_finite() && new_cost <= cost && rho > 0.0 {
+                let rel = (cost - new_cost) / cost.max(f64::MIN_POSITIVE);
+                let small_step = delta
+                    .iter()
+                    .zip(&theta)
+                    .zip(&d)
+                    .all(|((dt, t), dk)| dt.abs() <= opts.parameter_tolerance * (t.abs() + 1.0 / dk.sqrt()));
+                theta = candidate;
+                cost = new_cost;
+                lambda *= f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3));
+                lambda = lambda.max(1e-15);
+                nu = 2.0;
+                log.push(IterationRecord {
+                    iteration,
+                    cost,
+                    step_norm,
+                    lambda,
+                    gradient_norm: gnorm,
+                    tries,
+                });
+                report(log.last().expect("pushed"));
+                if rel < opts.function_tolerance {
+                    termination = Termination::FunctionTolerance;
+                    break 'outer;
+                }
+                if small_step {
+                    termination = Termination::ParameterTolerance;
+                    break 'outer;
+                }
+                break;
+            }
+            lambda *= nu;
+            nu *= 2.0;
+            if lambda > 1e16 {
+                log.push(IterationRecord {
+                    iteration,
+                    cost,
+                    step_norm,
+                    lambda,
+                    gradient_norm: gnorm,
+                    tries,
+                });
+                report(log.last().expect("pushed"));
+                termination = Termination::NoProgress;
+                break 'outer;
+            }
+        }
+    }
+    // the undamped matrix at the final θ, for the covariance
+    problem.begin_iteration(&theta).map_err(LmError::Start)?;
+    let final_cost = problem.linearize(&theta, &mut a, &mut g).map_err(LmError::Start)?;
+    let factor = a.factor()?;
+    Ok(LmSolution {
+        theta,
+        summary: LmSummary {
+            initial_cost,
+            final_cost,
+            iterations: log,
+            termination,
+        },
+        factor,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rosenbrock-like problem with a band part: r = [10(c_{i+1} − c_i²), 1 − c_i] and
+    /// one border unknown x coupling all: r = x − 2.
+    struct Toy {
+        nc: usize,
+    }
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("never")]
+    struct Never;
+
+    impl Toy {
+        fn residuals(&self, th: &[f64]) -> (Vec<f64>, Vec<Vec<(usize, f64)>>) {
+            let nc = self.nc;
+            let mut r = Vec::new();
+            let mut j = Vec::new();
+            for i in 0..nc - 1 {
+                r.push(10.0 * (th[i + 1] - th[i] * th[i]));
+                j.push(vec![(i, -20.0 * th[i]), (i + 1, 10.0)]);
+            }
+            for i in 0..nc {
+                r.push(1.0 - th[i] + 0.1 * (th[nc] - 2.0));
+                j.push(vec![(i, -1.0), (nc, 0.1)]);
+            }
+            r.push(th[nc] - 2.0);
+            j.push(vec![(nc, 1.0)]);
+            (r, j)
+        }
+    }
+
+    impl LeastSquares for Toy {
+        type Error = Never;
+        fn begin_iteration(&mut self, _: &[f64]) -> Result<(), Never> {
+            Ok(())
+        }
+        fn cost(&self, th: &[f64]) -> Result<f64, Never> {
+            Ok(0.5 * self.residuals(th).0.iter().map(|v| v * v).sum::<f64>())
+        }
+        fn linearize(&self, th: &[f64], a: &mut ArrowMatrix, g: &mut [f64]) -> Result<f64, Never> {
+            a.clear();
+            g.fill(0.0);
+            let nc = self.nc;
+            let (r, j) = self.residuals(th);
+            for (ri, row) in r.iter().zip(&j) {
+                for &(p, vp) in row {
+                    g[p] += vp * ri;
+                    for &(q, vq) in row {
+                        match (p < nc, q < nc) {
+                            (true, true) if q <= p => a.add_cc(p, q, vp * vq),
+                            (false, false) => a.add_xx(0, 0, vp * vq),
+                            (true, false) => {
+                                let m = faer::Mat::from_fn(2, 2, |i, k| if i == 1 && k == 0 { vp * vq } else { 0.0 });
+                                a.add_local(p, 1, &[0], m.as_ref());
+                            }
+                            _ => {}
+                        }
+                    }
+                }
+            }
+            self.cost(th)
+        }
+        fn new_matrix(&self) -> ArrowMatrix {
+            ArrowMatrix::zeros(self.nc, 1, 1)
+        }
+    }
+
+    #[test]
+    fn converges_on_a_banded_rosenbrock_chain() {
+        let mut toy = Toy { nc: 12 };
+        let mut start = vec![-1.2; 12];
+        start.push(0.0);
+        let mut seen = 0;
+        let sol = solve(&mut toy, start, &LmOptions::default(), |_| seen += 1).unwrap();
+        assert!(sol.summary.termination.converged(), "{}", sol.summary);
+        assert_eq!(seen, sol.summary.iterations.len());
+        // the minimum is c_i = 1, x = 2 with zero cost
+        for v in &sol.theta[..12] {
+            assert!((v - 1.0).abs() < 1e-7, "{v}");
+        }
+        assert!((sol.theta[12] - 2.0).abs() < 1e-7);
+        assert!(sol.summary.final_cost < 1e-14);
+        // costs never increase
+        let costs: Vec<f64> = sol.summary.iterations.iter().map(|r| r.cost).collect();
+        assert!(costs.windows(2).all(|w| w[1] <= w[0]));
+    }
+
+    #[test]
+    fn invalid_options_are_rejected() {
+        let opts = LmOptions {
+            max_iterations: 0,
+            ..LmOptions::default()
+        };
+        let mut toy = Toy { nc: 3 };
+        let err = solve(&mut toy, vec![0.0; 4], &opts, |_| {}).err().unwrap();
+        assert!(err.to_string().contains("max_iterations"));
+    }
+}
