@@ -5,3 +5,4 @@ pub mod model;
 pub mod problem;
 pub mod session;
 pub mod solver;
+pub mod workflows;

@@ -301,7 +301,7 @@ fn every_golden_frame_equals_the_reference_encoder() {
         .expect("postcard");
         assert_eq!(
             encode_golden(&g),
-            ref_frame(PROTOCOL_VERSION, &payload),
+            ref_frame(PROTOCOL_VERSION, payload),
             "{name}"
         );
     }

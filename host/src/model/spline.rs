@@ -8,7 +8,7 @@
 //! The non-zero basis functions at t are N_{μ−p..=μ} on the knot span μ
 //! (`y_μ ≤ t < y_{μ+1}`; t = t1 belongs to the last span); they and their
 //! derivatives up to order 3 come from Cox–de Boor with derivatives (Piegl &
-//! Tiller, *The NURBS Book*, A2.3), allocation-free.
+//! Tiller, *The NURBS Book*, A2.2 and eq. (2.9)), allocation-free.
 
 use super::kinematics::JointState;
 use super::MAX_JOINTS;
@@ -201,68 +201,60 @@ pub struct Basis {
     pub d: [[f64; MAX_DEGREE + 1]; MAX_DERIV + 1],
 }
 
-/// The NURBS Book A2.3 with n = min(3, p) derivatives; higher rows zeroed.
-fn ders_basis_funs(y: &[f64], p: usize, i: usize, u: f64, ders: &mut [[f64; MAX_DEGREE + 1]; 4]) {
+/// Non-zero basis functions of degree p on span μ and their derivatives.
+///
+/// Cox–de Boor builds the triangular table `ndu[r][j]` = N_{μ−j+r, j}(u) for
+/// degrees j = 0..p (The NURBS Book A2.2) and keeps the inverted knot
+/// differences; the k-th derivative then follows from the degree p−k values by
+/// k steps of N^{(m)}_{i,q} = q [N^{(m−1)}_{i,q−1}/(u_{i+q} − u_i) −
+/// N^{(m−1)}_{i+1,q−1}/(u_{i+q+1} − u_{i+1})]. Rows k > p stay zero.
+#[inline]
+fn ders_basis_funs(y: &[f64], p: usize, mu: usize, u: f64, ders: &mut [[f64; MAX_DEGREE + 1]; 4]) {
     const W: usize = MAX_DEGREE + 1;
     let mut ndu = [[0.0f64; W]; W];
+    // inv[j][r] = 1 / (y[μ+r+1] − y[μ+1−j+r]), r < j: always > 0 on a non-empty span.
+    let mut inv = [[0.0f64; W]; W];
     let mut left = [0.0f64; W];
     let mut right = [0.0f64; W];
     ndu[0][0] = 1.0;
     for j in 1..=p {
-        left[j] = u - y[i + 1 - j];
-        right[j] = y[i + j] - u;
+        left[j] = u - y[mu + 1 - j];
+        right[j] = y[mu + j] - u;
         let mut saved = 0.0;
         for r in 0..j {
-            ndu[j][r] = right[r + 1] + left[j - r];
-            let temp = ndu[r][j - 1] / ndu[j][r];
+            let iv = 1.0 / (right[r + 1] + left[j - r]);
+            inv[j][r] = iv;
+            let temp = ndu[r][j - 1] * iv;
             ndu[r][j] = saved + right[r + 1] * temp;
             saved = left[j - r] * temp;
         }
         ndu[j][j] = saved;
     }
     *ders = [[0.0; W]; 4];
-    for j in 0..=p {
-        ders[0][j] = ndu[j][p];
-    }
-    let n = MAX_DERIV.min(p);
-    let mut a = [[0.0f64; W]; 2];
     for r in 0..=p {
-        let (mut s1, mut s2) = (0usize, 1usize);
-        a[0][0] = 1.0;
-        for k in 1..=n {
-            let mut d = 0.0;
-            let rk = r as isize - k as isize;
-            let pk = p - k;
-            if r >= k {
-                let rk = rk as usize;
-                a[s2][0] = a[s1][0] / ndu[pk + 1][rk];
-                d = a[s2][0] * ndu[rk][pk];
-            }
-            let j1 = if rk >= -1 { 1 } else { (-rk) as usize };
-            let j2 = if r as isize - 1 <= pk as isize {
-                k - 1
-            } else {
-                p - r
-            };
-            for j in j1..=j2 {
-                let idx = (rk + j as isize) as usize;
-                a[s2][j] = (a[s1][j] - a[s1][j - 1]) / ndu[pk + 1][idx];
-                d += a[s2][j] * ndu[idx][pk];
-            }
-            if r <= pk {
-                a[s2][k] = -a[s1][k - 1] / ndu[pk + 1][r];
-                d += a[s2][k] * ndu[r][pk];
-            }
-            ders[k][r] = d;
-            core::mem::swap(&mut s1, &mut s2);
-        }
+        ders[0][r] = ndu[r][p];
     }
-    let mut fac = p as f64;
-    for (k, row) in ders.iter_mut().enumerate().take(n + 1).skip(1) {
-        for v in row.iter_mut().take(p + 1) {
-            *v *= fac;
+    for k in 1..=MAX_DERIV.min(p) {
+        let q0 = p - k;
+        let mut v = [0.0f64; W];
+        for r in 0..=q0 {
+            v[r] = ndu[r][q0];
         }
-        fac *= (p - k) as f64;
+        for q in q0 + 1..=p {
+            let mut nv = [0.0f64; W];
+            for r in 0..=q {
+                let mut t = 0.0;
+                if r >= 1 {
+                    t += v[r - 1] * inv[q][r - 1];
+                }
+                if r < q {
+                    t -= v[r] * inv[q][r];
+                }
+                nv[r] = q as f64 * t;
+            }
+            v = nv;
+        }
+        ders[k][..=p].copy_from_slice(&v[..=p]);
     }
 }
 

@@ -1,0 +1,137 @@
+//! Simulated sessions (MODEL.md §7): a ground truth, a joint trajectory and the
+//! noise model turned into `joints.csv`, `imu.csv` and `truth.toml`.
+//!
+//! The simulator promises nothing MODEL.md does not: the two streams have
+//! their own rates, start times and optional jitter, and the trajectory's
+//! knots need not match the estimator's. Before the trajectory starts and
+//! after it ends the robot rests at its end poses, so IMU samples whose
+//! t + τ falls outside the motion are still physical (the estimator leaves
+//! them out, MODEL.md §4).
+
+use rand::{Rng, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+
+use crate::model::{JointState, MeasurementModel, ModelError, ParamLayout, Robot, Spline};
+use crate::problem::Measurements;
+
+/// How to sample a simulated session.
+#[derive(Debug, Clone)]
+pub struct SimulateOptions {
+    /// IMU sample rate, Hz.
+    pub imu_rate: f64,
+    /// Joint sample rate, Hz.
+    pub joint_rate: f64,
+    /// Session time of the first IMU sample, s.
+    pub imu_start: f64,
+    /// Session time of the first joint sample, s.
+    pub joint_start: f64,
+    /// Standard deviation of the sample-time jitter, s (both streams).
+    pub jitter: f64,
+    /// Add measurement noise (σ_z, σ_q); off gives noise-free data.
+    pub noise: bool,
+    /// σ of `[ax, ay, az, gx, gy, gz]`.
+    pub sigma_z: [f64; 6],
+    /// σ of each joint, rad.
+    pub sigma_q: Vec<f64>,
+}
+
+impl SimulateOptions {
+    /// The paper's setup for `robot`: 120 Hz both streams, its noise.
+    pub fn paper(robot: &Robot) -> Self {
+        Self {
+            imu_rate: 120.0,
+            joint_rate: 120.0,
+            imu_start: 0.0,
+            joint_start: 0.0,
+            jitter: 0.0,
+            noise: true,
+            sigma_z: robot.sigma_z(),
+            sigma_q: robot.sigma_q().to_vec(),
+        }
+    }
+}
+
+/// Draw a ground truth x from the priors of `layout` (Gaussian, seeded).
+pub fn draw_truth<R: Rng>(layout: &ParamLayout, rng: &mut R) -> Vec<f64> {
+    layout
+        .specs()
+        .iter()
+        .map(|s| {
+            let z: f64 = StandardNormal.sample(rng);
+            s.nominal + s.sigma * z
+        })
+        .collect()
+}
+
+/// The trajectory at any t: the spline inside its span, at rest at the end
+/// poses outside it.
+pub fn joint_state_at(trajectory: &Spline, t: f64, out: &mut JointState) {
+    let (t0, t1) = (trajectory.knots().start(), trajectory.knots().end());
+    trajectory
+        .evaluate(t.clamp(t0, t1), out)
+        .expect("t clamped into the spline");
+    if t < t0 || t > t1 {
+        out.qd = Default::default();
+        out.qdd = Default::default();
+        out.qddd = Default::default();
+    }
+}
+
+/// Sample a session: joint samples over the trajectory's span, IMU samples
+/// over the same span of the session clock, each IMU sample showing the robot
+/// at t + τ (MODEL.md §4).
+pub fn simulate(
+    robot: &Robot,
+    layout: &ParamLayout,
+    truth: &[f64],
+    trajectory: &Spline,
+    opts: &SimulateOptions,
+    seed: u64,
+) -> Result<Measurements, ModelError> {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x5EED_0F_5A3F1E);
+    let model = MeasurementModel::new(robot, layout, truth)?;
+    let tau = truth[layout.offsets().tau];
+    let n = robot.dof();
+    let (t0, t1) = (trajectory.knots().start(), trajectory.knots().end());
+    let noise = |s: f64, rng: &mut rand::rngs::StdRng| -> f64 {
+        if opts.noise {
+            let z: f64 = StandardNormal.sample(rng);
+            s * z
+        } else {
+            0.0
+        }
+    };
+    let mut data = Measurements::default();
+    let mut js = JointState::default();
+    let times = |start: f64, rate: f64, rng: &mut rand::rngs::StdRng| -> Vec<f64> {
+        let count = ((t1 - start) * rate).floor().max(0.0) as usize + 1;
+        let mut out: Vec<f64> = Vec::with_capacity(count);
+        for k in 0..count {
+            let jit = if opts.jitter > 0.0 {
+                let z: f64 = StandardNormal.sample(rng);
+                (opts.jitter * z).clamp(-0.4 / rate, 0.4 / rate)
+            } else {
+                0.0
+            };
+            let t = start + k as f64 / rate + jit;
+            if t >= t0 && t <= t1 {
+                out.push(t);
+            }
+        }
+        out
+    };
+    data.joint_t = times(opts.joint_start.max(t0), opts.joint_rate, &mut rng);
+    for &t in &data.joint_t {
+        trajectory.evaluate(t, &mut js).expect("inside the span");
+        for j in 0..n {
+            data.joint_q.push(js.q[j] + noise(opts.sigma_q[j], &mut rng));
+        }
+    }
+    data.imu_t = times(opts.imu_start.max(t0), opts.imu_rate, &mut rng);
+    for &t in &data.imu_t {
+        joint_state_at(trajectory, t + tau, &mut js);
+        let z = model.predict(&js);
+        data.imu_z.push(std::array::from_fn(|c| z[c] + noise(opts.sigma_z[c], &mut rng)));
+    }
+    Ok(data)
+}

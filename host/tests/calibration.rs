@@ -1,0 +1,66 @@
+//! End-to-end calibration on simulated sessions: the estimator recovers the
+//! truth that the simulator hid, within the uncertainty it reports.
+
+use rand::SeedableRng;
+use robimu::model::{ParamLayout, Robot};
+use robimu::workflows::calibrate::{calibrate, CalibrateError, CalibrateOptions};
+use robimu::workflows::simulate::{draw_truth, simulate, SimulateOptions};
+use robimu::workflows::trajectory::random_walk;
+
+fn setup(seed: u64, duration: f64) -> (Robot, ParamLayout, Vec<f64>, robimu::model::Spline) {
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::new(&robot);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let truth = draw_truth(&layout, &mut rng);
+    let traj = random_walk(&robot, duration, 1.0, &mut rng).unwrap();
+    (robot, layout, truth, traj)
+}
+
+#[test]
+fn noisy_session_recovers_truth_within_four_sigma() {
+    let (robot, layout, truth, traj) = setup(11, 120.0);
+    let mut sim = SimulateOptions::paper(&robot);
+    // streams that share nothing: other rates, phases, jitter
+    sim.imu_rate = 100.0;
+    sim.joint_rate = 125.0;
+    sim.imu_start = 0.0037;
+    sim.joint_start = 0.0011;
+    sim.jitter = 2e-4;
+    let data = simulate(&robot, &layout, &truth, &traj, &sim, 5).unwrap();
+    let opts = CalibrateOptions::new(&robot);
+    let cal = calibrate(&robot, &data, &opts, |_| {}).unwrap();
+    let mut worst = (0.0, String::new());
+    for (k, spec) in layout.specs().iter().enumerate() {
+        let z = (cal.x[k] - truth[k]) / cal.sigma[k];
+        if z.abs() > worst.0 {
+            worst = (z.abs(), spec.name.clone());
+        }
+    }
+    eprintln!("{}", cal.summary);
+    eprintln!("tau: truth {} init {:?} est {}", truth[layout.offsets().tau], cal.tau_initial, cal.x[layout.offsets().tau]);
+    eprintln!("worst |error|/sigma = {:.2} ({}) ; residual rms {:?}", worst.0, worst.1, cal.residual_rms);
+    assert!(worst.0 < 4.0, "worst |error|/σ {:.2} at {}", worst.0, worst.1);
+    for r in cal.residual_rms {
+        assert!((r - 1.0).abs() < 0.05, "whitened residual rms {r}");
+    }
+}
+
+#[test]
+fn noise_free_without_priors_recovers_every_parameter_exactly() {
+    let (robot, layout, truth, traj) = setup(3, 60.0);
+    let mut sim = SimulateOptions::paper(&robot);
+    sim.noise = false;
+    let data = simulate(&robot, &layout, &truth, &traj, &sim, 1).unwrap();
+    let mut opts = CalibrateOptions::new(&robot);
+    opts.use_prior = false;
+    let cal = match calibrate(&robot, &data, &opts, |r| eprintln!("{r:?}")) {
+        Ok(c) => c,
+        Err(CalibrateError::NotConverged { summary }) => panic!("{summary}"),
+        Err(e) => panic!("{e}"),
+    };
+    eprintln!("{}", cal.summary);
+    for (k, spec) in layout.specs().iter().enumerate() {
+        let rel = (cal.x[k] - truth[k]).abs() / spec.sigma;
+        assert!(rel < 1e-6, "{}: error {:.3e} prior σ", spec.name, rel);
+    }
+}
