@@ -3,6 +3,7 @@
 
 use std::ops::Range;
 
+use faer::linalg::matmul::triangular::BlockStructure;
 use faer::{Accum, Mat, MatRef, Par};
 
 use super::{Problem, ProblemError};
@@ -15,8 +16,8 @@ struct Linearization<'m> {
     g: &'m mut [f64],
 }
 
-/// IMU samples stacked per flush of the group buffer.
-const GROUP_CAP: usize = 200;
+/// IMU samples stacked per flush of a group buffer.
+const GROUP_CAP: usize = 256;
 
 impl Problem<'_> {
     /// The cost ½‖r‖² at θ over the selected IMU samples.
@@ -24,11 +25,13 @@ impl Problem<'_> {
         let x = self.x_of(theta);
         let model = self.model(&x)?;
         let spline = self.spline_of(theta);
-        let mut cost = self.joint_terms(&spline, None) + self.prior_terms(&x, None, 0);
-        for part in self.imu_parts() {
-            cost += self.imu_terms(&model, &spline, &x, part, None)?;
-        }
-        Ok(cost)
+        let [first, second] = self.imu_parts();
+        let (c1, c2) = std::thread::scope(|s| {
+            let h = s.spawn(|| self.imu_terms(&model, &spline, &x, second, None));
+            let c1 = self.imu_terms(&model, &spline, &x, first, None);
+            (c1, h.join().expect("cost thread panicked"))
+        });
+        Ok(c1? + c2? + self.joint_terms(&spline, None) + self.prior_terms(&x, None, 0))
     }
 
     /// Storage for [`Self::linearize`].
@@ -152,7 +155,9 @@ impl Problem<'_> {
     }
 
     /// IMU residuals of the samples `range`: cost, and (with `out`) their
-    /// Gauss–Newton blocks, flushed per knot span.
+    /// Gauss–Newton blocks, flushed per knot span. Accelerometer and gyroscope
+    /// rows are stacked separately, each with only the x columns it depends
+    /// on ([`Problem::sensor_columns`]).
     fn imu_terms(
         &self,
         model: &MeasurementModel,
@@ -163,137 +168,134 @@ impl Problem<'_> {
     ) -> Result<f64, ProblemError> {
         let n = self.n;
         let nl = (self.knots.degree() + 1) * n;
-        let na = self.active.len();
-        let cols = nl + na;
         let tau = x[self.layout.offsets().tau];
         let mut js = JointState::default();
         let mut basis = Basis::default();
-        let mut jac = MeasurementJacobians::new(self.layout.len());
         let mut cost = 0.0;
-        let linearize = out.is_some();
-        let (mut jg, mut rg, mut local, mut glocal) = if linearize {
-            (
-                Mat::<f64>::zeros(6 * GROUP_CAP, cols),
-                Mat::<f64>::zeros(6 * GROUP_CAP, 1),
-                Mat::<f64>::zeros(cols, cols),
-                Mat::<f64>::zeros(cols, 1),
-            )
-        } else {
-            (Mat::new(), Mat::new(), Mat::new(), Mat::new())
-        };
-        let mut rows = 0usize;
-        let mut group_first = usize::MAX;
-        for i in range {
-            let u = self.data.imu_t[i] + tau;
-            self.knots
-                .basis(u, &mut basis)
-                .map_err(|_| ProblemError::SampleOutOfSpan)?;
-            spline.evaluate_basis(&basis, &mut js);
-            let zm = &self.data.imu_z[i];
-            if !linearize {
+        let Some(out) = out.as_deref_mut() else {
+            for i in range {
+                let u = self.data.imu_t[i] + tau;
+                self.knots.basis(u, &mut basis).map_err(|_| ProblemError::SampleOutOfSpan)?;
+                spline.evaluate_basis(&basis, &mut js);
                 let z = model.predict(&js);
+                let zm = &self.data.imu_z[i];
                 for ch in 0..6 {
                     let r = (zm[ch] - z[ch]) * self.inv_sigma_z[ch];
                     cost += 0.5 * r * r;
                 }
-                continue;
             }
-            let out = out.as_deref_mut().expect("linearize");
-            if (basis.first != group_first && rows > 0) || rows + 6 > jg.nrows() {
-                flush(
-                    &mut jg,
-                    &mut rg,
-                    &mut local,
-                    &mut glocal,
-                    rows,
-                    group_first * n,
-                    nl,
-                    na,
-                    out,
-                );
-                rows = 0;
+            return Ok(cost);
+        };
+        let mut jac = MeasurementJacobians::new(self.layout.len());
+        let mut blocks = [
+            Stack::new(nl, &self.sensor_columns[0]),
+            Stack::new(nl, &self.sensor_columns[1]),
+        ];
+        let mut group_first = usize::MAX;
+        for i in range {
+            let u = self.data.imu_t[i] + tau;
+            self.knots.basis(u, &mut basis).map_err(|_| ProblemError::SampleOutOfSpan)?;
+            spline.evaluate_basis(&basis, &mut js);
+            if (basis.first != group_first && blocks[0].rows > 0) || blocks[0].full() {
+                for b in &mut blocks {
+                    b.flush(group_first * n, out);
+                }
             }
             group_first = basis.first;
             model.jacobians(&js, &mut jac);
-            for ch in 0..6 {
-                let w = self.inv_sigma_z[ch];
-                let r = (zm[ch] - jac.z[ch]) * w;
-                cost += 0.5 * r * r;
-                let row = rows + ch;
-                rg[(row, 0)] = r;
-                // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)/σ
-                for a in 0..basis.count {
-                    let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
-                    for j in 0..n {
-                        jg[(row, a * n + j)] = -w
-                            * (jac.dz_dq[j][ch] * n0
-                                + jac.dz_dqd[j][ch] * n1
-                                + jac.dz_dqdd[j][ch] * n2);
+            let zm = &self.data.imu_z[i];
+            for (sensor, block) in blocks.iter_mut().enumerate() {
+                for ch in 3 * sensor..3 * sensor + 3 {
+                    let w = self.inv_sigma_z[ch];
+                    let r = (zm[ch] - jac.z[ch]) * w;
+                    cost += 0.5 * r * r;
+                    let row = block.rows;
+                    block.r[row] = r;
+                    let col = block.jt.col_mut(row).try_as_col_major_mut().expect("contiguous column");
+                    let col = col.as_slice_mut();
+                    // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)/σ
+                    for a in 0..basis.count {
+                        let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
+                        for j in 0..n {
+                            col[a * n + j] = -w
+                                * (jac.dz_dq[j][ch] * n0 + jac.dz_dqd[j][ch] * n1 + jac.dz_dqdd[j][ch] * n2);
+                        }
                     }
-                }
-                for (a, &k) in self.active.iter().enumerate() {
-                    jg[(row, nl + a)] = -w * jac.dz_dx[k][ch];
+                    for (a, &(k, _)) in block.columns.iter().enumerate() {
+                        col[nl + a] = -w * jac.dz_dx[k][ch];
+                    }
+                    block.rows += 1;
                 }
             }
-            rows += 6;
         }
-        if let Some(out) = out {
-            if rows > 0 {
-                flush(
-                    &mut jg,
-                    &mut rg,
-                    &mut local,
-                    &mut glocal,
-                    rows,
-                    group_first * n,
-                    nl,
-                    na,
-                    out,
-                );
-            }
+        for b in &mut blocks {
+            b.flush(group_first * n, out);
         }
         Ok(cost)
     }
 }
 
-/// Add JᵀJ and Jᵀr of the first `rows` rows of a group to `out`.
-#[allow(clippy::too_many_arguments)]
-fn flush(
-    jg: &mut Mat<f64>,
-    rg: &mut Mat<f64>,
-    local: &mut Mat<f64>,
-    glocal: &mut Mat<f64>,
-    rows: usize,
-    c0: usize,
+/// Rows of one sensor's whitened Jacobian for a run of samples in one knot
+/// span, stored transposed (one contiguous column per row).
+struct Stack<'c> {
     nl: usize,
-    na: usize,
-    out: &mut Linearization<'_>,
-) {
-    let j: MatRef<'_, f64> = jg.as_ref().subrows(0, rows);
-    let r: MatRef<'_, f64> = rg.as_ref().subrows(0, rows);
-    faer::linalg::matmul::matmul(
-        local.as_mut(),
-        Accum::Replace,
-        j.transpose(),
-        j,
-        1.0,
-        Par::Seq,
-    );
-    faer::linalg::matmul::matmul(
-        glocal.as_mut(),
-        Accum::Replace,
-        j.transpose(),
-        r,
-        1.0,
-        Par::Seq,
-    );
-    let xs: Vec<usize> = (0..na).collect();
-    out.a.add_local(c0, nl, &xs, local.as_ref());
-    let nc = out.a.dims().0;
-    for a in 0..nl {
-        out.g[c0 + a] += glocal[(a, 0)];
+    /// (x index, position in θ's x part) of the columns after the nl band ones.
+    columns: &'c [(usize, usize)],
+    jt: Mat<f64>,
+    r: Vec<f64>,
+    rows: usize,
+    local: Mat<f64>,
+    glocal: Mat<f64>,
+    x_index: Vec<usize>,
+}
+
+impl<'c> Stack<'c> {
+    fn new(nl: usize, columns: &'c [(usize, usize)]) -> Self {
+        let cols = nl + columns.len();
+        Self {
+            nl,
+            columns,
+            jt: Mat::zeros(cols, 3 * GROUP_CAP),
+            r: vec![0.0; 3 * GROUP_CAP],
+            rows: 0,
+            local: Mat::zeros(cols, cols),
+            glocal: Mat::zeros(cols, 1),
+            x_index: columns.iter().map(|&(_, a)| a).collect(),
+        }
     }
-    for a in 0..na {
-        out.g[nc + a] += glocal[(nl + a, 0)];
+
+    fn full(&self) -> bool {
+        self.rows + 3 > self.r.len()
+    }
+
+    /// Add JᵀJ (lower triangle) and Jᵀr of the stacked rows to `out` at band
+    /// offset `c0`, and empty the stack.
+    fn flush(&mut self, c0: usize, out: &mut Linearization<'_>) {
+        if self.rows == 0 {
+            return;
+        }
+        let jt = self.jt.as_ref().subcols(0, self.rows);
+        let r = MatRef::from_column_major_slice(&self.r[..self.rows], self.rows, 1);
+        faer::linalg::matmul::triangular::matmul(
+            self.local.as_mut(),
+            BlockStructure::TriangularLower,
+            Accum::Replace,
+            jt,
+            BlockStructure::Rectangular,
+            jt.transpose(),
+            BlockStructure::Rectangular,
+            1.0,
+            Par::Seq,
+        );
+        faer::linalg::matmul::matmul(self.glocal.as_mut(), Accum::Replace, jt, r, 1.0, Par::Seq);
+        out.a.add_local(c0, self.nl, &self.x_index, self.local.as_ref());
+        let nc = out.a.dims().0;
+        for a in 0..self.nl {
+            out.g[c0 + a] += self.glocal[(a, 0)];
+        }
+        for (b, &xa) in self.x_index.iter().enumerate() {
+            out.g[nc + xa] += self.glocal[(self.nl + b, 0)];
+        }
+        self.rows = 0;
     }
 }

@@ -94,6 +94,9 @@ pub struct Problem<'a> {
     x_base: Vec<f64>,
     joint_basis: Vec<Basis>,
     imu_range: Range<usize>,
+    /// Per sensor (accelerometer, gyroscope): the estimated parameters its
+    /// rows can depend on, as (x index, position in θ's x part).
+    sensor_columns: [Vec<(usize, usize)>; 2],
 }
 
 impl<'a> Problem<'a> {
@@ -128,6 +131,14 @@ impl<'a> Problem<'a> {
             joint_basis.push(b);
         }
         let specs = layout.specs();
+        let sensor_columns = [0, 1].map(|sensor| {
+            active
+                .iter()
+                .enumerate()
+                .filter(|&(_, &k)| sensor_depends_on(layout, sensor, k))
+                .map(|(a, &k)| (k, a))
+                .collect()
+        });
         let mut p = Self {
             robot,
             layout,
@@ -143,6 +154,7 @@ impl<'a> Problem<'a> {
             x_base,
             joint_basis,
             imu_range: 0..0,
+            sensor_columns,
         };
         let tau = p.x_base[layout.offsets().tau];
         p.select_samples(tau)?;
@@ -240,6 +252,22 @@ impl<'a> Problem<'a> {
     }
 }
 
+/// Whether the rows of `sensor` (0: accelerometer, 1: gyroscope) can depend
+/// on x[k] (MODEL.md §1–3): the gyroscope sees only rotations — no robot
+/// length errors ε_i{1,2,3}, no gravity, no accelerometer intrinsics — and the
+/// accelerometer sees no gyroscope intrinsics.
+pub fn sensor_depends_on(layout: &ParamLayout, sensor: usize, k: usize) -> bool {
+    let o = layout.offsets();
+    let gyro_intrinsics = k >= o.gamma_w;
+    if sensor == 0 {
+        return !gyro_intrinsics;
+    }
+    if k < o.g_xy {
+        return layout.estimated_errors()[k].k >= 4;
+    }
+    k == o.tau || gyro_intrinsics
+}
+
 impl crate::solver::LeastSquares for Problem<'_> {
     type Error = ProblemError;
     fn begin_iteration(&mut self, theta: &[f64]) -> Result<(), ProblemError> {
@@ -259,5 +287,42 @@ impl crate::solver::LeastSquares for Problem<'_> {
     }
     fn new_matrix(&self) -> crate::solver::ArrowMatrix {
         Problem::new_matrix(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{JointState, MeasurementJacobians};
+
+    /// The structural sparsity used by the assembly must match the model:
+    /// every column a sensor is said not to depend on is exactly zero.
+    #[test]
+    fn sensor_columns_match_the_model_jacobian() {
+        let robot = Robot::aubo_i5();
+        let layout = ParamLayout::new(&robot);
+        let mut x = layout.nominal();
+        for (k, s) in layout.specs().iter().enumerate() {
+            x[k] += 0.3 * s.sigma * ((k as f64) * 1.7).sin();
+        }
+        let model = MeasurementModel::new(&robot, &layout, &x).unwrap();
+        let mut jac = MeasurementJacobians::new(layout.len());
+        for t in [0.1, 0.7, 2.3] {
+            let f = |a: f64, b: f64| [0, 1, 2, 3, 4, 5].map(|j: usize| a * (t * (j as f64 + b)).sin());
+            let (q, qd, qdd, qddd) = (f(1.0, 1.0), f(0.5, 2.0), f(0.9, 0.5), f(0.3, 1.5));
+            let js = JointState::from_slices(&q, &qd, &qdd, &qddd);
+            model.jacobians(&js, &mut jac);
+            for k in 0..layout.len() {
+                for sensor in 0..2 {
+                    let used = sensor_depends_on(&layout, sensor, k);
+                    let col = &jac.dz_dx[k][3 * sensor..3 * sensor + 3];
+                    if !used {
+                        assert!(col.iter().all(|v| *v == 0.0), "{} sensor {sensor}: {col:?}", layout.specs()[k].name);
+                    } else {
+                        assert!(col.iter().any(|v| *v != 0.0), "{} sensor {sensor} is all zero", layout.specs()[k].name);
+                    }
+                }
+            }
+        }
     }
 }
