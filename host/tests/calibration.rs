@@ -64,3 +64,52 @@ fn noise_free_without_priors_recovers_every_parameter_exactly() {
         assert!(rel < 1e-6, "{}: error {:.3e} prior σ", spec.name, rel);
     }
 }
+
+/// A smaller version of the paper's §8.3 study: 40 runs of 60 s, truths
+/// drawn from the priors. Bounds are those of 100 runs scaled to 40
+/// (3.5 standard errors), so a real inconsistency fails.
+#[test]
+fn monte_carlo_is_consistent() {
+    use robimu::workflows::montecarlo::{monte_carlo, MonteCarloOptions};
+    let robot = Robot::aubo_i5();
+    let runs = 40;
+    let opts = MonteCarloOptions {
+        runs,
+        duration: 60.0,
+        seed: 1000,
+        simulate: SimulateOptions::paper(&robot),
+        calibrate: CalibrateOptions::new(&robot),
+    };
+    let res = monte_carlo(&robot, &opts, |_, _| {}).unwrap();
+    let se = 1.0 / (runs as f64).sqrt();
+    for s in &res.stats {
+        eprintln!("{:>12} mean {:+.3} std {:.3}", s.name, s.mean, s.std);
+    }
+    eprintln!("NEES {:.2} in [{:.2}, {:.2}]", res.nees_mean, res.nees_interval.0, res.nees_interval.1);
+    for s in &res.stats {
+        assert!(s.mean.abs() < 3.5 * se, "{}: mean(error/σ) = {:.3}", s.name, s.mean);
+        assert!((s.std - 1.0).abs() < 3.5 * se / 2f64.sqrt() + 0.05, "{}: std(error/σ) = {:.3}", s.name, s.std);
+    }
+    assert!(
+        res.nees_mean > res.nees_interval.0 && res.nees_mean < res.nees_interval.1,
+        "average NEES {:.2} outside [{:.2}, {:.2}]",
+        res.nees_mean,
+        res.nees_interval.0,
+        res.nees_interval.1
+    );
+}
+
+/// Truths far from nominal in τ (±3 s) still converge to the right answer.
+#[test]
+fn converges_for_large_time_offsets() {
+    for (seed, tau) in [(21u64, 3.0), (22, -3.0), (23, 2.2)] {
+        let (robot, layout, mut truth, traj) = setup(seed, 60.0);
+        truth[layout.offsets().tau] = tau;
+        let data = simulate(&robot, &layout, &truth, &traj, &SimulateOptions::paper(&robot), seed).unwrap();
+        let cal = calibrate(&robot, &data, &CalibrateOptions::new(&robot), |_| {}).unwrap();
+        for (k, spec) in layout.specs().iter().enumerate() {
+            let z = (cal.x[k] - truth[k]) / cal.sigma[k];
+            assert!(z.abs() < 4.5, "tau {tau}: {} error/σ = {z:.2}", spec.name);
+        }
+    }
+}

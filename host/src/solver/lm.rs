@@ -6,8 +6,9 @@
 //! the cost decreases, and updates λ by Nielsen's rule from the gain ratio
 //! ρ = (actual decrease) / (decrease predicted by the quadratic model).
 //!
-//! Termination (Ceres-style): the relative cost decrease of an accepted step
-//! falls below `function_tolerance`, the scaled step below
+//! Termination (Ceres-style): the relative cost decrease of an accepted step,
+//! or the decrease the quadratic model predicts for a rejected one, falls
+//! below `function_tolerance`, the scaled step below
 //! `parameter_tolerance`, the scaled gradient below `gradient_tolerance`, or
 //! `max_iterations` is reached.
 
@@ -284,6 +285,21 @@ pub fn solve<P: LeastSquares>(
                     break 'outer;
                 }
                 break;
+            }
+            if step_ok && tries == 1 && predicted >= 0.0 && predicted < opts.function_tolerance * cost {
+                // Even the undamped model predicts no meaningful decrease: the
+                // cost is at its minimum to rounding.
+                log.push(IterationRecord {
+                    iteration,
+                    cost,
+                    step_norm,
+                    lambda,
+                    gradient_norm: gnorm,
+                    tries,
+                });
+                report(log.last().expect("pushed"));
+                termination = Termination::FunctionTolerance;
+                break 'outer;
             }
             lambda *= nu;
             nu *= 2.0;

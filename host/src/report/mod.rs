@@ -1,0 +1,19 @@
+//! What a calibration hands to people and to later tools.
+//!
+//! * [`result`] — the result file `result.json` (MODEL.md §8): writing it
+//!   from a [`Calibration`](crate::workflows::calibrate::Calibration) and
+//!   reading it back, validated;
+//! * [`units`] — display units (mm, degrees, °/s) for the SI values in files;
+//! * [`table`] — the paper's Table II as text: prior, estimate and posterior σ
+//!   of every parameter, and, against a known truth, the errors and the
+//!   normalised estimation error squared (NEES).
+
+#![deny(missing_docs)]
+
+pub mod result;
+pub mod table;
+pub mod units;
+
+pub use result::{CalibrationResult, CovarianceMatrix, ParameterResult, ResultError, RESULT_FORMAT};
+pub use table::{ParameterTable, TableRow, TruthSummary};
+pub use units::DisplayUnit;
