@@ -1,8 +1,13 @@
 //! robimu host library.
 
+// Numerical kernels index several arrays in step (rows, columns, channels);
+// index loops say that more plainly than zipped iterators.
+#![allow(clippy::needless_range_loop)]
+
 pub mod link;
 pub mod model;
 pub mod problem;
+pub mod report;
 pub mod session;
 pub mod solver;
 pub mod workflows;

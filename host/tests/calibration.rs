@@ -113,3 +113,62 @@ fn converges_for_large_time_offsets() {
         }
     }
 }
+
+/// A session as another tool might write it: the clock starts at 1234.5 s,
+/// the true motion is a spline on 1.3 s knots (the estimator uses 1 s knots
+/// from its own first joint sample), the streams have different rates.
+#[test]
+fn foreign_session_conventions_calibrate_as_well() {
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::new(&robot);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(77);
+    let truth = draw_truth(&layout, &mut rng);
+    let traj = random_walk(&robot, 90.0, 1.3, &mut rng).unwrap();
+    let mut sim = SimulateOptions::paper(&robot);
+    sim.imu_rate = 200.0;
+    sim.joint_rate = 100.0;
+    sim.imu_start = 0.00213;
+    let mut data = simulate(&robot, &layout, &truth, &traj, &sim, 77).unwrap();
+    for t in data.joint_t.iter_mut().chain(data.imu_t.iter_mut()) {
+        *t += 1234.5;
+    }
+    let cal = calibrate(&robot, &data, &CalibrateOptions::new(&robot), |_| {}).unwrap();
+    for (k, spec) in layout.specs().iter().enumerate() {
+        let z = (cal.x[k] - truth[k]) / cal.sigma[k];
+        assert!(z.abs() < 4.0, "{}: error/σ = {z:.2}", spec.name);
+    }
+    for r in cal.residual_rms {
+        assert!((r - 1.0).abs() < 0.05, "whitened residual rms {r}");
+    }
+}
+
+/// Estimating a generalized error outside the minimal set makes the problem
+/// rank deficient: without priors the calibration refuses and names it;
+/// with priors it reports the weak direction.
+#[test]
+fn unidentifiable_parameters_are_named() {
+    use robimu::model::ErrorIndex;
+    let (robot, _, _, traj) = setup(5, 40.0);
+    let mut set = robot.estimated_errors().to_vec();
+    set.insert(1, ErrorIndex { link: 1, k: 3 });
+    let robot = robot.with_estimated_errors(set).unwrap();
+    let layout = ParamLayout::new(&robot);
+    let truth = layout.nominal();
+    let data = simulate(&robot, &layout, &truth, &traj, &SimulateOptions::paper(&robot), 5).unwrap();
+    let mut opts = CalibrateOptions::new(&robot);
+    opts.use_prior = false;
+    match calibrate(&robot, &data, &opts, |_| {}) {
+        Err(CalibrateError::Unidentifiable { names }) => {
+            assert!(names.iter().any(|n| n == "eps_1_3"), "{names:?}");
+        }
+        Err(e) => panic!("unexpected error {e}"),
+        Ok(_) => panic!("a rank-deficient problem was accepted"),
+    }
+    opts.use_prior = true;
+    let cal = calibrate(&robot, &data, &opts, |_| {}).unwrap();
+    assert!(
+        cal.weak_directions.iter().any(|w| w.parameters.iter().any(|(n, _)| n == "eps_1_3")),
+        "{:?}",
+        cal.weak_directions
+    );
+}

@@ -164,7 +164,7 @@ impl Problem<'_> {
         spline: &Spline,
         x: &[f64],
         range: Range<usize>,
-        mut out: Option<&mut Linearization<'_>>,
+        out: Option<&mut Linearization<'_>>,
     ) -> Result<f64, ProblemError> {
         let n = self.n;
         let nl = (self.knots.degree() + 1) * n;
@@ -172,7 +172,7 @@ impl Problem<'_> {
         let mut js = JointState::default();
         let mut basis = Basis::default();
         let mut cost = 0.0;
-        let Some(out) = out.as_deref_mut() else {
+        let Some(out) = out else {
             for i in range {
                 let u = self.data.imu_t[i] + tau;
                 self.knots.basis(u, &mut basis).map_err(|_| ProblemError::SampleOutOfSpan)?;

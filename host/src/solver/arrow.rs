@@ -240,7 +240,7 @@ impl ArrowMatrix {
                     s -= l[ri + k] * l[rj + k];
                 }
                 if j == i {
-                    if !(s > 0.0) || !s.is_finite() {
+                    if s.is_nan() || s <= 0.0 || s.is_infinite() {
                         return Err(FactorError::BandNotPositiveDefinite { column: i });
                     }
                     l[i * r + bw] = s.sqrt();

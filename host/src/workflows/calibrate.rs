@@ -18,8 +18,9 @@ use crate::solver::{self, IterationRecord, LmError, LmOptions, LmSummary};
 /// Calibration settings.
 #[derive(Debug, Clone)]
 pub struct CalibrateOptions {
-    /// Interior knot spacing of the trajectory spline, s.
-    pub knot_spacing: f64,
+    /// Interior knot spacing of the trajectory spline, s; `None` chooses it
+    /// from the data ([`choose_knots`]).
+    pub knot_spacing: Option<f64>,
     /// Spline degree.
     pub degree: usize,
     /// Use the priors (off: data only, for identifiability checks).
@@ -40,7 +41,7 @@ impl CalibrateOptions {
     /// Defaults for `robot`: cubic spline, one knot per second, priors on, its noise.
     pub fn new(robot: &Robot) -> Self {
         Self {
-            knot_spacing: 1.0,
+            knot_spacing: None,
             degree: 3,
             use_prior: true,
             frozen: Vec::new(),
@@ -76,6 +77,10 @@ pub struct Calibration {
     pub trajectory: Spline,
     /// The τ found before the fit.
     pub tau_initial: Option<TauEstimate>,
+    /// Knot spacing used, s.
+    pub knot_spacing: f64,
+    /// Root-mean-square of the whitened joint residuals of the initial spline fit, per joint.
+    pub joint_fit_rms: Vec<f64>,
     /// Solver run.
     pub summary: LmSummary,
     /// IMU samples used in the final fit.
@@ -137,7 +142,7 @@ pub fn check_measurements(robot: &Robot, data: &Measurements) -> Result<(), Cali
         ));
     }
     let (a, b) = (data.joint_t[0], *data.joint_t.last().expect("non-empty"));
-    if !(b > a) {
+    if b <= a {
         return bad("the joint samples span no time (all at one instant)".into());
     }
     let (c, d) = (data.imu_t[0], *data.imu_t.last().expect("non-empty"));
@@ -178,9 +183,8 @@ pub fn calibrate(
     check_measurements(robot, data)?;
     let layout = ParamLayout::new(robot);
     let n = robot.dof();
-    let (a, b) = (data.joint_t[0], *data.joint_t.last().expect("checked"));
-    let knots = Knots::uniform(a, b, opts.knot_spacing, opts.degree)?;
-    let spline = Spline::fit(knots.clone(), n, &data.joint_t, &data.joint_q)?;
+    let fit = choose_knots(data, n, &opts.sigma_q, opts.degree, opts.knot_spacing)?;
+    let (knots, spline) = (fit.knots, fit.spline);
     let mut x0 = layout.nominal();
     let tau_at = layout.offsets().tau;
     let tau_initial = match (&opts.tau_search, opts.frozen.contains(&tau_at)) {
@@ -260,11 +264,79 @@ pub fn calibrate(
         covariance,
         trajectory: problem.spline_of(&sol.theta),
         tau_initial,
+        knot_spacing: fit.spacing,
+        joint_fit_rms: fit.rms,
         imu_samples_used: residuals.len(),
         summary: sol.summary,
         weak_directions,
         residual_rms,
     })
+}
+
+/// The trajectory spline chosen for a session.
+#[derive(Debug, Clone)]
+pub struct TrajectoryFit {
+    /// Its knots.
+    pub knots: Knots,
+    /// Least-squares fit to the joint samples.
+    pub spline: Spline,
+    /// Knot spacing, s.
+    pub spacing: f64,
+    /// Whitened residual RMS per joint.
+    pub rms: Vec<f64>,
+}
+
+/// Coarsest spacing tried when choosing automatically, s.
+pub const AUTO_SPACING_START: f64 = 1.0;
+/// Finest spacing tried when choosing automatically, s.
+pub const AUTO_SPACING_MIN: f64 = 0.05;
+
+/// Fit the trajectory spline to the joint samples.
+///
+/// With `spacing = Some(s)` the knots are every s seconds. With `None` the
+/// spacing starts at [`AUTO_SPACING_START`] and is halved while the spline
+/// cannot follow the joint samples to within their noise: while, for some
+/// joint, the whitened residual sum of squares exceeds its degrees of freedom
+/// by more than 5 standard deviations of χ² (a motion with more bandwidth
+/// than the knots can carry, which would otherwise bias the IMU fit). It
+/// stops at [`AUTO_SPACING_MIN`] or when a span would hold fewer than 4 joint
+/// samples.
+pub fn choose_knots(
+    data: &Measurements,
+    n: usize,
+    sigma_q: &[f64],
+    degree: usize,
+    spacing: Option<f64>,
+) -> Result<TrajectoryFit, SplineError> {
+    let (a, b) = (data.joint_t[0], *data.joint_t.last().expect("checked non-empty"));
+    let samples = data.joint_t.len();
+    let min_spacing = AUTO_SPACING_MIN.max(4.0 * (b - a) / samples as f64);
+    let mut h = spacing.unwrap_or(AUTO_SPACING_START);
+    loop {
+        let knots = Knots::uniform(a, b, h, degree)?;
+        let spline = Spline::fit(knots.clone(), n, &data.joint_t, &data.joint_q)?;
+        let mut ss = vec![0.0; n];
+        let mut js = crate::model::JointState::default();
+        for (s, &t) in data.joint_t.iter().enumerate() {
+            spline.evaluate(t, &mut js)?;
+            for j in 0..n {
+                let r = (data.joint_q[s * n + j] - js.q[j]) / sigma_q[j];
+                ss[j] += r * r;
+            }
+        }
+        let dof = (samples as f64 - knots.num_coeffs() as f64).max(1.0);
+        let rms: Vec<f64> = ss.iter().map(|v| (v / dof).sqrt()).collect();
+        let too_coarse = ss.iter().any(|&v| v > dof + 5.0 * (2.0 * dof).sqrt());
+        if spacing.is_some() || !too_coarse || h / 2.0 < min_spacing {
+            return Ok(TrajectoryFit {
+                knots,
+                spline,
+                spacing: h,
+                rms,
+            });
+        }
+        h /= 2.0;
+    }
 }
 
 /// Relative eigenvalue of the data information below which a direction is

@@ -88,7 +88,7 @@ pub fn simulate(
     opts: &SimulateOptions,
     seed: u64,
 ) -> Result<Measurements, ModelError> {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x5EED_0F_5A3F1E);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x005E_ED0F_5A3F);
     let model = MeasurementModel::new(robot, layout, truth)?;
     let tau = truth[layout.offsets().tau];
     let n = robot.dof();

@@ -1,0 +1,207 @@
+//! `robimu calibrate`: the MAP calibration of one session, its table and its
+//! result file (MODEL.md §8).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use robimu::model::{ParamLayout, Robot};
+use robimu::report::{CalibrationResult, ParameterTable};
+use robimu::session::Session;
+use robimu::workflows::calibrate::{calibrate, CalibrateOptions};
+
+use super::input::{measurements, session_noise, session_robot, Progress};
+
+/// Calibrate the robot and the IMU together from a session.
+///
+/// Estimates every parameter with its posterior uncertainty, prints the
+/// parameter table (against the truth when the session has a truth.toml)
+/// and writes the result file (JSON, MODEL.md §8).
+#[derive(Debug, Clone, clap::Args)]
+pub struct CalibrateCmd {
+    /// Session directory (session.toml, joints.csv, imu.csv).
+    pub session: PathBuf,
+    /// Result file to write [default: result.json in the session directory].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Parameters to hold at their prior mean, comma-separated: `lengths`
+    /// (the robot's length errors eps_i_1..3 of links i < n, not the IMU
+    /// position) and/or parameter names (eps_2_4, tau, b_w_z, …).
+    #[arg(long, value_delimiter = ',')]
+    pub freeze: Vec<String>,
+    /// Fit without the priors (fails when the data leaves some parameter
+    /// combination undetermined).
+    #[arg(long)]
+    pub no_prior: bool,
+    /// Knot spacing of the estimated trajectory spline, s.
+    #[arg(long, default_value_t = 1.0)]
+    pub knot_spacing: f64,
+}
+
+/// Indices into x of the `--freeze` items.
+pub fn frozen_indices(
+    robot: &Robot,
+    layout: &ParamLayout,
+    items: &[String],
+) -> anyhow::Result<Vec<usize>> {
+    let n = robot.dof();
+    let mut out = Vec::new();
+    for item in items.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
+        if item == "lengths" {
+            out.extend(
+                layout
+                    .estimated_errors()
+                    .iter()
+                    .filter(|e| e.link < n && e.k <= 3)
+                    .filter_map(|e| layout.eps_index(e.link, e.k)),
+            );
+        } else if let Some(k) = layout.index_of(item) {
+            out.push(k);
+        } else {
+            let names: Vec<&str> = layout.specs().iter().map(|s| s.name.as_str()).collect();
+            bail!(
+                "--freeze: unknown parameter `{item}`; valid: lengths, {}",
+                names.join(", ")
+            );
+        }
+    }
+    out.sort_unstable();
+    out.dedup();
+    Ok(out)
+}
+
+impl CalibrateCmd {
+    /// Calibrate, print the table and write the result file.
+    pub fn run(self) -> anyhow::Result<()> {
+        let dir = &self.session;
+        let session = Session::load(dir)
+            .with_context(|| format!("cannot load the session {}", dir.display()))?;
+        let robot = session_robot(&session)?;
+        if session.joint_count() != robot.dof() {
+            bail!(
+                "{}: {} joint columns (q1..q{}), but robot `{}` has {} joints",
+                dir.join("joints.csv").display(),
+                session.joint_count(),
+                session.joint_count(),
+                robot.name(),
+                robot.dof()
+            );
+        }
+        let layout = ParamLayout::new(&robot);
+        let mut opts = CalibrateOptions::new(&robot);
+        (opts.sigma_z, opts.sigma_q) = session_noise(&session, &robot)?;
+        opts.frozen = frozen_indices(&robot, &layout, &self.freeze)?;
+        opts.use_prior = !self.no_prior;
+        if !(self.knot_spacing.is_finite() && self.knot_spacing > 0.0) {
+            bail!(
+                "--knot-spacing must be a positive number of seconds (got {})",
+                self.knot_spacing
+            );
+        }
+        opts.knot_spacing = Some(self.knot_spacing);
+        let data = measurements(&session);
+        let mut out = std::io::stdout().lock();
+        let (ta, tb) = session.joints.span().unwrap_or_default();
+        writeln!(
+            out,
+            "session {}: robot {}, {} joint samples, {} IMU samples, {:.1} s; estimating {} of {} parameters{}",
+            dir.display(),
+            session.meta.robot,
+            session.joints.len(),
+            session.imu.len(),
+            tb - ta,
+            layout.len() - opts.frozen.len(),
+            layout.len(),
+            if opts.use_prior { "" } else { " without priors" }
+        )?;
+        out.flush()?;
+
+        let progress = Progress::start("fitting the trajectory and finding the time offset tau");
+        progress.println(format!(
+            "{:>4} {:>14} {:>10} {:>9} {:>10}",
+            "iter", "cost", "step", "lambda", "gradient"
+        ));
+        let cal = calibrate(&robot, &data, &opts, |r| {
+            progress.println(format!(
+                "{:>4} {:>14.6e} {:>10.3e} {:>9.1e} {:>10.3e}",
+                r.iteration, r.cost, r.step_norm, r.lambda, r.gradient_norm
+            ));
+            progress.set_message(format!(
+                "iteration {}: cost {:.6e}, lambda {:.1e}",
+                r.iteration, r.cost, r.lambda
+            ));
+        });
+        progress.finish();
+        let cal = cal.with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+
+        let summary = &cal.summary;
+        writeln!(
+            out,
+            "{} after {} iterations: cost {:.6e} -> {:.6e}",
+            summary.termination,
+            summary.iterations.len(),
+            summary.initial_cost,
+            summary.final_cost
+        )?;
+        if let Some(t) = &cal.tau_initial {
+            writeln!(out, "time offset found from the data before the fit: tau = {:.4} s", t.tau)?;
+        }
+        let rms = cal.residual_rms;
+        writeln!(
+            out,
+            "{} IMU samples used; whitened residual rms (1 = as modelled): ax {:.2} ay {:.2} az {:.2} gx {:.2} gy {:.2} gz {:.2}",
+            cal.imu_samples_used, rms[0], rms[1], rms[2], rms[3], rms[4], rms[5]
+        )?;
+        let mut result = CalibrationResult::new(&layout, &cal);
+        result.robot = Some(session.meta.robot.clone());
+        result.session = Some(
+            std::path::absolute(dir)
+                .unwrap_or_else(|_| dir.clone())
+                .display()
+                .to_string(),
+        );
+        result.priors_used = Some(opts.use_prior);
+        writeln!(out)?;
+        write!(out, "{}", ParameterTable::new(&result, session.truth.as_ref()))?;
+        out.flush()?;
+        if !cal.weak_directions.is_empty() {
+            eprintln!(
+                "warning: the data barely determines {} parameter combination(s); their estimates rest on the priors:",
+                cal.weak_directions.len()
+            );
+            for w in &cal.weak_directions {
+                let parts: Vec<String> = w
+                    .parameters
+                    .iter()
+                    .map(|(name, share)| format!("{name} {:.0} %", 100.0 * share))
+                    .collect();
+                eprintln!(
+                    "  {}  (data information {:.1e} of the prior's)",
+                    parts.join(", "),
+                    w.relative_information
+                );
+            }
+            let n = robot.dof();
+            let only_lengths = cal.weak_directions.iter().all(|w| {
+                w.parameters.iter().all(|(name, _)| {
+                    layout.index_of(name).is_some_and(|k| {
+                        layout
+                            .estimated_errors()
+                            .get(k)
+                            .is_some_and(|e| e.link < n && e.k <= 3)
+                    })
+                })
+            });
+            if only_lengths {
+                eprintln!("  (all are robot length errors: the motion is too slow to observe them; `--freeze lengths` holds them at nominal)");
+            }
+        }
+        let path = self
+            .out
+            .clone()
+            .unwrap_or_else(|| dir.join("result.json"));
+        result.write(&path)?;
+        writeln!(out, "wrote {}", path.display())?;
+        Ok(())
+    }
+}

@@ -1,0 +1,133 @@
+//! What the commands share: naming a robot, turning a loaded session into the
+//! calibrator's inputs, and printing progress.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use indicatif::{ProgressBar, ProgressStyle};
+use robimu::model::Robot;
+use robimu::problem::Measurements;
+use robimu::session::Session;
+
+/// Robots built into the program (`--robot NAME`, `robot = "NAME"`).
+pub const BUILTIN_ROBOTS: &[&str] = &["aubo_i5"];
+
+/// Where a robot description comes from.
+pub enum RobotSource {
+    /// A built-in robot.
+    Builtin,
+    /// A TOML robot description at this path.
+    File(PathBuf),
+}
+
+/// The robot `spec` names: a built-in name, or a path to a TOML robot
+/// description (relative paths are taken relative to `base` when given).
+pub fn resolve_robot(spec: &str, base: Option<&Path>) -> anyhow::Result<(Robot, RobotSource)> {
+    if let Some(robot) = Robot::builtin(spec) {
+        return Ok((robot, RobotSource::Builtin));
+    }
+    let path = match base {
+        Some(base) if Path::new(spec).is_relative() => base.join(spec),
+        _ => PathBuf::from(spec),
+    };
+    if !path.is_file() {
+        bail!(
+            "unknown robot `{spec}`: not a built-in robot ({}) and no robot description file {}",
+            BUILTIN_ROBOTS.join(", "),
+            path.display()
+        );
+    }
+    let robot = Robot::from_toml_file(&path)
+        .with_context(|| format!("cannot use the robot description {}", path.display()))?;
+    Ok((robot, RobotSource::File(path)))
+}
+
+/// The session's robot, with the session's gravity magnitude when it sets one.
+pub fn session_robot(session: &Session) -> anyhow::Result<Robot> {
+    let (robot, _) = resolve_robot(&session.meta.robot, Some(&session.dir))
+        .with_context(|| format!("{}: `robot`", session.dir.join("session.toml").display()))?;
+    match session.meta.gravity {
+        Some(g0) => robot
+            .with_gravity(g0)
+            .context("session.toml: `gravity` is not usable"),
+        None => Ok(robot),
+    }
+}
+
+/// Noise standard deviations: the robot's defaults, overridden by the
+/// session's `[noise]` table.
+pub fn session_noise(session: &Session, robot: &Robot) -> anyhow::Result<([f64; 6], Vec<f64>)> {
+    let noise = session.meta.noise.clone().unwrap_or_default();
+    let sigma_z = noise.sigma_z.unwrap_or_else(|| robot.sigma_z());
+    let sigma_q = noise.sigma_q.unwrap_or_else(|| robot.sigma_q().to_vec());
+    if sigma_q.len() != robot.dof() {
+        bail!(
+            "session.toml: [noise] sigma_q has {} values but robot `{}` has {} joints",
+            sigma_q.len(),
+            robot.name(),
+            robot.dof()
+        );
+    }
+    Ok((sigma_z, sigma_q))
+}
+
+/// The session's samples as the calibrator's [`Measurements`].
+pub fn measurements(session: &Session) -> Measurements {
+    Measurements {
+        joint_t: session.joints.t.clone(),
+        joint_q: session.joints.values.clone(),
+        imu_t: session.imu.t.clone(),
+        imu_z: session
+            .imu
+            .values
+            .chunks_exact(6)
+            .map(|z| [z[0], z[1], z[2], z[3], z[4], z[5]])
+            .collect(),
+    }
+}
+
+/// A spinner on stderr with a message, and log lines above it; when stderr
+/// is not a terminal the spinner is hidden and the log lines are plain.
+pub struct Progress {
+    bar: Option<ProgressBar>,
+}
+
+impl Progress {
+    /// Start showing `message`.
+    pub fn start(message: impl Into<String>) -> Self {
+        if !std::io::stderr().is_terminal() {
+            return Self { bar: None };
+        }
+        let bar = ProgressBar::new_spinner();
+        let style = ProgressStyle::with_template("{spinner} [{elapsed}] {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner());
+        bar.set_style(style);
+        bar.set_message(message.into());
+        bar.enable_steady_tick(Duration::from_millis(120));
+        Self { bar: Some(bar) }
+    }
+
+    /// Replace the message.
+    pub fn set_message(&self, message: impl Into<String>) {
+        if let Some(bar) = &self.bar {
+            bar.set_message(message.into());
+        }
+    }
+
+    /// A log line on stderr (above the spinner when it is shown).
+    pub fn println(&self, line: impl AsRef<str>) {
+        match &self.bar {
+            Some(bar) => bar.println(line.as_ref()),
+            None => eprintln!("{}", line.as_ref()),
+        }
+    }
+
+    /// Remove the spinner.
+    pub fn finish(self) {
+        if let Some(bar) = self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}

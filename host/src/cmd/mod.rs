@@ -1,0 +1,41 @@
+//! The subcommands, one module each; each is a clap struct whose `run`
+//! calls the library.
+
+pub mod calibrate;
+pub mod demo;
+pub mod input;
+pub mod simulate;
+
+/// What `robimu` can do (each command's help is its struct's doc comment).
+#[derive(Debug, clap::Subcommand)]
+pub enum Command {
+    Demo(demo::DemoCmd),
+    Simulate(simulate::SimulateCmd),
+    Calibrate(calibrate::CalibrateCmd),
+}
+
+impl Command {
+    /// Run the subcommand.
+    pub fn run(self) -> anyhow::Result<()> {
+        match self {
+            Command::Demo(c) => c.run(),
+            Command::Simulate(c) => c.run(),
+            Command::Calibrate(c) => c.run(),
+        }
+    }
+}
+
+/// `error: …` and one `  caused by: …` line per cause, leaving out causes
+/// whose text the line before already contains.
+pub fn error_report(e: &anyhow::Error) -> String {
+    let mut text = format!("error: {e}\n");
+    let mut previous = e.to_string();
+    for cause in e.chain().skip(1) {
+        let line = cause.to_string();
+        if !previous.contains(&line) {
+            text.push_str(&format!("  caused by: {line}\n"));
+        }
+        previous = line;
+    }
+    text
+}

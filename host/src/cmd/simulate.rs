@@ -1,0 +1,188 @@
+//! `robimu simulate`: a simulated session directory (MODEL.md §7).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use rand::SeedableRng;
+use robimu::model::{ParamLayout, Robot};
+use robimu::session::{SessionMeta, SessionWriter, Truth};
+use robimu::workflows::simulate::{draw_truth, simulate, SimulateOptions};
+use robimu::workflows::trajectory::random_walk;
+
+use super::input::{resolve_robot, RobotSource};
+
+/// Simulate a recording session (joints, IMU and the hidden truth).
+///
+/// A random excitation trajectory within the joint limits, a ground truth
+/// drawn from the priors (or given), and the joint and IMU samples they
+/// produce, written as a session directory: session.toml, joints.csv,
+/// imu.csv, and truth.toml with the true parameters.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SimulateCmd {
+    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description.
+    #[arg(long, default_value = "aubo_i5")]
+    pub robot: String,
+    /// Length of the trajectory, s.
+    #[arg(long, default_value_t = 300.0)]
+    pub duration: f64,
+    /// IMU sample rate, Hz.
+    #[arg(long, default_value_t = 120.0)]
+    pub rate: f64,
+    /// Joint sample rate, Hz [default: the IMU rate].
+    #[arg(long)]
+    pub joint_rate: Option<f64>,
+    /// Seed of the truth, the trajectory and the noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Session directory to write (created if needed; session files in it are replaced).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Exact measurements: no sensor or joint noise.
+    #[arg(long)]
+    pub noise_free: bool,
+    /// True parameters to use instead of drawing them: a truth.toml listing
+    /// every parameter (`name = value`, SI units).
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+}
+
+/// What [`SimulateCmd::write`] produced.
+#[derive(Debug, Clone)]
+pub struct Simulated {
+    /// The session directory.
+    pub dir: PathBuf,
+    /// Joint samples written.
+    pub joint_samples: usize,
+    /// IMU samples written.
+    pub imu_samples: usize,
+    /// The true time offset τ, s.
+    pub tau: f64,
+}
+
+fn positive(what: &str, v: f64) -> anyhow::Result<()> {
+    if !(v.is_finite() && v > 0.0) {
+        bail!("{what} must be a positive number (got {v})");
+    }
+    Ok(())
+}
+
+/// Every parameter of `layout` from `truth`, in x order.
+fn truth_vector(layout: &ParamLayout, truth: &Truth, path: &Path) -> anyhow::Result<Vec<f64>> {
+    if let Some((name, _)) = truth
+        .values
+        .iter()
+        .find(|(n, _)| layout.index_of(n).is_none())
+    {
+        bail!(
+            "{}: `{name}` is not a parameter of this robot (see MODEL.md §5 for the names)",
+            path.display()
+        );
+    }
+    layout
+        .specs()
+        .iter()
+        .map(|s| {
+            truth
+                .get(&s.name)
+                .with_context(|| format!("{}: `{}` is missing", path.display(), s.name))
+        })
+        .collect()
+}
+
+impl SimulateCmd {
+    /// Simulate and write the session.
+    pub fn run(self) -> anyhow::Result<()> {
+        let s = self.write()?;
+        let mut out = std::io::stdout().lock();
+        writeln!(
+            out,
+            "wrote {}: {} joint samples, {} IMU samples over {} s (true tau = {:.4} s; truth in truth.toml)",
+            s.dir.display(),
+            s.joint_samples,
+            s.imu_samples,
+            self.duration,
+            s.tau
+        )?;
+        Ok(())
+    }
+
+    /// Simulate and write the session; the numbers of what was written.
+    pub fn write(&self) -> anyhow::Result<Simulated> {
+        positive("--duration", self.duration)?;
+        positive("--rate", self.rate)?;
+        let joint_rate = self.joint_rate.unwrap_or(self.rate);
+        positive("--joint-rate", joint_rate)?;
+        let (robot, source) = resolve_robot(&self.robot, None)?;
+        let robot_field = match source {
+            RobotSource::Builtin => self.robot.clone(),
+            // absolute: the session must find it from its own directory
+            RobotSource::File(path) => std::path::absolute(&path)
+                .unwrap_or(path)
+                .display()
+                .to_string(),
+        };
+        let layout = ParamLayout::new(&robot);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(self.seed);
+        let drawn = draw_truth(&layout, &mut rng);
+        let x_true = match &self.truth {
+            Some(path) => {
+                let t = Truth::read(path)?;
+                truth_vector(&layout, &t, path)?
+            }
+            None => drawn,
+        };
+        let trajectory = random_walk(&robot, self.duration, 1.0, &mut rng)
+            .context("cannot plan the excitation trajectory")?;
+        let mut opts = SimulateOptions::paper(&robot);
+        opts.imu_rate = self.rate;
+        opts.joint_rate = joint_rate;
+        opts.noise = !self.noise_free;
+        let data = simulate(&robot, &layout, &x_true, &trajectory, &opts, self.seed)
+            .context("cannot simulate the measurements at these true parameters")?;
+        self.write_session(&robot, robot_field, &layout, &x_true, &data)
+    }
+
+    fn write_session(
+        &self,
+        robot: &Robot,
+        robot_field: String,
+        layout: &ParamLayout,
+        x_true: &[f64],
+        data: &robimu::problem::Measurements,
+    ) -> anyhow::Result<Simulated> {
+        let mut meta = SessionMeta::new(robot_field);
+        meta.notes = Some(format!(
+            "simulated by robimu simulate: seed {}, {} s, IMU {} Hz, joints {} Hz{}",
+            self.seed,
+            self.duration,
+            self.rate,
+            self.joint_rate.unwrap_or(self.rate),
+            if self.noise_free { ", noise-free" } else { "" }
+        ));
+        let n = robot.dof();
+        let mut w = SessionWriter::create(&self.out, &meta, n)
+            .with_context(|| format!("cannot write the session {}", self.out.display()))?;
+        for (t, q) in data.joint_t.iter().zip(data.joint_q.chunks_exact(n)) {
+            w.joint(*t, q)?;
+        }
+        for (t, z) in data.imu_t.iter().zip(&data.imu_z) {
+            w.imu(*t, z)?;
+        }
+        w.truth(&Truth {
+            values: layout
+                .specs()
+                .iter()
+                .zip(x_true)
+                .map(|(s, v)| (s.name.clone(), *v))
+                .collect(),
+        })?;
+        let dir = w.finish()?;
+        Ok(Simulated {
+            dir,
+            joint_samples: data.joint_t.len(),
+            imu_samples: data.imu_t.len(),
+            tau: x_true[layout.offsets().tau],
+        })
+    }
+}
