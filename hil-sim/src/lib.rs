@@ -3,6 +3,9 @@
 //! * [`device`]: the real firmware core ([`robimu_firmware::Acquisition`])
 //!   over the register-level simulated BNO055, in a background thread, with
 //!   its serial side on a pseudo-terminal that a host opens like `/dev/ttyUSB0`.
+//! * [`aubo`]: a simulated AUBO arm controller speaking ARCS JSON-RPC on
+//!   loopback TCP, with tracking lag, encoder noise and injectable faults.
 #![deny(missing_docs)]
 
+pub mod aubo;
 pub mod device;

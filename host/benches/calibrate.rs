@@ -6,11 +6,9 @@
 
 use std::time::Instant;
 
-use rand::SeedableRng;
 use robimu::model::{ParamLayout, Robot};
 use robimu::workflows::calibrate::{calibrate, CalibrateOptions};
-use robimu::workflows::simulate::{draw_truth, simulate, SimulateOptions};
-use robimu::workflows::trajectory::random_walk;
+use robimu::workflows::simulate::{random_session, RandomSession, SimulateOptions};
 
 fn peak_rss_mb() -> Option<f64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -23,10 +21,9 @@ fn main() {
     let duration = 300.0;
     let robot = Robot::aubo_i5();
     let layout = ParamLayout::new(&robot);
-    let mut rng = rand::rngs::StdRng::seed_from_u64(2024);
-    let truth = draw_truth(&layout, &mut rng);
-    let traj = random_walk(&robot, duration, 1.0, &mut rng).expect("trajectory");
-    let data = simulate(&robot, &layout, &truth, &traj, &SimulateOptions::paper(&robot), 7).expect("simulate");
+    let RandomSession { truth, data, .. } =
+        random_session(&robot, duration, 1.0, &SimulateOptions::paper(&robot), 2024)
+            .expect("simulate");
     let opts = CalibrateOptions::new(&robot);
     println!(
         "session: {} IMU + {} joint samples, {:.0} s; truth tau = {:.3} s",

@@ -6,8 +6,10 @@
 
 pub mod link;
 pub mod model;
+pub mod plot;
 pub mod problem;
 pub mod report;
+pub mod robot;
 pub mod session;
 pub mod solver;
 pub mod workflows;

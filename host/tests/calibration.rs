@@ -37,9 +37,22 @@ fn noisy_session_recovers_truth_within_four_sigma() {
         }
     }
     eprintln!("{}", cal.summary);
-    eprintln!("tau: truth {} init {:?} est {}", truth[layout.offsets().tau], cal.tau_initial, cal.x[layout.offsets().tau]);
-    eprintln!("worst |error|/sigma = {:.2} ({}) ; residual rms {:?}", worst.0, worst.1, cal.residual_rms);
-    assert!(worst.0 < 4.0, "worst |error|/σ {:.2} at {}", worst.0, worst.1);
+    eprintln!(
+        "tau: truth {} init {:?} est {}",
+        truth[layout.offsets().tau],
+        cal.tau_initial,
+        cal.x[layout.offsets().tau]
+    );
+    eprintln!(
+        "worst |error|/sigma = {:.2} ({}) ; residual rms {:?}",
+        worst.0, worst.1, cal.residual_rms
+    );
+    assert!(
+        worst.0 < 4.0,
+        "worst |error|/σ {:.2} at {}",
+        worst.0,
+        worst.1
+    );
     for r in cal.residual_rms {
         assert!((r - 1.0).abs() < 0.05, "whitened residual rms {r}");
     }
@@ -85,10 +98,23 @@ fn monte_carlo_is_consistent() {
     for s in &res.stats {
         eprintln!("{:>12} mean {:+.3} std {:.3}", s.name, s.mean, s.std);
     }
-    eprintln!("NEES {:.2} in [{:.2}, {:.2}]", res.nees_mean, res.nees_interval.0, res.nees_interval.1);
+    eprintln!(
+        "NEES {:.2} in [{:.2}, {:.2}]",
+        res.nees_mean, res.nees_interval.0, res.nees_interval.1
+    );
     for s in &res.stats {
-        assert!(s.mean.abs() < 3.5 * se, "{}: mean(error/σ) = {:.3}", s.name, s.mean);
-        assert!((s.std - 1.0).abs() < 3.5 * se / 2f64.sqrt() + 0.05, "{}: std(error/σ) = {:.3}", s.name, s.std);
+        assert!(
+            s.mean.abs() < 3.5 * se,
+            "{}: mean(error/σ) = {:.3}",
+            s.name,
+            s.mean
+        );
+        assert!(
+            (s.std - 1.0).abs() < 3.5 * se / 2f64.sqrt() + 0.05,
+            "{}: std(error/σ) = {:.3}",
+            s.name,
+            s.std
+        );
     }
     assert!(
         res.nees_mean > res.nees_interval.0 && res.nees_mean < res.nees_interval.1,
@@ -105,7 +131,15 @@ fn converges_for_large_time_offsets() {
     for (seed, tau) in [(21u64, 3.0), (22, -3.0), (23, 2.2)] {
         let (robot, layout, mut truth, traj) = setup(seed, 60.0);
         truth[layout.offsets().tau] = tau;
-        let data = simulate(&robot, &layout, &truth, &traj, &SimulateOptions::paper(&robot), seed).unwrap();
+        let data = simulate(
+            &robot,
+            &layout,
+            &truth,
+            &traj,
+            &SimulateOptions::paper(&robot),
+            seed,
+        )
+        .unwrap();
         let cal = calibrate(&robot, &data, &CalibrateOptions::new(&robot), |_| {}).unwrap();
         for (k, spec) in layout.specs().iter().enumerate() {
             let z = (cal.x[k] - truth[k]) / cal.sigma[k];
@@ -154,7 +188,15 @@ fn unidentifiable_parameters_are_named() {
     let robot = robot.with_estimated_errors(set).unwrap();
     let layout = ParamLayout::new(&robot);
     let truth = layout.nominal();
-    let data = simulate(&robot, &layout, &truth, &traj, &SimulateOptions::paper(&robot), 5).unwrap();
+    let data = simulate(
+        &robot,
+        &layout,
+        &truth,
+        &traj,
+        &SimulateOptions::paper(&robot),
+        5,
+    )
+    .unwrap();
     let mut opts = CalibrateOptions::new(&robot);
     opts.use_prior = false;
     match calibrate(&robot, &data, &opts, |_| {}) {
@@ -167,7 +209,9 @@ fn unidentifiable_parameters_are_named() {
     opts.use_prior = true;
     let cal = calibrate(&robot, &data, &opts, |_| {}).unwrap();
     assert!(
-        cal.weak_directions.iter().any(|w| w.parameters.iter().any(|(n, _)| n == "eps_1_3")),
+        cal.weak_directions
+            .iter()
+            .any(|w| w.parameters.iter().any(|(n, _)| n == "eps_1_3")),
         "{:?}",
         cal.weak_directions
     );

@@ -8,7 +8,7 @@ use anyhow::{bail, Context};
 use robimu::model::{ParamLayout, Robot};
 use robimu::report::{CalibrationResult, ParameterTable};
 use robimu::session::Session;
-use robimu::workflows::calibrate::{calibrate, CalibrateOptions};
+use robimu::workflows::calibrate::{calibrate, check_measurements, CalibrateOptions};
 
 use super::input::{measurements, session_noise, session_robot, Progress};
 
@@ -33,9 +33,11 @@ pub struct CalibrateCmd {
     /// combination undetermined).
     #[arg(long)]
     pub no_prior: bool,
-    /// Knot spacing of the estimated trajectory spline, s.
-    #[arg(long, default_value_t = 1.0)]
-    pub knot_spacing: f64,
+    /// Knot spacing of the estimated trajectory spline, s [default: chosen
+    /// from the data: halved from 1 s while the spline cannot follow the
+    /// joint samples within their noise].
+    #[arg(long)]
+    pub knot_spacing: Option<f64>,
 }
 
 /// Indices into x of the `--freeze` items.
@@ -92,14 +94,15 @@ impl CalibrateCmd {
         (opts.sigma_z, opts.sigma_q) = session_noise(&session, &robot)?;
         opts.frozen = frozen_indices(&robot, &layout, &self.freeze)?;
         opts.use_prior = !self.no_prior;
-        if !(self.knot_spacing.is_finite() && self.knot_spacing > 0.0) {
-            bail!(
-                "--knot-spacing must be a positive number of seconds (got {})",
-                self.knot_spacing
-            );
+        if let Some(h) = self.knot_spacing {
+            if !(h.is_finite() && h > 0.0) {
+                bail!("--knot-spacing must be a positive number of seconds (got {h})");
+            }
         }
-        opts.knot_spacing = Some(self.knot_spacing);
+        opts.knot_spacing = self.knot_spacing;
         let data = measurements(&session);
+        check_measurements(&robot, &data)
+            .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
         let mut out = std::io::stdout().lock();
         let (ta, tb) = session.joints.span().unwrap_or_default();
         writeln!(
@@ -143,8 +146,22 @@ impl CalibrateCmd {
             summary.initial_cost,
             summary.final_cost
         )?;
+        writeln!(
+            out,
+            "trajectory spline: knots every {} s{}",
+            cal.knot_spacing,
+            if self.knot_spacing.is_none() {
+                " (chosen from the joint samples)"
+            } else {
+                ""
+            }
+        )?;
         if let Some(t) = &cal.tau_initial {
-            writeln!(out, "time offset found from the data before the fit: tau = {:.4} s", t.tau)?;
+            writeln!(
+                out,
+                "time offset found from the data before the fit: tau = {:.4} s",
+                t.tau
+            )?;
         }
         let rms = cal.residual_rms;
         writeln!(
@@ -162,7 +179,11 @@ impl CalibrateCmd {
         );
         result.priors_used = Some(opts.use_prior);
         writeln!(out)?;
-        write!(out, "{}", ParameterTable::new(&result, session.truth.as_ref()))?;
+        write!(
+            out,
+            "{}",
+            ParameterTable::new(&result, session.truth.as_ref())
+        )?;
         out.flush()?;
         if !cal.weak_directions.is_empty() {
             eprintln!(
@@ -196,10 +217,7 @@ impl CalibrateCmd {
                 eprintln!("  (all are robot length errors: the motion is too slow to observe them; `--freeze lengths` holds them at nominal)");
             }
         }
-        let path = self
-            .out
-            .clone()
-            .unwrap_or_else(|| dir.join("result.json"));
+        let path = self.out.clone().unwrap_or_else(|| dir.join("result.json"));
         result.write(&path)?;
         writeln!(out, "wrote {}", path.display())?;
         Ok(())

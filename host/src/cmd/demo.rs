@@ -50,7 +50,14 @@ impl DemoCmd {
         let mut out = std::io::stdout();
         if !self.no_device {
             writeln!(out, "== 1. the IMU board (simulated) ==")?;
-            stream_device(self.stream, &mut out)?;
+            if !(self.stream.is_finite() && self.stream > 0.0 && self.stream <= 3600.0) {
+                bail!(
+                    "--stream must be a number of seconds in (0, 3600] (got {})",
+                    self.stream
+                );
+            }
+            stream_device(self.stream, &mut out)
+                .context("the simulated IMU board part failed (--no-device skips it)")?;
             writeln!(out)?;
         }
         writeln!(out, "== 2. calibration of a simulated AUBO i5 session ==")?;
@@ -83,7 +90,7 @@ impl DemoCmd {
             out: None,
             freeze: Vec::new(),
             no_prior: false,
-            knot_spacing: 1.0,
+            knot_spacing: None,
         }
         .run()?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;
@@ -229,7 +236,7 @@ fn stream_device(seconds: f64, out: &mut impl Write) -> anyhow::Result<()> {
     link.command(HostMessage::Start, CommandKind::Start)?;
     let live = std::io::stdout().is_terminal();
     let started = Instant::now();
-    let end = started + Duration::from_secs_f64(seconds.max(0.1));
+    let end = started + Duration::from_secs_f64(seconds);
     let mut clock = DeviceClock::new();
     let (mut count, mut gaps, mut first, mut last) = (0u64, 0u64, None, None::<(u64, ImuSample)>);
     let mut status: Option<Status> = None;
@@ -283,7 +290,9 @@ fn stream_device(seconds: f64, out: &mut impl Write) -> anyhow::Result<()> {
     link.command(HostMessage::Stop, CommandKind::Stop)?;
     let final_status = device.stop();
     let rate = match (first, &last) {
-        (Some(a), Some((b, _))) if *b > a && count > 1 => (count - 1) as f64 / ((b - a) as f64 * 1e-6),
+        (Some(a), Some((b, _))) if *b > a && count > 1 => {
+            (count - 1) as f64 / ((b - a) as f64 * 1e-6)
+        }
         _ => 0.0,
     };
     let stats = *link.reader.stats();

@@ -60,9 +60,13 @@ pub struct Simulated {
     pub tau: f64,
 }
 
-fn positive(what: &str, v: f64) -> anyhow::Result<()> {
+/// `v` must be in (0, max].
+fn in_range(what: &str, v: f64, max: f64) -> anyhow::Result<()> {
     if !(v.is_finite() && v > 0.0) {
         bail!("{what} must be a positive number (got {v})");
+    }
+    if v > max {
+        bail!("{what} = {v} is more than this program simulates (at most {max})");
     }
     Ok(())
 }
@@ -109,10 +113,10 @@ impl SimulateCmd {
 
     /// Simulate and write the session; the numbers of what was written.
     pub fn write(&self) -> anyhow::Result<Simulated> {
-        positive("--duration", self.duration)?;
-        positive("--rate", self.rate)?;
+        in_range("--duration", self.duration, 86_400.0)?;
+        in_range("--rate", self.rate, 10_000.0)?;
         let joint_rate = self.joint_rate.unwrap_or(self.rate);
-        positive("--joint-rate", joint_rate)?;
+        in_range("--joint-rate", joint_rate, 10_000.0)?;
         let (robot, source) = resolve_robot(&self.robot, None)?;
         let robot_field = match source {
             RobotSource::Builtin => self.robot.clone(),

@@ -10,6 +10,13 @@ use super::{Problem, ProblemError};
 use crate::model::{Basis, JointState, MeasurementJacobians, MeasurementModel, Spline};
 use crate::solver::ArrowMatrix;
 
+/// Where one IMU sample sits on the trajectory: its basis functions and q(t_i + τ).
+#[derive(Default)]
+struct SampleEval {
+    basis: Basis,
+    js: JointState,
+}
+
 /// Gauss–Newton matrix A = JᵀJ and gradient g = Jᵀr being accumulated.
 struct Linearization<'m> {
     a: &'m mut ArrowMatrix,
@@ -45,7 +52,12 @@ impl Problem<'_> {
     ///
     /// # Panics
     /// If `a` or `g` do not have the problem's dimensions.
-    pub fn linearize(&self, theta: &[f64], a: &mut ArrowMatrix, g: &mut [f64]) -> Result<f64, ProblemError> {
+    pub fn linearize(
+        &self,
+        theta: &[f64],
+        a: &mut ArrowMatrix,
+        g: &mut [f64],
+    ) -> Result<f64, ProblemError> {
         assert_eq!(a.dims(), self.new_matrix().dims());
         let x = self.x_of(theta);
         let model = self.model(&x)?;
@@ -56,7 +68,10 @@ impl Problem<'_> {
         let mut a2 = self.new_matrix();
         let mut g2 = vec![0.0; g.len()];
         let mut out = Linearization { a, g };
-        let mut other = Linearization { a: &mut a2, g: &mut g2 };
+        let mut other = Linearization {
+            a: &mut a2,
+            g: &mut g2,
+        };
         let (r1, r2) = std::thread::scope(|s| {
             let h = s.spawn(|| self.imu_terms(&model, &spline, &x, second, Some(&mut other)));
             let r1 = self.imu_terms(&model, &spline, &x, first, Some(&mut out));
@@ -80,24 +95,49 @@ impl Problem<'_> {
         let model = self.model(&x)?;
         let spline = self.spline_of(theta);
         let tau = x[self.layout.offsets().tau];
-        let mut out = Vec::with_capacity(self.imu_range.len());
-        let mut js = JointState::default();
-        let mut basis = Basis::default();
-        for i in self.imu_range.clone() {
-            let u = self.data.imu_t[i] + tau;
-            self.knots
-                .basis(u, &mut basis)
-                .map_err(|_| ProblemError::SampleOutOfSpan)?;
-            spline.evaluate_basis(&basis, &mut js);
-            let z = model.predict(&js);
-            let zm = &self.data.imu_z[i];
-            let r = std::array::from_fn(|c| (zm[c] - z[c]) * self.inv_sigma_z[c]);
-            out.push((i, r));
-        }
-        Ok(out)
+        let mut at = SampleEval::default();
+        self.imu_range
+            .clone()
+            .map(|i| Ok((i, self.whitened_residual(&model, &spline, tau, i, &mut at)?)))
+            .collect()
     }
 
-    /// The selected IMU range split in two halves at a knot-span boundary.
+    /// Whitened residual (z_i − h)/σ_z of IMU sample i; leaves the sample's
+    /// basis and joint state in `at`.
+    fn whitened_residual(
+        &self,
+        model: &MeasurementModel,
+        spline: &Spline,
+        tau: f64,
+        i: usize,
+        at: &mut SampleEval,
+    ) -> Result<[f64; 6], ProblemError> {
+        self.locate(spline, tau, i, at)?;
+        let z = model.predict(&at.js);
+        let zm = &self.data.imu_z[i];
+        Ok(std::array::from_fn(|c| {
+            (zm[c] - z[c]) * self.inv_sigma_z[c]
+        }))
+    }
+
+    /// Basis functions and joint state q(t_i + τ) of IMU sample i.
+    fn locate(
+        &self,
+        spline: &Spline,
+        tau: f64,
+        i: usize,
+        at: &mut SampleEval,
+    ) -> Result<(), ProblemError> {
+        let u = self.data.imu_t[i] + tau;
+        self.knots
+            .basis(u, &mut at.basis)
+            .map_err(|_| ProblemError::SampleOutOfSpan)?;
+        spline.evaluate_basis(&at.basis, &mut at.js);
+        Ok(())
+    }
+
+    /// The selected IMU range split in two halves (one per thread; a knot span
+    /// cut in two is simply flushed twice, the sums are the same).
     fn imu_parts(&self) -> [Range<usize>; 2] {
         let r = self.imu_range.clone();
         let mid = r.start + r.len() / 2;
@@ -169,20 +209,12 @@ impl Problem<'_> {
         let n = self.n;
         let nl = (self.knots.degree() + 1) * n;
         let tau = x[self.layout.offsets().tau];
-        let mut js = JointState::default();
-        let mut basis = Basis::default();
+        let mut at = SampleEval::default();
         let mut cost = 0.0;
         let Some(out) = out else {
             for i in range {
-                let u = self.data.imu_t[i] + tau;
-                self.knots.basis(u, &mut basis).map_err(|_| ProblemError::SampleOutOfSpan)?;
-                spline.evaluate_basis(&basis, &mut js);
-                let z = model.predict(&js);
-                let zm = &self.data.imu_z[i];
-                for ch in 0..6 {
-                    let r = (zm[ch] - z[ch]) * self.inv_sigma_z[ch];
-                    cost += 0.5 * r * r;
-                }
+                let r = self.whitened_residual(model, spline, tau, i, &mut at)?;
+                cost += 0.5 * r.iter().map(|v| v * v).sum::<f64>();
             }
             return Ok(cost);
         };
@@ -193,16 +225,15 @@ impl Problem<'_> {
         ];
         let mut group_first = usize::MAX;
         for i in range {
-            let u = self.data.imu_t[i] + tau;
-            self.knots.basis(u, &mut basis).map_err(|_| ProblemError::SampleOutOfSpan)?;
-            spline.evaluate_basis(&basis, &mut js);
+            self.locate(spline, tau, i, &mut at)?;
+            let (basis, js) = (&at.basis, &at.js);
             if (basis.first != group_first && blocks[0].rows > 0) || blocks[0].full() {
                 for b in &mut blocks {
                     b.flush(group_first * n, out);
                 }
             }
             group_first = basis.first;
-            model.jacobians(&js, &mut jac);
+            model.jacobians(js, &mut jac);
             let zm = &self.data.imu_z[i];
             for (sensor, block) in blocks.iter_mut().enumerate() {
                 for ch in 3 * sensor..3 * sensor + 3 {
@@ -211,14 +242,20 @@ impl Problem<'_> {
                     cost += 0.5 * r * r;
                     let row = block.rows;
                     block.r[row] = r;
-                    let col = block.jt.col_mut(row).try_as_col_major_mut().expect("contiguous column");
+                    let col = block
+                        .jt
+                        .col_mut(row)
+                        .try_as_col_major_mut()
+                        .expect("contiguous column");
                     let col = col.as_slice_mut();
                     // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)/σ
                     for a in 0..basis.count {
                         let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
                         for j in 0..n {
                             col[a * n + j] = -w
-                                * (jac.dz_dq[j][ch] * n0 + jac.dz_dqd[j][ch] * n1 + jac.dz_dqdd[j][ch] * n2);
+                                * (jac.dz_dq[j][ch] * n0
+                                    + jac.dz_dqd[j][ch] * n1
+                                    + jac.dz_dqdd[j][ch] * n2);
                         }
                     }
                     for (a, &(k, _)) in block.columns.iter().enumerate() {
@@ -288,7 +325,8 @@ impl<'c> Stack<'c> {
             Par::Seq,
         );
         faer::linalg::matmul::matmul(self.glocal.as_mut(), Accum::Replace, jt, r, 1.0, Par::Seq);
-        out.a.add_local(c0, self.nl, &self.x_index, self.local.as_ref());
+        out.a
+            .add_local(c0, self.nl, &self.x_index, self.local.as_ref());
         let nc = out.a.dims().0;
         for a in 0..self.nl {
             out.g[c0 + a] += self.glocal[(a, 0)];

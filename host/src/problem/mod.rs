@@ -28,7 +28,6 @@ use crate::model::{
     Basis, Knots, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
 };
 
-
 /// Observations, on the session clock (s), in SI units.
 #[derive(Debug, Clone, Default)]
 pub struct Measurements {
@@ -308,7 +307,8 @@ mod tests {
         let model = MeasurementModel::new(&robot, &layout, &x).unwrap();
         let mut jac = MeasurementJacobians::new(layout.len());
         for t in [0.1, 0.7, 2.3] {
-            let f = |a: f64, b: f64| [0, 1, 2, 3, 4, 5].map(|j: usize| a * (t * (j as f64 + b)).sin());
+            let f =
+                |a: f64, b: f64| [0, 1, 2, 3, 4, 5].map(|j: usize| a * (t * (j as f64 + b)).sin());
             let (q, qd, qdd, qddd) = (f(1.0, 1.0), f(0.5, 2.0), f(0.9, 0.5), f(0.3, 1.5));
             let js = JointState::from_slices(&q, &qd, &qdd, &qddd);
             model.jacobians(&js, &mut jac);
@@ -317,9 +317,17 @@ mod tests {
                     let used = sensor_depends_on(&layout, sensor, k);
                     let col = &jac.dz_dx[k][3 * sensor..3 * sensor + 3];
                     if !used {
-                        assert!(col.iter().all(|v| *v == 0.0), "{} sensor {sensor}: {col:?}", layout.specs()[k].name);
+                        assert!(
+                            col.iter().all(|v| *v == 0.0),
+                            "{} sensor {sensor}: {col:?}",
+                            layout.specs()[k].name
+                        );
                     } else {
-                        assert!(col.iter().any(|v| *v != 0.0), "{} sensor {sensor} is all zero", layout.specs()[k].name);
+                        assert!(
+                            col.iter().any(|v| *v != 0.0),
+                            "{} sensor {sensor} is all zero",
+                            layout.specs()[k].name
+                        );
                     }
                 }
             }

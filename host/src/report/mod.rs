@@ -14,6 +14,8 @@ pub mod result;
 pub mod table;
 pub mod units;
 
-pub use result::{CalibrationResult, CovarianceMatrix, ParameterResult, ResultError, RESULT_FORMAT};
+pub use result::{
+    CalibrationResult, CovarianceMatrix, ParameterResult, ResultError, RESULT_FORMAT,
+};
 pub use table::{ParameterTable, TableRow, TruthSummary};
 pub use units::DisplayUnit;

@@ -96,6 +96,9 @@ pub struct CalibrationResult {
     /// τ found from the data before the fit, s.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tau_initial: Option<f64>,
+    /// Knot spacing of the estimated trajectory spline, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub knot_spacing: Option<f64>,
     /// Solver iterations.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub iterations: Option<usize>,
@@ -123,9 +126,18 @@ pub struct CalibrationResult {
 /// Why a result file could not be read, written or trusted.
 #[derive(Debug, thiserror::Error)]
 pub enum ResultError {
-    /// The file could not be read or written.
-    #[error("cannot access {}", path.display())]
-    Io {
+    /// The file could not be read.
+    #[error("cannot read {}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file could not be written.
+    #[error("cannot write {}", path.display())]
+    Write {
         /// The file.
         path: PathBuf,
         /// The operating system's error.
@@ -193,6 +205,7 @@ impl CalibrationResult {
             session: None,
             priors_used: None,
             tau_initial: calibration.tau_initial.as_ref().map(|t| t.tau),
+            knot_spacing: Some(calibration.knot_spacing),
             iterations: Some(summary.iterations.len()),
             initial_cost: Some(summary.initial_cost),
             final_cost: Some(summary.final_cost),
@@ -354,7 +367,7 @@ impl CalibrationResult {
             path: path.to_path_buf(),
             message,
         })?;
-        std::fs::write(path, text + "\n").map_err(|source| ResultError::Io {
+        std::fs::write(path, text + "\n").map_err(|source| ResultError::Write {
             path: path.to_path_buf(),
             source,
         })
@@ -362,7 +375,7 @@ impl CalibrationResult {
 
     /// Read and validate `path`.
     pub fn read(path: &Path) -> Result<Self, ResultError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ResultError::Io {
+        let text = std::fs::read_to_string(path).map_err(|source| ResultError::Read {
             path: path.to_path_buf(),
             source,
         })?;
@@ -391,7 +404,7 @@ mod tests {
 
     /// A small result with a frozen parameter and a correlated 2×2 covariance.
     fn sample() -> CalibrationResult {
-        let (va, vb, c) = (4.0e-8, 2.25e-2, -1.0e-5);
+        let (va, vb, c): (f64, f64, f64) = (4.0e-8, 2.25e-2, -1.0e-5);
         let p = |name: &str, unit: &str, value: f64, sigma: f64, frozen: bool| ParameterResult {
             name: name.into(),
             unit: unit.into(),
@@ -406,7 +419,7 @@ mod tests {
             parameters: vec![
                 p("eps_1_1", "m", 1.0 / 3.0 * 1e-3, va.sqrt(), false),
                 p("eps_1_6", "rad", 0.0, 0.0, true),
-                p("tau", "s", -2.718281828459045, vb.sqrt(), false),
+                p("tau", "s", -std::f64::consts::E, vb.sqrt(), false),
             ],
             covariance: CovarianceMatrix {
                 names: vec!["eps_1_1".into(), "tau".into()],
@@ -416,6 +429,7 @@ mod tests {
             session: Some("/tmp/s".into()),
             priors_used: Some(true),
             tau_initial: Some(-2.7),
+            knot_spacing: Some(0.5),
             iterations: Some(7),
             initial_cost: Some(1e6),
             final_cost: Some(1234.5),

@@ -198,7 +198,13 @@ impl fmt::Display for ParameterTable {
         }
         let columns = cells[0].len();
         let width: Vec<usize> = (0..columns)
-            .map(|c| cells.iter().map(|l| l[c].chars().count()).max().unwrap_or(0))
+            .map(|c| {
+                cells
+                    .iter()
+                    .map(|l| l[c].chars().count())
+                    .max()
+                    .unwrap_or(0)
+            })
             .collect();
         writeln!(
             f,
@@ -283,6 +289,7 @@ mod tests {
             session: None,
             priors_used: None,
             tau_initial: None,
+            knot_spacing: None,
             iterations: None,
             initial_cost: None,
             final_cost: None,
@@ -304,7 +311,7 @@ mod tests {
     #[test]
     fn nees_matches_the_explicit_inverse() {
         // Σ = [[a, c], [c, b]]: Σ⁻¹ = [[b, −c], [−c, a]] / (ab − c²)
-        let (a, b, c) = (4e-6, 9e-2, 3e-4);
+        let (a, b, c): (f64, f64, f64) = (4e-6, 9e-2, 3e-4);
         let r = result(
             vec![
                 param("eps_1_1", "m", 0.003, a.sqrt(), false),
@@ -318,7 +325,10 @@ mod tests {
         let (e1, e2) = (0.002, 0.3);
         let want = (b * e1 * e1 - 2.0 * c * e1 * e2 + a * e2 * e2) / (a * b - c * c);
         let s = table.truth.as_ref().unwrap();
-        assert!((s.nees.unwrap() - want).abs() < 1e-9 * want, "{s:?} vs {want}");
+        assert!(
+            (s.nees.unwrap() - want).abs() < 1e-9 * want,
+            "{s:?} vs {want}"
+        );
         assert_eq!(s.dof, 2);
         // error/σ: 0.002 / 0.002 = 1 and 0.3 / 0.3 = 1; display in mm
         let row = &table.rows[0];
@@ -344,7 +354,10 @@ mod tests {
         let t = truth(&[("r_a_z", -PI + 0.01)]);
         let table = ParameterTable::new(&r, Some(&t));
         let row = &table.rows[0];
-        assert!((row.normalized_error.unwrap() + 1.0).abs() < 1e-9, "{row:?}");
+        assert!(
+            (row.normalized_error.unwrap() + 1.0).abs() < 1e-9,
+            "{row:?}"
+        );
         assert!((row.error.unwrap() + 0.02 * 180.0 / PI).abs() < 1e-9);
         let s = table.truth.unwrap();
         assert_eq!(s.missing, ["g_x"]);
@@ -355,9 +368,15 @@ mod tests {
     fn chi2_range_is_close_to_tabulated_quantiles() {
         // χ²: k = 10 → 3.247, 20.483; k = 48 → 30.755, 69.023
         let (lo, hi) = chi2_central_range(10, 1.959_963_984_540_054);
-        assert!((lo - 3.247).abs() < 0.05 && (hi - 20.483).abs() < 0.05, "{lo} {hi}");
+        assert!(
+            (lo - 3.247).abs() < 0.05 && (hi - 20.483).abs() < 0.05,
+            "{lo} {hi}"
+        );
         let (lo, hi) = chi2_central_range(48, 1.959_963_984_540_054);
-        assert!((lo - 30.755).abs() < 0.05 && (hi - 69.023).abs() < 0.05, "{lo} {hi}");
+        assert!(
+            (lo - 30.755).abs() < 0.05 && (hi - 69.023).abs() < 0.05,
+            "{lo} {hi}"
+        );
     }
 
     #[test]
@@ -370,6 +389,9 @@ mod tests {
         assert!(!text.contains("error"), "{text}");
         assert!(text.contains("deg/s"));
         // 0.01 rad/s = 0.57296 deg/s, σ 0.0057296 → shown with 5 decimals
-        assert!(text.contains("0.57296") && text.contains("0.00573"), "{text}");
+        assert!(
+            text.contains("0.57296") && text.contains("0.00573"),
+            "{text}"
+        );
     }
 }

@@ -24,7 +24,12 @@ pub trait LeastSquares {
     /// Cost ½‖r‖² at θ. An error means θ is not acceptable (the step is rejected).
     fn cost(&self, theta: &[f64]) -> Result<f64, Self::Error>;
     /// Cost, Gauss–Newton matrix and gradient at θ.
-    fn linearize(&self, theta: &[f64], a: &mut ArrowMatrix, g: &mut [f64]) -> Result<f64, Self::Error>;
+    fn linearize(
+        &self,
+        theta: &[f64],
+        a: &mut ArrowMatrix,
+        g: &mut [f64],
+    ) -> Result<f64, Self::Error>;
     /// Storage for [`Self::linearize`].
     fn new_matrix(&self) -> ArrowMatrix;
 }
@@ -63,7 +68,10 @@ impl LmOptions {
         if self.max_iterations == 0 {
             return Err("max_iterations must be at least 1".into());
         }
-        if !(pos(self.function_tolerance) && pos(self.parameter_tolerance) && pos(self.gradient_tolerance)) {
+        if !(pos(self.function_tolerance)
+            && pos(self.parameter_tolerance)
+            && pos(self.gradient_tolerance))
+        {
             return Err("tolerances must be finite and non-negative".into());
         }
         if !(self.initial_lambda.is_finite() && self.initial_lambda > 0.0) {
@@ -139,7 +147,11 @@ pub struct LmSummary {
 
 impl std::fmt::Display for LmSummary {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(f, "{:>4} {:>14} {:>10} {:>9} {:>10}", "iter", "cost", "step", "lambda", "gradient")?;
+        writeln!(
+            f,
+            "{:>4} {:>14} {:>10} {:>9} {:>10}",
+            "iter", "cost", "step", "lambda", "gradient"
+        )?;
         for r in &self.iterations {
             writeln!(
                 f,
@@ -197,15 +209,24 @@ pub fn solve<P: LeastSquares>(
     let mut log = Vec::new();
     let mut termination = Termination::MaxIterations;
     let mut delta = vec![0.0; n];
+    let mut record = |log: &mut Vec<IterationRecord>, r: IterationRecord| {
+        report(&r);
+        log.push(r);
+    };
     'outer: for iteration in 1..=opts.max_iterations {
         if iteration > 1 {
             // the selected sample set may change with θ; the cost is re-evaluated below
             problem.begin_iteration(&theta).map_err(LmError::Start)?;
         }
-        let mut cost = problem.linearize(&theta, &mut a, &mut g).map_err(LmError::Start)?;
+        let mut cost = problem
+            .linearize(&theta, &mut a, &mut g)
+            .map_err(LmError::Start)?;
         let diag = a.diagonal();
         let dmax = diag.iter().cloned().fold(0.0f64, f64::max);
-        let d: Vec<f64> = diag.iter().map(|&v| v.max(1e-12 * dmax).max(1e-300)).collect();
+        let d: Vec<f64> = diag
+            .iter()
+            .map(|&v| v.max(1e-12 * dmax).max(1e-300))
+            .collect();
         let gnorm = g
             .iter()
             .zip(&d)
@@ -213,15 +234,17 @@ pub fn solve<P: LeastSquares>(
             .fold(0.0f64, f64::max);
         if gnorm < opts.gradient_tolerance {
             termination = Termination::GradientTolerance;
-            log.push(IterationRecord {
-                iteration,
-                cost,
-                step_norm: 0.0,
-                lambda,
-                gradient_norm: gnorm,
-                tries: 0,
-            });
-            report(log.last().expect("pushed"));
+            record(
+                &mut log,
+                IterationRecord {
+                    iteration,
+                    cost,
+                    step_norm: 0.0,
+                    lambda,
+                    gradient_norm: gnorm,
+                    tries: 0,
+                },
+            );
             break;
         }
         let mut tries = 0;
@@ -249,33 +272,42 @@ pub fn solve<P: LeastSquares>(
                 let gd: f64 = g.iter().zip(&delta).map(|(a, b)| a * b).sum();
                 let dd: f64 = delta.iter().zip(&damping).map(|(x, l)| l * x * x).sum();
                 predicted = 0.5 * (dd - gd);
-                step_norm = delta.iter().zip(&d).map(|(x, dk)| dk * x * x).sum::<f64>().sqrt();
+                step_norm = delta
+                    .iter()
+                    .zip(&d)
+                    .map(|(x, dk)| dk * x * x)
+                    .sum::<f64>()
+                    .sqrt();
                 if let Ok(c) = problem.cost(&candidate) {
                     new_cost = c;
                 }
             }
-            let rho = if predicted > 0.0 { (cost - new_cost) / predicted } else { -1.0 };
+            let rho = if predicted > 0.0 {
+                (cost - new_cost) / predicted
+            } else {
+                -1.0
+            };
             if new_cost.is_finite() && new_cost <= cost && rho > 0.0 {
                 let rel = (cost - new_cost) / cost.max(f64::MIN_POSITIVE);
-                let small_step = delta
-                    .iter()
-                    .zip(&theta)
-                    .zip(&d)
-                    .all(|((dt, t), dk)| dt.abs() <= opts.parameter_tolerance * (t.abs() + 1.0 / dk.sqrt()));
+                let small_step = delta.iter().zip(&theta).zip(&d).all(|((dt, t), dk)| {
+                    dt.abs() <= opts.parameter_tolerance * (t.abs() + 1.0 / dk.sqrt())
+                });
                 theta = candidate;
                 cost = new_cost;
                 lambda *= f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3));
                 lambda = lambda.max(1e-15);
                 nu = 2.0;
-                log.push(IterationRecord {
-                    iteration,
-                    cost,
-                    step_norm,
-                    lambda,
-                    gradient_norm: gnorm,
-                    tries,
-                });
-                report(log.last().expect("pushed"));
+                record(
+                    &mut log,
+                    IterationRecord {
+                        iteration,
+                        cost,
+                        step_norm,
+                        lambda,
+                        gradient_norm: gnorm,
+                        tries,
+                    },
+                );
                 if rel < opts.function_tolerance {
                     termination = Termination::FunctionTolerance;
                     break 'outer;
@@ -286,33 +318,41 @@ pub fn solve<P: LeastSquares>(
                 }
                 break;
             }
-            if step_ok && tries == 1 && predicted >= 0.0 && predicted < opts.function_tolerance * cost {
+            if step_ok
+                && tries == 1
+                && predicted >= 0.0
+                && predicted < opts.function_tolerance * cost
+            {
                 // Even the undamped model predicts no meaningful decrease: the
                 // cost is at its minimum to rounding.
-                log.push(IterationRecord {
-                    iteration,
-                    cost,
-                    step_norm,
-                    lambda,
-                    gradient_norm: gnorm,
-                    tries,
-                });
-                report(log.last().expect("pushed"));
+                record(
+                    &mut log,
+                    IterationRecord {
+                        iteration,
+                        cost,
+                        step_norm,
+                        lambda,
+                        gradient_norm: gnorm,
+                        tries,
+                    },
+                );
                 termination = Termination::FunctionTolerance;
                 break 'outer;
             }
             lambda *= nu;
             nu *= 2.0;
             if lambda > 1e16 {
-                log.push(IterationRecord {
-                    iteration,
-                    cost,
-                    step_norm,
-                    lambda,
-                    gradient_norm: gnorm,
-                    tries,
-                });
-                report(log.last().expect("pushed"));
+                record(
+                    &mut log,
+                    IterationRecord {
+                        iteration,
+                        cost,
+                        step_norm,
+                        lambda,
+                        gradient_norm: gnorm,
+                        tries,
+                    },
+                );
                 termination = Termination::NoProgress;
                 break 'outer;
             }
@@ -320,7 +360,9 @@ pub fn solve<P: LeastSquares>(
     }
     // the undamped matrix at the final θ, for the covariance
     problem.begin_iteration(&theta).map_err(LmError::Start)?;
-    let final_cost = problem.linearize(&theta, &mut a, &mut g).map_err(LmError::Start)?;
+    let final_cost = problem
+        .linearize(&theta, &mut a, &mut g)
+        .map_err(LmError::Start)?;
     let factor = a.factor()?;
     Ok(LmSolution {
         theta,
@@ -388,7 +430,13 @@ mod tests {
                             (true, true) if q <= p => a.add_cc(p, q, vp * vq),
                             (false, false) => a.add_xx(0, 0, vp * vq),
                             (true, false) => {
-                                let m = faer::Mat::from_fn(2, 2, |i, k| if i == 1 && k == 0 { vp * vq } else { 0.0 });
+                                let m = faer::Mat::from_fn(2, 2, |i, k| {
+                                    if i == 1 && k == 0 {
+                                        vp * vq
+                                    } else {
+                                        0.0
+                                    }
+                                });
                                 a.add_local(p, 1, &[0], m.as_ref());
                             }
                             _ => {}

@@ -5,4 +5,6 @@ pub mod arrow;
 pub mod lm;
 
 pub use arrow::{ArrowFactor, ArrowMatrix, FactorError};
-pub use lm::{solve, IterationRecord, LeastSquares, LmError, LmOptions, LmSolution, LmSummary, Termination};
+pub use lm::{
+    solve, IterationRecord, LeastSquares, LmError, LmOptions, LmSolution, LmSummary, Termination,
+};

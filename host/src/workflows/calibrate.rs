@@ -219,7 +219,11 @@ pub fn calibrate(
     let schur = sol.factor.schur();
     let mut info = faer::Mat::from_fn(na, na, |i, j| {
         let (si, sj) = (specs[active[i]].sigma, specs[active[j]].sigma);
-        let prior = if opts.use_prior && i == j { 1.0 / (si * si) } else { 0.0 };
+        let prior = if opts.use_prior && i == j {
+            1.0 / (si * si)
+        } else {
+            0.0
+        };
         (schur[(i, j)] - prior) * si * sj
     });
     for i in 0..na {
@@ -308,7 +312,10 @@ pub fn choose_knots(
     degree: usize,
     spacing: Option<f64>,
 ) -> Result<TrajectoryFit, SplineError> {
-    let (a, b) = (data.joint_t[0], *data.joint_t.last().expect("checked non-empty"));
+    let (a, b) = (
+        data.joint_t[0],
+        *data.joint_t.last().expect("checked non-empty"),
+    );
     let samples = data.joint_t.len();
     let min_spacing = AUTO_SPACING_MIN.max(4.0 * (b - a) / samples as f64);
     let mut h = spacing.unwrap_or(AUTO_SPACING_START);
@@ -370,7 +377,12 @@ fn weak_directions(
             continue;
         }
         let mut parts: Vec<(String, f64)> = (0..na)
-            .map(|i| (layout.specs()[active[i]].name.clone(), u[(i, k)] * u[(i, k)]))
+            .map(|i| {
+                (
+                    layout.specs()[active[i]].name.clone(),
+                    u[(i, k)] * u[(i, k)],
+                )
+            })
             .filter(|(_, w)| *w > 0.05)
             .collect();
         parts.sort_by(|a, b| b.1.total_cmp(&a.1));

@@ -7,14 +7,11 @@
 //! NEES = eᵀ Σ⁻¹ e whose average over N runs of d parameters lies in the 95 %
 //! interval of χ²(N·d)/N.
 
+use super::calibrate::{calibrate, CalibrateError, CalibrateOptions};
+use super::simulate::{random_session, RandomSession, SimulateError, SimulateOptions};
+use crate::model::{ParamLayout, Robot};
 use faer::linalg::solvers::DenseSolveCore;
 use faer::Side;
-use rand::SeedableRng;
-
-use super::calibrate::{calibrate, CalibrateError, CalibrateOptions};
-use super::simulate::{draw_truth, simulate, SimulateOptions};
-use super::trajectory::random_walk;
-use crate::model::{ModelError, ParamLayout, Robot, SplineError};
 
 /// Settings of a Monte Carlo study.
 #[derive(Debug, Clone)]
@@ -88,12 +85,9 @@ pub enum MonteCarloError {
         #[source]
         source: CalibrateError,
     },
-    /// A trajectory could not be built.
+    /// A session could not be simulated.
     #[error(transparent)]
-    Spline(#[from] SplineError),
-    /// A truth was outside the model's domain.
-    #[error(transparent)]
-    Model(#[from] ModelError),
+    Simulate(#[from] SimulateError),
 }
 
 /// The p-quantile of χ²(k) by the Wilson–Hilferty approximation (relative
@@ -108,10 +102,35 @@ pub fn chi2_quantile(k: f64, p: f64) -> f64 {
 /// relative error below 1.2e-9).
 #[allow(clippy::excessive_precision)] // the published coefficients, verbatim
 pub fn normal_quantile(p: f64) -> f64 {
-    const A: [f64; 6] = [-3.969683028665376e1, 2.209460984245205e2, -2.759285104469687e2, 1.383577518672690e2, -3.066479806614716e1, 2.506628277459239];
-    const B: [f64; 5] = [-5.447609879822406e1, 1.615858368580409e2, -1.556989798598866e2, 6.680131188771972e1, -1.328068155288572e1];
-    const C: [f64; 6] = [-7.784894002430293e-3, -3.223964580411365e-1, -2.400758277161838, -2.549732539343734, 4.374664141464968, 2.938163982698783];
-    const D: [f64; 4] = [7.784695709041462e-3, 3.224671290700398e-1, 2.445134137142996, 3.754408661907416];
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.383577518672690e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
     let tail = |q: f64| {
         (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
             / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
@@ -139,10 +158,8 @@ pub fn monte_carlo(
     let mut dof = 0;
     for run in 0..opts.runs {
         let seed = opts.seed.wrapping_add(run as u64);
-        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-        let truth = draw_truth(&layout, &mut rng);
-        let traj = random_walk(robot, opts.duration, 1.0, &mut rng)?;
-        let data = simulate(robot, &layout, &truth, &traj, &opts.simulate, seed)?;
+        let RandomSession { truth, data, .. } =
+            random_session(robot, opts.duration, 1.0, &opts.simulate, seed)?;
         let cal = calibrate(robot, &data, &opts.calibrate, |_| {})
             .map_err(|source| MonteCarloError::Run { run, seed, source })?;
         let na = cal.active.len();
@@ -170,12 +187,17 @@ pub fn monte_carlo(
         progress(run, &outcome);
         runs.push(outcome);
     }
-    let active: Vec<usize> = (0..layout.len()).filter(|k| !opts.calibrate.frozen.contains(k)).collect();
+    let active: Vec<usize> = (0..layout.len())
+        .filter(|k| !opts.calibrate.frozen.contains(k))
+        .collect();
     let n = runs.len() as f64;
     let stats = active
         .iter()
         .map(|&k| {
-            let z: Vec<f64> = runs.iter().map(|r| (r.estimate[k] - r.truth[k]) / r.sigma[k]).collect();
+            let z: Vec<f64> = runs
+                .iter()
+                .map(|r| (r.estimate[k] - r.truth[k]) / r.sigma[k])
+                .collect();
             let mean = z.iter().sum::<f64>() / n;
             let var = z.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0).max(1.0);
             ParamStats {

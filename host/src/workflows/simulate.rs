@@ -11,7 +11,9 @@
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::model::{JointState, MeasurementModel, ModelError, ParamLayout, Robot, Spline};
+use crate::model::{
+    JointState, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
+};
 use crate::problem::Measurements;
 
 /// How to sample a simulated session.
@@ -61,6 +63,49 @@ pub fn draw_truth<R: Rng>(layout: &ParamLayout, rng: &mut R) -> Vec<f64> {
             s.nominal + s.sigma * z
         })
         .collect()
+}
+
+/// A complete random session from one seed: a truth drawn from the priors, a
+/// random trajectory of `duration` s within the joint limits (knots every
+/// `knot_spacing` s), and the samples they produce.
+pub struct RandomSession {
+    /// True x.
+    pub truth: Vec<f64>,
+    /// The true joint trajectory.
+    pub trajectory: Spline,
+    /// The samples.
+    pub data: Measurements,
+}
+
+/// Why a session could not be simulated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimulateError {
+    /// The truth is outside the model's domain.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The trajectory could not be built (e.g. a duration shorter than a knot span).
+    #[error("cannot build the trajectory: {0}")]
+    Trajectory(#[from] SplineError),
+}
+
+/// Draw a [`RandomSession`] (see there) for `robot`.
+pub fn random_session(
+    robot: &Robot,
+    duration: f64,
+    knot_spacing: f64,
+    opts: &SimulateOptions,
+    seed: u64,
+) -> Result<RandomSession, SimulateError> {
+    let layout = ParamLayout::new(robot);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let truth = draw_truth(&layout, &mut rng);
+    let trajectory = super::trajectory::random_walk(robot, duration, knot_spacing, &mut rng)?;
+    let data = simulate(robot, &layout, &truth, &trajectory, opts, seed)?;
+    Ok(RandomSession {
+        truth,
+        trajectory,
+        data,
+    })
 }
 
 /// The trajectory at any t: the spline inside its span, at rest at the end
@@ -124,14 +169,17 @@ pub fn simulate(
     for &t in &data.joint_t {
         trajectory.evaluate(t, &mut js).expect("inside the span");
         for j in 0..n {
-            data.joint_q.push(js.q[j] + noise(opts.sigma_q[j], &mut rng));
+            data.joint_q
+                .push(js.q[j] + noise(opts.sigma_q[j], &mut rng));
         }
     }
     data.imu_t = times(opts.imu_start.max(t0), opts.imu_rate, &mut rng);
     for &t in &data.imu_t {
         joint_state_at(trajectory, t + tau, &mut js);
         let z = model.predict(&js);
-        data.imu_z.push(std::array::from_fn(|c| z[c] + noise(opts.sigma_z[c], &mut rng)));
+        data.imu_z.push(std::array::from_fn(|c| {
+            z[c] + noise(opts.sigma_z[c], &mut rng)
+        }));
     }
     Ok(data)
 }

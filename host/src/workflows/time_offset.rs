@@ -139,7 +139,11 @@ fn fit_at(
     let total: f64 = gg.iter().sum();
     let centred: f64 = (0..3).map(|k| gg[k] - gs[k] * gs[k] / count as f64).sum();
     let rss = (total - explained).max(0.0);
-    let r2 = if centred > 0.0 { 1.0 - rss / centred } else { 0.0 };
+    let r2 = if centred > 0.0 {
+        1.0 - rss / centred
+    } else {
+        0.0
+    };
     Some((rss / count as f64, r2, count))
 }
 
@@ -196,16 +200,24 @@ pub fn find_tau(
         a.into_iter().chain(b).collect()
     };
     let n_coarse = (search.range / search.coarse_step).round() as i64;
-    let coarse_lags: Vec<f64> = (-n_coarse..=n_coarse).map(|k| k as f64 * search.coarse_step).collect();
+    let coarse_lags: Vec<f64> = (-n_coarse..=n_coarse)
+        .map(|k| k as f64 * search.coarse_step)
+        .collect();
     let coarse = scan(&coarse_lags);
     let Some(best) = coarse.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
-        return Err(TauError::NoOverlap { range: search.range });
+        return Err(TauError::NoOverlap {
+            range: search.range,
+        });
     };
     let n_fine = (2.0 * search.coarse_step / search.fine_step).round() as i64;
-    let fine_lags: Vec<f64> = (-n_fine..=n_fine).map(|k| best.0 + k as f64 * search.fine_step).collect();
+    let fine_lags: Vec<f64> = (-n_fine..=n_fine)
+        .map(|k| best.0 + k as f64 * search.fine_step)
+        .collect();
     let fine = scan(&fine_lags);
     let Some(ib) = (0..fine.len()).min_by(|&a, &b| fine[a].1.total_cmp(&fine[b].1)) else {
-        return Err(TauError::NoOverlap { range: search.range });
+        return Err(TauError::NoOverlap {
+            range: search.range,
+        });
     };
     let (lag, _, r2, count) = fine[ib];
     if r2 < 0.5 {

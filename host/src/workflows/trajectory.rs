@@ -109,15 +109,28 @@ mod tests {
         let (v, a) = max_rates(&s, 1000.0);
         let mut js = JointState::default();
         for (j, lim) in robot.limits().iter().enumerate() {
-            assert!(v[j] <= lim.qd_max * 1.0001, "joint {j} speed {} > {}", v[j], lim.qd_max);
-            assert!(a[j] <= lim.qdd_max * 1.0001, "joint {j} accel {} > {}", a[j], lim.qdd_max);
+            assert!(
+                v[j] <= lim.qd_max * 1.0001,
+                "joint {j} speed {} > {}",
+                v[j],
+                lim.qd_max
+            );
+            assert!(
+                a[j] <= lim.qdd_max * 1.0001,
+                "joint {j} accel {} > {}",
+                a[j],
+                lim.qdd_max
+            );
             // it moves: at least a fifth of the speed limit somewhere
             assert!(v[j] > 0.2 * lim.qd_max, "joint {j} barely moves: {}", v[j]);
         }
         for t in (0..=60_000).map(|k| k as f64 * 1e-3) {
             s.evaluate(t, &mut js).unwrap();
             for (j, lim) in robot.limits().iter().enumerate() {
-                assert!(js.q[j] >= lim.q_min && js.q[j] <= lim.q_max, "joint {j} at t={t}");
+                assert!(
+                    js.q[j] >= lim.q_min && js.q[j] <= lim.q_max,
+                    "joint {j} at t={t}"
+                );
             }
         }
         for t in [0.0, 60.0] {

@@ -1,0 +1,197 @@
+//! Figures, written as PNG and SVG side by side.
+//!
+//! Text uses an embedded subset of DejaVu Sans (`host/assets`) through
+//! plotters' `ab_glyph` backend, so plots render identically on machines
+//! with no system fonts.
+
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+const FONT: &[u8] = include_bytes!("../assets/DejaVuSans-subset.ttf");
+const FAMILY: &str = "sans-serif";
+
+/// A figure could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write the figure {}: {message}", path.display())]
+pub struct PlotError {
+    /// The file.
+    pub path: PathBuf,
+    /// What went wrong.
+    pub message: String,
+}
+
+fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        plotters::style::register_font(FAMILY, FontStyle::Normal, FONT)
+            .unwrap_or_else(|_| panic!("the embedded font is a valid TrueType file"));
+    });
+}
+
+/// One histogram panel with an optional predicted density drawn over it.
+#[derive(Debug, Clone)]
+pub struct HistogramPanel {
+    /// Title (e.g. the parameter name).
+    pub title: String,
+    /// Values to histogram.
+    pub values: Vec<f64>,
+    /// Predicted density N(mean, σ²) to overlay, scaled to the histogram.
+    pub normal: Option<(f64, f64)>,
+}
+
+/// A grid of histogram panels (paper Fig. 7), written to `stem.png` and
+/// `stem.svg`. Returns the paths written.
+pub fn histogram_grid(
+    stem: &Path,
+    title: &str,
+    panels: &[HistogramPanel],
+    columns: usize,
+) -> Result<Vec<PathBuf>, PlotError> {
+    register_font();
+    let columns = columns.max(1);
+    let rows = panels.len().div_ceil(columns).max(1);
+    let size = (300 * columns as u32, 40 + 220 * rows as u32);
+    let png = stem.with_extension("png");
+    let svg = stem.with_extension("svg");
+    let err = |path: &Path, e: &dyn std::fmt::Display| PlotError {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    {
+        let root = BitMapBackend::new(&png, size).into_drawing_area();
+        draw_grid(&root, title, panels, rows, columns).map_err(|e| err(&png, &e))?;
+        root.present().map_err(|e| err(&png, &e))?;
+    }
+    {
+        let root = SVGBackend::new(&svg, size).into_drawing_area();
+        draw_grid(&root, title, panels, rows, columns).map_err(|e| err(&svg, &e))?;
+        root.present().map_err(|e| err(&svg, &e))?;
+    }
+    Ok(vec![png, svg])
+}
+
+fn draw_grid<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    panels: &[HistogramPanel],
+    rows: usize,
+    columns: usize,
+) -> Result<(), Box<dyn std::error::Error + 'static>>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (FAMILY, 22))?;
+    let cells = root.split_evenly((rows, columns));
+    for (panel, area) in panels.iter().zip(cells.iter()) {
+        draw_histogram(area, panel)?;
+    }
+    Ok(())
+}
+
+fn draw_histogram<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &HistogramPanel,
+) -> Result<(), Box<dyn std::error::Error + 'static>>
+where
+    DB::ErrorType: 'static,
+{
+    let finite: Vec<f64> = panel
+        .values
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
+    let (mut lo, mut hi) = finite
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if let Some((m, s)) = panel.normal {
+        lo = lo.min(m - 3.5 * s);
+        hi = hi.max(m + 3.5 * s);
+    }
+    if !(lo.is_finite() && hi.is_finite()) || hi <= lo {
+        lo -= 1.0;
+        hi += 1.0;
+    }
+    let bins = ((finite.len() as f64).sqrt().ceil() as usize).clamp(5, 40);
+    let width = (hi - lo) / bins as f64;
+    let mut counts = vec![0usize; bins];
+    for v in &finite {
+        let k = (((v - lo) / width) as usize).min(bins - 1);
+        counts[k] += 1;
+    }
+    // as a density, so the predicted curve shares the axis
+    let scale = 1.0 / (finite.len().max(1) as f64 * width);
+    let mut ymax = counts.iter().map(|&c| c as f64 * scale).fold(0.0, f64::max);
+    if let Some((_, s)) = panel.normal {
+        ymax = ymax.max(1.0 / (s * (2.0 * std::f64::consts::PI).sqrt()));
+    }
+    let mut chart = ChartBuilder::on(area)
+        .caption(&panel.title, (FAMILY, 15))
+        .margin(6)
+        .x_label_area_size(22)
+        .y_label_area_size(34)
+        .build_cartesian_2d(lo..hi, 0.0..ymax * 1.1)?;
+    chart
+        .configure_mesh()
+        .x_labels(4)
+        .y_labels(3)
+        .label_style((FAMILY, 10))
+        .disable_mesh()
+        .draw()?;
+    chart.draw_series(counts.iter().enumerate().map(|(k, &c)| {
+        let x0 = lo + k as f64 * width;
+        Rectangle::new(
+            [(x0, 0.0), (x0 + width, c as f64 * scale)],
+            BLUE.mix(0.4).filled(),
+        )
+    }))?;
+    if let Some((m, s)) = panel.normal {
+        let n = 200;
+        chart.draw_series(LineSeries::new(
+            (0..=n).map(|i| {
+                let x = lo + (hi - lo) * i as f64 / n as f64;
+                let z = (x - m) / s;
+                (
+                    x,
+                    (-0.5 * z * z).exp() / (s * (2.0 * std::f64::consts::PI).sqrt()),
+                )
+            }),
+            RED.stroke_width(2),
+        ))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_png_and_svg_with_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let panels: Vec<HistogramPanel> = (0..3)
+            .map(|k| HistogramPanel {
+                title: format!("eps_{k}_1 [mm]"),
+                values: (0..200)
+                    .map(|i| ((i * 37 % 101) as f64 / 50.0 - 1.0) * (k + 1) as f64)
+                    .collect(),
+                normal: Some((0.0, 0.6 * (k + 1) as f64)),
+            })
+            .collect();
+        let files = histogram_grid(&dir.path().join("hist"), "error — σ", &panels, 2).unwrap();
+        assert_eq!(files.len(), 2);
+        let png = std::fs::read(&files[0]).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+        let svg = std::fs::read_to_string(&files[1]).unwrap();
+        assert!(
+            svg.contains("<svg") && svg.contains("eps_2_1"),
+            "titles are in the SVG"
+        );
+    }
+}

@@ -1,0 +1,474 @@
+//! AUBO arm driver: a blocking JSON-RPC 2.0 client of the ARCS controller.
+//!
+//! The controller (port [`DEFAULT_PORT`]) takes requests
+//! `{"jsonrpc":"2.0","method":"rob1.…","params":[…],"id":N}` and answers
+//! `{"jsonrpc":"2.0","id":N,"result":…}` or `{…,"error":{"code","message"}}`,
+//! as bare JSON objects with no delimiter: replies are parsed as a stream
+//! and matched to requests by id (late replies to timed-out requests are
+//! skipped). Method names and parameter shapes follow the JSON-RPC examples
+//! of the ARCS SDK headers (`MotionControl`, `RobotState`). Motion methods
+//! return a status code, not a JSON-RPC error, when the robot refuses them;
+//! a non-zero status becomes [`RobotError::Refused`] with the code's name
+//! ([`status_message`]). The code meanings are from the SDK's comments;
+//! what the controller's own message would say is not known.
+//!
+//! [`JointPoller`] polls `getJointPositions` at a fixed rate in a thread.
+
+use std::io::{ErrorKind, Read, Write};
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver};
+use std::sync::Arc;
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+
+use serde_json::{json, Value};
+
+/// The ARCS controller's JSON-RPC port.
+pub const DEFAULT_PORT: u16 = 30004;
+
+/// A joint vector, rad.
+pub type Joints = [f64; 6];
+
+/// Why a robot call failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RobotError {
+    /// No TCP connection could be made.
+    #[error("cannot connect to the AUBO controller at {addr}: {source}")]
+    Connect {
+        /// The address tried.
+        addr: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The robot answered with an error or a non-zero status.
+    #[error("the robot refused {method}: code {code}: {message}")]
+    Refused {
+        /// The JSON-RPC method.
+        method: String,
+        /// The JSON-RPC error code or ARCS status code.
+        code: i64,
+        /// The robot's message, or the status code's meaning.
+        message: String,
+    },
+    /// The connection closed or broke.
+    #[error("connection to the robot lost during {method}: {detail}")]
+    Disconnected {
+        /// The JSON-RPC method in flight.
+        method: String,
+        /// What the socket said.
+        detail: String,
+    },
+    /// No reply in time.
+    #[error("no reply to {method} within {timeout:?}")]
+    Timeout {
+        /// The JSON-RPC method.
+        method: String,
+        /// The time waited.
+        timeout: Duration,
+    },
+    /// A reply that does not fit the protocol.
+    #[error("protocol error in {method}: {detail}")]
+    Protocol {
+        /// The JSON-RPC method.
+        method: String,
+        /// What was wrong.
+        detail: String,
+    },
+}
+
+/// The meaning of an ARCS status code (from the SDK's comments).
+pub fn status_message(code: i64) -> &'static str {
+    match code {
+        1 => "AUBO_BAD_STATE: safety mode is not Normal, Reduced or Recovery",
+        2 => "AUBO_QUEUE_FULL: the trajectory queue is full",
+        3 => "AUBO_BUSY: the previous command is still executing",
+        -1 => "AUBO_BAD_STATE: the robot is not in a state that accepts this command",
+        -4 => "AUBO_TIMEOUT: the controller timed out",
+        -5 => "AUBO_INVL_ARGUMENT: argument out of range (limits, speed, buffer)",
+        -13 => "AUBO_REQUEST_IGNORE: ignored (servo command while not in servo mode)",
+        -18 => "AUBO_POS_BOUND_ERR: joint position beyond the robot's limits",
+        -22 => "AUBO_TRAJ_SELF_COLLISION: the trajectory risks self-collision",
+        -30 => "AUBO_ALGORITHM_PLAN_FAILED: trajectory planning failed",
+        c if c > 0 => "warning: command not accepted",
+        _ => "error",
+    }
+}
+
+/// A connection to an AUBO ARCS controller.
+#[derive(Debug)]
+pub struct AuboClient {
+    stream: TcpStream,
+    peer: SocketAddr,
+    buf: Vec<u8>,
+    next_id: u64,
+    timeout: Duration,
+}
+
+impl AuboClient {
+    /// Connects; every call then waits at most `timeout` for its reply.
+    pub fn connect(addr: impl ToSocketAddrs, timeout: Duration) -> Result<AuboClient, RobotError> {
+        let addrs: Vec<SocketAddr> = addr
+            .to_socket_addrs()
+            .map_err(|source| RobotError::Connect {
+                addr: "(unresolved)".into(),
+                source,
+            })?
+            .collect();
+        let mut last = std::io::Error::new(ErrorKind::NotFound, "no address");
+        for a in &addrs {
+            match TcpStream::connect_timeout(a, timeout) {
+                Ok(stream) => {
+                    let _ = stream.set_nodelay(true);
+                    return Ok(AuboClient {
+                        stream,
+                        peer: *a,
+                        buf: Vec::new(),
+                        next_id: 1,
+                        timeout,
+                    });
+                }
+                Err(e) => last = e,
+            }
+        }
+        Err(RobotError::Connect {
+            addr: addrs
+                .iter()
+                .map(|a| a.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            source: last,
+        })
+    }
+
+    /// The controller's address.
+    pub fn peer(&self) -> SocketAddr {
+        self.peer
+    }
+
+    /// Sends one request and waits for its result.
+    pub fn call(&mut self, method: &str, params: Value) -> Result<Value, RobotError> {
+        let id = self.next_id;
+        self.next_id += 1;
+        let request = json!({"jsonrpc": "2.0", "method": method, "params": params, "id": id});
+        let lost = |e: std::io::Error| RobotError::Disconnected {
+            method: method.to_string(),
+            detail: e.to_string(),
+        };
+        self.stream
+            .write_all(request.to_string().as_bytes())
+            .map_err(lost)?;
+        let deadline = Instant::now() + self.timeout;
+        let mut chunk = [0u8; 4096];
+        loop {
+            while let Some(reply) = self.next_value(method)? {
+                if reply.get("id").and_then(Value::as_u64) == Some(id) {
+                    return reply_result(method, reply);
+                }
+                // A late reply to an earlier, timed-out request: skip.
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(RobotError::Timeout {
+                    method: method.to_string(),
+                    timeout: self.timeout,
+                });
+            }
+            self.stream
+                .set_read_timeout(Some(deadline - now))
+                .map_err(lost)?;
+            match self.stream.read(&mut chunk) {
+                Ok(0) => {
+                    return Err(RobotError::Disconnected {
+                        method: method.to_string(),
+                        detail: "the controller closed the connection".into(),
+                    })
+                }
+                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(lost(e)),
+            }
+        }
+    }
+
+    /// The next complete JSON value in the receive buffer.
+    fn next_value(&mut self, method: &str) -> Result<Option<Value>, RobotError> {
+        let mut it = serde_json::Deserializer::from_slice(&self.buf).into_iter::<Value>();
+        match it.next() {
+            None => {
+                self.buf.clear();
+                Ok(None)
+            }
+            Some(Ok(v)) => {
+                let used = it.byte_offset();
+                self.buf.drain(..used);
+                Ok(Some(v))
+            }
+            Some(Err(e)) if e.is_eof() => Ok(None),
+            Some(Err(e)) => {
+                self.buf.clear();
+                Err(RobotError::Protocol {
+                    method: method.to_string(),
+                    detail: format!("reply is not JSON: {e}"),
+                })
+            }
+        }
+    }
+
+    /// Calls a method that returns an ARCS status code; non-zero is refused.
+    fn call_status(&mut self, method: &str, params: Value) -> Result<(), RobotError> {
+        let result = self.call(method, params)?;
+        match result.as_i64() {
+            Some(0) => Ok(()),
+            Some(code) => Err(RobotError::Refused {
+                method: method.to_string(),
+                code,
+                message: status_message(code).to_string(),
+            }),
+            None => Err(RobotError::Protocol {
+                method: method.to_string(),
+                detail: format!("expected a status code, got {result}"),
+            }),
+        }
+    }
+
+    /// `RobotState.getJointPositions`: the joint angles, rad.
+    pub fn joint_positions(&mut self) -> Result<Joints, RobotError> {
+        let method = "rob1.RobotState.getJointPositions";
+        let result = self.call(method, json!([]))?;
+        joints_of(&result).ok_or_else(|| RobotError::Protocol {
+            method: method.to_string(),
+            detail: format!("expected 6 joint angles, got {result}"),
+        })
+    }
+
+    /// `MotionControl.moveJoint(q, a, v, blend_radius = 0, duration = 0)`:
+    /// queues a joint move (`a` rad/s², `v` rad/s).
+    pub fn move_joint(&mut self, q: &Joints, a: f64, v: f64) -> Result<(), RobotError> {
+        self.call_status("rob1.MotionControl.moveJoint", json!([q, a, v, 0.0, 0.0]))
+    }
+
+    /// `MotionControl.setServoMode(enable)`.
+    pub fn set_servo_mode(&mut self, enable: bool) -> Result<(), RobotError> {
+        self.call_status("rob1.MotionControl.setServoMode", json!([enable]))
+    }
+
+    /// `MotionControl.servoJoint(q, a = 0, v = 0, t, lookahead_time = 0.1,
+    /// gain = 200)`: reach `q` in `t` seconds (servo mode only).
+    pub fn servo_joint(&mut self, q: &Joints, t: f64) -> Result<(), RobotError> {
+        self.call_status(
+            "rob1.MotionControl.servoJoint",
+            json!([q, 0.0, 0.0, t, 0.1, 200.0]),
+        )
+    }
+
+    /// `MotionControl.pathBufferAlloc(name, type, size)`; type 2 is a
+    /// recorded trajectory sampled at a fixed interval.
+    pub fn path_buffer_alloc(
+        &mut self,
+        name: &str,
+        kind: i64,
+        size: usize,
+    ) -> Result<(), RobotError> {
+        self.call_status(
+            "rob1.MotionControl.pathBufferAlloc",
+            json!([name, kind, size]),
+        )
+    }
+
+    /// `MotionControl.pathBufferAppend(name, waypoints)`.
+    pub fn path_buffer_append(
+        &mut self,
+        name: &str,
+        waypoints: &[Joints],
+    ) -> Result<(), RobotError> {
+        self.call_status(
+            "rob1.MotionControl.pathBufferAppend",
+            json!([name, waypoints]),
+        )
+    }
+
+    /// `MotionControl.pathBufferEval(name, a, v, t)`: checks the buffer
+    /// against per-joint limits `a`, `v`; for type 2 `t` is the sampling
+    /// interval, s.
+    pub fn path_buffer_eval(
+        &mut self,
+        name: &str,
+        a: &Joints,
+        v: &Joints,
+        t: f64,
+    ) -> Result<(), RobotError> {
+        self.call_status("rob1.MotionControl.pathBufferEval", json!([name, a, v, t]))
+    }
+
+    /// `MotionControl.movePathBuffer(name)`: queues the evaluated buffer.
+    pub fn path_buffer_move(&mut self, name: &str) -> Result<(), RobotError> {
+        self.call_status("rob1.MotionControl.movePathBuffer", json!([name]))
+    }
+
+    /// `MotionControl.getExecId`: the running motion's id, `None` when idle.
+    pub fn exec_id(&mut self) -> Result<Option<i64>, RobotError> {
+        let method = "rob1.MotionControl.getExecId";
+        let result = self.call(method, json!([]))?;
+        match result.as_i64() {
+            Some(-1) => Ok(None),
+            Some(id) => Ok(Some(id)),
+            None => Err(RobotError::Protocol {
+                method: method.to_string(),
+                detail: format!("expected an integer, got {result}"),
+            }),
+        }
+    }
+
+    /// Polls [`AuboClient::exec_id`] every 10 ms until no motion runs.
+    pub fn wait_idle(&mut self, timeout: Duration) -> Result<(), RobotError> {
+        let deadline = Instant::now() + timeout;
+        while self.exec_id()?.is_some() {
+            if Instant::now() >= deadline {
+                return Err(RobotError::Timeout {
+                    method: "rob1.MotionControl.getExecId (waiting for the motion to end)".into(),
+                    timeout,
+                });
+            }
+            thread::sleep(Duration::from_millis(10));
+        }
+        Ok(())
+    }
+}
+
+fn joints_of(v: &Value) -> Option<Joints> {
+    let a = v.as_array()?;
+    if a.len() != 6 {
+        return None;
+    }
+    let mut q = [0.0; 6];
+    for (qi, x) in q.iter_mut().zip(a) {
+        *qi = x.as_f64()?;
+    }
+    Some(q)
+}
+
+/// The result of a reply, or its error as [`RobotError::Refused`].
+fn reply_result(method: &str, mut reply: Value) -> Result<Value, RobotError> {
+    if let Some(error) = reply.get("error") {
+        return Err(RobotError::Refused {
+            method: method.to_string(),
+            code: error.get("code").and_then(Value::as_i64).unwrap_or(0),
+            message: error
+                .get("message")
+                .and_then(Value::as_str)
+                .unwrap_or("(no message)")
+                .to_string(),
+        });
+    }
+    reply
+        .get_mut("result")
+        .map(Value::take)
+        .ok_or_else(|| RobotError::Protocol {
+            method: method.to_string(),
+            detail: "reply has neither result nor error".into(),
+        })
+}
+
+/// One polled joint reading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointSample {
+    /// Host time, s since the poller's epoch: the midpoint between request
+    /// and reply.
+    pub t: f64,
+    /// Joint angles, rad.
+    pub q: Joints,
+}
+
+/// Polls `getJointPositions` at a fixed rate in a thread; samples, then at
+/// most one error (after which polling stops), arrive on [`JointPoller::samples`].
+pub struct JointPoller {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Option<AuboClient>>>,
+    rx: Receiver<Result<JointSample, RobotError>>,
+}
+
+impl JointPoller {
+    /// Starts polling at `rate_hz`; times are seconds since `epoch`.
+    pub fn spawn(
+        mut client: AuboClient,
+        rate_hz: f64,
+        epoch: Instant,
+    ) -> Result<JointPoller, RobotError> {
+        let (tx, rx) = mpsc::channel();
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&stop);
+        let period = Duration::from_secs_f64(1.0 / rate_hz.max(1e-3));
+        let thread = thread::Builder::new()
+            .name("aubo-poller".into())
+            .spawn(move || {
+                let mut next = Instant::now();
+                while !flag.load(Ordering::SeqCst) {
+                    let sent = Instant::now();
+                    let reading = client.joint_positions();
+                    let received = Instant::now();
+                    let t = (sent.duration_since(epoch).as_secs_f64()
+                        + received.duration_since(epoch).as_secs_f64())
+                        / 2.0;
+                    match reading {
+                        Ok(q) => {
+                            if tx.send(Ok(JointSample { t, q })).is_err() {
+                                break;
+                            }
+                        }
+                        Err(e) => {
+                            let _ = tx.send(Err(e));
+                            return None;
+                        }
+                    }
+                    next += period;
+                    let now = Instant::now();
+                    if next > now {
+                        thread::sleep(next - now);
+                    } else {
+                        next = now;
+                    }
+                }
+                Some(client)
+            })
+            .map_err(|e| RobotError::Disconnected {
+                method: "rob1.RobotState.getJointPositions".into(),
+                detail: format!("cannot start the polling thread: {e}"),
+            })?;
+        Ok(JointPoller {
+            stop,
+            thread: Some(thread),
+            rx,
+        })
+    }
+
+    /// The samples (and a final error, if polling failed).
+    pub fn samples(&self) -> &Receiver<Result<JointSample, RobotError>> {
+        &self.rx
+    }
+
+    /// Stops polling; returns the client (unless polling had failed) and
+    /// the channel, which still holds the samples not yet received.
+    #[allow(clippy::type_complexity)]
+    pub fn stop(
+        mut self,
+    ) -> (
+        Option<AuboClient>,
+        Receiver<Result<JointSample, RobotError>>,
+    ) {
+        self.stop.store(true, Ordering::SeqCst);
+        let client = self.thread.take().and_then(|t| t.join().ok()).flatten();
+        let (_, empty) = mpsc::channel();
+        (client, std::mem::replace(&mut self.rx, empty))
+    }
+}
+
+impl Drop for JointPoller {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}

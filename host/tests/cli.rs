@@ -1,0 +1,544 @@
+//! The `robimu` program end to end: simulate → calibrate round trips checked
+//! against the result-file contract (MODEL.md §8) and the hidden truth, and
+//! bad input that must end with a non-zero exit and a message naming the file
+//! and line or the cause — never a panic.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use robimu::model::{ParamLayout, Robot};
+use robimu::report::CalibrationResult;
+use robimu::session::Truth;
+use serde_json::Value;
+
+/// Outcome of one run of the program.
+struct Run {
+    code: Option<i32>,
+    stdout: String,
+    stderr: String,
+}
+
+fn robimu(args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
+        .args(args)
+        .output()
+        .expect("the robimu binary runs");
+    Run {
+        code: out.status.code(),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+fn ok(run: Run) -> Run {
+    assert_eq!(
+        run.code,
+        Some(0),
+        "stdout:\n{}\nstderr:\n{}",
+        run.stdout,
+        run.stderr
+    );
+    run
+}
+
+/// A non-zero exit, every `wants` in stderr, and no panic.
+fn fails(run: &Run, wants: &[&str]) {
+    assert!(
+        run.code.is_some_and(|c| c != 0),
+        "expected failure, got {:?}\nstdout:\n{}",
+        run.code,
+        run.stdout
+    );
+    assert!(!run.stderr.contains("panicked"), "panic:\n{}", run.stderr);
+    assert!(
+        run.stderr.lines().any(|l| l.starts_with("error: ")),
+        "{}",
+        run.stderr
+    );
+    for want in wants {
+        assert!(
+            run.stderr.contains(want),
+            "stderr lacks `{want}`:\n{}",
+            run.stderr
+        );
+    }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("temporary paths are UTF-8")
+}
+
+/// A simulated AUBO i5 session of `seconds` in `dir/name`.
+fn simulate(dir: &Path, name: &str, seconds: &str, seed: &str, extra: &[&str]) -> PathBuf {
+    let out = dir.join(name);
+    let mut args = vec![
+        "simulate",
+        "--duration",
+        seconds,
+        "--seed",
+        seed,
+        "--out",
+        s(&out),
+    ];
+    args.extend_from_slice(extra);
+    let run = ok(robimu(&args));
+    assert!(run.stdout.contains("wrote"), "{}", run.stdout);
+    out
+}
+
+/// Rewrite `file` line by line (1-based line numbers).
+fn edit(file: &Path, f: impl Fn(usize, &str) -> Option<String>) {
+    let text = std::fs::read_to_string(file).unwrap();
+    let lines: Vec<String> = text
+        .lines()
+        .enumerate()
+        .filter_map(|(i, l)| f(i + 1, l))
+        .collect();
+    std::fs::write(file, lines.join("\n") + "\n").unwrap();
+}
+
+fn aubo_layout() -> ParamLayout {
+    ParamLayout::new(&Robot::aubo_i5())
+}
+
+/// Checks the MODEL.md §8 contract on the raw JSON, without the crate's
+/// reader: every parameter in x order with its unit and prior, the
+/// covariance over exactly the estimated ones, square and symmetric, and
+/// sigma = √diag. Returns the estimated names.
+fn check_result_json(text: &str, layout: &ParamLayout) -> Vec<String> {
+    let v: Value = serde_json::from_str(text).unwrap();
+    assert_eq!(v["format"], "robimu-result/1");
+    let params = v["parameters"].as_array().unwrap();
+    assert_eq!(params.len(), layout.len());
+    let mut estimated = Vec::new();
+    for (p, spec) in params.iter().zip(layout.specs()) {
+        assert_eq!(p["name"], spec.name.as_str());
+        assert_eq!(p["unit"], spec.unit);
+        assert_eq!(p["prior"].as_f64().unwrap(), spec.nominal);
+        assert_eq!(p["prior_sigma"].as_f64().unwrap(), spec.sigma);
+        assert!(p["value"].as_f64().unwrap().is_finite());
+        if p["frozen"].as_bool().unwrap() {
+            assert_eq!(p["sigma"].as_f64().unwrap(), 0.0, "{}", spec.name);
+            assert_eq!(p["value"].as_f64().unwrap(), spec.nominal, "{}", spec.name);
+        } else {
+            estimated.push(spec.name.clone());
+        }
+    }
+    let names: Vec<String> = v["covariance"]["names"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap().to_string())
+        .collect();
+    assert_eq!(names, estimated);
+    let m: Vec<Vec<f64>> = v["covariance"]["matrix"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|row| {
+            row.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
+        .collect();
+    let n = names.len();
+    assert_eq!(m.len(), n);
+    for (i, row) in m.iter().enumerate() {
+        assert_eq!(row.len(), n, "row {i}");
+        assert!(row[i] > 0.0, "variance of {}", names[i]);
+        for j in 0..i {
+            let scale = (m[i][i] * m[j][j]).sqrt();
+            assert!(
+                (m[i][j] - m[j][i]).abs() <= 1e-9 * scale,
+                "asymmetric at {} {}",
+                names[i],
+                names[j]
+            );
+            assert!(m[i][j].abs() <= scale * (1.0 + 1e-9), "|correlation| > 1");
+        }
+        let p = params
+            .iter()
+            .find(|p| p["name"] == names[i].as_str())
+            .unwrap();
+        let sigma = p["sigma"].as_f64().unwrap();
+        assert!(
+            (sigma - row[i].sqrt()).abs() <= 1e-12 * sigma,
+            "{}: sigma {sigma} vs sqrt(diag) {}",
+            names[i],
+            row[i].sqrt()
+        );
+    }
+    estimated
+}
+
+/// The number printed after `key` in `text` (up to the next space).
+fn printed_number(text: &str, key: &str) -> f64 {
+    let at = text
+        .find(key)
+        .unwrap_or_else(|| panic!("no `{key}` in\n{text}"))
+        + key.len();
+    text[at..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .trim_end_matches(|c: char| !c.is_ascii_digit())
+        .parse()
+        .unwrap()
+}
+
+#[test]
+fn simulate_then_calibrate_writes_the_contract_and_recovers_the_truth() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = simulate(tmp.path(), "s", "40", "7", &[]);
+    for f in ["session.toml", "joints.csv", "imu.csv", "truth.toml"] {
+        assert!(dir.join(f).is_file(), "{f}");
+    }
+    let layout = aubo_layout();
+    let truth = Truth::read(&dir.join("truth.toml")).unwrap();
+    let truth_names: Vec<&str> = truth.values.iter().map(|(n, _)| n.as_str()).collect();
+    let spec_names: Vec<&str> = layout.specs().iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(truth_names, spec_names, "truth.toml lists x in order");
+
+    let result_path = tmp.path().join("r.json");
+    let run = ok(robimu(&["calibrate", s(&dir), "--out", s(&result_path)]));
+    let text = std::fs::read_to_string(&result_path).unwrap();
+    let estimated = check_result_json(&text, &layout);
+    assert_eq!(estimated.len(), layout.len());
+    let result = CalibrationResult::read(&result_path).unwrap();
+    assert_eq!(result.parameters.len(), layout.len());
+    assert_eq!(result.robot.as_deref(), Some("aubo_i5"));
+
+    // every parameter within 5 posterior σ of the hidden truth, and the
+    // printed summary agrees with an independent computation from the file
+    let mut worst = (0.0f64, String::new());
+    let k = result.covariance.names.len();
+    let mut e = nalgebra::DVector::zeros(k);
+    for (i, name) in result.covariance.names.iter().enumerate() {
+        let p = result.parameter(name).unwrap();
+        let err = p.value - truth.get(name).unwrap();
+        e[i] = err;
+        if (err / p.sigma).abs() > worst.0 {
+            worst = ((err / p.sigma).abs(), name.clone());
+        }
+    }
+    assert!(worst.0 < 5.0, "{worst:?}");
+    let cov = nalgebra::DMatrix::from_fn(k, k, |i, j| result.covariance.matrix[i][j]);
+    let nees = (e.transpose() * cov.try_inverse().unwrap() * &e)[(0, 0)];
+    let printed = printed_number(&run.stdout, "max |error/σ| = ");
+    assert!((printed - worst.0).abs() < 0.006, "{printed} vs {worst:?}");
+    assert!(
+        run.stdout.contains(&format!("({})", worst.1)),
+        "{}",
+        run.stdout
+    );
+    let printed = printed_number(&run.stdout, "NEES = ");
+    assert!(
+        (printed - nees).abs() < 0.06 + 1e-3 * nees,
+        "{printed} vs {nees}"
+    );
+    // a consistent estimator: NEES ~ χ²₄₈, far inside [15, 100]
+    assert!((15.0..100.0).contains(&nees), "NEES {nees}");
+    // the table lists every parameter in display units
+    for name in &spec_names {
+        assert!(run.stdout.lines().any(|l| l.starts_with(name)), "{name}");
+    }
+    assert!(run.stdout.contains("error/σ"));
+    assert!(run.stderr.contains("iter") && run.stderr.contains("lambda"));
+}
+
+#[test]
+fn frozen_lengths_are_left_out_of_the_covariance() {
+    let tmp = tempfile::tempdir().unwrap();
+    let layout = aubo_layout();
+    // a truth whose robot lengths are nominal, so freezing them is right
+    let drawn = simulate(tmp.path(), "drawn", "5", "9", &[]);
+    let truth_path = tmp.path().join("truth.toml");
+    let lengths = [
+        "eps_1_1", "eps_2_1", "eps_2_2", "eps_3_1", "eps_3_2", "eps_4_1", "eps_4_2", "eps_5_1",
+        "eps_5_2",
+    ];
+    let mut truth = Truth::read(&drawn.join("truth.toml")).unwrap();
+    for (name, v) in &mut truth.values {
+        if lengths.contains(&name.as_str()) {
+            *v = 0.0;
+        }
+    }
+    std::fs::write(&truth_path, truth.to_toml()).unwrap();
+    let dir = simulate(
+        tmp.path(),
+        "s",
+        "40",
+        "9",
+        &["--truth", s(&truth_path), "--joint-rate", "100"],
+    );
+    assert_eq!(Truth::read(&dir.join("truth.toml")).unwrap(), truth);
+    let run = ok(robimu(&["calibrate", s(&dir), "--freeze", "lengths"]));
+    assert!(run.stdout.contains("estimating 39 of 48"), "{}", run.stdout);
+    // default output: result.json in the session directory
+    let text = std::fs::read_to_string(dir.join("result.json")).unwrap();
+    let estimated = check_result_json(&text, &layout);
+    let result = CalibrationResult::parse(&text, Path::new("result.json")).unwrap();
+    let frozen: Vec<&str> = result
+        .parameters
+        .iter()
+        .filter(|p| p.frozen)
+        .map(|p| p.name.as_str())
+        .collect();
+    assert_eq!(frozen, lengths);
+    assert_eq!(estimated.len(), 39);
+    for name in &estimated {
+        let p = result.parameter(name).unwrap();
+        let z = (p.value - truth.get(name).unwrap()) / p.sigma;
+        assert!(z.abs() < 5.0, "{name}: error/σ {z}");
+    }
+}
+
+#[test]
+fn demo_streams_from_the_simulated_board_and_calibrates() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("demo");
+    let run = ok(robimu(&[
+        "demo",
+        "--stream",
+        "1",
+        "--duration",
+        "30",
+        "--out",
+        s(&out),
+    ]));
+    assert!(run.stdout.contains("chip id 0xa0"), "{}", run.stdout);
+    assert!(run.stdout.contains("0 CRC errors"), "{}", run.stdout);
+    assert!(run.stdout.contains("ping round trip"), "{}", run.stdout);
+    let streamed = run
+        .stdout
+        .lines()
+        .find(|l| l.starts_with("streamed"))
+        .unwrap();
+    let hz = printed_number(streamed, "s: ");
+    assert!((hz - 120.0).abs() < 3.0, "device-clock rate {hz}");
+    CalibrationResult::read(&out.join("result.json")).unwrap();
+    assert!(run.stdout.contains("NEES"));
+}
+
+/// A fresh 30 s session to break.
+fn session(tmp: &Path) -> PathBuf {
+    simulate(tmp, "s", "30", "3", &[])
+}
+
+fn calibrate(dir: &Path, extra: &[&str]) -> Run {
+    let mut args = vec!["calibrate", s(dir)];
+    args.extend_from_slice(extra);
+    robimu(&args)
+}
+
+#[test]
+fn malformed_csv_line_names_file_and_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = session(tmp.path());
+    edit(&dir.join("joints.csv"), |i, l| {
+        Some(if i == 10 {
+            let mut f: Vec<&str> = l.split(',').collect();
+            f[1] = "abc";
+            f.join(",")
+        } else {
+            l.to_string()
+        })
+    });
+    fails(
+        &calibrate(&dir, &[]),
+        &["joints.csv:10:", "column `q1`", "`abc` is not a number"],
+    );
+    // a line with too few fields
+    let dir = session(&tmp.path().join("b"));
+    edit(&dir.join("imu.csv"), |i, l| {
+        Some(if i == 7 { "0.05,1,2".into() } else { l.into() })
+    });
+    fails(
+        &calibrate(&dir, &[]),
+        &["imu.csv:7:", "expected at least 7 fields"],
+    );
+}
+
+#[test]
+fn missing_column_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = session(tmp.path());
+    edit(&dir.join("imu.csv"), |_, l| {
+        Some(l[..l.rfind(',').unwrap()].to_string())
+    });
+    fails(
+        &calibrate(&dir, &[]),
+        &["imu.csv:1:", "missing column `gz`"],
+    );
+}
+
+#[test]
+fn nan_is_rejected_with_its_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = session(tmp.path());
+    edit(&dir.join("imu.csv"), |i, l| {
+        Some(if i == 20 {
+            let mut f: Vec<&str> = l.split(',').collect();
+            f[1] = "NaN";
+            f.join(",")
+        } else {
+            l.into()
+        })
+    });
+    fails(
+        &calibrate(&dir, &[]),
+        &["imu.csv:20:", "column `ax`", "not a finite number"],
+    );
+}
+
+#[test]
+fn time_going_backwards_is_rejected_with_its_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = session(tmp.path());
+    let path = dir.join("joints.csv");
+    let mut lines: Vec<String> = std::fs::read_to_string(&path)
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    lines.swap(49, 50); // file lines 50 and 51
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    fails(
+        &calibrate(&dir, &[]),
+        &["joints.csv:51:", "time goes backwards"],
+    );
+}
+
+#[test]
+fn wrong_joint_count_is_rejected() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = session(tmp.path());
+    edit(&dir.join("joints.csv"), |_, l| {
+        Some(l[..l.rfind(',').unwrap()].to_string())
+    });
+    fails(
+        &calibrate(&dir, &[]),
+        &["joints.csv", "5 joint columns", "`aubo_i5` has 6 joints"],
+    );
+}
+
+#[test]
+fn empty_imu_file_is_rejected() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = session(tmp.path());
+    edit(&dir.join("imu.csv"), |i, l| (i == 1).then(|| l.to_string()));
+    fails(&calibrate(&dir, &[]), &["imu.csv", "no data rows"]);
+    std::fs::write(dir.join("imu.csv"), "").unwrap();
+    fails(&calibrate(&dir, &[]), &["imu.csv", "empty"]);
+}
+
+#[test]
+fn imu_stream_outside_the_joint_stream_is_rejected() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = session(tmp.path());
+    edit(&dir.join("imu.csv"), |i, l| {
+        Some(if i == 1 {
+            l.to_string()
+        } else {
+            let (t, rest) = l.split_once(',').unwrap();
+            format!("{},{rest}", t.parse::<f64>().unwrap() + 1000.0)
+        })
+    });
+    fails(
+        &calibrate(&dir, &[]),
+        &["do not overlap", "same session clock"],
+    );
+}
+
+#[test]
+fn unknown_robot_is_rejected() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("x");
+    fails(
+        &robimu(&["simulate", "--robot", "ur5e", "--out", s(&out)]),
+        &["unknown robot `ur5e`", "aubo_i5"],
+    );
+    assert!(!out.exists());
+    let dir = session(tmp.path());
+    edit(&dir.join("session.toml"), |_, l| {
+        Some(if l.starts_with("robot") {
+            "robot = \"ur5e\"".into()
+        } else {
+            l.into()
+        })
+    });
+    fails(
+        &calibrate(&dir, &[]),
+        &["session.toml", "unknown robot `ur5e`", "aubo_i5"],
+    );
+    // a robot description file that is not one
+    std::fs::write(dir.join("robot.toml"), "name = 3\n").unwrap();
+    edit(&dir.join("session.toml"), |_, l| {
+        Some(if l.starts_with("robot") {
+            "robot = \"robot.toml\"".into()
+        } else {
+            l.into()
+        })
+    });
+    fails(&calibrate(&dir, &[]), &["robot.toml"]);
+}
+
+#[test]
+fn unknown_freeze_name_lists_the_valid_ones() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = session(tmp.path());
+    fails(
+        &calibrate(&dir, &["--freeze", "lengths,eps_9_9"]),
+        &[
+            "unknown parameter `eps_9_9`",
+            "valid: lengths, eps_1_1",
+            "b_w_z",
+        ],
+    );
+    assert!(!dir.join("result.json").exists());
+}
+
+#[test]
+fn missing_session_directory_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("no-such-session");
+    fails(
+        &calibrate(&dir, &[]),
+        &["no-such-session", "not a session directory"],
+    );
+}
+
+#[test]
+fn bad_session_toml_and_bad_numbers_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = session(tmp.path());
+    fails(
+        &calibrate(&dir, &["--knot-spacing", "0"]),
+        &["--knot-spacing must be a positive number"],
+    );
+    let nowhere = tmp.path().join("no-dir").join("r.json");
+    fails(
+        &calibrate(&dir, &["--out", s(&nowhere)]),
+        &["no-dir", "does not exist"],
+    );
+    std::fs::write(
+        dir.join("session.toml"),
+        "format = \"robimu-session/1\"\nrobot = = \"aubo_i5\"\n",
+    )
+    .unwrap();
+    fails(&calibrate(&dir, &[]), &["session.toml:2:"]);
+    let out = tmp.path().join("y");
+    fails(
+        &robimu(&["simulate", "--duration=-1", "--out", s(&out)]),
+        &["--duration must be a positive number"],
+    );
+    // a truth file that does not list every parameter
+    let truth = tmp.path().join("t.toml");
+    std::fs::write(&truth, "tau = 0.1\n").unwrap();
+    fails(
+        &robimu(&["simulate", "--truth", s(&truth), "--out", s(&out)]),
+        &["t.toml", "`eps_1_1` is missing"],
+    );
+}
