@@ -51,6 +51,9 @@
 //! encoder noise. Every integration step is logged with its time (seconds
 //! since [`SimAuboConfig::epoch`]): [`SimAubo::true_trajectory`].
 
+// Joint loops index several joint vectors in step.
+#![allow(clippy::needless_range_loop)]
+
 use std::collections::{HashMap, VecDeque};
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
@@ -120,7 +123,7 @@ impl JointLimits {
 impl Default for JointLimits {
     /// About an AUBO i5: ±175° joints, 180°/s, 1000°/s².
     fn default() -> Self {
-        JointLimits::uniform(3.05, 3.14, 17.4)
+        JointLimits::uniform(3.05, std::f64::consts::PI, 17.4)
     }
 }
 
@@ -898,7 +901,10 @@ impl Robot {
             }
             self.r_prev = r;
             self.t = t_next;
-            self.log.push(TrueSample { t: self.t, q: self.q });
+            self.log.push(TrueSample {
+                t: self.t,
+                q: self.q,
+            });
         }
     }
 
@@ -934,7 +940,7 @@ impl Robot {
         if !self.limits.within_position(&q) {
             return status::POS_BOUND_ERR;
         }
-        if !(a > 0.0 && v > 0.0) {
+        if a <= 0.0 || v <= 0.0 {
             return status::INVL_ARGUMENT;
         }
         let v = self.limits.velocity.iter().fold(v, |m, &x| m.min(x));
@@ -988,7 +994,7 @@ impl Robot {
     }
 
     fn path_alloc(&mut self, name: &str, kind: f64, size: f64) -> i64 {
-        if kind != 2.0 || !(size >= 2.0) || size.fract() != 0.0 {
+        if kind != 2.0 || size < 2.0 || size.fract() != 0.0 {
             return status::INVL_ARGUMENT;
         }
         self.buffers.insert(
@@ -1020,7 +1026,7 @@ impl Robot {
         let Some(buf) = self.buffers.get_mut(name) else {
             return status::INVL_ARGUMENT;
         };
-        if buf.points.len() < buf.size || buf.points.len() < 2 || !(t > 0.0) {
+        if buf.points.len() < buf.size || buf.points.len() < 2 || t <= 0.0 {
             return status::INVL_ARGUMENT;
         }
         for i in 0..JOINTS {

@@ -100,6 +100,16 @@ impl CalibrateCmd {
             }
         }
         opts.knot_spacing = self.knot_spacing;
+        let path = self.out.clone().unwrap_or_else(|| dir.join("result.json"));
+        if let Some(parent) = path.parent() {
+            if !parent.as_os_str().is_empty() && !parent.is_dir() {
+                bail!(
+                    "--out {}: the directory {} does not exist",
+                    path.display(),
+                    parent.display()
+                );
+            }
+        }
         let data = measurements(&session);
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
@@ -217,7 +227,6 @@ impl CalibrateCmd {
                 eprintln!("  (all are robot length errors: the motion is too slow to observe them; `--freeze lengths` holds them at nominal)");
             }
         }
-        let path = self.out.clone().unwrap_or_else(|| dir.join("result.json"));
         result.write(&path)?;
         writeln!(out, "wrote {}", path.display())?;
         Ok(())

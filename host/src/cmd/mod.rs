@@ -4,6 +4,7 @@
 pub mod calibrate;
 pub mod demo;
 pub mod input;
+pub mod montecarlo;
 pub mod simulate;
 
 /// What `robimu` can do (each command's help is its struct's doc comment).
@@ -12,6 +13,8 @@ pub enum Command {
     Demo(demo::DemoCmd),
     Simulate(simulate::SimulateCmd),
     Calibrate(calibrate::CalibrateCmd),
+    #[command(name = "montecarlo")]
+    MonteCarlo(montecarlo::MonteCarloCmd),
 }
 
 impl Command {
@@ -21,6 +24,7 @@ impl Command {
             Command::Demo(c) => c.run(),
             Command::Simulate(c) => c.run(),
             Command::Calibrate(c) => c.run(),
+            Command::MonteCarlo(c) => c.run(),
         }
     }
 }

@@ -12,7 +12,7 @@ use robimu::workflows::calibrate::CalibrateOptions;
 use robimu::workflows::montecarlo::{monte_carlo, MonteCarloOptions};
 use robimu::workflows::simulate::SimulateOptions;
 
-use super::input::{resolve_robot, RobotSource};
+use super::input::resolve_robot;
 
 /// Check that the reported uncertainties are honest: per run, draw a truth
 /// from the priors, simulate a session, calibrate it, and compare the error
@@ -50,9 +50,10 @@ impl MonteCarloCmd {
             self.duration.is_finite() && self.duration >= 10.0,
             "--duration must be at least 10 s"
         );
-        let robot = resolve_robot(&RobotSource::Argument(self.robot.clone()))?;
+        let (robot, _) = resolve_robot(&self.robot, None)?;
         let layout = ParamLayout::new(&robot);
-        std::fs::create_dir_all(&self.out).with_context(|| format!("cannot create {}", self.out.display()))?;
+        std::fs::create_dir_all(&self.out)
+            .with_context(|| format!("cannot create {}", self.out.display()))?;
         let opts = MonteCarloOptions {
             runs: self.runs,
             duration: self.duration,
@@ -62,8 +63,10 @@ impl MonteCarloCmd {
         };
         let bar = indicatif::ProgressBar::new(self.runs as u64);
         bar.set_style(
-            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} runs  {elapsed} elapsed, {eta} left  {msg}")
-                .expect("valid template"),
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} runs  {elapsed} elapsed, {eta} left  {msg}",
+            )
+            .expect("valid template"),
         );
         let started = std::time::Instant::now();
         let result = monte_carlo(&robot, &opts, |_, run| {
@@ -76,9 +79,13 @@ impl MonteCarloCmd {
         // per-run CSV
         let runs_path = self.out.join("runs.csv");
         let mut w = std::io::BufWriter::new(
-            std::fs::File::create(&runs_path).with_context(|| format!("cannot write {}", runs_path.display()))?,
+            std::fs::File::create(&runs_path)
+                .with_context(|| format!("cannot write {}", runs_path.display()))?,
         );
-        writeln!(w, "run,seed,parameter,unit,truth,estimate,sigma,error_over_sigma")?;
+        writeln!(
+            w,
+            "run,seed,parameter,unit,truth,estimate,sigma,error_over_sigma"
+        )?;
         for (k, run) in result.runs.iter().enumerate() {
             for (i, spec) in layout.specs().iter().enumerate() {
                 let e = run.estimate[i] - run.truth[i];
@@ -105,12 +112,19 @@ impl MonteCarloCmd {
             println!("{:>12} {:>+10.3} {:>10.3}", st.name, st.mean, st.std);
             s.push_str(&format!("{},{:?},{:?}\n", st.name, st.mean, st.std));
         }
-        std::fs::write(&summary_path, s).with_context(|| format!("cannot write {}", summary_path.display()))?;
-        let worst_mean = result.stats.iter().map(|s| s.mean.abs()).fold(0.0, f64::max);
+        std::fs::write(&summary_path, s)
+            .with_context(|| format!("cannot write {}", summary_path.display()))?;
+        let worst_mean = result
+            .stats
+            .iter()
+            .map(|s| s.mean.abs())
+            .fold(0.0, f64::max);
         let (std_lo, std_hi) = result
             .stats
             .iter()
-            .fold((f64::INFINITY, 0.0f64), |(a, b), s| (a.min(s.std), b.max(s.std)));
+            .fold((f64::INFINITY, 0.0f64), |(a, b), s| {
+                (a.min(s.std), b.max(s.std))
+            });
         let (lo, hi) = result.nees_interval;
         let inside = result.nees_mean > lo && result.nees_mean < hi;
         println!(
@@ -133,8 +147,17 @@ impl MonteCarloCmd {
             .enumerate()
             .map(|(i, spec)| {
                 let unit = DisplayUnit::for_si(spec.unit);
-                let errors: Vec<f64> = result.runs.iter().map(|r| unit.show(r.estimate[i] - r.truth[i])).collect();
-                let mean_var = result.runs.iter().map(|r| r.sigma[i] * r.sigma[i]).sum::<f64>() / result.runs.len() as f64;
+                let errors: Vec<f64> = result
+                    .runs
+                    .iter()
+                    .map(|r| unit.show(r.estimate[i] - r.truth[i]))
+                    .collect();
+                let mean_var = result
+                    .runs
+                    .iter()
+                    .map(|r| r.sigma[i] * r.sigma[i])
+                    .sum::<f64>()
+                    / result.runs.len() as f64;
                 HistogramPanel {
                     title: format!("{} [{}]", spec.name, unit.symbol()),
                     values: errors,
@@ -144,15 +167,23 @@ impl MonteCarloCmd {
             .collect();
         let files = histogram_grid(
             &self.out.join("histograms"),
-            &format!("Estimation error over {} runs (bars) and predicted posterior density (line)", self.runs),
+            &format!(
+                "Estimation error over {} runs (bars) and predicted posterior density (line)",
+                self.runs
+            ),
             &panels,
             8,
         )?;
-        println!("wrote {}, {} and {}", runs_path.display(), summary_path.display(), files
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", "));
+        println!(
+            "wrote {}, {} and {}",
+            runs_path.display(),
+            summary_path.display(),
+            files
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
         Ok(())
     }
 }

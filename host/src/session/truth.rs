@@ -70,14 +70,14 @@ mod tests {
     fn round_trip_exact_and_ordered() {
         let t = Truth {
             values: vec![
-                ("tau".into(), -2.718281828459045),
+                ("tau".into(), -2.718_281_828_459_1),
                 ("eps_1_1".into(), 1e-4),
                 ("k_a_x".into(), 1.0),
             ],
         };
         let back = Truth::parse(&t.to_toml(), Path::new("truth.toml")).unwrap();
         assert_eq!(back, t);
-        assert_eq!(back.get("tau"), Some(-2.718281828459045));
+        assert_eq!(back.get("tau"), Some(-2.718_281_828_459_1));
     }
 
     #[test]

@@ -432,7 +432,7 @@ mod tests {
     fn damping_and_diagonal() {
         let mut a = random_arrow(10, 2, 3, 9);
         let before = a.diagonal();
-        a.add_diagonal(&vec![1.5; 13]);
+        a.add_diagonal(&[1.5; 13]);
         let after = a.diagonal();
         for (b, c) in before.iter().zip(&after) {
             assert!((c - b - 1.5).abs() < 1e-12);
