@@ -542,3 +542,86 @@ fn bad_session_toml_and_bad_numbers_are_named() {
         &["t.toml", "`eps_1_1` is missing"],
     );
 }
+
+/// `simulate --trajectory PLAN_DIR` executes a plan: the session's joint
+/// samples follow `plan.csv`, and the session calibrates.
+#[test]
+fn simulate_executes_a_plan_csv() {
+    let tmp = tempfile::tempdir().unwrap();
+    // a plan: a session's own joint trajectory, written as plan.csv at 250 Hz
+    let src = simulate(
+        tmp.path(),
+        "src",
+        "30",
+        "4",
+        &["--rate", "250", "--noise-free"],
+    );
+    let plan = tmp.path().join("plan");
+    std::fs::create_dir_all(&plan).unwrap();
+    std::fs::copy(src.join("joints.csv"), plan.join("plan.csv")).unwrap();
+    let out = tmp.path().join("from-plan");
+    let run = ok(robimu(&[
+        "simulate",
+        "--trajectory",
+        s(&plan),
+        "--seed",
+        "9",
+        "--noise-free",
+        "--out",
+        s(&out),
+    ]));
+    assert!(run.stdout.contains("over 30.0 s"), "{}", run.stdout);
+    let a = robimu::session::Session::load(&src).unwrap();
+    let b = robimu::session::Session::load(&out).unwrap();
+    // the 120 Hz samples of the planned session lie on the plan (250 Hz samples)
+    let n = 6;
+    for (k, &t) in b.joints.t.iter().enumerate().step_by(97) {
+        let i = a
+            .joints
+            .t
+            .partition_point(|&u| u < t)
+            .min(a.joints.len() - 1);
+        if (a.joints.t[i] - t).abs() < 1e-9 {
+            for j in 0..n {
+                assert!(
+                    (a.joints.row(i)[j] - b.joints.row(k)[j]).abs() < 1e-7,
+                    "t = {t}, joint {j}"
+                );
+            }
+        }
+    }
+    ok(robimu(&["calibrate", s(&out)]));
+    // a plan outside the robot's limits is refused with its row
+    edit(&plan.join("plan.csv"), |i, l| {
+        if i == 5 {
+            let mut f: Vec<String> = l.split(',').map(String::from).collect();
+            f[1] = "3.0".into();
+            Some(f.join(","))
+        } else {
+            Some(l.to_string())
+        }
+    });
+    let run = robimu(&[
+        "simulate",
+        "--trajectory",
+        s(&plan),
+        "--out",
+        s(&tmp.path().join("bad")),
+    ]);
+    fails(
+        &run,
+        &["plan.csv: row 4", "q1 = 3 rad is outside the joint limits"],
+    );
+}
+
+/// An IMU stream unrelated to the robot's motion (another recording's data)
+/// cannot be fitted: a clear error, no numbers.
+#[test]
+fn unrelated_imu_data_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let a = simulate(tmp.path(), "a", "30", "1", &[]);
+    let b = simulate(tmp.path(), "b", "30", "2", &[]);
+    std::fs::copy(b.join("imu.csv"), a.join("imu.csv")).unwrap();
+    let run = robimu(&["calibrate", s(&a)]);
+    fails(&run, &["time offset"]);
+}

@@ -73,6 +73,7 @@ impl DemoCmd {
             out: dir.clone(),
             noise_free: false,
             truth: None,
+            trajectory: None,
         };
         let t0 = Instant::now();
         let s = sim.write()?;

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use rand::SeedableRng;
 use robimu::model::{ParamLayout, Robot};
-use robimu::session::{SessionMeta, SessionWriter, Truth};
+use robimu::session::{read_table, Columns, SessionMeta, SessionWriter, Truth};
 use robimu::workflows::simulate::{draw_truth, simulate, SimulateOptions};
 use robimu::workflows::trajectory::random_walk;
 
@@ -23,9 +23,13 @@ pub struct SimulateCmd {
     /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description.
     #[arg(long, default_value = "aubo_i5")]
     pub robot: String,
-    /// Length of the trajectory, s.
-    #[arg(long, default_value_t = 300.0)]
+    /// Length of the trajectory, s (with --trajectory: the plan's length).
+    #[arg(long, default_value_t = 300.0, conflicts_with = "trajectory")]
     pub duration: f64,
+    /// Execute this plan instead of a random trajectory: a directory with a
+    /// `plan.csv` (header `t,q1,…,qn`; s, rad), as `robimu plan` writes.
+    #[arg(long, value_name = "PLAN_DIR")]
+    pub trajectory: Option<PathBuf>,
     /// IMU sample rate, Hz.
     #[arg(long, default_value_t = 120.0)]
     pub rate: f64,
@@ -58,6 +62,8 @@ pub struct Simulated {
     pub imu_samples: usize,
     /// The true time offset τ, s.
     pub tau: f64,
+    /// Length of the trajectory, s.
+    pub duration: f64,
 }
 
 /// `v` must be in (0, max].
@@ -94,6 +100,49 @@ fn truth_vector(layout: &ParamLayout, truth: &Truth, path: &Path) -> anyhow::Res
         .collect()
 }
 
+/// The trajectory of `PLAN_DIR/plan.csv`, checked against the robot.
+fn read_plan(robot: &Robot, dir: &Path) -> anyhow::Result<robimu::model::Spline> {
+    let path = dir.join("plan.csv");
+    let table = read_table(&path, Columns::Joints)?;
+    let n = robot.dof();
+    if table.width() != n {
+        bail!(
+            "{}: {} joint columns, but robot `{}` has {n} joints",
+            path.display(),
+            table.width(),
+            robot.name()
+        );
+    }
+    for (s, row) in table.values.chunks_exact(n).enumerate() {
+        for (j, (q, lim)) in row.iter().zip(robot.limits()).enumerate() {
+            if *q < lim.q_min - 1e-9 || *q > lim.q_max + 1e-9 {
+                bail!(
+                    "{}: row {} (t = {} s): q{} = {q} rad is outside the joint limits [{}, {}]",
+                    path.display(),
+                    s + 1,
+                    table.t[s],
+                    j + 1,
+                    lim.q_min,
+                    lim.q_max
+                );
+            }
+        }
+    }
+    if table.len() < 8 {
+        bail!(
+            "{}: a plan needs at least 8 samples, found {}",
+            path.display(),
+            table.len()
+        );
+    }
+    robimu::workflows::trajectory::from_samples(n, &table.t, &table.values).with_context(|| {
+        format!(
+            "{}: cannot represent the plan as a trajectory",
+            path.display()
+        )
+    })
+}
+
 impl SimulateCmd {
     /// Simulate and write the session.
     pub fn run(self) -> anyhow::Result<()> {
@@ -101,11 +150,11 @@ impl SimulateCmd {
         let mut out = std::io::stdout().lock();
         writeln!(
             out,
-            "wrote {}: {} joint samples, {} IMU samples over {} s (true tau = {:.4} s; truth in truth.toml)",
+            "wrote {}: {} joint samples, {} IMU samples over {:.1} s (true tau = {:.4} s; truth in truth.toml)",
             s.dir.display(),
             s.joint_samples,
             s.imu_samples,
-            self.duration,
+            s.duration,
             s.tau
         )?;
         Ok(())
@@ -136,8 +185,11 @@ impl SimulateCmd {
             }
             None => drawn,
         };
-        let trajectory = random_walk(&robot, self.duration, 1.0, &mut rng)
-            .context("cannot plan the excitation trajectory")?;
+        let trajectory = match &self.trajectory {
+            None => random_walk(&robot, self.duration, 1.0, &mut rng)
+                .context("cannot plan the excitation trajectory")?,
+            Some(dir) => read_plan(&robot, dir)?,
+        };
         let mut opts = SimulateOptions::paper(&robot);
         opts.imu_rate = self.rate;
         opts.joint_rate = joint_rate;
@@ -187,6 +239,8 @@ impl SimulateCmd {
             joint_samples: data.joint_t.len(),
             imu_samples: data.imu_t.len(),
             tau: x_true[layout.offsets().tau],
+            duration: data.joint_t.last().copied().unwrap_or(0.0)
+                - data.joint_t.first().copied().unwrap_or(0.0),
         })
     }
 }

@@ -1,12 +1,14 @@
 //! Workflows: what a user runs, built on the model, problem and solver layers.
 //!
 //! * [`calibrate`] — the MAP calibration of one session;
+//! * [`identifiable`] — which generalized errors the IMU data can identify;
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
 //! * [`simulate`] — simulated sessions from a ground truth;
 //! * [`time_offset`] — finding τ before linearising;
 //! * [`trajectory`] — random excitation trajectories within the joint limits.
 
 pub mod calibrate;
+pub mod identifiable;
 pub mod montecarlo;
 pub mod simulate;
 pub mod time_offset;

@@ -141,3 +141,54 @@ mod tests {
         }
     }
 }
+
+/// Knot spacing used to represent a sampled plan, s: fine enough that a plan
+/// made of any smooth spline with knots ≥ 0.5 s apart is reproduced to well
+/// below the joint noise.
+pub const PLAN_KNOT_SPACING: f64 = 0.05;
+
+/// A trajectory from joint positions sampled densely in time (a plan's
+/// `plan.csv`: `t`, then `q[s·n + j]`), as a cubic spline with knots every
+/// [`PLAN_KNOT_SPACING`] s (or every 4 samples, whichever is longer) fitted by
+/// least squares.
+pub fn from_samples(n: usize, t: &[f64], q: &[f64]) -> Result<Spline, SplineError> {
+    let (Some(&a), Some(&b)) = (t.first(), t.last()) else {
+        return Err(SplineError::EmptyInterval { t0: 0.0, t1: 0.0 });
+    };
+    let spacing = PLAN_KNOT_SPACING.max(4.0 * (b - a) / t.len().max(1) as f64);
+    let knots = Knots::uniform(a, b, spacing, 3)?;
+    Spline::fit(knots, n, t, q)
+}
+
+#[cfg(test)]
+mod plan_tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn a_sampled_plan_is_reproduced_with_its_derivatives() {
+        let robot = Robot::aubo_i5();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let plan = random_walk(&robot, 20.0, 1.0, &mut rng).unwrap();
+        // sampled at 250 Hz, as a controller would take it
+        let t: Vec<f64> = (0..=5000).map(|k| k as f64 / 250.0).collect();
+        let mut q = Vec::new();
+        let mut js = JointState::default();
+        for &ti in &t {
+            plan.evaluate(ti, &mut js).unwrap();
+            q.extend_from_slice(&js.q[..6]);
+        }
+        let back = from_samples(6, &t, &q).unwrap();
+        let mut jb = JointState::default();
+        for k in 0..2000 {
+            let ti = 0.01 * k as f64 + 0.003;
+            plan.evaluate(ti, &mut js).unwrap();
+            back.evaluate(ti, &mut jb).unwrap();
+            for j in 0..6 {
+                assert!((js.q[j] - jb.q[j]).abs() < 1e-8, "q at {ti}");
+                assert!((js.qd[j] - jb.qd[j]).abs() < 1e-6, "q̇ at {ti}");
+                assert!((js.qdd[j] - jb.qdd[j]).abs() < 1e-3, "q̈ at {ti}");
+            }
+        }
+    }
+}
