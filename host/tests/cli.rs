@@ -625,3 +625,23 @@ fn unrelated_imu_data_is_refused() {
     let run = robimu(&["calibrate", s(&a)]);
     fails(&run, &["time offset"]);
 }
+
+/// A robot described in TOML without an `[errors]` table gets its estimated
+/// generalized errors found numerically (MODEL.md §1): the UR5-style arm
+/// simulates and calibrates with 21 of them.
+#[test]
+fn toml_robot_without_errors_table_uses_the_numerical_set() {
+    let tmp = tempfile::tempdir().unwrap();
+    let ur5 = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ur5.toml");
+    let dir = simulate(tmp.path(), "ur5", "40", "3", &["--robot", s(&ur5)]);
+    let run = ok(robimu(&["calibrate", s(&dir)]));
+    let result: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
+    let eps = result["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["name"].as_str().unwrap().starts_with("eps_"))
+        .count();
+    assert_eq!(eps, 21, "{}", run.stdout);
+}

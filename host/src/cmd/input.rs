@@ -10,6 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use robimu::model::Robot;
 use robimu::problem::Measurements;
 use robimu::session::Session;
+use robimu::workflows::identifiable::{identifiable_errors, IdentifiableOptions};
 
 /// Robots built into the program (`--robot NAME`, `robot = "NAME"`).
 pub const BUILTIN_ROBOTS: &[&str] = &["aubo_i5"];
@@ -41,6 +42,19 @@ pub fn resolve_robot(spec: &str, base: Option<&Path>) -> anyhow::Result<(Robot, 
     }
     let robot = Robot::from_toml_file(&path)
         .with_context(|| format!("cannot use the robot description {}", path.display()))?;
+    // MODEL.md §1: without an explicit `[errors]` table the estimated
+    // generalized errors are found numerically, never hand-listed.
+    let robot = if robot.description().errors.is_none() {
+        let set = identifiable_errors(&robot, &IdentifiableOptions::default()).with_context(|| {
+            format!(
+                "{}: cannot determine which generalized errors are identifiable (list them in an [errors] table)",
+                path.display()
+            )
+        })?;
+        robot.with_estimated_errors(set.errors)?
+    } else {
+        robot
+    };
     Ok((robot, RobotSource::File(path)))
 }
 
