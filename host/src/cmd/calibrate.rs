@@ -10,7 +10,7 @@ use robimu::report::{CalibrationResult, ParameterTable};
 use robimu::session::Session;
 use robimu::workflows::calibrate::{calibrate, check_measurements, CalibrateOptions};
 
-use super::input::{measurements, session_noise, session_robot, Progress};
+use super::input::{session_robot, Progress};
 
 /// Calibrate the robot and the IMU together from a session.
 ///
@@ -91,7 +91,7 @@ impl CalibrateCmd {
         }
         let layout = ParamLayout::new(&robot);
         let mut opts = CalibrateOptions::new(&robot);
-        (opts.sigma_z, opts.sigma_q) = session_noise(&session, &robot)?;
+        (opts.sigma_z, opts.sigma_q) = session.noise(&robot)?;
         opts.frozen = frozen_indices(&robot, &layout, &self.freeze)?;
         opts.use_prior = !self.no_prior;
         if let Some(h) = self.knot_spacing {
@@ -110,7 +110,7 @@ impl CalibrateCmd {
                 );
             }
         }
-        let data = measurements(&session);
+        let data = session.measurements();
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
         let mut out = std::io::stdout().lock();

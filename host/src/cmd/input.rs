@@ -8,7 +8,6 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
 use robimu::model::Robot;
-use robimu::problem::Measurements;
 use robimu::session::Session;
 use robimu::workflows::identifiable::{identifiable_errors, IdentifiableOptions};
 
@@ -67,38 +66,6 @@ pub fn session_robot(session: &Session) -> anyhow::Result<Robot> {
             .with_gravity(g0)
             .context("session.toml: `gravity` is not usable"),
         None => Ok(robot),
-    }
-}
-
-/// Noise standard deviations: the robot's defaults, overridden by the
-/// session's `[noise]` table.
-pub fn session_noise(session: &Session, robot: &Robot) -> anyhow::Result<([f64; 6], Vec<f64>)> {
-    let noise = session.meta.noise.clone().unwrap_or_default();
-    let sigma_z = noise.sigma_z.unwrap_or_else(|| robot.sigma_z());
-    let sigma_q = noise.sigma_q.unwrap_or_else(|| robot.sigma_q().to_vec());
-    if sigma_q.len() != robot.dof() {
-        bail!(
-            "session.toml: [noise] sigma_q has {} values but robot `{}` has {} joints",
-            sigma_q.len(),
-            robot.name(),
-            robot.dof()
-        );
-    }
-    Ok((sigma_z, sigma_q))
-}
-
-/// The session's samples as the calibrator's [`Measurements`].
-pub fn measurements(session: &Session) -> Measurements {
-    Measurements {
-        joint_t: session.joints.t.clone(),
-        joint_q: session.joints.values.clone(),
-        imu_t: session.imu.t.clone(),
-        imu_z: session
-            .imu
-            .values
-            .chunks_exact(6)
-            .map(|z| [z[0], z[1], z[2], z[3], z[4], z[5]])
-            .collect(),
     }
 }
 

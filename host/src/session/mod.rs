@@ -20,6 +20,9 @@ mod writer;
 
 use std::path::{Path, PathBuf};
 
+use crate::model::Robot;
+use crate::problem::Measurements;
+
 pub use error::SessionError;
 pub use meta::{NoiseOverride, SessionMeta, SESSION_FORMAT};
 pub use table::{parse_table, read_table, Columns, Table};
@@ -113,6 +116,41 @@ impl Session {
     /// Number of joints in `joints.csv`.
     pub fn joint_count(&self) -> usize {
         self.joints.width()
+    }
+
+    /// The samples as the calibrator's [`Measurements`].
+    pub fn measurements(&self) -> Measurements {
+        Measurements {
+            joint_t: self.joints.t.clone(),
+            joint_q: self.joints.values.clone(),
+            imu_t: self.imu.t.clone(),
+            imu_z: self
+                .imu
+                .values
+                .chunks_exact(6)
+                .map(|z| [z[0], z[1], z[2], z[3], z[4], z[5]])
+                .collect(),
+        }
+    }
+
+    /// Noise standard deviations `(σ_z, σ_q)`: `robot`'s defaults, overridden
+    /// by the session's `[noise]` table.
+    pub fn noise(&self, robot: &Robot) -> Result<([f64; 6], Vec<f64>), SessionError> {
+        let noise = self.meta.noise.clone().unwrap_or_default();
+        let sigma_z = noise.sigma_z.unwrap_or_else(|| robot.sigma_z());
+        let sigma_q = noise.sigma_q.unwrap_or_else(|| robot.sigma_q().to_vec());
+        if sigma_q.len() != robot.dof() {
+            return Err(SessionError::file(
+                self.dir.join(files::META),
+                format!(
+                    "[noise] sigma_q has {} values but robot `{}` has {} joints",
+                    sigma_q.len(),
+                    robot.name(),
+                    robot.dof()
+                ),
+            ));
+        }
+        Ok((sigma_z, sigma_q))
     }
 }
 
