@@ -287,44 +287,35 @@ pub fn solve<P: LeastSquares>(
             } else {
                 -1.0
             };
-            if new_cost.is_finite() && new_cost <= cost && rho > 0.0 {
+            let accepted = new_cost.is_finite() && new_cost <= cost && rho > 0.0;
+            // Even the undamped model predicts no meaningful decrease: the
+            // cost is at its minimum to rounding.
+            let at_rounding = !accepted
+                && step_ok
+                && tries == 1
+                && predicted >= 0.0
+                && predicted < opts.function_tolerance * cost;
+            let mut stop = None;
+            if accepted {
                 let rel = (cost - new_cost) / cost.max(f64::MIN_POSITIVE);
                 let small_step = delta.iter().zip(&theta).zip(&d).all(|((dt, t), dk)| {
                     dt.abs() <= opts.parameter_tolerance * (t.abs() + 1.0 / dk.sqrt())
                 });
                 theta = candidate;
                 cost = new_cost;
-                lambda *= f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3));
-                lambda = lambda.max(1e-15);
+                lambda = (lambda * f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-15);
                 nu = 2.0;
-                record(
-                    &mut log,
-                    IterationRecord {
-                        iteration,
-                        cost,
-                        step_norm,
-                        lambda,
-                        gradient_norm: gnorm,
-                        tries,
-                    },
-                );
                 if rel < opts.function_tolerance {
-                    termination = Termination::FunctionTolerance;
-                    break 'outer;
+                    stop = Some(Termination::FunctionTolerance);
+                } else if small_step {
+                    stop = Some(Termination::ParameterTolerance);
                 }
-                if small_step {
-                    termination = Termination::ParameterTolerance;
-                    break 'outer;
-                }
-                break;
+            } else if at_rounding {
+                stop = Some(Termination::FunctionTolerance);
+            } else if lambda * nu > 1e16 {
+                stop = Some(Termination::NoProgress);
             }
-            if step_ok
-                && tries == 1
-                && predicted >= 0.0
-                && predicted < opts.function_tolerance * cost
-            {
-                // Even the undamped model predicts no meaningful decrease: the
-                // cost is at its minimum to rounding.
+            if accepted || stop.is_some() {
                 record(
                     &mut log,
                     IterationRecord {
@@ -336,26 +327,16 @@ pub fn solve<P: LeastSquares>(
                         tries,
                     },
                 );
-                termination = Termination::FunctionTolerance;
+            }
+            if let Some(reason) = stop {
+                termination = reason;
                 break 'outer;
+            }
+            if accepted {
+                break;
             }
             lambda *= nu;
             nu *= 2.0;
-            if lambda > 1e16 {
-                record(
-                    &mut log,
-                    IterationRecord {
-                        iteration,
-                        cost,
-                        step_norm,
-                        lambda,
-                        gradient_norm: gnorm,
-                        tries,
-                    },
-                );
-                termination = Termination::NoProgress;
-                break 'outer;
-            }
         }
     }
     // the undamped matrix at the final θ, for the covariance
