@@ -4,7 +4,9 @@
 //! `truth.toml`) also the error and the error in posterior σ, and the
 //! normalised estimation error squared
 //!
-//!     NEES = eᵀ Σ⁻¹ e,   e = x̂ − x_true over the estimated parameters,
+//! ```text
+//! NEES = eᵀ Σ⁻¹ e,   e = x̂ − x_true over the estimated parameters,
+//! ```
 //!
 //! which for a consistent estimator is χ²-distributed with as many degrees of
 //! freedom as parameters.
