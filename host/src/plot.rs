@@ -168,6 +168,118 @@ where
     Ok(())
 }
 
+/// One panel of log-log curves (e.g. Allan deviations).
+#[derive(Debug, Clone)]
+pub struct LogLogPanel {
+    /// Panel title.
+    pub title: String,
+    /// x axis label.
+    pub x_label: String,
+    /// y axis label.
+    pub y_label: String,
+    /// Named curves of (x, y) points; non-positive or non-finite points are skipped.
+    pub series: Vec<(String, Vec<(f64, f64)>)>,
+}
+
+/// Panels of log-log line plots side by side, written to `stem.png` and
+/// `stem.svg`. Returns the paths written.
+pub fn loglog_panels(
+    stem: &Path,
+    title: &str,
+    panels: &[LogLogPanel],
+) -> Result<Vec<PathBuf>, PlotError> {
+    register_font();
+    let columns = panels.len().max(1);
+    let size = (480 * columns as u32, 420);
+    let png = stem.with_extension("png");
+    let svg = stem.with_extension("svg");
+    let err = |path: &Path, e: &dyn std::fmt::Display| PlotError {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    {
+        let root = BitMapBackend::new(&png, size).into_drawing_area();
+        draw_loglog(&root, title, panels).map_err(|e| err(&png, &e))?;
+        root.present().map_err(|e| err(&png, &e))?;
+    }
+    {
+        let root = SVGBackend::new(&svg, size).into_drawing_area();
+        draw_loglog(&root, title, panels).map_err(|e| err(&svg, &e))?;
+        root.present().map_err(|e| err(&svg, &e))?;
+    }
+    Ok(vec![png, svg])
+}
+
+fn draw_loglog<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    panels: &[LogLogPanel],
+) -> Result<(), Box<dyn std::error::Error + 'static>>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (FAMILY, 22))?;
+    let cells = root.split_evenly((1, panels.len().max(1)));
+    for (panel, area) in panels.iter().zip(cells.iter()) {
+        let usable = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0;
+        let points = panel
+            .series
+            .iter()
+            .flat_map(|(_, s)| s.iter().filter(|p| usable(p)));
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+        for &(x, y) in points {
+            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+        }
+        if !(x0.is_finite() && x1 > x0) {
+            (x0, x1) = (0.1, 10.0);
+        }
+        if !(y0.is_finite() && y1 > y0) {
+            (y0, y1) = (
+                if y0.is_finite() { y0 / 10.0 } else { 0.1 },
+                y1.max(1.0) * 10.0,
+            );
+        }
+        let mut chart = ChartBuilder::on(area)
+            .caption(&panel.title, (FAMILY, 16))
+            .margin(8)
+            .x_label_area_size(36)
+            .y_label_area_size(56)
+            .build_cartesian_2d(
+                (x0 / 1.2..x1 * 1.2).log_scale(),
+                (y0 / 1.5..y1 * 1.5).log_scale(),
+            )?;
+        chart
+            .configure_mesh()
+            .x_desc(panel.x_label.as_str())
+            .y_desc(panel.y_label.as_str())
+            .x_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .label_style((FAMILY, 11))
+            .axis_desc_style((FAMILY, 12))
+            .draw()?;
+        for (k, (name, s)) in panel.series.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            chart
+                .draw_series(LineSeries::new(
+                    s.iter().copied().filter(usable),
+                    color.stroke_width(2),
+                ))?
+                .label(name.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .label_font((FAMILY, 12))
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -193,5 +305,38 @@ mod tests {
             svg.contains("<svg") && svg.contains("eps_2_1"),
             "titles are in the SVG"
         );
+    }
+
+    #[test]
+    fn writes_loglog_panels() {
+        let dir = tempfile::tempdir().unwrap();
+        let curve: Vec<(f64, f64)> = (0..10)
+            .map(|k| {
+                let t = 0.01 * 2f64.powi(k);
+                (t, 0.02 / t.sqrt())
+            })
+            .collect();
+        let panels = vec![
+            LogLogPanel {
+                title: "accelerometer".into(),
+                x_label: "tau [s]".into(),
+                y_label: "sigma".into(),
+                series: vec![
+                    ("ax".into(), curve.clone()),
+                    ("bad".into(), vec![(0.0, -1.0)]),
+                ],
+            },
+            LogLogPanel {
+                title: "empty".into(),
+                x_label: "tau [s]".into(),
+                y_label: "sigma".into(),
+                series: vec![],
+            },
+        ];
+        let files = loglog_panels(&dir.path().join("allan"), "Allan deviation", &panels).unwrap();
+        let png = std::fs::read(&files[0]).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+        let svg = std::fs::read_to_string(&files[1]).unwrap();
+        assert!(svg.contains("accelerometer") && svg.contains("ax"));
     }
 }

@@ -645,3 +645,170 @@ fn toml_robot_without_errors_table_uses_the_numerical_set() {
         .count();
     assert_eq!(eps, 21, "{}", run.stdout);
 }
+
+/// The `[noise]` table of a TOML file, read without the crate's reader.
+fn noise_table(path: &Path) -> (Vec<f64>, Vec<f64>) {
+    let doc: toml::Table = std::fs::read_to_string(path).unwrap().parse().unwrap();
+    let get = |key: &str| -> Vec<f64> {
+        doc["noise"][key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_float().unwrap())
+            .collect()
+    };
+    (get("sigma_z"), get("sigma_q"))
+}
+
+/// The whitened IMU residual rms values `calibrate` prints.
+fn whitened_rms(stdout: &str) -> Vec<f64> {
+    let line = stdout
+        .lines()
+        .find(|l| l.contains("whitened residual rms"))
+        .unwrap_or_else(|| panic!("no rms line:\n{stdout}"));
+    let tail = line.split("):").nth(1).unwrap();
+    tail.split_whitespace()
+        .skip(1)
+        .step_by(2)
+        .map(|v| v.parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn noise_recovers_the_simulated_sigmas_and_feeds_calibrate() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = simulate(tmp.path(), "s", "120", "21", &[]);
+    let file = tmp.path().join("n.toml");
+    let run = ok(robimu(&["noise", s(&dir), "--out", s(&file)]));
+    assert!(
+        run.stdout.contains("gz") && run.stdout.contains("q6"),
+        "{}",
+        run.stdout
+    );
+    let (z, q) = noise_table(&file);
+    let robot = Robot::aubo_i5();
+    let truth = robot
+        .sigma_z()
+        .into_iter()
+        .chain(robot.sigma_q().iter().copied());
+    for (k, (est, truth)) in z.iter().chain(&q).zip(truth).enumerate() {
+        assert!(
+            (est / truth - 1.0).abs() < 0.10,
+            "channel {k}: {est} vs {truth}"
+        );
+    }
+    // calibrate with it: the IMU residuals are white at the estimated σ …
+    let run = ok(robimu(&[
+        "calibrate",
+        s(&dir),
+        "--noise",
+        s(&file),
+        "--out",
+        s(&tmp.path().join("r1.json")),
+    ]));
+    for r in whitened_rms(&run.stdout) {
+        assert!((r - 1.0).abs() < 0.05, "{}", run.stdout);
+    }
+    // … and a file claiming twice the IMU noise halves them: the file is used
+    let doubled: Vec<String> = z.iter().map(|v| (2.0 * v).to_string()).collect();
+    let file2 = tmp.path().join("n2.toml");
+    std::fs::write(
+        &file2,
+        format!("# by hand\n[noise]\nsigma_z = [{}]\n", doubled.join(", ")),
+    )
+    .unwrap();
+    let run = ok(robimu(&[
+        "calibrate",
+        s(&dir),
+        "--noise",
+        s(&file2),
+        "--out",
+        s(&tmp.path().join("r2.json")),
+    ]));
+    for r in whitened_rms(&run.stdout) {
+        assert!((r - 0.5).abs() < 0.03, "{}", run.stdout);
+    }
+    // a wrong joint count and bad numbers are named
+    std::fs::write(&file2, "[noise]\nsigma_q = [1e-4, 1e-4]\n").unwrap();
+    fails(
+        &robimu(&["calibrate", s(&dir), "--noise", s(&file2)]),
+        &["n2.toml", "sigma_q has 2 values", "6 joints"],
+    );
+    std::fs::write(&file2, "[noise]\nsigma_z = [1, 1, 1, 1, 1, nan]\n").unwrap();
+    fails(
+        &robimu(&["calibrate", s(&dir), "--noise", s(&file2)]),
+        &["n2.toml", "positive"],
+    );
+    fails(
+        &robimu(&["noise", s(&tmp.path().join("missing"))]),
+        &["missing", "not a session directory"],
+    );
+}
+
+#[test]
+fn allan_reads_off_the_density_of_a_static_recording() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let tmp = tempfile::tempdir().unwrap();
+    // 100 Hz, 600 s of white noise of known density on every channel
+    let (rate, n) = (100.0f64, 60_000);
+    let density = [2e-3, 3e-3, 4e-3, 1e-4, 2e-4, 3e-4];
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let mut text = String::from("t,ax,ay,az,gx,gy,gz\n");
+    for i in 0..n {
+        text.push_str(&format!("{}", i as f64 / rate));
+        for (c, d) in density.iter().enumerate() {
+            let w: f64 = StandardNormal.sample(&mut rng);
+            let mean = if c == 2 { 9.81 } else { 0.0 };
+            text.push_str(&format!(",{}", mean + d * rate.sqrt() * w));
+        }
+        text.push('\n');
+    }
+    let csv = tmp.path().join("imu.csv");
+    std::fs::write(&csv, text).unwrap();
+    let out = tmp.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let run = ok(robimu(&["allan", s(&csv), "--out", s(&out)]));
+    for (c, name) in ["ax", "ay", "az", "gx", "gy", "gz"].iter().enumerate() {
+        let line = run
+            .stdout
+            .lines()
+            .find(|l| l.starts_with(name))
+            .unwrap_or_else(|| panic!("no {name} row:\n{}", run.stdout));
+        let nd: f64 = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+        assert!(
+            (nd / density[c] - 1.0).abs() < 0.03,
+            "{name}: N {nd} vs {}",
+            density[c]
+        );
+    }
+    let table = std::fs::read_to_string(out.join("allan.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = table
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    // octaves from one sample period up to a ninth of the record
+    assert!(
+        (rows[0][0] - 0.01).abs() < 1e-12 && rows.len() == 13,
+        "{table}"
+    );
+    for r in &rows {
+        let expected = density[0] / r[0].sqrt();
+        assert!((r[1] / expected - 1.0).abs() < 0.15, "{r:?}");
+    }
+    assert!(out.join("allan.png").is_file() && out.join("allan.svg").is_file());
+    // a session directory works too; too short a recording is refused
+    let session = simulate(tmp.path(), "s", "20", "3", &[]);
+    ok(robimu(&["allan", s(&session)]));
+    assert!(session.join("allan.csv").is_file());
+    std::fs::write(
+        &csv,
+        "t,ax,ay,az,gx,gy,gz\n0,0,0,0,0,0,0\n0.01,0,0,0,0,0,0\n",
+    )
+    .unwrap();
+    fails(
+        &robimu(&["allan", s(&csv)]),
+        &["imu.csv", "2 samples are too few"],
+    );
+}

@@ -9,6 +9,7 @@ use robimu::model::{ParamLayout, Robot};
 use robimu::report::{CalibrationResult, ParameterTable};
 use robimu::session::Session;
 use robimu::workflows::calibrate::{calibrate, check_measurements, CalibrateOptions};
+use robimu::workflows::noise::NoiseFile;
 
 use super::input::{session_robot, Progress};
 
@@ -38,6 +39,10 @@ pub struct CalibrateCmd {
     /// joint samples within their noise].
     #[arg(long)]
     pub knot_spacing: Option<f64>,
+    /// Noise file whose `[noise]` table (session.toml's format, e.g. written
+    /// by `robimu noise`) replaces the session's and the robot's σ.
+    #[arg(long, value_name = "FILE")]
+    pub noise: Option<PathBuf>,
 }
 
 /// Indices into x of the `--freeze` items.
@@ -92,6 +97,24 @@ impl CalibrateCmd {
         let layout = ParamLayout::new(&robot);
         let mut opts = CalibrateOptions::new(&robot);
         (opts.sigma_z, opts.sigma_q) = session.noise(&robot)?;
+        if let Some(path) = &self.noise {
+            let file = NoiseFile::read(path).context("--noise")?;
+            if let Some(z) = file.noise.sigma_z {
+                opts.sigma_z = z;
+            }
+            if let Some(q) = file.noise.sigma_q {
+                if q.len() != robot.dof() {
+                    bail!(
+                        "--noise {}: [noise] sigma_q has {} values but robot `{}` has {} joints",
+                        path.display(),
+                        q.len(),
+                        robot.name(),
+                        robot.dof()
+                    );
+                }
+                opts.sigma_q = q;
+            }
+        }
         opts.frozen = frozen_indices(&robot, &layout, &self.freeze)?;
         opts.use_prior = !self.no_prior;
         if let Some(h) = self.knot_spacing {

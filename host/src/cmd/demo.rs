@@ -92,6 +92,7 @@ impl DemoCmd {
             freeze: Vec::new(),
             no_prior: false,
             knot_spacing: None,
+            noise: None,
         }
         .run()?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;

@@ -1,10 +1,12 @@
 //! The subcommands, one module each; each is a clap struct whose `run`
 //! calls the library.
 
+pub mod allan;
 pub mod calibrate;
 pub mod demo;
 pub mod input;
 pub mod montecarlo;
+pub mod noise;
 pub mod simulate;
 
 /// What `robimu` can do (each command's help is its struct's doc comment).
@@ -15,6 +17,8 @@ pub enum Command {
     Calibrate(calibrate::CalibrateCmd),
     #[command(name = "montecarlo")]
     MonteCarlo(montecarlo::MonteCarloCmd),
+    Noise(noise::NoiseCmd),
+    Allan(allan::AllanCmd),
 }
 
 impl Command {
@@ -25,6 +29,8 @@ impl Command {
             Command::Simulate(c) => c.run(),
             Command::Calibrate(c) => c.run(),
             Command::MonteCarlo(c) => c.run(),
+            Command::Noise(c) => c.run(),
+            Command::Allan(c) => c.run(),
         }
     }
 }

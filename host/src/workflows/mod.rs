@@ -1,15 +1,19 @@
 //! Workflows: what a user runs, built on the model, problem and solver layers.
 //!
+//! * [`allan`] — Allan deviation of a static IMU recording;
 //! * [`calibrate`] — the MAP calibration of one session;
 //! * [`identifiable`] — which generalized errors the IMU data can identify;
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
+//! * [`noise`] — Σ_z and Σ_q of a recording by spline fitting (paper §8.1);
 //! * [`simulate`] — simulated sessions from a ground truth;
 //! * [`time_offset`] — finding τ before linearising;
 //! * [`trajectory`] — random excitation trajectories within the joint limits.
 
+pub mod allan;
 pub mod calibrate;
 pub mod identifiable;
 pub mod montecarlo;
+pub mod noise;
 pub mod simulate;
 pub mod time_offset;
 pub mod trajectory;
