@@ -812,3 +812,119 @@ fn allan_reads_off_the_density_of_a_static_recording() {
         &["imu.csv", "2 samples are too few"],
     );
 }
+
+/// `calibrate --windows 2`: the group table and repeatability.csv, checked
+/// against the full calibration in result.json; too short windows are
+/// refused before any fitting.
+#[test]
+fn calibrate_windows_reports_the_repeatability() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = simulate(tmp.path(), "s", "100", "4", &[]);
+    let run = ok(robimu(&["calibrate", s(&dir), "--windows", "2"]));
+    let layout = aubo_layout();
+    let full: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
+    let full_x: Vec<f64> = full["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["value"].as_f64().unwrap())
+        .collect();
+    // repeatability.csv: 2 windows × 48 parameters, difference = value − full
+    let mut reader = csv::Reader::from_path(dir.join("repeatability.csv")).unwrap();
+    let header: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
+    assert_eq!(
+        header,
+        [
+            "window",
+            "t0",
+            "t1",
+            "name",
+            "unit",
+            "value",
+            "sigma",
+            "difference"
+        ]
+    );
+    let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+    assert_eq!(rows.len(), 2 * layout.len());
+    let num = |r: &csv::StringRecord, i: usize| r[i].parse::<f64>().unwrap();
+    // (display difference, its σ ratio) per parameter, largest over windows
+    let mut largest = vec![(0.0f64, 0.0f64); layout.len()];
+    for (i, r) in rows.iter().enumerate() {
+        let (w, k) = (i / layout.len(), i % layout.len());
+        let spec = &layout.specs()[k];
+        assert_eq!(r[0].parse::<usize>().unwrap(), w + 1);
+        assert_eq!((&r[3], &r[4]), (spec.name.as_str(), spec.unit));
+        let (t0, t1) = (num(r, 1), num(r, 2));
+        assert!((t1 - t0 - 50.0).abs() < 0.1 && (t0 - 50.0 * w as f64).abs() < 0.1);
+        let (value, sigma, diff) = (num(r, 5), num(r, 6), num(r, 7));
+        assert!((diff - (value - full_x[k])).abs() < 1e-9, "{}", spec.name);
+        assert!(sigma > 0.0 && diff != 0.0, "{}", spec.name);
+        let shown = robimu::report::DisplayUnit::for_si(spec.unit).show(diff.abs());
+        if shown > largest[k].0 {
+            largest[k] = (shown, diff.abs() / sigma);
+        }
+    }
+    // the printed table: one row per group and unit, each its largest member
+    let table: Vec<&str> = run
+        .stdout
+        .lines()
+        .skip_while(|l| !l.starts_with("repeatability: 2 windows of 50.0 s"))
+        .skip(2)
+        .take_while(|l| !l.starts_with("wrote"))
+        .collect();
+    let groups = [
+        ("robot lengths", "mm"),
+        ("robot angles", "deg"),
+        ("IMU position", "mm"),
+        ("gravity", "m/s^2"),
+        ("time offset", "s"),
+        ("accelerometer", "deg"),
+        ("accelerometer", "1"),
+        ("accelerometer", "m/s^2"),
+        ("gyroscope", "deg"),
+        ("gyroscope", "1"),
+        ("gyroscope", "deg/s"),
+    ];
+    assert_eq!(table.len(), groups.len(), "{}", run.stdout);
+    let n = 6;
+    for (line, (group, unit)) in table.iter().zip(groups) {
+        assert!(line.starts_with(group), "{line}");
+        let f: Vec<&str> = line[group.len()..].split_whitespace().collect();
+        assert_eq!(f[2], unit, "{line}");
+        let members: Vec<usize> = (0..layout.len())
+            .filter(|&k| {
+                let spec = &layout.specs()[k];
+                let du = robimu::report::DisplayUnit::for_si(spec.unit);
+                let kind = match layout.estimated_errors().get(k) {
+                    Some(e) if e.link < n && e.k <= 3 => "robot lengths",
+                    Some(e) if e.link < n => "robot angles",
+                    Some(_) => "IMU position",
+                    None if spec.name.starts_with("g_") => "gravity",
+                    None if spec.name == "tau" => "time offset",
+                    None if spec.name.contains("_a_") => "accelerometer",
+                    None => "gyroscope",
+                };
+                kind == group && du.symbol() == unit
+            })
+            .collect();
+        let best = *members
+            .iter()
+            .max_by(|&&a, &&b| largest[a].0.total_cmp(&largest[b].0))
+            .unwrap();
+        assert_eq!(f[0], layout.specs()[best].name, "{line}");
+        let shown: f64 = f[1].parse().unwrap();
+        assert!((shown - largest[best].0).abs() < 1e-4, "{line}");
+        let ratio: f64 = f[3].parse().unwrap();
+        assert!((ratio - largest[best].1).abs() < 0.01, "{line}");
+        assert!(ratio < 5.0, "{line}");
+    }
+    // too short: named before anything is fitted or written
+    let out = tmp.path().join("short.json");
+    let run = robimu(&["calibrate", s(&dir), "--windows", "20", "--out", s(&out)]);
+    fails(&run, &["window 1 of 20", "lasts 5.0 s", "at least 10 s"]);
+    assert!(!out.exists());
+    let run = robimu(&["calibrate", s(&dir), "--windows", "1"]);
+    fails(&run, &["at least 2 windows"]);
+}

@@ -10,6 +10,7 @@ use robimu::report::{CalibrationResult, ParameterTable};
 use robimu::session::Session;
 use robimu::workflows::calibrate::{calibrate, check_measurements, CalibrateOptions};
 use robimu::workflows::noise::NoiseFile;
+use robimu::workflows::repeatability::{self, check_windows, Repeatability};
 
 use super::input::{session_robot, Progress};
 
@@ -43,6 +44,12 @@ pub struct CalibrateCmd {
     /// by `robimu noise`) replaces the session's and the robot's σ.
     #[arg(long, value_name = "FILE")]
     pub noise: Option<PathBuf>,
+    /// Repeatability: also calibrate each of N equal time windows (N >= 2;
+    /// the paper used five 1-minute windows), print each parameter group's
+    /// largest difference from the full calibration and write
+    /// repeatability.csv next to the result file.
+    #[arg(long, value_name = "N")]
+    pub windows: Option<usize>,
 }
 
 /// Indices into x of the `--freeze` items.
@@ -136,6 +143,13 @@ impl CalibrateCmd {
         let data = session.measurements();
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+        let windows = match self.windows {
+            Some(k) => Some(
+                check_windows(&data, k)
+                    .with_context(|| format!("--windows {k}: cannot split {}", dir.display()))?,
+            ),
+            None => None,
+        };
         let mut out = std::io::stdout().lock();
         let (ta, tb) = session.joints.span().unwrap_or_default();
         writeln!(
@@ -252,6 +266,94 @@ impl CalibrateCmd {
         }
         result.write(&path)?;
         writeln!(out, "wrote {}", path.display())?;
+        if let Some(windows) = windows {
+            let count = windows.len();
+            let progress = Progress::start(format!("calibrating {count} windows"));
+            let results = repeatability::calibrate_windows(&robot, windows, &opts, |w, r| {
+                progress.set_message(format!(
+                    "window {} of {count}: iteration {}, cost {:.6e}",
+                    w + 1,
+                    r.iteration,
+                    r.cost
+                ));
+            });
+            progress.finish();
+            let results =
+                results.with_context(|| format!("--windows {count}: {}", dir.display()))?;
+            let study = repeatability::compare(&layout, cal, results);
+            writeln!(out)?;
+            write_groups(&mut out, &study)?;
+            let csv = path.with_file_name("repeatability.csv");
+            write_windows_csv(&csv, &layout, &study)
+                .with_context(|| format!("cannot write {}", csv.display()))?;
+            writeln!(out, "wrote {}", csv.display())?;
+        }
         Ok(())
     }
+}
+
+/// The table of each parameter group's largest difference from the full
+/// calibration.
+fn write_groups(out: &mut impl Write, study: &Repeatability) -> std::io::Result<()> {
+    let (first, last) = (study.windows.first(), study.windows.last());
+    writeln!(
+        out,
+        "repeatability: {} windows of {:.1} s ({:.1}..{:.1} s), largest difference from the full calibration per parameter group",
+        study.windows.len(),
+        first.map_or(0.0, |w| w.t1 - w.t0),
+        first.map_or(0.0, |w| w.t0),
+        last.map_or(0.0, |w| w.t1),
+    )?;
+    writeln!(
+        out,
+        "{:<16} {:<12} {:>12} {:<6} {:>14}",
+        "group", "parameter", "difference", "unit", "diff/sigma_win"
+    )?;
+    for g in &study.groups {
+        writeln!(
+            out,
+            "{:<16} {:<12} {:>12.4} {:<6} {:>14.2}",
+            g.group,
+            g.name,
+            g.difference,
+            g.unit.symbol(),
+            g.relative_to_window
+        )?;
+    }
+    Ok(())
+}
+
+/// repeatability.csv: per window and parameter (x order), SI units.
+fn write_windows_csv(
+    path: &std::path::Path,
+    layout: &ParamLayout,
+    study: &Repeatability,
+) -> anyhow::Result<()> {
+    let mut w = csv::Writer::from_path(path)?;
+    w.write_record([
+        "window",
+        "t0",
+        "t1",
+        "name",
+        "unit",
+        "value",
+        "sigma",
+        "difference",
+    ])?;
+    for (k, win) in study.windows.iter().enumerate() {
+        for (i, spec) in layout.specs().iter().enumerate() {
+            w.write_record([
+                (k + 1).to_string(),
+                win.t0.to_string(),
+                win.t1.to_string(),
+                spec.name.clone(),
+                spec.unit.to_string(),
+                win.calibration.x[i].to_string(),
+                win.calibration.sigma[i].to_string(),
+                win.difference[i].to_string(),
+            ])?;
+        }
+    }
+    w.flush()?;
+    Ok(())
 }

@@ -93,6 +93,7 @@ impl DemoCmd {
             no_prior: false,
             knot_spacing: None,
             noise: None,
+            windows: None,
         }
         .run()?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;

@@ -5,6 +5,7 @@
 //! * [`identifiable`] — which generalized errors the IMU data can identify;
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
 //! * [`noise`] — Σ_z and Σ_q of a recording by spline fitting (paper §8.1);
+//! * [`repeatability`] — calibrations of k time windows against the full one;
 //! * [`simulate`] — simulated sessions from a ground truth;
 //! * [`time_offset`] — finding τ before linearising;
 //! * [`trajectory`] — random excitation trajectories within the joint limits.
@@ -14,6 +15,7 @@ pub mod calibrate;
 pub mod identifiable;
 pub mod montecarlo;
 pub mod noise;
+pub mod repeatability;
 pub mod simulate;
 pub mod time_offset;
 pub mod trajectory;
