@@ -54,6 +54,33 @@ pub fn histogram_grid(
     let columns = columns.max(1);
     let rows = panels.len().div_ceil(columns).max(1);
     let size = (300 * columns as u32, 40 + 220 * rows as u32);
+    struct Grid<'a>(&'a str, &'a [HistogramPanel], usize, usize);
+    impl Figure for Grid<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+        where
+            DB::ErrorType: 'static,
+        {
+            draw_grid(root, self.0, self.1, self.2, self.3)
+        }
+    }
+    write_png_svg(stem, size, &Grid(title, panels, rows, columns))
+}
+
+type DrawResult = Result<(), Box<dyn std::error::Error + 'static>>;
+
+/// A figure that can draw itself on any plotters backend.
+trait Figure {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static;
+}
+
+/// Draw `figure` into `stem.png` and `stem.svg`; the paths written.
+fn write_png_svg(
+    stem: &Path,
+    size: (u32, u32),
+    figure: &impl Figure,
+) -> Result<Vec<PathBuf>, PlotError> {
     let png = stem.with_extension("png");
     let svg = stem.with_extension("svg");
     let err = |path: &Path, e: &dyn std::fmt::Display| PlotError {
@@ -62,12 +89,12 @@ pub fn histogram_grid(
     };
     {
         let root = BitMapBackend::new(&png, size).into_drawing_area();
-        draw_grid(&root, title, panels, rows, columns).map_err(|e| err(&png, &e))?;
+        figure.draw(&root).map_err(|e| err(&png, &e))?;
         root.present().map_err(|e| err(&png, &e))?;
     }
     {
         let root = SVGBackend::new(&svg, size).into_drawing_area();
-        draw_grid(&root, title, panels, rows, columns).map_err(|e| err(&svg, &e))?;
+        figure.draw(&root).map_err(|e| err(&svg, &e))?;
         root.present().map_err(|e| err(&svg, &e))?;
     }
     Ok(vec![png, svg])
@@ -191,23 +218,16 @@ pub fn loglog_panels(
     register_font();
     let columns = panels.len().max(1);
     let size = (480 * columns as u32, 420);
-    let png = stem.with_extension("png");
-    let svg = stem.with_extension("svg");
-    let err = |path: &Path, e: &dyn std::fmt::Display| PlotError {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    };
-    {
-        let root = BitMapBackend::new(&png, size).into_drawing_area();
-        draw_loglog(&root, title, panels).map_err(|e| err(&png, &e))?;
-        root.present().map_err(|e| err(&png, &e))?;
+    struct LogLog<'a>(&'a str, &'a [LogLogPanel]);
+    impl Figure for LogLog<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+        where
+            DB::ErrorType: 'static,
+        {
+            draw_loglog(root, self.0, self.1)
+        }
     }
-    {
-        let root = SVGBackend::new(&svg, size).into_drawing_area();
-        draw_loglog(&root, title, panels).map_err(|e| err(&svg, &e))?;
-        root.present().map_err(|e| err(&svg, &e))?;
-    }
-    Ok(vec![png, svg])
+    write_png_svg(stem, size, &LogLog(title, panels))
 }
 
 fn draw_loglog<DB: DrawingBackend>(

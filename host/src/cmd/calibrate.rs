@@ -12,7 +12,7 @@ use robimu::workflows::calibrate::{calibrate, check_measurements, CalibrateOptio
 use robimu::workflows::noise::NoiseFile;
 use robimu::workflows::repeatability::{self, check_windows, Repeatability};
 
-use super::input::{session_robot, Progress};
+use super::input::{output_path, session_robot, Progress};
 
 /// Calibrate the robot and the IMU together from a session.
 ///
@@ -130,16 +130,7 @@ impl CalibrateCmd {
             }
         }
         opts.knot_spacing = self.knot_spacing;
-        let path = self.out.clone().unwrap_or_else(|| dir.join("result.json"));
-        if let Some(parent) = path.parent() {
-            if !parent.as_os_str().is_empty() && !parent.is_dir() {
-                bail!(
-                    "--out {}: the directory {} does not exist",
-                    path.display(),
-                    parent.display()
-                );
-            }
-        }
+        let path = output_path(self.out.as_deref(), dir.join("result.json"))?;
         let data = session.measurements();
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;

@@ -69,6 +69,23 @@ pub fn session_robot(session: &Session) -> anyhow::Result<Robot> {
     }
 }
 
+/// Where a command writes its output file: `--out` if given, else `default`;
+/// refused up front (before any long computation) when its directory does
+/// not exist.
+pub fn output_path(out: Option<&Path>, default: PathBuf) -> anyhow::Result<PathBuf> {
+    let path = out.map(Path::to_path_buf).unwrap_or(default);
+    if let Some(parent) = path.parent() {
+        if !parent.as_os_str().is_empty() && !parent.is_dir() {
+            bail!(
+                "--out {}: the directory {} does not exist",
+                path.display(),
+                parent.display()
+            );
+        }
+    }
+    Ok(path)
+}
+
 /// A spinner on stderr with a message, and log lines above it; when stderr
 /// is not a terminal the spinner is hidden and the log lines are plain.
 pub struct Progress {

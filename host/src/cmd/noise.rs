@@ -3,11 +3,11 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use robimu::session::{Session, IMU_COLUMNS};
 use robimu::workflows::noise::{estimate_noise, ChannelNoise, NoiseFile, NoiseOptions};
 
-use super::input::session_robot;
+use super::input::{output_path, session_robot};
 
 /// Estimate the measurement noise of a session from its own samples.
 ///
@@ -33,16 +33,7 @@ impl NoiseCmd {
         let dir = &self.session;
         let session = Session::load(dir)
             .with_context(|| format!("cannot load the session {}", dir.display()))?;
-        let path = self.out.clone().unwrap_or_else(|| dir.join("noise.toml"));
-        if let Some(parent) = path.parent() {
-            if !parent.as_os_str().is_empty() && !parent.is_dir() {
-                bail!(
-                    "--out {}: the directory {} does not exist",
-                    path.display(),
-                    parent.display()
-                );
-            }
-        }
+        let path = output_path(self.out.as_deref(), dir.join("noise.toml"))?;
         let data = session.measurements();
         let est = estimate_noise(&data, session.joint_count(), &NoiseOptions::default())
             .with_context(|| format!("cannot estimate the noise of {}", dir.display()))?;
