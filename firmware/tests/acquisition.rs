@@ -15,34 +15,30 @@ use support::{encode_time, Rig};
 
 const BOOT_US: u64 = 650_000 + 19_000; // soft reset + switch to AMG (datasheet tables 1-2, 3-6)
 
+/// The messages of one kind, in order (`kind` picks them out).
+fn pick<T>(messages: &[DeviceMessage], kind: impl Fn(&DeviceMessage) -> Option<T>) -> Vec<T> {
+    messages.iter().filter_map(kind).collect()
+}
+
 fn infos(messages: &[DeviceMessage]) -> Vec<DeviceInfo> {
-    messages
-        .iter()
-        .filter_map(|m| match m {
-            DeviceMessage::Info(i) => Some(*i),
-            _ => None,
-        })
-        .collect()
+    pick(messages, |m| match m {
+        DeviceMessage::Info(i) => Some(*i),
+        _ => None,
+    })
 }
 
 fn statuses(messages: &[DeviceMessage]) -> Vec<Status> {
-    messages
-        .iter()
-        .filter_map(|m| match m {
-            DeviceMessage::Status(s) => Some(*s),
-            _ => None,
-        })
-        .collect()
+    pick(messages, |m| match m {
+        DeviceMessage::Status(s) => Some(*s),
+        _ => None,
+    })
 }
 
 fn results(messages: &[DeviceMessage]) -> Vec<CommandResult> {
-    messages
-        .iter()
-        .filter_map(|m| match m {
-            DeviceMessage::CommandResult(r) => Some(*r),
-            _ => None,
-        })
-        .collect()
+    pick(messages, |m| match m {
+        DeviceMessage::CommandResult(r) => Some(*r),
+        _ => None,
+    })
 }
 
 /// Sum of the gaps in `seq` (wrapping).

@@ -259,6 +259,17 @@ impl Qr {
         &self.a[j * self.rows..(j + 1) * self.rows]
     }
     /// Norm of the not-yet-eliminated part of column j.
+    /// Remove from `left` and return the column with the largest residual
+    /// norm (the pivot of column-pivoted QR; the first one on ties).
+    fn take_largest(&self, left: &mut Vec<usize>) -> usize {
+        let (pos, _) = left
+            .iter()
+            .enumerate()
+            .map(|(p, &c)| (p, self.residual(c)))
+            .fold((0, -1.0), |b, x| if x.1 > b.1 { x } else { b });
+        left.remove(pos)
+    }
+
     fn residual(&self, j: usize) -> f64 {
         self.col(j)[self.k..]
             .iter()
@@ -309,12 +320,7 @@ pub fn identifiable_errors(
     let mut base_r00 = 0.0;
     let mut base_min_pivot = f64::INFINITY;
     while !left.is_empty() {
-        let (pos, _) = left
-            .iter()
-            .enumerate()
-            .map(|(p, &c)| (p, qr.residual(c)))
-            .fold((0, -1.0), |b, x| if x.1 > b.1 { x } else { b });
-        let c = left.remove(pos);
+        let c = qr.take_largest(&mut left);
         let rest: Vec<usize> = left.iter().copied().chain(nb..nb + ne).collect();
         let r = qr.eliminate(c, &rest);
         if base_r00 == 0.0 {
@@ -336,12 +342,7 @@ pub fn identifiable_errors(
     let mut pivots = Vec::with_capacity(ne);
     let mut r00 = 0.0;
     while !left.is_empty() {
-        let (pos, _) = left
-            .iter()
-            .enumerate()
-            .map(|(p, &c)| (p, qr.residual(c)))
-            .fold((0, -1.0), |b, x| if x.1 > b.1 { x } else { b });
-        let c = left.remove(pos);
+        let c = qr.take_largest(&mut left);
         let r = qr.eliminate(c, &left);
         if r00 == 0.0 {
             r00 = r;
