@@ -54,6 +54,27 @@ pub struct NoiseOverride {
     pub sigma_q: Option<Vec<f64>>,
 }
 
+impl NoiseOverride {
+    /// Check that every standard deviation given is a positive number;
+    /// `path` names the file in the error.
+    pub fn validate(&self, path: &Path) -> Result<(), SessionError> {
+        let all = self
+            .sigma_z
+            .iter()
+            .flatten()
+            .chain(self.sigma_q.iter().flatten());
+        for s in all {
+            if !(s.is_finite() && *s > 0.0) {
+                return Err(SessionError::file(
+                    path,
+                    format!("[noise]: standard deviation {s} must be a positive number"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl SessionMeta {
     /// A description for a built-in or file robot with everything else default.
     pub fn new(robot: impl Into<String>) -> Self {
@@ -94,19 +115,7 @@ impl SessionMeta {
             }
         }
         if let Some(noise) = &meta.noise {
-            let all = noise
-                .sigma_z
-                .iter()
-                .flatten()
-                .chain(noise.sigma_q.iter().flatten());
-            for s in all {
-                if !(s.is_finite() && *s > 0.0) {
-                    return Err(SessionError::file(
-                        path,
-                        format!("[noise]: standard deviation {s} must be a positive number"),
-                    ));
-                }
-            }
+            noise.validate(path)?;
         }
         Ok(meta)
     }

@@ -24,6 +24,7 @@ use crate::model::Robot;
 use crate::problem::Measurements;
 
 pub use error::SessionError;
+pub(crate) use meta::toml_error;
 pub use meta::{NoiseOverride, SessionMeta, SESSION_FORMAT};
 pub use table::{parse_table, read_table, Columns, Table};
 pub use truth::Truth;

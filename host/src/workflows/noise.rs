@@ -27,7 +27,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::model::{JointState, Knots, Spline, SplineError};
 use crate::problem::Measurements;
-use crate::session::{NoiseOverride, SessionError, IMU_COLUMNS};
+use crate::session::{toml_error, NoiseOverride, SessionError, IMU_COLUMNS};
 
 /// Settings of the spacing search.
 #[derive(Debug, Clone)]
@@ -274,27 +274,8 @@ impl NoiseFile {
     /// Read `path` and check that every σ is a positive number.
     pub fn read(path: &Path) -> Result<Self, SessionError> {
         let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
-        let file: Self = toml::from_str(&text).map_err(|e| match e.span() {
-            Some(span) => {
-                let line = text[..span.start.min(text.len())].matches('\n').count() as u64 + 1;
-                SessionError::line(path, line, e.message())
-            }
-            None => SessionError::file(path, e.message()),
-        })?;
-        let all = file
-            .noise
-            .sigma_z
-            .iter()
-            .flatten()
-            .chain(file.noise.sigma_q.iter().flatten());
-        for s in all {
-            if !(s.is_finite() && *s > 0.0) {
-                return Err(SessionError::file(
-                    path,
-                    format!("[noise]: standard deviation {s} must be a positive number"),
-                ));
-            }
-        }
+        let file: Self = toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?;
+        file.noise.validate(path)?;
         Ok(file)
     }
 
