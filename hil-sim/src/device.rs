@@ -12,8 +12,8 @@
 //! counting samples, as on the real board.
 
 use std::os::unix::io::{AsRawFd, RawFd};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
@@ -58,6 +58,8 @@ pub struct SimDeviceConfig {
     pub boot_busy_transactions: u32,
     /// Sleep between two polls of the core.
     pub poll_interval: Duration,
+    /// Seed of the injected serial faults ([`SimDevice::set_serial_faults`]).
+    pub fault_seed: u64,
 }
 
 impl SimDeviceConfig {
@@ -71,6 +73,7 @@ impl SimDeviceConfig {
             clock_drift_ppm: 0.0,
             boot_busy_transactions: 0,
             poll_interval: Duration::from_micros(200),
+            fault_seed: 1,
         }
     }
 }
@@ -124,6 +127,45 @@ impl DelayNs for SleepDelay {
     }
 }
 
+/// Serial-link faults the simulated board injects into what it sends;
+/// changeable while it runs ([`SimDevice::set_serial_faults`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SerialFaults {
+    /// Probability that an outgoing byte has one random bit flipped.
+    pub corrupt_probability: f64,
+    /// Probability that an outgoing byte is lost.
+    pub drop_probability: f64,
+}
+
+/// Commands to the running device thread.
+#[derive(Default)]
+struct Control {
+    stop: AtomicBool,
+    /// Pending resets (power cycles).
+    resets: AtomicU32,
+    /// Close the pseudo-terminal and end the thread (the board unplugged).
+    vanish: AtomicBool,
+    faults: Mutex<SerialFaults>,
+}
+
+/// SplitMix64: a small deterministic generator for the injected faults.
+#[derive(Debug, Clone, Copy)]
+struct SplitMix(u64);
+
+impl SplitMix {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 /// A failed read or write on the pseudo-terminal master.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PtyError(pub Errno);
@@ -142,6 +184,8 @@ impl embedded_io::Error for PtyError {
 /// ready), like a USB serial adapter nobody reads.
 pub struct PtySerial {
     master: TTYPort,
+    control: Arc<Control>,
+    rng: SplitMix,
 }
 
 impl PtySerial {
@@ -189,8 +233,42 @@ impl embedded_io::WriteReady for PtySerial {
 
 impl embedded_io::Write for PtySerial {
     fn write(&mut self, buf: &[u8]) -> Result<usize, PtyError> {
-        match nix::unistd::write(self.fd(), buf) {
-            Ok(n) => Ok(n),
+        let faults = *self
+            .control
+            .faults
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        if faults == SerialFaults::default() {
+            return match nix::unistd::write(self.fd(), buf) {
+                Ok(n) => Ok(n),
+                Err(Errno::EAGAIN | Errno::EINTR) => Ok(0),
+                Err(e) => Err(PtyError(e)),
+            };
+        }
+        // Faulty line: decide each byte's fate, remembering which input
+        // byte each sent byte came from so a partial write reports how much
+        // of `buf` was consumed.
+        let mut out = Vec::with_capacity(buf.len());
+        let mut origin = Vec::with_capacity(buf.len());
+        for (i, &b) in buf.iter().enumerate() {
+            if self.rng.uniform() < faults.drop_probability {
+                continue;
+            }
+            let b = if self.rng.uniform() < faults.corrupt_probability {
+                b ^ (1 << (self.rng.next_u64() % 8))
+            } else {
+                b
+            };
+            out.push(b);
+            origin.push(i);
+        }
+        if out.is_empty() {
+            return Ok(buf.len());
+        }
+        match nix::unistd::write(self.fd(), &out) {
+            Ok(n) if n == out.len() => Ok(buf.len()),
+            Ok(0) => Ok(0),
+            Ok(n) => Ok(origin[n]),
             Err(Errno::EAGAIN | Errno::EINTR) => Ok(0),
             Err(e) => Err(PtyError(e)),
         }
@@ -208,7 +286,7 @@ pub type SimCore =
 /// A running simulated device; stopped on [`stop`](Self::stop) or drop.
 pub struct SimDevice {
     port_path: String,
-    stop: Arc<AtomicBool>,
+    control: Arc<Control>,
     thread: Option<JoinHandle<Status>>,
 }
 
@@ -226,17 +304,49 @@ impl SimDevice {
         drop(slave);
         fcntl(master.as_raw_fd(), FcntlArg::F_SETFL(OFlag::O_NONBLOCK))
             .map_err(SimDeviceError::NonBlocking)?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let stop_flag = stop.clone();
+        let control = Arc::new(Control::default());
+        let serial = PtySerial {
+            master,
+            control: Arc::clone(&control),
+            rng: SplitMix(config.fault_seed),
+        };
+        let thread_control = Arc::clone(&control);
         let thread = thread::Builder::new()
             .name("robimu-sim-device".into())
-            .spawn(move || run(config, PtySerial { master }, &stop_flag))
+            .spawn(move || run(config, serial, &thread_control))
             .map_err(SimDeviceError::Thread)?;
         Ok(Self {
             port_path,
-            stop,
+            control,
             thread: Some(thread),
         })
+    }
+
+    /// Replaces the injected serial faults (effective from the next write).
+    pub fn set_serial_faults(&self, faults: SerialFaults) {
+        *self
+            .control
+            .faults
+            .lock()
+            .unwrap_or_else(|e| e.into_inner()) = faults;
+    }
+
+    /// Power-cycles the board mid-stream: the core restarts (boots, sends
+    /// `DeviceInfo`, waits for `Start` unless autostart is set) with its
+    /// clock restarting from zero; the sensor's physics source carries on.
+    pub fn reset(&self) {
+        self.control.resets.fetch_add(1, Ordering::SeqCst);
+    }
+
+    /// Unplugs the board: the device thread ends and the pseudo-terminal
+    /// closes, so the host's port reads fail and the path disappears.
+    pub fn vanish(&self) {
+        self.control.vanish.store(true, Ordering::SeqCst);
+    }
+
+    /// Whether the device thread is still running.
+    pub fn is_running(&self) -> bool {
+        self.thread.as_ref().is_some_and(|t| !t.is_finished())
     }
 
     /// Path of the serial port to open (e.g. `/dev/pts/7`).
@@ -254,7 +364,7 @@ impl SimDevice {
     }
 
     fn halt(&mut self) -> Option<Status> {
-        self.stop.store(true, Ordering::Relaxed);
+        self.control.stop.store(true, Ordering::Relaxed);
         let thread = self.thread.take()?;
         match thread.join() {
             Ok(status) => Some(status),
@@ -268,19 +378,32 @@ impl Drop for SimDevice {
         if !thread::panicking() {
             self.halt();
         } else {
-            self.stop.store(true, Ordering::Relaxed);
+            self.control.stop.store(true, Ordering::Relaxed);
         }
     }
 }
 
-fn run(config: SimDeviceConfig, serial: PtySerial, stop: &AtomicBool) -> Status {
+fn run(config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Status {
     let sim = Bno055Sim::new(config.config.i2c_address, config.source)
         .booting_for(config.boot_busy_transactions);
     let clock = DriftingClock::new(config.clock_offset_us, config.clock_drift_ppm);
     let mut core: SimCore = Acquisition::new(sim, SleepDelay, serial, clock, config.config);
     // A boot failure leaves the core answering the host and retrying.
     let _ = core.start();
-    while !stop.load(Ordering::Relaxed) {
+    while !control.stop.load(Ordering::Relaxed) {
+        if control.vanish.load(Ordering::SeqCst) {
+            // Dropping the core closes the pty master.
+            return core.status();
+        }
+        if control.resets.load(Ordering::SeqCst) > 0 {
+            control.resets.fetch_sub(1, Ordering::SeqCst);
+            let (sim, delay, serial, _) = core.release();
+            let sim = Bno055Sim::new(config.config.i2c_address, sim.into_source())
+                .booting_for(config.boot_busy_transactions);
+            let clock = DriftingClock::new(0, config.clock_drift_ppm);
+            core = Acquisition::new(sim, delay, serial, clock, config.config);
+            let _ = core.start();
+        }
         core.poll();
         thread::sleep(config.poll_interval);
     }

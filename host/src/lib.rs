@@ -4,10 +4,12 @@
 // index loops say that more plainly than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
+pub mod hil;
 pub mod link;
 pub mod model;
 pub mod plot;
 pub mod problem;
+pub mod record;
 pub mod report;
 pub mod robot;
 pub mod session;

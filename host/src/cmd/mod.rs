@@ -7,6 +7,8 @@ pub mod demo;
 pub mod input;
 pub mod montecarlo;
 pub mod noise;
+pub mod record;
+pub mod repair;
 pub mod simulate;
 
 /// What `robimu` can do (each command's help is its struct's doc comment).
@@ -19,6 +21,8 @@ pub enum Command {
     MonteCarlo(montecarlo::MonteCarloCmd),
     Noise(noise::NoiseCmd),
     Allan(allan::AllanCmd),
+    Record(record::RecordCmd),
+    Repair(repair::RepairCmd),
 }
 
 impl Command {
@@ -31,6 +35,8 @@ impl Command {
             Command::MonteCarlo(c) => c.run(),
             Command::Noise(c) => c.run(),
             Command::Allan(c) => c.run(),
+            Command::Record(c) => c.run(),
+            Command::Repair(c) => c.run(),
         }
     }
 }

@@ -103,6 +103,20 @@ fn truth_vector(layout: &ParamLayout, truth: &Truth, path: &Path) -> anyhow::Res
 /// The trajectory of `PLAN_DIR/plan.csv`, checked against the robot.
 fn read_plan(robot: &Robot, dir: &Path) -> anyhow::Result<robimu::model::Spline> {
     let path = dir.join("plan.csv");
+    let table = read_plan_table(robot, dir)?;
+    let n = robot.dof();
+    robimu::workflows::trajectory::from_samples(n, &table.t, &table.values).with_context(|| {
+        format!(
+            "{}: cannot represent the plan as a trajectory",
+            path.display()
+        )
+    })
+}
+
+/// The samples of `PLAN_DIR/plan.csv`, checked against the robot's joint
+/// count and position limits.
+pub fn read_plan_table(robot: &Robot, dir: &Path) -> anyhow::Result<robimu::session::Table> {
+    let path = dir.join("plan.csv");
     let table = read_table(&path, Columns::Joints)?;
     let n = robot.dof();
     if table.width() != n {
@@ -135,12 +149,7 @@ fn read_plan(robot: &Robot, dir: &Path) -> anyhow::Result<robimu::model::Spline>
             table.len()
         );
     }
-    robimu::workflows::trajectory::from_samples(n, &table.t, &table.values).with_context(|| {
-        format!(
-            "{}: cannot represent the plan as a trajectory",
-            path.display()
-        )
-    })
+    Ok(table)
 }
 
 impl SimulateCmd {

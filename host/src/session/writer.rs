@@ -64,6 +64,17 @@ impl SessionWriter {
         meta: &SessionMeta,
         joint_count: usize,
     ) -> Result<Self, SessionError> {
+        Self::create_with_imu_extra(dir, meta, joint_count, &[])
+    }
+
+    /// [`Self::create`] with extra `imu.csv` columns after the required ones
+    /// (MODEL.md §7 lets readers ignore them), written by [`Self::imu_extra`].
+    pub fn create_with_imu_extra(
+        dir: &Path,
+        meta: &SessionMeta,
+        joint_count: usize,
+        imu_extra: &[&str],
+    ) -> Result<Self, SessionError> {
         std::fs::create_dir_all(dir).map_err(|e| SessionError::io(dir, e))?;
         let meta_path = dir.join(files::META);
         std::fs::write(&meta_path, meta.to_toml()).map_err(|e| SessionError::io(&meta_path, e))?;
@@ -71,10 +82,12 @@ impl SessionWriter {
             .chain((1..=joint_count).map(|i| format!("q{i}")))
             .collect();
         let joints = CsvOut::create(dir.join(files::JOINTS), &jheader.join(","))?;
-        let imu = CsvOut::create(
-            dir.join(files::IMU),
-            &format!("t,{}", IMU_COLUMNS.join(",")),
-        )?;
+        let mut imu_header = format!("t,{}", IMU_COLUMNS.join(","));
+        for name in imu_extra {
+            imu_header.push(',');
+            imu_header.push_str(name);
+        }
+        let imu = CsvOut::create(dir.join(files::IMU), &imu_header)?;
         Ok(Self {
             dir: dir.to_path_buf(),
             joints,
@@ -102,6 +115,15 @@ impl SessionWriter {
     /// Append an IMU sample: t in s, `z = [ax, ay, az, gx, gy, gz]` (m/s², rad/s).
     pub fn imu(&mut self, t: f64, z: &[f64; 6]) -> Result<(), SessionError> {
         self.imu.row(t, z)
+    }
+
+    /// Append an IMU sample with the values of the extra columns given to
+    /// [`Self::create_with_imu_extra`].
+    pub fn imu_extra(&mut self, t: f64, z: &[f64; 6], extra: &[f64]) -> Result<(), SessionError> {
+        let mut values = Vec::with_capacity(6 + extra.len());
+        values.extend_from_slice(z);
+        values.extend_from_slice(extra);
+        self.imu.row(t, &values)
     }
 
     /// Append a tracker pose: t in s, `[px, py, pz, qw, qx, qy, qz]` (m, unit quaternion).

@@ -1,0 +1,467 @@
+//! Recording a session from an IMU board and a robot (`robimu record`).
+//!
+//! The board streams in one thread ([`imu`]), the robot's joint positions
+//! are polled in another ([`crate::robot::aubo::JointPoller`]), the plan
+//! runs in a third ([`motion`]); this module's loop writes what arrives into
+//! the session directory (MODEL.md §7) and flushes it every second, so a
+//! crash or a kill loses at most the last second. Session time is the host's
+//! monotonic clock from the start of the recording; IMU samples are placed
+//! on it by a robust fit of the board's clock against ping echoes
+//! ([`clock_fit`]), refined while recording and made final at the end
+//! ([`repair::remap_imu_times`], which `robimu repair` also runs).
+//!
+//! Files besides MODEL.md's: `imu.csv` has the extra columns `t_device`
+//! (s, the board's clock), `segment` (clock segment: a board reboot starts
+//! a new one) and `seq`; `pings.csv` logs every echo.
+
+pub mod clock_fit;
+pub mod imu;
+pub mod motion;
+pub mod repair;
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::RecvTimeoutError;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use robimu_protocol::{DecoderStats, DeviceInfo, SensorConfig};
+
+use self::clock_fit::{ClockFit, Echo};
+use self::imu::{ImuError, ImuEvent, ImuStream, Link};
+use self::motion::Plan;
+use crate::model::Robot;
+use crate::robot::aubo::{AuboClient, JointPoller, RobotError};
+use crate::robot::RobotSpec;
+use crate::session::{files, SessionError, SessionMeta, SessionWriter};
+
+/// What to record.
+#[derive(Clone, Debug)]
+pub struct RecordOptions {
+    /// The IMU board's serial port.
+    pub imu_port: String,
+    /// Its baud rate.
+    pub baud: u32,
+    /// The robot controller.
+    pub robot_spec: RobotSpec,
+    /// The robot's description (limits, joint count).
+    pub robot: Robot,
+    /// `robot = …` in session.toml (a built-in name or a path).
+    pub robot_name: String,
+    /// The plan to execute; `None` records without moving the arm.
+    pub plan: Option<Plan>,
+    /// Without a plan: how long to record, s.
+    pub duration: f64,
+    /// The session directory.
+    pub out: PathBuf,
+    /// Joint polling rate, Hz.
+    pub joint_rate: f64,
+    /// Rest recorded before and after the motion, s.
+    pub rest: f64,
+    /// The IMU settings.
+    pub sensor: SensorConfig,
+}
+
+/// Live figures for a progress display.
+#[derive(Clone, Debug, Default)]
+pub struct RecordProgress {
+    /// Seconds since the recording started.
+    pub elapsed: f64,
+    /// Expected length, s.
+    pub total: f64,
+    /// IMU samples written.
+    pub imu_samples: u64,
+    /// Joint samples written.
+    pub joint_samples: u64,
+    /// IMU samples per second over the last second.
+    pub imu_rate: f64,
+    /// Samples missing by sequence number.
+    pub seq_gaps: u64,
+    /// Frames that failed their CRC.
+    pub crc_errors: u64,
+    /// Other rejected frames.
+    pub bad_frames: u64,
+    /// Board reboots recovered.
+    pub restarts: u32,
+    /// Samples the board reports it dropped.
+    pub device_dropped: u32,
+}
+
+/// What a recording produced.
+#[derive(Clone, Debug)]
+pub struct RecordSummary {
+    /// The session directory.
+    pub dir: PathBuf,
+    /// Length, s.
+    pub duration: f64,
+    /// The final counters.
+    pub progress: RecordProgress,
+    /// Link decoder counters.
+    pub link: DecoderStats,
+    /// The board.
+    pub device: DeviceInfo,
+    /// Final clock fit per segment.
+    pub clock: Vec<(u32, ClockFit)>,
+}
+
+/// Why a recording failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The IMU board could not be set up (nothing recorded).
+    #[error(transparent)]
+    Imu(#[from] ImuError),
+    /// The robot could not be set up (nothing recorded).
+    #[error(transparent)]
+    Robot(#[from] RobotError),
+    /// The session could not be written.
+    #[error(transparent)]
+    Session(#[from] SessionError),
+    /// The recording stopped early; what was recorded is on disk.
+    #[error("recording stopped after {:.1} s: {cause}; the {} IMU and {} joint samples recorded are kept in {}", summary.duration, summary.progress.imu_samples, summary.progress.joint_samples, summary.dir.display())]
+    Aborted {
+        /// What stopped it.
+        cause: String,
+        /// What was kept.
+        summary: Box<RecordSummary>,
+    },
+}
+
+/// Connects to the AUBO controller named by `spec`.
+fn connect(spec: &RobotSpec) -> Result<AuboClient, RobotError> {
+    match spec {
+        RobotSpec::Aubo { host, port } => {
+            AuboClient::connect((host.as_str(), *port), Duration::from_secs(2))
+        }
+    }
+}
+
+/// Records a session. `progress` is called about five times a second.
+pub fn record(
+    opts: &RecordOptions,
+    progress: &mut dyn FnMut(&RecordProgress),
+) -> Result<RecordSummary, RecordError> {
+    // Set-up: everything that can fail before a file is written.
+    let mut link = Link::open(&opts.imu_port, opts.baud)?;
+    let mut info = link.identify(Duration::from_secs(3))?;
+    if let Some(i) = link.configure(opts.sensor)? {
+        info = i;
+    }
+    let mut motion_client = connect(&opts.robot_spec)?;
+    let poll_client = connect(&opts.robot_spec)?;
+    if let Some(plan) = &opts.plan {
+        motion::move_to_start(&mut motion_client, &opts.robot, plan)?;
+    }
+
+    let mut meta = SessionMeta::new(opts.robot_name.clone());
+    meta.imu = Some(device_table(&info, &opts.imu_port));
+    meta.notes = Some(format!(
+        "recorded by robimu {} from {} and {}",
+        env!("CARGO_PKG_VERSION"),
+        opts.imu_port,
+        describe(&opts.robot_spec)
+    ));
+    let n = opts.robot.dof();
+    let writer =
+        SessionWriter::create_with_imu_extra(&opts.out, &meta, n, &["t_device", "segment", "seq"])?;
+    let pings_path = opts.out.join(repair::PINGS);
+    let mut pings = std::io::BufWriter::new(
+        std::fs::File::create(&pings_path).map_err(|e| SessionError::io(&pings_path, e))?,
+    );
+    writeln!(pings, "{}", repair::PINGS_HEADER).map_err(|e| SessionError::io(&pings_path, e))?;
+
+    let epoch = Instant::now();
+    let poller = JointPoller::spawn(poll_client, opts.joint_rate, epoch)?;
+    let stream = ImuStream::start(link, info, opts.sensor, epoch)?;
+    let plan = opts.plan.clone();
+    let (robot, rest) = (opts.robot.clone(), opts.rest);
+    let motion = plan.as_ref().map(|p| p.duration());
+    let mover = plan.map(|plan| {
+        thread::spawn(move || {
+            thread::sleep(Duration::from_secs_f64(rest));
+            motion::execute(&mut motion_client, &robot, &plan)
+        })
+    });
+    let total = motion.map_or(opts.duration, |d| d + 2.0 * opts.rest);
+
+    let mut state = Recorder {
+        writer,
+        pings,
+        pings_path,
+        echoes: BTreeMap::new(),
+        fits: BTreeMap::new(),
+        waiting: BTreeMap::new(),
+        last_seq: BTreeMap::new(),
+        progress: RecordProgress {
+            total,
+            ..RecordProgress::default()
+        },
+    };
+    let mut stop_at = if mover.is_none() {
+        Some(epoch + Duration::from_secs_f64(opts.duration))
+    } else {
+        None
+    };
+    let mut mover = mover;
+    let mut cause: Option<String> = None;
+    let mut next_flush = Instant::now() + Duration::from_secs(1);
+    let mut next_show = Instant::now();
+    let mut rate_window = (Instant::now(), 0u64);
+    while cause.is_none() {
+        let now = Instant::now();
+        if stop_at.is_some_and(|t| now >= t) {
+            break;
+        }
+        match stream.events().recv_timeout(Duration::from_millis(10)) {
+            Ok(ev) => {
+                if let Err(c) = state.handle(ev) {
+                    cause = Some(c);
+                }
+                while let Ok(ev) = stream.events().try_recv() {
+                    if let Err(c) = state.handle(ev) {
+                        cause = Some(c);
+                        break;
+                    }
+                }
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => {
+                cause = Some("the IMU streaming thread ended".into());
+            }
+        }
+        while let Ok(sample) = poller.samples().try_recv() {
+            match sample {
+                Ok(s) => {
+                    state.writer.joint(s.t, &s.q[..n])?;
+                    state.progress.joint_samples += 1;
+                }
+                Err(e) => {
+                    cause = Some(format!("the robot connection failed: {e}"));
+                    break;
+                }
+            }
+        }
+        if mover.as_ref().is_some_and(|m| m.is_finished()) {
+            if let Some(m) = mover.take() {
+                match m.join() {
+                    Ok(Ok(())) => {
+                        stop_at = Some(Instant::now() + Duration::from_secs_f64(opts.rest));
+                    }
+                    Ok(Err(e)) => cause = Some(format!("the plan failed on the robot: {e}")),
+                    Err(_) => cause = Some("the motion thread panicked".into()),
+                }
+            }
+        }
+        if now >= next_flush {
+            next_flush = now + Duration::from_secs(1);
+            state.flush()?;
+        }
+        if now >= next_show {
+            next_show = now + Duration::from_millis(200);
+            let s = stream.stats();
+            state.progress.elapsed = epoch.elapsed().as_secs_f64();
+            state.progress.crc_errors = s.crc_errors;
+            state.progress.bad_frames = s.errors() - s.crc_errors;
+            let dt = rate_window.0.elapsed().as_secs_f64();
+            if dt >= 1.0 {
+                state.progress.imu_rate = (state.progress.imu_samples - rate_window.1) as f64 / dt;
+                rate_window = (now, state.progress.imu_samples);
+            }
+            progress(&state.progress);
+        }
+    }
+
+    // Wind down: stop the board and the poller, keep what they still hold.
+    let duration = epoch.elapsed().as_secs_f64();
+    let link_stats = stream.stats();
+    let rest_events = stream.stop();
+    for ev in rest_events.try_iter() {
+        if let Err(c) = state.handle(ev) {
+            cause.get_or_insert(c);
+        }
+    }
+    let (_, joint_rest) = poller.stop();
+    for s in joint_rest.try_iter().flatten() {
+        state.writer.joint(s.t, &s.q[..n])?;
+        state.progress.joint_samples += 1;
+    }
+    state.drain_waiting(true)?;
+    state.progress.elapsed = duration;
+    state.progress.crc_errors = link_stats.crc_errors;
+    state.progress.bad_frames = link_stats.errors() - link_stats.crc_errors;
+    progress(&state.progress);
+    let counters = state.progress.clone();
+    let dir = state.finish()?;
+    let (clock, _) = repair::remap_imu_times(&dir)?;
+    write_clock_notes(&dir, &clock)?;
+    let summary = RecordSummary {
+        dir,
+        duration,
+        progress: counters,
+        link: link_stats,
+        device: info,
+        clock,
+    };
+    match cause {
+        None => Ok(summary),
+        Some(cause) => Err(RecordError::Aborted {
+            cause,
+            summary: Box::new(summary),
+        }),
+    }
+}
+
+/// The writing side of a recording.
+struct Recorder {
+    writer: SessionWriter,
+    pings: std::io::BufWriter<std::fs::File>,
+    pings_path: PathBuf,
+    echoes: BTreeMap<u32, Vec<Echo>>,
+    fits: BTreeMap<u32, ClockFit>,
+    /// Samples of segments without a clock fit yet: (device s, seq, z).
+    waiting: BTreeMap<u32, Vec<(f64, u32, [f64; 6])>>,
+    last_seq: BTreeMap<u32, u32>,
+    progress: RecordProgress,
+}
+
+impl Recorder {
+    /// Takes one event; `Err(cause)` ends the recording.
+    fn handle(&mut self, ev: ImuEvent) -> Result<(), String> {
+        match ev {
+            ImuEvent::Sample {
+                segment,
+                device,
+                seq,
+                z,
+            } => {
+                if let Some(prev) = self.last_seq.insert(segment, seq) {
+                    self.progress.seq_gaps +=
+                        u64::from(seq.wrapping_sub(prev).saturating_sub(1).min(1 << 20));
+                }
+                self.waiting
+                    .entry(segment)
+                    .or_default()
+                    .push((device, seq, z));
+                self.drain_waiting(false).map_err(|e| e.to_string())?;
+            }
+            ImuEvent::Echo { segment, echo } => {
+                writeln!(
+                    self.pings,
+                    "{:?},{:?},{:?},{segment}",
+                    echo.host_send, echo.host_recv, echo.device
+                )
+                .map_err(|e| SessionError::io(&self.pings_path, e).to_string())?;
+                let list = self.echoes.entry(segment).or_default();
+                list.push(echo);
+                // Refit often while the fit is young, then once a second.
+                if list.len() >= 3 && (list.len() < 20 || list.len() % 10 == 0) {
+                    if let Some(fit) = ClockFit::fit(list) {
+                        self.fits.insert(segment, fit);
+                    }
+                }
+            }
+            ImuEvent::Status(s) => self.progress.device_dropped = s.samples_dropped,
+            ImuEvent::Restarted { .. } => self.progress.restarts += 1,
+            ImuEvent::Failed(e) => return Err(e.to_string()),
+        }
+        Ok(())
+    }
+
+    /// Writes waiting samples whose segment has a fit (all of them, with
+    /// the best mapping available, when `all`).
+    fn drain_waiting(&mut self, all: bool) -> Result<(), SessionError> {
+        let segments: Vec<u32> = self.waiting.keys().copied().collect();
+        for segment in segments {
+            let fit = match self.fits.get(&segment) {
+                Some(f) => *f,
+                None if all => match self.echoes.get(&segment).and_then(|e| e.first()) {
+                    Some(e) => ClockFit::offset_only(e),
+                    None => continue,
+                },
+                None => continue,
+            };
+            for (device, seq, z) in self.waiting.remove(&segment).unwrap_or_default() {
+                self.writer.imu_extra(
+                    fit.to_session(device),
+                    &z,
+                    &[device, f64::from(segment), f64::from(seq)],
+                )?;
+                self.progress.imu_samples += 1;
+            }
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<(), SessionError> {
+        self.writer.flush()?;
+        self.pings
+            .flush()
+            .map_err(|e| SessionError::io(&self.pings_path, e))
+    }
+
+    fn finish(mut self) -> Result<PathBuf, SessionError> {
+        self.flush()?;
+        self.writer.finish()
+    }
+}
+
+fn describe(spec: &RobotSpec) -> String {
+    match spec {
+        RobotSpec::Aubo { host, port } => format!("AUBO controller {host}:{port}"),
+    }
+}
+
+/// The `[imu]` table of session.toml: who the board is and how it was set.
+fn device_table(info: &DeviceInfo, port: &str) -> toml::Table {
+    let mut t = toml::Table::new();
+    let v = info.firmware_version;
+    t.insert("port".into(), port.into());
+    t.insert(
+        "firmware".into(),
+        format!("{}.{}.{}", v[0], v[1], v[2]).into(),
+    );
+    t.insert("protocol".into(), i64::from(info.protocol_version).into());
+    t.insert("chip_id".into(), i64::from(info.chip_id).into());
+    t.insert(
+        "sample_rate_hz".into(),
+        i64::from(info.config.sample_rate_hz).into(),
+    );
+    t.insert(
+        "accel_range".into(),
+        format!("{:?}", info.config.accel_range).into(),
+    );
+    t.insert(
+        "accel_bandwidth".into(),
+        format!("{:?}", info.config.accel_bandwidth).into(),
+    );
+    t.insert(
+        "gyro_range".into(),
+        format!("{:?}", info.config.gyro_range).into(),
+    );
+    t.insert(
+        "gyro_bandwidth".into(),
+        format!("{:?}", info.config.gyro_bandwidth).into(),
+    );
+    t
+}
+
+/// Adds the clock fits to session.toml's `[imu]` table.
+fn write_clock_notes(dir: &Path, clock: &[(u32, ClockFit)]) -> Result<(), SessionError> {
+    let path = dir.join(files::META);
+    let mut meta = SessionMeta::read(&path)?;
+    let table = meta.imu.get_or_insert_with(toml::Table::new);
+    let fits: Vec<toml::Value> = clock
+        .iter()
+        .map(|(segment, f)| {
+            let mut t = toml::Table::new();
+            t.insert("segment".into(), i64::from(*segment).into());
+            t.insert("offset_s".into(), f.offset.into());
+            t.insert("drift_ppm".into(), f.drift_ppm().into());
+            t.insert("residual_us".into(), (f.residual_rms * 1e6).into());
+            t.insert("echoes_used".into(), (f.used as i64).into());
+            t.into()
+        })
+        .collect();
+    table.insert("clock".into(), fits.into());
+    std::fs::write(&path, meta.to_toml()).map_err(|e| SessionError::io(&path, e))
+}

@@ -1,0 +1,250 @@
+//! Making a recording's files whole: after a crash or a kill (`robimu
+//! repair`), and at the end of every recording.
+//!
+//! * A CSV whose last line was cut mid-write loses that line.
+//! * `imu.csv` rows carry the device time and clock segment they were
+//!   stamped with (`t_device`, `segment` columns); their session times are
+//!   recomputed from every ping echo in `pings.csv` with the final robust
+//!   clock fit of each segment ([`ClockFit`]), replacing the provisional
+//!   times the recorder wrote while the fit was still growing.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use super::clock_fit::{ClockFit, Echo};
+use crate::session::{files, SessionError};
+
+/// Name of the ping log in a recorded session.
+pub const PINGS: &str = "pings.csv";
+/// Header of [`PINGS`].
+pub const PINGS_HEADER: &str = "host_send,host_recv,device,segment";
+
+/// What [`repair`] did.
+#[derive(Debug, Default, Clone, PartialEq)]
+pub struct RepairReport {
+    /// Files whose cut last line was removed, with that line's number.
+    pub truncated: Vec<(PathBuf, usize)>,
+    /// The clock fit of each segment, when `imu.csv` times were recomputed.
+    pub clock: Vec<(u32, ClockFit)>,
+    /// IMU rows whose segment had no usable echo (left as written).
+    pub unmapped_rows: usize,
+}
+
+/// Removes a cut last line from every CSV of the session, then recomputes
+/// the IMU times from the ping log when the session has one.
+pub fn repair(dir: &Path) -> Result<RepairReport, SessionError> {
+    if !dir.is_dir() {
+        return Err(SessionError::io(
+            dir,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no such session directory"),
+        ));
+    }
+    let mut report = RepairReport::default();
+    for name in [files::JOINTS, files::IMU, files::TRACKER, PINGS] {
+        let path = dir.join(name);
+        if path.is_file() {
+            if let Some(line) = drop_cut_line(&path)? {
+                report.truncated.push((path, line));
+            }
+        }
+    }
+    if dir.join(PINGS).is_file() {
+        let (clock, unmapped) = remap_imu_times(dir)?;
+        report.clock = clock;
+        report.unmapped_rows = unmapped;
+    }
+    Ok(report)
+}
+
+/// Drops the last line of `path` if it does not end in a newline or has
+/// fewer fields than the header. Returns its line number if dropped.
+fn drop_cut_line(path: &Path) -> Result<Option<usize>, SessionError> {
+    let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+    let Some(header) = text.lines().next() else {
+        return Ok(None);
+    };
+    let width = header.split(',').count();
+    let body_end = if text.ends_with('\n') {
+        // Complete last line: check its width.
+        let trimmed = &text[..text.len() - 1];
+        let start = trimmed.rfind('\n').map_or(0, |i| i + 1);
+        let last = &trimmed[start..];
+        if start == 0 || last.starts_with('#') || last.split(',').count() >= width {
+            return Ok(None);
+        }
+        start
+    } else {
+        text.rfind('\n').map_or(0, |i| i + 1)
+    };
+    if body_end == 0 {
+        // Only a cut header: nothing to keep.
+        return Ok(None);
+    }
+    let line_number = text[..body_end].lines().count() + 1;
+    write_atomically(path, &text.as_bytes()[..body_end])?;
+    Ok(Some(line_number))
+}
+
+/// Reads `pings.csv`: echoes by segment.
+pub fn read_pings(path: &Path) -> Result<BTreeMap<u32, Vec<Echo>>, SessionError> {
+    let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+    let mut out: BTreeMap<u32, Vec<Echo>> = BTreeMap::new();
+    for (i, line) in text.lines().enumerate().skip(1) {
+        if line.starts_with('#') || line.trim().is_empty() {
+            continue;
+        }
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|f| f.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| SessionError::io(path, bad_data(format!("line {}: {e}", i + 1))))?;
+        if v.len() < 4 {
+            return Err(SessionError::io(
+                path,
+                bad_data(format!("line {}: expected {PINGS_HEADER}", i + 1)),
+            ));
+        }
+        out.entry(v[3] as u32).or_default().push(Echo {
+            host_send: v[0],
+            host_recv: v[1],
+            device: v[2],
+        });
+    }
+    Ok(out)
+}
+
+/// Rewrites the `t` column of `imu.csv` from `t_device` and `segment` with
+/// each segment's final clock fit. Returns the fits and the number of rows
+/// left as they were (segment without echoes).
+pub fn remap_imu_times(dir: &Path) -> Result<(Vec<(u32, ClockFit)>, usize), SessionError> {
+    let pings = read_pings(&dir.join(PINGS))?;
+    let fits: BTreeMap<u32, ClockFit> = pings
+        .iter()
+        .filter_map(|(s, e)| {
+            ClockFit::fit(e)
+                .or_else(|| e.first().map(ClockFit::offset_only))
+                .map(|f| (*s, f))
+        })
+        .collect();
+    let path = dir.join(files::IMU);
+    let text = std::fs::read_to_string(&path).map_err(|e| SessionError::io(&path, e))?;
+    let mut lines = text.lines();
+    let header = lines.next().unwrap_or_default();
+    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+    let (Some(td), Some(sg)) = (
+        cols.iter().position(|c| *c == "t_device"),
+        cols.iter().position(|c| *c == "segment"),
+    ) else {
+        return Ok((fits.into_iter().collect(), 0));
+    };
+    let mut out = String::with_capacity(text.len());
+    out.push_str(header);
+    out.push('\n');
+    let mut unmapped = 0;
+    for line in lines {
+        let fields: Vec<&str> = line.split(',').collect();
+        let mapped = (|| {
+            let device: f64 = fields.get(td)?.trim().parse().ok()?;
+            let segment: f64 = fields.get(sg)?.trim().parse().ok()?;
+            let fit = fits.get(&(segment as u32))?;
+            Some(fit.to_session(device))
+        })();
+        match mapped {
+            Some(t) if !line.starts_with('#') => {
+                out.push_str(&format!("{t:?}"));
+                for f in &fields[1..] {
+                    out.push(',');
+                    out.push_str(f);
+                }
+            }
+            _ => {
+                unmapped += usize::from(!line.starts_with('#'));
+                out.push_str(line);
+            }
+        }
+        out.push('\n');
+    }
+    write_atomically(&path, out.as_bytes())?;
+    Ok((fits.into_iter().collect(), unmapped))
+}
+
+/// Writes `bytes` to a temporary file beside `path`, then renames it over
+/// `path`: a crash leaves either the old or the new file, never half.
+fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), SessionError> {
+    let tmp = path.with_extension("csv.tmp");
+    let mut f = std::fs::File::create(&tmp).map_err(|e| SessionError::io(&tmp, e))?;
+    f.write_all(bytes).map_err(|e| SessionError::io(&tmp, e))?;
+    f.sync_all().map_err(|e| SessionError::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| SessionError::io(path, e))
+}
+
+fn bad_data(msg: String) -> std::io::Error {
+    std::io::Error::new(std::io::ErrorKind::InvalidData, msg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cut_last_lines_are_dropped_and_whole_files_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("joints.csv");
+        std::fs::write(&p, "t,q1,q2\n0.0,1,2\n0.1,1,2\n0.2,1").unwrap();
+        assert_eq!(drop_cut_line(&p).unwrap(), Some(4));
+        assert_eq!(
+            std::fs::read_to_string(&p).unwrap(),
+            "t,q1,q2\n0.0,1,2\n0.1,1,2\n"
+        );
+        assert_eq!(drop_cut_line(&p).unwrap(), None);
+        std::fs::write(&p, "t,q1,q2\n0.0,1,2\n0.1,\n").unwrap();
+        assert_eq!(drop_cut_line(&p).unwrap(), Some(3));
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "t,q1,q2\n0.0,1,2\n");
+    }
+
+    #[test]
+    fn imu_times_are_recomputed_from_the_ping_log() {
+        let dir = tempfile::tempdir().unwrap();
+        // Device clock 3 s ahead and 100 ppm fast; segment 1 restarted at 0
+        // when the session clock read 10 s.
+        let dev = |seg: u32, t: f64| {
+            if seg == 0 {
+                3.0 + (1.0 + 1e-4) * t
+            } else {
+                (1.0 + 1e-4) * (t - 10.0)
+            }
+        };
+        let mut pings = format!("{PINGS_HEADER}\n");
+        for k in 0..50 {
+            let t = 0.2 * k as f64;
+            let seg = u32::from(t >= 10.0);
+            pings.push_str(&format!(
+                "{},{},{},{seg}\n",
+                t - 1e-4,
+                t + 1e-4,
+                dev(seg, t)
+            ));
+        }
+        std::fs::write(dir.path().join(PINGS), pings).unwrap();
+        let mut imu = String::from("t,ax,ay,az,gx,gy,gz,t_device,segment,seq\n");
+        for (k, t) in [1.0, 2.5, 9.9, 10.5, 12.0].iter().enumerate() {
+            let seg = u32::from(*t >= 10.0);
+            imu.push_str(&format!("0,1,2,3,4,5,6,{:?},{seg},{k}\n", dev(seg, *t)));
+        }
+        std::fs::write(dir.path().join("imu.csv"), imu).unwrap();
+        let report = repair(dir.path()).unwrap();
+        assert_eq!(report.clock.len(), 2);
+        assert_eq!(report.unmapped_rows, 0);
+        let text = std::fs::read_to_string(dir.path().join("imu.csv")).unwrap();
+        let ts: Vec<f64> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap().parse().unwrap())
+            .collect();
+        for (t, want) in ts.iter().zip([1.0, 2.5, 9.9, 10.5, 12.0]) {
+            assert!((t - want).abs() < 1e-6, "{t} vs {want}");
+        }
+        assert!((report.clock[0].1.drift_ppm() - 100.0).abs() < 1e-3);
+    }
+}
