@@ -162,13 +162,7 @@ pub fn record(
         describe(&opts.robot_spec)
     ));
     let n = opts.robot.dof();
-    let writer =
-        SessionWriter::create_with_imu_extra(&opts.out, &meta, n, &["t_device", "segment", "seq"])?;
-    let pings_path = opts.out.join(repair::PINGS);
-    let mut pings = std::io::BufWriter::new(
-        std::fs::File::create(&pings_path).map_err(|e| SessionError::io(&pings_path, e))?,
-    );
-    writeln!(pings, "{}", repair::PINGS_HEADER).map_err(|e| SessionError::io(&pings_path, e))?;
+    let mut state = SessionSink::create(&opts.out, &meta, n)?;
 
     let epoch = Instant::now();
     let poller = JointPoller::spawn(poll_client, opts.joint_rate, epoch)?;
@@ -184,19 +178,7 @@ pub fn record(
     });
     let total = motion.map_or(opts.duration, |d| d + 2.0 * opts.rest);
 
-    let mut state = Recorder {
-        writer,
-        pings,
-        pings_path,
-        echoes: BTreeMap::new(),
-        fits: BTreeMap::new(),
-        waiting: BTreeMap::new(),
-        last_seq: BTreeMap::new(),
-        progress: RecordProgress {
-            total,
-            ..RecordProgress::default()
-        },
-    };
+    state.progress.total = total;
     let mut stop_at = if mover.is_none() {
         Some(epoch + Duration::from_secs_f64(opts.duration))
     } else {
@@ -231,10 +213,7 @@ pub fn record(
         }
         while let Ok(sample) = poller.samples().try_recv() {
             match sample {
-                Ok(s) => {
-                    state.writer.joint(s.t, &s.q[..n])?;
-                    state.progress.joint_samples += 1;
-                }
+                Ok(s) => state.joint(s.t, &s.q[..n])?,
                 Err(e) => {
                     cause = Some(format!("the robot connection failed: {e}"));
                     break;
@@ -282,8 +261,7 @@ pub fn record(
     }
     let (_, joint_rest) = poller.stop();
     for s in joint_rest.try_iter().flatten() {
-        state.writer.joint(s.t, &s.q[..n])?;
-        state.progress.joint_samples += 1;
+        state.joint(s.t, &s.q[..n])?;
     }
     state.drain_waiting(true)?;
     state.progress.elapsed = duration;
@@ -311,8 +289,9 @@ pub fn record(
     }
 }
 
-/// The writing side of a recording.
-struct Recorder {
+/// The writing side of a recording: takes IMU events and joint samples,
+/// maps device time to session time, writes the session's files.
+pub struct SessionSink {
     writer: SessionWriter,
     pings: std::io::BufWriter<std::fs::File>,
     pings_path: PathBuf,
@@ -321,12 +300,47 @@ struct Recorder {
     /// Samples of segments without a clock fit yet: (device s, seq, z).
     waiting: BTreeMap<u32, Vec<(f64, u32, [f64; 6])>>,
     last_seq: BTreeMap<u32, u32>,
-    progress: RecordProgress,
+    /// The counters so far.
+    pub progress: RecordProgress,
 }
 
-impl Recorder {
-    /// Takes one event; `Err(cause)` ends the recording.
-    fn handle(&mut self, ev: ImuEvent) -> Result<(), String> {
+impl SessionSink {
+    /// Creates the session directory `dir` (session.toml, CSV headers,
+    /// `pings.csv`).
+    pub fn create(dir: &Path, meta: &SessionMeta, joints: usize) -> Result<Self, SessionError> {
+        let writer = SessionWriter::create_with_imu_extra(
+            dir,
+            meta,
+            joints,
+            &["t_device", "segment", "seq"],
+        )?;
+        let pings_path = dir.join(repair::PINGS);
+        let mut pings = std::io::BufWriter::new(
+            std::fs::File::create(&pings_path).map_err(|e| SessionError::io(&pings_path, e))?,
+        );
+        writeln!(pings, "{}", repair::PINGS_HEADER)
+            .map_err(|e| SessionError::io(&pings_path, e))?;
+        Ok(SessionSink {
+            writer,
+            pings,
+            pings_path,
+            echoes: BTreeMap::new(),
+            fits: BTreeMap::new(),
+            waiting: BTreeMap::new(),
+            last_seq: BTreeMap::new(),
+            progress: RecordProgress::default(),
+        })
+    }
+
+    /// Writes one joint sample.
+    pub fn joint(&mut self, t: f64, q: &[f64]) -> Result<(), SessionError> {
+        self.writer.joint(t, q)?;
+        self.progress.joint_samples += 1;
+        Ok(())
+    }
+
+    /// Takes one IMU event; `Err(cause)` ends the recording.
+    pub fn handle(&mut self, ev: ImuEvent) -> Result<(), String> {
         match ev {
             ImuEvent::Sample {
                 segment,
@@ -353,9 +367,11 @@ impl Recorder {
                 .map_err(|e| SessionError::io(&self.pings_path, e).to_string())?;
                 let list = self.echoes.entry(segment).or_default();
                 list.push(echo);
-                // Refit often while the fit is young, then once a second.
+                // Refit often while the fit is young, then once a second over
+                // the last minute of echoes (the final fit uses them all).
                 if list.len() >= 3 && (list.len() < 20 || list.len() % 10 == 0) {
-                    if let Some(fit) = ClockFit::fit(list) {
+                    let recent = &list[list.len().saturating_sub(600)..];
+                    if let Some(fit) = ClockFit::fit(recent) {
                         self.fits.insert(segment, fit);
                     }
                 }
@@ -369,7 +385,7 @@ impl Recorder {
 
     /// Writes waiting samples whose segment has a fit (all of them, with
     /// the best mapping available, when `all`).
-    fn drain_waiting(&mut self, all: bool) -> Result<(), SessionError> {
+    pub fn drain_waiting(&mut self, all: bool) -> Result<(), SessionError> {
         let segments: Vec<u32> = self.waiting.keys().copied().collect();
         for segment in segments {
             let fit = match self.fits.get(&segment) {
@@ -392,14 +408,17 @@ impl Recorder {
         Ok(())
     }
 
-    fn flush(&mut self) -> Result<(), SessionError> {
+    /// Pushes every buffered row to the operating system.
+    pub fn flush(&mut self) -> Result<(), SessionError> {
         self.writer.flush()?;
         self.pings
             .flush()
             .map_err(|e| SessionError::io(&self.pings_path, e))
     }
 
-    fn finish(mut self) -> Result<PathBuf, SessionError> {
+    /// Writes what waits, flushes and closes.
+    pub fn finish(mut self) -> Result<PathBuf, SessionError> {
+        self.drain_waiting(true)?;
         self.flush()?;
         self.writer.finish()
     }

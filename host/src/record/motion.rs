@@ -55,7 +55,7 @@ impl Plan {
         let dt = t[1] - t[0];
         for k in 1..t.len() {
             let h = t[k] - t[k - 1];
-            if !(dt > 0.0) || (h - dt).abs() > 1e-6 * dt.max(1e-3) + 1e-9 {
+            if dt.is_nan() || dt <= 0.0 || (h - dt).abs() > 1e-6 * dt.max(1e-3) + 1e-9 {
                 return Err(PlanError::Uneven {
                     first: dt,
                     found: h,

@@ -1,0 +1,328 @@
+//! Recording over simulated hardware: the real firmware core on a
+//! pseudo-terminal and a simulated AUBO controller on loopback TCP, with a
+//! hidden truth (robimu::hil). End to end, every fault switch, and a kill.
+//!
+//! These run in real time (a few seconds each; the end-to-end one 30 s).
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use rand::SeedableRng;
+use robimu::hil::rig::{SimRig, SimRigConfig};
+use robimu::model::{ParamLayout, Robot};
+use robimu::record::motion::Plan;
+use robimu::record::{record, RecordError, RecordOptions, RecordSummary};
+use robimu::robot::RobotSpec;
+use robimu::session::Session;
+use robimu::workflows::calibrate::{calibrate, CalibrateOptions};
+use robimu::workflows::trajectory::random_walk;
+use robimu_hil_sim::aubo::FaultSwitches;
+use robimu_hil_sim::device::SerialFaults;
+use robimu_protocol::SensorConfig;
+use serialport::SerialPort;
+
+fn rig(seed: u64) -> SimRig {
+    SimRig::spawn(&SimRigConfig::drawn(Robot::aubo_i5(), seed)).unwrap()
+}
+
+fn options(rig: &SimRig, out: &Path, plan: Option<Plan>, duration: f64) -> RecordOptions {
+    RecordOptions {
+        imu_port: rig.imu_port().to_string(),
+        baud: 921_600,
+        robot_spec: RobotSpec::parse(&rig.robot_spec()).unwrap(),
+        robot: Robot::aubo_i5(),
+        robot_name: "aubo_i5".into(),
+        plan,
+        duration,
+        out: out.to_path_buf(),
+        joint_rate: 125.0,
+        rest: 1.0,
+        sensor: SensorConfig::default(),
+    }
+}
+
+/// Every IMU time strictly increasing, every joint time non-decreasing.
+fn check_session(dir: &Path) -> Session {
+    let s = Session::load(dir).unwrap();
+    let m = s.measurements();
+    assert!(
+        m.imu_t.windows(2).all(|w| w[1] > w[0]),
+        "IMU times not increasing"
+    );
+    assert!(m.joint_t.windows(2).all(|w| w[1] >= w[0]));
+    s
+}
+
+#[test]
+fn end_to_end_recording_recovers_the_hidden_truth_within_4_sigma() {
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(21);
+    let traj = random_walk(&robot, 30.0, 1.0, &mut rng).unwrap();
+    let plan = Plan::from_spline(&traj, 250.0);
+    let rig = rig(21);
+    let dir = tempfile::tempdir().unwrap();
+    let summary = record(&options(&rig, dir.path(), Some(plan), 0.0), &mut |_| {}).unwrap();
+    let truth = rig.truth().clone();
+    drop(rig);
+    let p = &summary.progress;
+    // A loaded machine can make the simulated board miss a deadline now
+    // and then (it drops and counts the sample, as the real one does).
+    assert!(p.seq_gaps as f64 <= 0.005 * p.imu_samples as f64, "{p:?}");
+    assert_eq!(p.crc_errors, 0);
+    assert!(
+        (31.5..33.0).contains(&summary.duration),
+        "{}",
+        summary.duration
+    );
+    assert!(p.imu_samples as f64 > 118.0 * summary.duration);
+    assert!(p.joint_samples as f64 > 120.0 * summary.duration);
+    let (_, fit) = summary.clock[0];
+    assert!(
+        (fit.drift_ppm() - 48.7).abs() < 2.0,
+        "drift {}",
+        fit.drift_ppm()
+    );
+
+    let session = check_session(dir.path());
+    let layout = ParamLayout::new(&robot);
+    let cal = calibrate(
+        &robot,
+        &session.measurements(),
+        &CalibrateOptions::new(&robot),
+        |_| {},
+    )
+    .unwrap();
+    let mut worst = (0.0, String::new());
+    for (k, spec) in layout.specs().iter().enumerate() {
+        let t = truth.get(&spec.name).unwrap();
+        let z = (cal.x[k] - t) / cal.sigma[k];
+        if z.abs() > worst.0 {
+            worst = (z.abs(), spec.name.clone());
+        }
+    }
+    eprintln!(
+        "worst |error|/σ = {:.2} ({}); residual rms {:?}",
+        worst.0, worst.1, cal.residual_rms
+    );
+    assert!(
+        worst.0 < 4.0,
+        "{} is {:.2} σ from the truth",
+        worst.1,
+        worst.0
+    );
+    for r in cal.residual_rms {
+        assert!((0.9..1.1).contains(&r), "whitened residual rms {r}");
+    }
+}
+
+fn record_with(
+    rig: &SimRig,
+    dir: &Path,
+    duration: f64,
+    at: f64,
+    fault: impl FnOnce() + Send,
+) -> Result<RecordSummary, RecordError> {
+    let opts = options(rig, dir, None, duration);
+    std::thread::scope(|s| {
+        s.spawn(move || {
+            std::thread::sleep(Duration::from_secs_f64(at));
+            fault();
+        });
+        record(&opts, &mut |_| {})
+    })
+}
+
+#[test]
+fn corrupted_and_dropped_bytes_are_counted_and_skipped() {
+    let rig = rig(3);
+    let dir = tempfile::tempdir().unwrap();
+    let device = &rig.device;
+    let s = record_with(&rig, dir.path(), 5.0, 1.0, || {
+        device.set_serial_faults(SerialFaults {
+            corrupt_probability: 2e-3,
+            drop_probability: 2e-3,
+        })
+    })
+    .unwrap();
+    let p = &s.progress;
+    assert!(p.crc_errors + p.bad_frames > 5, "{p:?}");
+    assert!(p.seq_gaps > 5, "{p:?}");
+    // ~13 bytes a frame: 4 ‰ of bytes spoil ~5 % of the frames.
+    assert!(p.imu_samples as f64 > 0.85 * 120.0 * 5.0, "{p:?}");
+    let session = check_session(dir.path());
+    assert_eq!(session.measurements().imu_t.len() as u64, p.imu_samples);
+}
+
+#[test]
+fn a_board_reset_mid_stream_is_recovered_in_a_new_clock_segment() {
+    let rig = rig(4);
+    let dir = tempfile::tempdir().unwrap();
+    let device = &rig.device;
+    let s = record_with(&rig, dir.path(), 6.0, 2.5, || device.reset()).unwrap();
+    assert_eq!(s.progress.restarts, 1, "{:?}", s.progress);
+    assert_eq!(s.clock.len(), 2);
+    let session = check_session(dir.path());
+    let t = session.measurements().imu_t;
+    // At most a second lost to the reboot; the rest at 120 Hz.
+    assert!(t.len() as f64 > 120.0 * 4.5, "{} samples", t.len());
+    let largest_gap = t.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+    assert!(largest_gap < 1.5, "gap {largest_gap}");
+    // Both segments map onto one session clock: the drift of each is right.
+    for (_, f) in &s.clock {
+        assert!((f.drift_ppm() - 48.7).abs() < 50.0, "{f:?}");
+    }
+}
+
+#[test]
+fn a_vanished_port_stops_with_a_clear_error_and_keeps_the_data() {
+    let rig = rig(5);
+    let dir = tempfile::tempdir().unwrap();
+    let device = &rig.device;
+    let err = record_with(&rig, dir.path(), 10.0, 3.0, || device.vanish()).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains("serial port") && text.contains("kept in"),
+        "{text}"
+    );
+    let RecordError::Aborted { summary, .. } = err else {
+        panic!("{text}")
+    };
+    assert!(summary.duration < 5.0);
+    let session = check_session(dir.path());
+    assert!(session.measurements().imu_t.len() > 250);
+    assert!(session.measurements().joint_t.len() > 250);
+}
+
+#[test]
+fn a_dropped_robot_connection_stops_with_a_clear_error_and_keeps_the_data() {
+    let rig = rig(6);
+    let dir = tempfile::tempdir().unwrap();
+    let aubo = &rig.aubo;
+    let err = record_with(&rig, dir.path(), 10.0, 2.0, || {
+        aubo.set_faults(FaultSwitches {
+            drop_connection_after: Some(0),
+            ..FaultSwitches::default()
+        })
+    })
+    .unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains("robot connection") && text.contains("kept in"),
+        "{text}"
+    );
+    let session = check_session(dir.path());
+    assert!(session.measurements().imu_t.len() > 150);
+}
+
+#[test]
+fn slow_robot_replies_lower_the_joint_rate_but_the_recording_goes_on() {
+    let rig = rig(7);
+    let dir = tempfile::tempdir().unwrap();
+    let aubo = &rig.aubo;
+    let s = record_with(&rig, dir.path(), 4.0, 0.0, || {
+        aubo.set_faults(FaultSwitches {
+            reply_delay: Duration::from_millis(20),
+            ..FaultSwitches::default()
+        })
+    })
+    .unwrap();
+    let rate = s.progress.joint_samples as f64 / s.duration;
+    assert!(rate < 60.0 && rate > 20.0, "joint rate {rate}");
+    check_session(dir.path());
+}
+
+#[test]
+fn a_robot_that_refuses_the_plan_gives_a_clear_error() {
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(8);
+    let plan = Plan::from_spline(&random_walk(&robot, 10.0, 1.0, &mut rng).unwrap(), 250.0);
+    let rig = rig(8);
+    rig.aubo.set_faults(FaultSwitches {
+        refuse_motion: true,
+        ..FaultSwitches::default()
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let err = record(&options(&rig, dir.path(), Some(plan), 0.0), &mut |_| {}).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.contains("refused") && text.contains("moveJoint"),
+        "{text}"
+    );
+    // Refused before anything was recorded: no session left behind.
+    assert!(!dir.path().join("session.toml").exists());
+}
+
+#[test]
+fn missing_busy_and_foreign_ports_are_named() {
+    let rig = rig(9);
+    let dir = tempfile::tempdir().unwrap();
+    let mut opts = options(&rig, &dir.path().join("s"), None, 1.0);
+    opts.imu_port = "/dev/robimu-no-such-port".into();
+    let text = record(&opts, &mut |_| {}).unwrap_err().to_string();
+    assert!(
+        text.contains("no serial port /dev/robimu-no-such-port"),
+        "{text}"
+    );
+    // A pseudo-terminal with nothing behind it: not a robimu board.
+    let (_master, slave) = serialport::TTYPort::pair().unwrap();
+    opts.imu_port = slave.name().unwrap();
+    drop(slave);
+    let text = record(&opts, &mut |_| {}).unwrap_err().to_string();
+    assert!(text.contains("is not a robimu IMU board"), "{text}");
+    assert!(!dir.path().join("s").exists());
+}
+
+/// `robimu record` killed with SIGKILL mid-run leaves a session that loads
+/// (flushed every second), and `robimu repair` finishes it.
+#[test]
+fn a_recording_killed_with_sigkill_leaves_a_readable_session() {
+    let rig = rig(10);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("killed");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_robimu"))
+        .args([
+            "record",
+            "--imu",
+            rig.imu_port(),
+            "--robot",
+            &rig.robot_spec(),
+        ])
+        .args(["--no-move", "--duration", "60", "--out"])
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    // Wait until the recording has started (session.toml written), then 3 s.
+    while !out.join("session.toml").exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "recording never started"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let started = Instant::now();
+    std::thread::sleep(Duration::from_secs(3));
+    child.kill().unwrap(); // SIGKILL
+    let elapsed = started.elapsed().as_secs_f64();
+    child.wait().unwrap();
+    let session = check_session(&out);
+    let imu = session.measurements().imu_t.len() as f64;
+    // At most about a second lost.
+    assert!(
+        imu > 120.0 * (elapsed - 1.5),
+        "{imu} IMU samples after {elapsed:.1} s"
+    );
+    let status = Command::new(env!("CARGO_BIN_EXE_robimu"))
+        .arg("repair")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&status.stdout);
+    assert!(status.status.success(), "{text}");
+    assert!(text.contains("is readable"), "{text}");
+    let repaired = check_session(&out);
+    assert_eq!(repaired.measurements().imu_t.len() as f64, imu);
+}
