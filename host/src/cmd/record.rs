@@ -171,6 +171,11 @@ pub fn record_with_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummar
 /// What a user checks after a recording.
 pub fn print_summary(s: &RecordSummary) {
     let p = &s.progress;
+    let (v, d) = (s.device.firmware_version, &s.device);
+    println!(
+        "board: robimu firmware {}.{}.{}, protocol {}, BNO055 chip id {:#04x}, {} Hz",
+        v[0], v[1], v[2], d.protocol_version, d.chip_id, d.config.sample_rate_hz
+    );
     println!(
         "recorded {:.1} s into {}: {} IMU samples ({:.1} Hz), {} joint samples ({:.1} Hz)",
         s.duration,
