@@ -84,6 +84,9 @@ impl DemoCmd {
         writeln!(out, "\n== 2. simulated hardware ==")?;
         let mut config = SimRigConfig::drawn(robot.clone(), self.seed);
         config.clock_drift_ppm = self.drift_ppm;
+        // The arm waits at the plan's first pose (a real one is moved there
+        // first: `record` does that at half the slowest joint's limits).
+        config.initial = plan.q[0];
         let rig = SimRig::spawn(&config).context("cannot start the simulated hardware")?;
         writeln!(
             out,
