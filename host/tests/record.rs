@@ -270,6 +270,11 @@ fn missing_busy_and_foreign_ports_are_named() {
     drop(slave);
     let text = record(&opts, &mut |_| {}).unwrap_err().to_string();
     assert!(text.contains("is not a robimu IMU board"), "{text}");
+    // The board's port held open (exclusively) by another program.
+    let _held = serialport::new(rig.imu_port(), 921_600).open().unwrap();
+    opts.imu_port = rig.imu_port().to_string();
+    let text = record(&opts, &mut |_| {}).unwrap_err().to_string();
+    assert!(text.contains("is busy"), "{text}");
     assert!(!dir.path().join("s").exists());
 }
 
