@@ -216,7 +216,7 @@ mod tests {
             }
         };
         let mut pings = format!("{PINGS_HEADER}\n");
-        for k in 0..50 {
+        for k in 0..75 {
             let t = 0.2 * k as f64;
             let seg = u32::from(t >= 10.0);
             pings.push_str(&format!(
