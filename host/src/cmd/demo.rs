@@ -66,6 +66,7 @@ impl DemoCmd {
         });
         let sim = SimulateCmd {
             robot: "aubo_i5".into(),
+            links: Default::default(),
             duration: self.duration,
             rate: 120.0,
             joint_rate: None,

@@ -3,7 +3,9 @@
 
 pub mod allan;
 pub mod calibrate;
+pub mod correct;
 pub mod demo;
+pub mod export;
 pub mod input;
 pub mod montecarlo;
 pub mod noise;
@@ -19,6 +21,8 @@ pub enum Command {
     MonteCarlo(montecarlo::MonteCarloCmd),
     Noise(noise::NoiseCmd),
     Allan(allan::AllanCmd),
+    Export(export::ExportCmd),
+    Correct(correct::CorrectCmd),
 }
 
 impl Command {
@@ -31,6 +35,8 @@ impl Command {
             Command::MonteCarlo(c) => c.run(),
             Command::Noise(c) => c.run(),
             Command::Allan(c) => c.run(),
+            Command::Export(c) => c.run(),
+            Command::Correct(c) => c.run(),
         }
     }
 }
