@@ -2,6 +2,8 @@
 //! calibrated robot as URDF and robot TOML, the IMU correction and
 //! `robimu correct`.
 
+#![allow(clippy::needless_range_loop)]
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -42,8 +44,12 @@ fn random_state(robot: &Robot, rng: &mut impl Rng) -> JointState {
 }
 
 fn urdf_aubo() -> Robot {
-    let (robot, chain) = robot_from_urdf_str(&read("aubo_i5.urdf"), &UrdfOptions::default()).unwrap();
-    assert_eq!((chain.base.as_str(), chain.tip.as_str()), ("base_link", "flange"));
+    let (robot, chain) =
+        robot_from_urdf_str(&read("aubo_i5.urdf"), &UrdfOptions::default()).unwrap();
+    assert_eq!(
+        (chain.base.as_str(), chain.tip.as_str()),
+        ("base_link", "flange")
+    );
     robot
         .with_estimated_errors(Robot::aubo_i5().estimated_errors().to_vec())
         .unwrap()
@@ -116,8 +122,12 @@ fn jacobians_of_a_urdf_robot_match_finite_differences() {
         let (mut xp, mut xm) = (x.clone(), x.clone());
         xp[k] += h;
         xm[k] -= h;
-        let zp = MeasurementModel::new(&robot, &layout, &xp).unwrap().predict(&js);
-        let zm = MeasurementModel::new(&robot, &layout, &xm).unwrap().predict(&js);
+        let zp = MeasurementModel::new(&robot, &layout, &xp)
+            .unwrap()
+            .predict(&js);
+        let zm = MeasurementModel::new(&robot, &layout, &xm)
+            .unwrap()
+            .predict(&js);
         for c in 0..6 {
             let fd = (zp[c] - zm[c]) / (2.0 * h);
             let an = jac.dz_dx[k][c];
@@ -147,10 +157,12 @@ fn urdf_fk_nalgebra(text: &str, base: &str, tip: &str, q: &[f64]) -> Matrix4<f64
     for j in &chain {
         let o = &j.origin;
         let rot = Rotation3::from_euler_angles(o.rpy[0], o.rpy[1], o.rpy[2]);
-        m = m * Translation3::new(o.xyz[0], o.xyz[1], o.xyz[2]).to_homogeneous() * rot.to_homogeneous();
+        m = m
+            * Translation3::new(o.xyz[0], o.xyz[1], o.xyz[2]).to_homogeneous()
+            * rot.to_homogeneous();
         if j.kind != "fixed" {
             let axis = Unit::new_normalize(Vector3::new(j.axis[0], j.axis[1], j.axis[2]));
-            m = m * Rotation3::from_axis_angle(&axis, *qi.next().unwrap()).to_homogeneous();
+            m *= Rotation3::from_axis_angle(&axis, *qi.next().unwrap()).to_homogeneous();
         }
     }
     m
@@ -190,7 +202,9 @@ fn urdf_import_reproduces_urdf_forward_kinematics_for_general_axes() {
     // B = URDF pose of that frame, found at q = 0 from the two.
     let zero = [[0.0; 6]; 3];
     let b = urdf_fk_nalgebra(&text, "world", "tool0", &[0.0; 3])
-        * iso_to_na(&forward_kinematics(robot.chain(), &zero, &[0.0; 3])).try_inverse().unwrap();
+        * iso_to_na(&forward_kinematics(robot.chain(), &zero, &[0.0; 3]))
+            .try_inverse()
+            .unwrap();
     let mut rng = rand::rngs::StdRng::seed_from_u64(11);
     for _ in 0..50 {
         let q: Vec<f64> = (0..3).map(|_| rng.random_range(-2.0..2.0)).collect();
@@ -237,7 +251,10 @@ fn corrected_urdf_and_toml_reimport_to_the_calibrated_kinematics() {
         let (_, after) = parse_joints(&corrected).unwrap();
         assert_eq!(after.len(), before.len() + 1);
         for (a, b) in before.iter().zip(&after) {
-            assert_eq!((&a.name, &a.parent, &a.child), (&b.name, &b.parent, &b.child));
+            assert_eq!(
+                (&a.name, &a.parent, &a.child),
+                (&b.name, &b.parent, &b.child)
+            );
         }
         let (urdf_again, _) = robot_from_urdf_str(
             &corrected,
@@ -254,7 +271,11 @@ fn corrected_urdf_and_toml_reimport_to_the_calibrated_kinematics() {
         for _ in 0..50 {
             let q: Vec<f64> = (0..n).map(|_| rng.random_range(-2.5..2.5)).collect();
             let cal = iso_to_na(&forward_kinematics(robot.chain(), &params.eps, &q));
-            let u = iso_to_na(&forward_kinematics(urdf_again.chain(), &vec![[0.0; 6]; n], &q));
+            let u = iso_to_na(&forward_kinematics(
+                urdf_again.chain(),
+                &vec![[0.0; 6]; n],
+                &q,
+            ));
             let t = iso_to_na(&forward_kinematics(toml_again.chain(), &mount, &q));
             worst = worst.max(max_diff(&cal, &u)).max(max_diff(&cal, &t));
         }
@@ -293,9 +314,14 @@ fn random_intrinsics(rng: &mut impl Rng, bias: f64) -> ImuIntrinsics {
 #[test]
 fn forward_sensor_model_then_correction_is_the_identity() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(2);
-    let (a, g) = (random_intrinsics(&mut rng, 2.0), random_intrinsics(&mut rng, 0.1));
+    let (a, g) = (
+        random_intrinsics(&mut rng, 2.0),
+        random_intrinsics(&mut rng, 0.1),
+    );
     let truth: Vec<[f64; 6]> = (0..1000)
-        .map(|_| std::array::from_fn(|c| rng.random_range(-1.0..1.0) * if c < 3 { 20.0 } else { 3.0 }))
+        .map(|_| {
+            std::array::from_fn(|c| rng.random_range(-1.0..1.0) * if c < 3 { 20.0 } else { 3.0 })
+        })
         .collect();
     let raw: Vec<[f64; 6]> = truth
         .iter()
@@ -333,7 +359,12 @@ fn correcting_a_simulated_raw_stream_gives_the_true_signal_to_noise_level() {
     let sz = opts.sigma_z;
     let expect = |m: &robimu::model::geom::M3, off: usize| -> [f64; 3] {
         let mi = inverse(m).unwrap();
-        std::array::from_fn(|c| (0..3).map(|k| (mi[c][k] * sz[off + k]).powi(2)).sum::<f64>().sqrt())
+        std::array::from_fn(|c| {
+            (0..3)
+                .map(|k| (mi[c][k] * sz[off + k]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
     };
     let (ea, ew) = (expect(&p.accel.matrix(), 0), expect(&p.gyro.matrix(), 3));
     let mut sum2 = [0.0; 6];
@@ -357,7 +388,10 @@ fn correcting_a_simulated_raw_stream_gives_the_true_signal_to_noise_level() {
         let rms = (sum2[c] / count as f64).sqrt();
         let sigma = if c < 3 { ea[c] } else { ew[c - 3] };
         println!("channel {c}: corrected − true RMS {rms:.4e}, noise σ {sigma:.4e}");
-        assert!((0.9..1.1).contains(&(rms / sigma)), "channel {c}: {rms} vs σ {sigma}");
+        assert!(
+            (0.9..1.1).contains(&(rms / sigma)),
+            "channel {c}: {rms} vs σ {sigma}"
+        );
     }
 }
 
@@ -409,7 +443,11 @@ fn cli_export_and_correct() {
             args.extend(["--rate", "200"]);
         }
         let run = robimu(&args);
-        assert!(run.status.success(), "{format}: {}", String::from_utf8_lossy(&run.stderr));
+        assert!(
+            run.status.success(),
+            "{format}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
     }
     // The exported URDF and TOML are usable robots.
     let again = Robot::from_toml_file(dir.path().join("robot.toml")).unwrap();
@@ -431,7 +469,10 @@ fn cli_export_and_correct() {
     }
     // σ_ax / √200 as the accelerometer noise density (the largest σ is ax).
     let nd = 0.38 / 200f64.sqrt();
-    assert!(yaml.contains(&format!("accelerometer_noise_density: {nd}")), "{yaml}");
+    assert!(
+        yaml.contains(&format!("accelerometer_noise_density: {nd}")),
+        "{yaml}"
+    );
 
     // correct: raw = forward model of known vectors; corrected = those vectors.
     let p = layout.unpack(&x).unwrap();
@@ -439,18 +480,30 @@ fn cli_export_and_correct() {
     let mut truth = Vec::new();
     for i in 0..50 {
         let v: [f64; 6] = std::array::from_fn(|c| ((i * 6 + c) as f64 * 0.37).sin() * 9.0);
-        let (za, zw) = (p.accel.apply([v[0], v[1], v[2]]), p.gyro.apply([v[3], v[4], v[5]]));
+        let (za, zw) = (
+            p.accel.apply([v[0], v[1], v[2]]),
+            p.gyro.apply([v[3], v[4], v[5]]),
+        );
         csv.push_str(&format!(
             "{},{},{},{},{},{},{},25\n",
             i as f64 * 0.01,
-            za[0], za[1], za[2], zw[0], zw[1], zw[2]
+            za[0],
+            za[1],
+            za[2],
+            zw[0],
+            zw[1],
+            zw[2]
         ));
         truth.push(v);
     }
     let raw = dir.path().join("raw.csv");
     std::fs::write(&raw, csv).unwrap();
     let run = robimu(&["correct", "--calibration", res, raw.to_str().unwrap()]);
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let table = robimu::session::read_table(
         &dir.path().join("raw_corrected.csv"),
         robimu::session::Columns::Fixed(&robimu::session::IMU_COLUMNS),
@@ -459,7 +512,10 @@ fn cli_export_and_correct() {
     assert_eq!(table.len(), 50);
     for (i, v) in truth.iter().enumerate() {
         for c in 0..6 {
-            assert!((table.row(i)[c] - v[c]).abs() < 1e-12, "row {i} channel {c}");
+            assert!(
+                (table.row(i)[c] - v[c]).abs() < 1e-12,
+                "row {i} channel {c}"
+            );
         }
     }
     // Bad input: a clear message, non-zero exit, no panic.
@@ -468,9 +524,21 @@ fn cli_export_and_correct() {
     let run = robimu(&["correct", "--calibration", res, bad.to_str().unwrap()]);
     assert!(!run.status.success());
     let err = String::from_utf8_lossy(&run.stderr);
-    assert!(err.contains("bad.csv") && !err.contains("panicked"), "{err}");
-    let run = robimu(&["export", "--calibration", res, "--format", "urdf", "--robot", "aubo_i5",
-        "--out", dir.path().join("x.urdf").to_str().unwrap()]);
+    assert!(
+        err.contains("bad.csv") && !err.contains("panicked"),
+        "{err}"
+    );
+    let run = robimu(&[
+        "export",
+        "--calibration",
+        res,
+        "--format",
+        "urdf",
+        "--robot",
+        "aubo_i5",
+        "--out",
+        dir.path().join("x.urdf").to_str().unwrap(),
+    ]);
     assert!(!run.status.success());
     assert!(String::from_utf8_lossy(&run.stderr).contains("needs a URDF robot"));
 }

@@ -3,9 +3,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
+use robimu::export::calibrated_params;
 use robimu::export::imu::{kalibr_imu_yaml, Correction, KalibrOptions};
 use robimu::export::robot::{corrected_toml, corrected_urdf};
-use robimu::export::calibrated_params;
 use robimu::model::urdf::UrdfOptions;
 use robimu::report::result::CalibrationResult;
 use robimu::session::Session;
@@ -59,7 +59,11 @@ pub struct ExportCmd {
 
 /// Median sample interval of an IMU table → rate (Hz).
 fn median_rate(t: &[f64]) -> Option<f64> {
-    let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    let mut dt: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
     if dt.is_empty() {
         return None;
     }
@@ -83,8 +87,9 @@ impl ExportCmd {
             ),
         };
         let (robot, _) = resolve_robot_with(&spec, spec_base.as_deref(), &self.links)?;
-        let params = calibrated_params(&robot, &result)
-            .with_context(|| format!("{} does not fit robot `{spec}`", self.calibration.display()))?;
+        let params = calibrated_params(&robot, &result).with_context(|| {
+            format!("{} does not fit robot `{spec}`", self.calibration.display())
+        })?;
         let text = match self.format {
             ExportFormat::Toml => corrected_toml(&robot, &params)?,
             ExportFormat::Correction => Correction::new(&params)?.to_toml()?,

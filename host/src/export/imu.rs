@@ -79,7 +79,10 @@ impl Correction {
     }
 
     /// From the accelerometer and gyroscope intrinsics.
-    pub fn from_intrinsics(accel: &ImuIntrinsics, gyro: &ImuIntrinsics) -> Result<Self, ExportError> {
+    pub fn from_intrinsics(
+        accel: &ImuIntrinsics,
+        gyro: &ImuIntrinsics,
+    ) -> Result<Self, ExportError> {
         Ok(Self {
             format: CORRECTION_FORMAT.into(),
             accelerometer: SensorCorrection::new(accel, "m/s^2", "accelerometer")?,

@@ -121,9 +121,7 @@ pub fn forward_kinematics<S: Scalar, L: LinkTransform>(
     assert_eq!(q.len(), links.len(), "one q per joint");
     let mut f = Iso::identity();
     for ((link, e), &qi) in links.iter().zip(eps).zip(q) {
-        f = f
-            .compose(&link.transform(qi))
-            .compose(&error_transform(e));
+        f = f.compose(&link.transform(qi)).compose(&error_transform(e));
     }
     f
 }

@@ -351,7 +351,10 @@ fn chain_joints(
 
 /// The robot of the chain from `opts.base` to `opts.tip` in URDF `text`, and
 /// the chain (for writing a corrected URDF).
-pub fn robot_from_urdf_str(text: &str, opts: &UrdfOptions) -> Result<(Robot, UrdfChain), UrdfError> {
+pub fn robot_from_urdf_str(
+    text: &str,
+    opts: &UrdfOptions,
+) -> Result<(Robot, UrdfChain), UrdfError> {
     let (robot_name, joints) = parse_joints(text)?;
     let (base, tip, chain) = chain_joints(&joints, opts.base.as_deref(), opts.tip.as_deref())?;
     // P_j accumulation; C_i = A_iᵀ·P_{i+1}·A_{i+1}.
@@ -379,9 +382,7 @@ pub fn robot_from_urdf_str(text: &str, opts: &UrdfOptions) -> Result<(Robot, Urd
                 }
                 let (q_min, q_max) = match j.position {
                     Some(r) => r,
-                    None if j.kind == "continuous" => {
-                        (-std::f64::consts::PI, std::f64::consts::PI)
-                    }
+                    None if j.kind == "continuous" => (-std::f64::consts::PI, std::f64::consts::PI),
                     None => {
                         return Err(invalid(format!(
                             "revolute joint `{}` has no <limit lower upper>",
@@ -410,9 +411,9 @@ pub fn robot_from_urdf_str(text: &str, opts: &UrdfOptions) -> Result<(Robot, Urd
             }
             other => {
                 return Err(invalid(format!(
-                    "joint `{}` is {other}: only revolute, continuous and fixed joints are supported",
-                    j.name
-                )))
+                "joint `{}` is {other}: only revolute, continuous and fixed joints are supported",
+                j.name
+            )))
             }
         }
     }
