@@ -395,6 +395,10 @@ fn correcting_a_simulated_raw_stream_gives_the_true_signal_to_noise_level() {
     }
 }
 
+fn m3_from(m: &robimu::model::geom::M3) -> nalgebra::Matrix3<f64> {
+    nalgebra::Matrix3::from_fn(|i, j| m[i][j])
+}
+
 fn robimu(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_robimu"))
         .args(args)
@@ -470,12 +474,32 @@ fn cli_export_and_correct() {
     // σ_ax / √200 as the accelerometer noise density (the largest σ is ax).
     let nd = 0.38 / 200f64.sqrt();
     assert!(
-        yaml.contains(&format!("accelerometer_noise_density: {nd}")),
+        yaml.contains(&format!("accelerometer_noise_density: {nd:?}")),
         "{yaml}"
     );
 
-    // correct: raw = forward model of known vectors; corrected = those vectors.
+    // Kalibr's model a_m = M_a·a_i, ω_m = M_g·C_gyro_i·ω_i with a_i = R(T_i_b)·v
+    // must reproduce robimu's K·Γ·R for both sensors.
     let p = layout.unpack(&x).unwrap();
+    let rows = |indent: &str| -> Vec<Vec<f64>> {
+        yaml.lines()
+            .filter_map(|l| l.strip_prefix(indent)?.strip_prefix("- ["))
+            .map(|l| {
+                l.split(']').next().unwrap().split(',').map(|v| v.trim().parse().unwrap()).collect()
+            })
+            .collect()
+    };
+    let (t_i_b, mats) = (rows("  "), rows("    "));
+    assert_eq!((t_i_b.len(), mats.len()), (4, 12));
+    let m3 = |r: &[Vec<f64>]| nalgebra::Matrix3::from_fn(|i, j| r[i][j]);
+    let rot = m3(&t_i_b[..3]);
+    let (ma, cg, mg) = (m3(&mats[0..3]), m3(&mats[6..9]), m3(&mats[9..12]));
+    let (ka, kw) = (m3_from(&p.accel.matrix()), m3_from(&p.gyro.matrix()));
+    assert!((ma * rot - ka).abs().max() < 1e-12, "{ma} {ka}");
+    assert!((mg * cg * rot - kw).abs().max() < 1e-12, "{mg} {kw}");
+    assert!(ma[(0, 1)] == 0.0 && ma[(0, 2)] == 0.0 && ma[(1, 2)] == 0.0);
+
+    // correct: raw = forward model of known vectors; corrected = those vectors.
     let mut csv = String::from("t,ax,ay,az,gx,gy,gz,temp\n");
     let mut truth = Vec::new();
     for i in 0..50 {

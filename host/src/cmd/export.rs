@@ -68,7 +68,8 @@ fn median_rate(t: &[f64]) -> Option<f64> {
         return None;
     }
     dt.sort_by(f64::total_cmp);
-    Some(1.0 / dt[dt.len() / 2])
+    // to 1 mHz: sample times written in decimal carry rounding
+    Some((1000.0 / dt[dt.len() / 2]).round() / 1000.0)
 }
 
 impl ExportCmd {

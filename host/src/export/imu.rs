@@ -167,7 +167,7 @@ pub struct KalibrOptions {
 
 fn yaml_matrix(indent: &str, m: &M3) -> String {
     m.iter()
-        .map(|r| format!("{indent}- [{}, {}, {}]\n", r[0], r[1], r[2]))
+        .map(|r| format!("{indent}- [{:?}, {:?}, {:?}]\n", r[0], r[1], r[2]))
         .collect()
 }
 
@@ -194,7 +194,7 @@ pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
     let mut t_i_b = String::new();
     for r in 0..3 {
         t_i_b.push_str(&format!(
-            "  - [{}, {}, {}, 0.0]\n",
+            "  - [{:?}, {:?}, {:?}, 0.0]\n",
             ra[r][0], ra[r][1], ra[r][2]
         ));
     }
@@ -206,16 +206,16 @@ pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
          # robot flange). Random walks are 0: robimu estimates constant biases.\n\
          imu0:\n  \
          T_i_b:\n{t_i_b}  \
-         accelerometer_noise_density: {acc_nd}  # [ m / s^2 / sqrt(Hz) ]\n  \
+         accelerometer_noise_density: {acc_nd:?}  # [ m / s^2 / sqrt(Hz) ]\n  \
          accelerometer_random_walk: 0.0  # [ m / s^3 / sqrt(Hz) ]\n  \
-         gyroscope_noise_density: {gyr_nd}  # [ rad / s / sqrt(Hz) ]\n  \
+         gyroscope_noise_density: {gyr_nd:?}  # [ rad / s / sqrt(Hz) ]\n  \
          gyroscope_random_walk: 0.0  # [ rad / s^2 / sqrt(Hz) ]\n  \
          model: scale-misalignment\n  \
          rostopic: {topic}\n  \
          time_offset: 0.0\n  \
-         update_rate: {rate}\n  \
-         accelerometers:\n    M:\n{ma}    b: [{ab0}, {ab1}, {ab2}]  # m/s^2 (robimu extra)\n  \
-         gyroscopes:\n    A:\n{za}    C_gyro_i:\n{cg}    M:\n{mg}    b: [{gb0}, {gb1}, {gb2}]  # rad/s (robimu extra)\n",
+         update_rate: {rate:?}\n  \
+         accelerometers:\n    M:\n{ma}    b: [{ab0:?}, {ab1:?}, {ab2:?}]  # m/s^2 (robimu extra)\n  \
+         gyroscopes:\n    A:\n{za}    C_gyro_i:\n{cg}    M:\n{mg}    b: [{gb0:?}, {gb1:?}, {gb2:?}]  # rad/s (robimu extra)\n",
         topic = opts.rostopic,
         rate = opts.rate,
         ma = yaml_matrix("    ", &kg(a)),

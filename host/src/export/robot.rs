@@ -62,7 +62,7 @@ pub fn corrected_toml(robot: &Robot, params: &ModelParams) -> Result<String, Exp
 }
 
 fn fmt3(v: [f64; 3]) -> String {
-    format!("{} {} {}", v[0], v[1], v[2])
+    format!("{:?} {:?} {:?}", v[0], v[1], v[2])
 }
 
 fn origin_element(o: &Origin) -> String {
