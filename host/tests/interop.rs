@@ -13,6 +13,7 @@ use robimu::export::imu::{correct_rows, inverse, Correction};
 use robimu::export::robot::{corrected_toml, corrected_urdf};
 use robimu::model::geom::Iso;
 use robimu::model::kinematics::{forward_kinematics, JointState};
+use robimu::model::measurement::predict_generic;
 use robimu::model::urdf::{parse_joints, robot_from_urdf_str, UrdfOptions};
 use robimu::model::{ImuIntrinsics, MeasurementJacobians, MeasurementModel, ParamLayout, Robot};
 use robimu::workflows::simulate::{joint_state_at, random_session, SimulateOptions};
@@ -113,6 +114,23 @@ fn jacobians_of_a_urdf_robot_match_finite_differences() {
     let model = MeasurementModel::new(&robot, &layout, &x).unwrap();
     let mut jac = MeasurementJacobians::new(model.n_params());
     model.jacobians(&js, &mut jac);
+    // The eq. (4) recursion over the same chain agrees with the fast model.
+    let generic = predict_generic(
+        robot.chain(),
+        robot.gravity(),
+        &layout.unpack(&x).unwrap(),
+        &js.q[..3],
+        &js.qd[..3],
+        &js.qdd[..3],
+    )
+    .unwrap();
+    for c in 0..6 {
+        assert!(
+            (generic[c] - jac.z[c]).abs() < 1e-12,
+            "{generic:?} vs {:?}",
+            jac.z
+        );
+    }
     let h = 1e-6;
     let tau = layout.offsets().tau;
     for k in 0..x.len() {
@@ -485,7 +503,12 @@ fn cli_export_and_correct() {
         yaml.lines()
             .filter_map(|l| l.strip_prefix(indent)?.strip_prefix("- ["))
             .map(|l| {
-                l.split(']').next().unwrap().split(',').map(|v| v.trim().parse().unwrap()).collect()
+                l.split(']')
+                    .next()
+                    .unwrap()
+                    .split(',')
+                    .map(|v| v.trim().parse().unwrap())
+                    .collect()
             })
             .collect()
     };

@@ -998,4 +998,39 @@ estimated = [[1, 1], [1, 6],
         assert_eq!(r.priors(), &Priors::default());
         assert_eq!(r.estimated_errors(), Robot::aubo_i5().estimated_errors());
     }
+
+    #[test]
+    fn a_joint_origin_is_the_fixed_transform_after_the_dh_part() {
+        let text = AUBO_TOML.replacen(
+            "sigma_q = 6.632251157578452e-5",
+            "sigma_q = 6.632251157578452e-5\norigin = { xyz = [0.1, -0.2, 0.3], rpy = [0.4, -0.5, 0.6] }",
+            1,
+        );
+        let r = Robot::from_toml_str(&text).unwrap();
+        let c = r.chain()[0].fixed.expect("joint 1 has an origin");
+        // Rz(yaw)·Ry(pitch)·Rx(roll), written out: the URDF convention.
+        let (sr, cr, sp, cp, sy, cy) = (
+            0.4f64.sin(),
+            0.4f64.cos(),
+            (-0.5f64).sin(),
+            (-0.5f64).cos(),
+            0.6f64.sin(),
+            0.6f64.cos(),
+        );
+        let want = [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ];
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((c.r[i][j] - want[i][j]).abs() < 1e-15);
+            }
+        }
+        assert_eq!(c.p, [0.1, -0.2, 0.3]);
+        assert!(r.chain()[1..].iter().all(|l| l.fixed.is_none()));
+        let bad = text.replacen("xyz = [0.1,", "xyz = [nan,", 1);
+        let e = Robot::from_toml_str(&bad).unwrap_err().to_string();
+        assert!(e.contains("origin.xyz[0]"), "{e}");
+    }
 }
