@@ -5,6 +5,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod hil;
+pub mod export;
 pub mod link;
 pub mod model;
 pub mod plot;

@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
+use robimu::model::urdf::{robot_from_urdf_file, UrdfOptions};
 use robimu::model::Robot;
 use robimu::session::Session;
 use robimu::workflows::identifiable::{identifiable_errors, IdentifiableOptions};
@@ -23,8 +24,35 @@ pub enum RobotSource {
 }
 
 /// The robot `spec` names: a built-in name, or a path to a TOML robot
-/// description (relative paths are taken relative to `base` when given).
+/// description or a URDF (relative paths are taken relative to `base` when given).
 pub fn resolve_robot(spec: &str, base: Option<&Path>) -> anyhow::Result<(Robot, RobotSource)> {
+    resolve_robot_with(spec, base, &UrdfLinks::default())
+}
+
+/// Base and tip link of a URDF robot (`--base`, `--tip`); `None`: the URDF's
+/// root link, and its only leaf link.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct UrdfLinks {
+    /// URDF robots: the base link of the chain [default: the root link].
+    #[arg(long = "base", value_name = "LINK")]
+    pub base: Option<String>,
+    /// URDF robots: the tip (flange) link of the chain [default: the only leaf link].
+    #[arg(long = "tip", value_name = "LINK")]
+    pub tip: Option<String>,
+}
+
+/// Whether `path` names a URDF file (by its extension).
+pub fn is_urdf(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("urdf"))
+}
+
+/// [`resolve_robot`] with the chain of a URDF robot chosen by `links`.
+pub fn resolve_robot_with(
+    spec: &str,
+    base: Option<&Path>,
+    links: &UrdfLinks,
+) -> anyhow::Result<(Robot, RobotSource)> {
     if let Some(robot) = Robot::builtin(spec) {
         return Ok((robot, RobotSource::Builtin));
     }
@@ -39,8 +67,19 @@ pub fn resolve_robot(spec: &str, base: Option<&Path>) -> anyhow::Result<(Robot, 
             path.display()
         );
     }
-    let robot = Robot::from_toml_file(&path)
-        .with_context(|| format!("cannot use the robot description {}", path.display()))?;
+    let robot = if is_urdf(&path) {
+        let opts = UrdfOptions {
+            base: links.base.clone(),
+            tip: links.tip.clone(),
+            ..UrdfOptions::default()
+        };
+        robot_from_urdf_file(&path, &opts)
+            .with_context(|| format!("cannot use the URDF {}", path.display()))?
+            .0
+    } else {
+        Robot::from_toml_file(&path)
+            .with_context(|| format!("cannot use the robot description {}", path.display()))?
+    };
     // MODEL.md §1: without an explicit `[errors]` table the estimated
     // generalized errors are found numerically, never hand-listed.
     let robot = if robot.description().errors.is_none() {

@@ -3,7 +3,9 @@
 
 pub mod allan;
 pub mod calibrate;
+pub mod correct;
 pub mod demo;
+pub mod export;
 pub mod input;
 pub mod montecarlo;
 pub mod noise;
@@ -23,6 +25,8 @@ pub enum Command {
     Allan(allan::AllanCmd),
     Record(record::RecordCmd),
     Repair(repair::RepairCmd),
+    Export(export::ExportCmd),
+    Correct(correct::CorrectCmd),
 }
 
 impl Command {
@@ -37,6 +41,8 @@ impl Command {
             Command::Allan(c) => c.run(),
             Command::Record(c) => c.run(),
             Command::Repair(c) => c.run(),
+            Command::Export(c) => c.run(),
+            Command::Correct(c) => c.run(),
         }
     }
 }

@@ -12,7 +12,7 @@ use robimu::workflows::calibrate::CalibrateOptions;
 use robimu::workflows::montecarlo::{monte_carlo, MonteCarloOptions};
 use robimu::workflows::simulate::SimulateOptions;
 
-use super::input::resolve_robot;
+use super::input::{resolve_robot_with, UrdfLinks};
 
 /// Check that the reported uncertainties are honest: per run, draw a truth
 /// from the priors, simulate a session, calibrate it, and compare the error
@@ -25,9 +25,11 @@ use super::input::resolve_robot;
 /// against its 95 % χ² interval.
 #[derive(Debug, Clone, clap::Args)]
 pub struct MonteCarloCmd {
-    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description.
+    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description or a URDF.
     #[arg(long, default_value = "aubo_i5")]
     pub robot: String,
+    #[command(flatten)]
+    pub links: UrdfLinks,
     /// Number of runs.
     #[arg(long, default_value_t = 100)]
     pub runs: usize,
@@ -50,7 +52,7 @@ impl MonteCarloCmd {
             self.duration.is_finite() && self.duration >= 10.0,
             "--duration must be at least 10 s"
         );
-        let (robot, _) = resolve_robot(&self.robot, None)?;
+        let (robot, _) = resolve_robot_with(&self.robot, None, &self.links)?;
         let layout = ParamLayout::new(&robot);
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("cannot create {}", self.out.display()))?;

@@ -10,7 +10,7 @@ use robimu::session::{read_table, Columns, SessionMeta, SessionWriter, Truth};
 use robimu::workflows::simulate::{draw_truth, simulate, SimulateOptions};
 use robimu::workflows::trajectory::random_walk;
 
-use super::input::{resolve_robot, RobotSource};
+use super::input::{resolve_robot_with, RobotSource, UrdfLinks};
 
 /// Simulate a recording session (joints, IMU and the hidden truth).
 ///
@@ -20,9 +20,11 @@ use super::input::{resolve_robot, RobotSource};
 /// imu.csv, and truth.toml with the true parameters.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateCmd {
-    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description.
+    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description or a URDF.
     #[arg(long, default_value = "aubo_i5")]
     pub robot: String,
+    #[command(flatten)]
+    pub links: UrdfLinks,
     /// Length of the trajectory, s (with --trajectory: the plan's length).
     #[arg(long, default_value_t = 300.0, conflicts_with = "trajectory")]
     pub duration: f64,
@@ -175,7 +177,7 @@ impl SimulateCmd {
         in_range("--rate", self.rate, 10_000.0)?;
         let joint_rate = self.joint_rate.unwrap_or(self.rate);
         in_range("--joint-rate", joint_rate, 10_000.0)?;
-        let (robot, source) = resolve_robot(&self.robot, None)?;
+        let (robot, source) = resolve_robot_with(&self.robot, None, &self.links)?;
         let robot_field = match source {
             RobotSource::Builtin => self.robot.clone(),
             // absolute: the session must find it from its own directory

@@ -13,8 +13,36 @@
 
 use super::geom::{self, add, cross, scale, sub, zero3, Iso, V3};
 use super::jet::Scalar;
-use super::robot::DhLink;
+use super::robot::{ChainLink, DhLink};
 use super::MAX_JOINTS;
+
+/// A revolute joint's link transform as a function of its angle: the DH
+/// `T_i(q)` ([`DhLink`]) or `T_i(q)·C_i` ([`ChainLink`]).
+pub trait LinkTransform {
+    /// The transform at joint angle `q`.
+    fn transform<S: Scalar>(&self, q: S) -> Iso<S>;
+}
+
+impl LinkTransform for DhLink {
+    #[inline(always)]
+    fn transform<S: Scalar>(&self, q: S) -> Iso<S> {
+        link_transform(self, q)
+    }
+}
+
+impl LinkTransform for ChainLink {
+    #[inline(always)]
+    fn transform<S: Scalar>(&self, q: S) -> Iso<S> {
+        let t = link_transform(&self.dh, q);
+        match &self.fixed {
+            None => t,
+            Some(c) => t.compose(&Iso {
+                r: c.r.map(|row| row.map(S::cst)),
+                p: c.p.map(S::cst),
+            }),
+        }
+    }
+}
 
 /// Joint position, velocity, acceleration and jerk (q, q̇, q̈, q⃛) at one time;
 /// entries beyond the robot's n joints are ignored.
@@ -84,14 +112,16 @@ pub fn error_transform<S: Scalar>(eps: &[S; 6]) -> Iso<S> {
 /// # Panics
 /// If `eps` or `q` do not have one entry per link.
 #[track_caller]
-pub fn forward_kinematics<S: Scalar>(links: &[DhLink], eps: &[[S; 6]], q: &[S]) -> Iso<S> {
+pub fn forward_kinematics<S: Scalar, L: LinkTransform>(
+    links: &[L],
+    eps: &[[S; 6]],
+    q: &[S],
+) -> Iso<S> {
     assert_eq!(eps.len(), links.len(), "one ε row per link");
     assert_eq!(q.len(), links.len(), "one q per joint");
     let mut f = Iso::identity();
-    for ((dh, e), &qi) in links.iter().zip(eps).zip(q) {
-        f = f
-            .compose(&link_transform(dh, qi))
-            .compose(&error_transform(e));
+    for ((link, e), &qi) in links.iter().zip(eps).zip(q) {
+        f = f.compose(&link.transform(qi)).compose(&error_transform(e));
     }
     f
 }
@@ -123,8 +153,8 @@ pub struct ImuMotion<S = f64> {
 /// # Panics
 /// If `eps`, `q`, `qd` or `qdd` do not have one entry per link.
 #[track_caller]
-pub fn imu_motion<S: Scalar>(
-    links: &[DhLink],
+pub fn imu_motion<S: Scalar, L: LinkTransform>(
+    links: &[L],
     eps: &[[S; 6]],
     q: &[S],
     qd: &[S],
@@ -144,7 +174,7 @@ pub fn imu_motion<S: Scalar>(
         al = add(add(al, scale(z, qdd[i])), cross(w, zqd));
         w = add(w, zqd);
         let next = f
-            .compose(&link_transform(&links[i], q[i]))
+            .compose(&links[i].transform(q[i]))
             .compose(&error_transform(&eps[i]));
         let rho = sub(next.p, f.p);
         v = add(v, cross(w, rho));

@@ -35,9 +35,9 @@
 use super::geom::{self, add, cross, mul_mtv, mul_mv, scale, sub, Iso, M3, V3};
 use super::imu::{self, ImuError, ImuIntrinsics};
 use super::jet::Scalar;
-use super::kinematics::{imu_motion, JointState};
+use super::kinematics::{imu_motion, JointState, LinkTransform};
 use super::params::{ModelParams, Offsets, ParamLayout, ParamLengthError};
-use super::robot::{DhLink, Robot};
+use super::robot::Robot;
 use super::MAX_JOINTS;
 
 /// Why a measurement model cannot be built for a parameter vector.
@@ -137,6 +137,8 @@ struct LinkConst {
     sa: f64,
     a: f64,
     d: f64,
+    /// The fixed transform C_i after the DH part, when not the identity.
+    fixed: Option<(M3, V3)>,
     /// (ε_i1, ε_i2, ε_i3).
     t: V3,
     /// Ry(ε4)·Rz(ε5)·Rx(ε6).
@@ -239,7 +241,7 @@ struct Walk {
     v_le: [Tw; MAX_JOINTS],
     /// Σ_{l ≤ i} A_l.
     a_le: [Tw; MAX_JOINTS],
-    /// Rotation of the ideal frame i (after T_i, before E_i).
+    /// Rotation of the ideal frame i (after T_i·C_i, before E_i).
     rg: [M3; MAX_JOINTS],
     /// Origin of the real frame i (after Trans(ε_i1..3)).
     ph: [V3; MAX_JOINTS],
@@ -314,6 +316,7 @@ impl MeasurementModel {
             sa: 0.0,
             a: 0.0,
             d: 0.0,
+            fixed: None,
             t: [0.0; 3],
             e_rot: geom::identity(),
             e_rot_identity: true,
@@ -322,7 +325,8 @@ impl MeasurementModel {
             cols: [NONE; 6],
         };
         let mut links = [empty; MAX_JOINTS];
-        for (i, (dh, e)) in robot.links().iter().zip(&params.eps).enumerate() {
+        for (i, (link, e)) in robot.chain().iter().zip(&params.eps).enumerate() {
+            let dh = &link.dh;
             let ry = geom::rot_y(e[3]);
             let ryz = geom::mul_mm(&ry, &geom::rot_z(e[4]));
             let mut cols = [NONE; 6];
@@ -337,6 +341,7 @@ impl MeasurementModel {
                 sa: dh.alpha.sin(),
                 a: dh.a,
                 d: dh.d,
+                fixed: link.fixed.map(|c| (c.r, c.p)),
                 t: [e[0], e[1], e[2]],
                 e_rot: geom::mul_mm(&ryz, &geom::rot_x(e[5])),
                 e_rot_identity: e[3] == 0.0 && e[4] == 0.0 && e[5] == 0.0,
@@ -396,8 +401,13 @@ impl MeasurementModel {
                 [st, ct * l.ca, -ct * l.sa],
                 [0.0, l.sa, l.ca],
             ];
-            let rg = geom::mul_mm(&r, &mz);
-            let pg = add(p, mul_mv(&r, [l.a * ct, l.a * st, l.d]));
+            let mut rg = geom::mul_mm(&r, &mz);
+            let mut pg = add(p, mul_mv(&r, [l.a * ct, l.a * st, l.d]));
+            if let Some((cr, cp)) = &l.fixed {
+                // The fixed C_i after the DH part: frame ·= [cr cp].
+                pg = add(pg, mul_mv(&rg, *cp));
+                rg = geom::mul_mm(&rg, cr);
+            }
             let ph = add(pg, mul_mv(&rg, l.t));
             wk.rg[i] = rg;
             wk.ph[i] = ph;
@@ -588,8 +598,8 @@ impl MeasurementModel {
 /// # Panics
 /// If the slices do not have one entry per link.
 #[track_caller]
-pub fn predict_generic<S: Scalar>(
-    links: &[DhLink],
+pub fn predict_generic<S: Scalar, L: LinkTransform>(
+    links: &[L],
     g0: f64,
     params: &ModelParams<S>,
     q: &[S],

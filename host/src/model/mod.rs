@@ -6,6 +6,7 @@
 //! - [`params`]: the parameter vector x (names, units, priors, typed views);
 //! - [`kinematics`]: forward kinematics with generalized errors, eq. (1)–(4);
 //! - [`imu`]: gravity, inertial quantities and the sensor model, eq. (5)–(6);
+//! - [`urdf`]: robots from URDF (the revolute chain from a base to a tip link);
 //! - [`spline`]: the clamped B-spline trajectory, eq. (18)–(21);
 //! - [`measurement`]: predicted z with exact Jacobians (eq. (10));
 //! - [`jet`], [`geom`]: the scalar type (f64 or forward-mode jet) and small geometry.
@@ -24,6 +25,7 @@ pub mod measurement;
 pub mod params;
 pub mod robot;
 pub mod spline;
+pub mod urdf;
 
 /// Largest number of joints the model supports (fixed-size, allocation-free hot path).
 pub const MAX_JOINTS: usize = 8;

@@ -5,6 +5,24 @@
 //! `T_i(q_i) = Rz(q_i + θ0_i)·Tz(d_i)·Tx(a_i)·Rx(α_i)`, followed by the
 //! generalized error transform `E_i` (eq. (2)); see [`super::kinematics`].
 //!
+//! # Joints that are not plain DH
+//!
+//! A joint may also carry a fixed transform `C_i` (its `origin`) after the DH
+//! part, so that link i is `T_i(q_i)·C_i·E_i`:
+//!
+//! ```text
+//! [R p; 0 1] = T_1(q_1)·C_1·E_1 · T_2(q_2)·C_2·E_2 ⋯ T_n(q_n)·C_n·E_n
+//! ```
+//!
+//! Joint i always turns about the z axis of the frame before `T_i`. With every
+//! `C_i = I` (no `origin` key) this is exactly MODEL.md §1. `C_i` describes
+//! (a) a robot imported from URDF ([`super::urdf`]: DH part zero, `C_i` the
+//! transform from joint i's frame to joint i+1's, each rotated so its axis is
+//! z), or (b) a calibrated robot (`C_i` = the nominal `C_i` times the
+//! estimated `E_i`, see `crate::export`). The generalized errors `E_i` always
+//! sit after `C_i`, i.e. on the fixed transform from joint i to joint i+1
+//! expressed in the frame of joint i+1, as in MODEL.md for DH robots.
+//!
 //! # TOML format
 //!
 //! All values are SI (m, rad, s, m/s², rad/s). One `[[joint]]` table per joint,
@@ -27,6 +45,9 @@
 //! qd_max = 0.5                       # rad/s (|q̇| ≤ qd_max)
 //! qdd_max = 2.0                      # rad/s² (|q̈| ≤ qdd_max)
 //! sigma_q = 1e-4                     # rad, joint sample noise σ
+//! # optional: fixed transform C_i after the DH part (URDF origin convention,
+//! # Trans(xyz)·Rz(yaw)·Ry(pitch)·Rx(roll); m, rad)
+//! origin = { xyz = [0.0, 0.0, 0.0], rpy = [0.0, 0.0, 0.0] }
 //!
 //! [[joint]]                          # joint 2 (the flange)
 //! theta0 = 0.0
@@ -69,6 +90,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use super::geom::{self, Iso, M3};
 use super::MAX_JOINTS;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
@@ -85,6 +107,83 @@ pub struct DhLink {
     pub a: f64,
     /// Twist about x, α (rad).
     pub alpha: f64,
+}
+
+/// A fixed rigid transform in the URDF `<origin>` convention:
+/// `Trans(xyz)·Rz(yaw)·Ry(pitch)·Rx(roll)`, `rpy = [roll, pitch, yaw]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Origin {
+    /// Translation (m).
+    pub xyz: [f64; 3],
+    /// Roll, pitch, yaw (rad): fixed-axis X, then Y, then Z.
+    pub rpy: [f64; 3],
+}
+
+impl Origin {
+    /// The identity.
+    pub const IDENTITY: Origin = Origin {
+        xyz: [0.0; 3],
+        rpy: [0.0; 3],
+    };
+
+    /// The transform `[R p; 0 1]`.
+    pub fn to_iso(&self) -> Iso {
+        Iso {
+            r: rpy_matrix(self.rpy),
+            p: self.xyz,
+        }
+    }
+
+    /// The origin of a transform (see [`matrix_rpy`] for the angles).
+    pub fn from_iso(t: &Iso) -> Self {
+        Self {
+            xyz: t.p,
+            rpy: matrix_rpy(&t.r),
+        }
+    }
+}
+
+/// `Rz(yaw)·Ry(pitch)·Rx(roll)` for `rpy = [roll, pitch, yaw]` (URDF).
+pub fn rpy_matrix(rpy: [f64; 3]) -> M3 {
+    geom::rot_zyx([rpy[2], rpy[1], rpy[0]])
+}
+
+/// Roll, pitch, yaw of a rotation matrix (inverse of [`rpy_matrix`]); at
+/// pitch ±90° (where only roll ∓ yaw is defined) yaw is set to 0. Of the
+/// general and the gimbal-lock solution, the one that reproduces `r` best is
+/// returned, so the result is exact to rounding everywhere.
+pub fn matrix_rpy(r: &M3) -> [f64; 3] {
+    let pitch = (-r[2][0]).atan2(r[2][1].hypot(r[2][2]));
+    let general = [r[2][1].atan2(r[2][2]), pitch, r[1][0].atan2(r[0][0])];
+    // yaw = 0: Rx(roll) = Ry(pitch)ᵀ·R.
+    let m = geom::mul_mm(&geom::transpose(&geom::rot_y(pitch)), r);
+    let locked = [m[2][1].atan2(m[1][1]), pitch, 0.0];
+    let err = |a: [f64; 3]| {
+        let q = rpy_matrix(a);
+        let mut e = 0.0f64;
+        for i in 0..3 {
+            for j in 0..3 {
+                e = e.max((q[i][j] - r[i][j]).abs());
+            }
+        }
+        e
+    };
+    if err(locked) < err(general) {
+        locked
+    } else {
+        general
+    }
+}
+
+/// One link of the chain: the DH transform `T_i(q)` and the fixed transform
+/// `C_i` after it (`None` = identity, a plain DH link).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChainLink {
+    /// DH part.
+    pub dh: DhLink,
+    /// `C_i`, when not the identity.
+    pub fixed: Option<Iso>,
 }
 
 /// Joint limits (paper Table III), SI.
@@ -122,6 +221,9 @@ pub struct JointDescription {
     pub qdd_max: f64,
     /// Joint sample noise σ (rad).
     pub sigma_q: f64,
+    /// Fixed transform `C_i` after the DH part (absent: identity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin: Option<Origin>,
 }
 
 /// Default IMU sample noise (standard deviations).
@@ -352,6 +454,7 @@ pub fn default_estimated_errors(n: usize) -> Vec<ErrorIndex> {
 pub struct Robot {
     desc: RobotDescription,
     links: Vec<DhLink>,
+    chain: Vec<ChainLink>,
     limits: Vec<JointLimits>,
     sigma_q: Vec<f64>,
     estimated: Vec<ErrorIndex>,
@@ -412,6 +515,12 @@ impl Robot {
             positive(|| f("qd_max"), j.qd_max)?;
             positive(|| f("qdd_max"), j.qdd_max)?;
             positive(|| f("sigma_q"), j.sigma_q)?;
+            if let Some(o) = &j.origin {
+                for k in 0..3 {
+                    finite(|| f(&format!("origin.xyz[{k}]")), o.xyz[k])?;
+                    finite(|| f(&format!("origin.rpy[{k}]")), o.rpy[k])?;
+                }
+            }
         }
         for (i, &s) in desc.noise.sigma_z.iter().enumerate() {
             positive(|| format!("noise.sigma_z[{i}]"), s)?;
@@ -471,7 +580,7 @@ impl Robot {
                 k: w[0].k,
             });
         }
-        let links = desc
+        let links: Vec<DhLink> = desc
             .joints
             .iter()
             .map(|j| DhLink {
@@ -479,6 +588,15 @@ impl Robot {
                 d: j.d,
                 a: j.a,
                 alpha: j.alpha,
+            })
+            .collect();
+        let chain = desc
+            .joints
+            .iter()
+            .zip(&links)
+            .map(|(j, &dh)| ChainLink {
+                dh,
+                fixed: j.origin.map(|o| o.to_iso()),
             })
             .collect();
         let limits = desc
@@ -495,6 +613,7 @@ impl Robot {
         Ok(Self {
             desc,
             links,
+            chain,
             limits,
             sigma_q,
             estimated,
@@ -552,6 +671,7 @@ impl Robot {
                     qd_max: vmax * DEG,
                     qdd_max: 100.0 * DEG,
                     sigma_q: sq * DEG,
+                    origin: None,
                 },
             )
             .collect();
@@ -585,9 +705,14 @@ impl Robot {
     pub fn dof(&self) -> usize {
         self.links.len()
     }
-    /// DH table, base to flange.
+    /// DH table, base to flange: the DH part of each joint only. The full
+    /// joint transforms (with any fixed `C_i`) are [`Robot::chain`].
     pub fn links(&self) -> &[DhLink] {
         &self.links
+    }
+    /// The kinematic chain, base to flange: DH part and fixed `C_i` per joint.
+    pub fn chain(&self) -> &[ChainLink] {
+        &self.chain
     }
     /// Joint limits.
     pub fn limits(&self) -> &[JointLimits] {
@@ -872,5 +997,40 @@ estimated = [[1, 1], [1, 6],
         assert_eq!(r.gravity(), 9.81);
         assert_eq!(r.priors(), &Priors::default());
         assert_eq!(r.estimated_errors(), Robot::aubo_i5().estimated_errors());
+    }
+
+    #[test]
+    fn a_joint_origin_is_the_fixed_transform_after_the_dh_part() {
+        let text = AUBO_TOML.replacen(
+            "sigma_q = 6.632251157578452e-5",
+            "sigma_q = 6.632251157578452e-5\norigin = { xyz = [0.1, -0.2, 0.3], rpy = [0.4, -0.5, 0.6] }",
+            1,
+        );
+        let r = Robot::from_toml_str(&text).unwrap();
+        let c = r.chain()[0].fixed.expect("joint 1 has an origin");
+        // Rz(yaw)·Ry(pitch)·Rx(roll), written out: the URDF convention.
+        let (sr, cr, sp, cp, sy, cy) = (
+            0.4f64.sin(),
+            0.4f64.cos(),
+            (-0.5f64).sin(),
+            (-0.5f64).cos(),
+            0.6f64.sin(),
+            0.6f64.cos(),
+        );
+        let want = [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ];
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((c.r[i][j] - want[i][j]).abs() < 1e-15);
+            }
+        }
+        assert_eq!(c.p, [0.1, -0.2, 0.3]);
+        assert!(r.chain()[1..].iter().all(|l| l.fixed.is_none()));
+        let bad = text.replacen("xyz = [0.1,", "xyz = [nan,", 1);
+        let e = Robot::from_toml_str(&bad).unwrap_err().to_string();
+        assert!(e.contains("origin.xyz[0]"), "{e}");
     }
 }
