@@ -351,9 +351,14 @@ fn output_type(name: &str) -> &'static str {
 
 fn serve_rtde(mut stream: TcpStream, shared: &Shared) {
     let _ = stream.set_nodelay(true);
-    let mut buf = Vec::new();
-    let mut chunk = [0u8; 4096];
-    let mut c = Rtde {
+    // Socket timeouts are rounded to scheduler ticks (several ms), too
+    // coarse for 500 Hz: data packages go out from their own thread, which
+    // sleeps precisely; requests are read here with a coarse timeout.
+    let Ok(writer) = stream.try_clone() else {
+        return;
+    };
+    let writer = Mutex::new(writer);
+    let state = Mutex::new(Rtde {
         version: 0,
         recipe: None,
         next_recipe_id: 1,
@@ -361,66 +366,80 @@ fn serve_rtde(mut stream: TcpStream, shared: &Shared) {
         next_cycle: 0,
         sent: 0,
         writes: 0,
-    };
-    while !shared.stop.load(Ordering::SeqCst) {
-        // Wait for requests until the next data package is due.
-        let wait = match (&c.recipe, c.streaming) {
-            (Some((_, _, f)), true) => {
-                let due = c.next_cycle as f64 / f;
-                (due - shared.now()).clamp(0.0002, 0.02)
+    });
+    let closed = AtomicBool::new(false);
+    let _ = stream.set_read_timeout(Some(Duration::from_millis(20)));
+    thread::scope(|scope| {
+        scope.spawn(|| send_data(&writer, &state, &closed, shared));
+        let mut buf = Vec::new();
+        let mut chunk = [0u8; 4096];
+        'read: while !shared.stop.load(Ordering::SeqCst) && !closed.load(Ordering::SeqCst) {
+            match stream.read(&mut chunk) {
+                Ok(0) => break,
+                Ok(n) => buf.extend_from_slice(&chunk[..n]),
+                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(_) => break,
             }
-            _ => 0.02,
+            while buf.len() >= 3 {
+                let size = u16::from_be_bytes([buf[0], buf[1]]) as usize;
+                if size < 3 {
+                    break 'read; // cannot resynchronise
+                }
+                if buf.len() < size {
+                    break;
+                }
+                let kind = buf[2];
+                let payload = buf[3..size].to_vec();
+                buf.drain(..size);
+                let faults = lock(&shared.faults).clone();
+                thread::sleep(faults.reply_delay);
+                let mut c = lock(&state);
+                let replies = handle_request(&mut c, kind, &payload, shared);
+                let mut w = lock(&writer);
+                for r in replies {
+                    if write_package(&mut w, &r, &faults, &mut c.writes).is_err() {
+                        break 'read;
+                    }
+                }
+            }
+        }
+        closed.store(true, Ordering::SeqCst);
+    });
+}
+
+/// Sends a data package at every due cycle of a started stream.
+fn send_data(writer: &Mutex<TcpStream>, state: &Mutex<Rtde>, closed: &AtomicBool, shared: &Shared) {
+    while !shared.stop.load(Ordering::SeqCst) && !closed.load(Ordering::SeqCst) {
+        let mut c = lock(state);
+        let Some((id, names, f)) = c.recipe.clone().filter(|_| c.streaming) else {
+            drop(c);
+            thread::sleep(Duration::from_millis(1));
+            continue;
         };
-        let _ = stream.set_read_timeout(Some(Duration::from_secs_f64(wait)));
-        match stream.read(&mut chunk) {
-            Ok(0) => return,
-            Ok(n) => buf.extend_from_slice(&chunk[..n]),
-            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
-            Err(e) if e.kind() == ErrorKind::Interrupted => {}
-            Err(_) => return,
+        let now = shared.now();
+        let due = c.next_cycle as f64 / f;
+        if now < due {
+            drop(c);
+            thread::sleep(Duration::from_secs_f64((due - now).min(0.005)));
+            continue;
         }
-        while buf.len() >= 3 {
-            let size = u16::from_be_bytes([buf[0], buf[1]]) as usize;
-            if size < 3 {
-                return; // cannot resynchronise
-            }
-            if buf.len() < size {
-                break;
-            }
-            let kind = buf[2];
-            let payload = buf[3..size].to_vec();
-            buf.drain(..size);
-            let faults = lock(&shared.faults).clone();
-            thread::sleep(faults.reply_delay);
-            let replies = handle_request(&mut c, kind, &payload, shared);
-            for r in replies {
-                if write_package(&mut stream, &r, &faults, &mut c.writes).is_err() {
-                    return;
-                }
-            }
+        // Behind by more than a cycle: skip to the latest one.
+        let cycle = c.next_cycle.max((now * f).floor() as u64);
+        let faults = lock(&shared.faults).clone();
+        let mut w = lock(writer);
+        if faults.drop_connection_after.is_some_and(|n| c.sent >= n) {
+            let _ = w.shutdown(std::net::Shutdown::Both);
+            closed.store(true, Ordering::SeqCst);
+            return;
         }
-        if c.streaming {
-            if let Some((id, names, f)) = c.recipe.clone() {
-                let now = shared.now();
-                let due = c.next_cycle as f64 / f;
-                if now >= due {
-                    // Behind by more than a cycle: skip to the latest one.
-                    let latest = (now * f).floor() as u64;
-                    let cycle = c.next_cycle.max(latest);
-                    let faults = lock(&shared.faults).clone();
-                    if faults.drop_connection_after.is_some_and(|n| c.sent >= n) {
-                        let _ = stream.shutdown(std::net::Shutdown::Both);
-                        return;
-                    }
-                    let data = data_package(id, &names, cycle as f64 / f, shared);
-                    if write_package(&mut stream, &data, &faults, &mut c.writes).is_err() {
-                        return;
-                    }
-                    c.sent += 1;
-                    c.next_cycle = cycle + 1;
-                }
-            }
+        let data = data_package(id, &names, cycle as f64 / f, shared);
+        if write_package(&mut w, &data, &faults, &mut c.writes).is_err() {
+            closed.store(true, Ordering::SeqCst);
+            return;
         }
+        c.sent += 1;
+        c.next_cycle = cycle + 1;
     }
 }
 
