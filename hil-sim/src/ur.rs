@@ -517,7 +517,9 @@ fn data_package(id: u8, names: &[String], t: f64, shared: &Shared) -> Vec<u8> {
     let mut p = vec![id];
     for n in names {
         match n.as_str() {
-            "timestamp" => p.extend_from_slice(&(shared.config.uptime_at_epoch_s + t).to_be_bytes()),
+            "timestamp" => {
+                p.extend_from_slice(&(shared.config.uptime_at_epoch_s + t).to_be_bytes())
+            }
             "actual_q" => {
                 for x in q {
                     let noisy = x + robot.noise_rad * robot.noise.gaussian();
@@ -618,7 +620,9 @@ pub fn parse_program(text: &str) -> Result<Vec<Command>, String> {
     }
     for (n, line) in lines {
         if line != format!("{name}()") {
-            return Err(format!("line {n}: after `end` only `{name}()` is accepted: {line:?}"));
+            return Err(format!(
+                "line {n}: after `end` only `{name}()` is accepted: {line:?}"
+            ));
         }
     }
     Ok(cmds)
@@ -631,18 +635,26 @@ fn parse_statement(line: &str) -> Result<Command, String> {
         args.trim().parse::<f64>().map_err(|_| "bad deceleration")?;
         return Ok(Command::StopJ);
     }
-    let open = args.strip_prefix('[').ok_or("the first argument must be a joint list")?;
+    let open = args
+        .strip_prefix('[')
+        .ok_or("the first argument must be a joint list")?;
     let (list, named) = open.split_once(']').ok_or("unclosed joint list")?;
     let values: Vec<f64> = list
         .split(',')
-        .map(|x| x.trim().parse::<f64>().map_err(|_| format!("bad joint value {x:?}")))
+        .map(|x| {
+            x.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("bad joint value {x:?}"))
+        })
         .collect::<Result<_, _>>()?;
     let q: Joints = values
         .try_into()
         .map_err(|v: Vec<f64>| format!("{} joint values, expected {JOINTS}", v.len()))?;
     let mut kw = std::collections::HashMap::new();
     for part in named.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let (k, v) = part.split_once('=').ok_or_else(|| format!("bad argument {part:?}"))?;
+        let (k, v) = part
+            .split_once('=')
+            .ok_or_else(|| format!("bad argument {part:?}"))?;
         let v: f64 = v
             .trim()
             .parse()
@@ -651,7 +663,11 @@ fn parse_statement(line: &str) -> Result<Command, String> {
             .ok_or_else(|| format!("bad value of {}", k.trim()))?;
         kw.insert(k.trim().to_string(), v);
     }
-    let get = |k: &str| kw.get(k).copied().ok_or_else(|| format!("{func} needs {k}="));
+    let get = |k: &str| {
+        kw.get(k)
+            .copied()
+            .ok_or_else(|| format!("{func} needs {k}="))
+    };
     match func {
         "movej" => {
             let v = get("v")?;
@@ -841,7 +857,9 @@ mod tests {
         let e = parse_program(&p.replace("0.5], a", "0.5, 1], a")).unwrap_err();
         assert!(e.contains("7 joint values"), "{e}");
         assert!(parse_program(&p.replace("end\n", "")).is_err());
-        assert!(parse_program(&p.replace("t=0.008000, ", "")).unwrap_err().contains("t="));
+        assert!(parse_program(&p.replace("t=0.008000, ", ""))
+            .unwrap_err()
+            .contains("t="));
     }
 
     #[test]

@@ -79,7 +79,11 @@ fn write_mcap(path: &Path, data: &Measurements, spec: &McapSpec) {
         .add_schema(spec.joint_schema, "ros2msg", b"std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n")
         .unwrap();
     let imu = w
-        .add_schema("sensor_msgs/msg/Imu", "ros2msg", b"# (definition omitted)\n")
+        .add_schema(
+            "sensor_msgs/msg/Imu",
+            "ros2msg",
+            b"# (definition omitted)\n",
+        )
         .unwrap();
     let meta = BTreeMap::new();
     let jc = w
@@ -206,13 +210,31 @@ fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
     let (a, b) = (d.join("from_mcap"), d.join("from_csv"));
     let names = JOINTS.join(",");
     let (ok, text) = robimu(&[
-        "import", "mcap", s(&bag), "--joints", "/joint_states", "--imu", "/imu/data_raw",
-        "--joint-names", &names, "--out", s(&a),
+        "import",
+        "mcap",
+        s(&bag),
+        "--joints",
+        "/joint_states",
+        "--imu",
+        "/imu/data_raw",
+        "--joint-names",
+        &names,
+        "--out",
+        s(&a),
     ]);
     assert!(ok, "{text}");
-    assert!(text.contains(&format!("{} joint samples", data.joint_t.len())), "{text}");
+    assert!(
+        text.contains(&format!("{} joint samples", data.joint_t.len())),
+        "{text}"
+    );
     let (ok, text) = robimu(&[
-        "import", "csv", s(&imu_csv), "--joints", s(&joints_csv), "--out", s(&b),
+        "import",
+        "csv",
+        s(&imu_csv),
+        "--joints",
+        s(&joints_csv),
+        "--out",
+        s(&b),
     ]);
     assert!(ok, "{text}");
 
@@ -246,7 +268,10 @@ fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
     }
     eprintln!("imported vs original: worst |Δx|/σ = {worst:.2e}; vs truth {worst_truth:.2}");
     assert!(worst < 1e-3, "imported calibration differs by {worst} σ");
-    assert!(worst_truth < 4.5, "imported calibration is {worst_truth} σ from the truth");
+    assert!(
+        worst_truth < 4.5,
+        "imported calibration is {worst_truth} σ from the truth"
+    );
 }
 
 #[test]
@@ -269,24 +294,41 @@ fn bad_recordings_fail_naming_the_cause() {
     let (ok, text) = import(&bag, &["--imu", "/imu/missing"]);
     assert!(!ok);
     assert!(
-        text.contains("no topic /imu/missing") && text.contains("/imu/data_raw [sensor_msgs/msg/Imu"),
+        text.contains("no topic /imu/missing")
+            && text.contains("/imu/data_raw [sensor_msgs/msg/Imu"),
         "{text}"
     );
     // A topic of another type.
     let (ok, text) = import(&bag, &["--joints", "/imu/other"]);
     assert!(!ok);
-    assert!(text.contains("carries sensor_msgs/msg/Imu, expected sensor_msgs/msg/JointState"), "{text}");
+    assert!(
+        text.contains("carries sensor_msgs/msg/Imu, expected sensor_msgs/msg/JointState"),
+        "{text}"
+    );
     // Another message encoding.
     let bad = d.join("json.mcap");
-    write_mcap(&bad, &data, &McapSpec { message_encoding: "json", ..McapSpec::default() });
+    write_mcap(
+        &bad,
+        &data,
+        &McapSpec {
+            message_encoding: "json",
+            ..McapSpec::default()
+        },
+    );
     let (ok, text) = import(&bad, &[]);
-    assert!(!ok && text.contains("message encoding is \"json\""), "{text}");
+    assert!(
+        !ok && text.contains("message encoding is \"json\""),
+        "{text}"
+    );
     // Truncated: half the file.
     let bytes = std::fs::read(&bag).unwrap();
     let cut = d.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let (ok, text) = import(&cut, &[]);
-    assert!(!ok && text.contains("not a readable MCAP file") && text.contains("truncated"), "{text}");
+    assert!(
+        !ok && text.contains("not a readable MCAP file") && text.contains("truncated"),
+        "{text}"
+    );
     // Not MCAP at all.
     let junk = d.join("junk.mcap");
     std::fs::write(&junk, b"#timestamp,a,b\n1,2,3\n").unwrap();
@@ -294,17 +336,29 @@ fn bad_recordings_fail_naming_the_cause() {
     assert!(!ok && text.contains("not a readable MCAP file"), "{text}");
     // A joint name not in the messages.
     let (ok, text) = import(&bag, &["--joint-names", "a,b,c,d,e,f"]);
-    assert!(!ok && text.contains("no message on /joint_states has all of the joints"), "{text}");
+    assert!(
+        !ok && text.contains("no message on /joint_states has all of the joints"),
+        "{text}"
+    );
     // Five joints for a six-joint robot.
     let five = JOINTS[..5].join(",");
     let (ok, text) = import(&bag, &["--joint-names", &five]);
-    assert!(!ok && text.contains("5 joints imported") && text.contains("has 6"), "{text}");
+    assert!(
+        !ok && text.contains("5 joints imported") && text.contains("has 6"),
+        "{text}"
+    );
     // A message cut short inside an otherwise valid file.
     let mut w = mcap::Writer::new(Cursor::new(Vec::new())).unwrap();
     let sc = w.add_schema("sensor_msgs/msg/Imu", "ros2msg", b"").unwrap();
-    let ch = w.add_channel(sc, "/imu/data_raw", "cdr", &BTreeMap::new()).unwrap();
-    let jsc = w.add_schema("sensor_msgs/msg/JointState", "ros2msg", b"").unwrap();
-    let jch = w.add_channel(jsc, "/joint_states", "cdr", &BTreeMap::new()).unwrap();
+    let ch = w
+        .add_channel(sc, "/imu/data_raw", "cdr", &BTreeMap::new())
+        .unwrap();
+    let jsc = w
+        .add_schema("sensor_msgs/msg/JointState", "ros2msg", b"")
+        .unwrap();
+    let jch = w
+        .add_channel(jsc, "/joint_states", "cdr", &BTreeMap::new())
+        .unwrap();
     let header = |channel_id| mcap::records::MessageHeader {
         channel_id,
         sequence: 0,
@@ -338,6 +392,17 @@ fn bad_recordings_fail_naming_the_cause() {
     let mut text = std::fs::read_to_string(&joints_csv).unwrap();
     text.push_str("1,2,3\n");
     std::fs::write(&joints_csv, text).unwrap();
-    let (ok, text) = robimu(&["import", "csv", s(&imu_csv), "--joints", s(&joints_csv), "--out", s(&out)]);
-    assert!(!ok && text.contains("joints.csv:") && text.contains("3 fields"), "{text}");
+    let (ok, text) = robimu(&[
+        "import",
+        "csv",
+        s(&imu_csv),
+        "--joints",
+        s(&joints_csv),
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        !ok && text.contains("joints.csv:") && text.contains("3 fields"),
+        "{text}"
+    );
 }

@@ -54,7 +54,10 @@ fn negotiation_recipes_and_refusals() {
     match c.setup_outputs(125.0, &["timestamp", "actual_qq"]) {
         Err(e @ UrError::BadRecipe { .. }) => {
             let text = e.to_string();
-            assert!(text.contains("actual_qq") && text.contains("NOT_FOUND"), "{text}");
+            assert!(
+                text.contains("actual_qq") && text.contains("NOT_FOUND"),
+                "{text}"
+            );
         }
         other => panic!("{other:?}"),
     }
@@ -111,7 +114,10 @@ fn samples_arrive_at_the_configured_rate_on_the_controller_clock() {
         let samples = poll(&robot, rate, epoch, 1.0);
         let n = samples.len() as f64;
         // Cycles a busy host missed are skipped, never sent late.
-        assert!(n >= 0.85 * rate && n <= 1.02 * rate, "{n} samples at {rate} Hz");
+        assert!(
+            n >= 0.85 * rate && n <= 1.02 * rate,
+            "{n} samples at {rate} Hz"
+        );
         let period = 1.0 / rate;
         let mut missed = 0;
         for w in samples.windows(2) {
@@ -251,9 +257,15 @@ fn servoj_plan_is_followed_with_the_configured_lag_and_noise() {
         (gain - 1.0 / (1.0 + (omega * lag).powi(2)).sqrt()).abs() < 0.01,
         "gain {gain}"
     );
-    assert!(((ta * ta + tb * tb).sqrt() - amp).abs() < 1e-3, "target amplitude");
+    assert!(
+        ((ta * ta + tb * tb).sqrt() - amp).abs() < 1e-3,
+        "target amplitude"
+    );
     assert!(ac.abs() < 1e-3, "offset {ac}");
-    assert!((rms - noise).abs() < 0.2 * noise, "noise {rms}, expected {noise}");
+    assert!(
+        (rms - noise).abs() < 0.2 * noise,
+        "noise {rms}, expected {noise}"
+    );
 
     // Reported angles against the true trajectory at their cycle times.
     let log = sim.true_trajectory();
@@ -361,7 +373,10 @@ fn dropped_connections_slow_replies_and_bad_programs_give_clear_errors() {
     // A plan the client refuses before sending, and a program the
     // controller refuses: the robot stays put.
     let bad_plan = vec![(0.0, vec![0.0; 6]), (0.0, vec![0.1; 6])];
-    assert!(matches!(robot.execute_plan(&bad_plan), Err(UrError::Plan(_))));
+    assert!(matches!(
+        robot.execute_plan(&bad_plan),
+        Err(UrError::Plan(_))
+    ));
     let mut s = TcpStream::connect(sim.script_addr()).unwrap();
     s.write_all(b"def p():\n  speedj([0.5, 0, 0, 0, 0, 0], a=1.0, t=1.0)\nend\n")
         .unwrap();
@@ -371,7 +386,10 @@ fn dropped_connections_slow_replies_and_bad_programs_give_clear_errors() {
         thread::sleep(Duration::from_millis(5));
     }
     let errors = sim.script_errors();
-    assert!(errors.len() == 1 && errors[0].contains("speedj"), "{errors:?}");
+    assert!(
+        errors.len() == 1 && errors[0].contains("speedj"),
+        "{errors:?}"
+    );
     thread::sleep(Duration::from_millis(50));
     assert_eq!(sim.true_joints(), [0.0; 6]);
     sim.stop();

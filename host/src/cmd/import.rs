@@ -124,7 +124,11 @@ impl ImportCmd {
                         c.joints.display()
                     )
                 })?;
-                (s, &c.session, format!("{} + {}", c.imu.display(), c.joints.display()))
+                (
+                    s,
+                    &c.session,
+                    format!("{} + {}", c.imu.display(), c.joints.display()),
+                )
             }
         };
         write(streams, session, &source)

@@ -41,7 +41,9 @@ pub enum CdrError {
     },
     /// An encapsulation this decoder does not read (parameter lists, XCDR2
     /// with headers, …).
-    #[error("unsupported CDR encapsulation 0x{0:04x} (reads CDR and plain CDR2, either byte order)")]
+    #[error(
+        "unsupported CDR encapsulation 0x{0:04x} (reads CDR and plain CDR2, either byte order)"
+    )]
     Encapsulation(u16),
     /// A string that is not NUL-terminated UTF-8.
     #[error("bad string at offset {offset}: {detail}")]
@@ -230,10 +232,7 @@ impl<'a> Reader<'a> {
         let sec = self.i32()?;
         let nanosec = self.u32()?;
         let frame_id = self.string()?;
-        Ok((
-            Stamp(sec as i64 * 1_000_000_000 + nanosec as i64),
-            frame_id,
-        ))
+        Ok((Stamp(sec as i64 * 1_000_000_000 + nanosec as i64), frame_id))
     }
 }
 
@@ -437,7 +436,17 @@ mod tests {
         // The same message little-endian: every multi-byte field reversed.
         let mut le = JOINT_STATE_BE;
         le[1] = 0x01;
-        for range in [4..8, 8..12, 12..16, 20..24, 24..28, 32..36, 36..44, 44..48, 48..52] {
+        for range in [
+            4..8,
+            8..12,
+            12..16,
+            20..24,
+            24..28,
+            32..36,
+            36..44,
+            44..48,
+            48..52,
+        ] {
             le[range].reverse();
         }
         assert_eq!(JointStateMsg::decode(&le).unwrap().position, vec![1.5]);

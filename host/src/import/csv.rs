@@ -151,10 +151,16 @@ enum Sensor {
 
 fn sensor_of(name: &str) -> Option<Sensor> {
     let n = name.to_ascii_lowercase();
-    if n.starts_with("w_") || n.starts_with("omega") || n.contains("gyr") || n.starts_with("angular")
+    if n.starts_with("w_")
+        || n.starts_with("omega")
+        || n.contains("gyr")
+        || n.starts_with("angular")
     {
         Some(Sensor::Gyro)
-    } else if n.starts_with("a_") || n.starts_with("alpha") || n.contains("acc") || n.starts_with("linear")
+    } else if n.starts_with("a_")
+        || n.starts_with("alpha")
+        || n.contains("acc")
+        || n.starts_with("linear")
     {
         Some(Sensor::Acc)
     } else {
@@ -168,8 +174,8 @@ pub fn read_imu_csv(path: &Path) -> Result<Vec<(i64, [f64; 6])>, ImportError> {
     let (gyro_first, scales, tscale) = match &raw.header {
         None => (true, [1.0; 6], 1),
         Some(h) => {
-            let kinds: Vec<Option<Sensor>> = h.iter().skip(1).take(6).map(|n| sensor_of(n))
-                .collect();
+            let kinds: Vec<Option<Sensor>> =
+                h.iter().skip(1).take(6).map(|n| sensor_of(n)).collect();
             use Sensor::{Acc, Gyro};
             let gyro_first = match kinds.as_slice() {
                 [Some(Gyro), Some(Gyro), Some(Gyro), Some(Acc), Some(Acc), Some(Acc)] => true,
@@ -192,7 +198,11 @@ pub fn read_imu_csv(path: &Path) -> Result<Vec<(i64, [f64; 6])>, ImportError> {
                     *s = angle_scale(&h[k + 1]);
                 }
             }
-            (gyro_first, scales, time_scale(h.first().map(String::as_str)))
+            (
+                gyro_first,
+                scales,
+                time_scale(h.first().map(String::as_str)),
+            )
         }
     };
     let mut out = Vec::with_capacity(raw.rows.len());
@@ -282,7 +292,14 @@ mod tests {
             "bare.csv",
             "1403636579758555392,-0.099134701513277898,0.14032447466056357,0,8.1476917083333333,-0.37592158333333331,-2.4026292499999999\n# a comment\n",
         );
-        let expected = [8.1476917083333333, -0.37592158333333331, -2.4026292499999999, -0.099134701513277898, 0.14032447466056357, 0.0];
+        let expected = [
+            8.1476917083333333,
+            -0.37592158333333331,
+            -2.4026292499999999,
+            -0.099134701513277898,
+            0.14032447466056357,
+            0.0,
+        ];
         let e = read_imu_csv(&euroc).unwrap();
         assert_eq!(e, vec![(1_403_636_579_758_555_392, expected)]);
         assert_eq!(read_imu_csv(&bare).unwrap(), e);
@@ -311,19 +328,28 @@ mod tests {
         let (rows, names) = read_joints_csv(&j).unwrap();
         assert_eq!(names, vec!["shoulder", "elbow"]);
         assert_eq!(rows, vec![(10, vec![0.5, -0.5]), (20, vec![0.6, -0.4])]);
-        let bad = file(d.path(), "bad.csv", "#timestamp [ns],a,b\n10,0.5,-0.5\n20,0.6\n");
+        let bad = file(
+            d.path(),
+            "bad.csv",
+            "#timestamp [ns],a,b\n10,0.5,-0.5\n20,0.6\n",
+        );
         let e = read_joints_csv(&bad).unwrap_err().to_string();
         assert!(e.contains("bad.csv:3:") && e.contains("2 fields"), "{e}");
         let nan = file(d.path(), "nan.csv", "10,0.5,-0.5\n20,0.6,nan\n");
         let e = read_joints_csv(&nan).unwrap_err().to_string();
-        assert!(e.contains("nan.csv:2:") && e.contains("not a finite number"), "{e}");
+        assert!(
+            e.contains("nan.csv:2:") && e.contains("not a finite number"),
+            "{e}"
+        );
         let header = file(d.path(), "h.csv", "t,x,y,z,u,v,w\n1,0,0,0,0,0,0\n");
         let e = read_imu_csv(&header).unwrap_err().to_string();
         assert!(e.contains("h.csv:1:") && e.contains("gyroscope"), "{e}");
         let empty = file(d.path(), "e.csv", "#timestamp [ns],a\n");
         let e = read_joints_csv(&empty).unwrap_err().to_string();
         assert!(e.contains("no samples"), "{e}");
-        let e = read_imu_csv(&d.path().join("missing.csv")).unwrap_err().to_string();
+        let e = read_imu_csv(&d.path().join("missing.csv"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("missing.csv"), "{e}");
     }
 }

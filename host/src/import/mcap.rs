@@ -134,7 +134,8 @@ pub fn read_mcap(path: &Path, opts: &McapOptions) -> Result<Streams, ImportError
                 TimeSource::Log => log_time,
             };
             advance(&mut stamps_advance.2, &mut stamps_advance.3, t);
-            out.imu.push((t, imu_row(m.angular_velocity, m.linear_acceleration)));
+            out.imu
+                .push((t, imu_row(m.angular_velocity, m.linear_acceleration)));
         }
     }
     for (topic, wanted) in [(&opts.joints_topic, JOINT_STATE), (&opts.imu_topic, IMU)] {
@@ -156,8 +157,18 @@ pub fn read_mcap(path: &Path, opts: &McapOptions) -> Result<Streams, ImportError
         }
     }
     let frozen = [
-        (&opts.joints_topic, stamps_advance.0, stamps_advance.1, out.joints.len()),
-        (&opts.imu_topic, stamps_advance.2, stamps_advance.3, out.imu.len()),
+        (
+            &opts.joints_topic,
+            stamps_advance.0,
+            stamps_advance.1,
+            out.joints.len(),
+        ),
+        (
+            &opts.imu_topic,
+            stamps_advance.2,
+            stamps_advance.3,
+            out.imu.len(),
+        ),
     ];
     for (topic, first, moved, n) in frozen {
         if opts.time == TimeSource::Header && n > 1 && !moved {
@@ -195,7 +206,11 @@ fn advance(first: &mut Option<i64>, moved: &mut bool, t: i64) {
     }
 }
 
-fn check_channel(path: &Path, channel: &::mcap::Channel<'_>, wanted: &str) -> Result<(), ImportError> {
+fn check_channel(
+    path: &Path,
+    channel: &::mcap::Channel<'_>,
+    wanted: &str,
+) -> Result<(), ImportError> {
     let wrong = |detail: String| ImportError::WrongType {
         path: path.to_path_buf(),
         topic: channel.topic.clone(),
@@ -205,10 +220,7 @@ fn check_channel(path: &Path, channel: &::mcap::Channel<'_>, wanted: &str) -> Re
         return Err(wrong(format!("has no schema, expected {wanted}")));
     };
     if schema.name != wanted {
-        return Err(wrong(format!(
-            "carries {}, expected {wanted}",
-            schema.name
-        )));
+        return Err(wrong(format!("carries {}, expected {wanted}", schema.name)));
     }
     if !matches!(schema.encoding.as_str(), "ros2msg" | "ros2idl") {
         return Err(wrong(format!(

@@ -140,7 +140,11 @@ pub struct Imported {
 impl Streams {
     /// Sorts both streams by time and writes them as the session `dir` with
     /// `meta` (existing session files in `dir` are replaced).
-    pub fn write_session(mut self, dir: &Path, meta: &SessionMeta) -> Result<Imported, ImportError> {
+    pub fn write_session(
+        mut self,
+        dir: &Path,
+        meta: &SessionMeta,
+    ) -> Result<Imported, ImportError> {
         if self.joints.is_empty() {
             return Err(ImportError::Empty {
                 what: "joint stream".into(),
@@ -199,7 +203,10 @@ mod tests {
         let out = streams
             .write_session(dir.path(), &SessionMeta::new("aubo_i5"))
             .unwrap();
-        assert_eq!((out.t0_ns, out.joint_samples, out.imu_samples), (base, 2, 1));
+        assert_eq!(
+            (out.t0_ns, out.joint_samples, out.imu_samples),
+            (base, 2, 1)
+        );
         let s = Session::load(dir.path()).unwrap();
         // 1 ns after an epoch time of 1.7e18 ns survives the subtraction.
         assert_eq!(s.joints.t, vec![1e-9, 2_000_001.0 * 1e-9]);

@@ -402,7 +402,14 @@ impl JointPoller {
                         / 2.0;
                     match reading {
                         Ok(q) => {
-                            if tx.send(Ok(JointSample { t, q, robot_t: None })).is_err() {
+                            if tx
+                                .send(Ok(JointSample {
+                                    t,
+                                    q,
+                                    robot_t: None,
+                                }))
+                                .is_err()
+                            {
                                 break;
                             }
                         }

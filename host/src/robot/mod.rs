@@ -218,9 +218,15 @@ mod tests {
             rtde_port: r,
             script_port: s,
         };
-        assert_eq!(RobotSpec::parse("ur:10.0.0.7"), Ok(ur("10.0.0.7", 30004, 30002)));
+        assert_eq!(
+            RobotSpec::parse("ur:10.0.0.7"),
+            Ok(ur("10.0.0.7", 30004, 30002))
+        );
         assert_eq!(RobotSpec::parse("UR:arm:4000"), Ok(ur("arm", 4000, 30002)));
-        assert_eq!(RobotSpec::parse("ur:arm:4000:4001"), Ok(ur("arm", 4000, 4001)));
+        assert_eq!(
+            RobotSpec::parse("ur:arm:4000:4001"),
+            Ok(ur("arm", 4000, 4001))
+        );
         assert_eq!(RobotSpec::parse("ur:[::1]:5:6"), Ok(ur("::1", 5, 6)));
         for s in ["ur:10.0.0.7", "ur:arm:4000:4001", "ur:[::1]:5:6"] {
             let p = RobotSpec::parse(s).unwrap();
@@ -230,7 +236,10 @@ mod tests {
             RobotSpec::parse("ur:arm:4000:x"),
             Err(RobotSpecError::BadPort { port, .. }) if port == "x"
         ));
-        assert!(matches!(RobotSpec::parse("ur:"), Err(RobotSpecError::NoHost { .. })));
+        assert!(matches!(
+            RobotSpec::parse("ur:"),
+            Err(RobotSpecError::NoHost { .. })
+        ));
     }
 
     #[test]

@@ -185,7 +185,9 @@ impl FieldType {
             FieldType::Vector6Uint32 => (0..6).map(|i| u(i) as f64).collect(),
             FieldType::Int32 => vec![u(0) as i32 as f64],
             FieldType::Uint32 => vec![u(0) as f64],
-            FieldType::Uint64 => vec![u64::from_be_bytes(b[..8].try_into().expect("8 bytes")) as f64],
+            FieldType::Uint64 => {
+                vec![u64::from_be_bytes(b[..8].try_into().expect("8 bytes")) as f64]
+            }
             FieldType::Bool | FieldType::Uint8 => vec![b[0] as f64],
         }
     }
@@ -246,7 +248,10 @@ pub struct UrClient {
 }
 
 /// Connects to the first address of `addr` that answers.
-fn connect_any(addr: impl ToSocketAddrs, timeout: Duration) -> Result<(TcpStream, SocketAddr), UrError> {
+fn connect_any(
+    addr: impl ToSocketAddrs,
+    timeout: Duration,
+) -> Result<(TcpStream, SocketAddr), UrError> {
     let addrs: Vec<SocketAddr> = addr
         .to_socket_addrs()
         .map_err(|source| UrError::Connect {
@@ -409,7 +414,11 @@ impl UrClient {
     /// `V`: asks for protocol `version`.
     pub fn negotiate_version(&mut self, version: u16) -> Result<(), UrError> {
         let during = format!("the protocol version request ({version})");
-        if self.accepted(package::REQUEST_PROTOCOL_VERSION, &version.to_be_bytes(), &during)? {
+        if self.accepted(
+            package::REQUEST_PROTOCOL_VERSION,
+            &version.to_be_bytes(),
+            &during,
+        )? {
             Ok(())
         } else {
             Err(UrError::VersionRefused { version })
@@ -433,7 +442,11 @@ impl UrClient {
         if list.len() != names.len() {
             return Err(UrError::Protocol {
                 during: during.into(),
-                detail: format!("{} types for {} outputs: {types:?}", list.len(), names.len()),
+                detail: format!(
+                    "{} types for {} outputs: {types:?}",
+                    list.len(),
+                    names.len()
+                ),
             });
         }
         let parsed: Vec<Option<FieldType>> = list.iter().map(|t| FieldType::parse(t)).collect();
@@ -632,7 +645,10 @@ impl Drop for UrPoller {
 /// ```
 pub fn plan_script(plan: &[(f64, Vec<f64>)]) -> Result<String, UrError> {
     if plan.len() < 2 {
-        return Err(UrError::Plan(format!("{} rows; a plan needs at least 2", plan.len())));
+        return Err(UrError::Plan(format!(
+            "{} rows; a plan needs at least 2",
+            plan.len()
+        )));
     }
     let mut s = String::from("def robimu_plan():\n");
     let vector = |q: &[f64]| {
@@ -643,7 +659,10 @@ pub fn plan_script(plan: &[(f64, Vec<f64>)]) -> Result<String, UrError> {
     };
     for (k, (t, q)) in plan.iter().enumerate() {
         if q.len() != 6 {
-            return Err(UrError::Plan(format!("row {k}: {} joints, a UR arm has 6", q.len())));
+            return Err(UrError::Plan(format!(
+                "row {k}: {} joints, a UR arm has 6",
+                q.len()
+            )));
         }
         if !t.is_finite() || q.iter().any(|x| !x.is_finite()) {
             return Err(UrError::Plan(format!("row {k}: not a finite number")));
@@ -711,7 +730,8 @@ impl UrRobot {
     /// controllers' own rates) on a new RTDE connection; host times are
     /// seconds since `epoch`.
     pub fn spawn_poller(&self, rate_hz: f64, epoch: Instant) -> Result<UrPoller, UrError> {
-        let client = UrClient::open_stream((self.host.as_str(), self.ports.rtde), rate_hz, self.timeout)?;
+        let client =
+            UrClient::open_stream((self.host.as_str(), self.ports.rtde), rate_hz, self.timeout)?;
         UrPoller::spawn(client, epoch)
     }
 
@@ -725,9 +745,7 @@ impl UrRobot {
             during: "sending the program".into(),
             detail: e.to_string(),
         };
-        stream
-            .set_write_timeout(Some(self.timeout))
-            .map_err(lost)?;
+        stream.set_write_timeout(Some(self.timeout)).map_err(lost)?;
         stream.write_all(script.as_bytes()).map_err(lost)?;
         stream.shutdown(std::net::Shutdown::Write).map_err(lost)?;
         Ok(plan[plan.len() - 1].0 - plan[0].0)
@@ -760,13 +778,19 @@ mod tests {
             .map(|k| (0.5 + 0.01 * k as f64, vec![0.1 * k as f64; 6]))
             .collect();
         let s = plan_script(&plan).unwrap();
-        assert!(s.starts_with("def robimu_plan():\n  movej([0.000000000, "), "{s}");
+        assert!(
+            s.starts_with("def robimu_plan():\n  movej([0.000000000, "),
+            "{s}"
+        );
         assert_eq!(s.matches("servoj(").count(), 3);
         assert!(s.contains("servoj([0.300000000, 0.300000000, 0.300000000, 0.300000000, 0.300000000, 0.300000000], t=0.010000, lookahead_time=0.1, gain=300)"), "{s}");
         assert!(s.ends_with("end\nrobimu_plan()\n"));
         let mut back = plan.clone();
         back[2].0 = 0.5;
-        assert!(plan_script(&back).unwrap_err().to_string().contains("row 2"));
+        assert!(plan_script(&back)
+            .unwrap_err()
+            .to_string()
+            .contains("row 2"));
         let mut five = plan.clone();
         five[1].1.pop();
         assert!(plan_script(&five).unwrap_err().to_string().contains("6"));
