@@ -262,9 +262,10 @@ fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
     let layout = ParamLayout::new(&robot);
     let mut worst = 0.0_f64;
     let mut worst_truth = 0.0_f64;
-    for k in 0..layout.specs().len() {
+    assert_eq!(truth.len(), layout.specs().len());
+    for (k, x_true) in truth.iter().enumerate() {
         worst = worst.max((cal_a.x[k] - cal_o.x[k]).abs() / cal_o.sigma[k]);
-        worst_truth = worst_truth.max((cal_a.x[k] - truth[k]).abs() / cal_a.sigma[k]);
+        worst_truth = worst_truth.max((cal_a.x[k] - x_true).abs() / cal_a.sigma[k]);
     }
     eprintln!("imported vs original: worst |Δx|/σ = {worst:.2e}; vs truth {worst_truth:.2}");
     assert!(worst < 1e-3, "imported calibration differs by {worst} σ");

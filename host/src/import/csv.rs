@@ -18,7 +18,7 @@
 
 use std::path::Path;
 
-use super::{imu_row, ImportError, Streams};
+use super::{imu_row, ImportError, JointRows, Streams};
 
 /// A CSV file as its header (if any) and numbered rows of fields.
 struct Raw {
@@ -222,7 +222,7 @@ pub fn read_imu_csv(path: &Path) -> Result<Vec<(i64, [f64; 6])>, ImportError> {
 
 /// Reads a joints CSV (`timestamp,q1,…,qn`; ns and rad unless the header
 /// says otherwise); returns the samples and the joint names of the header.
-pub fn read_joints_csv(path: &Path) -> Result<(Vec<(i64, Vec<f64>)>, Vec<String>), ImportError> {
+pub fn read_joints_csv(path: &Path) -> Result<(JointRows, Vec<String>), ImportError> {
     let raw = read_raw(path)?;
     let width = match &raw.header {
         Some(h) => h.len() - 1,
@@ -293,10 +293,10 @@ mod tests {
             "1403636579758555392,-0.099134701513277898,0.14032447466056357,0,8.1476917083333333,-0.37592158333333331,-2.4026292499999999\n# a comment\n",
         );
         let expected = [
-            8.1476917083333333,
-            -0.37592158333333331,
-            -2.4026292499999999,
-            -0.099134701513277898,
+            8.147_691_708_333_333,
+            -0.375_921_583_333_333_3,
+            -2.402_629_25,
+            -0.099_134_701_513_277_9,
             0.14032447466056357,
             0.0,
         ];

@@ -108,12 +108,15 @@ pub enum ImportError {
     Session(#[from] SessionError),
 }
 
+/// Joint samples: time (ns), positions (rad).
+pub type JointRows = Vec<(i64, Vec<f64>)>;
+
 /// The two sample streams of a recording, on one clock in integer ns.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Streams {
     /// Joint samples: time (ns), positions (rad), in the order of
     /// [`Streams::joint_names`].
-    pub joints: Vec<(i64, Vec<f64>)>,
+    pub joints: JointRows,
     /// IMU samples: time (ns), `[ax, ay, az, gx, gy, gz]` (m/s², rad/s).
     pub imu: Vec<(i64, [f64; 6])>,
     /// Joint names, when the source has them.
