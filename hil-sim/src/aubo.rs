@@ -375,7 +375,7 @@ impl Shared {
 }
 
 /// Locks a mutex, recovering the data if a thread panicked holding it.
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
@@ -891,8 +891,8 @@ struct PathBuffer {
 
 /// Small deterministic Gaussian generator (SplitMix64 + Box–Muller).
 #[derive(Debug)]
-struct Noise {
-    state: u64,
+pub(crate) struct Noise {
+    pub(crate) state: u64,
 }
 
 impl Noise {
@@ -905,7 +905,7 @@ impl Noise {
         ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
 
-    fn gaussian(&mut self) -> f64 {
+    pub(crate) fn gaussian(&mut self) -> f64 {
         let (u1, u2) = (self.uniform(), self.uniform());
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
     }

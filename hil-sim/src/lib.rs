@@ -5,7 +5,10 @@
 //!   its serial side on a pseudo-terminal that a host opens like `/dev/ttyUSB0`.
 //! * [`aubo`]: a simulated AUBO arm controller speaking ARCS JSON-RPC on
 //!   loopback TCP, with tracking lag, encoder noise and injectable faults.
+//! * [`ur`]: a simulated Universal Robots controller: RTDE and a URScript
+//!   port on loopback TCP, with tracking lag, encoder noise and faults.
 #![deny(missing_docs)]
 
 pub mod aubo;
 pub mod device;
+pub mod ur;

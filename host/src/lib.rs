@@ -4,8 +4,9 @@
 // index loops say that more plainly than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
-pub mod hil;
 pub mod export;
+pub mod hil;
+pub mod import;
 pub mod link;
 pub mod model;
 pub mod plot;

@@ -331,3 +331,57 @@ fn a_recording_killed_with_sigkill_leaves_a_readable_session() {
     let repaired = check_session(&out);
     assert_eq!(repaired.measurements().imu_t.len() as f64, imu);
 }
+
+/// `record --robot ur:HOST:RTDE:SCRIPT` against the simulated UR controller
+/// (RTDE at 125 Hz, the plan as one URScript program) with the simulated
+/// IMU board: the plan runs to its end, the joints arrive at the
+/// controller's rate, the session loads and follows the plan.
+#[test]
+fn recording_from_the_simulated_ur_controller_runs_the_plan() {
+    use robimu_hil_sim::device::{SimDevice, SimDeviceConfig};
+    use robimu_hil_sim::ur::{SimUr, SimUrConfig};
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(12);
+    let plan = Plan::from_spline(&random_walk(&robot, 6.0, 1.0, &mut rng).unwrap(), 125.0);
+    let ur = SimUr::spawn(SimUrConfig {
+        control_rate_hz: 125.0,
+        initial: plan.q[0],
+        ..SimUrConfig::default()
+    })
+    .unwrap();
+    let device = SimDevice::spawn(SimDeviceConfig::default()).unwrap();
+    let spec = format!(
+        "ur:127.0.0.1:{}:{}",
+        ur.rtde_addr().port(),
+        ur.script_addr().port()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let opts = RecordOptions {
+        imu_port: device.port_path().to_string(),
+        baud: 921_600,
+        robot_spec: RobotSpec::parse(&spec).unwrap(),
+        robot: robot.clone(),
+        robot_name: "aubo_i5".into(),
+        plan: Some(plan.clone()),
+        duration: 0.0,
+        out: dir.path().to_path_buf(),
+        joint_rate: 125.0,
+        rest: 0.5,
+        sensor: SensorConfig::default(),
+    };
+    let s = record(&opts, &mut |_| {}).unwrap();
+    assert!(ur.script_errors().is_empty(), "{:?}", ur.script_errors());
+    assert!((7.0..9.0).contains(&s.duration), "{}", s.duration);
+    let rate = s.progress.joint_samples as f64 / s.duration;
+    assert!((rate - 125.0).abs() < 5.0, "joint rate {rate}");
+    let session = check_session(dir.path());
+    let m = session.measurements();
+    // The last joint sample is the plan's last pose (within lag and noise).
+    let last = &m.joint_q[m.joint_q.len() - 6..];
+    for j in 0..6 {
+        assert!(
+            (last[j] - plan.q[plan.q.len() - 1][j]).abs() < 3e-3,
+            "joint {j}"
+        );
+    }
+}

@@ -6,6 +6,7 @@ pub mod calibrate;
 pub mod correct;
 pub mod demo;
 pub mod export;
+pub mod import;
 pub mod input;
 pub mod montecarlo;
 pub mod noise;
@@ -27,6 +28,7 @@ pub enum Command {
     Repair(repair::RepairCmd),
     Export(export::ExportCmd),
     Correct(correct::CorrectCmd),
+    Import(import::ImportCmd),
 }
 
 impl Command {
@@ -43,6 +45,7 @@ impl Command {
             Command::Repair(c) => c.run(),
             Command::Export(c) => c.run(),
             Command::Correct(c) => c.run(),
+            Command::Import(c) => c.run(),
         }
     }
 }

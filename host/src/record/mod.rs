@@ -14,6 +14,7 @@
 //! (s, the board's clock), `segment` (clock segment: a board reboot starts
 //! a new one) and `seq`; `pings.csv` logs every echo.
 
+pub mod arm;
 pub mod clock_fit;
 pub mod imu;
 pub mod motion;
@@ -23,16 +24,15 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::RecvTimeoutError;
-use std::thread;
 use std::time::{Duration, Instant};
 
 use robimu_protocol::{DecoderStats, DeviceInfo, SensorConfig};
 
+use self::arm::{Arm, ArmError};
 use self::clock_fit::{ClockFit, Echo};
 use self::imu::{ImuError, ImuEvent, ImuStream, Link};
 use self::motion::Plan;
 use crate::model::Robot;
-use crate::robot::aubo::{AuboClient, JointPoller, RobotError};
 use crate::robot::RobotSpec;
 use crate::session::{files, SessionError, SessionMeta, SessionWriter};
 
@@ -113,7 +113,7 @@ pub enum RecordError {
     Imu(#[from] ImuError),
     /// The robot could not be set up (nothing recorded).
     #[error(transparent)]
-    Robot(#[from] RobotError),
+    Robot(#[from] ArmError),
     /// The session could not be written.
     #[error(transparent)]
     Session(#[from] SessionError),
@@ -127,15 +127,6 @@ pub enum RecordError {
     },
 }
 
-/// Connects to the AUBO controller named by `spec`.
-fn connect(spec: &RobotSpec) -> Result<AuboClient, RobotError> {
-    match spec {
-        RobotSpec::Aubo { host, port } => {
-            AuboClient::connect((host.as_str(), *port), Duration::from_secs(2))
-        }
-    }
-}
-
 /// Records a session. `progress` is called about five times a second.
 pub fn record(
     opts: &RecordOptions,
@@ -147,10 +138,9 @@ pub fn record(
     if let Some(i) = link.configure(opts.sensor)? {
         info = i;
     }
-    let mut motion_client = connect(&opts.robot_spec)?;
-    let poll_client = connect(&opts.robot_spec)?;
+    let mut arm = Arm::connect(&opts.robot_spec)?;
     if let Some(plan) = &opts.plan {
-        motion::move_to_start(&mut motion_client, &opts.robot, plan)?;
+        arm.prepare(&opts.robot, plan)?;
     }
 
     let mut meta = SessionMeta::new(opts.robot_name.clone());
@@ -165,26 +155,23 @@ pub fn record(
     let mut state = SessionSink::create(&opts.out, &meta, n)?;
 
     let epoch = Instant::now();
-    let poller = JointPoller::spawn(poll_client, opts.joint_rate, epoch)?;
     let stream = ImuStream::start(link, info, opts.sensor, epoch)?;
-    let plan = opts.plan.clone();
-    let (robot, rest) = (opts.robot.clone(), opts.rest);
-    let motion = plan.as_ref().map(|p| p.duration());
-    let mover = plan.map(|plan| {
-        thread::spawn(move || {
-            thread::sleep(Duration::from_secs_f64(rest));
-            motion::execute(&mut motion_client, &robot, &plan)
-        })
-    });
+    let motion = opts.plan.as_ref().map(|p| p.duration());
+    let mut arm = arm.start(
+        &opts.robot,
+        opts.plan.clone(),
+        opts.joint_rate,
+        epoch,
+        opts.rest,
+    )?;
     let total = motion.map_or(opts.duration, |d| d + 2.0 * opts.rest);
 
     state.progress.total = total;
-    let mut stop_at = if mover.is_none() {
+    let mut stop_at = if motion.is_none() {
         Some(epoch + Duration::from_secs_f64(opts.duration))
     } else {
         None
     };
-    let mut mover = mover;
     let mut cause: Option<String> = None;
     let mut next_flush = Instant::now() + Duration::from_secs(1);
     let mut next_show = Instant::now();
@@ -211,7 +198,7 @@ pub fn record(
                 cause = Some("the IMU streaming thread ended".into());
             }
         }
-        while let Ok(sample) = poller.samples().try_recv() {
+        while let Some(sample) = arm.try_sample() {
             match sample {
                 Ok(s) => state.joint(s.t, &s.q[..n])?,
                 Err(e) => {
@@ -220,15 +207,11 @@ pub fn record(
                 }
             }
         }
-        if mover.as_ref().is_some_and(|m| m.is_finished()) {
-            if let Some(m) = mover.take() {
-                match m.join() {
-                    Ok(Ok(())) => {
-                        stop_at = Some(Instant::now() + Duration::from_secs_f64(opts.rest));
-                    }
-                    Ok(Err(e)) => cause = Some(format!("the plan failed on the robot: {e}")),
-                    Err(_) => cause = Some("the motion thread panicked".into()),
-                }
+        if stop_at.is_none() {
+            match arm.motion_done() {
+                Ok(true) => stop_at = Some(Instant::now() + Duration::from_secs_f64(opts.rest)),
+                Ok(false) => {}
+                Err(e) => cause = Some(e),
             }
         }
         if now >= next_flush {
@@ -259,8 +242,7 @@ pub fn record(
             cause.get_or_insert(c);
         }
     }
-    let (_, joint_rest) = poller.stop();
-    for s in joint_rest.try_iter().flatten() {
+    for s in arm.stop() {
         state.joint(s.t, &s.q[..n])?;
     }
     state.drain_waiting(true)?;
@@ -427,6 +409,9 @@ impl SessionSink {
 fn describe(spec: &RobotSpec) -> String {
     match spec {
         RobotSpec::Aubo { host, port } => format!("AUBO controller {host}:{port}"),
+        RobotSpec::Ur {
+            host, rtde_port, ..
+        } => format!("UR controller {host}:{rtde_port}"),
     }
 }
 

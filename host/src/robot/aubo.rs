@@ -27,8 +27,7 @@ use serde_json::{json, Value};
 /// The ARCS controller's JSON-RPC port.
 pub const DEFAULT_PORT: u16 = 30004;
 
-/// A joint vector, rad.
-pub type Joints = [f64; 6];
+pub use super::{JointSample, Joints};
 
 /// Why a robot call failed.
 #[derive(Debug, thiserror::Error)]
@@ -371,16 +370,6 @@ fn reply_result(method: &str, mut reply: Value) -> Result<Value, RobotError> {
         })
 }
 
-/// One polled joint reading.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct JointSample {
-    /// Host time, s since the poller's epoch: the midpoint between request
-    /// and reply.
-    pub t: f64,
-    /// Joint angles, rad.
-    pub q: Joints,
-}
-
 /// Polls `getJointPositions` at a fixed rate in a thread; samples, then at
 /// most one error (after which polling stops), arrive on [`JointPoller::samples`].
 pub struct JointPoller {
@@ -413,7 +402,14 @@ impl JointPoller {
                         / 2.0;
                     match reading {
                         Ok(q) => {
-                            if tx.send(Ok(JointSample { t, q })).is_err() {
+                            if tx
+                                .send(Ok(JointSample {
+                                    t,
+                                    q,
+                                    robot_t: None,
+                                }))
+                                .is_err()
+                            {
                                 break;
                             }
                         }

@@ -1,10 +1,29 @@
 //! Robot arm drivers for `robimu record --robot KIND:HOST[:PORT]`.
 //!
 //! * [`aubo`]: AUBO arms over the ARCS controller's JSON-RPC (port 30004).
+//! * [`ur`]: Universal Robots arms: RTDE (port 30004) for joint readings,
+//!   URScript on the secondary interface (port 30002) for motion.
 
 pub mod aubo;
+pub mod ur;
 
 use std::fmt;
+
+/// A joint vector of a six-joint arm, rad.
+pub type Joints = [f64; 6];
+
+/// One joint reading from a robot driver.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointSample {
+    /// Host time, s since the poller's epoch: the midpoint between request
+    /// and reply (AUBO), or when the data package arrived (UR).
+    pub t: f64,
+    /// Joint angles, rad.
+    pub q: Joints,
+    /// The controller's own timestamp, s (UR RTDE `timestamp`, seconds since
+    /// the controller started); `None` when the controller sends none.
+    pub robot_t: Option<f64>,
+}
 
 /// Which robot to drive, as given on the command line.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -16,13 +35,25 @@ pub enum RobotSpec {
         /// TCP port (default [`aubo::DEFAULT_PORT`]).
         port: u16,
     },
+    /// A Universal Robots controller at `host`.
+    Ur {
+        /// Host name or address.
+        host: String,
+        /// RTDE port (default [`ur::RTDE_PORT`]).
+        rtde_port: u16,
+        /// URScript port (default [`ur::SCRIPT_PORT`]).
+        script_port: u16,
+    },
 }
+
+/// The accepted forms, for error messages.
+const FORMS: &str = "aubo:HOST[:PORT] or ur:HOST[:RTDE_PORT[:SCRIPT_PORT]]";
 
 /// Why a robot specification could not be read.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum RobotSpecError {
     /// The kind before the first `:` is not a known robot.
-    #[error("unknown robot kind {kind:?} in {spec:?} (expected aubo:HOST[:PORT])")]
+    #[error("unknown robot kind {kind:?} in {spec:?} (expected {FORMS})")]
     UnknownKind {
         /// The whole specification.
         spec: String,
@@ -30,7 +61,7 @@ pub enum RobotSpecError {
         kind: String,
     },
     /// No host after the kind.
-    #[error("no host in robot {spec:?} (expected aubo:HOST[:PORT])")]
+    #[error("no host in robot {spec:?} (expected {FORMS})")]
     NoHost {
         /// The whole specification.
         spec: String,
@@ -46,9 +77,13 @@ pub enum RobotSpecError {
 }
 
 impl RobotSpec {
-    /// Reads `aubo:HOST[:PORT]` (an IPv6 host in brackets: `aubo:[::1]:30004`).
+    /// Reads `aubo:HOST[:PORT]` or `ur:HOST[:RTDE_PORT[:SCRIPT_PORT]]` (an
+    /// IPv6 host in brackets: `aubo:[::1]:30004`).
     pub fn parse(spec: &str) -> Result<RobotSpec, RobotSpecError> {
         let (kind, rest) = spec.split_once(':').unwrap_or((spec, ""));
+        if kind.eq_ignore_ascii_case("ur") {
+            return Self::parse_ur(spec, rest);
+        }
         if !kind.eq_ignore_ascii_case("aubo") {
             return Err(RobotSpecError::UnknownKind {
                 spec: spec.to_string(),
@@ -90,6 +125,45 @@ impl RobotSpec {
     }
 }
 
+impl RobotSpec {
+    /// `HOST[:RTDE_PORT[:SCRIPT_PORT]]` after `ur:`.
+    fn parse_ur(spec: &str, rest: &str) -> Result<RobotSpec, RobotSpecError> {
+        let (host, ports) = if let Some(bracketed) = rest.strip_prefix('[') {
+            match bracketed.split_once(']') {
+                Some((h, tail)) => (h, tail.strip_prefix(':')),
+                None => (bracketed, None),
+            }
+        } else {
+            match rest.split_once(':') {
+                Some((h, p)) => (h, Some(p)),
+                None => (rest, None),
+            }
+        };
+        if host.is_empty() {
+            return Err(RobotSpecError::NoHost {
+                spec: spec.to_string(),
+            });
+        }
+        let port = |p: &str| match p.parse::<u16>() {
+            Ok(n) if n > 0 => Ok(n),
+            _ => Err(RobotSpecError::BadPort {
+                spec: spec.to_string(),
+                port: p.to_string(),
+            }),
+        };
+        let (rtde_port, script_port) = match ports.map(|p| p.split_once(':').unwrap_or((p, ""))) {
+            None => (ur::RTDE_PORT, ur::SCRIPT_PORT),
+            Some((r, "")) => (port(r)?, ur::SCRIPT_PORT),
+            Some((r, s)) => (port(r)?, port(s)?),
+        };
+        Ok(RobotSpec::Ur {
+            host: host.to_string(),
+            rtde_port,
+            script_port,
+        })
+    }
+}
+
 impl fmt::Display for RobotSpec {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -97,6 +171,16 @@ impl fmt::Display for RobotSpec {
                 write!(f, "aubo:[{host}]:{port}")
             }
             RobotSpec::Aubo { host, port } => write!(f, "aubo:{host}:{port}"),
+            RobotSpec::Ur {
+                host,
+                rtde_port,
+                script_port,
+            } if host.contains(':') => write!(f, "ur:[{host}]:{rtde_port}:{script_port}"),
+            RobotSpec::Ur {
+                host,
+                rtde_port,
+                script_port,
+            } => write!(f, "ur:{host}:{rtde_port}:{script_port}"),
         }
     }
 }
@@ -128,10 +212,41 @@ mod tests {
     }
 
     #[test]
+    fn parses_ur_with_default_and_given_ports() {
+        let ur = |h: &str, r, s| RobotSpec::Ur {
+            host: h.into(),
+            rtde_port: r,
+            script_port: s,
+        };
+        assert_eq!(
+            RobotSpec::parse("ur:10.0.0.7"),
+            Ok(ur("10.0.0.7", 30004, 30002))
+        );
+        assert_eq!(RobotSpec::parse("UR:arm:4000"), Ok(ur("arm", 4000, 30002)));
+        assert_eq!(
+            RobotSpec::parse("ur:arm:4000:4001"),
+            Ok(ur("arm", 4000, 4001))
+        );
+        assert_eq!(RobotSpec::parse("ur:[::1]:5:6"), Ok(ur("::1", 5, 6)));
+        for s in ["ur:10.0.0.7", "ur:arm:4000:4001", "ur:[::1]:5:6"] {
+            let p = RobotSpec::parse(s).unwrap();
+            assert_eq!(RobotSpec::parse(&p.to_string()), Ok(p));
+        }
+        assert!(matches!(
+            RobotSpec::parse("ur:arm:4000:x"),
+            Err(RobotSpecError::BadPort { port, .. }) if port == "x"
+        ));
+        assert!(matches!(
+            RobotSpec::parse("ur:"),
+            Err(RobotSpecError::NoHost { .. })
+        ));
+    }
+
+    #[test]
     fn rejects_bad_specs_naming_the_cause() {
         assert!(matches!(
-            RobotSpec::parse("ur:1.2.3.4"),
-            Err(RobotSpecError::UnknownKind { kind, .. }) if kind == "ur"
+            RobotSpec::parse("kuka:1.2.3.4"),
+            Err(RobotSpecError::UnknownKind { kind, .. }) if kind == "kuka"
         ));
         assert!(matches!(
             RobotSpec::parse("aubo:"),
