@@ -74,6 +74,8 @@ impl DemoCmd {
             noise_free: false,
             truth: None,
             trajectory: None,
+            tracker: false,
+            poses: 250,
         };
         let t0 = Instant::now();
         let s = sim.write()?;
@@ -94,6 +96,7 @@ impl DemoCmd {
             knot_spacing: None,
             noise: None,
             windows: None,
+            report: None,
         }
         .run()?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;

@@ -7,7 +7,9 @@ pub mod demo;
 pub mod input;
 pub mod montecarlo;
 pub mod noise;
+pub mod report;
 pub mod simulate;
+pub mod validate;
 
 /// What `robimu` can do (each command's help is its struct's doc comment).
 #[derive(Debug, clap::Subcommand)]
@@ -19,6 +21,8 @@ pub enum Command {
     MonteCarlo(montecarlo::MonteCarloCmd),
     Noise(noise::NoiseCmd),
     Allan(allan::AllanCmd),
+    Validate(validate::ValidateCmd),
+    Report(report::ReportCmd),
 }
 
 impl Command {
@@ -31,6 +35,8 @@ impl Command {
             Command::MonteCarlo(c) => c.run(),
             Command::Noise(c) => c.run(),
             Command::Allan(c) => c.run(),
+            Command::Validate(c) => c.run(),
+            Command::Report(c) => c.run(),
         }
     }
 }
