@@ -358,7 +358,11 @@ where
             f64::INFINITY,
             f64::NEG_INFINITY,
         );
-        for &(x, y) in panel.series.iter().flat_map(|(_, s)| s.iter().filter(|p| usable(p))) {
+        for &(x, y) in panel
+            .series
+            .iter()
+            .flat_map(|(_, s)| s.iter().filter(|p| usable(p)))
+        {
             (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
         }
         if !(x0.is_finite() && x1 > x0) {

@@ -65,7 +65,15 @@ fn render(browser: &Path, page: &Path, profile: &Path) -> (String, String) {
 /// No scripts, no stylesheets or images from elsewhere.
 fn assert_self_contained(html: &str) {
     let lower = html.to_lowercase();
-    for bad in ["<script", "<link", "<img src=\"http", "src=\"http", "href=\"http", "url(http", "@import"] {
+    for bad in [
+        "<script",
+        "<link",
+        "<img src=\"http",
+        "src=\"http",
+        "href=\"http",
+        "url(http",
+        "@import",
+    ] {
         assert!(!lower.contains(bad), "the page contains `{bad}`");
     }
 }
@@ -80,14 +88,23 @@ fn assert_renders(browser: Option<&Path>, page: &Path, must_contain: &[&str]) {
     let profile = tempfile::tempdir().unwrap();
     let (dom, log) = render(browser, page, profile.path());
     for m in must_contain {
-        assert!(dom.contains(m), "the rendered DOM of {} lacks {m}", page.display());
+        assert!(
+            dom.contains(m),
+            "the rendered DOM of {} lacks {m}",
+            page.display()
+        );
     }
     assert!(dom.contains("<svg"), "no inline figure in the DOM");
     let console_errors: Vec<&str> = log
         .lines()
-        .filter(|l| l.contains("CONSOLE") || l.contains("Uncaught") || l.contains("ERR_FILE_NOT_FOUND"))
+        .filter(|l| {
+            l.contains("CONSOLE") || l.contains("Uncaught") || l.contains("ERR_FILE_NOT_FOUND")
+        })
         .collect();
-    assert!(console_errors.is_empty(), "browser console: {console_errors:#?}");
+    assert!(
+        console_errors.is_empty(),
+        "browser console: {console_errors:#?}"
+    );
 }
 
 #[test]
@@ -95,12 +112,40 @@ fn cli_reports_render_in_headless_chromium() {
     let dir = tempfile::tempdir().unwrap();
     let s = dir.path().join("s");
     let s = s.to_str().unwrap();
-    robimu(&["simulate", "--duration", "60", "--tracker", "--poses", "60", "--seed", "9", "--out", s]);
+    robimu(&[
+        "simulate",
+        "--duration",
+        "60",
+        "--tracker",
+        "--poses",
+        "60",
+        "--seed",
+        "9",
+        "--out",
+        s,
+    ]);
     let rep = dir.path().join("rep");
-    robimu(&["calibrate", s, "--freeze", "lengths", "--report", rep.to_str().unwrap()]);
+    robimu(&[
+        "calibrate",
+        s,
+        "--freeze",
+        "lengths",
+        "--report",
+        rep.to_str().unwrap(),
+    ]);
     let result = format!("{s}/result.json");
-    let text = robimu(&["validate", s, "--calibration", &result, "--tracker", &format!("{s}/poses.csv")]);
-    assert!(text.contains("robot accuracy on 24 held-out poses"), "{text}");
+    let text = robimu(&[
+        "validate",
+        s,
+        "--calibration",
+        &result,
+        "--tracker",
+        &format!("{s}/poses.csv"),
+    ]);
+    assert!(
+        text.contains("robot accuracy on 24 held-out poses"),
+        "{text}"
+    );
     assert!(text.contains("IMU accuracy"), "{text}");
     let out2 = dir.path().join("rep2");
     robimu(&["report", &result, "--out", out2.to_str().unwrap()]);
@@ -108,19 +153,43 @@ fn cli_reports_render_in_headless_chromium() {
     let browser = chromium();
     let b = browser.as_deref();
     for (page, marks) in [
-        (rep.join("report.html"), &["<table id=\"parameters\"", "eps_2_4", "Convergence", "Residuals"][..]),
-        (out2.join("report.html"), &["<table id=\"parameters\"", "eps_2_4", "Trajectory"][..]),
+        (
+            rep.join("report.html"),
+            &[
+                "<table id=\"parameters\"",
+                "eps_2_4",
+                "Convergence",
+                "Residuals",
+            ][..],
+        ),
+        (
+            out2.join("report.html"),
+            &["<table id=\"parameters\"", "eps_2_4", "Trajectory"][..],
+        ),
         (
             Path::new(s).join("validation/validation.html"),
-            &["<table id=\"robot-accuracy\"", "<table id=\"imu-accuracy\"", "classical (tracker)"][..],
+            &[
+                "<table id=\"robot-accuracy\"",
+                "<table id=\"imu-accuracy\"",
+                "classical (tracker)",
+            ][..],
         ),
     ] {
         assert_renders(b, &page, marks);
     }
-    for f in ["robot_accuracy.png", "robot_accuracy.svg", "imu_accuracy.png"] {
+    for f in [
+        "robot_accuracy.png",
+        "robot_accuracy.svg",
+        "imu_accuracy.png",
+    ] {
         assert!(Path::new(s).join("validation").join(f).is_file(), "{f}");
     }
-    for f in ["residuals.png", "convergence.svg", "trajectory.png", "posterior_sigma.svg"] {
+    for f in [
+        "residuals.png",
+        "convergence.svg",
+        "trajectory.png",
+        "posterior_sigma.svg",
+    ] {
         assert!(rep.join(f).is_file(), "{f}");
     }
 }
@@ -134,7 +203,13 @@ fn validate_rejects_bad_inputs_with_clear_errors() {
     let poses = dir.path().join("poses.csv");
     std::fs::write(&poses, "t,px,py,pz,qw,qx,qy,qz\n0,0,0,0,0,0,0,0\n").unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(["validate", s, "--calibration", &format!("{s}/nope.json"), "--tracker"])
+        .args([
+            "validate",
+            s,
+            "--calibration",
+            &format!("{s}/nope.json"),
+            "--tracker",
+        ])
         .arg(&poses)
         .output()
         .unwrap();

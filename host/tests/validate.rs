@@ -55,8 +55,16 @@ fn scenario(seed: u64, length_scale: f64) -> (RobotAccuracy, ImuAccuracy) {
 
     let eval = random_walk(&robot, 60.0, 1.0, &mut rng).unwrap();
     let data2 = simulate(&robot, &layout, &truth, &eval, &sim, seed + 3).unwrap();
-    let markers =
-        tracked_motion(&robot, &layout, &truth, &eval, &data2.joint_t, true, seed + 4).unwrap();
+    let markers = tracked_motion(
+        &robot,
+        &layout,
+        &truth,
+        &eval,
+        &data2.joint_t,
+        true,
+        seed + 4,
+    )
+    .unwrap();
     let tracker = Table {
         columns: robimu::session::TRACKER_COLUMNS.map(String::from).to_vec(),
         t: data2.joint_t.clone(),
@@ -122,8 +130,16 @@ fn with_correct_frozen_lengths_the_classical_calibration_reaches_tracker_noise()
     let (acc, imu) = scenario(22, 0.0);
     let (n, c, k) = (&acc.nominal, &acc.calibrated, &acc.classical);
     assert!(c.mean_position() * 3.0 < n.mean_position());
-    assert!(k.mean_position() < 3e-4, "classical {} m", k.mean_position());
+    assert!(
+        k.mean_position() < 3e-4,
+        "classical {} m",
+        k.mean_position()
+    );
     assert!(k.mean_rotation() < 0.1f64.to_radians());
-    assert!(acc.baseline.residual_rms < 1.5, "{}", acc.baseline.residual_rms);
+    assert!(
+        acc.baseline.residual_rms < 1.5,
+        "{}",
+        acc.baseline.residual_rms
+    );
     assert_imu_pattern(&imu);
 }

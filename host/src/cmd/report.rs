@@ -71,19 +71,26 @@ impl ReportCmd {
                 .unwrap_or(Path::new("."))
                 .join("report")
         });
-        let session_dir = self
-            .session
-            .clone()
-            .or_else(|| result.session.as_ref().map(PathBuf::from).filter(|d| d.is_dir()));
+        let session_dir = self.session.clone().or_else(|| {
+            result
+                .session
+                .as_ref()
+                .map(PathBuf::from)
+                .filter(|d| d.is_dir())
+        });
         let session = match &session_dir {
             Some(d) => Some(
-                Session::load(d).with_context(|| format!("cannot load the session {}", d.display()))?,
+                Session::load(d)
+                    .with_context(|| format!("cannot load the session {}", d.display()))?,
             ),
             None => None,
         };
         let series = match &session {
             Some(s) => Some(series_for(s, &result).with_context(|| {
-                format!("cannot plot the session {} under this result", s.dir.display())
+                format!(
+                    "cannot plot the session {} under this result",
+                    s.dir.display()
+                )
             })?),
             None => None,
         };

@@ -247,7 +247,10 @@ impl SimulateCmd {
         let poses = static_poses(robot, layout, x_true, self.poses, opts, self.seed)?;
         let path = self.out.join("poses.csv");
         let qs: Vec<String> = (1..=robot.dof()).map(|j| format!("q{j}")).collect();
-        let mut text = format!("# static poses for robimu validate\n{header},{}\n", qs.join(","));
+        let mut text = format!(
+            "# static poses for robimu validate\n{header},{}\n",
+            qs.join(",")
+        );
         for p in &poses {
             let row: Vec<String> = row_from_pose(&p.marker)
                 .iter()

@@ -77,14 +77,18 @@ fn read_poses(path: &Path, session: &Session, n: usize) -> anyhow::Result<Vec<Tr
             let rec = rec.with_context(|| format!("{}: row {}", path.display(), row + 1))?;
             for (j, c) in cols.iter().enumerate() {
                 let field = rec.get(c.expect("checked")).unwrap_or("");
-                let v: f64 = field.parse().ok().filter(|v: &f64| v.is_finite()).with_context(|| {
-                    format!(
-                        "{}: row {}: q{} = `{field}` is not a number",
-                        path.display(),
-                        row + 1,
-                        j + 1
-                    )
-                })?;
+                let v: f64 = field
+                    .parse()
+                    .ok()
+                    .filter(|v: &f64| v.is_finite())
+                    .with_context(|| {
+                        format!(
+                            "{}: row {}: q{} = `{field}` is not a number",
+                            path.display(),
+                            row + 1,
+                            j + 1
+                        )
+                    })?;
                 values.push(v);
             }
         }
@@ -92,13 +96,8 @@ fn read_poses(path: &Path, session: &Session, n: usize) -> anyhow::Result<Vec<Tr
     } else {
         None
     };
-    Ok(tracked_poses(
-        &table,
-        extra.as_deref(),
-        Some(&session.joints),
-        n,
-    )
-    .with_context(|| format!("{}", path.display()))?)
+    tracked_poses(&table, extra.as_deref(), Some(&session.joints), n)
+        .with_context(|| format!("{}", path.display()))
 }
 
 impl ValidateCmd {
@@ -130,12 +129,10 @@ impl ValidateCmd {
         }
         let acc = robot_accuracy(&robot, &layout, &x, &poses, train, &frozen)
             .context("cannot compute the robot accuracy")?;
-        let motion_dir = self.motion.clone().or_else(|| {
-            session
-                .tracker
-                .is_some()
-                .then(|| self.session.clone())
-        });
+        let motion_dir = self
+            .motion
+            .clone()
+            .or_else(|| session.tracker.is_some().then(|| self.session.clone()));
         let imu: Option<ImuAccuracy> = match motion_dir {
             None => None,
             Some(dir) => {
@@ -145,16 +142,26 @@ impl ValidateCmd {
                     Session::load(&dir)
                         .with_context(|| format!("--motion: cannot load {}", dir.display()))?
                 };
-                let tracker = motion.tracker.as_ref().with_context(|| {
-                    format!("--motion {}: no tracker.csv", dir.display())
-                })?;
+                let tracker = motion
+                    .tracker
+                    .as_ref()
+                    .with_context(|| format!("--motion {}: no tracker.csv", dir.display()))?;
                 let (p_imu, g) = imu_position_and_gravity(&robot, &layout, &x)?;
                 let gt = ImuGroundTruth::fit(tracker, &acc.baseline.registration, p_imu, g, 30)
                     .with_context(|| format!("{}", dir.join("tracker.csv").display()))?;
                 let data = motion.measurements();
                 Some(
-                    imu_accuracy(&layout, &layout.nominal(), &x, &gt, &data.imu_t, &data.imu_z)
-                        .with_context(|| format!("cannot compute the IMU accuracy from {}", dir.display()))?,
+                    imu_accuracy(
+                        &layout,
+                        &layout.nominal(),
+                        &x,
+                        &gt,
+                        &data.imu_t,
+                        &data.imu_z,
+                    )
+                    .with_context(|| {
+                        format!("cannot compute the IMU accuracy from {}", dir.display())
+                    })?,
                 )
             }
         };
@@ -190,7 +197,11 @@ impl ValidateCmd {
                 "IMU accuracy on {} held-out samples ({} fit the classical IMU calibration):",
                 imu.test, imu.train
             )?;
-            writeln!(out, "{:<26} {:>16} {:>18}", "intrinsics", "rms |dw| [deg/s]", "rms |ds| [m/s^2]")?;
+            writeln!(
+                out,
+                "{:<26} {:>16} {:>18}",
+                "intrinsics", "rms |dw| [deg/s]", "rms |ds| [m/s^2]"
+            )?;
             for (name, e) in [
                 ("nominal", &imu.nominal),
                 ("calibrated", &imu.calibrated),

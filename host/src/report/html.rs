@@ -305,8 +305,10 @@ pub fn calibration_report(
             "Against the truth: largest |error|/σ = {:.2} ({}){}.",
             t.max_abs_normalized_error,
             t.worst,
-            t.nees
-                .map_or(String::new(), |v| format!(", NEES {v:.1} over {} dof", t.dof))
+            t.nees.map_or(String::new(), |v| format!(
+                ", NEES {v:.1} over {} dof",
+                t.dof
+            ))
         ));
     }
     // posterior σ figure
@@ -336,7 +338,8 @@ pub fn calibration_report(
 
     page.heading("Convergence");
     let mut text = String::new();
-    if let (Some(i), Some(c0), Some(c1)) = (result.iterations, result.initial_cost, result.final_cost)
+    if let (Some(i), Some(c0), Some(c1)) =
+        (result.iterations, result.initial_cost, result.final_cost)
     {
         text = format!("{i} iterations: cost {c0:.6e} → {c1:.6e}");
         if let Some(t) = &result.termination {
@@ -580,7 +583,10 @@ mod tests {
 
     #[test]
     fn escapes_markup() {
-        assert_eq!(escape("<a href=\"x\">&'"), "&lt;a href=&quot;x&quot;&gt;&amp;&#39;");
+        assert_eq!(
+            escape("<a href=\"x\">&'"),
+            "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
+        );
         let mut p = HtmlPage::new("t<1>");
         p.table("x", &["a"], &[vec!["<b>".into()], vec![bar(0.5)]]);
         let html = p.render();

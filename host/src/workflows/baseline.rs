@@ -234,10 +234,7 @@ pub struct ImuBaseline {
 /// Standard IMU calibration (paper §9, ref. [7]) from ground-truth
 /// `(ω, s)` (IMU frame) and the raw outputs `[ax, ay, az, gx, gy, gz]` at the
 /// same instants: each sensor's `M`, `b` by linear least squares.
-pub fn imu_calibration(
-    truth: &[(V3, V3)],
-    raw: &[[f64; 6]],
-) -> Result<ImuBaseline, ValidateError> {
+pub fn imu_calibration(truth: &[(V3, V3)], raw: &[[f64; 6]]) -> Result<ImuBaseline, ValidateError> {
     if truth.len() != raw.len() || truth.len() < 8 {
         return Err(ValidateError::Input(format!(
             "the IMU calibration needs at least 8 samples with ground truth (got {})",
@@ -317,7 +314,10 @@ mod tests {
                 .collect()
         };
         let (x, cost) = dense_lm(vec![1.0, 0.0], &f, 100);
-        assert!((x[0] - 2.5).abs() < 1e-6 && (x[1] + 1.3).abs() < 1e-6, "{x:?}");
+        assert!(
+            (x[0] - 2.5).abs() < 1e-6 && (x[1] + 1.3).abs() < 1e-6,
+            "{x:?}"
+        );
         assert!(cost < 1e-12);
     }
 
@@ -360,7 +360,10 @@ mod tests {
                 assert!((cal.gyro.m[i][j] - m_w[i][j]).abs() < 1e-9);
             }
         }
-        let back = cal.accel.correct([raw[3][0], raw[3][1], raw[3][2]]).unwrap();
+        let back = cal
+            .accel
+            .correct([raw[3][0], raw[3][1], raw[3][2]])
+            .unwrap();
         for i in 0..3 {
             assert!((back[i] - truth[3].1[i]).abs() < 1e-9);
         }

@@ -147,7 +147,9 @@ fn nearest_rotation(m: &M3) -> Result<M3, ValidateError> {
                 next[i][j] = 0.5 * (r[i][j] + inv[j][i]);
             }
         }
-        let diff: f64 = (0..9).map(|k| (next[k / 3][k % 3] - r[k / 3][k % 3]).abs()).sum();
+        let diff: f64 = (0..9)
+            .map(|k| (next[k / 3][k % 3] - r[k / 3][k % 3]).abs())
+            .sum();
         r = next;
         if diff < 1e-15 {
             break;
@@ -222,11 +224,9 @@ pub fn tracked_poses(
                     i + 1
                 ))
             })?,
-            (None, None) => {
-                return Err(input(
-                    "the poses have no q1..qn columns and there are no joint samples to take them from",
-                ))
-            }
+            (None, None) => return Err(input(
+                "the poses have no q1..qn columns and there are no joint samples to take them from",
+            )),
         };
         out.push(TrackedPose { t, marker, q });
     }
@@ -238,7 +238,9 @@ fn interpolate(j: &Table, t: f64) -> Option<Vec<f64>> {
     if t < a || t > b {
         return None;
     }
-    let k = j.t.partition_point(|&x| x <= t).clamp(1, j.len().max(2) - 1);
+    let k =
+        j.t.partition_point(|&x| x <= t)
+            .clamp(1, j.len().max(2) - 1);
     if j.len() == 1 {
         return Some(j.row(0).to_vec());
     }
@@ -572,7 +574,11 @@ impl ImuGroundTruth {
         let mut prev = [1.0, 0.0, 0.0, 0.0];
         for i in 0..m {
             let marker = pose_from_row(tracker.row(i)).map_err(|e| {
-                input(format!("tracker sample {} (t = {} s): {e}", i + 1, tracker.t[i]))
+                input(format!(
+                    "tracker sample {} (t = {} s): {e}",
+                    i + 1,
+                    tracker.t[i]
+                ))
             })?;
             let imu = reg.imu_in_base(&marker, p_imu);
             pos.extend(imu.p);
@@ -661,6 +667,9 @@ pub struct ImuAccuracy {
     pub baseline: ImuBaseline,
 }
 
+/// Corrects a raw IMU output `[ax, ay, az, gx, gy, gz]` into `(ω, s)`.
+type Corrector<'a> = &'a dyn Fn(&[f64; 6]) -> Option<(V3, V3)>;
+
 /// IMU accuracy from a tracked motion with IMU samples (`imu_t`, `imu_z`):
 /// ground truth from `truth` at t_i + τ (the calibration's τ); the first half
 /// of the samples fits the standard calibration, the second half is held out.
@@ -693,7 +702,7 @@ pub fn imu_accuracy(
         let p = layout.unpack(x).map_err(|e| input(e.to_string()))?;
         Ok((p.accel, p.gyro))
     };
-    let errors = |correct: &dyn Fn(&[f64; 6]) -> Option<(V3, V3)>| -> Result<ImuErrors, ValidateError> {
+    let errors = |correct: Corrector<'_>| -> Result<ImuErrors, ValidateError> {
         let mut e = ImuErrors::default();
         for (z, (w, s)) in raw[half..].iter().zip(&gt[half..]) {
             let (wc, sc) = correct(z).ok_or_else(|| input("a sensor model is not invertible"))?;
@@ -745,7 +754,12 @@ mod tests {
 
     #[test]
     fn rotation_maps_round_trip() {
-        for w in [[0.1, -0.2, 0.3], [2.0, 1.0, -0.5], [1e-9, 0.0, 0.0], [0.0, 3.1, 0.0]] {
+        for w in [
+            [0.1, -0.2, 0.3],
+            [2.0, 1.0, -0.5],
+            [1e-9, 0.0, 0.0],
+            [0.0, 3.1, 0.0],
+        ] {
             let r = exp_so3(w);
             let back = log_so3(&r);
             for k in 0..3 {
