@@ -28,7 +28,7 @@ fn lengths(robot: &Robot, layout: &ParamLayout) -> Vec<usize> {
 /// A truth drawn from the priors (its length errors scaled by
 /// `length_scale`), a 300 s calibration with lengths frozen, 250 static
 /// tracker poses (150/100) and a separate 60 s tracked motion.
-fn scenario(seed: u64, length_scale: f64) -> (RobotAccuracy, ImuAccuracy) {
+fn scenario(seed: u64, length_scale: f64) -> (RobotAccuracy, ImuAccuracy, Vec<f64>) {
     let robot = Robot::aubo_i5();
     let layout = ParamLayout::new(&robot);
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
@@ -100,7 +100,7 @@ fn scenario(seed: u64, length_scale: f64) -> (RobotAccuracy, ImuAccuracy) {
         imu.calibrated.rms_accel(),
         imu.classical.rms_accel()
     );
-    (acc, imu)
+    (acc, imu, truth)
 }
 
 fn assert_imu_pattern(imu: &ImuAccuracy) {
@@ -113,7 +113,7 @@ fn assert_imu_pattern(imu: &ImuAccuracy) {
 
 #[test]
 fn robot_errors_from_the_priors_calibrated_accuracy_three_times_nominal() {
-    let (acc, imu) = scenario(21, 1.0);
+    let (acc, imu, _) = scenario(21, 1.0);
     let (n, c) = (&acc.nominal, &acc.calibrated);
     assert!(
         c.mean_position() * 3.0 < n.mean_position(),
@@ -127,7 +127,7 @@ fn robot_errors_from_the_priors_calibrated_accuracy_three_times_nominal() {
 /// calibration's model is exact: held-out errors at the tracker's noise level.
 #[test]
 fn with_correct_frozen_lengths_the_classical_calibration_reaches_tracker_noise() {
-    let (acc, imu) = scenario(22, 0.0);
+    let (acc, imu, truth) = scenario(22, 0.0);
     let (n, c, k) = (&acc.nominal, &acc.calibrated, &acc.classical);
     assert!(c.mean_position() * 3.0 < n.mean_position());
     assert!(
