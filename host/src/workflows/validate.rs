@@ -211,6 +211,18 @@ pub fn tracked_poses(
     joints: Option<&Table>,
     n: usize,
 ) -> Result<Vec<TrackedPose>, ValidateError> {
+    if tracker.width() != 7 {
+        return Err(input(format!(
+            "a tracker table has 7 value columns (px, py, pz, qw, qx, qy, qz), not {}",
+            tracker.width()
+        )));
+    }
+    if extra.is_some_and(|v| v.len() != tracker.len() * n) {
+        return Err(input(format!(
+            "expected {n} joint angles for each of the {} poses",
+            tracker.len()
+        )));
+    }
     let mut out = Vec::with_capacity(tracker.len());
     for i in 0..tracker.len() {
         let t = tracker.t[i];
@@ -563,6 +575,12 @@ impl ImuGroundTruth {
         samples_per_knot: usize,
     ) -> Result<Self, ValidateError> {
         let m = tracker.len();
+        if tracker.width() != 7 {
+            return Err(input(format!(
+                "a tracker table has 7 value columns (px, py, pz, qw, qx, qy, qz), not {}",
+                tracker.width()
+            )));
+        }
         let (t0, t1) = tracker.span().unwrap_or_default();
         if m < 6 * samples_per_knot.max(1) || t1 <= t0 {
             return Err(input(format!(
@@ -776,6 +794,41 @@ mod tests {
         let q = quat_from_matrix(&exp_so3([0.3, 0.2, -0.7]));
         let e = quat_mul(q, [q[0], -q[1], -q[2], -q[3]]);
         assert!((e[0] - 1.0).abs() < 1e-12 && e[1].abs() < 1e-12);
+    }
+
+    #[test]
+    fn poses_take_joint_angles_from_columns_or_interpolated_samples() {
+        let row = |p: [f64; 7]| p.to_vec();
+        let tracker = Table {
+            columns: crate::session::TRACKER_COLUMNS.map(String::from).to_vec(),
+            t: vec![0.5, 3.0],
+            values: [row([0.1, 0.2, 0.3, 1.0, 0.0, 0.0, 0.0]), row([0.0; 7])].concat(),
+        };
+        let joints = Table {
+            columns: vec!["q1".into(), "q2".into()],
+            t: vec![0.0, 1.0],
+            values: vec![0.0, 1.0, 2.0, 3.0],
+        };
+        let one = Table {
+            t: vec![0.5],
+            values: tracker.values[..7].to_vec(),
+            ..tracker.clone()
+        };
+        let p = tracked_poses(&one, None, Some(&joints), 2).unwrap();
+        assert_eq!(p[0].q, vec![1.0, 2.0]);
+        assert_eq!(p[0].marker.p, [0.1, 0.2, 0.3]);
+        let p = tracked_poses(&one, Some(&[7.0, 8.0]), Some(&joints), 2).unwrap();
+        assert_eq!(p[0].q, vec![7.0, 8.0]);
+        // the second pose: a zero quaternion, and outside the joints' span
+        let e = tracked_poses(&tracker, Some(&[0.0; 4]), None, 2).unwrap_err();
+        assert!(
+            e.to_string().contains("pose 2") && e.to_string().contains("unit quaternion"),
+            "{e}"
+        );
+        let mut late = one.clone();
+        late.t = vec![3.0];
+        let e = tracked_poses(&late, None, Some(&joints), 2).unwrap_err();
+        assert!(e.to_string().contains("outside the joint samples"), "{e}");
     }
 
     #[test]
