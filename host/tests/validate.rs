@@ -141,5 +141,13 @@ fn with_correct_frozen_lengths_the_classical_calibration_reaches_tracker_noise()
         "{}",
         acc.baseline.residual_rms
     );
+    // and recovers the true angle errors
+    for (ix, name, v) in &acc.baseline.estimated {
+        assert!(
+            (v - truth[*ix]).abs() < 0.02f64.to_radians(),
+            "{name}: classical {v} vs true {}",
+            truth[*ix]
+        );
+    }
     assert_imu_pattern(&imu);
 }
