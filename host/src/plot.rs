@@ -300,6 +300,119 @@ where
     Ok(())
 }
 
+/// One panel of line curves on linear axes (time series, convergence).
+#[derive(Debug, Clone)]
+pub struct LinePanel {
+    /// Panel title.
+    pub title: String,
+    /// x axis label.
+    pub x_label: String,
+    /// y axis label.
+    pub y_label: String,
+    /// Named curves of (x, y) points; non-finite points are skipped.
+    pub series: Vec<(String, Vec<(f64, f64)>)>,
+}
+
+/// A grid of line-plot panels, written to `stem.png` and `stem.svg`.
+/// Returns the paths written.
+pub fn line_panels(
+    stem: &Path,
+    title: &str,
+    panels: &[LinePanel],
+    columns: usize,
+) -> Result<Vec<PathBuf>, PlotError> {
+    register_font();
+    let columns = columns.max(1);
+    let rows = panels.len().div_ceil(columns).max(1);
+    let size = (420 * columns as u32, 40 + 260 * rows as u32);
+    struct Lines<'a>(&'a str, &'a [LinePanel], usize, usize);
+    impl Figure for Lines<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+        where
+            DB::ErrorType: 'static,
+        {
+            draw_lines(root, self.0, self.1, self.2, self.3)
+        }
+    }
+    write_png_svg(stem, size, &Lines(title, panels, rows, columns))
+}
+
+fn draw_lines<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    panels: &[LinePanel],
+    rows: usize,
+    columns: usize,
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (FAMILY, 22))?;
+    let cells = root.split_evenly((rows, columns));
+    for (panel, area) in panels.iter().zip(cells.iter()) {
+        let usable = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite();
+        let (mut x0, mut x1, mut y0, mut y1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for &(x, y) in panel
+            .series
+            .iter()
+            .flat_map(|(_, s)| s.iter().filter(|p| usable(p)))
+        {
+            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+        }
+        if !(x0.is_finite() && x1 > x0) {
+            (x0, x1) = (x0.min(0.0), x0.max(0.0) + 1.0);
+        }
+        if !(y0.is_finite() && y1 > y0) {
+            let c = if y0.is_finite() { y0 } else { 0.0 };
+            (y0, y1) = (c - 1.0, c + 1.0);
+        }
+        let pad = 0.05 * (y1 - y0);
+        let mut chart = ChartBuilder::on(area)
+            .caption(&panel.title, (FAMILY, 15))
+            .margin(8)
+            .x_label_area_size(34)
+            .y_label_area_size(54)
+            .build_cartesian_2d(x0..x1, y0 - pad..y1 + pad)?;
+        chart
+            .configure_mesh()
+            .x_desc(panel.x_label.as_str())
+            .y_desc(panel.y_label.as_str())
+            .x_labels(5)
+            .y_labels(5)
+            .label_style((FAMILY, 10))
+            .axis_desc_style((FAMILY, 11))
+            .disable_mesh()
+            .draw()?;
+        for (k, (name, s)) in panel.series.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            chart
+                .draw_series(LineSeries::new(
+                    s.iter().copied().filter(usable),
+                    color.stroke_width(1),
+                ))?
+                .label(name.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
+                });
+        }
+        if panel.series.len() > 1 {
+            chart
+                .configure_series_labels()
+                .label_font((FAMILY, 10))
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()?;
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

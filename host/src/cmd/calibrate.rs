@@ -50,6 +50,10 @@ pub struct CalibrateCmd {
     /// repeatability.csv next to the result file.
     #[arg(long, value_name = "N")]
     pub windows: Option<usize>,
+    /// Also write a self-contained HTML report (report.html and its figures)
+    /// into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
 }
 
 /// Indices into x of the `--freeze` items.
@@ -257,6 +261,26 @@ impl CalibrateCmd {
         }
         result.write(&path)?;
         writeln!(out, "wrote {}", path.display())?;
+        if let Some(report_dir) = &self.report {
+            let costs: Vec<f64> = std::iter::once(cal.summary.initial_cost)
+                .chain(cal.summary.iterations.iter().map(|r| r.cost))
+                .collect();
+            let series = robimu::report::html::SessionSeries::new(
+                &robot,
+                &data,
+                &cal.x,
+                &opts.sigma_q,
+                Some(cal.knot_spacing),
+            )?;
+            let html = robimu::report::html::calibration_report(
+                report_dir,
+                &result,
+                session.truth.as_ref(),
+                Some(&costs),
+                Some(&series),
+            )?;
+            writeln!(out, "wrote {}", html.display())?;
+        }
         if let Some(windows) = windows {
             let count = windows.len();
             let progress = Progress::start(format!("calibrating {count} windows"));

@@ -143,6 +143,7 @@ impl DemoCmd {
             knot_spacing: None,
             noise: None,
             windows: None,
+            report: Some(dir.join("report")),
         }
         .run()?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;
@@ -151,6 +152,11 @@ impl DemoCmd {
             "\nfiles: {} (plan.csv), {} (session.toml, joints.csv, imu.csv, pings.csv, truth.toml = the hidden truth, result.json)",
             plan_dir.display(),
             session.display()
+        )?;
+        writeln!(
+            out,
+            "report: {} (open it in a browser; the figures are beside it as PNG and SVG)",
+            dir.join("report").join("report.html").display()
         )?;
         writeln!(
             out,

@@ -12,7 +12,9 @@ pub mod montecarlo;
 pub mod noise;
 pub mod record;
 pub mod repair;
+pub mod report;
 pub mod simulate;
+pub mod validate;
 
 /// What `robimu` can do (each command's help is its struct's doc comment).
 #[derive(Debug, clap::Subcommand)]
@@ -29,6 +31,8 @@ pub enum Command {
     Export(export::ExportCmd),
     Correct(correct::CorrectCmd),
     Import(import::ImportCmd),
+    Validate(validate::ValidateCmd),
+    Report(report::ReportCmd),
 }
 
 impl Command {
@@ -46,6 +50,8 @@ impl Command {
             Command::Export(c) => c.run(),
             Command::Correct(c) => c.run(),
             Command::Import(c) => c.run(),
+            Command::Validate(c) => c.run(),
+            Command::Report(c) => c.run(),
         }
     }
 }

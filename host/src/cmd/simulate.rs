@@ -51,6 +51,15 @@ pub struct SimulateCmd {
     /// every parameter (`name = value`, SI units).
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// Also simulate an external tracker (noise 0.1 mm, 0.05° per axis) for
+    /// `robimu validate`: tracker.csv, the marker pose at every joint sample
+    /// of the motion, and poses.csv, static poses at random configurations
+    /// with their joint angles (columns q1..qn).
+    #[arg(long)]
+    pub tracker: bool,
+    /// Number of static poses in poses.csv (with --tracker).
+    #[arg(long, default_value_t = 250, requires = "tracker")]
+    pub poses: usize,
 }
 
 /// What [`SimulateCmd::write`] produced.
@@ -207,7 +216,62 @@ impl SimulateCmd {
         opts.noise = !self.noise_free;
         let data = simulate(&robot, &layout, &x_true, &trajectory, &opts, self.seed)
             .context("cannot simulate the measurements at these true parameters")?;
-        self.write_session(&robot, robot_field, &layout, &x_true, &data)
+        let written = self.write_session(&robot, robot_field, &layout, &x_true, &data)?;
+        if self.tracker {
+            self.write_tracker(&robot, &layout, &x_true, &trajectory, &data, &opts)?;
+        }
+        Ok(written)
+    }
+
+    /// tracker.csv (the motion) and poses.csv (static poses with q1..qn).
+    fn write_tracker(
+        &self,
+        robot: &Robot,
+        layout: &ParamLayout,
+        x_true: &[f64],
+        trajectory: &robimu::model::Spline,
+        data: &robimu::problem::Measurements,
+        opts: &SimulateOptions,
+    ) -> anyhow::Result<()> {
+        use robimu::workflows::simulate::{static_poses, tracked_motion};
+        use robimu::workflows::validate::row_from_pose;
+        if self.poses < 4 {
+            bail!("--poses must be at least 4 (got {})", self.poses);
+        }
+        let markers = tracked_motion(
+            robot,
+            layout,
+            x_true,
+            trajectory,
+            &data.joint_t,
+            opts.noise,
+            self.seed,
+        )?;
+        let header = format!("t,{}", robimu::session::TRACKER_COLUMNS.join(","));
+        let path = self.out.join(robimu::session::files::TRACKER);
+        let mut text = format!("{header}\n");
+        for (t, m) in data.joint_t.iter().zip(&markers) {
+            let row: Vec<String> = row_from_pose(m).iter().map(|v| format!("{v:?}")).collect();
+            text.push_str(&format!("{t:?},{}\n", row.join(",")));
+        }
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        let poses = static_poses(robot, layout, x_true, self.poses, opts, self.seed)?;
+        let path = self.out.join("poses.csv");
+        let qs: Vec<String> = (1..=robot.dof()).map(|j| format!("q{j}")).collect();
+        let mut text = format!(
+            "# static poses for robimu validate\n{header},{}\n",
+            qs.join(",")
+        );
+        for p in &poses {
+            let row: Vec<String> = row_from_pose(&p.marker)
+                .iter()
+                .chain(&p.q)
+                .map(|v| format!("{v:?}"))
+                .collect();
+            text.push_str(&format!("{:?},{}\n", p.t, row.join(",")));
+        }
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        Ok(())
     }
 
     fn write_session(

@@ -3,6 +3,7 @@
 //! * [`result`] — the result file `result.json` (MODEL.md §8): writing it
 //!   from a [`Calibration`](crate::workflows::calibrate::Calibration) and
 //!   reading it back, validated;
+//! * [`html`] — self-contained HTML reports (calibration, validation);
 //! * [`units`] — display units (mm, degrees, °/s) for the SI values in files;
 //! * [`table`] — the paper's Table II as text: prior, estimate and posterior σ
 //!   of every parameter, and, against a known truth, the errors and the
@@ -10,6 +11,7 @@
 
 #![deny(missing_docs)]
 
+pub mod html;
 pub mod result;
 pub mod table;
 pub mod units;

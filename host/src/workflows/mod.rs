@@ -1,6 +1,7 @@
 //! Workflows: what a user runs, built on the model, problem and solver layers.
 //!
 //! * [`allan`] — Allan deviation of a static IMU recording;
+//! * [`baseline`] — the classical tracker-based robot and IMU calibrations;
 //! * [`calibrate`] — the MAP calibration of one session;
 //! * [`identifiable`] — which generalized errors the IMU data can identify;
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
@@ -8,9 +9,11 @@
 //! * [`repeatability`] — calibrations of k time windows against the full one;
 //! * [`simulate`] — simulated sessions from a ground truth;
 //! * [`time_offset`] — finding τ before linearising;
-//! * [`trajectory`] — random excitation trajectories within the joint limits.
+//! * [`trajectory`] — random excitation trajectories within the joint limits;
+//! * [`validate`] — robot and IMU accuracy against an external tracker.
 
 pub mod allan;
+pub mod baseline;
 pub mod calibrate;
 pub mod identifiable;
 pub mod montecarlo;
@@ -19,3 +22,4 @@ pub mod repeatability;
 pub mod simulate;
 pub mod time_offset;
 pub mod trajectory;
+pub mod validate;

@@ -183,3 +183,122 @@ pub fn simulate(
     }
     Ok(data)
 }
+
+/// Where the simulated tracker sits: T_tb (robot base in the tracker frame,
+/// about 2 m in front of the robot, looking at it) and T_fm (the marker body
+/// on the flange). Fixed, so that every simulated session of one setup
+/// shares them.
+pub fn simulated_registration() -> crate::workflows::validate::Registration {
+    use crate::workflows::validate::exp_so3;
+    crate::workflows::validate::Registration {
+        tracker_base: crate::model::geom::Iso {
+            r: exp_so3([0.4, -1.3, 0.9]),
+            p: [0.35, -0.2, 2.1],
+        },
+        flange_marker: crate::model::geom::Iso {
+            r: exp_so3([0.3, 0.5, -0.2]),
+            p: [0.045, -0.062, 0.071],
+        },
+    }
+}
+
+/// σ of the simulated tracker: 0.1 mm per position axis, 0.05° per rotation axis.
+pub const TRACKER_NOISE: (f64, f64) = (1e-4, 0.05 * std::f64::consts::PI / 180.0);
+
+/// The tracker's measurement of the marker body with the robot at `q` and
+/// true parameters `truth` (noise added when `noise`).
+pub fn tracker_pose<R: Rng>(
+    robot: &Robot,
+    flange_eps: &[[f64; 6]],
+    q: &[f64],
+    noise: bool,
+    rng: &mut R,
+) -> crate::model::geom::Iso {
+    use crate::workflows::validate::{exp_so3, flange_pose};
+    let reg = simulated_registration();
+    let mut m = reg.predict(&flange_pose(robot, flange_eps, q));
+    if noise {
+        let mut n3 = |s: f64| -> [f64; 3] {
+            std::array::from_fn(|_| {
+                let z: f64 = StandardNormal.sample(rng);
+                s * z
+            })
+        };
+        let dp = n3(TRACKER_NOISE.0);
+        let dr = n3(TRACKER_NOISE.1);
+        m.p = crate::model::geom::add(m.p, dp);
+        m.r = crate::model::geom::mul_mm(&m.r, &exp_so3(dr));
+    }
+    m
+}
+
+/// `count` static poses at configurations drawn uniformly within the joint
+/// limits: the tracker's marker pose and the joint readings (with σ_q noise
+/// when `opts.noise`), as a tracker would record them for validation.
+pub fn static_poses(
+    robot: &Robot,
+    layout: &ParamLayout,
+    truth: &[f64],
+    count: usize,
+    opts: &SimulateOptions,
+    seed: u64,
+) -> Result<Vec<crate::workflows::validate::TrackedPose>, ModelError> {
+    use crate::workflows::validate::TrackedPose;
+    let eps = true_flange_eps(layout, truth)?;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x7EAC_0E55);
+    let mut out = Vec::with_capacity(count);
+    for k in 0..count {
+        let q: Vec<f64> = robot
+            .limits()
+            .iter()
+            .map(|l| rng.random_range(l.q_min..=l.q_max))
+            .collect();
+        let marker = tracker_pose(robot, &eps, &q, opts.noise, &mut rng);
+        let reading = q
+            .iter()
+            .zip(&opts.sigma_q)
+            .map(|(q, s)| {
+                let z: f64 = StandardNormal.sample(&mut rng);
+                q + if opts.noise { s * z } else { 0.0 }
+            })
+            .collect();
+        out.push(TrackedPose {
+            t: k as f64,
+            marker,
+            q: reading,
+        });
+    }
+    Ok(out)
+}
+
+/// The tracker's marker poses along `trajectory` at `times` (robot clock).
+pub fn tracked_motion(
+    robot: &Robot,
+    layout: &ParamLayout,
+    truth: &[f64],
+    trajectory: &Spline,
+    times: &[f64],
+    noise: bool,
+    seed: u64,
+) -> Result<Vec<crate::model::geom::Iso>, ModelError> {
+    let eps = true_flange_eps(layout, truth)?;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0007_AC4E_D000);
+    let n = robot.dof();
+    let mut js = JointState::default();
+    Ok(times
+        .iter()
+        .map(|&t| {
+            joint_state_at(trajectory, t, &mut js);
+            tracker_pose(robot, &eps, &js.q[..n], noise, &mut rng)
+        })
+        .collect())
+}
+
+/// The flange's generalized errors of `truth` (the IMU mount row zeroed).
+fn true_flange_eps(layout: &ParamLayout, truth: &[f64]) -> Result<Vec<[f64; 6]>, ModelError> {
+    let mut eps = layout.unpack(truth)?.eps;
+    if let Some(last) = eps.last_mut() {
+        *last = [0.0; 6];
+    }
+    Ok(eps)
+}

@@ -1,0 +1,227 @@
+//! `robimu validate`: robot and IMU accuracy against an external tracker
+//! (paper §9, Fig. 10–11), with the classical calibrations for comparison.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use robimu::model::ParamLayout;
+use robimu::report::html::validation_report;
+use robimu::report::CalibrationResult;
+use robimu::session::{read_table, Columns, Session, TRACKER_COLUMNS};
+use robimu::workflows::validate::{
+    imu_accuracy, imu_position_and_gravity, robot_accuracy, tracked_poses, ImuAccuracy,
+    ImuGroundTruth, TrackedPose,
+};
+
+use super::input::session_robot;
+use super::report::result_vector;
+
+/// Validate a calibration against an external tracker.
+///
+/// Robot accuracy (paper Fig. 10): static poses measured by the tracker
+/// (`--tracker`: a CSV `t,px,py,pz,qw,qx,qy,qz` in MODEL.md §7's tracker
+/// format, with the joint angles in extra columns `q1..qn`, or else taken
+/// from the session's joints.csv at each pose's time). The first poses
+/// solve the tracker-to-base and flange-to-marker transforms, the rest are
+/// held out; position and rotation errors are reported with the nominal,
+/// the calibrated and a classical (tracker) calibration's parameters, the
+/// latter estimating the same generalized errors, with the result's frozen
+/// parameters frozen too.
+///
+/// IMU accuracy (paper Fig. 11): when a tracked motion is available (the
+/// session's tracker.csv, or `--motion`), splines fitted to the tracked IMU
+/// pose give the true angular rate and specific force; the IMU output
+/// corrected with the nominal, calibrated and a classical (tracker) IMU
+/// calibration is compared against them. Writes validation.html with
+/// histograms (PNG/SVG too).
+#[derive(Debug, Clone, clap::Args)]
+pub struct ValidateCmd {
+    /// Session directory the calibration was computed from.
+    pub session: PathBuf,
+    /// The calibration result (result.json).
+    #[arg(long)]
+    pub calibration: PathBuf,
+    /// Static poses measured by the tracker (CSV, see above).
+    #[arg(long, value_name = "POSES")]
+    pub tracker: PathBuf,
+    /// Poses used to fit the transforms and the classical calibration; the
+    /// rest are held out [default: 60 %, as the paper's 150 of 250].
+    #[arg(long)]
+    pub train: Option<usize>,
+    /// Session directory with a tracked motion (tracker.csv and imu.csv) for
+    /// the IMU accuracy [default: SESSION when it has a tracker.csv].
+    #[arg(long)]
+    pub motion: Option<PathBuf>,
+    /// Directory for validation.html and the figures [default: SESSION/validation].
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+/// The poses of `path`, with joint angles from its `q1..qn` columns or `joints`.
+fn read_poses(path: &Path, session: &Session, n: usize) -> anyhow::Result<Vec<TrackedPose>> {
+    let table = read_table(path, Columns::Fixed(&TRACKER_COLUMNS))?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_path(path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let header = rdr.headers()?.clone();
+    let cols: Vec<Option<usize>> = (1..=n)
+        .map(|j| header.iter().position(|h| h == format!("q{j}")))
+        .collect();
+    let extra = if cols.iter().all(Option::is_some) {
+        let mut values = Vec::with_capacity(table.len() * n);
+        for (row, rec) in rdr.records().enumerate() {
+            let rec = rec.with_context(|| format!("{}: row {}", path.display(), row + 1))?;
+            for (j, c) in cols.iter().enumerate() {
+                let field = rec.get(c.expect("checked")).unwrap_or("");
+                let v: f64 = field
+                    .parse()
+                    .ok()
+                    .filter(|v: &f64| v.is_finite())
+                    .with_context(|| {
+                        format!(
+                            "{}: row {}: q{} = `{field}` is not a number",
+                            path.display(),
+                            row + 1,
+                            j + 1
+                        )
+                    })?;
+                values.push(v);
+            }
+        }
+        Some(values)
+    } else {
+        None
+    };
+    tracked_poses(&table, extra.as_deref(), Some(&session.joints), n)
+        .with_context(|| format!("{}", path.display()))
+}
+
+impl ValidateCmd {
+    /// Validate, print and write the report.
+    pub fn run(self) -> anyhow::Result<()> {
+        let session = Session::load(&self.session)
+            .with_context(|| format!("cannot load the session {}", self.session.display()))?;
+        let robot = session_robot(&session)?;
+        let layout = ParamLayout::new(&robot);
+        let result = CalibrationResult::read(&self.calibration)?;
+        let x = result_vector(&layout, &result)
+            .with_context(|| format!("--calibration {}", self.calibration.display()))?;
+        let frozen: Vec<usize> = result
+            .parameters
+            .iter()
+            .filter(|p| p.frozen)
+            .filter_map(|p| layout.index_of(&p.name))
+            .collect();
+        let poses = read_poses(&self.tracker, &session, robot.dof())
+            .with_context(|| format!("--tracker {}", self.tracker.display()))?;
+        let train = self
+            .train
+            .unwrap_or_else(|| (poses.len() as f64 * 0.6).round() as usize);
+        if train < 3 || train >= poses.len() {
+            bail!(
+                "--train {train}: {} poses; need at least 3 to fit and 1 to hold out",
+                poses.len()
+            );
+        }
+        let acc = robot_accuracy(&robot, &layout, &x, &poses, train, &frozen)
+            .context("cannot compute the robot accuracy")?;
+        let motion_dir = self
+            .motion
+            .clone()
+            .or_else(|| session.tracker.is_some().then(|| self.session.clone()));
+        let imu: Option<ImuAccuracy> = match motion_dir {
+            None => None,
+            Some(dir) => {
+                let motion = if dir == self.session {
+                    session.clone()
+                } else {
+                    Session::load(&dir)
+                        .with_context(|| format!("--motion: cannot load {}", dir.display()))?
+                };
+                let tracker = motion
+                    .tracker
+                    .as_ref()
+                    .with_context(|| format!("--motion {}: no tracker.csv", dir.display()))?;
+                let (p_imu, g) = imu_position_and_gravity(&robot, &layout, &x)?;
+                let gt = ImuGroundTruth::fit(tracker, &acc.baseline.registration, p_imu, g, 30)
+                    .with_context(|| format!("{}", dir.join("tracker.csv").display()))?;
+                let data = motion.measurements();
+                Some(
+                    imu_accuracy(
+                        &layout,
+                        &layout.nominal(),
+                        &x,
+                        &gt,
+                        &data.imu_t,
+                        &data.imu_z,
+                    )
+                    .with_context(|| {
+                        format!("cannot compute the IMU accuracy from {}", dir.display())
+                    })?,
+                )
+            }
+        };
+        let mut out = std::io::stdout().lock();
+        writeln!(
+            out,
+            "robot accuracy on {} held-out poses ({} fit the transforms and the classical calibration):",
+            acc.test, acc.train
+        )?;
+        writeln!(
+            out,
+            "{:<26} {:>12} {:>10} {:>12} {:>10}",
+            "parameters", "mean [mm]", "max [mm]", "mean [deg]", "max [deg]"
+        )?;
+        for (name, e) in [
+            ("nominal", &acc.nominal),
+            ("calibrated", &acc.calibrated),
+            ("classical (tracker)", &acc.classical),
+        ] {
+            writeln!(
+                out,
+                "{:<26} {:>12.3} {:>10.3} {:>12.4} {:>10.4}",
+                name,
+                1e3 * e.mean_position(),
+                1e3 * e.max_position(),
+                e.mean_rotation().to_degrees(),
+                e.max_rotation().to_degrees()
+            )?;
+        }
+        if let Some(imu) = &imu {
+            writeln!(
+                out,
+                "IMU accuracy on {} held-out samples ({} fit the classical IMU calibration):",
+                imu.test, imu.train
+            )?;
+            writeln!(
+                out,
+                "{:<26} {:>16} {:>18}",
+                "intrinsics", "rms |dw| [deg/s]", "rms |ds| [m/s^2]"
+            )?;
+            for (name, e) in [
+                ("nominal", &imu.nominal),
+                ("calibrated", &imu.calibrated),
+                ("classical (tracker)", &imu.classical),
+            ] {
+                writeln!(
+                    out,
+                    "{:<26} {:>16.3} {:>18.3}",
+                    name,
+                    e.rms_gyro().to_degrees(),
+                    e.rms_accel()
+                )?;
+            }
+        }
+        let dir = self
+            .report
+            .clone()
+            .unwrap_or_else(|| self.session.join("validation"));
+        let path = validation_report(&dir, &layout, &result, &acc, imu.as_ref())?;
+        writeln!(out, "wrote {}", path.display())?;
+        Ok(())
+    }
+}

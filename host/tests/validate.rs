@@ -1,0 +1,153 @@
+//! Robot and IMU accuracy against a simulated tracker (paper §9, Fig. 10–11):
+//! the calibration improves both over the nominal parameters and compares
+//! with the classical tracker-based calibrations.
+
+use rand::SeedableRng;
+use robimu::model::{ParamLayout, Robot};
+use robimu::session::Table;
+use robimu::workflows::calibrate::{calibrate, CalibrateOptions};
+use robimu::workflows::simulate::{
+    draw_truth, simulate, simulated_registration, static_poses, tracked_motion, SimulateOptions,
+};
+use robimu::workflows::trajectory::random_walk;
+use robimu::workflows::validate::{
+    imu_accuracy, imu_position_and_gravity, robot_accuracy, row_from_pose, ImuAccuracy,
+    ImuGroundTruth, RobotAccuracy,
+};
+
+/// Robot length errors (eps_i_1..3, i < n): frozen in both calibrations (paper §9).
+fn lengths(robot: &Robot, layout: &ParamLayout) -> Vec<usize> {
+    layout
+        .estimated_errors()
+        .iter()
+        .filter(|e| e.link < robot.dof() && e.k <= 3)
+        .filter_map(|e| layout.eps_index(e.link, e.k))
+        .collect()
+}
+
+/// A truth drawn from the priors (its length errors scaled by
+/// `length_scale`), a 300 s calibration with lengths frozen, 250 static
+/// tracker poses (150/100) and a separate 60 s tracked motion.
+fn scenario(seed: u64, length_scale: f64) -> (RobotAccuracy, ImuAccuracy, Vec<f64>) {
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::new(&robot);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut truth = draw_truth(&layout, &mut rng);
+    let frozen = lengths(&robot, &layout);
+    for &k in &frozen {
+        truth[k] *= length_scale;
+    }
+    let sim = SimulateOptions::paper(&robot);
+    let traj = random_walk(&robot, 300.0, 1.0, &mut rng).unwrap();
+    let data = simulate(&robot, &layout, &truth, &traj, &sim, seed + 1).unwrap();
+    let mut opts = CalibrateOptions::new(&robot);
+    opts.frozen = frozen.clone();
+    let cal = calibrate(&robot, &data, &opts, |_| {}).unwrap();
+
+    let poses = static_poses(&robot, &layout, &truth, 250, &sim, seed + 2).unwrap();
+    let acc = robot_accuracy(&robot, &layout, &cal.x, &poses, 150, &frozen).unwrap();
+    assert_eq!((acc.train, acc.test), (150, 100));
+    // the registration recovers the simulated tracker placement
+    let reg = simulated_registration();
+    for i in 0..3 {
+        assert!((acc.registration.tracker_base.p[i] - reg.tracker_base.p[i]).abs() < 5e-3);
+    }
+
+    let eval = random_walk(&robot, 60.0, 1.0, &mut rng).unwrap();
+    let data2 = simulate(&robot, &layout, &truth, &eval, &sim, seed + 3).unwrap();
+    let markers = tracked_motion(
+        &robot,
+        &layout,
+        &truth,
+        &eval,
+        &data2.joint_t,
+        true,
+        seed + 4,
+    )
+    .unwrap();
+    let tracker = Table {
+        columns: robimu::session::TRACKER_COLUMNS.map(String::from).to_vec(),
+        t: data2.joint_t.clone(),
+        values: markers.iter().flat_map(row_from_pose).collect(),
+    };
+    let (p_imu, g) = imu_position_and_gravity(&robot, &layout, &cal.x).unwrap();
+    let gt = ImuGroundTruth::fit(&tracker, &acc.baseline.registration, p_imu, g, 30).unwrap();
+    let imu = imu_accuracy(
+        &layout,
+        &layout.nominal(),
+        &cal.x,
+        &gt,
+        &data2.imu_t,
+        &data2.imu_z,
+    )
+    .unwrap();
+    let (n, c, k) = (&acc.nominal, &acc.calibrated, &acc.classical);
+    eprintln!(
+        "length errors x{length_scale}: position mean [mm] nominal {:.3}, calibrated {:.3}, classical {:.3}; rotation mean [deg] {:.4}, {:.4}, {:.4}",
+        1e3 * n.mean_position(),
+        1e3 * c.mean_position(),
+        1e3 * k.mean_position(),
+        n.mean_rotation().to_degrees(),
+        c.mean_rotation().to_degrees(),
+        k.mean_rotation().to_degrees()
+    );
+    eprintln!(
+        "  gyro rms [deg/s] {:.3}, {:.3}, {:.3}; accel rms [m/s^2] {:.3}, {:.3}, {:.3}",
+        imu.nominal.rms_gyro().to_degrees(),
+        imu.calibrated.rms_gyro().to_degrees(),
+        imu.classical.rms_gyro().to_degrees(),
+        imu.nominal.rms_accel(),
+        imu.calibrated.rms_accel(),
+        imu.classical.rms_accel()
+    );
+    (acc, imu, truth)
+}
+
+fn assert_imu_pattern(imu: &ImuAccuracy) {
+    // calibrated below nominal, close to the classical IMU calibration
+    assert!(imu.calibrated.rms_gyro() * 2.0 < imu.nominal.rms_gyro());
+    assert!(imu.calibrated.rms_accel() * 2.0 < imu.nominal.rms_accel());
+    assert!((imu.calibrated.rms_gyro() / imu.classical.rms_gyro() - 1.0).abs() < 0.1);
+    assert!((imu.calibrated.rms_accel() / imu.classical.rms_accel() - 1.0).abs() < 0.1);
+}
+
+#[test]
+fn robot_errors_from_the_priors_calibrated_accuracy_three_times_nominal() {
+    let (acc, imu, _) = scenario(21, 1.0);
+    let (n, c) = (&acc.nominal, &acc.calibrated);
+    assert!(
+        c.mean_position() * 3.0 < n.mean_position(),
+        "calibrated position error not 3x below nominal"
+    );
+    assert!(c.mean_rotation() * 3.0 < n.mean_rotation());
+    assert_imu_pattern(&imu);
+}
+
+/// With the frozen lengths at their true (nominal) values the classical
+/// calibration's model is exact: held-out errors at the tracker's noise level.
+#[test]
+fn with_correct_frozen_lengths_the_classical_calibration_reaches_tracker_noise() {
+    let (acc, imu, truth) = scenario(22, 0.0);
+    let (n, c, k) = (&acc.nominal, &acc.calibrated, &acc.classical);
+    assert!(c.mean_position() * 3.0 < n.mean_position());
+    assert!(
+        k.mean_position() < 3e-4,
+        "classical {} m",
+        k.mean_position()
+    );
+    assert!(k.mean_rotation() < 0.1f64.to_radians());
+    assert!(
+        acc.baseline.residual_rms < 1.5,
+        "{}",
+        acc.baseline.residual_rms
+    );
+    // and recovers the true angle errors
+    for (ix, name, v) in &acc.baseline.estimated {
+        assert!(
+            (v - truth[*ix]).abs() < 0.02f64.to_radians(),
+            "{name}: classical {v} vs true {}",
+            truth[*ix]
+        );
+    }
+    assert_imu_pattern(&imu);
+}
