@@ -74,6 +74,7 @@ impl DemoCmd {
             noise_free: false,
             truth: None,
             trajectory: None,
+            effect: Vec::new(),
         };
         let t0 = Instant::now();
         let s = sim.write()?;
@@ -94,6 +95,7 @@ impl DemoCmd {
             knot_spacing: None,
             noise: None,
             windows: None,
+            effects: Vec::new(),
         }
         .run()?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;

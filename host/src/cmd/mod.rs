@@ -4,6 +4,7 @@
 pub mod allan;
 pub mod calibrate;
 pub mod demo;
+pub mod diagnose;
 pub mod input;
 pub mod montecarlo;
 pub mod noise;
@@ -19,6 +20,7 @@ pub enum Command {
     MonteCarlo(montecarlo::MonteCarloCmd),
     Noise(noise::NoiseCmd),
     Allan(allan::AllanCmd),
+    Diagnose(diagnose::DiagnoseCmd),
 }
 
 impl Command {
@@ -31,6 +33,7 @@ impl Command {
             Command::MonteCarlo(c) => c.run(),
             Command::Noise(c) => c.run(),
             Command::Allan(c) => c.run(),
+            Command::Diagnose(c) => c.run(),
         }
     }
 }

@@ -2,6 +2,7 @@
 //!
 //! * [`allan`] — Allan deviation of a static IMU recording;
 //! * [`calibrate`] — the MAP calibration of one session;
+//! * [`diagnose`] — model-discrepancy diagnosis with the effect catalogue;
 //! * [`identifiable`] — which generalized errors the IMU data can identify;
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
 //! * [`noise`] — Σ_z and Σ_q of a recording by spline fitting (paper §8.1);
@@ -12,6 +13,7 @@
 
 pub mod allan;
 pub mod calibrate;
+pub mod diagnose;
 pub mod identifiable;
 pub mod montecarlo;
 pub mod noise;

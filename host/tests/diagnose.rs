@@ -1,0 +1,119 @@
+//! The diagnosis against simulated ground truth: a session with one effect
+//! injected (exact simulator form) is diagnosed; the effect must come first,
+//! significant at the Bonferroni level, with its refit estimate within 4σ of
+//! the injected value, and the residuals must shrink. A session without
+//! effects must show no detection, and the score statistic must agree with
+//! the likelihood-ratio statistic of a refit for a small effect.
+
+use robimu::effects::{self, Effect};
+use robimu::model::{ParamLayout, Robot};
+use robimu::problem::Measurements;
+use robimu::workflows::calibrate::CalibrateOptions;
+use robimu::workflows::diagnose::{
+    diagnose, fit, inject_effects, score_all, setup_for, DiagnoseOptions,
+};
+use robimu::workflows::simulate::{random_session, SimulateOptions};
+
+const DURATION: f64 = 40.0;
+
+fn session(seed: u64, effect: Option<(&str, f64)>) -> (Robot, Measurements, Vec<f64>) {
+    let robot = Robot::aubo_i5();
+    let opts = SimulateOptions::paper(&robot);
+    let mut s = random_session(&robot, DURATION, 1.0, &opts, seed).unwrap();
+    // keep τ small so the whole 40 s overlaps
+    let layout = ParamLayout::new(&robot);
+    s.truth[layout.offsets().tau] = 0.05;
+    s.data = robimu::workflows::simulate::simulate(&robot, &layout, &s.truth, &s.trajectory, &opts, seed)
+        .unwrap();
+    let mut injected = Vec::new();
+    if let Some((name, m)) = effect {
+        let setup = setup_for(&robot, &s.data, None);
+        let e: Box<dyn Effect> = effects::by_name(&setup, name).unwrap();
+        let theta = e.injection(m);
+        injected = theta.clone();
+        inject_effects(&robot, &s.truth, &s.trajectory, &mut s.data, &[(e, theta)]).unwrap();
+    }
+    (robot, s.data, injected)
+}
+
+fn check_detected(name: &str, magnitude: f64, seed: u64) {
+    let (robot, data, injected) = session(seed, Some((name, magnitude)));
+    let setup = setup_for(&robot, &data, None);
+    let opts = CalibrateOptions::new(&robot);
+    let dopts = DiagnoseOptions {
+        max_effects: 1,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&robot, &data, &opts, &setup, &dopts, |_| {}).unwrap();
+    let threshold = 0.01 / effects::NAMES.len() as f64;
+    assert!(!d.found.is_empty(), "{name}: nothing found; scores {:?}", d.last_scores);
+    let f = &d.found[0];
+    assert_eq!(f.name, name, "{name}: scores {:?}", f.scores);
+    assert!(f.p_value < threshold, "{name}: p = {}", f.p_value);
+    for (k, (pname, _, v, s)) in f.parameters.iter().enumerate() {
+        let z = (v - injected[k]) / s;
+        assert!(z.abs() < 4.0, "{name} {pname}: {v} ± {s} vs injected {}", injected[k]);
+    }
+    let before: f64 = f.rms_before.iter().map(|v| v * v).sum();
+    let after: f64 = f.rms_after.iter().map(|v| v * v).sum();
+    assert!(after < before, "{name}: rms {:?} → {:?}", f.rms_before, f.rms_after);
+}
+
+#[test]
+fn clock_drift_is_named_and_estimated() {
+    check_detected("clock_drift", 300.0, 11);
+}
+
+#[test]
+fn g_sensitivity_is_named_and_estimated() {
+    check_detected("g_sensitivity", 0.3, 12);
+}
+
+#[test]
+fn bias_drift_is_named_and_estimated() {
+    check_detected("bias_drift", 0.5, 13);
+}
+
+#[test]
+fn encoder_scale_is_named_and_estimated() {
+    check_detected("encoder_scale", 8000.0, 14);
+}
+
+#[test]
+fn joint_elasticity_is_named_and_estimated() {
+    check_detected("joint_elasticity", 10.0, 15);
+}
+
+#[test]
+fn size_effect_is_named_and_estimated() {
+    check_detected("size_effect", 60.0, 16);
+}
+
+#[test]
+fn no_effect_no_detection() {
+    let (robot, data, _) = session(21, None);
+    let setup = setup_for(&robot, &data, None);
+    let opts = CalibrateOptions::new(&robot);
+    let d = diagnose(&robot, &data, &opts, &setup, &DiagnoseOptions::default(), |_| {}).unwrap();
+    assert!(d.found.is_empty(), "false detection: {:?}", d.found.first().map(|f| (&f.name, f.p_value)));
+    assert_eq!(d.last_scores.len(), effects::NAMES.len());
+    assert!(d.last_scores.iter().all(|s| s.p_value >= d.threshold));
+}
+
+#[test]
+fn score_statistic_agrees_with_likelihood_ratio_for_a_small_effect() {
+    let (robot, data, _) = session(31, Some(("clock_drift", 250.0)));
+    let setup = setup_for(&robot, &data, None);
+    let opts = CalibrateOptions::new(&robot);
+    let base = fit(&robot, &data, &opts, &setup, &[], None, None).unwrap();
+    let name = "clock_drift".to_string();
+    let scores = score_all(&robot, &data, &opts, &setup, &base, std::slice::from_ref(&name)).unwrap();
+    let aug = fit(&robot, &data, &opts, &setup, &[name], Some(&base), None).unwrap();
+    let lr = 2.0 * (base.cost - aug.cost);
+    let score = scores[0].statistic;
+    assert!(score > 5.0, "the effect should be visible: score {score}");
+    assert!(
+        (score - lr).abs() < 0.1 * lr.max(score) + 1.0,
+        "score {score} vs LR {lr}"
+    );
+}
