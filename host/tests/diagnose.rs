@@ -23,8 +23,15 @@ fn session(seed: u64, effect: Option<(&str, f64)>) -> (Robot, Measurements, Vec<
     // keep τ small so the whole 40 s overlaps
     let layout = ParamLayout::new(&robot);
     s.truth[layout.offsets().tau] = 0.05;
-    s.data = robimu::workflows::simulate::simulate(&robot, &layout, &s.truth, &s.trajectory, &opts, seed)
-        .unwrap();
+    s.data = robimu::workflows::simulate::simulate(
+        &robot,
+        &layout,
+        &s.truth,
+        &s.trajectory,
+        &opts,
+        seed,
+    )
+    .unwrap();
     let mut injected = Vec::new();
     if let Some((name, m)) = effect {
         let setup = setup_for(&robot, &s.data, None);
@@ -46,17 +53,34 @@ fn check_detected(name: &str, magnitude: f64, seed: u64) {
     };
     let d = diagnose(&robot, &data, &opts, &setup, &dopts, |_| {}).unwrap();
     let threshold = 0.01 / effects::NAMES.len() as f64;
-    assert!(!d.found.is_empty(), "{name}: nothing found; scores {:?}", d.last_scores);
+    assert!(
+        !d.found.is_empty(),
+        "{name}: nothing found; scores {:?}",
+        d.last_scores
+    );
     let f = &d.found[0];
     assert_eq!(f.name, name, "{name}: scores {:?}", f.scores);
     assert!(f.p_value < threshold, "{name}: p = {}", f.p_value);
     for (k, (pname, _, v, s)) in f.parameters.iter().enumerate() {
         let z = (v - injected[k]) / s;
-        assert!(z.abs() < 4.0, "{name} {pname}: {v} ± {s} vs injected {}", injected[k]);
+        assert!(
+            z.abs() < 4.0,
+            "{name} {pname}: {v} ± {s} vs injected {}",
+            injected[k]
+        );
     }
+    println!(
+        "{name}: score {:.1} ({} dof, p {:.1e}), LR {:.1}, estimates {:?}, injected {:?}, rms {:?} -> {:?}",
+        f.statistic, f.dof, f.p_value, f.lr_statistic, f.parameters, injected, f.rms_before, f.rms_after
+    );
     let before: f64 = f.rms_before.iter().map(|v| v * v).sum();
     let after: f64 = f.rms_after.iter().map(|v| v * v).sum();
-    assert!(after < before, "{name}: rms {:?} → {:?}", f.rms_before, f.rms_after);
+    assert!(
+        after < before,
+        "{name}: rms {:?} → {:?}",
+        f.rms_before,
+        f.rms_after
+    );
 }
 
 #[test]
@@ -94,8 +118,21 @@ fn no_effect_no_detection() {
     let (robot, data, _) = session(21, None);
     let setup = setup_for(&robot, &data, None);
     let opts = CalibrateOptions::new(&robot);
-    let d = diagnose(&robot, &data, &opts, &setup, &DiagnoseOptions::default(), |_| {}).unwrap();
-    assert!(d.found.is_empty(), "false detection: {:?}", d.found.first().map(|f| (&f.name, f.p_value)));
+    let d = diagnose(
+        &robot,
+        &data,
+        &opts,
+        &setup,
+        &DiagnoseOptions::default(),
+        |_| {},
+    )
+    .unwrap();
+    assert!(
+        d.found.is_empty(),
+        "false detection: {:?}",
+        d.found.first().map(|f| (&f.name, f.p_value))
+    );
+    println!("null scores: {:?}", d.last_scores);
     assert_eq!(d.last_scores.len(), effects::NAMES.len());
     assert!(d.last_scores.iter().all(|s| s.p_value >= d.threshold));
 }
@@ -107,10 +144,19 @@ fn score_statistic_agrees_with_likelihood_ratio_for_a_small_effect() {
     let opts = CalibrateOptions::new(&robot);
     let base = fit(&robot, &data, &opts, &setup, &[], None, None).unwrap();
     let name = "clock_drift".to_string();
-    let scores = score_all(&robot, &data, &opts, &setup, &base, std::slice::from_ref(&name)).unwrap();
+    let scores = score_all(
+        &robot,
+        &data,
+        &opts,
+        &setup,
+        &base,
+        std::slice::from_ref(&name),
+    )
+    .unwrap();
     let aug = fit(&robot, &data, &opts, &setup, &[name], Some(&base), None).unwrap();
     let lr = 2.0 * (base.cost - aug.cost);
     let score = scores[0].statistic;
+    println!("score {score:.2} vs LR {lr:.2}");
     assert!(score > 5.0, "the effect should be visible: score {score}");
     assert!(
         (score - lr).abs() < 0.1 * lr.max(score) + 1.0,

@@ -285,7 +285,8 @@ impl CalibrateCmd {
                 Some(&cal.x),
             );
             progress.finish();
-            let fit = fit.with_context(|| format!("--effects: cannot fit {}", effect_names.join(", ")))?;
+            let fit =
+                fit.with_context(|| format!("--effects: cannot fit {}", effect_names.join(", ")))?;
             writeln!(out, "\neffects (fitted with the baseline):")?;
             for (e, p) in fit.effect_params.iter().enumerate() {
                 let (unit, scale) = p.display;

@@ -83,8 +83,10 @@ impl DiagnoseCmd {
             None => None,
         };
         let setup = setup_for(&robot, &data, mass);
-        let mut dopts = DiagnoseOptions::default();
-        dopts.alpha = self.alpha;
+        let mut dopts = DiagnoseOptions {
+            alpha: self.alpha,
+            ..DiagnoseOptions::default()
+        };
         if !self.candidates.is_empty() {
             for c in &self.candidates {
                 effects::by_name(&setup, c).context("--candidates")?;
@@ -132,16 +134,16 @@ impl DiagnoseCmd {
 /// Channel display: whitened RMS × σ in physical units (m/s², °/s).
 fn physical_rms(rms: &[f64; 6], sigma: &[f64; 6]) -> [f64; 6] {
     std::array::from_fn(|c| {
-        let s = if c < 3 { 1.0 } else { 180.0 / std::f64::consts::PI };
+        let s = if c < 3 {
+            1.0
+        } else {
+            180.0 / std::f64::consts::PI
+        };
         rms[c] * sigma[c] * s
     })
 }
 
-fn write_summary(
-    out: &mut impl Write,
-    layout: &ParamLayout,
-    d: &Diagnosis,
-) -> anyhow::Result<()> {
+fn write_summary(out: &mut impl Write, layout: &ParamLayout, d: &Diagnosis) -> anyhow::Result<()> {
     let before = &d.stats_before;
     writeln!(
         out,
@@ -178,7 +180,12 @@ fn write_summary(
                 .iter()
                 .find(|p| &p.name == name)
                 .map_or(("", 1.0), |p| p.display);
-            writeln!(out, "   {name:<34} {:+.4} ± {:.4} {du}", v * scale, s * scale)?;
+            writeln!(
+                out,
+                "   {name:<34} {:+.4} ± {:.4} {du}",
+                v * scale,
+                s * scale
+            )?;
         }
         let rb = f.rms_before;
         let ra = f.rms_after;
@@ -194,7 +201,11 @@ fn write_summary(
                 .iter()
                 .map(|(n, a, b, s)| format!("{n} {a:.4e}→{b:.4e} (σ {s:.1e})"))
                 .collect();
-            writeln!(out, "   baseline parameters moved > 1σ: {}", moves.join(", "))?;
+            writeln!(
+                out,
+                "   baseline parameters moved > 1σ: {}",
+                moves.join(", ")
+            )?;
         }
     }
     let sz = d.sigma_z;
@@ -205,7 +216,11 @@ fn write_summary(
         "\nresidual rms before → after: accel {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} m/s^2, gyro {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} deg/s",
         pb[0], pb[1], pb[2], pa[0], pa[1], pa[2], pb[3], pb[4], pb[5], pa[3], pa[4], pa[5]
     )?;
-    writeln!(out, "final model: baseline + [{}]", d.final_fit.effects.join(", "))?;
+    writeln!(
+        out,
+        "final model: baseline + [{}]",
+        d.final_fit.effects.join(", ")
+    )?;
     write_stats(out, &d.stats_after)?;
     // structure left that no candidate explains
     let lb_threshold = 0.01 / 6.0;
@@ -226,7 +241,10 @@ fn write_summary(
         })
         .collect();
     if left.is_empty() {
-        writeln!(out, "residuals are white in every channel (Ljung–Box, p ≥ {lb_threshold:.1e})")?;
+        writeln!(
+            out,
+            "residuals are white in every channel (Ljung–Box, p ≥ {lb_threshold:.1e})"
+        )?;
     } else {
         writeln!(
             out,

@@ -212,14 +212,28 @@ impl SimulateCmd {
                 };
                 let e = robimu::effects::by_name(&setup, name.trim())
                     .with_context(|| format!("--effect {item}"))?;
-                let m: f64 = m.trim().parse().ok().filter(|v: &f64| v.is_finite()).with_context(
-                    || format!("--effect {item}: the magnitude must be a number in {}", e.magnitude_unit()),
-                )?;
+                let m: f64 = m
+                    .trim()
+                    .parse()
+                    .ok()
+                    .filter(|v: &f64| v.is_finite())
+                    .with_context(|| {
+                        format!(
+                            "--effect {item}: the magnitude must be a number in {}",
+                            e.magnitude_unit()
+                        )
+                    })?;
                 let theta = e.injection(m);
                 injected.push((e, theta));
             }
-            robimu::workflows::diagnose::inject_effects(&robot, &x_true, &trajectory, &mut data, &injected)
-                .context("cannot inject the effects")?;
+            robimu::workflows::diagnose::inject_effects(
+                &robot,
+                &x_true,
+                &trajectory,
+                &mut data,
+                &injected,
+            )
+            .context("cannot inject the effects")?;
         }
         self.write_session(&robot, robot_field, &layout, &x_true, &data)
     }

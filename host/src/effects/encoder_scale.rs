@@ -65,6 +65,8 @@ impl Effect for EncoderScale {
         "ppm"
     }
     fn injection(&self, magnitude: f64) -> Vec<f64> {
-        (0..self.n).map(|j| PATTERN[j % 8] * magnitude * 1e-6).collect()
+        (0..self.n)
+            .map(|j| PATTERN[j % 8] * magnitude * 1e-6)
+            .collect()
     }
 }

@@ -146,7 +146,9 @@ impl<'a> SampleContext<'a> {
     /// Σ_j ∂z/∂q_j δq_j + ∂z/∂q̇_j δq̇_j + ∂z/∂q̈_j δq̈_j.
     pub fn through_joints(&self, j: usize, dq: f64, dqd: f64, dqdd: f64) -> [f64; 6] {
         let jac = self.jac;
-        std::array::from_fn(|c| jac.dz_dq[j][c] * dq + jac.dz_dqd[j][c] * dqd + jac.dz_dqdd[j][c] * dqdd)
+        std::array::from_fn(|c| {
+            jac.dz_dq[j][c] * dq + jac.dz_dqd[j][c] * dqd + jac.dz_dqdd[j][c] * dqdd
+        })
     }
 }
 

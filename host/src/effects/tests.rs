@@ -47,7 +47,11 @@ fn effect_jacobians_match_finite_differences_of_the_exact_form() {
             let z0 = effect.exact(&ex, &zero, &layout);
             let base = ex.baseline();
             for c in 0..6 {
-                assert!((z0[c] - base[c]).abs() < 1e-12, "{} not zero at θ = 0", effect.name());
+                assert!(
+                    (z0[c] - base[c]).abs() < 1e-12,
+                    "{} not zero at θ = 0",
+                    effect.name()
+                );
             }
             for (e, p) in params.iter().enumerate() {
                 let h = 1e-4 * p.prior_sigma;
@@ -90,7 +94,14 @@ fn gravity_torque_matches_finite_differences_of_potential_energy() {
         let mut qm = q;
         qm[j] -= h;
         let fd = -(energy(&qp) - energy(&qm)) / (2.0 * h);
-        assert!((fd - tau[j]).abs() < 1e-6 * (1.0 + fd.abs()), "joint {j}: {fd} vs {}", tau[j]);
+        assert!(
+            (fd - tau[j]).abs() < 1e-6 * (1.0 + fd.abs()),
+            "joint {j}: {fd} vs {}",
+            tau[j]
+        );
     }
-    assert!(tau[1].abs() > 1.0, "shoulder carries a gravity torque: {tau:?}");
+    assert!(
+        tau[1].abs() > 1.0,
+        "shoulder carries a gravity torque: {tau:?}"
+    );
 }

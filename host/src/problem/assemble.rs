@@ -47,7 +47,8 @@ impl Problem<'_> {
             let c1 = self.imu_terms(&model, &spline, &x, theta, first, None);
             (c1, h.join().expect("cost thread panicked"))
         });
-        Ok(c1? + c2?
+        Ok(c1?
+            + c2?
             + self.joint_terms(&spline, None)
             + self.prior_terms(&x, None, 0)
             + self.effect_prior_terms(self.effect_params_of(theta), None, 0))
@@ -89,7 +90,8 @@ impl Problem<'_> {
             g: &mut g2,
         };
         let (r1, r2) = std::thread::scope(|s| {
-            let h = s.spawn(|| self.imu_terms(&model, &spline, &x, theta, second, Some(&mut other)));
+            let h =
+                s.spawn(|| self.imu_terms(&model, &spline, &x, theta, second, Some(&mut other)));
             let r1 = self.imu_terms(&model, &spline, &x, theta, first, Some(&mut out));
             (r1, h.join().expect("assembly thread panicked"))
         });
@@ -117,7 +119,10 @@ impl Problem<'_> {
             .clone()
             .map(|i| {
                 let theta_e = self.effect_params_of(theta);
-                Ok((i, self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?))
+                Ok((
+                    i,
+                    self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
+                ))
             })
             .collect()
     }

@@ -156,7 +156,8 @@ pub fn fit(
             let tau_at = layout.offsets().tau;
             let search = opts.tau_search.as_ref().filter(|_| x_start.is_none());
             if let (Some(search), false) = (search, opts.frozen.contains(&tau_at)) {
-                let model = MeasurementModel::new(robot, &layout, &x0).map_err(CalibrateError::from)?;
+                let model =
+                    MeasurementModel::new(robot, &layout, &x0).map_err(CalibrateError::from)?;
                 let gyro: Vec<[f64; 3]> = data.imu_z.iter().map(|z| [z[3], z[4], z[5]]).collect();
                 let est = find_tau(&model, &tf.spline, &data.imu_t, &gyro, search)
                     .map_err(CalibrateError::from)?;
@@ -171,7 +172,8 @@ pub fn fit(
     if let Some(prev) = prev_theta {
         theta0[..prev.len()].copy_from_slice(&prev);
     }
-    let sol = solver::solve(&mut problem, theta0, &opts.lm, |_| {}).map_err(CalibrateError::from)?;
+    let sol =
+        solver::solve(&mut problem, theta0, &opts.lm, |_| {}).map_err(CalibrateError::from)?;
     if !sol.summary.termination.converged() {
         return Err(CalibrateError::NotConverged {
             summary: Box::new(sol.summary),
@@ -189,7 +191,9 @@ pub fn fit(
         sigma_x[k] = cov[(a, a)].max(0.0).sqrt();
     }
     let ne = set.len();
-    let sigma_e = (0..ne).map(|e| cov[(na + e, na + e)].max(0.0).sqrt()).collect();
+    let sigma_e = (0..ne)
+        .map(|e| cov[(na + e, na + e)].max(0.0).sqrt())
+        .collect();
     let theta_e = problem.effect_params_of(&sol.theta).to_vec();
     let residuals = problem.imu_residuals(&sol.theta)?;
     Ok(Fit {
@@ -391,11 +395,7 @@ const SEGMENT: usize = 512;
 
 /// Residual statistics of `fit` on `data` (`rate` the IMU rate, Hz, for
 /// the spectrum; τ from the fit).
-pub fn residual_stats(
-    robot: &Robot,
-    data: &Measurements,
-    fit: &Fit,
-) -> ResidualStats {
+pub fn residual_stats(robot: &Robot, data: &Measurements, fit: &Fit) -> ResidualStats {
     let layout = ParamLayout::new(robot);
     let res = &fit.residuals;
     let n = res.len().max(1);
@@ -456,11 +456,16 @@ pub fn residual_stats(
         let rms = (ss / n as f64).sqrt();
         out.rms.insert(name.to_string(), rms);
         out.chi2.insert(name.to_string(), ss);
-        out.ljung_box.insert(name.to_string(), ljung_box(&r, LJUNG_BOX_LAGS));
+        out.ljung_box
+            .insert(name.to_string(), ljung_box(&r, LJUNG_BOX_LAGS));
         let spec = welch(&r, rate);
         let mut powers: Vec<f64> = spec.iter().map(|p| p.1).collect();
         powers.sort_by(f64::total_cmp);
-        let median = powers.get(powers.len() / 2).copied().unwrap_or(1.0).max(1e-300);
+        let median = powers
+            .get(powers.len() / 2)
+            .copied()
+            .unwrap_or(1.0)
+            .max(1e-300);
         if let Some(&(f, p)) = spec.iter().skip(1).max_by(|a, b| a.1.total_cmp(&b.1)) {
             out.spectral_peak.insert(name.to_string(), (f, p / median));
         }
@@ -658,7 +663,15 @@ pub fn diagnose(
     let layout = ParamLayout::new(robot);
     let threshold = dopts.alpha / dopts.candidates.len().max(1) as f64;
     progress("fitting the baseline model");
-    let baseline = fit(robot, data, opts, setup, &[], None, dopts.x_start.as_deref())?;
+    let baseline = fit(
+        robot,
+        data,
+        opts,
+        setup,
+        &[],
+        None,
+        dopts.x_start.as_deref(),
+    )?;
     let mut current = baseline.clone();
     let mut found = Vec::new();
     let n_res = 6.0 * baseline.residuals.len() as f64;
@@ -691,7 +704,12 @@ pub fn diagnose(
         let parameters = (ne_prev..next.theta_e.len())
             .map(|e| {
                 let p = &next.effect_params[e];
-                (p.name.clone(), p.unit.to_string(), next.theta_e[e], next.sigma_e[e])
+                (
+                    p.name.clone(),
+                    p.unit.to_string(),
+                    next.theta_e[e],
+                    next.sigma_e[e],
+                )
             })
             .collect();
         let baseline_moves = layout
@@ -787,4 +805,3 @@ pub fn fit_json(layout: &ParamLayout, f: &Fit) -> serde_json::Value {
         .collect();
     serde_json::json!({"effects": f.effects, "parameters": params, "effect_parameters": eff})
 }
-
