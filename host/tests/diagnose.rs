@@ -163,3 +163,76 @@ fn score_statistic_agrees_with_likelihood_ratio_for_a_small_effect() {
         "score {score} vs LR {lr}"
     );
 }
+
+/// The largest |∂J/∂θ_k|·σ_k over the x and θ_E parts of `f`, by central
+/// differences of the exact cost.
+fn worst_slope(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &robimu::effects::CatalogueSetup,
+    f: &robimu::workflows::diagnose::Fit,
+) -> (f64, usize) {
+    use robimu::problem::{Problem, ProblemOptions};
+    use robimu::solver::LeastSquares;
+    use robimu::workflows::diagnose::effect_set;
+    let layout = ParamLayout::new(robot);
+    let set = effect_set(setup, &f.effects).unwrap();
+    let popts = ProblemOptions {
+        sigma_q: opts.sigma_q.clone(),
+        sigma_z: opts.sigma_z,
+        use_prior: true,
+        frozen: Vec::new(),
+    };
+    let mut problem = Problem::new(
+        robot,
+        &layout,
+        data,
+        f.trajectory.knots().clone(),
+        f.x.clone(),
+        &popts,
+    )
+    .unwrap()
+    .with_effects(&set);
+    problem.begin_iteration(&f.theta).unwrap();
+    let nc = problem.n_coeffs();
+    let sigma: Vec<f64> = f.sigma_x.iter().chain(&f.sigma_e).copied().collect();
+    let mut worst: (f64, usize) = (0.0, 0);
+    for (a, s) in sigma.iter().enumerate() {
+        let k = nc + a;
+        let h = 1e-3 * s;
+        let mut th = f.theta.clone();
+        th[k] += h;
+        let cp = problem.cost(&th).unwrap();
+        th[k] -= 2.0 * h;
+        let cm = problem.cost(&th).unwrap();
+        let slope = (cp - cm) / (2.0 * h) * s;
+        if slope.abs() > worst.0 {
+            worst = (slope.abs(), a);
+        }
+    }
+    worst
+}
+
+/// The refit neglects ∂C_e/∂x (the effect columns' dependence on the
+/// baseline parameters). Its optimum must still be a stationary point of the
+/// exact cost: central differences of the cost along every x and θ_E
+/// direction, in posterior-σ units, must be ≈ 0 (the estimate within a
+/// tenth of σ of the exact optimum), as for the baseline fit, whose
+/// Jacobian is exact.
+#[test]
+fn refit_optimum_is_stationary_for_the_exact_cost() {
+    let (robot, data, _) = session(41, Some(("g_sensitivity", 0.3)));
+    let setup = setup_for(&robot, &data, None);
+    let opts = CalibrateOptions::new(&robot);
+    let base = fit(&robot, &data, &opts, &setup, &[], None, None).unwrap();
+    let names = vec!["g_sensitivity".to_string()];
+    let aug = fit(&robot, &data, &opts, &setup, &names, Some(&base), None).unwrap();
+    let wb = worst_slope(&robot, &data, &opts, &setup, &base);
+    let wa = worst_slope(&robot, &data, &opts, &setup, &aug);
+    println!("largest exact-cost slope per σ: baseline {:.2e} (parameter {}), with the effect {:.2e} (parameter {})", wb.0, wb.1, wa.0, wa.1);
+    assert!(
+        wb.0 < 0.1 && wa.0 < 0.1,
+        "slopes per σ: baseline {wb:?}, with the effect {wa:?}"
+    );
+}
