@@ -236,3 +236,51 @@ fn refit_optimum_is_stationary_for_the_exact_cost() {
         "slopes per σ: baseline {wb:?}, with the effect {wa:?}"
     );
 }
+
+/// End to end through the CLI: `simulate --effect`, then `diagnose --out`
+/// writes diagnosis.json with the required keys and names the effect; bad
+/// effect names and magnitudes are clear errors.
+#[test]
+fn cli_simulate_effect_then_diagnose() {
+    let exe = env!("CARGO_BIN_EXE_robimu");
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s");
+    let run = |args: &[&str]| std::process::Command::new(exe).args(args).output().unwrap();
+    let s = session.to_str().unwrap();
+    let o = run(&[
+        "simulate",
+        "--duration",
+        "40",
+        "--seed",
+        "7",
+        "--out",
+        s,
+        "--effect",
+        "clock_drift=400",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.path().join("d");
+    let o = run(&["diagnose", s, "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("missing effect: clock_drift"), "{stdout}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json")).unwrap())
+            .unwrap();
+    let first = &json["effects_found"][0];
+    assert_eq!(first["name"], "clock_drift");
+    for key in ["statistic", "dof", "p_value"] {
+        assert!(first[key].is_number(), "{key}");
+    }
+    for key in ["residual_rms_before", "residual_rms_after"] {
+        assert!(json[key]["gx"].is_number(), "{key}");
+    }
+    assert_eq!(json["final_model"]["effects"][0], "clock_drift");
+    assert!(out.join("residual_spectra.png").exists());
+    let o = run(&["diagnose", s, "--candidates", "warp_drive"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown effect `warp_drive`"));
+    let o = run(&["simulate", "--out", s, "--effect", "clock_drift"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("NAME=MAGNITUDE"));
+}
