@@ -805,3 +805,56 @@ pub fn fit_json(layout: &ParamLayout, f: &Fit) -> serde_json::Value {
         .collect();
     serde_json::json!({"effects": f.effects, "parameters": params, "effect_parameters": eff})
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// χ² upper-tail probabilities against tabulated quantiles.
+    #[test]
+    fn chi2_sf_matches_tables() {
+        for (x, k, p) in [
+            (3.841458820694124, 1.0, 0.05),
+            (6.634896601021214, 1.0, 0.01),
+            (18.307038053275146, 10.0, 0.05),
+            (26.21696730553585, 12.0, 0.01),
+            (2.705543454095404, 1.0, 0.10),
+            (0.1148318018, 3.0, 0.99),
+        ] {
+            let got = chi2_sf(x, k);
+            assert!(
+                (got - p).abs() < 1e-8 * p.max(1e-3) + 1e-9,
+                "χ²({k}) > {x}: {got} vs {p}"
+            );
+        }
+        assert!((ln_gamma(5.0) - 24f64.ln()).abs() < 1e-12);
+        assert!((ln_gamma(0.5) - std::f64::consts::PI.sqrt().ln()).abs() < 1e-12);
+    }
+
+    /// Ljung–Box: white noise passes, an AR(1) series fails.
+    #[test]
+    fn ljung_box_separates_white_from_correlated() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let white: Vec<f64> = (0..5000).map(|_| StandardNormal.sample(&mut rng)).collect();
+        let mut ar = vec![0.0; 5000];
+        for i in 1..5000 {
+            ar[i] = 0.2 * ar[i - 1] + white[i];
+        }
+        assert!(ljung_box(&white, 20).1 > 1e-3);
+        assert!(ljung_box(&ar, 20).1 < 1e-10);
+    }
+
+    /// The Welch periodogram puts a sinusoid's power at its frequency.
+    #[test]
+    fn welch_peak_is_at_the_sinusoid() {
+        let rate = 120.0;
+        let r: Vec<f64> = (0..4000)
+            .map(|i| (2.0 * std::f64::consts::PI * 7.3 * i as f64 / rate).sin())
+            .collect();
+        let spec = welch(&r, rate);
+        let peak = spec.iter().max_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+        assert!((peak.0 - 7.3).abs() < rate / 512.0, "peak at {} Hz", peak.0);
+    }
+}
