@@ -4,6 +4,7 @@
 // index loops say that more plainly than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
+pub mod effects;
 pub mod export;
 pub mod hil;
 pub mod import;

@@ -54,6 +54,12 @@ pub struct CalibrateCmd {
     /// into this directory.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// Also fit these catalogue effects with the baseline (comma-separated:
+    /// g_sensitivity, size_effect, clock_drift, bias_drift,
+    /// joint_elasticity, encoder_scale); prints their estimates and writes
+    /// effects.json (the augmented model's parameters) next to the result file.
+    #[arg(long, value_delimiter = ',')]
+    pub effects: Vec<String>,
 }
 
 /// Indices into x of the `--freeze` items.
@@ -138,6 +144,16 @@ impl CalibrateCmd {
         let data = session.measurements();
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+        let effect_setup = robimu::workflows::diagnose::setup_for(&robot, &data, None);
+        let effect_names: Vec<String> = self
+            .effects
+            .iter()
+            .map(|s| s.trim().to_string())
+            .filter(|s| !s.is_empty())
+            .collect();
+        for name in &effect_names {
+            robimu::effects::by_name(&effect_setup, name).context("--effects")?;
+        }
         let windows = match self.windows {
             Some(k) => Some(
                 check_windows(&data, k)
@@ -280,6 +296,43 @@ impl CalibrateCmd {
                 Some(&series),
             )?;
             writeln!(out, "wrote {}", html.display())?;
+        }
+        if !effect_names.is_empty() {
+            let progress = Progress::start(format!("fitting with {}", effect_names.join(", ")));
+            let fit = robimu::workflows::diagnose::fit(
+                &robot,
+                &data,
+                &opts,
+                &effect_setup,
+                &effect_names,
+                None,
+                Some(&cal.x),
+            );
+            progress.finish();
+            let fit =
+                fit.with_context(|| format!("--effects: cannot fit {}", effect_names.join(", ")))?;
+            writeln!(out, "\neffects (fitted with the baseline):")?;
+            for (e, p) in fit.effect_params.iter().enumerate() {
+                let (unit, scale) = p.display;
+                writeln!(
+                    out,
+                    "  {:<34} {:+.4} ± {:.4} {unit}",
+                    p.name,
+                    fit.theta_e[e] * scale,
+                    fit.sigma_e[e] * scale
+                )?;
+            }
+            let rms = fit.residual_rms();
+            writeln!(
+                out,
+                "whitened residual rms with the effects: ax {:.2} ay {:.2} az {:.2} gx {:.2} gy {:.2} gz {:.2}",
+                rms[0], rms[1], rms[2], rms[3], rms[4], rms[5]
+            )?;
+            let epath = path.with_file_name("effects.json");
+            let json = robimu::workflows::diagnose::fit_json(&layout, &fit);
+            std::fs::write(&epath, serde_json::to_string_pretty(&json)?)
+                .with_context(|| format!("cannot write {}", epath.display()))?;
+            writeln!(out, "wrote {}", epath.display())?;
         }
         if let Some(windows) = windows {
             let count = windows.len();

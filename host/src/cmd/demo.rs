@@ -144,6 +144,7 @@ impl DemoCmd {
             noise: None,
             windows: None,
             report: Some(dir.join("report")),
+            effects: Vec::new(),
         }
         .run()?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;

@@ -5,6 +5,7 @@ pub mod allan;
 pub mod calibrate;
 pub mod correct;
 pub mod demo;
+pub mod diagnose;
 pub mod export;
 pub mod import;
 pub mod input;
@@ -33,6 +34,7 @@ pub enum Command {
     Import(import::ImportCmd),
     Validate(validate::ValidateCmd),
     Report(report::ReportCmd),
+    Diagnose(diagnose::DiagnoseCmd),
 }
 
 impl Command {
@@ -52,6 +54,7 @@ impl Command {
             Command::Import(c) => c.run(),
             Command::Validate(c) => c.run(),
             Command::Report(c) => c.run(),
+            Command::Diagnose(c) => c.run(),
         }
     }
 }

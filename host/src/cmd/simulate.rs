@@ -60,6 +60,13 @@ pub struct SimulateCmd {
     /// Number of static poses in poses.csv (with --tracker).
     #[arg(long, default_value_t = 250, requires = "tracker")]
     pub poses: usize,
+    /// Inject a catalogue effect into the IMU samples, NAME=MAGNITUDE
+    /// (repeatable), magnitudes in physical units: g_sensitivity (deg/s)/g,
+    /// size_effect mm, clock_drift ppm, bias_drift deg/s, joint_elasticity
+    /// deg/(kN*m), encoder_scale ppm (each a fixed pattern scaled by the
+    /// magnitude; see `robimu::effects`). Recorded in session.toml's notes.
+    #[arg(long, value_name = "NAME=MAGNITUDE")]
+    pub effect: Vec<String>,
 }
 
 /// What [`SimulateCmd::write`] produced.
@@ -214,8 +221,40 @@ impl SimulateCmd {
         opts.imu_rate = self.rate;
         opts.joint_rate = joint_rate;
         opts.noise = !self.noise_free;
-        let data = simulate(&robot, &layout, &x_true, &trajectory, &opts, self.seed)
+        let mut data = simulate(&robot, &layout, &x_true, &trajectory, &opts, self.seed)
             .context("cannot simulate the measurements at these true parameters")?;
+        if !self.effect.is_empty() {
+            let setup = robimu::workflows::diagnose::setup_for(&robot, &data, None);
+            let mut injected = Vec::new();
+            for item in &self.effect {
+                let Some((name, m)) = item.split_once('=') else {
+                    bail!("--effect {item}: expected NAME=MAGNITUDE (e.g. clock_drift=50)");
+                };
+                let e = robimu::effects::by_name(&setup, name.trim())
+                    .with_context(|| format!("--effect {item}"))?;
+                let m: f64 = m
+                    .trim()
+                    .parse()
+                    .ok()
+                    .filter(|v: &f64| v.is_finite())
+                    .with_context(|| {
+                        format!(
+                            "--effect {item}: the magnitude must be a number in {}",
+                            e.magnitude_unit()
+                        )
+                    })?;
+                let theta = e.injection(m);
+                injected.push((e, theta));
+            }
+            robimu::workflows::diagnose::inject_effects(
+                &robot,
+                &x_true,
+                &trajectory,
+                &mut data,
+                &injected,
+            )
+            .context("cannot inject the effects")?;
+        }
         let written = self.write_session(&robot, robot_field, &layout, &x_true, &data)?;
         if self.tracker {
             self.write_tracker(&robot, &layout, &x_true, &trajectory, &data, &opts)?;
@@ -291,6 +330,10 @@ impl SimulateCmd {
             self.joint_rate.unwrap_or(self.rate),
             if self.noise_free { ", noise-free" } else { "" }
         ));
+        if !self.effect.is_empty() {
+            let notes = meta.notes.get_or_insert_with(String::new);
+            notes.push_str(&format!("; effects injected: {}", self.effect.join(", ")));
+        }
         let n = robot.dof();
         let mut w = SessionWriter::create(&self.out, &meta, n)
             .with_context(|| format!("cannot write the session {}", self.out.display()))?;

@@ -7,6 +7,7 @@ use faer::linalg::matmul::triangular::BlockStructure;
 use faer::{Accum, Mat, MatRef, Par};
 
 use super::{Problem, ProblemError};
+use crate::effects::SampleContext;
 use crate::model::{Basis, JointState, MeasurementJacobians, MeasurementModel, Spline};
 use crate::solver::ArrowMatrix;
 
@@ -15,6 +16,14 @@ use crate::solver::ArrowMatrix;
 struct SampleEval {
     basis: Basis,
     js: JointState,
+    /// Storage for the effect terms (only with effects).
+    effect: Option<Box<EffectScratch>>,
+}
+
+/// Baseline Jacobians and effect columns ∂z/∂θ_E of one sample.
+struct EffectScratch {
+    jac: MeasurementJacobians,
+    cols: Vec<[f64; 6]>,
 }
 
 /// Gauss–Newton matrix A = JᵀJ and gradient g = Jᵀr being accumulated.
@@ -34,16 +43,24 @@ impl Problem<'_> {
         let spline = self.spline_of(theta);
         let [first, second] = self.imu_parts();
         let (c1, c2) = std::thread::scope(|s| {
-            let h = s.spawn(|| self.imu_terms(&model, &spline, &x, second, None));
-            let c1 = self.imu_terms(&model, &spline, &x, first, None);
+            let h = s.spawn(|| self.imu_terms(&model, &spline, &x, theta, second, None));
+            let c1 = self.imu_terms(&model, &spline, &x, theta, first, None);
             (c1, h.join().expect("cost thread panicked"))
         });
-        Ok(c1? + c2? + self.joint_terms(&spline, None) + self.prior_terms(&x, None, 0))
+        Ok(c1?
+            + c2?
+            + self.joint_terms(&spline, None)
+            + self.prior_terms(&x, None, 0)
+            + self.effect_prior_terms(self.effect_params_of(theta), None, 0))
     }
 
     /// Storage for [`Self::linearize`].
     pub fn new_matrix(&self) -> ArrowMatrix {
-        ArrowMatrix::zeros(self.n_coeffs(), self.bandwidth(), self.active.len())
+        ArrowMatrix::zeros(
+            self.n_coeffs(),
+            self.bandwidth(),
+            self.active.len() + self.n_effect_params(),
+        )
     }
 
     /// Linearise at θ: fill the Gauss–Newton matrix `a` and the gradient `g`
@@ -73,8 +90,9 @@ impl Problem<'_> {
             g: &mut g2,
         };
         let (r1, r2) = std::thread::scope(|s| {
-            let h = s.spawn(|| self.imu_terms(&model, &spline, &x, second, Some(&mut other)));
-            let r1 = self.imu_terms(&model, &spline, &x, first, Some(&mut out));
+            let h =
+                s.spawn(|| self.imu_terms(&model, &spline, &x, theta, second, Some(&mut other)));
+            let r1 = self.imu_terms(&model, &spline, &x, theta, first, Some(&mut out));
             (r1, h.join().expect("assembly thread panicked"))
         });
         let mut cost = r1? + r2?;
@@ -85,6 +103,7 @@ impl Problem<'_> {
         cost += self.joint_terms(&spline, Some(&mut out));
         let nc = self.n_coeffs();
         cost += self.prior_terms(&x, Some(&mut out), nc);
+        cost += self.effect_prior_terms(self.effect_params_of(theta), Some(&mut out), nc);
         Ok(cost)
     }
 
@@ -98,7 +117,13 @@ impl Problem<'_> {
         let mut at = SampleEval::default();
         self.imu_range
             .clone()
-            .map(|i| Ok((i, self.whitened_residual(&model, &spline, tau, i, &mut at)?)))
+            .map(|i| {
+                let theta_e = self.effect_params_of(theta);
+                Ok((
+                    i,
+                    self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
+                ))
+            })
             .collect()
     }
 
@@ -109,15 +134,76 @@ impl Problem<'_> {
         model: &MeasurementModel,
         spline: &Spline,
         tau: f64,
+        theta_e: &[f64],
         i: usize,
         at: &mut SampleEval,
     ) -> Result<[f64; 6], ProblemError> {
         self.locate(spline, tau, i, at)?;
-        let z = model.predict(&at.js);
+        let z = match self.effects {
+            None => model.predict(&at.js),
+            Some(_) => {
+                let mut scratch = at.effect.take().unwrap_or_else(|| {
+                    Box::new(EffectScratch {
+                        jac: MeasurementJacobians::new(self.layout.len()),
+                        cols: vec![[0.0; 6]; self.n_effect_params()],
+                    })
+                });
+                model.jacobians(&at.js, &mut scratch.jac);
+                let z = self.with_effect_terms(model, i, &at.js, theta_e, &mut scratch);
+                at.effect = Some(scratch);
+                z
+            }
+        };
         let zm = &self.data.imu_z[i];
         Ok(std::array::from_fn(|c| {
             (zm[c] - z[c]) * self.inv_sigma_z[c]
         }))
+    }
+
+    /// z of sample i with the effect terms: the baseline `scratch.jac.z`
+    /// (already evaluated) plus Σ ∂z/∂θ_E θ_E; leaves the columns in `scratch.cols`.
+    fn with_effect_terms(
+        &self,
+        model: &MeasurementModel,
+        i: usize,
+        js: &JointState,
+        theta_e: &[f64],
+        scratch: &mut EffectScratch,
+    ) -> [f64; 6] {
+        let effects = self.effects.expect("called with effects only");
+        let ctx = SampleContext::new(self.data.imu_t[i], js, model, &scratch.jac, self.layout);
+        effects.columns(&ctx, &mut scratch.cols);
+        let mut z = scratch.jac.z;
+        for (col, th) in scratch.cols.iter().zip(theta_e) {
+            for c in 0..6 {
+                z[c] += col[c] * th;
+            }
+        }
+        z
+    }
+
+    /// Zero-mean prior residuals θ_E/σ of the effect parameters (θ_E at `x0 + n_active`).
+    fn effect_prior_terms(
+        &self,
+        theta_e: &[f64],
+        mut out: Option<&mut Linearization<'_>>,
+        x0: usize,
+    ) -> f64 {
+        let Some(effects) = self.effects else {
+            return 0.0;
+        };
+        let na = self.active.len();
+        let mut cost = 0.0;
+        for (e, (p, th)) in effects.params().iter().zip(theta_e).enumerate() {
+            let w = 1.0 / p.prior_sigma;
+            let r = th * w;
+            cost += 0.5 * r * r;
+            if let Some(out) = out.as_deref_mut() {
+                out.g[x0 + na + e] += w * r;
+                out.a.add_xx(na + e, na + e, w * w);
+            }
+        }
+        cost
     }
 
     /// Basis functions and joint state q(t_i + τ) of IMU sample i.
@@ -203,9 +289,16 @@ impl Problem<'_> {
         model: &MeasurementModel,
         spline: &Spline,
         x: &[f64],
+        theta: &[f64],
         range: Range<usize>,
         out: Option<&mut Linearization<'_>>,
     ) -> Result<f64, ProblemError> {
+        let theta_e = self.effect_params_of(theta);
+        let nx = self.layout.len();
+        let mut scratch = EffectScratch {
+            jac: MeasurementJacobians::new(0),
+            cols: vec![[0.0; 6]; self.n_effect_params()],
+        };
         let n = self.n;
         let nl = (self.knots.degree() + 1) * n;
         let tau = x[self.layout.offsets().tau];
@@ -213,7 +306,7 @@ impl Problem<'_> {
         let mut cost = 0.0;
         let Some(out) = out else {
             for i in range {
-                let r = self.whitened_residual(model, spline, tau, i, &mut at)?;
+                let r = self.whitened_residual(model, spline, tau, theta_e, i, &mut at)?;
                 cost += 0.5 * r.iter().map(|v| v * v).sum::<f64>();
             }
             return Ok(cost);
@@ -234,11 +327,19 @@ impl Problem<'_> {
             }
             group_first = basis.first;
             model.jacobians(js, &mut jac);
+            let z = if self.effects.is_some() {
+                std::mem::swap(&mut jac, &mut scratch.jac);
+                let z = self.with_effect_terms(model, i, js, theta_e, &mut scratch);
+                std::mem::swap(&mut jac, &mut scratch.jac);
+                z
+            } else {
+                jac.z
+            };
             let zm = &self.data.imu_z[i];
             for (sensor, block) in blocks.iter_mut().enumerate() {
                 for ch in 3 * sensor..3 * sensor + 3 {
                     let w = self.inv_sigma_z[ch];
-                    let r = (zm[ch] - jac.z[ch]) * w;
+                    let r = (zm[ch] - z[ch]) * w;
                     cost += 0.5 * r * r;
                     let row = block.rows;
                     block.r[row] = r;
@@ -259,7 +360,12 @@ impl Problem<'_> {
                         }
                     }
                     for (a, &(k, _)) in block.columns.iter().enumerate() {
-                        col[nl + a] = -w * jac.dz_dx[k][ch];
+                        let d = if k < nx {
+                            jac.dz_dx[k][ch]
+                        } else {
+                            scratch.cols[k - nx][ch]
+                        };
+                        col[nl + a] = -w * d;
                     }
                     block.rows += 1;
                 }

@@ -24,6 +24,7 @@ mod assemble;
 
 use std::ops::Range;
 
+use crate::effects::EffectSet;
 use crate::model::{
     Basis, Knots, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
 };
@@ -96,6 +97,8 @@ pub struct Problem<'a> {
     /// Per sensor (accelerometer, gyroscope): the estimated parameters its
     /// rows can depend on, as (x index, position in θ's x part).
     sensor_columns: [Vec<(usize, usize)>; 2],
+    /// Catalogue effects appended to the model ([`Problem::with_effects`]).
+    effects: Option<&'a EffectSet>,
 }
 
 impl<'a> Problem<'a> {
@@ -154,6 +157,7 @@ impl<'a> Problem<'a> {
             joint_basis,
             imu_range: 0..0,
             sensor_columns,
+            effects: None,
         };
         let tau = p.x_base[layout.offsets().tau];
         p.select_samples(tau)?;
@@ -205,11 +209,34 @@ impl<'a> Problem<'a> {
         self.imu_range.clone()
     }
 
-    /// θ from a spline and a full x.
+    /// θ from a spline and a full x (effect parameters, if any, at 0).
     pub fn theta(&self, spline: &Spline, x: &[f64]) -> Vec<f64> {
         let mut th = spline.coeffs().to_vec();
         th.extend(self.active.iter().map(|&k| x[k]));
+        th.extend(std::iter::repeat_n(0.0, self.n_effect_params()));
         th
+    }
+
+    /// Append catalogue effects to the model: their parameters θ_E follow
+    /// x_a in θ (θ = [c, x_a, θ_E]), enter every IMU row through
+    /// ∂z/∂θ_E ([`crate::effects`]) and carry their zero-mean priors.
+    pub fn with_effects(mut self, effects: &'a EffectSet) -> Self {
+        let (nx, na) = (self.layout.len(), self.active.len());
+        for cols in &mut self.sensor_columns {
+            cols.extend((0..effects.len()).map(|e| (nx + e, na + e)));
+        }
+        self.effects = Some(effects);
+        self
+    }
+
+    /// Number of effect parameters θ_E.
+    pub fn n_effect_params(&self) -> usize {
+        self.effects.map_or(0, |e| e.len())
+    }
+
+    /// The effect parameters θ_E of θ.
+    pub fn effect_params_of<'t>(&self, theta: &'t [f64]) -> &'t [f64] {
+        &theta[self.n_coeffs() + self.active.len()..]
     }
 
     /// The full x of θ.

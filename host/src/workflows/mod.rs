@@ -3,6 +3,7 @@
 //! * [`allan`] — Allan deviation of a static IMU recording;
 //! * [`baseline`] — the classical tracker-based robot and IMU calibrations;
 //! * [`calibrate`] — the MAP calibration of one session;
+//! * [`diagnose`] — model-discrepancy diagnosis with the effect catalogue;
 //! * [`identifiable`] — which generalized errors the IMU data can identify;
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
 //! * [`noise`] — Σ_z and Σ_q of a recording by spline fitting (paper §8.1);
@@ -15,6 +16,7 @@
 pub mod allan;
 pub mod baseline;
 pub mod calibrate;
+pub mod diagnose;
 pub mod identifiable;
 pub mod montecarlo;
 pub mod noise;
