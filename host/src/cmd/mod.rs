@@ -4,9 +4,11 @@
 pub mod allan;
 pub mod calibrate;
 pub mod demo;
+pub mod identifiability;
 pub mod input;
 pub mod montecarlo;
 pub mod noise;
+pub mod plan;
 pub mod simulate;
 
 /// What `robimu` can do (each command's help is its struct's doc comment).
@@ -19,6 +21,8 @@ pub enum Command {
     MonteCarlo(montecarlo::MonteCarloCmd),
     Noise(noise::NoiseCmd),
     Allan(allan::AllanCmd),
+    Plan(plan::PlanCmd),
+    Identifiability(identifiability::IdentifiabilityCmd),
 }
 
 impl Command {
@@ -31,6 +35,8 @@ impl Command {
             Command::MonteCarlo(c) => c.run(),
             Command::Noise(c) => c.run(),
             Command::Allan(c) => c.run(),
+            Command::Plan(c) => c.run(),
+            Command::Identifiability(c) => c.run(),
         }
     }
 }

@@ -19,3 +19,5 @@ pub mod repeatability;
 pub mod simulate;
 pub mod time_offset;
 pub mod trajectory;
+pub mod plan;
+pub mod identifiability;
