@@ -66,8 +66,8 @@ pub fn read_plan_spline(robot: &robimu::model::Robot, dir: &Path) -> anyhow::Res
     let spline = if path.is_file() {
         let text = std::fs::read_to_string(&path)
             .with_context(|| format!("cannot read {}", path.display()))?;
-        let file: SplineFile =
-            toml::from_str(&text).with_context(|| format!("{}: not a spline file", path.display()))?;
+        let file: SplineFile = toml::from_str(&text)
+            .with_context(|| format!("{}: not a spline file", path.display()))?;
         file.spline()
             .with_context(|| format!("{}: not a valid spline", path.display()))?
     } else {
@@ -175,15 +175,25 @@ impl IdentifiabilityCmd {
         let (lnames, rows) = length_sigma_vs_speed(&info, &spline, &self.speeds);
         let mut f = create(&dir.join("speed.csv"))?;
         writeln!(f, "speed,{}", lnames.join(","))?;
-        writeln!(out, "robot length parameters: posterior sigma [mm] against speed")?;
-        writeln!(out, "{:>6} {}", "speed", lnames.iter().map(|n| format!("{n:>9}")).collect::<String>())?;
+        writeln!(
+            out,
+            "robot length parameters: posterior sigma [mm] against speed"
+        )?;
+        writeln!(
+            out,
+            "{:>6} {}",
+            "speed",
+            lnames.iter().map(|n| format!("{n:>9}")).collect::<String>()
+        )?;
         for (s, row) in self.speeds.iter().zip(&rows) {
             let cols: Vec<String> = row.iter().map(|v| format!("{v:e}")).collect();
             writeln!(f, "{s},{}", cols.join(","))?;
             writeln!(
                 out,
                 "{s:>6} {}",
-                row.iter().map(|v| format!("{:>9.4}", v * 1e3)).collect::<String>()
+                row.iter()
+                    .map(|v| format!("{:>9.4}", v * 1e3))
+                    .collect::<String>()
             )?;
         }
         f.flush()?;
@@ -197,12 +207,20 @@ impl IdentifiabilityCmd {
                 .map(|(k, n)| {
                     (
                         n.clone(),
-                        self.speeds.iter().zip(&rows).map(|(s, r)| (*s, r[k])).collect(),
+                        self.speeds
+                            .iter()
+                            .zip(&rows)
+                            .map(|(s, r)| (*s, r[k]))
+                            .collect(),
                     )
                 })
                 .collect(),
         };
-        loglog_panels(&dir.join("speed"), "Length identifiability against speed", &[panel])?;
+        loglog_panels(
+            &dir.join("speed"),
+            "Length identifiability against speed",
+            &[panel],
+        )?;
 
         // Fig. 5: the plan against random trajectories
         let step = 5.0;
@@ -212,7 +230,12 @@ impl IdentifiabilityCmd {
         for kind in [Baseline::Uniform, Baseline::RandomWalk] {
             let mut v = Vec::new();
             for k in 0..self.random {
-                progress.set_message(format!("random trajectory {:?} {}/{}", kind, k + 1, self.random));
+                progress.set_message(format!(
+                    "random trajectory {:?} {}/{}",
+                    kind,
+                    k + 1,
+                    self.random
+                ));
                 let s = baseline(&robot, kind, duration, &mut rng)
                     .context("cannot make a random trajectory")?;
                 v.push(lambda_vs_time(&info, &s, step));
@@ -308,7 +331,10 @@ impl IdentifiabilityCmd {
             let mut errs = Vec::new();
             for (name, s) in [("plan", &spline), ("random walk", &walk)] {
                 let e = monte_carlo_errors(&robot, s, self.montecarlo, self.seed, |r| {
-                    progress.set_message(format!("Monte Carlo on the {name}: run {r}/{}", self.montecarlo))
+                    progress.set_message(format!(
+                        "Monte Carlo on the {name}: run {r}/{}",
+                        self.montecarlo
+                    ))
                 })
                 .with_context(|| format!("Monte Carlo on the {name}"))?;
                 errs.push(error_moments(&e, &v));
@@ -325,7 +351,11 @@ impl IdentifiabilityCmd {
             )?;
         }
         progress.finish();
-        writeln!(out, "wrote sigma_vs_time, speed and baselines (.csv, .png, .svg) to {}", dir.display())?;
+        writeln!(
+            out,
+            "wrote sigma_vs_time, speed and baselines (.csv, .png, .svg) to {}",
+            dir.display()
+        )?;
         Ok(())
     }
 }

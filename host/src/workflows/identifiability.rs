@@ -30,7 +30,11 @@ pub fn sigma_vs_time(info: &Information, spline: &Spline, step: f64) -> (Vec<f64
         info.accumulate(spline, a, b, last, 1.0, Sampling::Exact, &mut lam);
         if let Some(cov) = covariance(&lam, &all) {
             times.push(b - t0);
-            sigmas.push((0..all.len()).map(|k| cov[(k, k)].max(0.0).sqrt()).collect());
+            sigmas.push(
+                (0..all.len())
+                    .map(|k| cov[(k, k)].max(0.0).sqrt())
+                    .collect(),
+            );
         }
         a = b;
     }
