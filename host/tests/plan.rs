@@ -104,8 +104,8 @@ fn direct_information(robot: &Robot, spline: &robimu::model::Spline, rate: f64) 
         for a in 0..np {
             for b in 0..np {
                 let mut v = 0.0;
-                for r in 0..6 {
-                    v += jac.dz_dx[a][r] * jac.dz_dx[b][r] / (sz[r] * sz[r]);
+                for (r, s) in sz.iter().enumerate() {
+                    v += jac.dz_dx[a][r] * jac.dz_dx[b][r] / (s * s);
                 }
                 lam[(a, b)] += v;
             }
