@@ -3,8 +3,10 @@
 //! * [`allan`] — Allan deviation of a static IMU recording;
 //! * [`calibrate`] — the MAP calibration of one session;
 //! * [`identifiable`] — which generalized errors the IMU data can identify;
+//! * [`identifiability`] — σ against length, speed and random trajectories (paper §8.2, §8.4);
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
 //! * [`noise`] — Σ_z and Σ_q of a recording by spline fitting (paper §8.1);
+//! * [`plan`] — excitation trajectory planning (paper §7);
 //! * [`repeatability`] — calibrations of k time windows against the full one;
 //! * [`simulate`] — simulated sessions from a ground truth;
 //! * [`time_offset`] — finding τ before linearising;
