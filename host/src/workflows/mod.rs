@@ -14,12 +14,12 @@
 
 pub mod allan;
 pub mod calibrate;
+pub mod identifiability;
 pub mod identifiable;
 pub mod montecarlo;
 pub mod noise;
+pub mod plan;
 pub mod repeatability;
 pub mod simulate;
 pub mod time_offset;
 pub mod trajectory;
-pub mod plan;
-pub mod identifiability;
