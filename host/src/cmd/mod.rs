@@ -7,10 +7,12 @@ pub mod correct;
 pub mod demo;
 pub mod diagnose;
 pub mod export;
+pub mod identifiability;
 pub mod import;
 pub mod input;
 pub mod montecarlo;
 pub mod noise;
+pub mod plan;
 pub mod record;
 pub mod repair;
 pub mod report;
@@ -21,20 +23,22 @@ pub mod validate;
 #[derive(Debug, clap::Subcommand)]
 pub enum Command {
     Demo(demo::DemoCmd),
+    Plan(plan::PlanCmd),
+    Record(record::RecordCmd),
+    Repair(repair::RepairCmd),
+    Import(import::ImportCmd),
     Simulate(simulate::SimulateCmd),
     Calibrate(calibrate::CalibrateCmd),
+    Diagnose(diagnose::DiagnoseCmd),
+    Validate(validate::ValidateCmd),
+    Report(report::ReportCmd),
+    Export(export::ExportCmd),
+    Correct(correct::CorrectCmd),
+    Identifiability(identifiability::IdentifiabilityCmd),
     #[command(name = "montecarlo")]
     MonteCarlo(montecarlo::MonteCarloCmd),
     Noise(noise::NoiseCmd),
     Allan(allan::AllanCmd),
-    Record(record::RecordCmd),
-    Repair(repair::RepairCmd),
-    Export(export::ExportCmd),
-    Correct(correct::CorrectCmd),
-    Import(import::ImportCmd),
-    Validate(validate::ValidateCmd),
-    Report(report::ReportCmd),
-    Diagnose(diagnose::DiagnoseCmd),
 }
 
 impl Command {
@@ -55,6 +59,8 @@ impl Command {
             Command::Validate(c) => c.run(),
             Command::Report(c) => c.run(),
             Command::Diagnose(c) => c.run(),
+            Command::Plan(c) => c.run(),
+            Command::Identifiability(c) => c.run(),
         }
     }
 }
