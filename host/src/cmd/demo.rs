@@ -9,14 +9,13 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use rand::SeedableRng;
 use robimu::hil::rig::{SimRig, SimRigConfig};
 use robimu::model::Robot;
 use robimu::record::motion::Plan;
 use robimu::record::RecordOptions;
 use robimu::robot::RobotSpec;
 use robimu::session::{files, Truth};
-use robimu::workflows::trajectory::random_walk;
+use robimu::workflows::plan::PlanOptions;
 use robimu_protocol::SensorConfig;
 
 use super::calibrate::CalibrateCmd;
@@ -66,17 +65,29 @@ impl DemoCmd {
         let robot = Robot::aubo_i5();
 
         writeln!(out, "== 1. plan ==")?;
-        let mut rng = rand::rngs::StdRng::seed_from_u64(self.seed ^ 0x9A17);
-        let trajectory = random_walk(&robot, self.duration, 1.0, &mut rng)
-            .context("cannot make the excitation trajectory")?;
-        let plan = Plan::from_spline(&trajectory, 250.0);
+        let progress = super::input::Progress::start("planning");
+        let t0 = Instant::now();
+        let planned = robimu::workflows::plan::plan(
+            &robot,
+            &PlanOptions {
+                duration: self.duration,
+                seed: self.seed,
+                ..PlanOptions::default()
+            },
+            |b, nb, l| progress.set_message(format!("planning: block {b}/{nb}, λ_max ≈ {l:.3e}")),
+        )
+        .context("cannot plan the excitation trajectory")?;
+        progress.finish();
+        let plan = Plan::from_spline(&planned.spline, 250.0);
         let plan_csv = plan_dir.join("plan.csv");
         plan.write_csv(&plan_csv)
             .with_context(|| format!("cannot write {}", plan_csv.display()))?;
         writeln!(
             out,
-            "{} s random walk near the joint speed limits, at rest at both ends: {} ({} waypoints at 250 Hz)",
+            "{} s excitation planned in {:.1} s (sequential, min λ_max(Σ_x) = {:.3e} in SI; exact joint limits; at rest at both ends): {} ({} waypoints at 250 Hz)",
             self.duration,
+            t0.elapsed().as_secs_f64(),
+            planned.lambda_max.last().copied().unwrap_or(f64::NAN),
             plan_csv.display(),
             plan.q.len()
         )?;
