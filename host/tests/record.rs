@@ -378,10 +378,7 @@ fn recording_from_the_simulated_ur_controller_runs_the_plan() {
     let m = session.measurements();
     // The last joint sample is the plan's last pose (within lag and noise).
     let last = &m.joint_q[m.joint_q.len() - 6..];
-    for j in 0..6 {
-        assert!(
-            (last[j] - plan.q[plan.q.len() - 1][j]).abs() < 3e-3,
-            "joint {j}"
-        );
+    for (j, (q, want)) in last.iter().zip(plan.q[plan.q.len() - 1]).enumerate() {
+        assert!((q - want).abs() < 3e-3, "joint {j}");
     }
 }
