@@ -1,16 +1,17 @@
 //! Recording pipeline throughput: 600 000 `ImuSample` frames (83 minutes at
-//! 120 Hz) through everything the host does with them in `robimu record` —
-//! COBS/CRC decoding ([`LinkReader`]), device-clock unwrapping, the clock
-//! fit from ping echoes (one every 12 samples, as at 10 Hz), the session's
-//! CSV rows with a flush every 120 frames — and the final re-mapping of
-//! every IMU time (`repair::remap_imu_times`). Only the serial port itself
-//! is left out.
+//! 120 Hz) pushed through a pseudo-terminal as fast as it takes them (a
+//! writer thread on the master side, the host opening the slave by path as
+//! it opens /dev/ttyUSB0), then everything the host does with them in
+//! `robimu record` — COBS/CRC decoding ([`LinkReader`]), device-clock
+//! unwrapping, the clock fit from ping echoes (one every 12 samples, as at
+//! 10 Hz), the session's CSV rows with a flush every 120 frames — and the
+//! final re-mapping of every IMU time (`repair::remap_imu_times`).
 //!
 //! `cargo bench -p robimu --bench record`. Target: ≥ 1000 frames/s (the
 //! board streams at most 1 kHz). Checks every frame reached imu.csv.
 
-use std::io::Cursor;
-use std::time::Instant;
+use std::io::Write;
+use std::time::{Duration, Instant};
 
 use robimu::link::{DeviceClock, LinkReader};
 use robimu::record::clock_fit::Echo;
@@ -40,10 +41,35 @@ fn main() {
     let start = Instant::now();
     let mut sink =
         SessionSink::create(dir.path(), &SessionMeta::new("aubo_i5"), 6).expect("session created");
-    let mut reader: LinkReader<_> = LinkReader::new(Cursor::new(bytes));
+    let (mut master, slave) = serialport::TTYPort::pair().expect("pseudo-terminal pair");
+    let path = serialport::SerialPort::name(&slave).expect("slave path");
+    drop(slave);
+    let port = serialport::new(&path, 921_600)
+        .timeout(Duration::from_millis(500))
+        .open()
+        .expect("open the slave");
+    let total_bytes = bytes.len();
+    let writer = std::thread::spawn(move || {
+        serialport::SerialPort::set_timeout(&mut master, Duration::from_secs(5)).expect("timeout");
+        for chunk in bytes.chunks(4096) {
+            master.write_all(chunk).expect("pty write");
+        }
+        master.flush().expect("pty flush");
+        // Keep the master open until the reader is done.
+        master
+    });
+    let mut reader: LinkReader<_> = LinkReader::new(port);
     let mut clock = DeviceClock::new();
     let mut count = 0u32;
-    while let Some(msg) = reader.next_message().expect("in-memory read") {
+    while count < FRAMES {
+        let msg = match reader.next_message() {
+            Ok(Some(msg)) => msg,
+            Ok(None) => continue,
+            Err(robimu::link::LinkError::Read(e)) if e.kind() == std::io::ErrorKind::TimedOut => {
+                continue
+            }
+            Err(e) => panic!("pty read: {e}"),
+        };
         let Some(t_us) = clock.observe(&msg) else {
             continue;
         };
@@ -84,7 +110,11 @@ fn main() {
             sink.flush().expect("flush");
         }
     }
+    drop(writer.join().expect("writer"));
     let written = sink.progress.imu_samples;
+    let stats = *reader.stats();
+    assert_eq!(stats.bytes_received as usize, total_bytes);
+    assert_eq!(stats.errors(), 0);
     let path = sink.finish().expect("finish");
     let streaming = start.elapsed().as_secs_f64();
     remap_imu_times(&path).expect("remap");
@@ -97,7 +127,7 @@ fn main() {
         .count();
     assert_eq!(rows, FRAMES as usize + 1);
     println!(
-        "recording pipeline: {FRAMES} frames in {total:.2} s ({:.0} frames/s; streaming part {:.0} frames/s, final re-mapping {:.2} s)",
+        "recording pipeline through a pty: {FRAMES} frames ({total_bytes} bytes) in {total:.2} s ({:.0} frames/s; streaming part {:.0} frames/s, final re-mapping {:.2} s)",
         f64::from(FRAMES) / total,
         f64::from(FRAMES) / streaming,
         total - streaming
