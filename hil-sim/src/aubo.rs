@@ -850,6 +850,19 @@ fn spline_derivatives(points: &[Joints], h: f64, tau: f64) -> [Joints; 3] {
     out
 }
 
+/// One step of the first-order tracking lag `dq/dt = (r − q)/T` over `h`
+/// seconds, exact for a reference linear from `r_prev` to `r` within the
+/// step: with `r = r₀ + s·t`, `q − r + sT` decays as `e^(−t/T)`. `T = 0`
+/// tracks the reference exactly.
+pub(crate) fn lag_step(q: &mut Joints, r_prev: &Joints, r: &Joints, h: f64, lag_s: f64) {
+    let decay = if lag_s > 0.0 { (-h / lag_s).exp() } else { 0.0 };
+    for i in 0..JOINTS {
+        let s = (r[i] - r_prev[i]) / h;
+        let tail = s * lag_s;
+        q[i] = r[i] - tail + (q[i] - r_prev[i] + tail) * decay;
+    }
+}
+
 /// Cubic Hermite interpolation with central-difference tangents (one-sided
 /// at the ends).
 fn spline_eval(points: &[Joints], h: f64, tau: f64) -> Joints {
@@ -1041,17 +1054,7 @@ impl Robot {
             let h = (t - self.t).min(MAX_STEP_S);
             let t_next = self.t + h;
             let r = self.reference(t_next);
-            let decay = if self.lag_s > 0.0 {
-                (-h / self.lag_s).exp()
-            } else {
-                0.0
-            };
-            for i in 0..JOINTS {
-                // dq/dt = (r − q)/τ with r = r₀ + s·t: q − r + sτ decays as e^(−t/τ).
-                let s = (r[i] - self.r_prev[i]) / h;
-                let tail = s * self.lag_s;
-                self.q[i] = r[i] - tail + (self.q[i] - self.r_prev[i] + tail) * decay;
-            }
+            lag_step(&mut self.q, &self.r_prev, &r, h, self.lag_s);
             self.r_prev = r;
             self.t = t_next;
             self.log.push(TrueSample {

@@ -47,7 +47,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-use crate::aubo::{lock, Joints, Noise, TrueSample, JOINTS};
+use crate::aubo::{lag_step, lock, Joints, Noise, TrueSample, JOINTS};
 
 /// Largest integration step of the simulation, s.
 const MAX_STEP_S: f64 = 0.002;
@@ -789,16 +789,7 @@ impl Robot {
             let h = (t - self.t).min(MAX_STEP_S);
             let t_next = self.t + h;
             let r = self.reference(t_next);
-            let decay = if self.lag_s > 0.0 {
-                (-h / self.lag_s).exp()
-            } else {
-                0.0
-            };
-            for i in 0..JOINTS {
-                let s = (r[i] - self.r_prev[i]) / h;
-                let tail = s * self.lag_s;
-                self.q[i] = r[i] - tail + (self.q[i] - self.r_prev[i] + tail) * decay;
-            }
+            lag_step(&mut self.q, &self.r_prev, &r, h, self.lag_s);
             self.r_prev = r;
             self.t = t_next;
             self.log.push(TrueSample {
