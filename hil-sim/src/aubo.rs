@@ -219,6 +219,19 @@ pub struct TrueState {
     pub qdd: Joints,
 }
 
+/// Where a simulated IMU on the flange gets the arm's true motion: any
+/// simulated controller's state probe.
+pub trait TrueMotion: Send {
+    /// The true state now.
+    fn now(&self) -> TrueState;
+}
+
+impl TrueMotion for StateProbe {
+    fn now(&self) -> TrueState {
+        StateProbe::now(self)
+    }
+}
+
 /// Reads the simulated arm's true state from another thread (a simulated
 /// IMU on the flange uses it as its physics). Cloneable; keeps the
 /// simulation's state alive but not its threads.

@@ -47,7 +47,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-use crate::aubo::{lag_step, lock, Joints, Noise, TrueSample, JOINTS};
+use crate::aubo::{lag_step, lock, Joints, Noise, TrueMotion, TrueSample, TrueState, JOINTS};
 
 /// Largest integration step of the simulation, s.
 const MAX_STEP_S: f64 = 0.002;
@@ -202,6 +202,14 @@ impl SimUr {
             .map_err(SimUrError::Thread)?;
         self.threads.push(handle);
         Ok(())
+    }
+
+    /// A handle that reads the true joint state (angles, velocities,
+    /// accelerations) from any thread.
+    pub fn state_probe(&self) -> UrStateProbe {
+        UrStateProbe {
+            shared: Arc::clone(&self.shared),
+        }
     }
 
     /// The RTDE address.
@@ -689,6 +697,19 @@ fn parse_statement(line: &str) -> Result<Command, String> {
     }
 }
 
+/// Reads the simulated UR arm's true state from another thread.
+#[derive(Clone)]
+pub struct UrStateProbe {
+    shared: Arc<Shared>,
+}
+
+impl TrueMotion for UrStateProbe {
+    fn now(&self) -> TrueState {
+        let t = self.shared.now();
+        lock(&self.shared.robot).true_state(t)
+    }
+}
+
 /// A linear ramp of the reference.
 #[derive(Clone, Copy, Debug)]
 struct Ramp {
@@ -764,6 +785,11 @@ impl Robot {
 
     /// The reference at `t` (retires finished ramps).
     fn reference(&mut self, t: f64) -> Joints {
+        self.reference_and_rate(t).0
+    }
+
+    /// The reference and its rate at `t` (retires finished ramps).
+    fn reference_and_rate(&mut self, t: f64) -> (Joints, Joints) {
         while let Some(r) = self.queue.front() {
             let tau = t - self.front_start;
             if tau >= r.duration {
@@ -774,12 +800,35 @@ impl Robot {
             }
             let u = (tau / r.duration).max(0.0);
             let mut q = r.from;
+            let mut rate = [0.0; JOINTS];
             for i in 0..JOINTS {
                 q[i] += (r.to[i] - r.from[i]) * u;
+                rate[i] = (r.to[i] - r.from[i]) / r.duration;
             }
-            return q;
+            return (q, rate);
         }
-        self.hold
+        (self.hold, [0.0; JOINTS])
+    }
+
+    /// The true state at `t`: `q̇ = (r − q)/T`, `q̈ = (ṙ − q̇)/T` with the
+    /// ramps' own rates (without a lag, the reference's; q̈ = 0 within a
+    /// ramp).
+    fn true_state(&mut self, t: f64) -> TrueState {
+        self.advance_to(t);
+        let (r, rd) = self.reference_and_rate(t.max(self.t));
+        let mut state = TrueState {
+            t: self.t,
+            q: self.q,
+            qd: rd,
+            qdd: [0.0; JOINTS],
+        };
+        if self.lag_s > 0.0 {
+            for i in 0..JOINTS {
+                state.qd[i] = (r[i] - self.q[i]) / self.lag_s;
+                state.qdd[i] = (rd[i] - state.qd[i]) / self.lag_s;
+            }
+        }
+        state
     }
 
     /// Integrates the lag up to `t`, exactly for a reference linear within

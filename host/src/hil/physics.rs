@@ -2,7 +2,8 @@
 //!
 //! [`ModelSource`] is a [`SampleSource`] for the register-level BNO055: each
 //! time the firmware latches a reading it takes the simulated arm's true
-//! joint state at that instant ([`StateProbe::now`]), predicts the sensor
+//! joint state at that instant ([`TrueMotion::now`], from the simulated
+//! AUBO or UR controller), predicts the sensor
 //! output with the measurement model at the hidden truth x* (MODEL.md §2–3,
 //! paper (5)–(6)), adds Gaussian noise Σ_z, and turns it into register
 //! counts as the chip does: rounded to the LSB (0.01 m/s², 1/900 rad/s with
@@ -16,7 +17,7 @@ use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use robimu_bno055_sim::{RawReading, SampleSource};
-use robimu_hil_sim::aubo::StateProbe;
+use robimu_hil_sim::aubo::TrueMotion;
 
 use crate::model::{JointState, MeasurementModel};
 
@@ -27,7 +28,7 @@ pub const GYRO_LSB: f64 = 1.0 / 900.0;
 
 /// IMU readings computed from the simulated arm's true motion.
 pub struct ModelSource {
-    probe: StateProbe,
+    probe: Box<dyn TrueMotion>,
     model: MeasurementModel,
     sigma_z: [f64; 6],
     accel_full_scale: f64,
@@ -41,7 +42,12 @@ impl ModelSource {
     /// Readings of `model` (the hidden truth) along the arm `probe` reads,
     /// with noise of standard deviations `sigma_z` (m/s² ×3, rad/s ×3), the
     /// chip's default ranges (±4 g, ±2000 °/s) and 25 °C.
-    pub fn new(probe: StateProbe, model: MeasurementModel, sigma_z: [f64; 6], seed: u64) -> Self {
+    pub fn new(
+        probe: Box<dyn TrueMotion>,
+        model: MeasurementModel,
+        sigma_z: [f64; 6],
+        seed: u64,
+    ) -> Self {
         Self {
             probe,
             model,

@@ -12,8 +12,9 @@
 use std::net::SocketAddr;
 
 use rand::SeedableRng;
-use robimu_hil_sim::aubo::{JointLimits, SimAubo, SimAuboConfig, SimAuboError, JOINTS};
+use robimu_hil_sim::aubo::{JointLimits, SimAubo, SimAuboConfig, SimAuboError, TrueMotion, JOINTS};
 use robimu_hil_sim::device::{SimDevice, SimDeviceConfig, SimDeviceError};
+use robimu_hil_sim::ur::{SimUr, SimUrConfig, SimUrError};
 
 use super::physics::ModelSource;
 use crate::model::{MeasurementModel, ModelError, ParamLayout, Robot};
@@ -37,6 +38,9 @@ pub enum RigError {
     /// The simulated controller did not start.
     #[error("cannot start the simulated robot controller: {0}")]
     Robot(#[from] SimAuboError),
+    /// The simulated UR controller did not start.
+    #[error("cannot start the simulated UR controller: {0}")]
+    Ur(#[from] SimUrError),
     /// The simulated IMU board did not start.
     #[error("cannot start the simulated IMU board: {0}")]
     Device(#[from] SimDeviceError),
@@ -106,12 +110,6 @@ impl SimRig {
                 dof: robot.dof(),
             });
         }
-        let layout = ParamLayout::new(robot);
-        let mut x = config.truth.clone();
-        if let Some(tau) = x.get_mut(layout.offsets().tau) {
-            *tau = 0.0;
-        }
-        let model = MeasurementModel::new(robot, &layout, &x)?;
         let sigma_q: [f64; JOINTS] = std::array::from_fn(|j| robot.sigma_q()[j]);
         // The controller's own limits are the hardware's (wider than a
         // plan's), as on the real arm.
@@ -123,20 +121,7 @@ impl SimRig {
             seed: config.seed ^ 0xA0B0,
             ..SimAuboConfig::default()
         })?;
-        let source = ModelSource::new(aubo.state_probe(), model, robot.sigma_z(), config.seed);
-        let mut device_config = SimDeviceConfig::new(Box::new(source));
-        device_config.clock_offset_us = config.clock_offset_us;
-        device_config.clock_drift_ppm = config.clock_drift_ppm;
-        device_config.fault_seed = config.seed ^ 0xFA17;
-        let device = SimDevice::spawn(device_config)?;
-        let truth = Truth {
-            values: layout
-                .specs()
-                .iter()
-                .zip(&x)
-                .map(|(s, v)| (s.name.clone(), *v))
-                .collect(),
-        };
+        let (device, truth) = imu_board(config, Box::new(aubo.state_probe()))?;
         Ok(SimRig {
             aubo,
             device,
@@ -160,6 +145,94 @@ impl SimRig {
     }
 
     /// The hidden truth (τ = 0), as `truth.toml` lists it.
+    pub fn truth(&self) -> &Truth {
+        &self.truth
+    }
+}
+
+/// The simulated IMU board on the flange of the arm `motion` reads, at the
+/// hidden truth (τ forced to 0).
+fn imu_board(
+    config: &SimRigConfig,
+    motion: Box<dyn TrueMotion>,
+) -> Result<(SimDevice, Truth), RigError> {
+    let robot = &config.robot;
+    if robot.dof() != JOINTS {
+        return Err(RigError::Joints {
+            name: robot.name().to_string(),
+            dof: robot.dof(),
+        });
+    }
+    let layout = ParamLayout::new(robot);
+    let mut x = config.truth.clone();
+    if let Some(tau) = x.get_mut(layout.offsets().tau) {
+        *tau = 0.0;
+    }
+    let model = MeasurementModel::new(robot, &layout, &x)?;
+    let source = ModelSource::new(motion, model, robot.sigma_z(), config.seed);
+    let mut device_config = SimDeviceConfig::new(Box::new(source));
+    device_config.clock_offset_us = config.clock_offset_us;
+    device_config.clock_drift_ppm = config.clock_drift_ppm;
+    device_config.fault_seed = config.seed ^ 0xFA17;
+    let device = SimDevice::spawn(device_config)?;
+    let truth = Truth {
+        values: layout
+            .specs()
+            .iter()
+            .zip(&x)
+            .map(|(s, v)| (s.name.clone(), *v))
+            .collect(),
+    };
+    Ok((device, truth))
+}
+
+/// The same rig around a simulated Universal Robots controller (RTDE at
+/// 125 Hz, URScript `servoj` programs; encoder noise the smallest of the
+/// robot's Σ_q, as the simulator has one level for all joints).
+pub struct SimUrRig {
+    /// The simulated controller.
+    pub ur: SimUr,
+    /// The simulated IMU board.
+    pub device: SimDevice,
+    truth: Truth,
+}
+
+impl SimUrRig {
+    /// Starts the controller and the board.
+    pub fn spawn(config: &SimRigConfig) -> Result<SimUrRig, RigError> {
+        let noise = config
+            .robot
+            .sigma_q()
+            .iter()
+            .fold(f64::INFINITY, |m, s| m.min(*s));
+        let ur = SimUr::spawn(SimUrConfig {
+            control_rate_hz: 125.0,
+            initial: config.initial,
+            tracking_lag_s: config.tracking_lag_s,
+            encoder_noise_rad: noise,
+            seed: config.seed ^ 0x0B0E,
+            ..SimUrConfig::default()
+        })?;
+        let (device, truth) = imu_board(config, Box::new(ur.state_probe()))?;
+        Ok(SimUrRig { ur, device, truth })
+    }
+
+    /// The IMU board's serial port.
+    pub fn imu_port(&self) -> &str {
+        self.device.port_path()
+    }
+
+    /// `ur:HOST:RTDE_PORT:SCRIPT_PORT` for `robimu record --robot`.
+    pub fn robot_spec(&self) -> String {
+        format!(
+            "ur:{}:{}:{}",
+            self.ur.rtde_addr().ip(),
+            self.ur.rtde_addr().port(),
+            self.ur.script_addr().port()
+        )
+    }
+
+    /// The hidden truth (τ = 0).
     pub fn truth(&self) -> &Truth {
         &self.truth
     }
