@@ -876,6 +876,27 @@ pub(crate) fn lag_step(q: &mut Joints, r_prev: &Joints, r: &Joints, h: f64, lag_
     }
 }
 
+/// The true state of a joint vector following `reference = [r, ṙ, r̈]`
+/// through the first-order lag `T` ([`lag_step`]), at angles `q`:
+/// `q̇ = (r − q)/T`, `q̈ = (ṙ − q̇)/T` (the lag's own equation); without a
+/// lag the reference's own derivatives.
+pub(crate) fn lagged_state(t: f64, q: Joints, reference: [Joints; 3], lag_s: f64) -> TrueState {
+    let [r, rd, rdd] = reference;
+    let mut state = TrueState {
+        t,
+        q,
+        qd: rd,
+        qdd: rdd,
+    };
+    if lag_s > 0.0 {
+        for i in 0..JOINTS {
+            state.qd[i] = (r[i] - q[i]) / lag_s;
+            state.qdd[i] = (rd[i] - state.qd[i]) / lag_s;
+        }
+    }
+    state
+}
+
 /// Cubic Hermite interpolation with central-difference tangents (one-sided
 /// at the ends).
 fn spline_eval(points: &[Joints], h: f64, tau: f64) -> Joints {
@@ -1043,20 +1064,8 @@ impl Robot {
     /// without one the reference's own derivatives.
     fn state_at(&mut self, t: f64) -> TrueState {
         self.advance_to(t);
-        let [r, rd, rdd] = self.reference_derivatives(t.max(self.t));
-        let mut state = TrueState {
-            t: self.t,
-            q: self.q,
-            qd: rd,
-            qdd: rdd,
-        };
-        if self.lag_s > 0.0 {
-            for i in 0..JOINTS {
-                state.qd[i] = (r[i] - self.q[i]) / self.lag_s;
-                state.qdd[i] = (rd[i] - state.qd[i]) / self.lag_s;
-            }
-        }
-        state
+        let reference = self.reference_derivatives(t.max(self.t));
+        lagged_state(self.t, self.q, reference, self.lag_s)
     }
 
     /// Integrates the tracking lag up to time `t`: exactly for a reference

@@ -47,7 +47,9 @@ use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-use crate::aubo::{lag_step, lock, Joints, Noise, TrueMotion, TrueSample, TrueState, JOINTS};
+use crate::aubo::{
+    lag_step, lagged_state, lock, Joints, Noise, TrueMotion, TrueSample, TrueState, JOINTS,
+};
 
 /// Largest integration step of the simulation, s.
 const MAX_STEP_S: f64 = 0.002;
@@ -816,19 +818,7 @@ impl Robot {
     fn true_state(&mut self, t: f64) -> TrueState {
         self.advance_to(t);
         let (r, rd) = self.reference_and_rate(t.max(self.t));
-        let mut state = TrueState {
-            t: self.t,
-            q: self.q,
-            qd: rd,
-            qdd: [0.0; JOINTS],
-        };
-        if self.lag_s > 0.0 {
-            for i in 0..JOINTS {
-                state.qd[i] = (r[i] - self.q[i]) / self.lag_s;
-                state.qdd[i] = (rd[i] - state.qd[i]) / self.lag_s;
-            }
-        }
-        state
+        lagged_state(self.t, self.q, [r, rd, [0.0; JOINTS]], self.lag_s)
     }
 
     /// Integrates the lag up to `t`, exactly for a reference linear within
