@@ -14,8 +14,8 @@ use robimu::model::{ParamLayout, Robot};
 use robimu::record::motion::Plan;
 use robimu::record::{record, RecordError, RecordOptions, RecordSummary};
 use robimu::robot::RobotSpec;
-use robimu::session::Session;
-use robimu::workflows::calibrate::{calibrate, CalibrateOptions};
+use robimu::session::{Session, Truth};
+use robimu::workflows::calibrate::{calibrate, CalibrateOptions, Calibration};
 use robimu::workflows::trajectory::random_walk;
 use robimu_hil_sim::aubo::FaultSwitches;
 use robimu_hil_sim::device::SerialFaults;
@@ -27,10 +27,20 @@ fn rig(seed: u64) -> SimRig {
 }
 
 fn options(rig: &SimRig, out: &Path, plan: Option<Plan>, duration: f64) -> RecordOptions {
+    options_for(rig.imu_port(), &rig.robot_spec(), out, plan, duration)
+}
+
+fn options_for(
+    imu_port: &str,
+    robot_spec: &str,
+    out: &Path,
+    plan: Option<Plan>,
+    duration: f64,
+) -> RecordOptions {
     RecordOptions {
-        imu_port: rig.imu_port().to_string(),
+        imu_port: imu_port.to_string(),
         baud: 921_600,
-        robot_spec: RobotSpec::parse(&rig.robot_spec()).unwrap(),
+        robot_spec: RobotSpec::parse(robot_spec).unwrap(),
         robot: Robot::aubo_i5(),
         robot_name: "aubo_i5".into(),
         plan,
@@ -40,6 +50,40 @@ fn options(rig: &SimRig, out: &Path, plan: Option<Plan>, duration: f64) -> Recor
         rest: 1.0,
         sensor: SensorConfig::default(),
     }
+}
+
+/// Calibrates the recorded session at `dir` and asserts every parameter
+/// within 4σ of `truth`; returns the calibration.
+fn calibrate_against_truth(dir: &Path, truth: &Truth, label: &str) -> Calibration {
+    let robot = Robot::aubo_i5();
+    let session = check_session(dir);
+    let layout = ParamLayout::new(&robot);
+    let cal = calibrate(
+        &robot,
+        &session.measurements(),
+        &CalibrateOptions::new(&robot),
+        |_| {},
+    )
+    .unwrap();
+    let mut worst = (0.0, String::new());
+    for (k, spec) in layout.specs().iter().enumerate() {
+        let t = truth.get(&spec.name).unwrap();
+        let z = (cal.x[k] - t) / cal.sigma[k];
+        if z.abs() > worst.0 {
+            worst = (z.abs(), spec.name.clone());
+        }
+    }
+    eprintln!(
+        "{label}: worst |error|/σ = {:.2} ({}); residual rms {:?}",
+        worst.0, worst.1, cal.residual_rms
+    );
+    assert!(
+        worst.0 < 4.0,
+        "{} is {:.2} σ from the truth",
+        worst.1,
+        worst.0
+    );
+    cal
 }
 
 /// Every IMU time strictly increasing, every joint time non-decreasing.
@@ -84,33 +128,7 @@ fn end_to_end_recording_recovers_the_hidden_truth_within_4_sigma() {
         fit.drift_ppm()
     );
 
-    let session = check_session(dir.path());
-    let layout = ParamLayout::new(&robot);
-    let cal = calibrate(
-        &robot,
-        &session.measurements(),
-        &CalibrateOptions::new(&robot),
-        |_| {},
-    )
-    .unwrap();
-    let mut worst = (0.0, String::new());
-    for (k, spec) in layout.specs().iter().enumerate() {
-        let t = truth.get(&spec.name).unwrap();
-        let z = (cal.x[k] - t) / cal.sigma[k];
-        if z.abs() > worst.0 {
-            worst = (z.abs(), spec.name.clone());
-        }
-    }
-    eprintln!(
-        "worst |error|/σ = {:.2} ({}); residual rms {:?}",
-        worst.0, worst.1, cal.residual_rms
-    );
-    assert!(
-        worst.0 < 4.0,
-        "{} is {:.2} σ from the truth",
-        worst.1,
-        worst.0
-    );
+    let cal = calibrate_against_truth(dir.path(), &truth, "AUBO");
     for r in cal.residual_rms {
         assert!((0.9..1.1).contains(&r), "whitened residual rms {r}");
     }
@@ -356,19 +374,14 @@ fn recording_from_the_simulated_ur_controller_runs_the_plan() {
         ur.script_addr().port()
     );
     let dir = tempfile::tempdir().unwrap();
-    let opts = RecordOptions {
-        imu_port: device.port_path().to_string(),
-        baud: 921_600,
-        robot_spec: RobotSpec::parse(&spec).unwrap(),
-        robot: robot.clone(),
-        robot_name: "aubo_i5".into(),
-        plan: Some(plan.clone()),
-        duration: 0.0,
-        out: dir.path().to_path_buf(),
-        joint_rate: 125.0,
-        rest: 0.5,
-        sensor: SensorConfig::default(),
-    };
+    let mut opts = options_for(
+        device.port_path(),
+        &spec,
+        dir.path(),
+        Some(plan.clone()),
+        0.0,
+    );
+    opts.rest = 0.5;
     let s = record(&opts, &mut |_| {}).unwrap();
     assert!(ur.script_errors().is_empty(), "{:?}", ur.script_errors());
     assert!((7.0..9.0).contains(&s.duration), "{}", s.duration);
@@ -398,19 +411,13 @@ fn ur_recording_recovers_the_hidden_truth_within_4_sigma() {
     config.initial = plan.q[0];
     let rig = SimUrRig::spawn(&config).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let opts = RecordOptions {
-        imu_port: rig.imu_port().to_string(),
-        baud: 921_600,
-        robot_spec: RobotSpec::parse(&rig.robot_spec()).unwrap(),
-        robot: robot.clone(),
-        robot_name: "aubo_i5".into(),
-        plan: Some(plan),
-        duration: 0.0,
-        out: dir.path().to_path_buf(),
-        joint_rate: 125.0,
-        rest: 1.0,
-        sensor: SensorConfig::default(),
-    };
+    let opts = options_for(
+        rig.imu_port(),
+        &rig.robot_spec(),
+        dir.path(),
+        Some(plan),
+        0.0,
+    );
     let summary = record(&opts, &mut |_| {}).unwrap();
     let truth = rig.truth().clone();
     assert!(
@@ -420,31 +427,5 @@ fn ur_recording_recovers_the_hidden_truth_within_4_sigma() {
     );
     drop(rig);
     assert!(summary.progress.joint_samples as f64 > 120.0 * summary.duration);
-    let session = check_session(dir.path());
-    let layout = ParamLayout::new(&robot);
-    let cal = calibrate(
-        &robot,
-        &session.measurements(),
-        &CalibrateOptions::new(&robot),
-        |_| {},
-    )
-    .unwrap();
-    let mut worst = (0.0, String::new());
-    for (k, spec) in layout.specs().iter().enumerate() {
-        let t = truth.get(&spec.name).unwrap();
-        let z = (cal.x[k] - t) / cal.sigma[k];
-        if z.abs() > worst.0 {
-            worst = (z.abs(), spec.name.clone());
-        }
-    }
-    eprintln!(
-        "UR: worst |error|/σ = {:.2} ({}); residual rms {:?}",
-        worst.0, worst.1, cal.residual_rms
-    );
-    assert!(
-        worst.0 < 4.0,
-        "{} is {:.2} σ from the truth",
-        worst.1,
-        worst.0
-    );
+    calibrate_against_truth(dir.path(), &truth, "UR");
 }
