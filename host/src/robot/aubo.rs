@@ -14,7 +14,7 @@
 //!
 //! [`JointPoller`] polls `getJointPositions` at a fixed rate in a thread.
 
-use std::io::{ErrorKind, Read, Write};
+use std::io::{ErrorKind, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver};
@@ -23,6 +23,8 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
+
+use super::{read_some, ReadOutcome};
 
 /// The ARCS controller's JSON-RPC port.
 pub const DEFAULT_PORT: u16 = 30004;
@@ -158,7 +160,6 @@ impl AuboClient {
             .write_all(request.to_string().as_bytes())
             .map_err(lost)?;
         let deadline = Instant::now() + self.timeout;
-        let mut chunk = [0u8; 4096];
         loop {
             while let Some(reply) = self.next_value(method)? {
                 if reply.get("id").and_then(Value::as_u64) == Some(id) {
@@ -166,27 +167,20 @@ impl AuboClient {
                 }
                 // A late reply to an earlier, timed-out request: skip.
             }
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(RobotError::Timeout {
-                    method: method.to_string(),
-                    timeout: self.timeout,
-                });
-            }
-            self.stream
-                .set_read_timeout(Some(deadline - now))
-                .map_err(lost)?;
-            match self.stream.read(&mut chunk) {
-                Ok(0) => {
+            match read_some(&mut self.stream, &mut self.buf, deadline).map_err(lost)? {
+                ReadOutcome::Deadline => {
+                    return Err(RobotError::Timeout {
+                        method: method.to_string(),
+                        timeout: self.timeout,
+                    })
+                }
+                ReadOutcome::Closed => {
                     return Err(RobotError::Disconnected {
                         method: method.to_string(),
                         detail: "the controller closed the connection".into(),
                     })
                 }
-                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
-                Err(e) if e.kind() == ErrorKind::Interrupted => {}
-                Err(e) => return Err(lost(e)),
+                ReadOutcome::Continue => {}
             }
         }
     }

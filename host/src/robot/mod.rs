@@ -8,6 +8,9 @@ pub mod aubo;
 pub mod ur;
 
 use std::fmt;
+use std::io::{ErrorKind, Read};
+use std::net::TcpStream;
+use std::time::Instant;
 
 /// A joint vector of a six-joint arm, rad.
 pub type Joints = [f64; 6];
@@ -182,6 +185,47 @@ impl fmt::Display for RobotSpec {
                 script_port,
             } => write!(f, "ur:{host}:{rtde_port}:{script_port}"),
         }
+    }
+}
+
+/// What one bounded read from a controller's socket gave.
+pub(crate) enum ReadOutcome {
+    /// The deadline had passed: nothing was read.
+    Deadline,
+    /// The controller closed the connection.
+    Closed,
+    /// Bytes were appended (or the wait ended early): look at the buffer.
+    Continue,
+}
+
+/// Reads once from `stream` into `buf`, waiting at most until `deadline`;
+/// `Err` for a broken socket. The drivers' receive loops share it.
+pub(crate) fn read_some(
+    stream: &mut TcpStream,
+    buf: &mut Vec<u8>,
+    deadline: Instant,
+) -> std::io::Result<ReadOutcome> {
+    let now = Instant::now();
+    if now >= deadline {
+        return Ok(ReadOutcome::Deadline);
+    }
+    stream.set_read_timeout(Some(deadline - now))?;
+    let mut chunk = [0u8; 4096];
+    match stream.read(&mut chunk) {
+        Ok(0) => Ok(ReadOutcome::Closed),
+        Ok(n) => {
+            buf.extend_from_slice(&chunk[..n]);
+            Ok(ReadOutcome::Continue)
+        }
+        Err(e)
+            if matches!(
+                e.kind(),
+                ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
+            ) =>
+        {
+            Ok(ReadOutcome::Continue)
+        }
+        Err(e) => Err(e),
     }
 }
 

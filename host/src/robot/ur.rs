@@ -22,7 +22,7 @@
 //! of `(t, q)` rows into `movej` to the first row and one `servoj` per
 //! later row, with `t` the row's interval.
 
-use std::io::{ErrorKind, Read, Write};
+use std::io::{ErrorKind, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver};
@@ -30,7 +30,7 @@ use std::sync::Arc;
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-use super::{JointSample, Joints};
+use super::{read_some, JointSample, Joints, ReadOutcome};
 
 /// RTDE's TCP port.
 pub const RTDE_PORT: u16 = 30004;
@@ -342,7 +342,6 @@ impl UrClient {
         during: &str,
         deadline: Instant,
     ) -> Result<(u8, Vec<u8>), UrError> {
-        let mut chunk = [0u8; 4096];
         loop {
             while self.buf.len() >= 3 {
                 let size = u16::from_be_bytes([self.buf[0], self.buf[1]]) as usize;
@@ -364,31 +363,24 @@ impl UrClient {
                 }
                 // Text messages and packages of other requests: skipped.
             }
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(UrError::Timeout {
-                    during: during.into(),
-                    timeout: self.timeout,
-                });
-            }
             let lost = |e: std::io::Error| UrError::Disconnected {
                 during: during.into(),
                 detail: e.to_string(),
             };
-            self.stream
-                .set_read_timeout(Some(deadline - now))
-                .map_err(lost)?;
-            match self.stream.read(&mut chunk) {
-                Ok(0) => {
+            match read_some(&mut self.stream, &mut self.buf, deadline).map_err(lost)? {
+                ReadOutcome::Deadline => {
+                    return Err(UrError::Timeout {
+                        during: during.into(),
+                        timeout: self.timeout,
+                    })
+                }
+                ReadOutcome::Closed => {
                     return Err(UrError::Disconnected {
                         during: during.into(),
                         detail: "the controller closed the connection".into(),
                     })
                 }
-                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
-                Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
-                Err(e) if e.kind() == ErrorKind::Interrupted => {}
-                Err(e) => return Err(lost(e)),
+                ReadOutcome::Continue => {}
             }
         }
     }
