@@ -7,12 +7,11 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use robimu::model::{ParamLayout, Robot};
 use robimu::report::{CalibrationResult, ParameterTable};
-use robimu::session::Session;
 use robimu::workflows::calibrate::{calibrate, check_measurements, CalibrateOptions};
 use robimu::workflows::noise::NoiseFile;
 use robimu::workflows::repeatability::{self, check_windows, Repeatability};
 
-use super::input::{output_path, session_robot, Progress};
+use super::input::{load_session, output_path, Progress};
 
 /// Calibrate the robot and the IMU together from a session.
 ///
@@ -98,19 +97,7 @@ impl CalibrateCmd {
     /// Calibrate, print the table and write the result file.
     pub fn run(self) -> anyhow::Result<()> {
         let dir = &self.session;
-        let session = Session::load(dir)
-            .with_context(|| format!("cannot load the session {}", dir.display()))?;
-        let robot = session_robot(&session)?;
-        if session.joint_count() != robot.dof() {
-            bail!(
-                "{}: {} joint columns (q1..q{}), but robot `{}` has {} joints",
-                dir.join("joints.csv").display(),
-                session.joint_count(),
-                session.joint_count(),
-                robot.name(),
-                robot.dof()
-            );
-        }
+        let (session, robot) = load_session(dir)?;
         let layout = ParamLayout::new(&robot);
         let mut opts = CalibrateOptions::new(&robot);
         (opts.sigma_z, opts.sigma_q) = session.noise(&robot)?;

@@ -10,13 +10,12 @@ use robimu::effects::{self, MassModel};
 use robimu::model::ParamLayout;
 use robimu::plot::{loglog_panels, LogLogPanel};
 use robimu::report::CalibrationResult;
-use robimu::session::Session;
 use robimu::workflows::calibrate::{check_measurements, CalibrateOptions};
 use robimu::workflows::diagnose::{
     diagnose, setup_for, welch, DiagnoseOptions, Diagnosis, ResidualStats, CHANNELS,
 };
 
-use super::input::{session_robot, Progress};
+use super::input::{load_session, Progress};
 
 /// Diagnose model discrepancies of a session.
 ///
@@ -54,18 +53,7 @@ impl DiagnoseCmd {
     /// Diagnose, print and write.
     pub fn run(self) -> anyhow::Result<()> {
         let dir = &self.session;
-        let session = Session::load(dir)
-            .with_context(|| format!("cannot load the session {}", dir.display()))?;
-        let robot = session_robot(&session)?;
-        if session.joint_count() != robot.dof() {
-            bail!(
-                "{}: {} joint columns but robot `{}` has {} joints",
-                dir.join("joints.csv").display(),
-                session.joint_count(),
-                robot.name(),
-                robot.dof()
-            );
-        }
+        let (session, robot) = load_session(dir)?;
         if !(self.alpha > 0.0 && self.alpha < 1.0) {
             bail!("--alpha must be in (0, 1) (got {})", self.alpha);
         }

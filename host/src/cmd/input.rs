@@ -108,6 +108,25 @@ pub fn session_robot(session: &Session) -> anyhow::Result<Robot> {
     }
 }
 
+/// Loads the session at `dir` with its robot, checking that they have the
+/// same joint count.
+pub fn load_session(dir: &Path) -> anyhow::Result<(Session, Robot)> {
+    let session =
+        Session::load(dir).with_context(|| format!("cannot load the session {}", dir.display()))?;
+    let robot = session_robot(&session)?;
+    if session.joint_count() != robot.dof() {
+        bail!(
+            "{}: {} joint columns (q1..q{}), but robot `{}` has {} joints",
+            dir.join("joints.csv").display(),
+            session.joint_count(),
+            session.joint_count(),
+            robot.name(),
+            robot.dof()
+        );
+    }
+    Ok((session, robot))
+}
+
 /// Where a command writes its output file: `--out` if given, else `default`;
 /// refused up front (before any long computation) when its directory does
 /// not exist.

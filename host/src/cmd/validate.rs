@@ -14,7 +14,7 @@ use robimu::workflows::validate::{
     ImuGroundTruth, TrackedPose,
 };
 
-use super::input::session_robot;
+use super::input::load_session;
 use super::report::result_vector;
 
 /// Validate a calibration against an external tracker.
@@ -103,9 +103,7 @@ fn read_poses(path: &Path, session: &Session, n: usize) -> anyhow::Result<Vec<Tr
 impl ValidateCmd {
     /// Validate, print and write the report.
     pub fn run(self) -> anyhow::Result<()> {
-        let session = Session::load(&self.session)
-            .with_context(|| format!("cannot load the session {}", self.session.display()))?;
-        let robot = session_robot(&session)?;
+        let (session, robot) = load_session(&self.session)?;
         let layout = ParamLayout::new(&robot);
         let result = CalibrationResult::read(&self.calibration)?;
         let x = result_vector(&layout, &result)
