@@ -104,12 +104,7 @@ impl SimRig {
     /// Starts the controller and the board.
     pub fn spawn(config: &SimRigConfig) -> Result<SimRig, RigError> {
         let robot = &config.robot;
-        if robot.dof() != JOINTS {
-            return Err(RigError::Joints {
-                name: robot.name().to_string(),
-                dof: robot.dof(),
-            });
-        }
+        check_joints(robot)?;
         let sigma_q: [f64; JOINTS] = std::array::from_fn(|j| robot.sigma_q()[j]);
         // The controller's own limits are the hardware's (wider than a
         // plan's), as on the real arm.
@@ -150,6 +145,17 @@ impl SimRig {
     }
 }
 
+/// The rig simulates 6-joint arms.
+fn check_joints(robot: &Robot) -> Result<(), RigError> {
+    if robot.dof() != JOINTS {
+        return Err(RigError::Joints {
+            name: robot.name().to_string(),
+            dof: robot.dof(),
+        });
+    }
+    Ok(())
+}
+
 /// The simulated IMU board on the flange of the arm `motion` reads, at the
 /// hidden truth (τ forced to 0).
 fn imu_board(
@@ -157,12 +163,6 @@ fn imu_board(
     motion: Box<dyn TrueMotion>,
 ) -> Result<(SimDevice, Truth), RigError> {
     let robot = &config.robot;
-    if robot.dof() != JOINTS {
-        return Err(RigError::Joints {
-            name: robot.name().to_string(),
-            dof: robot.dof(),
-        });
-    }
     let layout = ParamLayout::new(robot);
     let mut x = config.truth.clone();
     if let Some(tau) = x.get_mut(layout.offsets().tau) {
@@ -200,6 +200,7 @@ pub struct SimUrRig {
 impl SimUrRig {
     /// Starts the controller and the board.
     pub fn spawn(config: &SimRigConfig) -> Result<SimUrRig, RigError> {
+        check_joints(&config.robot)?;
         let noise = config
             .robot
             .sigma_q()
