@@ -295,12 +295,12 @@ impl ImuStream {
         *self.stats.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// Stops the board and the thread; the remaining events stay readable
-    /// on the returned receiver.
-    pub fn stop(mut self) -> Receiver<ImuEvent> {
+    /// Stops the board and the thread; returns the events not yet read and
+    /// the link's final decoder counters.
+    pub fn stop(mut self) -> (Receiver<ImuEvent>, DecoderStats) {
         self.halt();
         let (_, empty) = mpsc::channel();
-        std::mem::replace(&mut self.rx, empty)
+        (std::mem::replace(&mut self.rx, empty), self.stats())
     }
 
     fn halt(&mut self) {

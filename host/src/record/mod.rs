@@ -88,6 +88,14 @@ pub struct RecordProgress {
     pub device_dropped: u32,
 }
 
+impl RecordProgress {
+    /// Takes the link's error counters.
+    fn set_link(&mut self, stats: &DecoderStats) {
+        self.crc_errors = stats.crc_errors;
+        self.bad_frames = stats.errors() - stats.crc_errors;
+    }
+}
+
 /// What a recording produced.
 #[derive(Clone, Debug)]
 pub struct RecordSummary {
@@ -220,10 +228,8 @@ pub fn record(
         }
         if now >= next_show {
             next_show = now + Duration::from_millis(200);
-            let s = stream.stats();
             state.progress.elapsed = epoch.elapsed().as_secs_f64();
-            state.progress.crc_errors = s.crc_errors;
-            state.progress.bad_frames = s.errors() - s.crc_errors;
+            state.progress.set_link(&stream.stats());
             let dt = rate_window.0.elapsed().as_secs_f64();
             if dt >= 1.0 {
                 state.progress.imu_rate = (state.progress.imu_samples - rate_window.1) as f64 / dt;
@@ -235,8 +241,7 @@ pub fn record(
 
     // Wind down: stop the board and the poller, keep what they still hold.
     let duration = epoch.elapsed().as_secs_f64();
-    let link_stats = stream.stats();
-    let rest_events = stream.stop();
+    let (rest_events, link_stats) = stream.stop();
     for ev in rest_events.try_iter() {
         if let Err(c) = state.handle(ev) {
             cause.get_or_insert(c);
@@ -247,8 +252,7 @@ pub fn record(
     }
     state.drain_waiting(true)?;
     state.progress.elapsed = duration;
-    state.progress.crc_errors = link_stats.crc_errors;
-    state.progress.bad_frames = link_stats.errors() - link_stats.crc_errors;
+    state.progress.set_link(&link_stats);
     progress(&state.progress);
     let counters = state.progress.clone();
     let dir = state.finish()?;
