@@ -6,6 +6,7 @@ use rand::SeedableRng;
 use robimu::model::{ParamLayout, Robot};
 use robimu::session::Table;
 use robimu::workflows::calibrate::{calibrate, CalibrateOptions};
+use robimu::workflows::plan::{plan, PlanOptions};
 use robimu::workflows::simulate::{
     draw_truth, simulate, simulated_registration, static_poses, tracked_motion, SimulateOptions,
 };
@@ -150,4 +151,59 @@ fn with_correct_frozen_lengths_the_classical_calibration_reaches_tracker_noise()
         );
     }
     assert_imu_pattern(&imu);
+}
+
+/// The paper's comparison (§9, Fig. 10): lengths frozen in both calibrations
+/// — frozen as the paper froze them, by a near-zero prior, so the truth drawn
+/// from the priors has them at nominal — and the IMU calibration run on the
+/// planned 300 s excitation (the paper's optimal trajectory). Held-out
+/// position error at least 3× below nominal and within 20 % of the classical
+/// tracker calibration, on each of five drawn robots and on average.
+#[test]
+fn planned_calibration_is_within_20_percent_of_the_classical_tracker_calibration() {
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::new(&robot);
+    let frozen = lengths(&robot, &layout);
+    let excitation = plan(&robot, &PlanOptions::default(), |_, _, _| {})
+        .unwrap()
+        .spline;
+    let sim = SimulateOptions::paper(&robot);
+    let (mut sum_cal, mut sum_classical) = (0.0, 0.0);
+    for seed in 21..26u64 {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let mut truth = draw_truth(&layout, &mut rng);
+        for &k in &frozen {
+            truth[k] = 0.0;
+        }
+        let data = simulate(&robot, &layout, &truth, &excitation, &sim, seed + 1).unwrap();
+        let mut opts = CalibrateOptions::new(&robot);
+        opts.frozen = frozen.clone();
+        let cal = calibrate(&robot, &data, &opts, |_| {}).unwrap();
+        let poses = static_poses(&robot, &layout, &truth, 250, &sim, seed + 2).unwrap();
+        let acc = robot_accuracy(&robot, &layout, &cal.x, &poses, 150, &frozen).unwrap();
+        let (n, c, k) = (
+            acc.nominal.mean_position(),
+            acc.calibrated.mean_position(),
+            acc.classical.mean_position(),
+        );
+        eprintln!(
+            "seed {seed}: position mean [mm] nominal {:.3}, calibrated {:.3}, classical {:.3} (ratio {:.3}); rotation mean [deg] {:.4}, {:.4}, {:.4}",
+            1e3 * n,
+            1e3 * c,
+            1e3 * k,
+            c / k,
+            acc.nominal.mean_rotation().to_degrees(),
+            acc.calibrated.mean_rotation().to_degrees(),
+            acc.classical.mean_rotation().to_degrees()
+        );
+        assert!(c * 3.0 < n, "seed {seed}: calibrated {c} vs nominal {n}");
+        assert!(
+            (c / k - 1.0).abs() <= 0.2,
+            "seed {seed}: calibrated {c} vs classical {k}"
+        );
+        assert!(acc.calibrated.mean_rotation() <= 1.2 * acc.classical.mean_rotation());
+        sum_cal += c;
+        sum_classical += k;
+    }
+    assert!((sum_cal / sum_classical - 1.0).abs() <= 0.2);
 }
