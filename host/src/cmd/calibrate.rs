@@ -55,10 +55,12 @@ pub struct CalibrateCmd {
     pub report: Option<PathBuf>,
     /// Also fit these catalogue effects with the baseline (comma-separated:
     /// g_sensitivity, size_effect, clock_drift, bias_drift,
-    /// joint_elasticity, encoder_scale); prints their estimates and writes
+    /// joint_elasticity, encoder_scale, resonance); prints their estimates and writes
     /// effects.json (the augmented model's parameters) next to the result file.
     #[arg(long, value_delimiter = ',')]
     pub effects: Vec<String>,
+    #[command(flatten)]
+    pub resonance: super::input::ResonanceMode,
 }
 
 /// Indices into x of the `--freeze` items.
@@ -131,7 +133,8 @@ impl CalibrateCmd {
         let data = session.measurements();
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-        let effect_setup = robimu::workflows::diagnose::setup_for(&robot, &data, None);
+        let effect_setup =
+            robimu::workflows::diagnose::setup_with(&robot, &data, None, self.resonance.mode()?);
         let effect_names: Vec<String> = self
             .effects
             .iter()

@@ -156,6 +156,7 @@ impl DemoCmd {
             windows: None,
             report: Some(dir.join("report")),
             effects: Vec::new(),
+            resonance: Default::default(),
         }
         .run()?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;

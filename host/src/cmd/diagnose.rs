@@ -12,7 +12,7 @@ use robimu::plot::{loglog_panels, LogLogPanel};
 use robimu::report::CalibrationResult;
 use robimu::workflows::calibrate::{check_measurements, CalibrateOptions};
 use robimu::workflows::diagnose::{
-    diagnose, setup_for, welch, DiagnoseOptions, Diagnosis, ResidualStats, CHANNELS,
+    diagnose, setup_with, welch, DiagnoseOptions, Diagnosis, ResidualStats, CHANNELS,
 };
 
 use super::input::{load_session, Progress};
@@ -23,7 +23,7 @@ use super::input::{load_session, Progress};
 /// χ² per channel, Ljung–Box whiteness, spectral peaks, where in time they
 /// concentrate, the regressor they follow), scores every catalogued effect
 /// (g_sensitivity, size_effect, clock_drift, bias_drift, joint_elasticity,
-/// encoder_scale) with a Rao score test, adds the most significant one
+/// encoder_scale, resonance) with a Rao score test, adds the most significant one
 /// (Bonferroni at --alpha across the catalogue, confirmed by a refit's
 /// likelihood ratio), and repeats until none is significant. Prints the
 /// summary and writes DIR/diagnosis.json and residual spectra plots.
@@ -47,6 +47,8 @@ pub struct DiagnoseCmd {
     /// Candidates to consider, comma-separated [default: the whole catalogue].
     #[arg(long, value_delimiter = ',')]
     pub candidates: Vec<String>,
+    #[command(flatten)]
+    pub resonance: super::input::ResonanceMode,
 }
 
 impl DiagnoseCmd {
@@ -70,7 +72,7 @@ impl DiagnoseCmd {
             Some(p) => Some(MassModel::from_toml_file(&robot, p).context("--mass-model")?),
             None => None,
         };
-        let setup = setup_for(&robot, &data, mass);
+        let setup = setup_with(&robot, &data, mass, self.resonance.mode()?);
         let mut dopts = DiagnoseOptions {
             alpha: self.alpha,
             ..DiagnoseOptions::default()

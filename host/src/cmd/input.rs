@@ -41,6 +41,41 @@ pub struct UrdfLinks {
     pub tip: Option<String>,
 }
 
+/// The `resonance` effect's mode (`--resonance-hz`, `--resonance-zeta`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct ResonanceMode {
+    /// Natural frequency of the `resonance` effect's mode, Hz (0.5–50).
+    #[arg(long, value_name = "HZ", default_value_t = 10.0)]
+    pub resonance_hz: f64,
+    /// Damping ratio of the `resonance` effect's mode (0–1, exclusive).
+    #[arg(long, value_name = "ZETA", default_value_t = 0.05)]
+    pub resonance_zeta: f64,
+}
+
+impl Default for ResonanceMode {
+    fn default() -> Self {
+        let m = robimu::effects::resonance::Mode::default();
+        Self {
+            resonance_hz: m.f_hz,
+            resonance_zeta: m.zeta,
+        }
+    }
+}
+
+impl ResonanceMode {
+    /// The checked mode.
+    pub fn mode(&self) -> anyhow::Result<robimu::effects::resonance::Mode> {
+        let (f, z) = (self.resonance_hz, self.resonance_zeta);
+        if !(0.5..=50.0).contains(&f) {
+            anyhow::bail!("--resonance-hz must be between 0.5 and 50 Hz (got {f})");
+        }
+        if !(z > 0.0 && z < 1.0) {
+            anyhow::bail!("--resonance-zeta must be between 0 and 1, exclusive (got {z})");
+        }
+        Ok(robimu::effects::resonance::Mode { f_hz: f, zeta: z })
+    }
+}
+
 /// Whether `path` names a URDF file (by its extension).
 pub fn is_urdf(path: &Path) -> bool {
     path.extension()

@@ -63,10 +63,13 @@ pub struct SimulateCmd {
     /// Inject a catalogue effect into the IMU samples, NAME=MAGNITUDE
     /// (repeatable), magnitudes in physical units: g_sensitivity (deg/s)/g,
     /// size_effect mm, clock_drift ppm, bias_drift deg/s, joint_elasticity
-    /// deg/(kN*m), encoder_scale ppm (each a fixed pattern scaled by the
-    /// magnitude; see `robimu::effects`). Recorded in session.toml's notes.
+    /// deg/(kN*m), encoder_scale ppm, resonance mrad/(rad/s^2) (each a
+    /// fixed pattern scaled by the magnitude; see `robimu::effects`).
+    /// Recorded in session.toml's notes.
     #[arg(long, value_name = "NAME=MAGNITUDE")]
     pub effect: Vec<String>,
+    #[command(flatten)]
+    pub resonance: super::input::ResonanceMode,
 }
 
 /// What [`SimulateCmd::write`] produced.
@@ -224,7 +227,12 @@ impl SimulateCmd {
         let mut data = simulate(&robot, &layout, &x_true, &trajectory, &opts, self.seed)
             .context("cannot simulate the measurements at these true parameters")?;
         if !self.effect.is_empty() {
-            let setup = robimu::workflows::diagnose::setup_for(&robot, &data, None);
+            let setup = robimu::workflows::diagnose::setup_with(
+                &robot,
+                &data,
+                None,
+                self.resonance.mode()?,
+            );
             let mut injected = Vec::new();
             for item in &self.effect {
                 let Some((name, m)) = item.split_once('=') else {

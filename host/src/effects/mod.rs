@@ -37,9 +37,11 @@ pub mod encoder_scale;
 pub mod g_sensitivity;
 pub mod joint_elasticity;
 pub mod mass;
+pub mod resonance;
 pub mod size_effect;
 
 use std::cell::OnceCell;
+use std::sync::Arc;
 
 use crate::model::geom::{cross, V3};
 use crate::model::{JointState, MeasurementJacobians, MeasurementModel, ParamLayout, Spline};
@@ -240,11 +242,38 @@ pub struct CatalogueSetup {
     pub mass: MassModel,
     /// Gravity magnitude g0, m/s².
     pub g0: f64,
+    /// The resonance's natural frequency and damping.
+    pub mode: resonance::Mode,
+    /// The mode's response to the recorded joint trajectory (`None`: no
+    /// trajectory could be fitted; `resonance` is then unavailable).
+    pub mode_response: Option<Arc<resonance::ModeResponse>>,
+}
+
+impl CatalogueSetup {
+    /// The setup for a session over `span` whose recorded joints follow
+    /// `joints` (a spline fitted to them), with the default mode.
+    pub fn new(span: SessionSpan, mass: MassModel, g0: f64, joints: Option<&Spline>) -> Self {
+        let mode = resonance::Mode::default();
+        let mut s = Self {
+            span,
+            mass,
+            g0,
+            mode,
+            mode_response: None,
+        };
+        s.set_joints(mode, joints);
+        s
+    }
+    /// Set the resonance mode and integrate its response to `joints`.
+    pub fn set_joints(&mut self, mode: resonance::Mode, joints: Option<&Spline>) {
+        self.mode = mode;
+        self.mode_response = joints.map(|s| Arc::new(resonance::ModeResponse::of_spline(mode, s)));
+    }
 }
 
 /// The catalogue: every known effect (the one registration point).
 pub fn catalogue(setup: &CatalogueSetup) -> Vec<Box<dyn Effect>> {
-    vec![
+    let mut all: Vec<Box<dyn Effect>> = vec![
         Box::new(g_sensitivity::GSensitivity),
         Box::new(size_effect::SizeEffect),
         Box::new(clock_drift::ClockDrift::new(setup.span.clone())),
@@ -254,17 +283,27 @@ pub fn catalogue(setup: &CatalogueSetup) -> Vec<Box<dyn Effect>> {
             setup.g0,
         )),
         Box::new(encoder_scale::EncoderScale::new(setup.mass.dof())),
-    ]
+    ];
+    if let Some(response) = &setup.mode_response {
+        all.push(Box::new(resonance::Resonance::new(
+            setup.mode,
+            setup.mass.dof(),
+            Some(response.clone()),
+            (setup.span.t0, setup.span.t1),
+        )));
+    }
+    all
 }
 
 /// Names of the catalogue's effects, in order.
-pub const NAMES: [&str; 6] = [
+pub const NAMES: [&str; 7] = [
     "g_sensitivity",
     "size_effect",
     "clock_drift",
     "bias_drift",
     "joint_elasticity",
     "encoder_scale",
+    "resonance",
 ];
 
 /// An unknown effect name.

@@ -20,11 +20,13 @@ fn effect_jacobians_match_finite_differences_of_the_exact_form() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(5);
     let spline = random_walk(&robot, 20.0, 1.0, &mut rng).unwrap();
     let traj = trajectory_fn(&spline);
-    let setup = CatalogueSetup {
-        span: SessionSpan { t0: 0.0, t1: 20.0 },
-        mass: MassModel::for_robot(&robot),
-        g0: robot.gravity(),
-    };
+    let setup = CatalogueSetup::new(
+        SessionSpan { t0: 0.0, t1: 20.0 },
+        MassModel::for_robot(&robot),
+        robot.gravity(),
+        Some(&spline),
+    );
+    assert_eq!(catalogue(&setup).len(), NAMES.len());
     let mut jac = MeasurementJacobians::new(layout.len());
     let mut checked = 0;
     for effect in catalogue(&setup) {

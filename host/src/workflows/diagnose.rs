@@ -32,6 +32,7 @@ use serde::Serialize;
 
 use super::calibrate::{check_measurements, choose_knots, CalibrateError, CalibrateOptions};
 use super::time_offset::find_tau;
+use crate::effects::resonance::Mode;
 use crate::effects::{self, CatalogueSetup, Effect, EffectSet, MassModel, SessionSpan};
 use crate::model::{JointState, MeasurementModel, ParamLayout, Robot, Spline};
 use crate::problem::{Measurements, Problem, ProblemOptions};
@@ -95,15 +96,33 @@ impl From<crate::problem::ProblemError> for DiagnoseError {
     }
 }
 
-/// The session-level setup of the catalogue for `data`.
+/// The session-level setup of the catalogue for `data` (default resonance mode).
 pub fn setup_for(robot: &Robot, data: &Measurements, mass: Option<MassModel>) -> CatalogueSetup {
+    setup_with(robot, data, mass, Mode::default())
+}
+
+/// [`setup_for`] with the resonance effect's mode.
+pub fn setup_with(
+    robot: &Robot,
+    data: &Measurements,
+    mass: Option<MassModel>,
+    mode: Mode,
+) -> CatalogueSetup {
     let t0 = data.imu_t.first().copied().unwrap_or(0.0);
     let t1 = data.imu_t.last().copied().unwrap_or(0.0);
-    CatalogueSetup {
-        span: SessionSpan { t0, t1 },
-        mass: mass.unwrap_or_else(|| MassModel::for_robot(robot)),
-        g0: robot.gravity(),
-    }
+    // the recorded joints as the calibration first fits them (default knots)
+    let opts = CalibrateOptions::new(robot);
+    let joints = (!data.joint_t.is_empty())
+        .then(|| choose_knots(data, robot.dof(), &opts.sigma_q, opts.degree, None).ok())
+        .flatten();
+    let mut setup = CatalogueSetup::new(
+        SessionSpan { t0, t1 },
+        mass.unwrap_or_else(|| MassModel::for_robot(robot)),
+        robot.gravity(),
+        None,
+    );
+    setup.set_joints(mode, joints.as_ref().map(|f| &f.spline));
+    setup
 }
 
 /// The effect set of `names` (catalogue order as given).
