@@ -69,6 +69,17 @@ pub fn frozen_indices(
     layout: &ParamLayout,
     items: &[String],
 ) -> anyhow::Result<Vec<usize>> {
+    parameter_indices(robot, layout, items, "--freeze")
+}
+
+/// Indices in x of `items` (`lengths` and/or parameter names), the errors
+/// naming `flag`.
+pub fn parameter_indices(
+    robot: &Robot,
+    layout: &ParamLayout,
+    items: &[String],
+    flag: &str,
+) -> anyhow::Result<Vec<usize>> {
     let n = robot.dof();
     let mut out = Vec::new();
     for item in items.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
@@ -85,7 +96,7 @@ pub fn frozen_indices(
         } else {
             let names: Vec<&str> = layout.specs().iter().map(|s| s.name.as_str()).collect();
             bail!(
-                "--freeze: unknown parameter `{item}`; valid: lengths, {}",
+                "{flag}: unknown parameter `{item}`; valid: lengths, {}",
                 names.join(", ")
             );
         }

@@ -57,6 +57,16 @@ pub struct SimulateCmd {
     /// with their joint angles (columns q1..qn).
     #[arg(long)]
     pub tracker: bool,
+    /// Parameters whose truth stays at nominal instead of being drawn from
+    /// the prior, comma-separated: `lengths` and/or parameter names — the
+    /// truth that `calibrate --freeze` with the same list assumes.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "PARAMS",
+        conflicts_with = "truth"
+    )]
+    pub nominal: Vec<String>,
     /// Number of static poses in poses.csv (with --tracker).
     #[arg(long, default_value_t = 250, requires = "tracker")]
     pub poses: usize,
@@ -207,7 +217,11 @@ impl SimulateCmd {
         };
         let layout = ParamLayout::new(&robot);
         let mut rng = rand::rngs::StdRng::seed_from_u64(self.seed);
-        let drawn = draw_truth(&layout, &mut rng);
+        let mut drawn = draw_truth(&layout, &mut rng);
+        let nominal = layout.nominal();
+        for k in super::calibrate::parameter_indices(&robot, &layout, &self.nominal, "--nominal")? {
+            drawn[k] = nominal[k];
+        }
         let x_true = match &self.truth {
             Some(path) => {
                 let t = Truth::read(path)?;
