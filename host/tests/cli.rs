@@ -928,3 +928,39 @@ fn calibrate_windows_reports_the_repeatability() {
     let run = robimu(&["calibrate", s(&dir), "--windows", "1"]);
     fails(&run, &["at least 2 windows"]);
 }
+
+/// `simulate --nominal lengths` keeps the robot's length errors at nominal
+/// in truth.toml (the truth `calibrate --freeze lengths` assumes) and still
+/// draws everything else; an unknown name is refused naming the flag.
+#[test]
+fn simulate_nominal_keeps_named_parameters_at_nominal() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = simulate(tmp.path(), "n", "20", "4", &["--nominal", "lengths,tau"]);
+    let truth = Truth::read(&dir.join("truth.toml")).unwrap();
+    let layout = aubo_layout();
+    let nominal = layout.nominal();
+    let robot = Robot::aubo_i5();
+    let mut held: Vec<usize> = layout
+        .estimated_errors()
+        .iter()
+        .filter(|e| e.link < robot.dof() && e.k <= 3)
+        .filter_map(|e| layout.eps_index(e.link, e.k))
+        .collect();
+    held.push(layout.offsets().tau);
+    assert!(held.len() > 5);
+    let mut drawn = 0;
+    for (k, spec) in layout.specs().iter().enumerate() {
+        let v = truth.get(&spec.name).unwrap();
+        if held.contains(&k) {
+            assert_eq!(v, nominal[k], "{}", spec.name);
+        } else if v != nominal[k] {
+            drawn += 1;
+        }
+    }
+    assert!(drawn > 20, "{drawn} parameters drawn");
+    let out = tmp.path().join("bad");
+    fails(
+        &robimu(&["simulate", "--nominal", "eps_9_9", "--out", s(&out)]),
+        &["--nominal: unknown parameter `eps_9_9`"],
+    );
+}
