@@ -49,6 +49,7 @@ fn options_for(
         joint_rate: 125.0,
         rest: 1.0,
         sensor: SensorConfig::default(),
+        interrupt: None,
     }
 }
 
@@ -350,6 +351,87 @@ fn a_recording_killed_with_sigkill_leaves_a_readable_session() {
     assert_eq!(repaired.measurements().imu_t.len() as f64, imu);
 }
 
+/// Ctrl-C (SIGINT) to `robimu record` while the plan runs: the robot is
+/// halted, the recording is finished as at a normal end (IMU times mapped
+/// by the final clock fit, nothing for `robimu repair` to do), the program
+/// says so and exits non-zero.
+#[test]
+fn ctrl_c_halts_the_robot_and_finishes_the_session() {
+    use robimu::robot::aubo::AuboClient;
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(31);
+    let plan = Plan::from_spline(&random_walk(&robot, 30.0, 1.0, &mut rng).unwrap(), 250.0);
+    let rig = rig(31);
+    let dir = tempfile::tempdir().unwrap();
+    let plan_dir = dir.path().join("plan");
+    std::fs::create_dir_all(&plan_dir).unwrap();
+    plan.write_csv(&plan_dir.join("plan.csv")).unwrap();
+    let out = dir.path().join("interrupted");
+    let child = Command::new(env!("CARGO_BIN_EXE_robimu"))
+        .args([
+            "record",
+            "--imu",
+            rig.imu_port(),
+            "--robot",
+            &rig.robot_spec(),
+        ])
+        .arg("--plan")
+        .arg(&plan_dir)
+        .arg("--out")
+        .arg(&out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !out.join("session.toml").exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "recording never started"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // 1 s rest, then 3 s into the plan
+    std::thread::sleep(Duration::from_secs(4));
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("interrupted (Ctrl-C)"), "{stderr}");
+    assert!(stderr.contains("the robot was stopped"), "{stderr}");
+    assert!(stderr.contains("are kept in"), "{stderr}");
+    // the arm stands still (the plan had 26 s to go)
+    let mut c = AuboClient::connect(rig.robot_addr(), Duration::from_secs(2)).unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    let a = c.joint_positions().unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    let b = c.joint_positions().unwrap();
+    let moved = (0..6).map(|j| (a[j] - b[j]).abs()).fold(0.0, f64::max);
+    assert!(moved < 2e-3, "the arm still moves: {moved} rad in 0.5 s");
+    // finished like a normal end: the final clock fit is in session.toml
+    let session = check_session(&out);
+    let toml = std::fs::read_to_string(out.join("session.toml")).unwrap();
+    assert!(toml.contains("drift_ppm"), "{toml}");
+    let m = session.measurements();
+    assert!(m.imu_t.len() > 120 * 3, "{} IMU samples", m.imu_t.len());
+    assert!(
+        m.joint_t.len() > 125 * 3,
+        "{} joint samples",
+        m.joint_t.len()
+    );
+    let repaired = Command::new(env!("CARGO_BIN_EXE_robimu"))
+        .arg("repair")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(repaired.status.success());
+    assert_eq!(check_session(&out).measurements().imu_t, m.imu_t);
+}
+
 /// `record --robot ur:HOST:RTDE:SCRIPT` against the simulated UR controller
 /// (RTDE at 125 Hz, the plan as one URScript program) with the simulated
 /// IMU board: the plan runs to its end, the joints arrive at the
@@ -428,4 +510,56 @@ fn ur_recording_recovers_the_hidden_truth_within_4_sigma() {
     drop(rig);
     assert!(summary.progress.joint_samples as f64 > 120.0 * summary.duration);
     calibrate_against_truth(dir.path(), &truth, "UR");
+}
+
+/// An interrupted recording on the simulated UR controller: the running
+/// program is replaced by a `stopj` and the arm comes to rest far from the
+/// plan's end; the session is finished.
+#[test]
+fn an_interrupted_ur_recording_stops_the_arm() {
+    use robimu_hil_sim::device::{SimDevice, SimDeviceConfig};
+    use robimu_hil_sim::ur::{SimUr, SimUrConfig};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(13);
+    let plan = Plan::from_spline(&random_walk(&robot, 20.0, 1.0, &mut rng).unwrap(), 125.0);
+    let ur = SimUr::spawn(SimUrConfig {
+        control_rate_hz: 125.0,
+        initial: plan.q[0],
+        ..SimUrConfig::default()
+    })
+    .unwrap();
+    let device = SimDevice::spawn(SimDeviceConfig::default()).unwrap();
+    let spec = format!(
+        "ur:127.0.0.1:{}:{}",
+        ur.rtde_addr().port(),
+        ur.script_addr().port()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let mut opts = options_for(device.port_path(), &spec, dir.path(), Some(plan), 0.0);
+    opts.rest = 0.5;
+    let flag = Arc::new(AtomicBool::new(false));
+    opts.interrupt = Some(flag.clone());
+    let setter = std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_secs(3));
+        flag.store(true, Ordering::Relaxed);
+    });
+    let err = record(&opts, &mut |_| {}).unwrap_err();
+    setter.join().unwrap();
+    let text = err.to_string();
+    assert!(matches!(err, RecordError::Aborted { .. }), "{text}");
+    assert!(
+        text.contains("interrupted (Ctrl-C); the robot was stopped"),
+        "{text}"
+    );
+    assert!(ur.script_errors().is_empty(), "{:?}", ur.script_errors());
+    std::thread::sleep(Duration::from_millis(300));
+    let a = ur.true_joints();
+    std::thread::sleep(Duration::from_millis(500));
+    let b = ur.true_joints();
+    let moved = (0..6).map(|j| (a[j] - b[j]).abs()).fold(0.0, f64::max);
+    assert!(moved < 1e-4, "the arm still moves: {moved} rad in 0.5 s");
+    assert!(!ur.program_running());
+    check_session(dir.path());
 }

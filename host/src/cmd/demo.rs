@@ -137,6 +137,7 @@ impl DemoCmd {
             joint_rate: 125.0,
             rest: 1.0,
             sensor: SensorConfig::default(),
+            interrupt: None,
         };
         let summary = record_with_progress(&opts)?;
         print_summary(&summary);

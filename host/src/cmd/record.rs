@@ -113,6 +113,7 @@ impl RecordCmd {
                 sample_rate_hz: self.rate,
                 ..SensorConfig::default()
             },
+            interrupt: None,
         })
     }
 
@@ -125,8 +126,35 @@ impl RecordCmd {
     }
 }
 
-/// Records with a progress bar on stderr (when it is a terminal).
+/// Records with a progress bar on stderr (when it is a terminal). The first
+/// Ctrl-C (SIGINT) or SIGTERM stops the recording cleanly (the plan halted,
+/// the session finished); a second Ctrl-C ends the program at once (exit
+/// 130; `robimu repair` then finishes the session).
 pub fn record_with_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummary> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut ids = Vec::new();
+    for (signal, exit) in [(SIGINT, 130), (SIGTERM, 143)] {
+        // registered first: runs only when the flag is already set
+        ids.push(
+            signal_hook::flag::register_conditional_shutdown(signal, exit, flag.clone())
+                .context("cannot install the Ctrl-C handler")?,
+        );
+        ids.push(
+            signal_hook::flag::register(signal, flag.clone())
+                .context("cannot install the Ctrl-C handler")?,
+        );
+    }
+    let mut opts = opts.clone();
+    opts.interrupt = Some(flag);
+    let result = record_showing_progress(&opts);
+    for id in ids {
+        signal_hook::low_level::unregister(id);
+    }
+    result
+}
+
+fn record_showing_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummary> {
     let bar = std::io::stderr().is_terminal().then(|| {
         let bar = ProgressBar::new(1000);
         let style = ProgressStyle::with_template(

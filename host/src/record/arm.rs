@@ -7,6 +7,9 @@
 //! * UR: one URScript program (`movej` to the start, a `servoj` per row)
 //!   sent when recording starts; it has ended when the plan's duration has
 //!   passed and the arm stands within 2 mrad of the plan's last pose.
+//!
+//! A recording that stops early halts a running plan ([`ArmRun::halt`]) on a
+//! connection of its own: AUBO `stopJoint`, UR a `stopj` program.
 
 use std::sync::mpsc::TryRecvError;
 use std::thread::{self, JoinHandle};
@@ -46,7 +49,11 @@ pub enum Arm {
 pub struct ArmRun {
     poller: Poller,
     motion: Motion,
+    spec: RobotSpec,
 }
+
+/// Deceleration of a halt, rad/s² (the paper's joint acceleration limit).
+const HALT_ACCELERATION: f64 = 1.745;
 
 enum Poller {
     Aubo(JointPoller),
@@ -107,7 +114,9 @@ impl Arm {
         rate_hz: f64,
         epoch: Instant,
         rest: f64,
+        spec: &RobotSpec,
     ) -> Result<ArmRun, ArmError> {
+        let spec = spec.clone();
         Ok(match self {
             Arm::Aubo {
                 mut motion,
@@ -124,7 +133,11 @@ impl Arm {
                         })))
                     }
                 };
-                ArmRun { poller, motion }
+                ArmRun {
+                    poller,
+                    motion,
+                    spec,
+                }
             }
             Arm::Ur(ur) => {
                 let poller = Poller::Ur(ur.spawn_poller(rate_hz, epoch)?);
@@ -147,7 +160,11 @@ impl Arm {
                         }
                     }
                 };
-                ArmRun { poller, motion }
+                ArmRun {
+                    poller,
+                    motion,
+                    spec,
+                }
             }
         })
     }
@@ -211,6 +228,44 @@ impl ArmRun {
             self.motion = Motion::Done;
         }
         Ok(done)
+    }
+
+    /// Whether a plan was started and has not been seen to end.
+    pub fn moving(&self) -> bool {
+        match &self.motion {
+            Motion::None | Motion::Done => false,
+            Motion::Aubo(h) => h.as_ref().is_some_and(|h| !h.is_finished()),
+            Motion::Ur { .. } => true,
+        }
+    }
+
+    /// Halts a running plan (see the module doc); `Ok` when the stop command
+    /// was accepted.
+    pub fn halt(&mut self) -> Result<(), String> {
+        let timeout = Duration::from_secs(2);
+        let r = match &self.spec {
+            RobotSpec::Aubo { host, port } => AuboClient::connect((host.as_str(), *port), timeout)
+                .and_then(|mut c| c.stop_joint(HALT_ACCELERATION))
+                .map_err(|e| e.to_string()),
+            RobotSpec::Ur {
+                host,
+                rtde_port,
+                script_port,
+            } => UrRobot::connect(
+                host,
+                UrPorts {
+                    rtde: *rtde_port,
+                    script: *script_port,
+                },
+                timeout,
+            )
+            .and_then(|ur| ur.stop(HALT_ACCELERATION))
+            .map_err(|e| e.to_string()),
+        };
+        if r.is_ok() {
+            self.motion = Motion::Done;
+        }
+        r
     }
 
     /// Stops polling; returns the samples still queued.

@@ -23,7 +23,9 @@ pub mod repair;
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::RecvTimeoutError;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use robimu_protocol::{DecoderStats, DeviceInfo, SensorConfig};
@@ -61,6 +63,9 @@ pub struct RecordOptions {
     pub rest: f64,
     /// The IMU settings.
     pub sensor: SensorConfig,
+    /// Set (e.g. by a Ctrl-C handler) to stop the recording early: the plan
+    /// is halted and everything recorded is finished as at a normal end.
+    pub interrupt: Option<Arc<AtomicBool>>,
 }
 
 /// Live figures for a progress display.
@@ -171,6 +176,7 @@ pub fn record(
         opts.joint_rate,
         epoch,
         opts.rest,
+        &opts.robot_spec,
     )?;
     let total = motion.map_or(opts.duration, |d| d + 2.0 * opts.rest);
 
@@ -187,6 +193,14 @@ pub fn record(
     while cause.is_none() {
         let now = Instant::now();
         if stop_at.is_some_and(|t| now >= t) {
+            break;
+        }
+        if opts
+            .interrupt
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::Relaxed))
+        {
+            cause = Some("interrupted (Ctrl-C)".into());
             break;
         }
         match stream.events().recv_timeout(Duration::from_millis(10)) {
@@ -239,6 +253,15 @@ pub fn record(
         }
     }
 
+    // Stopping early: halt the plan first.
+    if let Some(c) = cause.as_mut().filter(|_| arm.moving()) {
+        match arm.halt() {
+            Ok(()) => c.push_str("; the robot was stopped"),
+            Err(e) => c.push_str(&format!(
+                "; COULD NOT STOP THE ROBOT ({e}): stop it at the controller"
+            )),
+        }
+    }
     // Wind down: stop the board and the poller, keep what they still hold.
     let duration = epoch.elapsed().as_secs_f64();
     let (rest_events, link_stats) = stream.stop();

@@ -242,6 +242,12 @@ impl AuboClient {
         self.call_status("rob1.MotionControl.moveJoint", json!([q, a, v, 0.0, 0.0]))
     }
 
+    /// `MotionControl.stopJoint(acc)`: stops any motion, decelerating at
+    /// `acc` rad/s².
+    pub fn stop_joint(&mut self, acc: f64) -> Result<(), RobotError> {
+        self.call_status("rob1.MotionControl.stopJoint", json!([acc]))
+    }
+
     /// `MotionControl.setServoMode(enable)`.
     pub fn set_servo_mode(&mut self, enable: bool) -> Result<(), RobotError> {
         self.call_status("rob1.MotionControl.setServoMode", json!([enable]))

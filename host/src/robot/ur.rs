@@ -727,11 +727,13 @@ impl UrRobot {
         UrPoller::spawn(client, epoch)
     }
 
-    /// Sends the plan's program ([`plan_script`]) to the script port; the
-    /// robot starts it at once. Returns the plan's duration, s (the move to
-    /// the first row comes before it).
-    pub fn execute_plan(&self, plan: &[(f64, Vec<f64>)]) -> Result<f64, UrError> {
-        let script = plan_script(plan)?;
+    /// Stops the arm: a program of one `stopj(a)` (`a` rad/s²) replaces the
+    /// one running.
+    pub fn stop(&self, a: f64) -> Result<(), UrError> {
+        self.send_program(&format!("def robimu_stop():\n  stopj({a:.3})\nend\n"))
+    }
+
+    fn send_program(&self, script: &str) -> Result<(), UrError> {
         let (mut stream, _) = connect_any((self.host.as_str(), self.ports.script), self.timeout)?;
         let lost = |e: std::io::Error| UrError::Disconnected {
             during: "sending the program".into(),
@@ -740,6 +742,14 @@ impl UrRobot {
         stream.set_write_timeout(Some(self.timeout)).map_err(lost)?;
         stream.write_all(script.as_bytes()).map_err(lost)?;
         stream.shutdown(std::net::Shutdown::Write).map_err(lost)?;
+        Ok(())
+    }
+
+    /// Sends the plan's program ([`plan_script`]) to the script port; the
+    /// robot starts it at once. Returns the plan's duration, s (the move to
+    /// the first row comes before it).
+    pub fn execute_plan(&self, plan: &[(f64, Vec<f64>)]) -> Result<f64, UrError> {
+        self.send_program(&plan_script(plan)?)?;
         Ok(plan[plan.len() - 1].0 - plan[0].0)
     }
 }
