@@ -288,7 +288,7 @@ pub fn catalogue(setup: &CatalogueSetup) -> Vec<Box<dyn Effect>> {
         all.push(Box::new(resonance::Resonance::new(
             setup.mode,
             setup.mass.dof(),
-            Some(response.clone()),
+            response.clone(),
             (setup.span.t0, setup.span.t1),
         )));
     }

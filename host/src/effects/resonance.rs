@@ -165,12 +165,13 @@ impl ModeResponse {
     }
 }
 
-/// See the module doc.
+/// See the module doc. One instance simulates one trajectory: the exact
+/// form's response is integrated on its first use and kept.
 pub struct Resonance {
     mode: Mode,
     n: usize,
     /// Response to the recorded joints (the estimator's columns).
-    fitted: Option<Arc<ModeResponse>>,
+    fitted: Arc<ModeResponse>,
     /// Response to the true trajectory (the simulator), built on first use.
     exact: OnceLock<ModeResponse>,
     /// IMU time span (for the simulator's grid).
@@ -183,9 +184,9 @@ const PATTERN: [f64; 8] = [1.0, 0.8, 0.6, 0.5, 0.9, 0.7, 0.4, 0.3];
 const DISPLAY: f64 = 1e3;
 
 impl Resonance {
-    /// For `n` joints with mode `mode`, the response to the recorded joints
-    /// (`None`: the effect can only simulate), and the IMU span.
-    pub fn new(mode: Mode, n: usize, fitted: Option<Arc<ModeResponse>>, span: (f64, f64)) -> Self {
+    /// For `n` joints with mode `mode`, the response to the recorded joints,
+    /// and the IMU span.
+    pub fn new(mode: Mode, n: usize, fitted: Arc<ModeResponse>, span: (f64, f64)) -> Self {
         Self {
             mode,
             n,
@@ -214,8 +215,7 @@ impl Effect for Resonance {
             .collect()
     }
     fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
-        // the catalogue only lists the effect with a recorded response
-        let Some(resp) = &self.fitted else { return };
+        let resp = &self.fitted;
         let t = ctx.t + ctx.model.params().tau;
         for j in 0..self.n {
             let [y, yd, ydd] = resp.at(t, j, ctx.js.qdd[j]);
