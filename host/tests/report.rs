@@ -149,6 +149,25 @@ fn cli_reports_render_in_headless_chromium() {
     assert!(text.contains("IMU accuracy"), "{text}");
     let out2 = dir.path().join("rep2");
     robimu(&["report", &result, "--out", out2.to_str().unwrap()]);
+    check_convergence_history(Path::new(&result), &out2);
+    // a result without its iteration history: the page says why
+    let bare = dir.path().join("bare");
+    std::fs::create_dir_all(&bare).unwrap();
+    std::fs::copy(&result, bare.join("result.json")).unwrap();
+    let out3 = dir.path().join("rep3");
+    robimu(&[
+        "report",
+        bare.join("result.json").to_str().unwrap(),
+        "--out",
+        out3.to_str().unwrap(),
+    ]);
+    let page3 = std::fs::read_to_string(out3.join("report.html")).unwrap();
+    assert!(
+        page3.contains("No convergence figure") && page3.contains("result.convergence.csv"),
+        "{page3}"
+    );
+    assert!(!out3.join("convergence.svg").exists());
+    check_tracker_offset(Path::new(s), dir.path(), &result);
 
     let browser = chromium();
     let b = browser.as_deref();
@@ -164,7 +183,12 @@ fn cli_reports_render_in_headless_chromium() {
         ),
         (
             out2.join("report.html"),
-            &["<table id=\"parameters\"", "eps_2_4", "Trajectory"][..],
+            &[
+                "<table id=\"parameters\"",
+                "eps_2_4",
+                "Trajectory",
+                "cost at each iteration.",
+            ][..],
         ),
         (
             Path::new(s).join("validation/validation.html"),
@@ -222,4 +246,108 @@ fn validate_rejects_bad_inputs_with_clear_errors() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("missing.json"));
+}
+
+/// `calibrate` wrote result.convergence.csv: its costs decrease (LM accepts
+/// only decreasing steps) and its last one is the result's final cost; the
+/// page of `robimu report RESULT` draws it.
+fn check_convergence_history(result: &Path, out: &Path) {
+    let csv = result.with_file_name("result.convergence.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("iteration,cost,step_norm,lambda,gradient_norm,tries")
+    );
+    let costs: Vec<f64> = lines
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert!(costs.len() >= 3, "{text}");
+    for w in costs.windows(2) {
+        assert!(w[1] <= w[0] * (1.0 + 1e-12), "cost rose: {costs:?}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(result).unwrap()).unwrap();
+    let final_cost = json["final_cost"].as_f64().unwrap();
+    let last = *costs.last().unwrap();
+    eprintln!(
+        "convergence: {} rows, cost {} -> {last}, result final_cost {final_cost}",
+        costs.len(),
+        costs[0]
+    );
+    assert!(
+        (last - final_cost).abs() <= 1e-6 * final_cost.abs(),
+        "last {last} vs final {final_cost}"
+    );
+    assert_eq!(
+        json["iterations"].as_u64().unwrap() as usize,
+        costs.len() - 1
+    );
+    assert!(out.join("convergence.svg").is_file());
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(!page.contains("No convergence figure"));
+}
+
+/// A tracked motion whose tracker clock runs 0.137 s ahead of the session's:
+/// `validate` finds δ within 2 ms, reports it (stdout, validation.json,
+/// validation.html), takes it from --tracker-offset, and refuses an offset
+/// that leaves no overlap.
+fn check_tracker_offset(session: &Path, tmp: &Path, result: &str) {
+    let motion = tmp.join("shifted");
+    std::fs::create_dir_all(&motion).unwrap();
+    for f in ["session.toml", "joints.csv", "imu.csv"] {
+        std::fs::copy(session.join(f), motion.join(f)).unwrap();
+    }
+    let text = std::fs::read_to_string(session.join("tracker.csv")).unwrap();
+    let mut shifted = String::new();
+    for (k, line) in text.lines().enumerate() {
+        if k == 0 || line.starts_with('#') {
+            shifted.push_str(line);
+        } else {
+            let (t, rest) = line.split_once(',').unwrap();
+            let t: f64 = t.parse().unwrap();
+            shifted.push_str(&format!("{},{rest}", t + 0.137));
+        }
+        shifted.push('\n');
+    }
+    std::fs::write(motion.join("tracker.csv"), shifted).unwrap();
+    let poses = session.join("poses.csv");
+    let report = tmp.join("val-shifted");
+    let base = [
+        "validate",
+        session.to_str().unwrap(),
+        "--calibration",
+        result,
+        "--tracker",
+        poses.to_str().unwrap(),
+        "--motion",
+        motion.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ];
+    let text = robimu(&base);
+    eprintln!("{text}");
+    assert!(text.contains("estimated by matching"), "{text}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("validation.json")).unwrap())
+            .unwrap();
+    let ms = json["tracker_offset"]["delta_ms"].as_f64().unwrap();
+    assert!((ms - 137.0).abs() < 2.0, "delta {ms} ms");
+    assert!(json["imu_accuracy"]["calibrated"]["rms_gyro_deg_s"].is_f64());
+    let page = std::fs::read_to_string(report.join("validation.html")).unwrap();
+    assert!(page.contains("Tracker time offset"));
+
+    let given = robimu(&[&base[..], &["--tracker-offset", "0.137"]].concat());
+    assert!(given.contains("137.0 ms (given)"), "{given}");
+    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
+        .args(base)
+        .args(["--tracker-offset", "-500"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("does not overlap") && err.contains("tracker.csv"),
+        "{err}"
+    );
 }

@@ -10,6 +10,7 @@ use robimu::workflows::plan::{plan, PlanOptions};
 use robimu::workflows::simulate::{
     draw_truth, simulate, simulated_registration, static_poses, tracked_motion, SimulateOptions,
 };
+use robimu::workflows::tracker_offset::{estimate_tracker_offset, to_session_clock, OffsetSearch};
 use robimu::workflows::trajectory::random_walk;
 use robimu::workflows::validate::{
     imu_accuracy, imu_position_and_gravity, robot_accuracy, row_from_pose, ImuAccuracy,
@@ -206,4 +207,141 @@ fn planned_calibration_is_within_20_percent_of_the_classical_tracker_calibration
         sum_classical += k;
     }
     assert!((sum_cal / sum_classical - 1.0).abs() <= 0.2);
+}
+
+/// The tracker's own clock (paper §9: the tracker is first aligned with the
+/// robot data): tracker timestamps shifted by δ, the offset found from the
+/// angular speeds within 2 ms, and the IMU accuracy with the estimated δ
+/// applied within 3 % of the unshifted case. The IMU accuracy uses the true
+/// parameters as the "calibration" and the true tracker placement (the
+/// ground truth is what is tested here, not the calibration).
+#[test]
+fn tracker_time_offset_is_recovered_and_the_imu_accuracy_is_unchanged() {
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::new(&robot);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(31);
+    let truth = draw_truth(&layout, &mut rng);
+    let sim = SimulateOptions::paper(&robot);
+    let eval = random_walk(&robot, 60.0, 1.0, &mut rng).unwrap();
+    let data = simulate(&robot, &layout, &truth, &eval, &sim, 32).unwrap();
+    let markers = tracked_motion(&robot, &layout, &truth, &eval, &data.joint_t, true, 33).unwrap();
+    let values: Vec<f64> = markers.iter().flat_map(row_from_pose).collect();
+    let table = |shift: f64| Table {
+        columns: robimu::session::TRACKER_COLUMNS.map(String::from).to_vec(),
+        t: data.joint_t.iter().map(|t| t + shift).collect(),
+        values: values.clone(),
+    };
+    let reg = simulated_registration();
+    let (p_imu, g) = imu_position_and_gravity(&robot, &layout, &truth).unwrap();
+    let accuracy = |tracker: &Table| {
+        let gt = ImuGroundTruth::fit(tracker, &reg, p_imu, g, 30).unwrap();
+        imu_accuracy(
+            &layout,
+            &layout.nominal(),
+            &truth,
+            &gt,
+            &data.imu_t,
+            &data.imu_z,
+        )
+        .unwrap()
+    };
+    let reference = accuracy(&table(0.0));
+    let search = OffsetSearch::default();
+    let span = (data.joint_t[0], *data.joint_t.last().unwrap());
+    let nominal = layout.nominal();
+    for (shift, x, what) in [
+        (0.137, &truth, "true"),
+        (0.137, &nominal, "nominal"),
+        (0.0, &truth, "true"),
+        (-3.21, &truth, "true"),
+        (1000.137, &truth, "true"),
+    ] {
+        let tracker = table(shift);
+        let est = estimate_tracker_offset(
+            &robot,
+            &layout,
+            x,
+            &tracker,
+            &data.joint_t,
+            &data.joint_q,
+            &search,
+        )
+        .unwrap();
+        eprintln!(
+            "shift {shift} s ({what} kinematics): delta {:.3} ms off, R² {:.5}, rms {:.3} deg/s, overlap {:.1} s",
+            1e3 * (est.delta - shift),
+            est.r_squared,
+            est.rms.to_degrees(),
+            est.overlap
+        );
+        assert!((est.delta - shift).abs() < 2e-3, "shift {shift}: {est:?}");
+        assert!(est.r_squared > 0.9, "{est:?}");
+        let imu = accuracy(&to_session_clock(&tracker, est.delta, span).unwrap());
+        for (a, b, name) in [
+            (&imu.nominal, &reference.nominal, "nominal"),
+            (&imu.calibrated, &reference.calibrated, "calibrated"),
+            (&imu.classical, &reference.classical, "classical"),
+        ] {
+            eprintln!(
+                "  {name}: gyro {:.4} vs {:.4} deg/s, accel {:.4} vs {:.4} m/s^2",
+                a.rms_gyro().to_degrees(),
+                b.rms_gyro().to_degrees(),
+                a.rms_accel(),
+                b.rms_accel()
+            );
+            assert!(
+                (a.rms_gyro() / b.rms_gyro() - 1.0).abs() < 0.03,
+                "{name} gyro"
+            );
+            assert!(
+                (a.rms_accel() / b.rms_accel() - 1.0).abs() < 0.03,
+                "{name} accel"
+            );
+        }
+    }
+    // left on the tracker clock, the ground truth is 137 ms late: the
+    // calibrated errors grow far beyond the aligned ones
+    let late = accuracy(&table(0.137));
+    assert!(late.calibrated.rms_gyro() > 3.0 * reference.calibrated.rms_gyro());
+
+    // bad input: a different motion, a too short one, no overlap
+    let other = random_walk(&robot, 60.0, 1.0, &mut rng).unwrap();
+    let wrong = tracked_motion(&robot, &layout, &truth, &other, &data.joint_t, true, 34).unwrap();
+    let wrong = Table {
+        values: wrong.iter().flat_map(row_from_pose).collect(),
+        ..table(0.137)
+    };
+    let e = estimate_tracker_offset(
+        &robot,
+        &layout,
+        &truth,
+        &wrong,
+        &data.joint_t,
+        &data.joint_q,
+        &search,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("does not follow"), "{e}");
+    let short = Table {
+        t: data.joint_t[..480].to_vec(),
+        values: values[..7 * 480].to_vec(),
+        ..table(0.0)
+    };
+    let e = estimate_tracker_offset(
+        &robot,
+        &layout,
+        &truth,
+        &short,
+        &data.joint_t,
+        &data.joint_q,
+        &search,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("too short"), "{e}");
+    let e = to_session_clock(&table(0.137), 100.0, span)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("does not overlap"), "{e}");
 }

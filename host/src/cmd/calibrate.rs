@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use robimu::model::{ParamLayout, Robot};
+use robimu::report::convergence::{convergence_path, ConvergenceLog};
 use robimu::report::{CalibrationResult, ParameterTable};
 use robimu::workflows::calibrate::{calibrate, check_measurements, CalibrateOptions};
 use robimu::workflows::noise::NoiseFile;
@@ -17,7 +18,8 @@ use super::input::{load_session, output_path, Progress};
 ///
 /// Estimates every parameter with its posterior uncertainty, prints the
 /// parameter table (against the truth when the session has a truth.toml)
-/// and writes the result file (JSON, MODEL.md §8).
+/// and writes the result file (JSON, MODEL.md §8) and, next to it, the
+/// solver's iteration history (NAME.convergence.csv for NAME.json).
 #[derive(Debug, Clone, clap::Args)]
 pub struct CalibrateCmd {
     /// Session directory (session.toml, joints.csv, imu.csv).
@@ -278,10 +280,12 @@ impl CalibrateCmd {
         }
         result.write(&path)?;
         writeln!(out, "wrote {}", path.display())?;
+        let history = ConvergenceLog::from_summary(&cal.summary);
+        let hpath = convergence_path(&path);
+        history.write(&hpath)?;
+        writeln!(out, "wrote {}", hpath.display())?;
         if let Some(report_dir) = &self.report {
-            let costs: Vec<f64> = std::iter::once(cal.summary.initial_cost)
-                .chain(cal.summary.iterations.iter().map(|r| r.cost))
-                .collect();
+            let costs = history.costs();
             let series = robimu::report::html::SessionSeries::new(
                 &robot,
                 &data,

@@ -4,7 +4,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use robimu::model::ParamLayout;
-use robimu::report::html::{calibration_report, SessionSeries};
+use robimu::report::convergence::{convergence_path, ConvergenceLog};
+use robimu::report::html::{calibration_report_with, Convergence, SessionSeries};
 use robimu::report::CalibrationResult;
 use robimu::session::Session;
 
@@ -14,8 +15,10 @@ use super::input::session_robot;
 ///
 /// One self-contained page (inline CSS, figures as inline SVG, no scripts,
 /// no external links): the parameter table, posterior σ against the prior
-/// σ, convergence and, when the session is found, the joint trajectory and
-/// the IMU residuals over time. The figures are also written as PNG and SVG.
+/// σ, convergence (from NAME.convergence.csv next to NAME.json, written by
+/// `robimu calibrate`; the page says so when it is missing) and, when the
+/// session is found, the joint trajectory and the IMU residuals over time.
+/// The figures are also written as PNG and SVG.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ReportCmd {
     /// Result file (result.json, MODEL.md §8).
@@ -95,7 +98,22 @@ impl ReportCmd {
             None => None,
         };
         let truth = session.as_ref().and_then(|s| s.truth.as_ref());
-        let path = calibration_report(&dir, &result, truth, None, series.as_ref())?;
+        let history_path = convergence_path(&self.result);
+        let history = if history_path.is_file() {
+            Some(ConvergenceLog::read(&history_path)?)
+        } else {
+            None
+        };
+        let costs = history.as_ref().map(ConvergenceLog::costs);
+        let why = format!(
+            "the solver's iteration history {} is missing (`robimu calibrate` writes it next to the result file; results written before it did, or copied without it, have none)",
+            history_path.display()
+        );
+        let convergence = match &costs {
+            Some(c) => Convergence::Costs(c),
+            None => Convergence::Unavailable(&why),
+        };
+        let path = calibration_report_with(&dir, &result, truth, convergence, series.as_ref())?;
         println!("wrote {}", path.display());
         Ok(())
     }

@@ -6,12 +6,15 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use robimu::model::ParamLayout;
-use robimu::report::html::validation_report;
+use robimu::report::html::{tracker_alignment_text, validation_report_with};
 use robimu::report::CalibrationResult;
 use robimu::session::{read_table, Columns, Session, TRACKER_COLUMNS};
+use robimu::workflows::tracker_offset::{
+    estimate_tracker_offset, to_session_clock, OffsetSearch, TrackerAlignment,
+};
 use robimu::workflows::validate::{
-    imu_accuracy, imu_position_and_gravity, robot_accuracy, tracked_poses, ImuAccuracy,
-    ImuGroundTruth, TrackedPose,
+    imu_accuracy, imu_position_and_gravity, robot_accuracy, tracked_poses, ImuAccuracy, ImuErrors,
+    ImuGroundTruth, PoseErrors, RobotAccuracy, TrackedPose,
 };
 
 use super::input::load_session;
@@ -33,8 +36,11 @@ use super::report::result_vector;
 /// session's tracker.csv, or `--motion`), splines fitted to the tracked IMU
 /// pose give the true angular rate and specific force; the IMU output
 /// corrected with the nominal, calibrated and a classical (tracker) IMU
-/// calibration is compared against them. Writes validation.html with
-/// histograms (PNG/SVG too).
+/// calibration is compared against them. The tracker's clock is aligned
+/// with the session's first: the offset δ is estimated by matching the
+/// angular speed of the tracked marker with the flange's (forward kinematics
+/// along the joint samples), or given with --tracker-offset. Writes
+/// validation.html with histograms (PNG/SVG too) and validation.json.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ValidateCmd {
     /// Session directory the calibration was computed from.
@@ -53,9 +59,16 @@ pub struct ValidateCmd {
     /// the IMU accuracy [default: SESSION when it has a tracker.csv].
     #[arg(long)]
     pub motion: Option<PathBuf>,
-    /// Directory for validation.html and the figures [default: SESSION/validation].
+    /// Directory for validation.html, validation.json and the figures
+    /// [default: SESSION/validation].
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Time offset δ = t_tracker − t_session of the tracked motion, s (the
+    /// tracker sample stamped t was taken at session time t − δ) [default:
+    /// estimated by matching the tracked marker's angular speed with the
+    /// flange's from the joint samples].
+    #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
+    pub tracker_offset: Option<f64>,
 }
 
 /// The poses of `path`, with joint angles from its `q1..qn` columns or `joints`.
@@ -100,6 +113,58 @@ fn read_poses(path: &Path, session: &Session, n: usize) -> anyhow::Result<Vec<Tr
         .with_context(|| format!("{}", path.display()))
 }
 
+/// validation.json: the numbers of the tables (SI units and mm/deg).
+fn summary_json(
+    acc: &RobotAccuracy,
+    imu: Option<&ImuAccuracy>,
+    alignment: Option<&TrackerAlignment>,
+) -> serde_json::Value {
+    use serde_json::json;
+    let pose = |e: &PoseErrors| {
+        json!({
+            "mean_position_mm": 1e3 * e.mean_position(),
+            "max_position_mm": 1e3 * e.max_position(),
+            "mean_rotation_deg": e.mean_rotation().to_degrees(),
+            "max_rotation_deg": e.max_rotation().to_degrees(),
+        })
+    };
+    let mut v = json!({
+        "robot_accuracy": {
+            "train": acc.train,
+            "test": acc.test,
+            "nominal": pose(&acc.nominal),
+            "calibrated": pose(&acc.calibrated),
+            "classical": pose(&acc.classical),
+        },
+    });
+    if let Some(imu) = imu {
+        let errs = |e: &ImuErrors| {
+            json!({
+                "rms_gyro_deg_s": e.rms_gyro().to_degrees(),
+                "rms_accel_m_s2": e.rms_accel(),
+            })
+        };
+        v["imu_accuracy"] = json!({
+            "train": imu.train,
+            "test": imu.test,
+            "nominal": errs(&imu.nominal),
+            "calibrated": errs(&imu.calibrated),
+            "classical": errs(&imu.classical),
+        });
+    }
+    if let Some(a) = alignment {
+        v["tracker_offset"] = json!({
+            "delta_s": a.delta,
+            "delta_ms": 1e3 * a.delta,
+            "estimated": a.estimate.is_some(),
+            "r_squared": a.estimate.map(|e| e.r_squared),
+            "rms_deg_s": a.estimate.map(|e| e.rms.to_degrees()),
+            "overlap_s": a.estimate.map(|e| e.overlap),
+        });
+    }
+    v
+}
+
 impl ValidateCmd {
     /// Validate, print and write the report.
     pub fn run(self) -> anyhow::Result<()> {
@@ -131,6 +196,7 @@ impl ValidateCmd {
             .motion
             .clone()
             .or_else(|| session.tracker.is_some().then(|| self.session.clone()));
+        let mut alignment = None;
         let imu: Option<ImuAccuracy> = match motion_dir {
             None => None,
             Some(dir) => {
@@ -144,10 +210,47 @@ impl ValidateCmd {
                     .tracker
                     .as_ref()
                     .with_context(|| format!("--motion {}: no tracker.csv", dir.display()))?;
-                let (p_imu, g) = imu_position_and_gravity(&robot, &layout, &x)?;
-                let gt = ImuGroundTruth::fit(tracker, &acc.baseline.registration, p_imu, g, 30)
-                    .with_context(|| format!("{}", dir.join("tracker.csv").display()))?;
+                let tracker_path = dir.join("tracker.csv");
                 let data = motion.measurements();
+                let a = match self.tracker_offset {
+                    Some(delta) => {
+                        if !delta.is_finite() {
+                            bail!("--tracker-offset must be a number of seconds (got {delta})");
+                        }
+                        TrackerAlignment {
+                            delta,
+                            estimate: None,
+                        }
+                    }
+                    None => {
+                        let e = estimate_tracker_offset(
+                            &robot,
+                            &layout,
+                            &x,
+                            tracker,
+                            &data.joint_t,
+                            &data.joint_q,
+                            &OffsetSearch::default(),
+                        )
+                        .with_context(|| {
+                            format!(
+                                "cannot find the time offset of {} against its joint samples (give it with --tracker-offset SECONDS)",
+                                tracker_path.display()
+                            )
+                        })?;
+                        TrackerAlignment {
+                            delta: e.delta,
+                            estimate: Some(e),
+                        }
+                    }
+                };
+                alignment = Some(a);
+                let span = motion.joints.span().unwrap_or_default();
+                let aligned = to_session_clock(tracker, a.delta, span)
+                    .with_context(|| format!("{}", tracker_path.display()))?;
+                let (p_imu, g) = imu_position_and_gravity(&robot, &layout, &x)?;
+                let gt = ImuGroundTruth::fit(&aligned, &acc.baseline.registration, p_imu, g, 30)
+                    .with_context(|| format!("{}", tracker_path.display()))?;
                 Some(
                     imu_accuracy(
                         &layout,
@@ -158,7 +261,11 @@ impl ValidateCmd {
                         &data.imu_z,
                     )
                     .with_context(|| {
-                        format!("cannot compute the IMU accuracy from {}", dir.display())
+                        format!(
+                            "cannot compute the IMU accuracy from {} (tracker time offset δ = {} s)",
+                            dir.display(),
+                            a.delta
+                        )
                     })?,
                 )
             }
@@ -189,6 +296,9 @@ impl ValidateCmd {
                 e.max_rotation().to_degrees()
             )?;
         }
+        if let Some(a) = &alignment {
+            writeln!(out, "{}", tracker_alignment_text(a))?;
+        }
         if let Some(imu) = &imu {
             writeln!(
                 out,
@@ -218,8 +328,20 @@ impl ValidateCmd {
             .report
             .clone()
             .unwrap_or_else(|| self.session.join("validation"));
-        let path = validation_report(&dir, &layout, &result, &acc, imu.as_ref())?;
+        let path = validation_report_with(
+            &dir,
+            &layout,
+            &result,
+            &acc,
+            imu.as_ref(),
+            alignment.as_ref(),
+        )?;
         writeln!(out, "wrote {}", path.display())?;
+        let json_path = dir.join("validation.json");
+        let json = summary_json(&acc, imu.as_ref(), alignment.as_ref());
+        std::fs::write(&json_path, serde_json::to_string_pretty(&json)? + "\n")
+            .with_context(|| format!("cannot write {}", json_path.display()))?;
+        writeln!(out, "wrote {}", json_path.display())?;
         Ok(())
     }
 }

@@ -17,6 +17,7 @@ use crate::plot::{histogram_grid, line_panels, HistogramPanel, LinePanel, PlotEr
 use crate::problem::Measurements;
 use crate::session::Truth;
 use crate::workflows::calibrate::choose_knots;
+use crate::workflows::tracker_offset::TrackerAlignment;
 use crate::workflows::validate::{ImuAccuracy, RobotAccuracy};
 
 /// A report could not be written.
@@ -232,6 +233,15 @@ impl SessionSeries {
     }
 }
 
+/// What the report knows of the solver's iterations.
+#[derive(Debug, Clone, Copy)]
+pub enum Convergence<'a> {
+    /// The cost at the start and after each iteration.
+    Costs(&'a [f64]),
+    /// No iteration history: why (shown on the page instead of the figure).
+    Unavailable(&'a str),
+}
+
 /// Write `dir/report.html` (and its figures, PNG + SVG) for a calibration
 /// result: the parameter table (against `truth` when given), posterior σ
 /// against prior σ, convergence (`costs`: the cost at each solver
@@ -241,6 +251,22 @@ pub fn calibration_report(
     result: &CalibrationResult,
     truth: Option<&Truth>,
     costs: Option<&[f64]>,
+    series: Option<&SessionSeries>,
+) -> Result<PathBuf, ReportError> {
+    let convergence = match costs {
+        Some(c) => Convergence::Costs(c),
+        None => Convergence::Unavailable("the solver's iteration history was not given"),
+    };
+    calibration_report_with(dir, result, truth, convergence, series)
+}
+
+/// [`calibration_report`] with the convergence figure's data, or the reason
+/// it is missing (stated on the page).
+pub fn calibration_report_with(
+    dir: &Path,
+    result: &CalibrationResult,
+    truth: Option<&Truth>,
+    convergence: Convergence<'_>,
     series: Option<&SessionSeries>,
 ) -> Result<PathBuf, ReportError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
@@ -356,7 +382,18 @@ pub fn calibration_report(
     if !text.is_empty() {
         page.paragraph(text.trim());
     }
-    if let Some(costs) = costs.filter(|c| !c.is_empty()) {
+    let costs = match convergence {
+        Convergence::Costs(c) if !c.is_empty() => Some(c),
+        Convergence::Costs(_) => {
+            page.paragraph("No convergence figure: the iteration history is empty.");
+            None
+        }
+        Convergence::Unavailable(why) => {
+            page.paragraph(&format!("No convergence figure: {why}."));
+            None
+        }
+    };
+    if let Some(costs) = costs {
         let pts: Vec<(f64, f64)> = costs
             .iter()
             .enumerate()
@@ -430,6 +467,19 @@ pub fn validation_report(
     result: &CalibrationResult,
     robot: &RobotAccuracy,
     imu: Option<&ImuAccuracy>,
+) -> Result<PathBuf, ReportError> {
+    validation_report_with(dir, layout, result, robot, imu, None)
+}
+
+/// [`validation_report`] stating the tracker/robot time offset δ applied to
+/// the tracked motion (`alignment`, with the IMU accuracy).
+pub fn validation_report_with(
+    dir: &Path,
+    layout: &ParamLayout,
+    result: &CalibrationResult,
+    robot: &RobotAccuracy,
+    imu: Option<&ImuAccuracy>,
+    alignment: Option<&TrackerAlignment>,
 ) -> Result<PathBuf, ReportError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut page = HtmlPage::new("robimu validation against an external tracker");
@@ -524,6 +574,9 @@ pub fn validation_report(
             "Ground truth from degree-5 splines fitted to the tracked IMU pose; {} IMU samples fit the classical IMU calibration, {} held-out samples give the errors.",
             imu.train, imu.test
         ));
+        if let Some(a) = alignment {
+            page.paragraph(&tracker_alignment_text(a));
+        }
         let methods = [
             ("nominal", &imu.nominal),
             ("calibrated (this method)", &imu.calibrated),
@@ -575,6 +628,23 @@ pub fn validation_report(
     let path = dir.join("validation.html");
     page.write(&path)?;
     Ok(path)
+}
+
+/// One sentence on the tracker/robot time offset δ.
+pub fn tracker_alignment_text(a: &TrackerAlignment) -> String {
+    match &a.estimate {
+        Some(e) => format!(
+            "Tracker time offset δ = t_tracker − t_session = {:.1} ms, estimated by matching the tracked and the robot's angular speed (R² = {:.4}, RMS difference {:.3} °/s over {:.1} s); tracker/IMU offset τ + δ.",
+            1e3 * a.delta,
+            e.r_squared,
+            e.rms.to_degrees(),
+            e.overlap
+        ),
+        None => format!(
+            "Tracker time offset δ = t_tracker − t_session = {:.1} ms (given); tracker/IMU offset τ + δ.",
+            1e3 * a.delta
+        ),
+    }
 }
 
 #[cfg(test)]

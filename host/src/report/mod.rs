@@ -4,6 +4,7 @@
 //!   from a [`Calibration`](crate::workflows::calibrate::Calibration) and
 //!   reading it back, validated;
 //! * [`html`] — self-contained HTML reports (calibration, validation);
+//! * [`convergence`] — the solver's iteration history next to a result file;
 //! * [`units`] — display units (mm, degrees, °/s) for the SI values in files;
 //! * [`table`] — the paper's Table II as text: prior, estimate and posterior σ
 //!   of every parameter, and, against a known truth, the errors and the
@@ -11,6 +12,7 @@
 
 #![deny(missing_docs)]
 
+pub mod convergence;
 pub mod html;
 pub mod result;
 pub mod table;

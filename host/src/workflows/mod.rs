@@ -12,6 +12,7 @@
 //! * [`repeatability`] — calibrations of k time windows against the full one;
 //! * [`simulate`] — simulated sessions from a ground truth;
 //! * [`time_offset`] — finding τ before linearising;
+//! * [`tracker_offset`] — the tracker/robot time offset δ (paper §9);
 //! * [`trajectory`] — random excitation trajectories within the joint limits;
 //! * [`validate`] — robot and IMU accuracy against an external tracker.
 
@@ -27,5 +28,6 @@ pub mod plan;
 pub mod repeatability;
 pub mod simulate;
 pub mod time_offset;
+pub mod tracker_offset;
 pub mod trajectory;
 pub mod validate;
