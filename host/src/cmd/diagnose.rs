@@ -293,12 +293,12 @@ fn diagnosis_json(layout: &ParamLayout, d: &Diagnosis) -> serde_json::Value {
     })
 }
 
-/// Longest window of the residual plot, s.
+/// Window of the residual plot, s.
 const RMS_WINDOW: f64 = 1.0;
 
 /// Whitened residuals over time before and after the effects, one panel per
-/// channel, as their RMS over consecutive windows of 1 s (a tenth of the
-/// session when shorter than 10 s): a sample-by-sample plot of 10⁵–10⁶
+/// channel, as their RMS over consecutive windows of about 1 s (a tenth of
+/// the session when shorter than 10 s): a sample-by-sample plot of 10⁵–10⁶
 /// points would be an unreadable band and a multi-megabyte SVG, while the
 /// windowed RMS keeps one point per second and shows where and when the
 /// residuals rise above the noise model's level of 1 (drawn as a line).
@@ -330,7 +330,7 @@ fn residuals_plot(
             LinePanel {
                 title: format!("{name} residual"),
                 x_label: "session time [s]".into(),
-                y_label: format!("RMS over {window:.2} s [σ]"),
+                y_label: format!("RMS per ~{window:.2} s [σ]"),
                 series,
             }
         })

@@ -570,29 +570,37 @@ fn correlation(x: &[f64], y: &[f64]) -> f64 {
     }
 }
 
-/// RMS of `r` over consecutive windows of `window` seconds (the residual
-/// plot of `robimu diagnose`): one (mean sample time, RMS) per window that
-/// holds samples; `t` (non-decreasing) gives each sample's time.
+/// RMS of `r` over consecutive windows of about `window` seconds (the
+/// residual plot of `robimu diagnose`): the span of `t` (non-decreasing, each
+/// sample's time) is cut into round(span / window) equal windows, so the
+/// last one is not a stub; one (mean sample time, RMS) per window that holds
+/// samples.
 pub fn windowed_rms(t: &[f64], r: &[f64], window: f64) -> Vec<(f64, f64)> {
-    let Some(&t0) = t.first() else {
+    let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
         return Vec::new();
     };
-    let window = if window > 0.0 { window } else { f64::INFINITY };
+    let span = t1 - t0;
+    let count = if window > 0.0 && span > 0.0 {
+        (span / window).round().max(1.0)
+    } else {
+        1.0
+    };
+    let width = if span > 0.0 { span / count } else { 1.0 };
     let mut out = Vec::new();
-    let (mut key, mut st, mut ss, mut count) = (0u64, 0.0, 0.0, 0usize);
+    let (mut key, mut st, mut ss, mut n) = (0.0, 0.0, 0.0, 0usize);
     for (&ti, &ri) in t.iter().zip(r) {
-        let k = ((ti - t0) / window).floor() as u64;
-        if k != key && count > 0 {
-            out.push((st / count as f64, (ss / count as f64).sqrt()));
-            (st, ss, count) = (0.0, 0.0, 0);
+        let k = ((ti - t0) / width).floor().min(count - 1.0);
+        if k != key && n > 0 {
+            out.push((st / n as f64, (ss / n as f64).sqrt()));
+            (st, ss, n) = (0.0, 0.0, 0);
         }
         key = k;
         st += ti;
         ss += ri * ri;
-        count += 1;
+        n += 1;
     }
-    if count > 0 {
-        out.push((st / count as f64, (ss / count as f64).sqrt()));
+    if n > 0 {
+        out.push((st / n as f64, (ss / n as f64).sqrt()));
     }
     out
 }
@@ -953,8 +961,8 @@ mod tests {
         assert!((correlation(&x, &y) + 1.0).abs() < 1e-12);
     }
 
-    /// Windowed RMS: windows split at multiples of the window from the first
-    /// sample, each the RMS of its own samples at their mean time.
+    /// Windowed RMS: equal windows from the first sample to the last, each
+    /// the RMS of its own samples at their mean time.
     #[test]
     fn windowed_rms_of_known_series() {
         // 10 Hz for 3 s; first second ±1, second 3, third alternating ±2
@@ -972,7 +980,13 @@ mod tests {
             assert!((tm - (k as f64 + 0.45)).abs() < 1e-9, "{w:?}");
             assert!((rms - [1.0, 3.0, 2.0][k]).abs() < 1e-12, "{w:?}");
         }
+        // 2.9 s span in windows of ~1.2 s: two of 1.45 s (15 samples each)
+        let w = windowed_rms(&t, &r, 1.2);
+        assert_eq!(w.len(), 2, "{w:?}");
+        let second: f64 = r[15..].iter().map(|v| v * v).sum::<f64>() / 15.0;
+        assert!((w[1].1 - second.sqrt()).abs() < 1e-12, "{w:?}");
         assert_eq!(windowed_rms(&t, &r, 10.0).len(), 1);
+        assert_eq!(windowed_rms(&[3.0], &[-2.0], 1.0), [(3.0, 2.0)]);
         assert!(windowed_rms(&[], &[], 1.0).is_empty());
     }
 
