@@ -103,6 +103,7 @@ fn main() {
             device,
             seq: s.seq,
             z,
+            temp: f64::from(s.temp_raw),
         })
         .expect("sample");
         count += 1;

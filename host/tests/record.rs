@@ -87,10 +87,15 @@ fn calibrate_against_truth(dir: &Path, truth: &Truth, label: &str) -> Calibratio
     cal
 }
 
-/// Every IMU time strictly increasing, every joint time non-decreasing.
+/// Every IMU time strictly increasing, every joint time non-decreasing,
+/// and the sensor temperature recorded on every IMU row (the simulated
+/// BNO055 holds 25 °C).
 fn check_session(dir: &Path) -> Session {
     let s = Session::load(dir).unwrap();
     let m = s.measurements();
+    let temp = m.imu_temp.as_deref().expect("imu.csv has a temp_c column");
+    assert_eq!(temp.len(), m.imu_t.len());
+    assert!(temp.iter().all(|&c| c == 25.0), "temperatures {temp:?}");
     assert!(
         m.imu_t.windows(2).all(|w| w[1] > w[0]),
         "IMU times not increasing"

@@ -8,11 +8,11 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use robimu::effects::{self, MassModel};
 use robimu::model::ParamLayout;
-use robimu::plot::{loglog_panels, LogLogPanel};
+use robimu::plot::{line_panels, loglog_panels, LinePanel, LogLogPanel};
 use robimu::report::CalibrationResult;
 use robimu::workflows::calibrate::{check_measurements, CalibrateOptions};
 use robimu::workflows::diagnose::{
-    diagnose, setup_with, welch, DiagnoseOptions, Diagnosis, ResidualStats, CHANNELS,
+    diagnose, setup_with, welch, windowed_rms, DiagnoseOptions, Diagnosis, ResidualStats, CHANNELS,
 };
 
 use super::input::{load_session, Progress};
@@ -26,7 +26,9 @@ use super::input::{load_session, Progress};
 /// encoder_scale, resonance) with a Rao score test, adds the most significant one
 /// (Bonferroni at --alpha across the catalogue, confirmed by a refit's
 /// likelihood ratio), and repeats until none is significant. Prints the
-/// summary and writes DIR/diagnosis.json and residual spectra plots.
+/// summary and writes DIR/diagnosis.json, the residuals over time
+/// (residuals.png/svg) and their spectra (residual_spectra.png/svg), before
+/// and after the effects.
 #[derive(Debug, Clone, clap::Args)]
 pub struct DiagnoseCmd {
     /// Session directory (session.toml, joints.csv, imu.csv).
@@ -114,6 +116,9 @@ impl DiagnoseCmd {
         std::fs::write(&path, serde_json::to_string_pretty(&json)?)
             .with_context(|| format!("cannot write {}", path.display()))?;
         writeln!(out, "wrote {}", path.display())?;
+        for p in residuals_plot(&out_dir, &data, &d)? {
+            writeln!(out, "wrote {}", p.display())?;
+        }
         for p in spectra_plot(&out_dir, &data, &d)? {
             writeln!(out, "wrote {}", p.display())?;
         }
@@ -286,6 +291,56 @@ fn diagnosis_json(layout: &ParamLayout, d: &Diagnosis) -> serde_json::Value {
         "residual_stats_after": d.stats_after,
         "final_model": robimu::workflows::diagnose::fit_json(layout, &d.final_fit),
     })
+}
+
+/// Window of the residual plot, s.
+const RMS_WINDOW: f64 = 1.0;
+
+/// Whitened residuals over time before and after the effects, one panel per
+/// channel, as their RMS over consecutive windows of about 1 s (a tenth of
+/// the session when shorter than 10 s): a sample-by-sample plot of 10⁵–10⁶
+/// points would be an unreadable band and a multi-megabyte SVG, while the
+/// windowed RMS keeps one point per second and shows where and when the
+/// residuals rise above the noise model's level of 1 (drawn as a line).
+fn residuals_plot(
+    dir: &std::path::Path,
+    data: &robimu::problem::Measurements,
+    d: &Diagnosis,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let span = match (data.imu_t.first(), data.imu_t.last()) {
+        (Some(a), Some(b)) => (*a, *b),
+        _ => (0.0, 1.0),
+    };
+    let window = RMS_WINDOW.min((span.1 - span.0) / 10.0);
+    let panels: Vec<LinePanel> = CHANNELS
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            let mut series: Vec<(String, Vec<(f64, f64)>)> =
+                [("before", &d.baseline), ("after", &d.final_fit)]
+                    .into_iter()
+                    .map(|(label, fit)| {
+                        let t: Vec<f64> =
+                            fit.residuals.iter().map(|(i, _)| data.imu_t[*i]).collect();
+                        let r: Vec<f64> = fit.residuals.iter().map(|(_, v)| v[c]).collect();
+                        (label.to_string(), windowed_rms(&t, &r, window))
+                    })
+                    .collect();
+            series.push(("noise model".into(), vec![(span.0, 1.0), (span.1, 1.0)]));
+            LinePanel {
+                title: format!("{name} residual"),
+                x_label: "session time [s]".into(),
+                y_label: format!("RMS per ~{window:.2} s [σ]"),
+                series,
+            }
+        })
+        .collect();
+    Ok(line_panels(
+        &dir.join("residuals"),
+        "whitened residuals (windowed RMS), before and after the effects",
+        &panels,
+        3,
+    )?)
 }
 
 /// Residual spectra before and after, one panel per sensor.

@@ -40,6 +40,9 @@ pub struct Measurements {
     pub imu_t: Vec<f64>,
     /// IMU samples `[ax, ay, az, gx, gy, gz]`.
     pub imu_z: Vec<[f64; 6]>,
+    /// Sensor temperature at each IMU sample, °C, when recorded (not used
+    /// by the model; a regressor of [`crate::workflows::diagnose`]).
+    pub imu_temp: Option<Vec<f64>>,
 }
 
 /// Why the problem cannot be evaluated at some θ.

@@ -91,6 +91,8 @@ pub enum ImuEvent {
         seq: u32,
         /// `[ax, ay, az, gx, gy, gz]`, m/s² and rad/s.
         z: [f64; 6],
+        /// Sensor temperature, °C (`temp_raw` × `temp_scale_c_per_lsb`).
+        temp: f64,
     },
     /// One ping echo.
     Echo {
@@ -385,6 +387,7 @@ fn stream(
                     device: t_us.unwrap_or_default() as f64 * 1e-6,
                     seq: s.seq,
                     z,
+                    temp: f64::from(s.temp_raw) * decimal(info.temp_scale_c_per_lsb),
                 }
             }
             DeviceMessage::Pong(p) => match pending.remove(&p.nonce) {

@@ -12,7 +12,8 @@
 //!
 //! Files besides MODEL.md's: `imu.csv` has the extra columns `t_device`
 //! (s, the board's clock), `segment` (clock segment: a board reboot starts
-//! a new one) and `seq`; `pings.csv` logs every echo.
+//! a new one), `seq` and `temp_c` (the sensor's temperature, °C, read back
+//! by [`crate::session::Session`]); `pings.csv` logs every echo.
 
 pub mod arm;
 pub mod clock_fit;
@@ -298,6 +299,16 @@ pub fn record(
     }
 }
 
+/// An IMU sample waiting for its segment's clock fit.
+struct Waiting {
+    /// Device time, s.
+    device: f64,
+    seq: u32,
+    z: [f64; 6],
+    /// Temperature, °C.
+    temp: f64,
+}
+
 /// The writing side of a recording: takes IMU events and joint samples,
 /// maps device time to session time, writes the session's files.
 pub struct SessionSink {
@@ -306,8 +317,8 @@ pub struct SessionSink {
     pings_path: PathBuf,
     echoes: BTreeMap<u32, Vec<Echo>>,
     fits: BTreeMap<u32, ClockFit>,
-    /// Samples of segments without a clock fit yet: (device s, seq, z).
-    waiting: BTreeMap<u32, Vec<(f64, u32, [f64; 6])>>,
+    /// Samples of segments without a clock fit yet.
+    waiting: BTreeMap<u32, Vec<Waiting>>,
     last_seq: BTreeMap<u32, u32>,
     /// The counters so far.
     pub progress: RecordProgress,
@@ -321,7 +332,12 @@ impl SessionSink {
             dir,
             meta,
             joints,
-            &["t_device", "segment", "seq"],
+            &[
+                "t_device",
+                "segment",
+                "seq",
+                crate::session::IMU_TEMP_COLUMN,
+            ],
         )?;
         let pings_path = dir.join(repair::PINGS);
         let mut pings = std::io::BufWriter::new(
@@ -356,15 +372,18 @@ impl SessionSink {
                 device,
                 seq,
                 z,
+                temp,
             } => {
                 if let Some(prev) = self.last_seq.insert(segment, seq) {
                     self.progress.seq_gaps +=
                         u64::from(seq.wrapping_sub(prev).saturating_sub(1).min(1 << 20));
                 }
-                self.waiting
-                    .entry(segment)
-                    .or_default()
-                    .push((device, seq, z));
+                self.waiting.entry(segment).or_default().push(Waiting {
+                    device,
+                    seq,
+                    z,
+                    temp,
+                });
                 self.drain_waiting(false).map_err(|e| e.to_string())?;
             }
             ImuEvent::Echo { segment, echo } => {
@@ -405,11 +424,11 @@ impl SessionSink {
                 },
                 None => continue,
             };
-            for (device, seq, z) in self.waiting.remove(&segment).unwrap_or_default() {
+            for w in self.waiting.remove(&segment).unwrap_or_default() {
                 self.writer.imu_extra(
-                    fit.to_session(device),
-                    &z,
-                    &[device, f64::from(segment), f64::from(seq)],
+                    fit.to_session(w.device),
+                    &w.z,
+                    &[w.device, f64::from(segment), f64::from(w.seq), w.temp],
                 )?;
                 self.progress.imu_samples += 1;
             }

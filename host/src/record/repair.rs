@@ -227,10 +227,14 @@ mod tests {
             ));
         }
         std::fs::write(dir.path().join(PINGS), pings).unwrap();
-        let mut imu = String::from("t,ax,ay,az,gx,gy,gz,t_device,segment,seq\n");
+        let mut imu = String::from("t,ax,ay,az,gx,gy,gz,t_device,segment,seq,temp_c\n");
         for (k, t) in [1.0, 2.5, 9.9, 10.5, 12.0].iter().enumerate() {
             let seg = u32::from(*t >= 10.0);
-            imu.push_str(&format!("0,1,2,3,4,5,6,{:?},{seg},{k}\n", dev(seg, *t)));
+            imu.push_str(&format!(
+                "0,1,2,3,4,5,6,{:?},{seg},{k},{}\n",
+                dev(seg, *t),
+                20 + k
+            ));
         }
         std::fs::write(dir.path().join("imu.csv"), imu).unwrap();
         let report = repair(dir.path()).unwrap();
@@ -245,6 +249,14 @@ mod tests {
         for (t, want) in ts.iter().zip([1.0, 2.5, 9.9, 10.5, 12.0]) {
             assert!((t - want).abs() < 1e-6, "{t} vs {want}");
         }
+        // the extra columns (here the temperature) are kept as written
+        assert!(text.starts_with("t,ax,ay,az,gx,gy,gz,t_device,segment,seq,temp_c\n"));
+        let temps: Vec<&str> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.rsplit(',').next().unwrap())
+            .collect();
+        assert_eq!(temps, ["20", "21", "22", "23", "24"]);
         assert!((report.clock[0].1.drift_ppm() - 100.0).abs() < 1e-3);
     }
 }

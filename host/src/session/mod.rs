@@ -3,7 +3,8 @@
 //!
 //! * `session.toml` — [`SessionMeta`]
 //! * `joints.csv` — `t,q1,…,qn` (s, rad)
-//! * `imu.csv` — `t,ax,ay,az,gx,gy,gz` (s, m/s², rad/s)
+//! * `imu.csv` — `t,ax,ay,az,gx,gy,gz` (s, m/s², rad/s); optionally an
+//!   extra column `temp_c`, the sensor temperature (°C), read when present
 //! * `tracker.csv` — optional, `t,px,py,pz,qw,qx,qy,qz`
 //! * `truth.toml` — optional, simulated sessions only ([`Truth`])
 //!
@@ -26,12 +27,17 @@ use crate::problem::Measurements;
 pub use error::SessionError;
 pub(crate) use meta::toml_error;
 pub use meta::{NoiseOverride, SessionMeta, SESSION_FORMAT};
-pub use table::{parse_table, read_table, Columns, Table};
+pub use table::{
+    parse_table, parse_table_with, read_table, read_table_with, Columns, OptionalColumns, Table,
+};
 pub use truth::Truth;
 pub use writer::SessionWriter;
 
 /// `imu.csv` value columns.
 pub const IMU_COLUMNS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
+/// The optional `imu.csv` column of the sensor temperature, °C (an extra
+/// column after [`IMU_COLUMNS`], MODEL.md §7).
+pub const IMU_TEMP_COLUMN: &str = "temp_c";
 /// `tracker.csv` value columns.
 pub const TRACKER_COLUMNS: [&str; 7] = ["px", "py", "pz", "qw", "qx", "qy", "qz"];
 
@@ -60,6 +66,8 @@ pub struct Session {
     pub joints: Table,
     /// `imu.csv`: columns [`IMU_COLUMNS`].
     pub imu: Table,
+    /// `imu.csv`'s [`IMU_TEMP_COLUMN`] (°C, one per IMU row), when it has one.
+    pub imu_temp: Option<Vec<f64>>,
     /// `tracker.csv`, when present.
     pub tracker: Option<Table>,
     /// `truth.toml`, when present.
@@ -77,7 +85,12 @@ impl Session {
         }
         let meta = SessionMeta::read(&dir.join(files::META))?;
         let joints = read_table(&dir.join(files::JOINTS), Columns::Joints)?;
-        let imu = read_table(&dir.join(files::IMU), Columns::Fixed(&IMU_COLUMNS))?;
+        let (imu, mut extra) = read_table_with(
+            &dir.join(files::IMU),
+            Columns::Fixed(&IMU_COLUMNS),
+            &[IMU_TEMP_COLUMN],
+        )?;
+        let imu_temp = extra.pop().flatten();
         let tracker_path = dir.join(files::TRACKER);
         let tracker = if tracker_path.exists() {
             Some(read_table(&tracker_path, Columns::Fixed(&TRACKER_COLUMNS))?)
@@ -109,6 +122,7 @@ impl Session {
             meta,
             joints,
             imu,
+            imu_temp,
             tracker,
             truth,
         })
@@ -131,6 +145,7 @@ impl Session {
                 .chunks_exact(6)
                 .map(|z| [z[0], z[1], z[2], z[3], z[4], z[5]])
                 .collect(),
+            imu_temp: self.imu_temp.clone(),
         }
     }
 
@@ -181,7 +196,8 @@ mod tests {
         let s = Session::load(d).unwrap();
         assert_eq!(s.joint_count(), 2);
         assert_eq!(s.imu.row(0), [0.0, 0.0, 9.81, 0.0, 0.0, 0.0]);
-        assert!(s.tracker.is_none() && s.truth.is_none());
+        assert!(s.tracker.is_none() && s.truth.is_none() && s.imu_temp.is_none());
+        assert!(s.measurements().imu_temp.is_none());
         write(
             d,
             "session.toml",

@@ -1,7 +1,8 @@
 //! Time-series CSV tables (`joints.csv`, `imu.csv`, `tracker.csv`; MODEL.md §7).
 //!
 //! A table is a header naming its required columns first (extra columns after
-//! them are allowed and ignored), then one row per sample in time order.
+//! them are allowed and ignored, unless asked for by name as *optional*
+//! columns: [`read_table_with`]), then one row per sample in time order.
 //! Lines starting with `#` are comments. Every value must be a finite number;
 //! time must never decrease. Errors name the file and the line.
 
@@ -63,8 +64,7 @@ pub enum Columns<'a> {
 
 /// Read a table from `path`. See the module doc for the rules.
 pub fn read_table(path: &Path, columns: Columns<'_>) -> Result<Table, SessionError> {
-    let file = std::fs::File::open(path).map_err(|e| SessionError::io(path, e))?;
-    parse_table(std::io::BufReader::new(file), path, columns)
+    read_table_with(path, columns, &[]).map(|(t, _)| t)
 }
 
 /// Parse a table from any reader; `path` is only used in error messages.
@@ -73,6 +73,32 @@ pub fn parse_table(
     path: &Path,
     columns: Columns<'_>,
 ) -> Result<Table, SessionError> {
+    parse_table_with(reader, path, columns, &[]).map(|(t, _)| t)
+}
+
+/// Values of optional extra columns, one entry per name asked for: `None`
+/// when the header does not have it, else one value per row.
+pub type OptionalColumns = Vec<Option<Vec<f64>>>;
+
+/// [`read_table`], also reading the extra columns named `optional` when the
+/// header has them after the required ones (e.g. `temp_c` of `imu.csv`).
+/// A column that is present must hold a finite number on every row.
+pub fn read_table_with(
+    path: &Path,
+    columns: Columns<'_>,
+    optional: &[&str],
+) -> Result<(Table, OptionalColumns), SessionError> {
+    let file = std::fs::File::open(path).map_err(|e| SessionError::io(path, e))?;
+    parse_table_with(std::io::BufReader::new(file), path, columns, optional)
+}
+
+/// [`parse_table`] with optional extra columns (see [`read_table_with`]).
+pub fn parse_table_with(
+    reader: impl std::io::Read,
+    path: &Path,
+    columns: Columns<'_>,
+    optional: &[&str],
+) -> Result<(Table, OptionalColumns), SessionError> {
     let mut rdr = csv::ReaderBuilder::new()
         .comment(Some(b'#'))
         .trim(csv::Trim::All)
@@ -89,6 +115,18 @@ pub fn parse_table(
     let names = required_columns(&header, columns)
         .map_err(|m| SessionError::line(path, header_line(&header), m))?;
     let width = names.len();
+    // the field index of each optional column, when the header has it
+    let wanted: Vec<Option<usize>> = optional
+        .iter()
+        .map(|name| {
+            header
+                .iter()
+                .skip(width + 1)
+                .position(|h| h == *name)
+                .map(|p| p + width + 1)
+        })
+        .collect();
+    let mut extra: OptionalColumns = wanted.iter().map(|w| w.map(|_| Vec::new())).collect();
     let mut table = Table {
         columns: names,
         ..Table::default()
@@ -144,11 +182,27 @@ pub fn parse_table(
                 table.values.push(v);
             }
         }
+        for ((k, name), values) in wanted.iter().zip(optional).zip(&mut extra) {
+            let (Some(k), Some(values)) = (k, values) else {
+                continue;
+            };
+            let field = record.get(*k).unwrap_or("");
+            match field.parse::<f64>() {
+                Ok(v) if v.is_finite() => values.push(v),
+                _ => {
+                    return Err(SessionError::line(
+                        path,
+                        line,
+                        format!("column `{name}`: `{field}` is not a finite number"),
+                    ))
+                }
+            }
+        }
     }
     if table.is_empty() {
         return Err(SessionError::file(path, "no data rows after the header"));
     }
-    Ok(table)
+    Ok((table, extra))
 }
 
 fn header_line(header: &csv::StringRecord) -> u64 {
@@ -274,6 +328,42 @@ mod tests {
         assert!(e.to_string().contains("empty"), "{e}");
         let e = parse("t,q1\n", Columns::Joints).unwrap_err();
         assert!(e.to_string().contains("no data rows"), "{e}");
+    }
+
+    /// Optional columns are found by name after the required ones, read
+    /// when present, `None` when absent, and checked like the others.
+    #[test]
+    fn optional_columns_are_read_when_present() {
+        let text = "t,ax,seq,temp_c\n0,1,7,25.5\n1,2,8,-3\n";
+        let (t, extra) = parse_table_with(
+            text.as_bytes(),
+            Path::new("x.csv"),
+            Columns::Fixed(&["ax"]),
+            &["temp_c", "humidity"],
+        )
+        .unwrap();
+        assert_eq!(t.values, [1.0, 2.0]);
+        assert_eq!(extra, [Some(vec![25.5, -3.0]), None]);
+        // a required column is never taken for an optional one
+        let (_, extra) = parse_table_with(
+            "t,ax\n0,1\n".as_bytes(),
+            Path::new("x.csv"),
+            Columns::Fixed(&["ax"]),
+            &["ax"],
+        )
+        .unwrap();
+        assert_eq!(extra, [None]);
+        let e = parse_table_with(
+            "t,ax,temp_c\n0,1,20\n1,2,\n".as_bytes(),
+            Path::new("x.csv"),
+            Columns::Fixed(&["ax"]),
+            &["temp_c"],
+        )
+        .unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "x.csv:3: column `temp_c`: `` is not a finite number"
+        );
     }
 
     #[test]

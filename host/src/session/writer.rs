@@ -192,5 +192,34 @@ mod tests {
         assert_eq!(s.imu.row(0)[0], 1.0 / 7.0);
         assert_eq!(s.tracker.unwrap().len(), 1);
         assert_eq!(s.truth.unwrap().get("tau"), Some(0.1));
+        assert_eq!(s.imu_temp, None, "no temperature column, none read");
+    }
+
+    /// The temperature column (as the recorder writes it, after other extra
+    /// columns) reads back exactly into the session and its measurements.
+    #[test]
+    fn temperature_column_round_trips() {
+        use super::super::IMU_TEMP_COLUMN;
+        let dir = tempfile::tempdir().unwrap();
+        let mut w = SessionWriter::create_with_imu_extra(
+            dir.path(),
+            &SessionMeta::new("aubo_i5"),
+            1,
+            &["seq", IMU_TEMP_COLUMN],
+        )
+        .unwrap();
+        let temps = [24.0, 24.5, -3.25, 1.0 / 3.0];
+        for (k, &c) in temps.iter().enumerate() {
+            let t = 0.01 * k as f64;
+            w.joint(t, &[0.1]).unwrap();
+            w.imu_extra(t, &[0.0, 0.0, 9.81, 0.0, 0.0, 0.1], &[k as f64, c])
+                .unwrap();
+        }
+        w.finish().unwrap();
+        let s = Session::load(dir.path()).unwrap();
+        assert_eq!(s.imu_temp.as_deref(), Some(&temps[..]));
+        let m = s.measurements();
+        assert_eq!(m.imu_temp.as_deref(), Some(&temps[..]));
+        assert_eq!(m.imu_z[3][5], 0.1, "the required columns are unchanged");
     }
 }

@@ -414,7 +414,23 @@ const SEGMENT: usize = 512;
 
 /// Residual statistics of `fit` on `data` (`rate` the IMU rate, Hz, for
 /// the spectrum; τ from the fit).
-pub fn residual_stats(robot: &Robot, data: &Measurements, fit: &Fit) -> ResidualStats {
+///
+/// The candidate regressors, evaluated at each IMU sample on the fitted
+/// trajectory (at t + τ) with the fitted x:
+///
+/// ```text
+/// time                    t, s
+/// q1.. qd1.. qdd1..       joint angles, rates, accelerations (rad, rad/s, rad/s²)
+/// wx wy wz, sx sy sz      angular rate ω and specific force s at the IMU (sensor frame)
+/// tg1..tgN                gravity torque per joint, N·m (setup's mass model and g0)
+/// temp                    sensor temperature, °C (only when the session recorded it)
+/// ```
+pub fn residual_stats(
+    robot: &Robot,
+    data: &Measurements,
+    setup: &CatalogueSetup,
+    fit: &Fit,
+) -> ResidualStats {
     let layout = ParamLayout::new(robot);
     let res = &fit.residuals;
     let n = res.len().max(1);
@@ -437,6 +453,17 @@ pub fn residual_stats(robot: &Robot, data: &Measurements, fit: &Fit) -> Residual
     for k in ["wx", "wy", "wz", "sx", "sy", "sz"] {
         reg_names.push(k.into());
     }
+    let gravity = setup.mass.dof() == dof;
+    if gravity {
+        reg_names.extend((1..=dof).map(|j| format!("tg{j}")));
+    }
+    let temp = data
+        .imu_temp
+        .as_deref()
+        .filter(|c| c.len() == data.imu_t.len());
+    if temp.is_some() {
+        reg_names.push("temp".into());
+    }
     let regs: Vec<Vec<f64>> = res
         .iter()
         .map(|(i, _)| {
@@ -454,6 +481,12 @@ pub fn residual_stats(robot: &Robot, data: &Measurements, fit: &Fit) -> Residual
                 v.extend(s);
             } else {
                 v.extend([0.0; 6]);
+            }
+            if gravity {
+                v.extend(setup.mass.gravity_torques(&js.q[..dof], setup.g0));
+            }
+            if let Some(c) = temp {
+                v.push(c[*i]);
             }
             v
         })
@@ -514,8 +547,14 @@ pub fn residual_stats(robot: &Robot, data: &Measurements, fit: &Fit) -> Residual
     out
 }
 
-/// Pearson correlation (0 when either series is constant).
+/// Pearson correlation (0 when either series is constant: tested exactly,
+/// since the rounded mean of a constant series such as a recorded 24.7 °C
+/// leaves deviations of one ulp that would otherwise give a spurious r).
 fn correlation(x: &[f64], y: &[f64]) -> f64 {
+    let constant = |s: &[f64]| s.windows(2).all(|w| w[0] == w[1]);
+    if constant(x) || constant(y) {
+        return 0.0;
+    }
     let n = x.len().max(1) as f64;
     let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
     let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
@@ -529,6 +568,41 @@ fn correlation(x: &[f64], y: &[f64]) -> f64 {
     } else {
         sxy / (sxx * syy).sqrt()
     }
+}
+
+/// RMS of `r` over consecutive windows of about `window` seconds (the
+/// residual plot of `robimu diagnose`): the span of `t` (non-decreasing, each
+/// sample's time) is cut into round(span / window) equal windows, so the
+/// last one is not a stub; one (mean sample time, RMS) per window that holds
+/// samples.
+pub fn windowed_rms(t: &[f64], r: &[f64], window: f64) -> Vec<(f64, f64)> {
+    let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
+        return Vec::new();
+    };
+    let span = t1 - t0;
+    let count = if window > 0.0 && span > 0.0 {
+        (span / window).round().max(1.0)
+    } else {
+        1.0
+    };
+    let width = if span > 0.0 { span / count } else { 1.0 };
+    let mut out = Vec::new();
+    let (mut key, mut st, mut ss, mut n) = (0.0, 0.0, 0.0, 0usize);
+    for (&ti, &ri) in t.iter().zip(r) {
+        let k = ((ti - t0) / width).floor().min(count - 1.0);
+        if k != key && n > 0 {
+            out.push((st / n as f64, (ss / n as f64).sqrt()));
+            (st, ss, n) = (0.0, 0.0, 0);
+        }
+        key = k;
+        st += ti;
+        ss += ri * ri;
+        n += 1;
+    }
+    if n > 0 {
+        out.push((st / n as f64, (ss / n as f64).sqrt()));
+    }
+    out
 }
 
 /// Ljung–Box Q over `lags` lags and its p-value (χ² with `lags` dof).
@@ -756,8 +830,8 @@ pub fn diagnose(
         });
         current = next;
     };
-    let stats_before = residual_stats(robot, data, &baseline);
-    let stats_after = residual_stats(robot, data, &current);
+    let stats_before = residual_stats(robot, data, setup, &baseline);
+    let stats_after = residual_stats(robot, data, setup, &current);
     Ok(Diagnosis {
         baseline,
         final_fit: current,
@@ -863,6 +937,57 @@ mod tests {
         }
         assert!(ljung_box(&white, 20).1 > 1e-3);
         assert!(ljung_box(&ar, 20).1 < 1e-10);
+    }
+
+    /// A constant regressor (a steady temperature) has correlation 0, not
+    /// NaN and not rounding noise, even when its mean is not exact in binary.
+    #[test]
+    fn constant_series_have_zero_correlation() {
+        let y: Vec<f64> = (0..1000)
+            .map(|i| ((i * 7919) % 101) as f64 - 50.0)
+            .collect();
+        for c in [25.0, 24.7, 0.1, -1e-300] {
+            let x = vec![c; y.len()];
+            let n = x.len() as f64;
+            let mean = x.iter().sum::<f64>() / n;
+            println!("{c}: mean off by {:e}", mean - c);
+            assert_eq!(correlation(&x, &y), 0.0, "{c}");
+            assert_eq!(correlation(&y, &x), 0.0, "{c}");
+        }
+        // an independent check of the non-constant case: y against 2y + 1
+        let x: Vec<f64> = y.iter().map(|v| 2.0 * v + 1.0).collect();
+        assert!((correlation(&x, &y) - 1.0).abs() < 1e-12);
+        let x: Vec<f64> = y.iter().map(|v| -v).collect();
+        assert!((correlation(&x, &y) + 1.0).abs() < 1e-12);
+    }
+
+    /// Windowed RMS: equal windows from the first sample to the last, each
+    /// the RMS of its own samples at their mean time.
+    #[test]
+    fn windowed_rms_of_known_series() {
+        // 10 Hz for 3 s; first second ±1, second 3, third alternating ±2
+        let t: Vec<f64> = (0..30).map(|i| 0.1 * i as f64).collect();
+        let r: Vec<f64> = (0..30)
+            .map(|i| match i / 10 {
+                0 => [1.0, -1.0][i % 2],
+                1 => 3.0,
+                _ => [2.0, -2.0][i % 2],
+            })
+            .collect();
+        let w = windowed_rms(&t, &r, 1.0);
+        assert_eq!(w.len(), 3, "{w:?}");
+        for (k, (tm, rms)) in w.iter().enumerate() {
+            assert!((tm - (k as f64 + 0.45)).abs() < 1e-9, "{w:?}");
+            assert!((rms - [1.0, 3.0, 2.0][k]).abs() < 1e-12, "{w:?}");
+        }
+        // 2.9 s span in windows of ~1.2 s: two of 1.45 s (15 samples each)
+        let w = windowed_rms(&t, &r, 1.2);
+        assert_eq!(w.len(), 2, "{w:?}");
+        let second: f64 = r[15..].iter().map(|v| v * v).sum::<f64>() / 15.0;
+        assert!((w[1].1 - second.sqrt()).abs() < 1e-12, "{w:?}");
+        assert_eq!(windowed_rms(&t, &r, 10.0).len(), 1);
+        assert_eq!(windowed_rms(&[3.0], &[-2.0], 1.0), [(3.0, 2.0)]);
+        assert!(windowed_rms(&[], &[], 1.0).is_empty());
     }
 
     /// The Welch periodogram puts a sinusoid's power at its frequency.
