@@ -10,7 +10,7 @@ use robimu::model::{JointState, ParamLayout, Robot};
 use robimu::problem::Measurements;
 use robimu::workflows::calibrate::CalibrateOptions;
 use robimu::workflows::diagnose::{
-    diagnose, fit, inject_effects, residual_stats, score_all, setup_for, DiagnoseOptions,
+    diagnose, fit, inject_effects, residual_stats, score_all, setup_for, DiagnoseOptions, Diagnosis,
 };
 use robimu::workflows::simulate::{random_session, RandomSession, SimulateOptions};
 
@@ -174,23 +174,33 @@ fn check_restored(what: &str, f: &robimu::workflows::diagnose::Fit, truth: &[f64
     );
 }
 
-/// One effect hidden at `magnitude` (its `simulate --effect` unit): the
-/// diagnosis names it first and significant at the Bonferroni level, adds
-/// nothing else, estimates it within 4σ, and with it added the residuals
-/// are back at the noise floor and the baseline at the truth.
-fn check_detected(name: &str, magnitude: f64, seed: u64) {
-    let (robot, data, truth, injected) = session_with(seed, DURATION, &[(name, magnitude)]);
-    let setup = setup_for(&robot, &data, None);
-    let opts = CalibrateOptions::new(&robot);
+/// The whole diagnosis with the default settings: the catalogue set-up and
+/// the outcome.
+fn diagnose_all(
+    robot: &Robot,
+    data: &Measurements,
+) -> (robimu::effects::CatalogueSetup, Diagnosis) {
+    let setup = setup_for(robot, data, None);
+    let opts = CalibrateOptions::new(robot);
     let d = diagnose(
-        &robot,
-        &data,
+        robot,
+        data,
         &opts,
         &setup,
         &DiagnoseOptions::default(),
         |_| {},
     )
     .unwrap();
+    (setup, d)
+}
+
+/// One effect hidden at `magnitude` (its `simulate --effect` unit): the
+/// diagnosis names it first and significant at the Bonferroni level, adds
+/// nothing else, estimates it within 4σ, and with it added the residuals
+/// are back at the noise floor and the baseline at the truth.
+fn check_detected(name: &str, magnitude: f64, seed: u64) {
+    let (robot, data, truth, injected) = session_with(seed, DURATION, &[(name, magnitude)]);
+    let (_, d) = diagnose_all(&robot, &data);
     let threshold = 0.01 / effects::NAMES.len() as f64;
     assert!(
         !d.found.is_empty(),
@@ -255,17 +265,7 @@ fn resonance_is_named_and_estimated() {
 fn two_hidden_effects_are_both_found() {
     let hidden = [("joint_elasticity", 5.0), ("clock_drift", 100.0)];
     let (robot, data, truth, injected) = session_with(51, DURATION, &hidden);
-    let setup = setup_for(&robot, &data, None);
-    let opts = CalibrateOptions::new(&robot);
-    let d = diagnose(
-        &robot,
-        &data,
-        &opts,
-        &setup,
-        &DiagnoseOptions::default(),
-        |_| {},
-    )
-    .unwrap();
+    let (setup, d) = diagnose_all(&robot, &data);
     let names: Vec<&str> = d.found.iter().map(|f| f.name.as_str()).collect();
     println!("found {names:?}");
     assert_eq!(names.len(), 2, "found {names:?}");
@@ -306,17 +306,7 @@ fn null_sessions_raise_at_most_one_false_alarm_in_twenty() {
     let mut alarms = Vec::new();
     for seed in 100..120 {
         let (robot, data, truth, _) = session_with(seed, 40.0, &[]);
-        let setup = setup_for(&robot, &data, None);
-        let opts = CalibrateOptions::new(&robot);
-        let d = diagnose(
-            &robot,
-            &data,
-            &opts,
-            &setup,
-            &DiagnoseOptions::default(),
-            |_| {},
-        )
-        .unwrap();
+        let (_, d) = diagnose_all(&robot, &data);
         if let Some(f) = d.found.first() {
             alarms.push((seed, f.name.clone(), f.p_value));
         } else {

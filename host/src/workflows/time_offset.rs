@@ -223,18 +223,39 @@ pub fn find_tau(
     if r2 < 0.5 {
         return Err(TauError::NoMatch { r_squared: r2 });
     }
-    // parabola through the best and its neighbours
     let mut tau = lag;
     if ib > 0 && ib + 1 < fine.len() {
-        let (ym, y0, yp) = (fine[ib - 1].1, fine[ib].1, fine[ib + 1].1);
-        let denom = ym - 2.0 * y0 + yp;
-        if denom > 0.0 {
-            tau += 0.5 * search.fine_step * (ym - yp) / denom;
-        }
+        tau += parabola_vertex(fine[ib - 1].1, fine[ib].1, fine[ib + 1].1, search.fine_step);
     }
     Ok(TauEstimate {
         tau,
         r_squared: r2,
         samples: count,
     })
+}
+
+/// Where the parabola through (−h, y_m), (0, y_0), (h, y_p) has its minimum,
+/// relative to the middle point; 0 when it opens downwards (no refinement).
+pub fn parabola_vertex(ym: f64, y0: f64, yp: f64, h: f64) -> f64 {
+    let denom = ym - 2.0 * y0 + yp;
+    if denom > 0.0 {
+        0.5 * h * (ym - yp) / denom
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parabola_vertex;
+
+    #[test]
+    fn parabola_vertex_of_a_sampled_parabola() {
+        let f = |x: f64| 2.0 * (x - 0.013) * (x - 0.013) + 5.0;
+        let h = 0.01;
+        let v = parabola_vertex(f(-h), f(0.0), f(h), h);
+        assert!((v - 0.013).abs() < 1e-12, "{v}");
+        // opening downwards: no refinement
+        assert_eq!(parabola_vertex(1.0, 2.0, 1.5, h), 0.0);
+    }
 }

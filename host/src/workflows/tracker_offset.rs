@@ -22,6 +22,7 @@
 //! optimum and a parabola through the best three lags (as
 //! [`time_offset`](super::time_offset) does for τ).
 
+use super::time_offset::parabola_vertex;
 use super::validate::{flange_eps, flange_pose, pose_from_row, quat_from_matrix, ValidateError};
 use crate::model::geom::{dot, M3};
 use crate::model::{JointState, Knots, ParamLayout, Robot, Spline};
@@ -352,11 +353,7 @@ pub fn find_tracker_offset(
         )));
     }
     if ib > 0 && ib + 1 < fine.len() {
-        let (ym, y0, yp) = (fine[ib - 1].1, fine[ib].1, fine[ib + 1].1);
-        let denom = ym - 2.0 * y0 + yp;
-        if denom > 0.0 {
-            delta += 0.5 * search.fine_step * (ym - yp) / denom;
-        }
+        delta += parabola_vertex(fine[ib - 1].1, fine[ib].1, fine[ib + 1].1, search.fine_step);
     }
     Ok(TrackerOffset {
         delta,
