@@ -67,8 +67,8 @@ impl RobotClockFit {
 
     /// Fits the lower envelope of `(t_robot, t_arrival)` pairs of one clock
     /// segment (`t_robot` increasing); `None` when there is no sample. With
-    /// fewer than three windows the drift is not fitted (0) and the offset
-    /// is that of the least latency.
+    /// fewer than three (full enough) windows the drift is not fitted (0)
+    /// and the offset is that of the least latency.
     pub fn fit(samples: &[(f64, f64)]) -> Option<RobotClockFit> {
         let first = samples.first()?.0;
         // (t_robot, t_arrival − t_robot) of each window's least latency,
@@ -103,12 +103,12 @@ impl RobotClockFit {
             .map(|m| (m.0, m.1))
             .collect();
         // y = α + β·x, i.e. t_arrival = α + (1 + β)·t_robot.
-        let (alpha, beta, used) = if windows >= 3 {
-            robust_line(minima)?
-        } else {
-            let low = minima.iter().map(|m| m.1).fold(f64::INFINITY, f64::min);
-            (low, 0.0, windows)
-        };
+        let low = minima.iter().map(|m| m.1).fold(f64::INFINITY, f64::min);
+        let kept = minima.len();
+        let (alpha, beta, used) = Some(minima)
+            .filter(|m| m.len() >= 3)
+            .and_then(robust_line)
+            .unwrap_or((low, 0.0, kept));
         let b = 1.0 + beta;
         let fit = RobotClockFit {
             offset: -alpha / b,
@@ -229,9 +229,10 @@ mod tests {
 
     #[test]
     fn envelope_fit_recovers_offset_drift_and_the_sampling_instants() {
-        let (s, truth) = samples(7, 0.0, 2500, 1234.5);
+        // 20 full windows and a last one of 3 samples (left out)
+        let (s, truth) = samples(7, 0.0, 2503, 1234.5);
         let fit = RobotClockFit::fit(&s).unwrap();
-        assert_eq!(fit.windows, 20);
+        assert_eq!(fit.windows, 21);
         assert!(fit.windows_used < 20, "the held-up window is dropped");
         assert!(
             (fit.drift_ppm() - 80.0).abs() < 5.0,
@@ -258,6 +259,23 @@ mod tests {
         // uniform 0..4 ms (plus the stall): RMS about 2.3 ms
         assert!(raw.sqrt() > 2e-3, "raw rms {}", raw.sqrt());
         assert!((fit.jitter_rms - raw.sqrt()).abs() < 1e-4);
+    }
+
+    /// Eight full windows and a last one of 2 samples, as a short
+    /// recording ends: the cut window is left out of the envelope.
+    #[test]
+    fn a_cut_last_window_does_not_tilt_the_envelope() {
+        for seed in 0..20 {
+            let (s, truth) = samples(seed, 0.0, 1002, 1234.5);
+            let fit = RobotClockFit::fit(&s).unwrap();
+            assert_eq!(fit.windows, 9);
+            let worst = s
+                .iter()
+                .zip(&truth)
+                .map(|((x, _), t)| (fit.to_session(*x) - t).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 1.5e-4, "seed {seed}: {worst} {fit:?}");
+        }
     }
 
     #[test]
