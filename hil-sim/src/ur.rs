@@ -64,6 +64,11 @@ pub struct FaultSwitches {
     pub drop_connection_after: Option<usize>,
     /// Send every package in two writes 1 ms apart, cut at a varying point.
     pub split_writes: bool,
+    /// Hold each data package back before sending it by a delay drawn
+    /// uniformly from `[0, jitter_max]` (seeded by [`SimUrConfig::seed`]):
+    /// network and scheduling jitter. Below the control period every cycle
+    /// is still sent; its `timestamp` stays the cycle's time.
+    pub jitter_max: Duration,
 }
 
 /// What to simulate.
@@ -321,6 +326,8 @@ struct Rtde {
     next_cycle: u64,
     sent: usize,
     writes: usize,
+    /// Draws the jitter delays.
+    jitter: Noise,
 }
 
 fn package(kind: u8, payload: &[u8]) -> Vec<u8> {
@@ -376,6 +383,9 @@ fn serve_rtde(mut stream: TcpStream, shared: &Shared) {
         next_cycle: 0,
         sent: 0,
         writes: 0,
+        jitter: Noise {
+            state: shared.config.seed ^ 0x7177_E12A,
+        },
     });
     let closed = AtomicBool::new(false);
     let _ = stream.set_read_timeout(Some(Duration::from_millis(20)));
@@ -437,6 +447,9 @@ fn send_data(writer: &Mutex<TcpStream>, state: &Mutex<Rtde>, closed: &AtomicBool
         // Behind by more than a cycle: skip to the latest one.
         let cycle = c.next_cycle.max((now * f).floor() as u64);
         let faults = lock(&shared.faults).clone();
+        if !faults.jitter_max.is_zero() {
+            thread::sleep(faults.jitter_max.mul_f64(c.jitter.uniform()));
+        }
         let mut w = lock(writer);
         if faults.drop_connection_after.is_some_and(|n| c.sent >= n) {
             let _ = w.shutdown(std::net::Shutdown::Both);

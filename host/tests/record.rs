@@ -176,6 +176,14 @@ fn corrupted_and_dropped_bytes_are_counted_and_skipped() {
     assert!(p.imu_samples as f64 > 0.85 * 120.0 * 5.0, "{p:?}");
     let session = check_session(dir.path());
     assert_eq!(session.measurements().imu_t.len() as u64, p.imu_samples);
+    // AUBO sends no controller time: MODEL.md's joint columns only
+    assert!(s.joint_clock.is_none());
+    let joints = std::fs::read_to_string(dir.path().join("joints.csv")).unwrap();
+    assert!(
+        joints.starts_with("t,q1,q2,q3,q4,q5,q6\n"),
+        "{}",
+        &joints[..40]
+    );
 }
 
 #[test]
@@ -566,5 +574,129 @@ fn an_interrupted_ur_recording_stops_the_arm() {
     let moved = (0..6).map(|j| (a[j] - b[j]).abs()).fold(0.0, f64::max);
     assert!(moved < 1e-4, "the arm still moves: {moved} rad in 0.5 s");
     assert!(!ur.program_running());
+    check_session(dir.path());
+}
+
+/// Joint times from the UR controller's clock: RTDE packages held back by
+/// a uniform 0–4 ms jitter (the simulator's `jitter_max`). The remapped
+/// `t` of each joint row is compared with the instant the controller
+/// sampled it (its `t_robot` on the simulator's clock) and with the raw
+/// arrival time (`t_arrival`), each after removing its median offset (the
+/// recorder's and the simulator's epochs differ by an unknown constant);
+/// the recorded angles are compared with the true trajectory at either
+/// time. `robimu repair` reproduces the times bit for bit.
+#[test]
+fn ur_joint_times_follow_the_controller_clock_despite_arrival_jitter() {
+    use robimu::record::repair::{repair, JointClock};
+    use robimu_hil_sim::device::{SimDevice, SimDeviceConfig};
+    use robimu_hil_sim::ur::{FaultSwitches as UrFaults, SimUr, SimUrConfig};
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(14);
+    let plan = Plan::from_spline(&random_walk(&robot, 6.0, 1.0, &mut rng).unwrap(), 125.0);
+    let config = SimUrConfig {
+        control_rate_hz: 125.0,
+        initial: plan.q[0],
+        encoder_noise_rad: 1e-5,
+        faults: UrFaults {
+            jitter_max: Duration::from_millis(4),
+            ..UrFaults::default()
+        },
+        ..SimUrConfig::default()
+    };
+    let uptime = config.uptime_at_epoch_s;
+    let ur = SimUr::spawn(config).unwrap();
+    let device = SimDevice::spawn(SimDeviceConfig::default()).unwrap();
+    let spec = format!(
+        "ur:127.0.0.1:{}:{}",
+        ur.rtde_addr().port(),
+        ur.script_addr().port()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let mut opts = options_for(device.port_path(), &spec, dir.path(), Some(plan), 0.0);
+    opts.rest = 0.5;
+    let s = record(&opts, &mut |_| {}).unwrap();
+    let truth = ur.true_trajectory();
+    drop(ur);
+    let Some(JointClock::Mapped(fits)) = &s.joint_clock else {
+        panic!("{:?}", s.joint_clock);
+    };
+    assert_eq!(fits.len(), 1);
+    let fit = fits[0].1;
+    // the simulator's clocks share one Instant: no drift
+    assert!(fit.drift_ppm().abs() < 30.0, "{fit:?}");
+    assert!((1e-3..3.5e-3).contains(&fit.jitter_rms), "{fit:?}");
+
+    let joints_csv = dir.path().join("joints.csv");
+    let text = std::fs::read_to_string(&joints_csv).unwrap();
+    assert!(text.starts_with("t,q1,q2,q3,q4,q5,q6,t_robot,t_arrival\n"));
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len() as u64, s.progress.joint_samples);
+    let sampled: Vec<f64> = rows.iter().map(|r| r[7] - uptime).collect();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    // RMS of the time errors after removing their median, and that median
+    let time_error = |col: usize| {
+        let e: Vec<f64> = rows.iter().zip(&sampled).map(|(r, t)| r[col] - t).collect();
+        let c = median(e.clone());
+        let rms = (e.iter().map(|x| (x - c).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
+        (rms, c)
+    };
+    let (rms_mapped, c_mapped) = time_error(0);
+    let (rms_raw, c_raw) = time_error(8);
+    // the angles against the truth at the row's time (on the simulator's clock)
+    let true_q = |t: f64| {
+        let k = truth.partition_point(|s| s.t < t).clamp(1, truth.len() - 1);
+        let (a, b) = (&truth[k - 1], &truth[k]);
+        let u = ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0);
+        std::array::from_fn::<f64, 6, _>(|j| a.q[j] + u * (b.q[j] - a.q[j]))
+    };
+    let angle_error = |col: usize, c: f64| {
+        let ss: f64 = rows
+            .iter()
+            .map(|r| {
+                let q = true_q(r[col] - c);
+                (0..6).map(|j| (r[1 + j] - q[j]).powi(2)).sum::<f64>()
+            })
+            .sum();
+        (ss / (6 * rows.len()) as f64).sqrt()
+    };
+    let (q_mapped, q_raw) = (angle_error(0, c_mapped), angle_error(8, c_raw));
+    eprintln!(
+        "UR joint times: RMS error {:.1} µs remapped vs {:.1} µs arrival; angle RMS error {:.2e} vs {:.2e} rad; envelope {:.2} ms below the median arrival; {fit:?}",
+        rms_mapped * 1e6,
+        rms_raw * 1e6,
+        q_mapped,
+        q_raw,
+        (c_raw - c_mapped) * 1e3
+    );
+    assert!(rms_mapped < 2e-4, "remapped {rms_mapped}");
+    assert!(rms_raw > 1e-3, "raw {rms_raw}");
+    // the mapping is the lower envelope: about the median jitter (2 ms) below
+    assert!(
+        (0.001..0.003).contains(&(c_raw - c_mapped)),
+        "{c_raw} {c_mapped}"
+    );
+    // at the remapped times only the encoder noise (1e-5 rad) is left
+    assert!(
+        q_mapped < 2e-5 && q_raw > 5.0 * q_mapped,
+        "{q_mapped} vs {q_raw}"
+    );
+
+    // session.toml keeps the fit; repair gives the same times
+    let meta = robimu::session::SessionMeta::read(&dir.path().join("session.toml")).unwrap();
+    let clock = meta.controller.unwrap()["clock"]
+        .as_array()
+        .unwrap()
+        .clone();
+    assert_eq!(clock[0]["drift_ppm"].as_float(), Some(fit.drift_ppm()));
+    let report = repair(dir.path()).unwrap();
+    assert_eq!(report.joint_clock, s.joint_clock);
+    assert_eq!(std::fs::read_to_string(&joints_csv).unwrap(), text);
     check_session(dir.path());
 }

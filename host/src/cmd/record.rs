@@ -227,4 +227,28 @@ pub fn print_summary(s: &RecordSummary) {
             f.total
         );
     }
+    if let Some(c) = &s.joint_clock {
+        print_joint_clock(c);
+    }
+}
+
+/// The joint times' controller clock mapping (UR), one line a segment.
+pub fn print_joint_clock(clock: &robimu::record::repair::JointClock) {
+    use robimu::record::repair::JointClock;
+    match clock {
+        JointClock::Mapped(fits) => {
+            for (segment, f) in fits {
+                println!(
+                    "joint times from the controller clock, segment {segment}: controller = session + {:.6} s, drift {:+.2} ppm, arrival jitter {:.1} µs RMS ({} samples, {} of {} windows)",
+                    f.offset,
+                    f.drift_ppm(),
+                    f.jitter_rms * 1e6,
+                    f.samples,
+                    f.windows_used,
+                    f.windows
+                );
+            }
+        }
+        JointClock::Kept(why) => println!("joint times are host arrival times: {why}"),
+    }
 }

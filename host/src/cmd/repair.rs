@@ -6,8 +6,9 @@ use anyhow::Context;
 use robimu::record::repair::repair;
 use robimu::session::Session;
 
-/// Repair a recorded session: drop a cut last line from each file and
-/// recompute the IMU times from the ping log.
+/// Repair a recorded session: drop a cut last line from each file,
+/// recompute the IMU times from the ping log and (UR) the joint times from
+/// the controller's timestamps.
 #[derive(Debug, Clone, clap::Args)]
 pub struct RepairCmd {
     /// The session directory.
@@ -35,6 +36,9 @@ impl RepairCmd {
                 "{} IMU rows belong to a clock segment without ping echoes; their times are as recorded",
                 report.unmapped_rows
             );
+        }
+        if let Some(c) = &report.joint_clock {
+            super::record::print_joint_clock(c);
         }
         let session = Session::load(&self.session).with_context(|| {
             format!("{} is still not a readable session", self.session.display())

@@ -121,7 +121,7 @@ impl ClockFit {
 }
 
 /// Least-squares line y = a + b·x (centred for conditioning).
-fn line(points: &[(f64, f64)]) -> Option<(f64, f64)> {
+pub(super) fn line(points: &[(f64, f64)]) -> Option<(f64, f64)> {
     let n = points.len() as f64;
     let mx = points.iter().map(|p| p.0).sum::<f64>() / n;
     let my = points.iter().map(|p| p.1).sum::<f64>() / n;

@@ -13,13 +13,18 @@
 //! Files besides MODEL.md's: `imu.csv` has the extra columns `t_device`
 //! (s, the board's clock), `segment` (clock segment: a board reboot starts
 //! a new one), `seq` and `temp_c` (the sensor's temperature, °C, read back
-//! by [`crate::session::Session`]); `pings.csv` logs every echo.
+//! by [`crate::session::Session`]); `pings.csv` logs every echo. From a
+//! controller with a clock (UR), `joints.csv` has the extra columns
+//! `t_robot` (s, the controller's timestamp) and `t_arrival` (s, session
+//! time of arrival); at the end `t` is recomputed from `t_robot`
+//! ([`robot_clock`], [`repair::remap_joint_times`]).
 
 pub mod arm;
 pub mod clock_fit;
 pub mod imu;
 pub mod motion;
 pub mod repair;
+pub mod robot_clock;
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -36,7 +41,7 @@ use self::clock_fit::{ClockFit, Echo};
 use self::imu::{ImuError, ImuEvent, ImuStream, Link};
 use self::motion::Plan;
 use crate::model::Robot;
-use crate::robot::RobotSpec;
+use crate::robot::{JointSample, RobotSpec};
 use crate::session::{files, SessionError, SessionMeta, SessionWriter};
 
 /// What to record.
@@ -117,6 +122,9 @@ pub struct RecordSummary {
     pub device: DeviceInfo,
     /// Final clock fit per segment.
     pub clock: Vec<(u32, ClockFit)>,
+    /// The joint times' mapping from the controller's clock (UR); `None`
+    /// for a controller without one (AUBO: arrival times).
+    pub joint_clock: Option<repair::JointClock>,
 }
 
 /// Why a recording failed.
@@ -166,7 +174,8 @@ pub fn record(
         describe(&opts.robot_spec)
     ));
     let n = opts.robot.dof();
-    let mut state = SessionSink::create(&opts.out, &meta, n)?;
+    let controller_clock = matches!(opts.robot_spec, RobotSpec::Ur { .. });
+    let mut state = SessionSink::create_with_clock(&opts.out, &meta, n, controller_clock)?;
 
     let epoch = Instant::now();
     let stream = ImuStream::start(link, info, opts.sensor, epoch)?;
@@ -223,7 +232,7 @@ pub fn record(
         }
         while let Some(sample) = arm.try_sample() {
             match sample {
-                Ok(s) => state.joint(s.t, &s.q[..n])?,
+                Ok(s) => state.joint_sample(&s, n)?,
                 Err(e) => {
                     cause = Some(format!("the robot connection failed: {e}"));
                     break;
@@ -272,7 +281,7 @@ pub fn record(
         }
     }
     for s in arm.stop() {
-        state.joint(s.t, &s.q[..n])?;
+        state.joint_sample(&s, n)?;
     }
     state.drain_waiting(true)?;
     state.progress.elapsed = duration;
@@ -282,6 +291,10 @@ pub fn record(
     let dir = state.finish()?;
     let (clock, _) = repair::remap_imu_times(&dir)?;
     write_clock_notes(&dir, &clock)?;
+    let joint_clock = repair::remap_joint_times(&dir)?;
+    if let Some(c) = &joint_clock {
+        repair::write_controller_clock(&dir, c)?;
+    }
     let summary = RecordSummary {
         dir,
         duration,
@@ -289,6 +302,7 @@ pub fn record(
         link: link_stats,
         device: info,
         clock,
+        joint_clock,
     };
     match cause {
         None => Ok(summary),
@@ -320,6 +334,8 @@ pub struct SessionSink {
     /// Samples of segments without a clock fit yet.
     waiting: BTreeMap<u32, Vec<Waiting>>,
     last_seq: BTreeMap<u32, u32>,
+    /// Whether `joints.csv` has the controller clock's columns.
+    controller_clock: bool,
     /// The counters so far.
     pub progress: RecordProgress,
 }
@@ -328,10 +344,28 @@ impl SessionSink {
     /// Creates the session directory `dir` (session.toml, CSV headers,
     /// `pings.csv`).
     pub fn create(dir: &Path, meta: &SessionMeta, joints: usize) -> Result<Self, SessionError> {
-        let writer = SessionWriter::create_with_imu_extra(
+        Self::create_with_clock(dir, meta, joints, false)
+    }
+
+    /// [`Self::create`]; with `controller_clock`, `joints.csv` gets the
+    /// columns [`repair::JOINT_CLOCK_COLUMNS`] (a controller that stamps its
+    /// samples, UR).
+    pub fn create_with_clock(
+        dir: &Path,
+        meta: &SessionMeta,
+        joints: usize,
+        controller_clock: bool,
+    ) -> Result<Self, SessionError> {
+        let joint_extra: &[&str] = if controller_clock {
+            &repair::JOINT_CLOCK_COLUMNS
+        } else {
+            &[]
+        };
+        let writer = SessionWriter::create_with_extra(
             dir,
             meta,
             joints,
+            joint_extra,
             &[
                 "t_device",
                 "segment",
@@ -353,6 +387,7 @@ impl SessionSink {
             fits: BTreeMap::new(),
             waiting: BTreeMap::new(),
             last_seq: BTreeMap::new(),
+            controller_clock,
             progress: RecordProgress::default(),
         })
     }
@@ -360,6 +395,21 @@ impl SessionSink {
     /// Writes one joint sample.
     pub fn joint(&mut self, t: f64, q: &[f64]) -> Result<(), SessionError> {
         self.writer.joint(t, q)?;
+        self.progress.joint_samples += 1;
+        Ok(())
+    }
+
+    /// Writes the first `joints` angles of a driver's sample, with the
+    /// controller's timestamp when the session has its column (a missing
+    /// one is written as NaN; [`repair::remap_joint_times`] then keeps the
+    /// arrival times).
+    pub fn joint_sample(&mut self, s: &JointSample, joints: usize) -> Result<(), SessionError> {
+        if !self.controller_clock {
+            return self.joint(s.t, &s.q[..joints]);
+        }
+        let robot_t = s.robot_t.unwrap_or(f64::NAN);
+        self.writer
+            .joint_extra(s.t, &s.q[..joints], &[robot_t, s.t])?;
         self.progress.joint_samples += 1;
         Ok(())
     }

@@ -7,18 +7,37 @@
 //!   recomputed from every ping echo in `pings.csv` with the final robust
 //!   clock fit of each segment ([`ClockFit`]), replacing the provisional
 //!   times the recorder wrote while the fit was still growing.
+//! * `joints.csv` rows of a UR recording carry the controller's timestamp
+//!   and the host's arrival time (`t_robot`, `t_arrival` columns); their
+//!   session times are recomputed from `t_robot` with the lower-envelope
+//!   fit of [`robot_clock`](super::robot_clock), which `session.toml`'s
+//!   `[controller]` table records.
 
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use super::clock_fit::{ClockFit, Echo};
-use crate::session::{files, SessionError};
+use super::robot_clock::{self, RobotClockFit};
+use crate::session::{files, SessionError, SessionMeta};
 
 /// Name of the ping log in a recorded session.
 pub const PINGS: &str = "pings.csv";
 /// Header of [`PINGS`].
 pub const PINGS_HEADER: &str = "host_send,host_recv,device,segment";
+/// The extra `joints.csv` columns of a recording from a controller with a
+/// clock (UR): its timestamp and the host's arrival time, s.
+pub const JOINT_CLOCK_COLUMNS: [&str; 2] = ["t_robot", "t_arrival"];
+
+/// What [`remap_joint_times`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub enum JointClock {
+    /// Joint times recomputed from the controller's clock, with the fit of
+    /// each clock segment.
+    Mapped(Vec<(u32, RobotClockFit)>),
+    /// Joint times left at the arrival times, and why.
+    Kept(String),
+}
 
 /// What [`repair`] did.
 #[derive(Debug, Default, Clone, PartialEq)]
@@ -29,6 +48,9 @@ pub struct RepairReport {
     pub clock: Vec<(u32, ClockFit)>,
     /// IMU rows whose segment had no usable echo (left as written).
     pub unmapped_rows: usize,
+    /// The joint times' clock mapping, when `joints.csv` has the
+    /// controller's timestamps.
+    pub joint_clock: Option<JointClock>,
 }
 
 /// Removes a cut last line from every CSV of the session, then recomputes
@@ -53,6 +75,12 @@ pub fn repair(dir: &Path) -> Result<RepairReport, SessionError> {
         let (clock, unmapped) = remap_imu_times(dir)?;
         report.clock = clock;
         report.unmapped_rows = unmapped;
+    }
+    if dir.join(files::JOINTS).is_file() {
+        report.joint_clock = remap_joint_times(dir)?;
+        if let Some(clock) = &report.joint_clock {
+            write_controller_clock(dir, clock)?;
+        }
     }
     Ok(report)
 }
@@ -169,6 +197,95 @@ pub fn remap_imu_times(dir: &Path) -> Result<(Vec<(u32, ClockFit)>, usize), Sess
     Ok((fits.into_iter().collect(), unmapped))
 }
 
+/// Rewrites the `t` column of `joints.csv` from its `t_robot` column with
+/// the controller clock's fit through `(t_robot, t_arrival)`
+/// ([`robot_clock::remap`]); when that is refused, `t` is set back to
+/// `t_arrival`. `None` (nothing changed) without those columns (AUBO).
+pub fn remap_joint_times(dir: &Path) -> Result<Option<JointClock>, SessionError> {
+    let path = dir.join(files::JOINTS);
+    let text = std::fs::read_to_string(&path).map_err(|e| SessionError::io(&path, e))?;
+    let mut lines = text.lines();
+    let header = lines.next().unwrap_or_default();
+    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+    let [Some(tr), Some(ta)] = JOINT_CLOCK_COLUMNS.map(|c| cols.iter().position(|h| *h == c))
+    else {
+        return Ok(None);
+    };
+    let is_row = |l: &&str| !l.starts_with('#') && !l.trim().is_empty();
+    let rows: Vec<&str> = lines.clone().filter(is_row).collect();
+    let field = |row: &str, k: usize| -> f64 {
+        row.split(',')
+            .nth(k)
+            .and_then(|f| f.trim().parse().ok())
+            .unwrap_or(f64::NAN)
+    };
+    let samples: Vec<(f64, f64)> = rows.iter().map(|r| (field(r, tr), field(r, ta))).collect();
+    let (clock, times) = match robot_clock::remap(&samples) {
+        Ok(r) => (JointClock::Mapped(r.fits), r.times),
+        Err(why) => {
+            let arrival: Vec<f64> = samples.iter().map(|s| s.1).collect();
+            if arrival.iter().any(|t| !t.is_finite()) {
+                // Not even arrival times to go back to: leave the file.
+                return Ok(Some(JointClock::Kept(why)));
+            }
+            (JointClock::Kept(why), arrival)
+        }
+    };
+    let mut out = String::with_capacity(text.len());
+    out.push_str(header);
+    out.push('\n');
+    let mut times = times.iter();
+    for line in lines {
+        match Some(line).filter(is_row).and_then(|_| times.next()) {
+            Some(t) => {
+                out.push_str(&format!("{t:?}"));
+                out.push_str(line.find(',').map_or("", |k| &line[k..]));
+            }
+            None => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    write_atomically(&path, out.as_bytes())?;
+    Ok(Some(clock))
+}
+
+/// Keeps the joint clock mapping in session.toml's `[controller]` table:
+/// `clock = [{segment, offset_s, drift_ppm, jitter_us, windows_used,
+/// windows, samples}, …]`, or `clock_note` when the arrival times were kept.
+pub fn write_controller_clock(dir: &Path, clock: &JointClock) -> Result<(), SessionError> {
+    let path = dir.join(files::META);
+    let mut meta = SessionMeta::read(&path)?;
+    let table = meta.controller.get_or_insert_with(toml::Table::new);
+    table.remove("clock");
+    table.remove("clock_note");
+    match clock {
+        JointClock::Mapped(fits) => {
+            let fits: Vec<toml::Value> = fits
+                .iter()
+                .map(|(segment, f)| {
+                    let mut t = toml::Table::new();
+                    t.insert("segment".into(), i64::from(*segment).into());
+                    t.insert("offset_s".into(), f.offset.into());
+                    t.insert("drift_ppm".into(), f.drift_ppm().into());
+                    t.insert("jitter_us".into(), (f.jitter_rms * 1e6).into());
+                    t.insert("windows_used".into(), (f.windows_used as i64).into());
+                    t.insert("windows".into(), (f.windows as i64).into());
+                    t.insert("samples".into(), (f.samples as i64).into());
+                    t.into()
+                })
+                .collect();
+            table.insert("clock".into(), fits.into());
+        }
+        JointClock::Kept(why) => {
+            table.insert(
+                "clock_note".into(),
+                format!("joint times are host arrival times: {why}").into(),
+            );
+        }
+    }
+    std::fs::write(&path, meta.to_toml()).map_err(|e| SessionError::io(&path, e))
+}
+
 /// Writes `bytes` to a temporary file beside `path`, then renames it over
 /// `path`: a crash leaves either the old or the new file, never half.
 fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), SessionError> {
@@ -201,6 +318,72 @@ mod tests {
         std::fs::write(&p, "t,q1,q2\n0.0,1,2\n0.1,\n").unwrap();
         assert_eq!(drop_cut_line(&p).unwrap(), Some(3));
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "t,q1,q2\n0.0,1,2\n");
+    }
+
+    /// A UR `joints.csv`: `t` is recomputed from `t_robot` (a controller
+    /// 1000 s ahead, 50 ppm fast; arrivals 0.2–2.2 ms late), comments and
+    /// the other columns kept, the fit kept in session.toml; a second
+    /// repair gives the same bytes. An AUBO file (no clock columns) is left
+    /// alone; a restart within the old clock's range keeps arrival times.
+    #[test]
+    fn joint_times_are_recomputed_from_the_controller_clock() {
+        let dir = tempfile::tempdir().unwrap();
+        let meta = dir.path().join(files::META);
+        std::fs::write(&meta, SessionMeta::new("aubo_i5").to_toml()).unwrap();
+        let joints = dir.path().join(files::JOINTS);
+        let mut text = String::from("t,q1,t_robot,t_arrival\n# a comment\n");
+        let mut truth = Vec::new();
+        for k in 0..1250 {
+            let t = 0.5 + k as f64 * 0.008;
+            let late = 2e-4 + 2e-3 * ((k * 37 % 101) as f64 / 100.0);
+            let robot = 1000.0 + (1.0 + 50e-6) * t;
+            text.push_str(&format!("{:?},{k},{robot:?},{:?}\n", t + late, t + late));
+            truth.push(t + 2e-4);
+        }
+        std::fs::write(&joints, &text).unwrap();
+        let report = repair(dir.path()).unwrap();
+        let Some(JointClock::Mapped(fits)) = &report.joint_clock else {
+            panic!("{:?}", report.joint_clock);
+        };
+        assert_eq!(fits.len(), 1);
+        assert!((fits[0].1.drift_ppm() - 50.0).abs() < 5.0, "{fits:?}");
+        let after = std::fs::read_to_string(&joints).unwrap();
+        assert!(after.starts_with("t,q1,t_robot,t_arrival\n# a comment\n"));
+        for (line, want) in after.lines().skip(2).zip(&truth) {
+            let t: f64 = line.split(',').next().unwrap().parse().unwrap();
+            assert!((t - want).abs() < 4e-5, "{line} vs {want}");
+        }
+        let m = SessionMeta::read(&meta).unwrap();
+        let clock = m.controller.unwrap()["clock"].as_array().unwrap().clone();
+        assert_eq!(clock.len(), 1);
+        assert!((clock[0]["drift_ppm"].as_float().unwrap() - 50.0).abs() < 5.0);
+        repair(dir.path()).unwrap();
+        assert_eq!(std::fs::read_to_string(&joints).unwrap(), after);
+
+        // AUBO: untouched
+        let aubo = "t,q1\n0.1,1\n0.2,2\n";
+        std::fs::write(&joints, aubo).unwrap();
+        assert_eq!(repair(dir.path()).unwrap().joint_clock, None);
+        assert_eq!(std::fs::read_to_string(&joints).unwrap(), aubo);
+
+        // restarted 1 ms after its old clock's last reading: kept
+        let restart = "t,q1,t_robot,t_arrival\n9,0,10.0,1.0\n9,0,11.0,2.0\n9,0,12.0,3.0\n9,0,13.0,4.0\n9,0,0.0,4.001\n9,0,0.4,4.0012\n";
+        std::fs::write(&joints, restart).unwrap();
+        let Some(JointClock::Kept(why)) = repair(dir.path()).unwrap().joint_clock else {
+            panic!("not kept");
+        };
+        assert!(why.contains("before the one it follows"), "{why}");
+        let ts: Vec<String> = std::fs::read_to_string(&joints)
+            .unwrap()
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap().to_string())
+            .collect();
+        assert_eq!(ts, ["1.0", "2.0", "3.0", "4.0", "4.001", "4.0012"]);
+        let m = SessionMeta::read(&meta).unwrap();
+        let c = m.controller.unwrap();
+        assert!(c.get("clock").is_none());
+        assert!(c["clock_note"].as_str().unwrap().contains("arrival times"));
     }
 
     #[test]

@@ -9,6 +9,7 @@
 //! sigma_z = [0.38, 0.21, 0.19, 0.0056, 0.0082, 0.0099]   # m/s² ×3, rad/s ×3
 //! sigma_q = [6.6e-5, 8.7e-5, 7.5e-5, 1.8e-4, 1.8e-4, 1.5e-4]  # rad, one per joint
 //! [imu]                      # optional, free-form description of the device
+//! [controller]               # optional, free-form description of the robot controller
 //! ```
 //! Unknown keys are kept out of the way (ignored), as the contract allows.
 
@@ -38,6 +39,10 @@ pub struct SessionMeta {
     /// Free-form description of the IMU device.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub imu: Option<toml::Table>,
+    /// Free-form description of the robot controller (a recording keeps
+    /// the fit of its clock here, `robimu::record::robot_clock`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controller: Option<toml::Table>,
     /// Free-form notes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub notes: Option<String>,
@@ -84,6 +89,7 @@ impl SessionMeta {
             gravity: None,
             noise: None,
             imu: None,
+            controller: None,
             notes: None,
         }
     }

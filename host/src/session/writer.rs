@@ -75,11 +75,24 @@ impl SessionWriter {
         joint_count: usize,
         imu_extra: &[&str],
     ) -> Result<Self, SessionError> {
+        Self::create_with_extra(dir, meta, joint_count, &[], imu_extra)
+    }
+
+    /// [`Self::create_with_imu_extra`] with extra `joints.csv` columns too,
+    /// written by [`Self::joint_extra`].
+    pub fn create_with_extra(
+        dir: &Path,
+        meta: &SessionMeta,
+        joint_count: usize,
+        joint_extra: &[&str],
+        imu_extra: &[&str],
+    ) -> Result<Self, SessionError> {
         std::fs::create_dir_all(dir).map_err(|e| SessionError::io(dir, e))?;
         let meta_path = dir.join(files::META);
         std::fs::write(&meta_path, meta.to_toml()).map_err(|e| SessionError::io(&meta_path, e))?;
         let jheader: Vec<String> = std::iter::once("t".to_string())
             .chain((1..=joint_count).map(|i| format!("q{i}")))
+            .chain(joint_extra.iter().map(|c| c.to_string()))
             .collect();
         let joints = CsvOut::create(dir.join(files::JOINTS), &jheader.join(","))?;
         let mut imu_header = format!("t,{}", IMU_COLUMNS.join(","));
@@ -110,6 +123,20 @@ impl SessionWriter {
     pub fn joint(&mut self, t: f64, q: &[f64]) -> Result<(), SessionError> {
         assert_eq!(q.len(), self.joint_count, "joint sample width");
         self.joints.row(t, q)
+    }
+
+    /// Append a joint sample with the values of the extra columns given to
+    /// [`Self::create_with_extra`].
+    ///
+    /// # Panics
+    /// If `q.len()` is not the joint count given to [`Self::create_with_extra`].
+    #[track_caller]
+    pub fn joint_extra(&mut self, t: f64, q: &[f64], extra: &[f64]) -> Result<(), SessionError> {
+        assert_eq!(q.len(), self.joint_count, "joint sample width");
+        let mut values = Vec::with_capacity(q.len() + extra.len());
+        values.extend_from_slice(q);
+        values.extend_from_slice(extra);
+        self.joints.row(t, &values)
     }
 
     /// Append an IMU sample: t in s, `z = [ax, ay, az, gx, gy, gz]` (m/s², rad/s).
