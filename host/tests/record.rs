@@ -445,21 +445,29 @@ fn ctrl_c_halts_the_robot_and_finishes_the_session() {
     assert_eq!(check_session(&out).measurements().imu_t, m.imu_t);
 }
 
-/// `record --robot ur:HOST:RTDE:SCRIPT` against the simulated UR controller
-/// (RTDE at 125 Hz, the plan as one URScript program) with the simulated
-/// IMU board: the plan runs to its end, the joints arrive at the
-/// controller's rate, the session loads and follows the plan.
-#[test]
-fn recording_from_the_simulated_ur_controller_runs_the_plan() {
+/// A simulated UR controller (`config`) and IMU board for a UR recording of
+/// `seconds` of random plan (seed `seed`, 125 Hz rows): the controller, the
+/// board, the plan and the recording options (into `dir`, 0.5 s rest).
+fn ur_setup(
+    seed: u64,
+    seconds: f64,
+    config: robimu_hil_sim::ur::SimUrConfig,
+    dir: &Path,
+) -> (
+    robimu_hil_sim::ur::SimUr,
+    robimu_hil_sim::device::SimDevice,
+    Plan,
+    RecordOptions,
+) {
     use robimu_hil_sim::device::{SimDevice, SimDeviceConfig};
     use robimu_hil_sim::ur::{SimUr, SimUrConfig};
     let robot = Robot::aubo_i5();
-    let mut rng = rand::rngs::StdRng::seed_from_u64(12);
-    let plan = Plan::from_spline(&random_walk(&robot, 6.0, 1.0, &mut rng).unwrap(), 125.0);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let plan = Plan::from_spline(&random_walk(&robot, seconds, 1.0, &mut rng).unwrap(), 125.0);
     let ur = SimUr::spawn(SimUrConfig {
         control_rate_hz: 125.0,
         initial: plan.q[0],
-        ..SimUrConfig::default()
+        ..config
     })
     .unwrap();
     let device = SimDevice::spawn(SimDeviceConfig::default()).unwrap();
@@ -468,15 +476,19 @@ fn recording_from_the_simulated_ur_controller_runs_the_plan() {
         ur.rtde_addr().port(),
         ur.script_addr().port()
     );
-    let dir = tempfile::tempdir().unwrap();
-    let mut opts = options_for(
-        device.port_path(),
-        &spec,
-        dir.path(),
-        Some(plan.clone()),
-        0.0,
-    );
+    let mut opts = options_for(device.port_path(), &spec, dir, Some(plan.clone()), 0.0);
     opts.rest = 0.5;
+    (ur, device, plan, opts)
+}
+
+/// `record --robot ur:HOST:RTDE:SCRIPT` against the simulated UR controller
+/// (RTDE at 125 Hz, the plan as one URScript program) with the simulated
+/// IMU board: the plan runs to its end, the joints arrive at the
+/// controller's rate, the session loads and follows the plan.
+#[test]
+fn recording_from_the_simulated_ur_controller_runs_the_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ur, _device, plan, opts) = ur_setup(12, 6.0, Default::default(), dir.path());
     let s = record(&opts, &mut |_| {}).unwrap();
     assert!(ur.script_errors().is_empty(), "{:?}", ur.script_errors());
     assert!((7.0..9.0).contains(&s.duration), "{}", s.duration);
@@ -530,28 +542,10 @@ fn ur_recording_recovers_the_hidden_truth_within_4_sigma() {
 /// plan's end; the session is finished.
 #[test]
 fn an_interrupted_ur_recording_stops_the_arm() {
-    use robimu_hil_sim::device::{SimDevice, SimDeviceConfig};
-    use robimu_hil_sim::ur::{SimUr, SimUrConfig};
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
-    let robot = Robot::aubo_i5();
-    let mut rng = rand::rngs::StdRng::seed_from_u64(13);
-    let plan = Plan::from_spline(&random_walk(&robot, 20.0, 1.0, &mut rng).unwrap(), 125.0);
-    let ur = SimUr::spawn(SimUrConfig {
-        control_rate_hz: 125.0,
-        initial: plan.q[0],
-        ..SimUrConfig::default()
-    })
-    .unwrap();
-    let device = SimDevice::spawn(SimDeviceConfig::default()).unwrap();
-    let spec = format!(
-        "ur:127.0.0.1:{}:{}",
-        ur.rtde_addr().port(),
-        ur.script_addr().port()
-    );
     let dir = tempfile::tempdir().unwrap();
-    let mut opts = options_for(device.port_path(), &spec, dir.path(), Some(plan), 0.0);
-    opts.rest = 0.5;
+    let (ur, _device, _, mut opts) = ur_setup(13, 20.0, Default::default(), dir.path());
     let flag = Arc::new(AtomicBool::new(false));
     opts.interrupt = Some(flag.clone());
     let setter = std::thread::spawn(move || {
@@ -588,14 +582,8 @@ fn an_interrupted_ur_recording_stops_the_arm() {
 #[test]
 fn ur_joint_times_follow_the_controller_clock_despite_arrival_jitter() {
     use robimu::record::repair::{repair, JointClock};
-    use robimu_hil_sim::device::{SimDevice, SimDeviceConfig};
-    use robimu_hil_sim::ur::{FaultSwitches as UrFaults, SimUr, SimUrConfig};
-    let robot = Robot::aubo_i5();
-    let mut rng = rand::rngs::StdRng::seed_from_u64(14);
-    let plan = Plan::from_spline(&random_walk(&robot, 6.0, 1.0, &mut rng).unwrap(), 125.0);
+    use robimu_hil_sim::ur::{FaultSwitches as UrFaults, SimUrConfig};
     let config = SimUrConfig {
-        control_rate_hz: 125.0,
-        initial: plan.q[0],
         encoder_noise_rad: 1e-5,
         faults: UrFaults {
             jitter_max: Duration::from_millis(4),
@@ -604,16 +592,8 @@ fn ur_joint_times_follow_the_controller_clock_despite_arrival_jitter() {
         ..SimUrConfig::default()
     };
     let uptime = config.uptime_at_epoch_s;
-    let ur = SimUr::spawn(config).unwrap();
-    let device = SimDevice::spawn(SimDeviceConfig::default()).unwrap();
-    let spec = format!(
-        "ur:127.0.0.1:{}:{}",
-        ur.rtde_addr().port(),
-        ur.script_addr().port()
-    );
     let dir = tempfile::tempdir().unwrap();
-    let mut opts = options_for(device.port_path(), &spec, dir.path(), Some(plan), 0.0);
-    opts.rest = 0.5;
+    let (ur, _device, _, opts) = ur_setup(14, 6.0, config, dir.path());
     let s = record(&opts, &mut |_| {}).unwrap();
     let truth = ur.true_trajectory();
     drop(ur);
