@@ -76,35 +76,20 @@ impl ClockFit {
         let mut rtts: Vec<f64> = good.iter().map(|e| e.rtt()).collect();
         rtts.sort_by(f64::total_cmp);
         let rtt_cut = rtts[rtts.len() / 2];
-        let mut points: Vec<(f64, f64)> = good
+        let points: Vec<(f64, f64)> = good
             .iter()
             .filter(|e| e.rtt() <= rtt_cut)
             .map(|e| (e.host_mid(), e.device))
             .collect();
-        loop {
-            let (a, b) = line(&points)?;
-            let res: Vec<f64> = points.iter().map(|(x, y)| y - (a + b * x)).collect();
-            let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
-            abs.sort_by(f64::total_cmp);
-            let mad = abs[abs.len() / 2].max(1e-7);
-            let keep: Vec<(f64, f64)> = points
-                .iter()
-                .zip(&res)
-                .filter(|(_, r)| r.abs() <= 5.0 * mad)
-                .map(|(p, _)| *p)
-                .collect();
-            if keep.len() == points.len() || keep.len() < 2 {
-                let rms = (res.iter().map(|r| r * r).sum::<f64>() / res.len() as f64).sqrt();
-                return Some(ClockFit {
-                    offset: a,
-                    drift: b - 1.0,
-                    residual_rms: rms,
-                    used: points.len(),
-                    total: echoes.len(),
-                });
-            }
-            points = keep;
-        }
+        let (a, b, used) = robust_line(points, 2)?;
+        let ss: f64 = used.iter().map(|(x, y)| (y - (a + b * x)).powi(2)).sum();
+        Some(ClockFit {
+            offset: a,
+            drift: b - 1.0,
+            residual_rms: (ss / used.len() as f64).sqrt(),
+            used: used.len(),
+            total: echoes.len(),
+        })
     }
 
     /// A mapping with no drift through one echo (the first second of a
@@ -117,6 +102,32 @@ impl ClockFit {
             used: 1,
             total: 1,
         }
+    }
+}
+
+/// A fitted line y = a + b·x and the points of its last fit.
+pub(super) type RobustLine = (f64, f64, Vec<(f64, f64)>);
+
+/// Least-squares line through `points`, dropping those beyond 5 MAD of the
+/// residuals and refitting until none is (or fewer than `min_keep` would
+/// stay): intercept, slope and the points of the last fit.
+pub(super) fn robust_line(mut points: Vec<(f64, f64)>, min_keep: usize) -> Option<RobustLine> {
+    loop {
+        let (a, b) = line(&points)?;
+        let res: Vec<f64> = points.iter().map(|(x, y)| y - (a + b * x)).collect();
+        let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        let mad = abs[abs.len() / 2].max(1e-7);
+        let keep: Vec<(f64, f64)> = points
+            .iter()
+            .zip(&res)
+            .filter(|(_, r)| r.abs() <= 5.0 * mad)
+            .map(|(p, _)| *p)
+            .collect();
+        if keep.len() == points.len() || keep.len() < min_keep {
+            return Some((a, b, points));
+        }
+        points = keep;
     }
 }
 

@@ -23,7 +23,7 @@
 //! A controller restart sets `t_robot` back: the samples are cut into
 //! segments wherever it goes backwards, and each segment gets its own fit.
 
-use super::clock_fit::line;
+use super::clock_fit::robust_line;
 
 /// Width of the windows whose minima make the lower envelope, s of
 /// controller time.
@@ -107,7 +107,8 @@ impl RobotClockFit {
         let kept = minima.len();
         let (alpha, beta, used) = Some(minima)
             .filter(|m| m.len() >= 3)
-            .and_then(robust_line)
+            .and_then(|m| robust_line(m, 3))
+            .map(|(a, b, used)| (a, b, used.len()))
             .unwrap_or((low, 0.0, kept));
         let b = 1.0 + beta;
         let fit = RobotClockFit {
@@ -126,28 +127,6 @@ impl RobotClockFit {
             jitter_rms: (ss / samples.len() as f64).sqrt(),
             ..fit
         })
-    }
-}
-
-/// Least squares, dropping residuals beyond 5 MAD until none is; returns
-/// intercept, slope and the points kept.
-fn robust_line(mut points: Vec<(f64, f64)>) -> Option<(f64, f64, usize)> {
-    loop {
-        let (a, b) = line(&points)?;
-        let res: Vec<f64> = points.iter().map(|(x, y)| y - (a + b * x)).collect();
-        let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
-        abs.sort_by(f64::total_cmp);
-        let mad = abs[abs.len() / 2].max(1e-7);
-        let keep: Vec<(f64, f64)> = points
-            .iter()
-            .zip(&res)
-            .filter(|(_, r)| r.abs() <= 5.0 * mad)
-            .map(|(p, _)| *p)
-            .collect();
-        if keep.len() == points.len() || keep.len() < 3 {
-            return Some((a, b, points.len()));
-        }
-        points = keep;
     }
 }
 
