@@ -489,6 +489,49 @@ fn cli_export_and_correct() {
     ] {
         assert!(yaml.contains(key), "imu.yaml lacks {key}:\n{yaml}");
     }
+    // Kalibr weighs its bias motion by 1/random_walk²: never 0.
+    assert!(yaml.contains("accelerometer_random_walk: 0.001"), "{yaml}");
+    assert!(yaml.contains("gyroscope_random_walk: 0.0001"), "{yaml}");
+    let given = dir.path().join("imu2.yaml");
+    let run = robimu(&[
+        "export",
+        "--calibration",
+        res,
+        "--format",
+        "kalibr",
+        "--rate",
+        "200",
+        "--random-walk",
+        "0.002,3e-5",
+        "--out",
+        given.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let yaml2 = std::fs::read_to_string(&given).unwrap();
+    assert!(
+        yaml2.contains("accelerometer_random_walk: 0.002"),
+        "{yaml2}"
+    );
+    assert!(yaml2.contains("gyroscope_random_walk: 3e-5"), "{yaml2}");
+    let run = robimu(&[
+        "export",
+        "--calibration",
+        res,
+        "--format",
+        "kalibr",
+        "--rate",
+        "200",
+        "--random-walk",
+        "0,1e-4",
+        "--out",
+        given.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("two positive numbers"));
     // σ_ax / √200 as the accelerometer noise density (the largest σ is ax).
     let nd = 0.38 / 200f64.sqrt();
     assert!(

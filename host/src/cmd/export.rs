@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use robimu::export::calibrated_params;
-use robimu::export::imu::{kalibr_imu_yaml, Correction, KalibrOptions};
+use robimu::export::imu::{kalibr_imu_yaml, Correction, KalibrOptions, DEFAULT_RANDOM_WALK};
 use robimu::export::robot::{corrected_toml, corrected_urdf};
 use robimu::model::urdf::UrdfOptions;
 use robimu::report::result::CalibrationResult;
@@ -52,6 +52,12 @@ pub struct ExportCmd {
     /// Kalibr: the `rostopic` key.
     #[arg(long, default_value = "/imu0")]
     pub rostopic: String,
+    /// Kalibr: accelerometer and gyroscope random walks, m/s^3/sqrt(Hz) and
+    /// rad/s^2/sqrt(Hz) (robimu's biases are constant, so these are not
+    /// estimated; Kalibr needs them positive) [default: 1e-3,1e-4, of the
+    /// order of consumer MEMS IMUs].
+    #[arg(long, value_delimiter = ',', value_name = "ACCEL,GYRO")]
+    pub random_walk: Vec<f64>,
     /// File to write.
     #[arg(long)]
     pub out: PathBuf,
@@ -128,12 +134,20 @@ impl ExportCmd {
                     Some(s) => s.noise(&robot)?.0,
                     None => robot.sigma_z(),
                 };
+                let random_walk = match self.random_walk.as_slice() {
+                    [] => DEFAULT_RANDOM_WALK,
+                    &[a, g] if [a, g].iter().all(|v| v.is_finite() && *v > 0.0) => [a, g],
+                    other => bail!(
+                        "--random-walk {other:?}: give two positive numbers, ACCEL,GYRO (Kalibr divides by them)"
+                    ),
+                };
                 kalibr_imu_yaml(
                     &params,
                     &KalibrOptions {
                         rate,
                         sigma_z,
                         rostopic: self.rostopic.clone(),
+                        random_walk,
                     },
                 )
             }

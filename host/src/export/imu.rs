@@ -163,7 +163,17 @@ pub struct KalibrOptions {
     pub sigma_z: [f64; 6],
     /// `rostopic`.
     pub rostopic: String,
+    /// `accelerometer_random_walk` (m/s³/√Hz) and `gyroscope_random_walk`
+    /// (rad/s²/√Hz). robimu's biases are constant, so these are not
+    /// estimated; Kalibr divides by them (its bias-motion weight is 1/σ²),
+    /// so they must be positive.
+    pub random_walk: [f64; 2],
 }
+
+/// Default random walks for [`KalibrOptions::random_walk`]: placeholders of
+/// the order of consumer MEMS IMUs (accelerometer 1e-3 m/s³/√Hz, gyroscope
+/// 1e-4 rad/s²/√Hz); measure yours from a long static recording.
+pub const DEFAULT_RANDOM_WALK: [f64; 2] = [1e-3, 1e-4];
 
 fn yaml_matrix(indent: &str, m: &M3) -> String {
     m.iter()
@@ -173,7 +183,7 @@ fn yaml_matrix(indent: &str, m: &M3) -> String {
 
 /// Kalibr's `imu.yaml` (input keys, and the calibrated `scale-misalignment`
 /// intrinsics of its result file; see the module doc). The random walks are
-/// 0: robimu's model has constant biases. The estimated biases are written
+/// the given placeholders: robimu's model has constant biases. The estimated biases are written
 /// as the extra keys `accelerometers.b` / `gyroscopes.b` (Kalibr estimates
 /// biases as time series and has no key for them).
 pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
@@ -203,13 +213,14 @@ pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
         "# Kalibr imu.yaml written by robimu: noise densities from the per-sample\n\
          # noise σ and the rate; scale-misalignment intrinsics from the calibration\n\
          # (IMU frame i = accelerometer axes; body b = robimu's IMU frame, axes of the\n\
-         # robot flange). Random walks are 0: robimu estimates constant biases.\n\
+         # robot flange). Random walks are not estimated by robimu (constant biases):\n\
+         # the values below are placeholders (robimu export --random-walk A,G).\n\
          imu0:\n  \
          T_i_b:\n{t_i_b}  \
          accelerometer_noise_density: {acc_nd:?}  # [ m / s^2 / sqrt(Hz) ]\n  \
-         accelerometer_random_walk: 0.0  # [ m / s^3 / sqrt(Hz) ]\n  \
+         accelerometer_random_walk: {arw:?}  # [ m / s^3 / sqrt(Hz) ]\n  \
          gyroscope_noise_density: {gyr_nd:?}  # [ rad / s / sqrt(Hz) ]\n  \
-         gyroscope_random_walk: 0.0  # [ rad / s^2 / sqrt(Hz) ]\n  \
+         gyroscope_random_walk: {grw:?}  # [ rad / s^2 / sqrt(Hz) ]\n  \
          model: scale-misalignment\n  \
          rostopic: {topic}\n  \
          time_offset: 0.0\n  \
@@ -218,6 +229,8 @@ pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
          gyroscopes:\n    A:\n{za}    C_gyro_i:\n{cg}    M:\n{mg}    b: [{gb0:?}, {gb1:?}, {gb2:?}]  # rad/s (robimu extra)\n",
         topic = opts.rostopic,
         rate = opts.rate,
+        arw = opts.random_walk[0],
+        grw = opts.random_walk[1],
         ma = yaml_matrix("    ", &kg(a)),
         za = yaml_matrix("    ", &[[0.0; 3]; 3]),
         cg = yaml_matrix("    ", &c_gyro_i),
