@@ -493,19 +493,22 @@ fn cli_export_and_correct() {
     assert!(yaml.contains("accelerometer_random_walk: 0.001"), "{yaml}");
     assert!(yaml.contains("gyroscope_random_walk: 0.0001"), "{yaml}");
     let given = dir.path().join("imu2.yaml");
-    let run = robimu(&[
-        "export",
-        "--calibration",
-        res,
-        "--format",
-        "kalibr",
-        "--rate",
-        "200",
-        "--random-walk",
-        "0.002,3e-5",
-        "--out",
-        given.to_str().unwrap(),
-    ]);
+    let export_kalibr = |random_walk: &str| {
+        robimu(&[
+            "export",
+            "--calibration",
+            res,
+            "--format",
+            "kalibr",
+            "--rate",
+            "200",
+            "--random-walk",
+            random_walk,
+            "--out",
+            given.to_str().unwrap(),
+        ])
+    };
+    let run = export_kalibr("0.002,3e-5");
     assert!(
         run.status.success(),
         "{}",
@@ -517,19 +520,7 @@ fn cli_export_and_correct() {
         "{yaml2}"
     );
     assert!(yaml2.contains("gyroscope_random_walk: 3e-5"), "{yaml2}");
-    let run = robimu(&[
-        "export",
-        "--calibration",
-        res,
-        "--format",
-        "kalibr",
-        "--rate",
-        "200",
-        "--random-walk",
-        "0,1e-4",
-        "--out",
-        given.to_str().unwrap(),
-    ]);
+    let run = export_kalibr("0,1e-4");
     assert!(!run.status.success());
     assert!(String::from_utf8_lossy(&run.stderr).contains("two positive numbers"));
     // σ_ax / √200 as the accelerometer noise density (the largest σ is ax).

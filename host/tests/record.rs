@@ -310,14 +310,17 @@ fn missing_busy_and_foreign_ports_are_named() {
     assert!(!dir.path().join("s").exists());
 }
 
-/// `robimu record` killed with SIGKILL mid-run leaves a session that loads
-/// (flushed every second), and `robimu repair` finishes it.
-#[test]
-fn a_recording_killed_with_sigkill_leaves_a_readable_session() {
-    let rig = rig(10);
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("killed");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_robimu"))
+/// Starts the `robimu record` program on `rig` with `args` (after --imu and
+/// --robot) writing `out`, and waits up to `start_timeout` for the recording
+/// to start (session.toml written).
+fn start_recording(
+    rig: &SimRig,
+    args: &[&std::ffi::OsStr],
+    out: &Path,
+    stdout: Stdio,
+    start_timeout: Duration,
+) -> std::process::Child {
+    let child = Command::new(env!("CARGO_BIN_EXE_robimu"))
         .args([
             "record",
             "--imu",
@@ -325,21 +328,31 @@ fn a_recording_killed_with_sigkill_leaves_a_readable_session() {
             "--robot",
             &rig.robot_spec(),
         ])
-        .args(["--no-move", "--duration", "60", "--out"])
-        .arg(&out)
-        .stdout(Stdio::null())
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .stdout(stdout)
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let start = Instant::now();
-    // Wait until the recording has started (session.toml written), then 3 s.
     while !out.join("session.toml").exists() {
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "recording never started"
-        );
+        assert!(start.elapsed() < start_timeout, "recording never started");
         std::thread::sleep(Duration::from_millis(20));
     }
+    child
+}
+
+/// `robimu record` killed with SIGKILL mid-run leaves a session that loads
+/// (flushed every second), and `robimu repair` finishes it.
+#[test]
+fn a_recording_killed_with_sigkill_leaves_a_readable_session() {
+    let rig = rig(10);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("killed");
+    // Wait until the recording has started (session.toml written), then 3 s.
+    let args = ["--no-move", "--duration", "60"].map(std::ffi::OsStr::new);
+    let mut child = start_recording(&rig, &args, &out, Stdio::null(), Duration::from_secs(20));
     let started = Instant::now();
     std::thread::sleep(Duration::from_secs(3));
     child.kill().unwrap(); // SIGKILL
@@ -380,30 +393,8 @@ fn ctrl_c_halts_the_robot_and_finishes_the_session() {
     std::fs::create_dir_all(&plan_dir).unwrap();
     plan.write_csv(&plan_dir.join("plan.csv")).unwrap();
     let out = dir.path().join("interrupted");
-    let child = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args([
-            "record",
-            "--imu",
-            rig.imu_port(),
-            "--robot",
-            &rig.robot_spec(),
-        ])
-        .arg("--plan")
-        .arg(&plan_dir)
-        .arg("--out")
-        .arg(&out)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while !out.join("session.toml").exists() {
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "recording never started"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let args = [std::ffi::OsStr::new("--plan"), plan_dir.as_os_str()];
+    let child = start_recording(&rig, &args, &out, Stdio::piped(), Duration::from_secs(60));
     // 1 s rest, then 3 s into the plan
     std::thread::sleep(Duration::from_secs(4));
     let sent = Command::new("kill")

@@ -42,7 +42,7 @@ use self::imu::{ImuError, ImuEvent, ImuStream, Link};
 use self::motion::Plan;
 use crate::model::Robot;
 use crate::robot::{JointSample, RobotSpec};
-use crate::session::{files, SessionError, SessionMeta, SessionWriter};
+use crate::session::{SessionError, SessionMeta, SessionWriter};
 
 /// What to record.
 #[derive(Clone, Debug)]
@@ -547,21 +547,23 @@ fn device_table(info: &DeviceInfo, port: &str) -> toml::Table {
 
 /// Adds the clock fits to session.toml's `[imu]` table.
 fn write_clock_notes(dir: &Path, clock: &[(u32, ClockFit)]) -> Result<(), SessionError> {
-    let path = dir.join(files::META);
-    let mut meta = SessionMeta::read(&path)?;
-    let table = meta.imu.get_or_insert_with(toml::Table::new);
     let fits: Vec<toml::Value> = clock
         .iter()
         .map(|(segment, f)| {
-            let mut t = toml::Table::new();
-            t.insert("segment".into(), i64::from(*segment).into());
-            t.insert("offset_s".into(), f.offset.into());
-            t.insert("drift_ppm".into(), f.drift_ppm().into());
-            t.insert("residual_us".into(), (f.residual_rms * 1e6).into());
-            t.insert("echoes_used".into(), (f.used as i64).into());
-            t.into()
+            repair::clock_row(
+                *segment,
+                f.offset,
+                f.drift_ppm(),
+                [
+                    ("residual_us", (f.residual_rms * 1e6).into()),
+                    ("echoes_used", (f.used as i64).into()),
+                ],
+            )
         })
         .collect();
-    table.insert("clock".into(), fits.into());
-    std::fs::write(&path, meta.to_toml()).map_err(|e| SessionError::io(&path, e))
+    repair::update_meta(dir, |meta| {
+        meta.imu
+            .get_or_insert_with(toml::Table::new)
+            .insert("clock".into(), fits.into());
+    })
 }

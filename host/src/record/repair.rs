@@ -253,37 +253,67 @@ pub fn remap_joint_times(dir: &Path) -> Result<Option<JointClock>, SessionError>
 /// `clock = [{segment, offset_s, drift_ppm, jitter_us, windows_used,
 /// windows, samples}, …]`, or `clock_note` when the arrival times were kept.
 pub fn write_controller_clock(dir: &Path, clock: &JointClock) -> Result<(), SessionError> {
+    update_meta(dir, |meta| {
+        let table = meta.controller.get_or_insert_with(toml::Table::new);
+        table.remove("clock");
+        table.remove("clock_note");
+        match clock {
+            JointClock::Mapped(fits) => {
+                let fits: Vec<toml::Value> = fits
+                    .iter()
+                    .map(|(segment, f)| {
+                        clock_row(
+                            *segment,
+                            f.offset,
+                            f.drift_ppm(),
+                            [
+                                ("jitter_us", (f.jitter_rms * 1e6).into()),
+                                ("windows_used", (f.windows_used as i64).into()),
+                                ("windows", (f.windows as i64).into()),
+                                ("samples", (f.samples as i64).into()),
+                            ],
+                        )
+                    })
+                    .collect();
+                table.insert("clock".into(), fits.into());
+            }
+            JointClock::Kept(why) => {
+                table.insert(
+                    "clock_note".into(),
+                    format!("joint times are host arrival times: {why}").into(),
+                );
+            }
+        }
+    })
+}
+
+/// Reads session.toml in `dir`, lets `edit` change it, writes it back.
+pub(super) fn update_meta(
+    dir: &Path,
+    edit: impl FnOnce(&mut SessionMeta),
+) -> Result<(), SessionError> {
     let path = dir.join(files::META);
     let mut meta = SessionMeta::read(&path)?;
-    let table = meta.controller.get_or_insert_with(toml::Table::new);
-    table.remove("clock");
-    table.remove("clock_note");
-    match clock {
-        JointClock::Mapped(fits) => {
-            let fits: Vec<toml::Value> = fits
-                .iter()
-                .map(|(segment, f)| {
-                    let mut t = toml::Table::new();
-                    t.insert("segment".into(), i64::from(*segment).into());
-                    t.insert("offset_s".into(), f.offset.into());
-                    t.insert("drift_ppm".into(), f.drift_ppm().into());
-                    t.insert("jitter_us".into(), (f.jitter_rms * 1e6).into());
-                    t.insert("windows_used".into(), (f.windows_used as i64).into());
-                    t.insert("windows".into(), (f.windows as i64).into());
-                    t.insert("samples".into(), (f.samples as i64).into());
-                    t.into()
-                })
-                .collect();
-            table.insert("clock".into(), fits.into());
-        }
-        JointClock::Kept(why) => {
-            table.insert(
-                "clock_note".into(),
-                format!("joint times are host arrival times: {why}").into(),
-            );
-        }
-    }
+    edit(&mut meta);
     std::fs::write(&path, meta.to_toml()).map_err(|e| SessionError::io(&path, e))
+}
+
+/// One clock segment's row in session.toml: `segment`, `offset_s`,
+/// `drift_ppm`, then the fit's own figures.
+pub(super) fn clock_row<const N: usize>(
+    segment: u32,
+    offset_s: f64,
+    drift_ppm: f64,
+    extra: [(&str, toml::Value); N],
+) -> toml::Value {
+    let mut t = toml::Table::new();
+    t.insert("segment".into(), i64::from(segment).into());
+    t.insert("offset_s".into(), offset_s.into());
+    t.insert("drift_ppm".into(), drift_ppm.into());
+    for (k, v) in extra {
+        t.insert(k.into(), v);
+    }
+    t.into()
 }
 
 /// Writes `bytes` to a temporary file beside `path`, then renames it over
