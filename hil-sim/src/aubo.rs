@@ -64,6 +64,8 @@ use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
 
+use crate::server::{self, Server};
+
 /// Number of joints of the simulated arm.
 pub const JOINTS: usize = 6;
 
@@ -295,7 +297,7 @@ impl SimAubo {
         let acc = Arc::clone(&shared);
         let accept = thread::Builder::new()
             .name("sim-aubo-accept".into())
-            .spawn(move || accept_loop(&listener, &acc));
+            .spawn(move || server::accept_loop(&listener, &acc, "sim-aubo-conn", serve_connection));
         match accept {
             Ok(handle) => threads.push(handle),
             Err(e) => {
@@ -355,14 +357,7 @@ impl SimAubo {
     }
 
     fn shutdown(&mut self) {
-        self.shared.stop.store(true, Ordering::SeqCst);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
-        let connections = std::mem::take(&mut *lock(&self.shared.connections));
-        for c in connections {
-            let _ = c.join();
-        }
+        server::shutdown(&*self.shared, &mut self.threads);
     }
 }
 
@@ -387,6 +382,15 @@ impl Shared {
     }
 }
 
+impl Server for Shared {
+    fn stop_flag(&self) -> &AtomicBool {
+        &self.stop
+    }
+    fn connections(&self) -> &Mutex<Vec<JoinHandle<()>>> {
+        &self.connections
+    }
+}
+
 /// Locks a mutex, recovering the data if a thread panicked holding it.
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
@@ -405,24 +409,6 @@ fn simulation_loop(shared: &Shared) {
         }
         let t = shared.now();
         lock(&shared.robot).advance_to(t);
-    }
-}
-
-fn accept_loop(listener: &TcpListener, shared: &Arc<Shared>) {
-    while !shared.stop.load(Ordering::SeqCst) {
-        match listener.accept() {
-            Ok((stream, _)) => {
-                let conn = Arc::clone(shared);
-                let spawned = thread::Builder::new()
-                    .name("sim-aubo-conn".into())
-                    .spawn(move || serve_connection(stream, &conn));
-                if let Ok(handle) = spawned {
-                    lock(&shared.connections).push(handle);
-                }
-            }
-            Err(e) if e.kind() == ErrorKind::WouldBlock => thread::sleep(Duration::from_millis(5)),
-            Err(_) => thread::sleep(Duration::from_millis(5)),
-        }
     }
 }
 

@@ -11,4 +11,5 @@
 
 pub mod aubo;
 pub mod device;
+mod server;
 pub mod ur;

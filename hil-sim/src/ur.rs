@@ -50,6 +50,7 @@ use std::time::{Duration, Instant};
 use crate::aubo::{
     lag_step, lagged_state, lock, Joints, Noise, TrueMotion, TrueSample, TrueState, JOINTS,
 };
+use crate::server::{self, Server};
 
 /// Largest integration step of the simulation, s.
 const MAX_STEP_S: f64 = 0.002;
@@ -155,6 +156,15 @@ impl Shared {
     }
 }
 
+impl Server for Shared {
+    fn stop_flag(&self) -> &AtomicBool {
+        &self.stop
+    }
+    fn connections(&self) -> &Mutex<Vec<JoinHandle<()>>> {
+        &self.connections
+    }
+}
+
 fn listen(addr: SocketAddr) -> Result<(TcpListener, SocketAddr), SimUrError> {
     let bind = |source| SimUrError::Bind { addr, source };
     let l = TcpListener::bind(addr).map_err(bind)?;
@@ -190,10 +200,12 @@ impl SimUr {
         let s = Arc::clone(&sim.shared);
         sim.start_thread("sim-ur-motion", move || simulation_loop(&s))?;
         let s = Arc::clone(&sim.shared);
-        sim.start_thread("sim-ur-rtde", move || accept_loop(&rtde_l, &s, serve_rtde))?;
+        sim.start_thread("sim-ur-rtde", move || {
+            server::accept_loop(&rtde_l, &s, "sim-ur-conn", serve_rtde)
+        })?;
         let s = Arc::clone(&sim.shared);
         sim.start_thread("sim-ur-script", move || {
-            accept_loop(&script_l, &s, serve_script)
+            server::accept_loop(&script_l, &s, "sim-ur-conn", serve_script)
         })?;
         Ok(sim)
     }
@@ -266,14 +278,7 @@ impl SimUr {
     }
 
     fn shutdown(&mut self) {
-        self.shared.stop.store(true, Ordering::SeqCst);
-        for t in self.threads.drain(..) {
-            let _ = t.join();
-        }
-        let connections = std::mem::take(&mut *lock(&self.shared.connections));
-        for c in connections {
-            let _ = c.join();
-        }
+        server::shutdown(&*self.shared, &mut self.threads);
     }
 }
 
@@ -296,23 +301,6 @@ fn simulation_loop(shared: &Shared) {
         }
         let t = shared.now();
         lock(&shared.robot).advance_to(t);
-    }
-}
-
-fn accept_loop(listener: &TcpListener, shared: &Arc<Shared>, serve: fn(TcpStream, &Shared)) {
-    while !shared.stop.load(Ordering::SeqCst) {
-        match listener.accept() {
-            Ok((stream, _)) => {
-                let conn = Arc::clone(shared);
-                let spawned = thread::Builder::new()
-                    .name("sim-ur-conn".into())
-                    .spawn(move || serve(stream, &conn));
-                if let Ok(handle) = spawned {
-                    lock(&shared.connections).push(handle);
-                }
-            }
-            Err(_) => thread::sleep(Duration::from_millis(5)),
-        }
     }
 }
 
