@@ -58,13 +58,13 @@ use std::collections::{HashMap, VecDeque};
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
 
-use crate::server::{self, Server};
+use crate::server::{self, lock, Server};
 
 /// Number of joints of the simulated arm.
 pub const JOINTS: usize = 6;
@@ -389,11 +389,6 @@ impl Server for Shared {
     fn connections(&self) -> &Mutex<Vec<JoinHandle<()>>> {
         &self.connections
     }
-}
-
-/// Locks a mutex, recovering the data if a thread panicked holding it.
-pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 fn simulation_loop(shared: &Shared) {

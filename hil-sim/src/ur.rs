@@ -48,9 +48,9 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use crate::aubo::{
-    lag_step, lagged_state, lock, Joints, Noise, TrueMotion, TrueSample, TrueState, JOINTS,
+    lag_step, lagged_state, Joints, Noise, TrueMotion, TrueSample, TrueState, JOINTS,
 };
-use crate::server::{self, Server};
+use crate::server::{self, lock, Server};
 
 /// Largest integration step of the simulation, s.
 const MAX_STEP_S: f64 = 0.002;

@@ -11,8 +11,8 @@ use std::net::TcpStream;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use robimu::robot::aubo::{AuboClient, JointPoller, JointSample, RobotError};
 use robimu_hil_sim::aubo::{FaultSwitches, JointLimits, SimAubo, SimAuboConfig, TrueSample};
+use robimu_record::controller::aubo::{AuboClient, JointPoller, JointSample, RobotError};
 use serde_json::Value;
 
 const TIMEOUT: Duration = Duration::from_secs(2);

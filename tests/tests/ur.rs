@@ -11,10 +11,12 @@ use std::net::TcpStream;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use robimu::robot::ur::{FieldType, UrClient, UrError, UrPorts, UrRobot, SAMPLE_OUTPUTS};
-use robimu::robot::JointSample;
 use robimu_hil_sim::aubo::TrueSample;
 use robimu_hil_sim::ur::{FaultSwitches, SimUr, SimUrConfig};
+use robimu_record::controller::ur::{
+    FieldType, UrClient, UrError, UrPorts, UrRobot, SAMPLE_OUTPUTS,
+};
+use robimu_record::controller::JointSample;
 
 const TIMEOUT: Duration = Duration::from_secs(2);
 

@@ -1,0 +1,70 @@
+//! `robimu correct`: the inverse sensor model applied to a raw IMU CSV.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use robimu_session::export::calibrated_intrinsics;
+use robimu_session::export::imu::correct_rows;
+use robimu_session::result::CalibrationResult;
+use robimu_session::{read_table, Columns, IMU_COLUMNS};
+
+use super::input::output_path;
+
+/// Correct a raw IMU recording with a calibration: per sample and sensor
+/// v = Rᵀ·Γ⁻¹·K⁻¹·(z − b) (the inverse of MODEL.md §3), the specific force
+/// (m/s²) and angular rate (rad/s) in the IMU frame (axes of the flange).
+///
+/// Input and output are imu.csv files (header `t,ax,ay,az,gx,gy,gz`, SI;
+/// MODEL.md §7); extra input columns are dropped.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CorrectCmd {
+    /// The calibration result (result.json from `robimu calibrate`).
+    #[arg(long)]
+    pub calibration: PathBuf,
+    /// The raw IMU CSV.
+    pub imu: PathBuf,
+    /// File to write [default: <IMU>_corrected.csv beside the input].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+impl CorrectCmd {
+    /// Read, correct, write.
+    pub fn run(self) -> anyhow::Result<()> {
+        let stem = self
+            .imu
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "imu".into());
+        let out = output_path(
+            self.out.as_deref(),
+            self.imu.with_file_name(format!("{stem}_corrected.csv")),
+        )?;
+        if out == self.imu {
+            bail!("--out {}: would overwrite the input", out.display());
+        }
+        let result = CalibrationResult::read(&self.calibration)?;
+        let (accel, gyro) = calibrated_intrinsics(&result)
+            .with_context(|| format!("{}: no IMU parameters", self.calibration.display()))?;
+        let table = read_table(&self.imu, Columns::Fixed(&IMU_COLUMNS))?;
+        let rows: Vec<[f64; 6]> = (0..table.len())
+            .map(|i| {
+                let r = table.row(i);
+                [r[0], r[1], r[2], r[3], r[4], r[5]]
+            })
+            .collect();
+        let corrected = correct_rows(&accel, &gyro, &rows)?;
+        let mut w = csv::Writer::from_path(&out)
+            .with_context(|| format!("cannot write {}", out.display()))?;
+        w.write_record(["t", "ax", "ay", "az", "gx", "gy", "gz"])?;
+        for (t, z) in table.t.iter().zip(&corrected) {
+            let mut rec = vec![t.to_string()];
+            rec.extend(z.iter().map(|v| v.to_string()));
+            w.write_record(&rec)?;
+        }
+        w.flush()
+            .with_context(|| format!("cannot write {}", out.display()))?;
+        println!("wrote {} ({} samples)", out.display(), corrected.len());
+        Ok(())
+    }
+}

@@ -1,0 +1,161 @@
+//! `robimu export`: a calibration result in the formats other tools read.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use robimu_model::urdf::UrdfOptions;
+use robimu_session::export::calibrated_params;
+use robimu_session::export::imu::{
+    kalibr_imu_yaml, Correction, KalibrOptions, DEFAULT_RANDOM_WALK,
+};
+use robimu_session::export::robot::{corrected_toml, corrected_urdf};
+use robimu_session::result::CalibrationResult;
+use robimu_session::Session;
+
+use super::input::{is_urdf, output_path, resolve_robot_with, UrdfLinks};
+
+/// What `robimu export` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExportFormat {
+    /// The calibrated robot as a URDF: the robot's own URDF with corrected
+    /// joint origins and an `imu_link` (needs a URDF robot).
+    Urdf,
+    /// The calibrated robot as robot TOML (`--robot FILE.toml` reads it).
+    Toml,
+    /// The IMU as a Kalibr imu.yaml (noise densities, scale-misalignment intrinsics).
+    Kalibr,
+    /// The IMU correction for firmware or drivers: per sensor the matrix M,
+    /// M⁻¹ and bias b of z = M·v + b (TOML); apply v = M⁻¹·(z − b).
+    Correction,
+}
+
+/// Export a calibration for other tools: the corrected robot (URDF or
+/// robot TOML) or the IMU intrinsics (Kalibr imu.yaml or a correction file).
+///
+/// The robot is the one the result names (relative to its session
+/// directory) unless --robot is given; it must be the robot the calibration
+/// was computed for.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ExportCmd {
+    /// The calibration result (result.json from `robimu calibrate`).
+    #[arg(long)]
+    pub calibration: PathBuf,
+    /// What to write.
+    #[arg(long, value_enum)]
+    pub format: ExportFormat,
+    /// The robot (built-in name, robot TOML or URDF) [default: the result's].
+    #[arg(long)]
+    pub robot: Option<String>,
+    #[command(flatten)]
+    pub links: UrdfLinks,
+    /// Kalibr: IMU sample rate, Hz [default: from the result's session imu.csv].
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Kalibr: the `rostopic` key.
+    #[arg(long, default_value = "/imu0")]
+    pub rostopic: String,
+    /// Kalibr: accelerometer and gyroscope random walks, m/s^3/sqrt(Hz) and
+    /// rad/s^2/sqrt(Hz) (robimu's biases are constant, so these are not
+    /// estimated; Kalibr needs them positive) [default: 1e-3,1e-4, of the
+    /// order of consumer MEMS IMUs].
+    #[arg(long, value_delimiter = ',', value_name = "ACCEL,GYRO")]
+    pub random_walk: Vec<f64>,
+    /// File to write.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Median sample interval of an IMU table → rate (Hz).
+fn median_rate(t: &[f64]) -> Option<f64> {
+    let mut dt: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    if dt.is_empty() {
+        return None;
+    }
+    dt.sort_by(f64::total_cmp);
+    // to 1 mHz: sample times written in decimal carry rounding
+    Some((1000.0 / dt[dt.len() / 2]).round() / 1000.0)
+}
+
+impl ExportCmd {
+    /// Read the result, build the export, write it.
+    pub fn run(self) -> anyhow::Result<()> {
+        let out = output_path(Some(&self.out), self.out.clone())?;
+        let result = CalibrationResult::read(&self.calibration)?;
+        let session_dir = result.session.as_ref().map(PathBuf::from);
+        let result_dir = self.calibration.parent().map(Path::to_path_buf);
+        let (spec, spec_base) = match (&self.robot, &result.robot) {
+            (Some(r), _) => (r.clone(), None),
+            (None, Some(r)) => (r.clone(), session_dir.clone().or(result_dir)),
+            (None, None) => bail!(
+                "{} names no robot: give --robot",
+                self.calibration.display()
+            ),
+        };
+        let (robot, _) = resolve_robot_with(&spec, spec_base.as_deref(), &self.links)?;
+        let params = calibrated_params(&robot, &result).with_context(|| {
+            format!("{} does not fit robot `{spec}`", self.calibration.display())
+        })?;
+        let text = match self.format {
+            ExportFormat::Toml => corrected_toml(&robot, &params)?,
+            ExportFormat::Correction => Correction::new(&params)?.to_toml()?,
+            ExportFormat::Urdf => {
+                let path = match &spec_base {
+                    Some(b) if Path::new(&spec).is_relative() => b.join(&spec),
+                    _ => PathBuf::from(&spec),
+                };
+                if !is_urdf(&path) {
+                    bail!("--format urdf needs a URDF robot; the robot is `{spec}` (use --format toml, or --robot FILE.urdf)");
+                }
+                let urdf = std::fs::read_to_string(&path)
+                    .with_context(|| format!("cannot read {}", path.display()))?;
+                let opts = UrdfOptions {
+                    base: self.links.base.clone(),
+                    tip: self.links.tip.clone(),
+                    ..UrdfOptions::default()
+                };
+                corrected_urdf(&urdf, &opts, &params)?
+            }
+            ExportFormat::Kalibr => {
+                let session = session_dir.as_deref().and_then(|d| Session::load(d).ok());
+                let rate = match (self.rate, &session) {
+                    (Some(r), _) => r,
+                    (None, Some(s)) => median_rate(&s.imu.t)
+                        .context("the session's imu.csv has no sample interval: give --rate")?,
+                    (None, None) => bail!(
+                        "the IMU sample rate is unknown (the result's session is not readable): give --rate"
+                    ),
+                };
+                if !(rate.is_finite() && rate > 0.0) {
+                    bail!("--rate {rate}: must be a positive number of Hz");
+                }
+                let sigma_z = match &session {
+                    Some(s) => s.noise(&robot)?.0,
+                    None => robot.sigma_z(),
+                };
+                let random_walk = match self.random_walk.as_slice() {
+                    [] => DEFAULT_RANDOM_WALK,
+                    &[a, g] if [a, g].iter().all(|v| v.is_finite() && *v > 0.0) => [a, g],
+                    other => bail!(
+                        "--random-walk {other:?}: give two positive numbers, ACCEL,GYRO (Kalibr divides by them)"
+                    ),
+                };
+                kalibr_imu_yaml(
+                    &params,
+                    &KalibrOptions {
+                        rate,
+                        sigma_z,
+                        rostopic: self.rostopic.clone(),
+                        random_walk,
+                    },
+                )
+            }
+        };
+        std::fs::write(&out, text).with_context(|| format!("cannot write {}", out.display()))?;
+        println!("wrote {}", out.display());
+        Ok(())
+    }
+}

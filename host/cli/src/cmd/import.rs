@@ -1,0 +1,161 @@
+//! `robimu import`: recordings of other tools as session directories.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use robimu_session::import::csv::read_csv_pair;
+use robimu_session::import::mcap::{read_mcap, McapOptions, TimeSource};
+use robimu_session::import::{Imported, Streams};
+use robimu_session::SessionMeta;
+
+use super::input::{resolve_robot, RobotSource};
+
+/// Import a recording made with other tools as a session directory.
+///
+/// `mcap`: a ROS 2 bag (MCAP) with sensor_msgs/msg/JointState and
+/// sensor_msgs/msg/Imu topics. `csv`: an EuRoC/Kalibr IMU CSV
+/// (timestamp [ns], gyroscope [rad/s], accelerometer [m/s²]) and a joints
+/// CSV (timestamp [ns], one column per joint [rad]) on the same clock.
+/// The earliest sample of either stream becomes t = 0.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ImportCmd {
+    #[command(subcommand)]
+    pub format: ImportFormat,
+}
+
+/// The source format.
+#[derive(Debug, Clone, clap::Subcommand)]
+pub enum ImportFormat {
+    Mcap(McapCmd),
+    Csv(CsvCmd),
+}
+
+/// What every import writes.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SessionArgs {
+    /// Session directory to write (created if needed; session files in it are replaced).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot
+    /// description; its joint count must match the joints imported.
+    #[arg(long, default_value = "aubo_i5")]
+    pub robot: String,
+}
+
+/// Import a ROS 2 recording (MCAP, CDR messages).
+#[derive(Debug, Clone, clap::Args)]
+pub struct McapCmd {
+    /// The .mcap file.
+    pub file: PathBuf,
+    /// Topic of sensor_msgs/msg/JointState.
+    #[arg(long, default_value = "/joint_states")]
+    pub joints: String,
+    /// Topic of sensor_msgs/msg/Imu.
+    #[arg(long, default_value = "/imu/data_raw")]
+    pub imu: String,
+    /// Joints to import, in order (comma-separated names) [default: those
+    /// of the first joint message].
+    #[arg(long, value_delimiter = ',')]
+    pub joint_names: Option<Vec<String>>,
+    /// Sample times: `header` (the messages' header.stamp) or `log` (when
+    /// the recorder received them).
+    #[arg(long, default_value = "header", value_parser = ["header", "log"])]
+    pub time: String,
+    #[command(flatten)]
+    pub session: SessionArgs,
+}
+
+/// Import an EuRoC/Kalibr IMU CSV and a joints CSV.
+#[derive(Debug, Clone, clap::Args)]
+pub struct CsvCmd {
+    /// The IMU file (EuRoC imu0/data.csv or Kalibr imu.csv).
+    pub imu: PathBuf,
+    /// The joints file: timestamp [ns] then one column per joint [rad].
+    #[arg(long)]
+    pub joints: PathBuf,
+    #[command(flatten)]
+    pub session: SessionArgs,
+}
+
+impl ImportCmd {
+    /// Import and print what was written.
+    pub fn run(self) -> anyhow::Result<()> {
+        let out = self.write()?;
+        let names = if out.joint_names.is_empty() {
+            String::new()
+        } else {
+            format!(" (joints {})", out.joint_names.join(", "))
+        };
+        writeln!(
+            std::io::stdout().lock(),
+            "wrote {}: {} joint samples{names}, {} IMU samples; t = 0 is source time {} ns",
+            out.dir.display(),
+            out.joint_samples,
+            out.imu_samples,
+            out.t0_ns
+        )?;
+        Ok(())
+    }
+
+    /// Import; what was written.
+    pub fn write(&self) -> anyhow::Result<Imported> {
+        let (streams, session, source) = match &self.format {
+            ImportFormat::Mcap(c) => {
+                let opts = McapOptions {
+                    joints_topic: c.joints.clone(),
+                    imu_topic: c.imu.clone(),
+                    time: if c.time == "log" {
+                        TimeSource::Log
+                    } else {
+                        TimeSource::Header
+                    },
+                    joint_names: c.joint_names.clone(),
+                };
+                let s = read_mcap(&c.file, &opts)
+                    .with_context(|| format!("cannot import {}", c.file.display()))?;
+                (s, &c.session, c.file.display().to_string())
+            }
+            ImportFormat::Csv(c) => {
+                let s = read_csv_pair(&c.imu, &c.joints).with_context(|| {
+                    format!(
+                        "cannot import {} and {}",
+                        c.imu.display(),
+                        c.joints.display()
+                    )
+                })?;
+                (
+                    s,
+                    &c.session,
+                    format!("{} + {}", c.imu.display(), c.joints.display()),
+                )
+            }
+        };
+        write(streams, session, &source)
+    }
+}
+
+fn write(streams: Streams, args: &SessionArgs, source: &str) -> anyhow::Result<Imported> {
+    let (robot, kind) = resolve_robot(&args.robot, None)?;
+    let width = streams.joints.first().map_or(0, |(_, q)| q.len());
+    if width != robot.dof() {
+        bail!(
+            "{source}: {width} joints imported ({}), but robot `{}` has {} (mcap: choose them with --joint-names)",
+            streams.joint_names.join(", "),
+            robot.name(),
+            robot.dof()
+        );
+    }
+    let mut meta = SessionMeta::new(match kind {
+        RobotSource::Builtin => args.robot.clone(),
+        RobotSource::File(path) => std::path::absolute(&path)
+            .unwrap_or(path)
+            .display()
+            .to_string(),
+    });
+    meta.notes = Some(format!("imported from {source}"));
+    let out = streams
+        .write_session(&args.out, &meta)
+        .with_context(|| format!("cannot write the session {}", args.out.display()))?;
+    Ok(out)
+}

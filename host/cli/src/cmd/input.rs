@@ -1,0 +1,224 @@
+//! What the commands share: naming a robot, turning a loaded session into the
+//! calibrator's inputs, and printing progress.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use indicatif::{ProgressBar, ProgressStyle};
+use robimu_model::error_selection::{identifiable_errors, IdentifiableOptions};
+use robimu_model::urdf::{robot_from_urdf_file, UrdfOptions};
+use robimu_model::Robot;
+use robimu_session::Session;
+
+/// Robots built into the program (`--robot NAME`, `robot = "NAME"`).
+pub const BUILTIN_ROBOTS: &[&str] = &["aubo_i5"];
+
+/// Where a robot description comes from.
+pub enum RobotSource {
+    /// A built-in robot.
+    Builtin,
+    /// A TOML robot description at this path.
+    File(PathBuf),
+}
+
+/// The robot `spec` names: a built-in name, or a path to a TOML robot
+/// description or a URDF (relative paths are taken relative to `base` when given).
+pub fn resolve_robot(spec: &str, base: Option<&Path>) -> anyhow::Result<(Robot, RobotSource)> {
+    resolve_robot_with(spec, base, &UrdfLinks::default())
+}
+
+/// Base and tip link of a URDF robot (`--base`, `--tip`); `None`: the URDF's
+/// root link, and its only leaf link.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct UrdfLinks {
+    /// URDF robots: the base link of the chain [default: the root link].
+    #[arg(long = "base", value_name = "LINK")]
+    pub base: Option<String>,
+    /// URDF robots: the tip (flange) link of the chain [default: the only leaf link].
+    #[arg(long = "tip", value_name = "LINK")]
+    pub tip: Option<String>,
+}
+
+/// The `resonance` effect's mode (`--resonance-hz`, `--resonance-zeta`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct ResonanceMode {
+    /// Natural frequency of the `resonance` effect's mode, Hz (0.5–50).
+    #[arg(long, value_name = "HZ", default_value_t = 10.0)]
+    pub resonance_hz: f64,
+    /// Damping ratio of the `resonance` effect's mode (0–1, exclusive).
+    #[arg(long, value_name = "ZETA", default_value_t = 0.05)]
+    pub resonance_zeta: f64,
+}
+
+impl Default for ResonanceMode {
+    fn default() -> Self {
+        let m = robimu_model::effects::resonance::Mode::default();
+        Self {
+            resonance_hz: m.f_hz,
+            resonance_zeta: m.zeta,
+        }
+    }
+}
+
+impl ResonanceMode {
+    /// The checked mode.
+    pub fn mode(&self) -> anyhow::Result<robimu_model::effects::resonance::Mode> {
+        let (f, z) = (self.resonance_hz, self.resonance_zeta);
+        if !(0.5..=50.0).contains(&f) {
+            anyhow::bail!("--resonance-hz must be between 0.5 and 50 Hz (got {f})");
+        }
+        if !(z > 0.0 && z < 1.0) {
+            anyhow::bail!("--resonance-zeta must be between 0 and 1, exclusive (got {z})");
+        }
+        Ok(robimu_model::effects::resonance::Mode { f_hz: f, zeta: z })
+    }
+}
+
+/// Whether `path` names a URDF file (by its extension).
+pub fn is_urdf(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("urdf"))
+}
+
+/// [`resolve_robot`] with the chain of a URDF robot chosen by `links`.
+pub fn resolve_robot_with(
+    spec: &str,
+    base: Option<&Path>,
+    links: &UrdfLinks,
+) -> anyhow::Result<(Robot, RobotSource)> {
+    if let Some(robot) = Robot::builtin(spec) {
+        return Ok((robot, RobotSource::Builtin));
+    }
+    let path = match base {
+        Some(base) if Path::new(spec).is_relative() => base.join(spec),
+        _ => PathBuf::from(spec),
+    };
+    if !path.is_file() {
+        bail!(
+            "unknown robot `{spec}`: not a built-in robot ({}) and no robot description file {}",
+            BUILTIN_ROBOTS.join(", "),
+            path.display()
+        );
+    }
+    let robot = if is_urdf(&path) {
+        let opts = UrdfOptions {
+            base: links.base.clone(),
+            tip: links.tip.clone(),
+            ..UrdfOptions::default()
+        };
+        robot_from_urdf_file(&path, &opts)
+            .with_context(|| format!("cannot use the URDF {}", path.display()))?
+            .0
+    } else {
+        Robot::from_toml_file(&path)
+            .with_context(|| format!("cannot use the robot description {}", path.display()))?
+    };
+    // MODEL.md §1: without an explicit `[errors]` table the estimated
+    // generalized errors are found numerically, never hand-listed.
+    let robot = if robot.description().errors.is_none() {
+        let set = identifiable_errors(&robot, &IdentifiableOptions::default()).with_context(|| {
+            format!(
+                "{}: cannot determine which generalized errors are identifiable (list them in an [errors] table)",
+                path.display()
+            )
+        })?;
+        robot.with_estimated_errors(set.errors)?
+    } else {
+        robot
+    };
+    Ok((robot, RobotSource::File(path)))
+}
+
+/// The session's robot, with the session's gravity magnitude when it sets one.
+pub fn session_robot(session: &Session) -> anyhow::Result<Robot> {
+    let (robot, _) = resolve_robot(&session.meta.robot, Some(&session.dir))
+        .with_context(|| format!("{}: `robot`", session.dir.join("session.toml").display()))?;
+    match session.meta.gravity {
+        Some(g0) => robot
+            .with_gravity(g0)
+            .context("session.toml: `gravity` is not usable"),
+        None => Ok(robot),
+    }
+}
+
+/// Loads the session at `dir` with its robot, checking that they have the
+/// same joint count.
+pub fn load_session(dir: &Path) -> anyhow::Result<(Session, Robot)> {
+    let session =
+        Session::load(dir).with_context(|| format!("cannot load the session {}", dir.display()))?;
+    let robot = session_robot(&session)?;
+    if session.joint_count() != robot.dof() {
+        bail!(
+            "{}: {} joint columns (q1..q{}), but robot `{}` has {} joints",
+            dir.join("joints.csv").display(),
+            session.joint_count(),
+            session.joint_count(),
+            robot.name(),
+            robot.dof()
+        );
+    }
+    Ok((session, robot))
+}
+
+/// Where a command writes its output file: `--out` if given, else `default`;
+/// refused up front (before any long computation) when its directory does
+/// not exist.
+pub fn output_path(out: Option<&Path>, default: PathBuf) -> anyhow::Result<PathBuf> {
+    let path = out.map(Path::to_path_buf).unwrap_or(default);
+    if let Some(parent) = path.parent() {
+        if !parent.as_os_str().is_empty() && !parent.is_dir() {
+            bail!(
+                "--out {}: the directory {} does not exist",
+                path.display(),
+                parent.display()
+            );
+        }
+    }
+    Ok(path)
+}
+
+/// A spinner on stderr with a message, and log lines above it; when stderr
+/// is not a terminal the spinner is hidden and the log lines are plain.
+pub struct Progress {
+    bar: Option<ProgressBar>,
+}
+
+impl Progress {
+    /// Start showing `message`.
+    pub fn start(message: impl Into<String>) -> Self {
+        if !std::io::stderr().is_terminal() {
+            return Self { bar: None };
+        }
+        let bar = ProgressBar::new_spinner();
+        let style = ProgressStyle::with_template("{spinner} [{elapsed}] {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner());
+        bar.set_style(style);
+        bar.set_message(message.into());
+        bar.enable_steady_tick(Duration::from_millis(120));
+        Self { bar: Some(bar) }
+    }
+
+    /// Replace the message.
+    pub fn set_message(&self, message: impl Into<String>) {
+        if let Some(bar) = &self.bar {
+            bar.set_message(message.into());
+        }
+    }
+
+    /// A log line on stderr (above the spinner when it is shown).
+    pub fn println(&self, line: impl AsRef<str>) {
+        match &self.bar {
+            Some(bar) => bar.println(line.as_ref()),
+            None => eprintln!("{}", line.as_ref()),
+        }
+    }
+
+    /// Remove the spinner.
+    pub fn finish(self) {
+        if let Some(bar) = self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}

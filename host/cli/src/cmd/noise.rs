@@ -1,0 +1,101 @@
+//! `robimu noise`: Σ_z and Σ_q of a recording by spline fitting (paper §8.1).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::Context;
+use robimu_session::{Session, IMU_COLUMNS};
+use robimu_workflows::noise::{estimate_noise, ChannelNoise, NoiseFile, NoiseOptions};
+
+use super::input::{output_path, session_robot};
+
+/// Estimate the measurement noise of a session from its own samples.
+///
+/// Fits every joint and IMU channel with a least-squares cubic spline over
+/// time, the knot spacing halved while that still explains significantly
+/// more of the signal, and takes the residual σ (corrected for the fit's
+/// degrees of freedom). Prints the table (with the σ a calibration would
+/// otherwise assume: the session's `[noise]` or the robot's) and writes a TOML file with a
+/// `[noise]` table in session.toml's format, for `robimu calibrate --noise`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct NoiseCmd {
+    /// Session directory (session.toml, joints.csv, imu.csv), recorded while
+    /// the robot moves.
+    pub session: PathBuf,
+    /// Noise file to write [default: noise.toml in the session directory].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+impl NoiseCmd {
+    /// Estimate, print and write.
+    pub fn run(self) -> anyhow::Result<()> {
+        let dir = &self.session;
+        let session = Session::load(dir)
+            .with_context(|| format!("cannot load the session {}", dir.display()))?;
+        let path = output_path(self.out.as_deref(), dir.join("noise.toml"))?;
+        let data = session.measurements();
+        let est = estimate_noise(&data, session.joint_count(), &NoiseOptions::default())
+            .with_context(|| format!("cannot estimate the noise of {}", dir.display()))?;
+        // the σ a calibration would otherwise assume, for comparison
+        let assumed = session_robot(&session)
+            .ok()
+            .and_then(|robot| session.noise(&robot).ok());
+        let mut out = std::io::stdout().lock();
+        writeln!(
+            out,
+            "session {}: {} joint samples, {} IMU samples",
+            dir.display(),
+            session.joints.len(),
+            session.imu.len()
+        )?;
+        writeln!(
+            out,
+            "{:<8} {:>12} {:>10} {:>8} {:>10}{}",
+            "channel",
+            "sigma",
+            "std.err",
+            "unit",
+            "knots [s]",
+            if assumed.is_some() { "    assumed" } else { "" }
+        )?;
+        let row = |out: &mut dyn Write,
+                   name: &str,
+                   c: &ChannelNoise,
+                   unit: &str,
+                   given: Option<f64>|
+         -> std::io::Result<()> {
+            writeln!(
+                out,
+                "{:<8} {:>12.4e} {:>10.2e} {:>8} {:>10}{}{}",
+                name,
+                c.sigma,
+                c.std_error,
+                unit,
+                c.spacing,
+                given.map_or(String::new(), |g| format!(" {g:>10.4e}")),
+                if c.resolved {
+                    ""
+                } else {
+                    "  (motion not resolved: upper bound)"
+                }
+            )
+        };
+        for (k, c) in est.sigma_z.iter().enumerate() {
+            let unit = if k < 3 { "m/s^2" } else { "rad/s" };
+            let given = assumed.as_ref().map(|(z, _)| z[k]);
+            row(&mut out, IMU_COLUMNS[k], c, unit, given)?;
+        }
+        for (j, c) in est.sigma_q.iter().enumerate() {
+            let given = assumed.as_ref().and_then(|(_, q)| q.get(j).copied());
+            row(&mut out, &format!("q{}", j + 1), c, "rad", given)?;
+        }
+        let file = NoiseFile {
+            noise: est.to_override(),
+        };
+        std::fs::write(&path, file.to_toml())
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        writeln!(out, "wrote {}", path.display())?;
+        Ok(())
+    }
+}

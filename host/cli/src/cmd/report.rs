@@ -1,0 +1,120 @@
+//! `robimu report`: a self-contained HTML report of a calibration result.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use robimu_model::ParamLayout;
+use robimu_report::convergence::{convergence_path, ConvergenceLog};
+use robimu_report::html::{calibration_report_with, Convergence, SessionSeries};
+use robimu_session::result::CalibrationResult;
+use robimu_session::Session;
+
+use super::input::session_robot;
+
+/// Write an HTML report of a calibration result.
+///
+/// One self-contained page (inline CSS, figures as inline SVG, no scripts,
+/// no external links): the parameter table, posterior σ against the prior
+/// σ, convergence (from NAME.convergence.csv next to NAME.json, written by
+/// `robimu calibrate`; the page says so when it is missing) and, when the
+/// session is found, the joint trajectory and the IMU residuals over time.
+/// The figures are also written as PNG and SVG.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ReportCmd {
+    /// Result file (result.json, MODEL.md §8).
+    pub result: PathBuf,
+    /// Directory to write report.html and the figures to [default: `report`
+    /// next to the result file].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Session directory for the trajectory and residual plots [default: the
+    /// session named in the result, when it exists].
+    #[arg(long)]
+    pub session: Option<PathBuf>,
+}
+
+/// x in `layout` order from a result file's parameters (by name).
+pub fn result_vector(layout: &ParamLayout, result: &CalibrationResult) -> anyhow::Result<Vec<f64>> {
+    layout
+        .specs()
+        .iter()
+        .map(|s| {
+            result.parameter(&s.name).map(|p| p.value).with_context(|| {
+                format!(
+                    "the result has no parameter `{}`: it was not computed for this robot",
+                    s.name
+                )
+            })
+        })
+        .collect()
+}
+
+/// The session's trajectory and residual series under `result`.
+pub fn series_for(session: &Session, result: &CalibrationResult) -> anyhow::Result<SessionSeries> {
+    let robot = session_robot(session)?;
+    let layout = ParamLayout::new(&robot);
+    let x = result_vector(&layout, result)?;
+    let (_, sigma_q) = session.noise(&robot)?;
+    Ok(SessionSeries::new(
+        &robot,
+        &session.measurements(),
+        &x,
+        &sigma_q,
+        result.knot_spacing,
+    )?)
+}
+
+impl ReportCmd {
+    /// Write the report.
+    pub fn run(self) -> anyhow::Result<()> {
+        let result = CalibrationResult::read(&self.result)?;
+        let dir = self.out.clone().unwrap_or_else(|| {
+            self.result
+                .parent()
+                .unwrap_or(Path::new("."))
+                .join("report")
+        });
+        let session_dir = self.session.clone().or_else(|| {
+            result
+                .session
+                .as_ref()
+                .map(PathBuf::from)
+                .filter(|d| d.is_dir())
+        });
+        let session = match &session_dir {
+            Some(d) => Some(
+                Session::load(d)
+                    .with_context(|| format!("cannot load the session {}", d.display()))?,
+            ),
+            None => None,
+        };
+        let series = match &session {
+            Some(s) => Some(series_for(s, &result).with_context(|| {
+                format!(
+                    "cannot plot the session {} under this result",
+                    s.dir.display()
+                )
+            })?),
+            None => None,
+        };
+        let truth = session.as_ref().and_then(|s| s.truth.as_ref());
+        let history_path = convergence_path(&self.result);
+        let history = if history_path.is_file() {
+            Some(ConvergenceLog::read(&history_path)?)
+        } else {
+            None
+        };
+        let costs = history.as_ref().map(ConvergenceLog::costs);
+        let why = format!(
+            "the solver's iteration history {} is missing (`robimu calibrate` writes it next to the result file; results written before it did, or copied without it, have none)",
+            history_path.display()
+        );
+        let convergence = match &costs {
+            Some(c) => Convergence::Costs(c),
+            None => Convergence::Unavailable(&why),
+        };
+        let path = calibration_report_with(&dir, &result, truth, convergence, series.as_ref())?;
+        println!("wrote {}", path.display());
+        Ok(())
+    }
+}

@@ -1,0 +1,467 @@
+//! The diagnosis against simulated ground truth: a session with one effect
+//! injected (exact simulator form) is diagnosed; the effect must come first,
+//! significant at the Bonferroni level, with its refit estimate within 4σ of
+//! the injected value, and the residuals must shrink. A session without
+//! effects must show no detection, and the score statistic must agree with
+//! the likelihood-ratio statistic of a refit for a small effect.
+
+use robimu_model::effects::{self, Effect};
+use robimu_model::observations::Measurements;
+use robimu_model::{JointState, ParamLayout, Robot};
+use robimu_workflows::calibrate::CalibrateOptions;
+use robimu_workflows::diagnose::{
+    diagnose, fit, inject_effects, residual_stats, score_all, setup_for, DiagnoseOptions, Diagnosis,
+};
+use robimu_workflows::simulate::{random_session, RandomSession, SimulateOptions};
+
+/// Session length of the detection tests, s.
+const DURATION: f64 = 90.0;
+
+/// A simulated session (truth from the priors, τ = 0.05 s) with `effects`
+/// injected in their exact form; the injected θ_e of each.
+fn session_with(
+    seed: u64,
+    duration: f64,
+    effects: &[(&str, f64)],
+) -> (Robot, Measurements, Vec<f64>, Vec<Vec<f64>>) {
+    let (robot, mut s) = simulated(seed, duration);
+    let setup = setup_for(&robot, &s.data, None);
+    let injected: Vec<(Box<dyn Effect>, Vec<f64>)> = effects
+        .iter()
+        .map(|(name, m)| {
+            let e = effects::by_name(&setup, name).unwrap();
+            let theta = e.injection(*m);
+            (e, theta)
+        })
+        .collect();
+    inject_effects(&robot, &s.truth, &s.trajectory, &mut s.data, &injected).unwrap();
+    let thetas = injected.into_iter().map(|(_, t)| t).collect();
+    (robot, s.data, s.truth, thetas)
+}
+
+/// A simulated session without effects (truth from the priors, τ = 0.05 s).
+fn simulated(seed: u64, duration: f64) -> (Robot, RandomSession) {
+    let robot = Robot::aubo_i5();
+    let opts = SimulateOptions::paper(&robot);
+    let mut s = random_session(&robot, duration, 1.0, &opts, seed).unwrap();
+    // keep τ small so the whole session overlaps
+    let layout = ParamLayout::new(&robot);
+    s.truth[layout.offsets().tau] = 0.05;
+    s.data =
+        robimu_workflows::simulate::simulate(&robot, &layout, &s.truth, &s.trajectory, &opts, seed)
+            .unwrap();
+    (robot, s)
+}
+
+/// `x` centred and scaled to unit standard deviation.
+fn standardised(x: &[f64]) -> Vec<f64> {
+    let n = x.len() as f64;
+    let m = x.iter().sum::<f64>() / n;
+    let sd = (x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt();
+    x.iter().map(|v| (v - m) / sd).collect()
+}
+
+/// Structure that no catalogue effect explains is traced to the regressor
+/// it follows: gx gets a term proportional to the gravity torque of joint 2
+/// (along the true trajectory, from the setup's mass model) and gy one
+/// proportional to a recorded temperature warming up exponentially (not
+/// linear in time), each 2σ RMS; the baseline fit's residual statistics
+/// name `tg2` and `temp` as those channels' top regressors. A constant
+/// temperature column changes nothing (correlation 0, never NaN).
+#[test]
+fn residuals_are_traced_to_gravity_torque_and_temperature() {
+    let (robot, mut s) = simulated(61, 40.0);
+    let layout = ParamLayout::new(&robot);
+    let setup = setup_for(&robot, &s.data, None);
+    let opts = CalibrateOptions::new(&robot);
+    let tau = s.truth[layout.offsets().tau];
+    let n = robot.dof();
+    let knots = s.trajectory.knots().clone();
+    let tg2: Vec<f64> = s
+        .data
+        .imu_t
+        .iter()
+        .map(|t| {
+            let mut js = JointState::default();
+            let u = (t + tau).clamp(knots.start(), knots.end());
+            s.trajectory.evaluate(u, &mut js).unwrap();
+            setup.mass.gravity_torques(&js.q[..n], setup.g0)[1]
+        })
+        .collect();
+    let t0 = s.data.imu_t[0];
+    let temp: Vec<f64> = s
+        .data
+        .imu_t
+        .iter()
+        .map(|t| 25.0 + 8.0 * (1.0 - (-(t - t0) / 10.0).exp()))
+        .collect();
+    let (g, c) = (standardised(&tg2), standardised(&temp));
+    for (i, z) in s.data.imu_z.iter_mut().enumerate() {
+        z[3] += 2.0 * opts.sigma_z[3] * g[i];
+        z[4] += 2.0 * opts.sigma_z[4] * c[i];
+    }
+    s.data.imu_temp = Some(temp);
+    let base = fit(&robot, &s.data, &opts, &setup, &[], None, None).unwrap();
+    let stats = residual_stats(&robot, &s.data, &setup, &base);
+    println!("top regressors: {:?}", stats.top_regressor);
+    let (name, r, z) = &stats.top_regressor["gx"];
+    assert_eq!(name, "tg2", "gx follows {name} (r = {r})");
+    assert!(*r > 0.5 && *z > 20.0, "gx: r = {r}, z = {z}");
+    let (name, r, _) = &stats.top_regressor["gy"];
+    assert_eq!(name, "temp", "gy follows {name} (r = {r})");
+    assert!(*r > 0.5, "gy: r = {r}");
+    // a constant temperature: the same regressors as without a temperature
+    let without = {
+        let mut d = s.data.clone();
+        d.imu_temp = None;
+        residual_stats(&robot, &d, &setup, &base).top_regressor
+    };
+    s.data.imu_temp = Some(vec![24.7; s.data.imu_t.len()]);
+    let constant = residual_stats(&robot, &s.data, &setup, &base).top_regressor;
+    assert_eq!(constant, without);
+    assert!(constant
+        .values()
+        .all(|(_, r, z)| r.is_finite() && z.is_finite()));
+    assert_ne!(constant["gy"].0, "temp");
+}
+
+fn session(seed: u64, effect: Option<(&str, f64)>) -> (Robot, Measurements, Vec<f64>) {
+    let (robot, data, _, mut thetas) = session_with(seed, 40.0, effect.as_slice());
+    (robot, data, thetas.pop().unwrap_or_default())
+}
+
+/// Every effect parameter of `found` within 4σ of `injected`.
+fn check_estimates(name: &str, parameters: &[(String, String, f64, f64)], injected: &[f64]) {
+    assert_eq!(parameters.len(), injected.len(), "{name}");
+    for ((pname, _, v, s), truth) in parameters.iter().zip(injected) {
+        let z = (v - truth) / s;
+        assert!(
+            z.abs() < 4.0,
+            "{name} {pname}: {v} ± {s} vs injected {truth}"
+        );
+    }
+}
+
+/// The must-show of a fit with the hidden effects added: whitened residual
+/// RMS within 10 % of the noise floor (1) on every channel, and every
+/// estimated baseline parameter within 4σ of the truth.
+fn check_restored(what: &str, f: &robimu_workflows::diagnose::Fit, truth: &[f64], robot: &Robot) {
+    let rms = f.residual_rms();
+    assert!(
+        rms.iter().all(|r| (r - 1.0).abs() <= 0.1),
+        "{what}: residual RMS {rms:?}"
+    );
+    let layout = ParamLayout::new(robot);
+    let mut worst: (f64, &str) = (0.0, "");
+    for (k, spec) in layout.specs().iter().enumerate() {
+        if f.sigma_x[k] > 0.0 {
+            let z = ((f.x[k] - truth[k]) / f.sigma_x[k]).abs();
+            if z > worst.0 {
+                worst = (z, &spec.name);
+            }
+        }
+    }
+    assert!(worst.0 < 4.0, "{what}: {} off by {:.2} σ", worst.1, worst.0);
+    println!(
+        "{what}: residual RMS {rms:.3?}, worst baseline parameter {} at {:.2} σ",
+        worst.1, worst.0
+    );
+}
+
+/// The whole diagnosis with the default settings: the catalogue set-up and
+/// the outcome.
+fn diagnose_all(
+    robot: &Robot,
+    data: &Measurements,
+) -> (robimu_model::effects::CatalogueSetup, Diagnosis) {
+    let setup = setup_for(robot, data, None);
+    let opts = CalibrateOptions::new(robot);
+    let d = diagnose(
+        robot,
+        data,
+        &opts,
+        &setup,
+        &DiagnoseOptions::default(),
+        |_| {},
+    )
+    .unwrap();
+    (setup, d)
+}
+
+/// One effect hidden at `magnitude` (its `simulate --effect` unit): the
+/// diagnosis names it first and significant at the Bonferroni level, adds
+/// nothing else, estimates it within 4σ, and with it added the residuals
+/// are back at the noise floor and the baseline at the truth.
+fn check_detected(name: &str, magnitude: f64, seed: u64) {
+    let (robot, data, truth, injected) = session_with(seed, DURATION, &[(name, magnitude)]);
+    let (_, d) = diagnose_all(&robot, &data);
+    let threshold = 0.01 / effects::NAMES.len() as f64;
+    assert!(
+        !d.found.is_empty(),
+        "{name}: nothing found; scores {:?}",
+        d.last_scores
+    );
+    let f = &d.found[0];
+    assert_eq!(f.name, name, "{name}: scores {:?}", f.scores);
+    assert!(f.p_value < threshold, "{name}: p = {}", f.p_value);
+    println!(
+        "{name}: score {:.1} ({} dof, p {:.1e}), LR {:.1}, ΔBIC {:.1}, next best {} (p {:.2e}), estimates {:?}, injected {:?}, rms {:.3?} -> {:.3?}",
+        f.statistic, f.dof, f.p_value, f.lr_statistic, f.delta_bic, f.scores[1].name, f.scores[1].p_value, f.parameters, injected[0], f.rms_before, f.rms_after
+    );
+    assert_eq!(
+        d.found.len(),
+        1,
+        "{name}: also added {:?}",
+        d.found.iter().map(|f| &f.name).collect::<Vec<_>>()
+    );
+    check_estimates(name, &f.parameters, &injected[0]);
+    check_restored(name, &d.final_fit, &truth, &robot);
+}
+
+#[test]
+fn clock_drift_is_named_and_estimated() {
+    check_detected("clock_drift", 100.0, 11);
+}
+
+#[test]
+fn g_sensitivity_is_named_and_estimated() {
+    check_detected("g_sensitivity", 0.1, 12);
+}
+
+#[test]
+fn bias_drift_is_named_and_estimated() {
+    check_detected("bias_drift", 0.2, 13);
+}
+
+#[test]
+fn encoder_scale_is_named_and_estimated() {
+    check_detected("encoder_scale", 2000.0, 14);
+}
+
+#[test]
+fn joint_elasticity_is_named_and_estimated() {
+    check_detected("joint_elasticity", 5.0, 15);
+}
+
+#[test]
+fn size_effect_is_named_and_estimated() {
+    check_detected("size_effect", 40.0, 16);
+}
+
+#[test]
+fn resonance_is_named_and_estimated() {
+    check_detected("resonance", 1.0, 17);
+}
+
+/// Two effects hidden together: both found (in either order), both
+/// estimated within 4σ, and the model restored.
+#[test]
+fn two_hidden_effects_are_both_found() {
+    let hidden = [("joint_elasticity", 5.0), ("clock_drift", 100.0)];
+    let (robot, data, truth, injected) = session_with(51, DURATION, &hidden);
+    let (setup, d) = diagnose_all(&robot, &data);
+    let names: Vec<&str> = d.found.iter().map(|f| f.name.as_str()).collect();
+    println!("found {names:?}");
+    assert_eq!(names.len(), 2, "found {names:?}");
+    for (k, (name, _)) in hidden.iter().enumerate() {
+        let f = d
+            .found
+            .iter()
+            .find(|f| f.name == *name)
+            .unwrap_or_else(|| panic!("{name} not found: {names:?}"));
+        // estimates from the final fit (the one with both)
+        let off: usize = d
+            .final_fit
+            .effects
+            .iter()
+            .take_while(|e| e != name)
+            .map(|e| effects::by_name(&setup, e).unwrap().params().len())
+            .sum();
+        let params: Vec<(String, String, f64, f64)> = (0..f.dof)
+            .map(|i| {
+                let p = &d.final_fit.effect_params[off + i];
+                (
+                    p.name.clone(),
+                    p.unit.to_string(),
+                    d.final_fit.theta_e[off + i],
+                    d.final_fit.sigma_e[off + i],
+                )
+            })
+            .collect();
+        check_estimates(name, &params, &injected[k]);
+    }
+    check_restored("two effects", &d.final_fit, &truth, &robot);
+}
+
+/// Sessions without any effect: at most one false alarm over 20 seeds at
+/// the family-wise α = 0.01 (expected 0.2).
+#[test]
+fn null_sessions_raise_at_most_one_false_alarm_in_twenty() {
+    let mut alarms = Vec::new();
+    for seed in 100..120 {
+        let (robot, data, truth, _) = session_with(seed, 40.0, &[]);
+        let (_, d) = diagnose_all(&robot, &data);
+        if let Some(f) = d.found.first() {
+            alarms.push((seed, f.name.clone(), f.p_value));
+        } else {
+            assert_eq!(d.last_scores.len(), effects::NAMES.len());
+            assert!(d.last_scores.iter().all(|s| s.p_value >= d.threshold));
+            check_restored(&format!("null seed {seed}"), &d.final_fit, &truth, &robot);
+        }
+    }
+    println!("false alarms: {alarms:?}");
+    assert!(alarms.len() <= 1, "false alarms: {alarms:?}");
+}
+
+#[test]
+fn score_statistic_agrees_with_likelihood_ratio_for_a_small_effect() {
+    let (robot, data, _) = session(31, Some(("clock_drift", 250.0)));
+    let setup = setup_for(&robot, &data, None);
+    let opts = CalibrateOptions::new(&robot);
+    let base = fit(&robot, &data, &opts, &setup, &[], None, None).unwrap();
+    let name = "clock_drift".to_string();
+    let scores = score_all(
+        &robot,
+        &data,
+        &opts,
+        &setup,
+        &base,
+        std::slice::from_ref(&name),
+    )
+    .unwrap();
+    let aug = fit(&robot, &data, &opts, &setup, &[name], Some(&base), None).unwrap();
+    let lr = 2.0 * (base.cost - aug.cost);
+    let score = scores[0].statistic;
+    println!("score {score:.2} vs LR {lr:.2}");
+    assert!(score > 5.0, "the effect should be visible: score {score}");
+    assert!(
+        (score - lr).abs() < 0.1 * lr.max(score) + 1.0,
+        "score {score} vs LR {lr}"
+    );
+}
+
+/// The largest |∂J/∂θ_k|·σ_k over the x and θ_E parts of `f`, by central
+/// differences of the exact cost.
+fn worst_slope(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &robimu_model::effects::CatalogueSetup,
+    f: &robimu_workflows::diagnose::Fit,
+) -> (f64, usize) {
+    use robimu_solver::problem::{Problem, ProblemOptions};
+    use robimu_solver::LeastSquares;
+    use robimu_workflows::diagnose::effect_set;
+    let layout = ParamLayout::new(robot);
+    let set = effect_set(setup, &f.effects).unwrap();
+    let popts = ProblemOptions {
+        sigma_q: opts.sigma_q.clone(),
+        sigma_z: opts.sigma_z,
+        use_prior: true,
+        frozen: Vec::new(),
+    };
+    let mut problem = Problem::new(
+        robot,
+        &layout,
+        data,
+        f.trajectory.knots().clone(),
+        f.x.clone(),
+        &popts,
+    )
+    .unwrap()
+    .with_effects(&set);
+    problem.begin_iteration(&f.theta).unwrap();
+    let nc = problem.n_coeffs();
+    let sigma: Vec<f64> = f.sigma_x.iter().chain(&f.sigma_e).copied().collect();
+    let mut worst: (f64, usize) = (0.0, 0);
+    for (a, s) in sigma.iter().enumerate() {
+        let k = nc + a;
+        let h = 1e-3 * s;
+        let mut th = f.theta.clone();
+        th[k] += h;
+        let cp = problem.cost(&th).unwrap();
+        th[k] -= 2.0 * h;
+        let cm = problem.cost(&th).unwrap();
+        let slope = (cp - cm) / (2.0 * h) * s;
+        if slope.abs() > worst.0 {
+            worst = (slope.abs(), a);
+        }
+    }
+    worst
+}
+
+/// The refit neglects ∂C_e/∂x (the effect columns' dependence on the
+/// baseline parameters). Its optimum must still be a stationary point of the
+/// exact cost: central differences of the cost along every x and θ_E
+/// direction, in posterior-σ units, must be ≈ 0 (the estimate within a
+/// tenth of σ of the exact optimum), as for the baseline fit, whose
+/// Jacobian is exact.
+#[test]
+fn refit_optimum_is_stationary_for_the_exact_cost() {
+    let (robot, data, _) = session(41, Some(("g_sensitivity", 0.3)));
+    let setup = setup_for(&robot, &data, None);
+    let opts = CalibrateOptions::new(&robot);
+    let base = fit(&robot, &data, &opts, &setup, &[], None, None).unwrap();
+    let names = vec!["g_sensitivity".to_string()];
+    let aug = fit(&robot, &data, &opts, &setup, &names, Some(&base), None).unwrap();
+    let wb = worst_slope(&robot, &data, &opts, &setup, &base);
+    let wa = worst_slope(&robot, &data, &opts, &setup, &aug);
+    println!("largest exact-cost slope per σ: baseline {:.2e} (parameter {}), with the effect {:.2e} (parameter {})", wb.0, wb.1, wa.0, wa.1);
+    assert!(
+        wb.0 < 0.1 && wa.0 < 0.1,
+        "slopes per σ: baseline {wb:?}, with the effect {wa:?}"
+    );
+}
+
+/// End to end through the CLI: `simulate --effect`, then `diagnose --out`
+/// writes diagnosis.json with the required keys and names the effect; bad
+/// effect names and magnitudes are clear errors.
+#[test]
+fn cli_simulate_effect_then_diagnose() {
+    let exe = env!("CARGO_BIN_EXE_robimu");
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s");
+    let run = |args: &[&str]| std::process::Command::new(exe).args(args).output().unwrap();
+    let s = session.to_str().unwrap();
+    let o = run(&[
+        "simulate",
+        "--duration",
+        "40",
+        "--seed",
+        "7",
+        "--out",
+        s,
+        "--effect",
+        "clock_drift=400",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.path().join("d");
+    let o = run(&["diagnose", s, "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("missing effect: clock_drift"), "{stdout}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json")).unwrap())
+            .unwrap();
+    let first = &json["effects_found"][0];
+    assert_eq!(first["name"], "clock_drift");
+    for key in ["statistic", "dof", "p_value"] {
+        assert!(first[key].is_number(), "{key}");
+    }
+    for key in ["residual_rms_before", "residual_rms_after"] {
+        assert!(json[key]["gx"].is_number(), "{key}");
+    }
+    assert_eq!(json["final_model"]["effects"][0], "clock_drift");
+    assert!(out.join("residual_spectra.png").exists());
+    for file in ["residuals.png", "residuals.svg"] {
+        assert!(out.join(file).exists(), "{file}");
+    }
+    let svg = std::fs::read_to_string(out.join("residuals.svg")).unwrap();
+    assert!(svg.contains("gz residual") && svg.contains("noise model"));
+    let o = run(&["diagnose", s, "--candidates", "warp_drive"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown effect `warp_drive`"));
+    let o = run(&["simulate", "--out", s, "--effect", "clock_drift"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("NAME=MAGNITUDE"));
+}

@@ -1,0 +1,410 @@
+//! `robimu import`: a simulated session written as a ROS 2 MCAP recording
+//! and as EuRoC CSV files imports to the same session, which calibrates to
+//! the result of the original; bad recordings fail naming the cause.
+
+use std::collections::BTreeMap;
+use std::io::{BufWriter, Cursor};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use rand::SeedableRng;
+use robimu_model::observations::Measurements;
+use robimu_model::params::draw_truth;
+use robimu_model::trajectory::random_walk;
+use robimu_model::{ParamLayout, Robot};
+use robimu_session::import::cdr::{encode, ImuMsg, JointStateMsg, Stamp};
+use robimu_session::Session;
+use robimu_workflows::calibrate::{calibrate, CalibrateOptions};
+use robimu_workflows::simulate::{simulate, SimulateOptions};
+
+/// Source clock of the recordings: an epoch time, ns.
+const BASE_NS: i64 = 1_700_000_000_123_456_789;
+const JOINTS: [&str; 6] = [
+    "shoulder_pan_joint",
+    "shoulder_lift_joint",
+    "elbow_joint",
+    "wrist_1_joint",
+    "wrist_2_joint",
+    "wrist_3_joint",
+];
+
+fn ns(t: f64) -> i64 {
+    BASE_NS + (t * 1e9).round() as i64
+}
+
+fn simulated(duration: f64) -> (Robot, Vec<f64>, Measurements) {
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::new(&robot);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(21);
+    let truth = draw_truth(&layout, &mut rng);
+    let traj = random_walk(&robot, duration, 1.0, &mut rng).unwrap();
+    let mut sim = SimulateOptions::paper(&robot);
+    sim.imu_rate = 100.0;
+    sim.joint_rate = 125.0;
+    sim.imu_start = 0.0037;
+    let data = simulate(&robot, &layout, &truth, &traj, &sim, 4).unwrap();
+    (robot, truth, data)
+}
+
+/// Options for the MCAP test file.
+struct McapSpec<'a> {
+    joint_topic: &'a str,
+    joint_schema: &'a str,
+    message_encoding: &'a str,
+    /// Joint names in the messages, a permutation of [`JOINTS`].
+    order: [usize; 6],
+}
+
+impl Default for McapSpec<'_> {
+    fn default() -> Self {
+        McapSpec {
+            joint_topic: "/joint_states",
+            joint_schema: "sensor_msgs/msg/JointState",
+            message_encoding: "cdr",
+            order: [0, 1, 2, 3, 4, 5],
+        }
+    }
+}
+
+/// The data as a rosbag2-style MCAP file (uncompressed chunks), messages in
+/// log-time order, log time 1 ms after the stamp; a gripper JointState on
+/// the same topic every 50 joint samples (which the import skips).
+fn write_mcap(path: &Path, data: &Measurements, spec: &McapSpec) {
+    let file = BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut w = mcap::WriteOptions::new()
+        .profile("ros2")
+        .compression(None)
+        .create(file)
+        .unwrap();
+    let js = w
+        .add_schema(spec.joint_schema, "ros2msg", b"std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n")
+        .unwrap();
+    let imu = w
+        .add_schema(
+            "sensor_msgs/msg/Imu",
+            "ros2msg",
+            b"# (definition omitted)\n",
+        )
+        .unwrap();
+    let meta = BTreeMap::new();
+    let jc = w
+        .add_channel(js, spec.joint_topic, spec.message_encoding, &meta)
+        .unwrap();
+    let ic = w.add_channel(imu, "/imu/data_raw", "cdr", &meta).unwrap();
+    let other = w.add_channel(imu, "/imu/other", "cdr", &meta).unwrap();
+    // (stamp ns, channel, bytes)
+    let mut msgs: Vec<(i64, u16, Vec<u8>)> = Vec::new();
+    let n = data.joint_t.len();
+    let width = data.joint_q.len() / n;
+    for k in 0..n {
+        let q = &data.joint_q[k * width..(k + 1) * width];
+        let m = JointStateMsg {
+            stamp: Stamp(ns(data.joint_t[k])),
+            frame_id: String::new(),
+            name: spec.order.iter().map(|&j| JOINTS[j].to_string()).collect(),
+            position: spec.order.iter().map(|&j| q[j]).collect(),
+        };
+        msgs.push((m.stamp.0, jc, encode::joint_state(&m)));
+        if k % 50 == 0 {
+            let g = JointStateMsg {
+                stamp: m.stamp,
+                frame_id: String::new(),
+                name: vec!["gripper_finger".into()],
+                position: vec![0.01],
+            };
+            msgs.push((m.stamp.0, jc, encode::joint_state(&g)));
+        }
+    }
+    for (k, z) in data.imu_z.iter().enumerate() {
+        let m = ImuMsg {
+            stamp: Stamp(ns(data.imu_t[k])),
+            frame_id: "imu_link".into(),
+            angular_velocity: [z[3], z[4], z[5]],
+            linear_acceleration: [z[0], z[1], z[2]],
+        };
+        msgs.push((m.stamp.0, ic, encode::imu(&m)));
+        if k % 100 == 0 {
+            msgs.push((m.stamp.0, other, encode::imu(&m)));
+        }
+    }
+    msgs.sort_by_key(|m| m.0);
+    for (seq, (stamp, channel, bytes)) in msgs.iter().enumerate() {
+        let log = (*stamp + 1_000_000) as u64;
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: *channel,
+                sequence: seq as u32,
+                log_time: log,
+                publish_time: log,
+            },
+            bytes,
+        )
+        .unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// The data as EuRoC `imu0/data.csv` (gyro first) and a joints CSV.
+fn write_csv(dir: &Path, data: &Measurements) -> (PathBuf, PathBuf) {
+    let mut imu = String::from("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n");
+    for (t, z) in data.imu_t.iter().zip(&data.imu_z) {
+        imu.push_str(&format!(
+            "{},{:?},{:?},{:?},{:?},{:?},{:?}\n",
+            ns(*t),
+            z[3],
+            z[4],
+            z[5],
+            z[0],
+            z[1],
+            z[2]
+        ));
+    }
+    let mut joints = format!("#timestamp [ns],{}\n", JOINTS.join(","));
+    let width = data.joint_q.len() / data.joint_t.len();
+    for (k, t) in data.joint_t.iter().enumerate() {
+        let q: Vec<String> = data.joint_q[k * width..(k + 1) * width]
+            .iter()
+            .map(|x| format!("{x:?}"))
+            .collect();
+        joints.push_str(&format!("{},{}\n", ns(*t), q.join(",")));
+    }
+    let (ip, jp) = (dir.join("imu0.csv"), dir.join("joints.csv"));
+    std::fs::write(&ip, imu).unwrap();
+    std::fs::write(&jp, joints).unwrap();
+    (ip, jp)
+}
+
+fn robimu(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
+    let (robot, truth, data) = simulated(40.0);
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bag = d.join("run.mcap");
+    // Joint names in another order than the CSV's: the import reorders by
+    // --joint-names.
+    write_mcap(
+        &bag,
+        &data,
+        &McapSpec {
+            order: [5, 4, 3, 2, 1, 0],
+            ..McapSpec::default()
+        },
+    );
+    let (imu_csv, joints_csv) = write_csv(d, &data);
+    let (a, b) = (d.join("from_mcap"), d.join("from_csv"));
+    let names = JOINTS.join(",");
+    let (ok, text) = robimu(&[
+        "import",
+        "mcap",
+        s(&bag),
+        "--joints",
+        "/joint_states",
+        "--imu",
+        "/imu/data_raw",
+        "--joint-names",
+        &names,
+        "--out",
+        s(&a),
+    ]);
+    assert!(ok, "{text}");
+    assert!(
+        text.contains(&format!("{} joint samples", data.joint_t.len())),
+        "{text}"
+    );
+    let (ok, text) = robimu(&[
+        "import",
+        "csv",
+        s(&imu_csv),
+        "--joints",
+        s(&joints_csv),
+        "--out",
+        s(&b),
+    ]);
+    assert!(ok, "{text}");
+
+    let sa = Session::load(&a).unwrap();
+    let sb = Session::load(&b).unwrap();
+    // Same samples, bit for bit (the gripper messages skipped).
+    assert_eq!(sa.joints.t, sb.joints.t);
+    assert_eq!(sa.joints.values, sb.joints.values);
+    assert_eq!(sa.imu.t, sb.imu.t);
+    assert_eq!(sa.imu.values, sb.imu.values);
+    // Against the original: t = 0 is the first joint sample (t = 0 there),
+    // times rounded to 1 ns, values exact, IMU columns in session order.
+    let ma = sa.measurements();
+    assert_eq!(ma.joint_q, data.joint_q);
+    assert_eq!(ma.imu_z, data.imu_z);
+    for (x, y) in ma.imu_t.iter().zip(&data.imu_t) {
+        assert!((x - y).abs() < 1e-9, "{x} vs {y}");
+    }
+
+    // Calibrations of the imported and the original data agree to a
+    // small fraction of their uncertainty.
+    let opts = CalibrateOptions::new(&robot);
+    let cal_a = calibrate(&robot, &ma, &opts, |_| {}).unwrap();
+    let cal_o = calibrate(&robot, &data, &opts, |_| {}).unwrap();
+    let layout = ParamLayout::new(&robot);
+    let mut worst = 0.0_f64;
+    let mut worst_truth = 0.0_f64;
+    assert_eq!(truth.len(), layout.specs().len());
+    for (k, x_true) in truth.iter().enumerate() {
+        worst = worst.max((cal_a.x[k] - cal_o.x[k]).abs() / cal_o.sigma[k]);
+        worst_truth = worst_truth.max((cal_a.x[k] - x_true).abs() / cal_a.sigma[k]);
+    }
+    eprintln!("imported vs original: worst |Δx|/σ = {worst:.2e}; vs truth {worst_truth:.2}");
+    assert!(worst < 1e-3, "imported calibration differs by {worst} σ");
+    assert!(
+        worst_truth < 4.5,
+        "imported calibration is {worst_truth} σ from the truth"
+    );
+}
+
+#[test]
+fn bad_recordings_fail_naming_the_cause() {
+    let (_, _, data) = simulated(3.0);
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("out");
+    let import = |bag: &Path, extra: &[&str]| {
+        let mut args = vec!["import", "mcap", s(bag), "--out", s(&out)];
+        args.extend_from_slice(extra);
+        robimu(&args)
+    };
+    let bag = d.join("ok.mcap");
+    write_mcap(&bag, &data, &McapSpec::default());
+    // The defaults fit this file.
+    let (ok, text) = import(&bag, &[]);
+    assert!(ok, "{text}");
+    // A missing topic: the topics there are are listed.
+    let (ok, text) = import(&bag, &["--imu", "/imu/missing"]);
+    assert!(!ok);
+    assert!(
+        text.contains("no topic /imu/missing")
+            && text.contains("/imu/data_raw [sensor_msgs/msg/Imu"),
+        "{text}"
+    );
+    // A topic of another type.
+    let (ok, text) = import(&bag, &["--joints", "/imu/other"]);
+    assert!(!ok);
+    assert!(
+        text.contains("carries sensor_msgs/msg/Imu, expected sensor_msgs/msg/JointState"),
+        "{text}"
+    );
+    // Another message encoding.
+    let bad = d.join("json.mcap");
+    write_mcap(
+        &bad,
+        &data,
+        &McapSpec {
+            message_encoding: "json",
+            ..McapSpec::default()
+        },
+    );
+    let (ok, text) = import(&bad, &[]);
+    assert!(
+        !ok && text.contains("message encoding is \"json\""),
+        "{text}"
+    );
+    // Truncated: half the file.
+    let bytes = std::fs::read(&bag).unwrap();
+    let cut = d.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let (ok, text) = import(&cut, &[]);
+    assert!(
+        !ok && text.contains("not a readable MCAP file") && text.contains("truncated"),
+        "{text}"
+    );
+    // Not MCAP at all.
+    let junk = d.join("junk.mcap");
+    std::fs::write(&junk, b"#timestamp,a,b\n1,2,3\n").unwrap();
+    let (ok, text) = import(&junk, &[]);
+    assert!(!ok && text.contains("not a readable MCAP file"), "{text}");
+    // A joint name not in the messages.
+    let (ok, text) = import(&bag, &["--joint-names", "a,b,c,d,e,f"]);
+    assert!(
+        !ok && text.contains("no message on /joint_states has all of the joints"),
+        "{text}"
+    );
+    // Five joints for a six-joint robot.
+    let five = JOINTS[..5].join(",");
+    let (ok, text) = import(&bag, &["--joint-names", &five]);
+    assert!(
+        !ok && text.contains("5 joints imported") && text.contains("has 6"),
+        "{text}"
+    );
+    // A message cut short inside an otherwise valid file.
+    let mut w = mcap::Writer::new(Cursor::new(Vec::new())).unwrap();
+    let sc = w.add_schema("sensor_msgs/msg/Imu", "ros2msg", b"").unwrap();
+    let ch = w
+        .add_channel(sc, "/imu/data_raw", "cdr", &BTreeMap::new())
+        .unwrap();
+    let jsc = w
+        .add_schema("sensor_msgs/msg/JointState", "ros2msg", b"")
+        .unwrap();
+    let jch = w
+        .add_channel(jsc, "/joint_states", "cdr", &BTreeMap::new())
+        .unwrap();
+    let header = |channel_id| mcap::records::MessageHeader {
+        channel_id,
+        sequence: 0,
+        log_time: 5,
+        publish_time: 5,
+    };
+    let js = encode::joint_state(&JointStateMsg {
+        stamp: Stamp(5),
+        frame_id: String::new(),
+        name: vec![],
+        position: vec![0.0; 6],
+    });
+    w.write_to_known_channel(&header(jch), &js).unwrap();
+    let imu = encode::imu(&ImuMsg {
+        stamp: Stamp(5),
+        frame_id: String::new(),
+        angular_velocity: [0.0; 3],
+        linear_acceleration: [0.0; 3],
+    });
+    w.write_to_known_channel(&header(ch), &imu[..100]).unwrap();
+    w.finish().unwrap();
+    let short = d.join("short.mcap");
+    std::fs::write(&short, w.into_inner().into_inner()).unwrap();
+    let (ok, text) = import(&short, &[]);
+    assert!(
+        !ok && text.contains("topic /imu/data_raw, message 0") && text.contains("truncated"),
+        "{text}"
+    );
+    // CSV: a joints file with a bad line.
+    let (imu_csv, joints_csv) = write_csv(d, &data);
+    let mut text = std::fs::read_to_string(&joints_csv).unwrap();
+    text.push_str("1,2,3\n");
+    std::fs::write(&joints_csv, text).unwrap();
+    let (ok, text) = robimu(&[
+        "import",
+        "csv",
+        s(&imu_csv),
+        "--joints",
+        s(&joints_csv),
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        !ok && text.contains("joints.csv:") && text.contains("3 fields"),
+        "{text}"
+    );
+}

@@ -1,0 +1,240 @@
+//! The hidden-truth rig: a simulated AUBO i5 and a simulated IMU board on
+//! its flange, sharing one true motion.
+//!
+//! [`SimRig::spawn`] starts a [`SimAubo`] controller on loopback TCP (with
+//! the robot's joint noise Σ_q as encoder noise and a tracking lag) and a
+//! [`SimDevice`] (the real firmware core over a register-level BNO055 on a
+//! pseudo-terminal, with a clock offset and drift) whose readings come from a
+//! [`ModelSource`] at the hidden truth x*. A recorder talks to them exactly
+//! as to hardware: `--imu` [`SimRig::imu_port`], `--robot`
+//! [`SimRig::robot_spec`].
+
+use std::net::SocketAddr;
+
+use rand::SeedableRng;
+use robimu_hil_sim::aubo::{JointLimits, SimAubo, SimAuboConfig, SimAuboError, TrueMotion, JOINTS};
+use robimu_hil_sim::device::{SimDevice, SimDeviceConfig, SimDeviceError};
+use robimu_hil_sim::ur::{SimUr, SimUrConfig, SimUrError};
+
+use super::physics::ModelSource;
+use robimu_model::params::draw_truth;
+use robimu_model::{MeasurementModel, ModelError, ParamLayout, Robot};
+use robimu_session::Truth;
+
+/// Why the rig could not be started.
+#[derive(Debug, thiserror::Error)]
+pub enum RigError {
+    /// The rig simulates a 6-joint arm.
+    #[error("the simulated rig drives a {JOINTS}-joint arm; robot {name} has {dof} joints")]
+    Joints {
+        /// Robot name.
+        name: String,
+        /// Its joint count.
+        dof: usize,
+    },
+    /// The truth is not a valid parameter vector.
+    #[error("bad hidden truth: {0}")]
+    Model(#[from] ModelError),
+    /// The simulated controller did not start.
+    #[error("cannot start the simulated robot controller: {0}")]
+    Robot(#[from] SimAuboError),
+    /// The simulated UR controller did not start.
+    #[error("cannot start the simulated UR controller: {0}")]
+    Ur(#[from] SimUrError),
+    /// The simulated IMU board did not start.
+    #[error("cannot start the simulated IMU board: {0}")]
+    Device(#[from] SimDeviceError),
+}
+
+/// What to simulate.
+#[derive(Clone, Debug)]
+pub struct SimRigConfig {
+    /// The robot and its IMU mount (its description's priors and noise).
+    pub robot: Robot,
+    /// The hidden truth x* ([`ParamLayout::new`]`(&robot)` order); τ is
+    /// forced to 0, as the physics reads the arm at the stamping instant.
+    pub truth: Vec<f64>,
+    /// Joint angles at power-up, rad.
+    pub initial: [f64; JOINTS],
+    /// Seed of the IMU noise, the encoder noise and the injected faults.
+    pub seed: u64,
+    /// Device clock at start, µs.
+    pub clock_offset_us: u64,
+    /// Device clock rate error, ppm.
+    pub clock_drift_ppm: f64,
+    /// The controller's first-order tracking lag, s.
+    pub tracking_lag_s: f64,
+}
+
+impl SimRigConfig {
+    /// `robot` with a truth drawn from its priors (seeded), a 20 ms tracking
+    /// lag, and a device clock 1.234 s ahead running 48.7 ppm fast.
+    pub fn drawn(robot: Robot, seed: u64) -> Self {
+        let layout = ParamLayout::new(&robot);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let truth = draw_truth(&layout, &mut rng);
+        let initial = std::array::from_fn(|j| {
+            robot
+                .limits()
+                .get(j)
+                .map_or(0.0, |l| 0.5 * (l.q_min + l.q_max))
+        });
+        Self {
+            robot,
+            truth,
+            initial,
+            seed,
+            clock_offset_us: 1_234_000,
+            clock_drift_ppm: 48.7,
+            tracking_lag_s: 0.02,
+        }
+    }
+}
+
+/// A running rig; stops when dropped.
+pub struct SimRig {
+    /// The simulated controller.
+    pub aubo: SimAubo,
+    /// The simulated IMU board.
+    pub device: SimDevice,
+    truth: Truth,
+}
+
+impl SimRig {
+    /// Starts the controller and the board.
+    pub fn spawn(config: &SimRigConfig) -> Result<SimRig, RigError> {
+        let robot = &config.robot;
+        check_joints(robot)?;
+        let sigma_q: [f64; JOINTS] = std::array::from_fn(|j| robot.sigma_q()[j]);
+        // The controller's own limits are the hardware's (wider than a
+        // plan's), as on the real arm.
+        let aubo = SimAubo::spawn(SimAuboConfig {
+            initial: config.initial,
+            limits: JointLimits::default(),
+            tracking_lag_s: config.tracking_lag_s,
+            encoder_noise_per_joint: Some(sigma_q),
+            seed: config.seed ^ 0xA0B0,
+            ..SimAuboConfig::default()
+        })?;
+        let (device, truth) = imu_board(config, Box::new(aubo.state_probe()))?;
+        Ok(SimRig {
+            aubo,
+            device,
+            truth,
+        })
+    }
+
+    /// The IMU board's serial port (a pseudo-terminal path).
+    pub fn imu_port(&self) -> &str {
+        self.device.port_path()
+    }
+
+    /// The controller's address.
+    pub fn robot_addr(&self) -> SocketAddr {
+        self.aubo.addr()
+    }
+
+    /// `aubo:HOST:PORT` for `robimu record --robot`.
+    pub fn robot_spec(&self) -> String {
+        format!("aubo:{}", self.aubo.addr())
+    }
+
+    /// The hidden truth (τ = 0), as `truth.toml` lists it.
+    pub fn truth(&self) -> &Truth {
+        &self.truth
+    }
+}
+
+/// The rig simulates 6-joint arms.
+fn check_joints(robot: &Robot) -> Result<(), RigError> {
+    if robot.dof() != JOINTS {
+        return Err(RigError::Joints {
+            name: robot.name().to_string(),
+            dof: robot.dof(),
+        });
+    }
+    Ok(())
+}
+
+/// The simulated IMU board on the flange of the arm `motion` reads, at the
+/// hidden truth (τ forced to 0).
+fn imu_board(
+    config: &SimRigConfig,
+    motion: Box<dyn TrueMotion>,
+) -> Result<(SimDevice, Truth), RigError> {
+    let robot = &config.robot;
+    let layout = ParamLayout::new(robot);
+    let mut x = config.truth.clone();
+    if let Some(tau) = x.get_mut(layout.offsets().tau) {
+        *tau = 0.0;
+    }
+    let model = MeasurementModel::new(robot, &layout, &x)?;
+    let source = ModelSource::new(motion, model, robot.sigma_z(), config.seed);
+    let mut device_config = SimDeviceConfig::new(Box::new(source));
+    device_config.clock_offset_us = config.clock_offset_us;
+    device_config.clock_drift_ppm = config.clock_drift_ppm;
+    device_config.fault_seed = config.seed ^ 0xFA17;
+    let device = SimDevice::spawn(device_config)?;
+    let truth = Truth {
+        values: layout
+            .specs()
+            .iter()
+            .zip(&x)
+            .map(|(s, v)| (s.name.clone(), *v))
+            .collect(),
+    };
+    Ok((device, truth))
+}
+
+/// The same rig around a simulated Universal Robots controller (RTDE at
+/// 125 Hz, URScript `servoj` programs; encoder noise the smallest of the
+/// robot's Σ_q, as the simulator has one level for all joints).
+pub struct SimUrRig {
+    /// The simulated controller.
+    pub ur: SimUr,
+    /// The simulated IMU board.
+    pub device: SimDevice,
+    truth: Truth,
+}
+
+impl SimUrRig {
+    /// Starts the controller and the board.
+    pub fn spawn(config: &SimRigConfig) -> Result<SimUrRig, RigError> {
+        check_joints(&config.robot)?;
+        let noise = config
+            .robot
+            .sigma_q()
+            .iter()
+            .fold(f64::INFINITY, |m, s| m.min(*s));
+        let ur = SimUr::spawn(SimUrConfig {
+            control_rate_hz: 125.0,
+            initial: config.initial,
+            tracking_lag_s: config.tracking_lag_s,
+            encoder_noise_rad: noise,
+            seed: config.seed ^ 0x0B0E,
+            ..SimUrConfig::default()
+        })?;
+        let (device, truth) = imu_board(config, Box::new(ur.state_probe()))?;
+        Ok(SimUrRig { ur, device, truth })
+    }
+
+    /// The IMU board's serial port.
+    pub fn imu_port(&self) -> &str {
+        self.device.port_path()
+    }
+
+    /// `ur:HOST:RTDE_PORT:SCRIPT_PORT` for `robimu record --robot`.
+    pub fn robot_spec(&self) -> String {
+        format!(
+            "ur:{}:{}:{}",
+            self.ur.rtde_addr().ip(),
+            self.ur.rtde_addr().port(),
+            self.ur.script_addr().port()
+        )
+    }
+
+    /// The hidden truth (τ = 0).
+    pub fn truth(&self) -> &Truth {
+        &self.truth
+    }
+}

@@ -1,0 +1,178 @@
+//! Mass model for joint elasticity: link masses and centres of mass, giving
+//! the gravity torque on each joint,
+//!
+//! ```text
+//! τ_j(q) = z_{j−1} · Σ_{l ≥ j} (c_l − p_{j−1}) × m_l g      g = (0, 0, −g0)
+//! ```
+//!
+//! with z_{j−1}, p_{j−1} the axis and origin of joint j and c_l the centre of
+//! mass of link l (nominal DH kinematics, MODEL.md §1; frame l is the DH frame
+//! after T_l). A TOML file gives one:
+//!
+//! ```text
+//! [[link]]            # one table per link, base to flange
+//! mass = 6.0          # kg
+//! com = [-0.2, 0, 0]  # m, in the link's DH frame
+//! ```
+
+use serde::Deserialize;
+
+use crate::geom::{add, cross, dot, mul_mv, sub, V3};
+use crate::kinematics::link_transform;
+use crate::robot::DhLink;
+use crate::{geom::Iso, Robot};
+
+/// Link masses and centres of mass (see the module doc).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MassModel {
+    links: Vec<DhLink>,
+    mass: Vec<f64>,
+    com: Vec<V3>,
+}
+
+/// Why a mass model cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum MassError {
+    /// The TOML text is malformed.
+    #[error("invalid mass model: {0}")]
+    Toml(#[from] toml::de::Error),
+    /// Wrong number of links or a negative mass.
+    #[error("invalid mass model: {0}")]
+    Invalid(String),
+    /// The file cannot be read.
+    #[error("cannot read the mass model {path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    link: Vec<LinkMass>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LinkMass {
+    mass: f64,
+    com: [f64; 3],
+}
+
+impl MassModel {
+    /// From masses (kg) and centres of mass (m, link DH frames).
+    pub fn new(robot: &Robot, mass: Vec<f64>, com: Vec<V3>) -> Result<Self, MassError> {
+        let n = robot.dof();
+        if mass.len() != n || com.len() != n {
+            return Err(MassError::Invalid(format!(
+                "{} links given but the robot has {n}",
+                mass.len()
+            )));
+        }
+        if let Some(m) = mass.iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
+            return Err(MassError::Invalid(format!("link mass {m} kg is not ≥ 0")));
+        }
+        Ok(Self {
+            links: robot.links().to_vec(),
+            mass,
+            com,
+        })
+    }
+
+    /// A built-in estimate for the AUBO i5 (24 kg arm; masses and centres of
+    /// mass guessed from its geometry: upper arm and forearm as uniform
+    /// beams, wrist links as point masses on their axes).
+    pub fn aubo_i5(robot: &Robot) -> Result<Self, MassError> {
+        let mass = vec![5.0, 6.5, 3.0, 1.5, 1.5, 0.5];
+        let com = vec![
+            [0.0, 0.0, 0.02],
+            [-0.204, 0.0, 0.06],
+            [-0.188, 0.0, 0.01],
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, -0.02],
+        ];
+        Self::new(robot, mass, com)
+    }
+
+    /// The built-in estimate for `robot` when there is one (AUBO i5), else
+    /// a uniform 2 kg per link at the link's DH origin.
+    pub fn for_robot(robot: &Robot) -> Self {
+        if robot.name() == "aubo_i5" && robot.dof() == 6 {
+            if let Ok(m) = Self::aubo_i5(robot) {
+                return m;
+            }
+        }
+        let n = robot.dof();
+        Self {
+            links: robot.links().to_vec(),
+            mass: vec![2.0; n],
+            com: vec![[0.0; 3]; n],
+        }
+    }
+
+    /// Parse a TOML mass model for `robot`.
+    pub fn from_toml_str(robot: &Robot, text: &str) -> Result<Self, MassError> {
+        let f: File = toml::from_str(text)?;
+        let (mass, com) = f.link.iter().map(|l| (l.mass, l.com)).unzip();
+        Self::new(robot, mass, com)
+    }
+
+    /// Read a TOML mass model file.
+    pub fn from_toml_file(robot: &Robot, path: &std::path::Path) -> Result<Self, MassError> {
+        let text = std::fs::read_to_string(path).map_err(|source| MassError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_toml_str(robot, &text)
+    }
+
+    /// Number of links.
+    pub fn dof(&self) -> usize {
+        self.links.len()
+    }
+
+    /// Gravity torque τ_j(q) on every joint (N·m), gravity g0 along −z.
+    pub fn gravity_torques(&self, q: &[f64], g0: f64) -> Vec<f64> {
+        let n = self.links.len();
+        let mut frames = Vec::with_capacity(n + 1);
+        let mut f = Iso::identity();
+        frames.push(f);
+        for (dh, &qi) in self.links.iter().zip(q) {
+            f = f.compose(&link_transform(dh, qi));
+            frames.push(f);
+        }
+        let centres: Vec<V3> = (0..n)
+            .map(|l| add(frames[l + 1].p, mul_mv(&frames[l + 1].r, self.com[l])))
+            .collect();
+        (0..n)
+            .map(|j| {
+                let axis = [frames[j].r[0][2], frames[j].r[1][2], frames[j].r[2][2]];
+                let origin = frames[j].p;
+                (j..n)
+                    .map(|l| {
+                        let force = [0.0, 0.0, -g0 * self.mass[l]];
+                        dot(axis, cross(sub(centres[l], origin), force))
+                    })
+                    .sum()
+            })
+            .collect()
+    }
+}
+
+impl MassModel {
+    /// Gravitational potential energy Σ m_l g0 z(c_l), J (for tests: τ = −∂V/∂q).
+    pub fn potential_energy(&self, q: &[f64], g0: f64) -> f64 {
+        let mut f = Iso::identity();
+        let mut v = 0.0;
+        for (l, (dh, &qi)) in self.links.iter().zip(q).enumerate() {
+            f = f.compose(&link_transform(dh, qi));
+            let c = add(f.p, mul_mv(&f.r, self.com[l]));
+            v += self.mass[l] * g0 * c[2];
+        }
+        v
+    }
+}

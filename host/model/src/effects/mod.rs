@@ -1,0 +1,398 @@
+//! The catalogue of model extensions ("effects"): real, parametrised terms
+//! the estimator can add to the measurement model of MODEL.md when the
+//! residuals show structure the baseline model does not explain.
+//!
+//! Every effect is linear in its parameters θ_e (to first order in the
+//! effect, which is all a score test or a small-effect refit needs):
+//!
+//! ```text
+//! z_i = h(x, q(t_i + τ)) + Σ_e  C_e(i) θ_e          C_e(i) = ∂z_i/∂θ_e  (6 × k_e)
+//! ```
+//!
+//! so an effect is its Jacobian `C_e(i)`, built per IMU sample from a
+//! [`SampleContext`]: the sample time, the joint state q(t_i+τ) (and its
+//! derivatives), the baseline model and its analytic Jacobians (∂z/∂q,
+//! ∂z/∂q̇, ∂z/∂q̈ and ∂z/∂τ = dz/dt), and the IMU-frame ω, ω̇ and s. Effects
+//! that act through the joint angles (encoder scale, elasticity) or the
+//! clock (clock drift) use the chain rule through those analytic
+//! Jacobians; the cross-derivatives ∂C_e/∂x are neglected (the refit
+//! minimises the exact cost; see the tests for the agreement with an
+//! exact-injection simulation).
+//!
+//! Besides the linear term, each effect has an *exact* form used by the
+//! simulator ([`Effect::exact`]): the IMU sample computed from the effect's
+//! physics (a warped clock, scaled or deflected joint angles, …); by default
+//! the linear term. The tests check the Jacobian against finite
+//! differences of this exact form.
+//!
+//! # Adding an effect
+//!
+//! Write one module implementing [`Effect`] and add it to [`catalogue`] (the
+//! one registration point). Name it in snake case; the name is what the CLI
+//! (`--effects`, `--effect NAME=MAGNITUDE`) and `diagnosis.json` use.
+
+pub mod bias_drift;
+pub mod clock_drift;
+pub mod encoder_scale;
+pub mod g_sensitivity;
+pub mod joint_elasticity;
+pub mod mass;
+pub mod resonance;
+pub mod size_effect;
+
+use std::cell::OnceCell;
+use std::sync::Arc;
+
+use crate::geom::{cross, V3};
+use crate::{JointState, MeasurementJacobians, MeasurementModel, ParamLayout, Spline};
+
+pub use mass::MassModel;
+
+/// One parameter of an effect.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectParam {
+    /// Name, `<effect>.<component>` (e.g. `clock_drift.ppm`).
+    pub name: String,
+    /// SI unit of the value in θ_e.
+    pub unit: &'static str,
+    /// Display unit and the factor from SI to it.
+    pub display: (&'static str, f64),
+    /// σ of the (broad, zero-mean) prior used in refits, SI.
+    pub prior_sigma: f64,
+}
+
+/// Everything an effect may need at one IMU sample.
+pub struct SampleContext<'a> {
+    /// IMU sample time t_i on the session clock, s.
+    pub t: f64,
+    /// q(t_i + τ) and its derivatives (the encoder readings' trajectory).
+    pub js: &'a JointState,
+    /// The baseline model at the current x.
+    pub model: &'a MeasurementModel,
+    /// Baseline z and analytic Jacobians at `js` (`dz_dx[tau]` is dz/dt).
+    pub jac: &'a MeasurementJacobians,
+    /// Index of τ in x.
+    pub tau_index: usize,
+    inertial: OnceCell<Inertial>,
+}
+
+/// IMU-frame angular rate ω, its derivative ω̇ and the specific force s.
+#[derive(Debug, Clone, Copy)]
+pub struct Inertial {
+    /// ω, rad/s.
+    pub omega: V3,
+    /// ω̇, rad/s² (central difference over ±1 ms of the joint state's
+    /// Taylor expansion; exact to O(h²) for the cubic trajectory).
+    pub omega_dot: V3,
+    /// s, m/s².
+    pub s: V3,
+}
+
+/// Step of the central differences in time, s.
+pub const TIME_STEP: f64 = 1e-3;
+
+/// The joint state `h` seconds later by the Taylor expansion of
+/// (q, q̇, q̈, q⃛) (exact inside a span of a cubic trajectory).
+pub fn shifted(js: &JointState, h: f64) -> JointState {
+    let mut o = *js;
+    for j in 0..js.q.len() {
+        let (q, qd, qdd, qddd) = (js.q[j], js.qd[j], js.qdd[j], js.qddd[j]);
+        o.q[j] = q + h * qd + h * h / 2.0 * qdd + h * h * h / 6.0 * qddd;
+        o.qd[j] = qd + h * qdd + h * h / 2.0 * qddd;
+        o.qdd[j] = qdd + h * qddd;
+    }
+    o
+}
+
+impl<'a> SampleContext<'a> {
+    /// The context of one sample.
+    pub fn new(
+        t: f64,
+        js: &'a JointState,
+        model: &'a MeasurementModel,
+        jac: &'a MeasurementJacobians,
+        layout: &ParamLayout,
+    ) -> Self {
+        Self {
+            t,
+            js,
+            model,
+            jac,
+            tau_index: layout.offsets().tau,
+            inertial: OnceCell::new(),
+        }
+    }
+
+    /// ω, ω̇, s in the IMU frame (computed once, on first use).
+    pub fn inertial(&self) -> &Inertial {
+        self.inertial.get_or_init(|| {
+            let (_, omega, s) = self.model.inertial(self.js);
+            let h = TIME_STEP;
+            let (_, wp, _) = self.model.inertial(&shifted(self.js, h));
+            let (_, wm, _) = self.model.inertial(&shifted(self.js, -h));
+            let omega_dot = std::array::from_fn(|k| (wp[k] - wm[k]) / (2.0 * h));
+            Inertial {
+                omega,
+                omega_dot,
+                s,
+            }
+        })
+    }
+
+    /// dz/dt along the trajectory (the τ column of the analytic Jacobian).
+    pub fn dz_dt(&self) -> [f64; 6] {
+        self.jac.dz_dx[self.tau_index]
+    }
+
+    /// ∂z/∂θ for a perturbation of the joint state δq, δq̇, δq̈ (n joints):
+    /// Σ_j ∂z/∂q_j δq_j + ∂z/∂q̇_j δq̇_j + ∂z/∂q̈_j δq̈_j.
+    pub fn through_joints(&self, j: usize, dq: f64, dqd: f64, dqdd: f64) -> [f64; 6] {
+        let jac = self.jac;
+        std::array::from_fn(|c| {
+            jac.dz_dq[j][c] * dq + jac.dz_dqd[j][c] * dqd + jac.dz_dqdd[j][c] * dqdd
+        })
+    }
+}
+
+/// What the exact (simulator) form of an effect sees: the true trajectory at
+/// any time and the baseline model.
+pub struct ExactContext<'a> {
+    /// IMU sample time t_i on the session clock, s.
+    pub t: f64,
+    /// τ, s.
+    pub tau: f64,
+    /// The baseline model at the true x.
+    pub model: &'a MeasurementModel,
+    /// The joint trajectory (encoder readings) at any session time.
+    pub trajectory: &'a dyn Fn(f64) -> JointState,
+}
+
+impl ExactContext<'_> {
+    /// Baseline z at t_i (no effect).
+    pub fn baseline(&self) -> [f64; 6] {
+        self.model.predict(&(self.trajectory)(self.t + self.tau))
+    }
+}
+
+/// Session-level facts some effects need (set once per session).
+#[derive(Debug, Clone)]
+pub struct SessionSpan {
+    /// First and last IMU sample time, s.
+    pub t0: f64,
+    /// Last IMU sample time, s.
+    pub t1: f64,
+}
+
+impl SessionSpan {
+    /// Middle of the span, s (reference time of drifting effects).
+    pub fn mid(&self) -> f64 {
+        0.5 * (self.t0 + self.t1)
+    }
+    /// Time normalised to [−1, 1] over the span.
+    pub fn unit(&self, t: f64) -> f64 {
+        let h = 0.5 * (self.t1 - self.t0);
+        if h > 0.0 {
+            (t - self.mid()) / h
+        } else {
+            0.0
+        }
+    }
+}
+
+/// A candidate model extension (see the module doc).
+pub trait Effect: Send + Sync {
+    /// Snake-case name (CLI and JSON).
+    fn name(&self) -> &'static str;
+    /// One-line description with the physics.
+    fn description(&self) -> &'static str;
+    /// The parameters θ_e, in order.
+    fn params(&self) -> Vec<EffectParam>;
+    /// ∂z/∂θ_e at one sample: one 6-column per parameter into `cols`.
+    fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]);
+    /// The exact (simulator) z with the effect at θ_e. Default: baseline
+    /// plus the linear term (exact for effects additive in z).
+    fn exact(&self, ctx: &ExactContext<'_>, theta: &[f64], layout: &ParamLayout) -> [f64; 6] {
+        let js = (ctx.trajectory)(ctx.t + ctx.tau);
+        let mut jac = MeasurementJacobians::new(layout.len());
+        ctx.model.jacobians(&js, &mut jac);
+        let sc = SampleContext::new(ctx.t, &js, ctx.model, &jac, layout);
+        let mut cols = vec![[0.0; 6]; theta.len()];
+        self.columns(&sc, &mut cols);
+        let mut z = jac.z;
+        for (col, th) in cols.iter().zip(theta) {
+            for c in 0..6 {
+                z[c] += col[c] * th;
+            }
+        }
+        z
+    }
+    /// The unit of the scalar magnitude of `simulate --effect NAME=M`.
+    fn magnitude_unit(&self) -> &'static str;
+    /// θ_e injected by `simulate --effect NAME=M` (a documented fixed pattern
+    /// scaled by M).
+    fn injection(&self, magnitude: f64) -> Vec<f64>;
+}
+
+/// What the catalogue's effects are built from.
+#[derive(Debug, Clone)]
+pub struct CatalogueSetup {
+    /// The IMU time span of the session.
+    pub span: SessionSpan,
+    /// The mass model for joint elasticity.
+    pub mass: MassModel,
+    /// Gravity magnitude g0, m/s².
+    pub g0: f64,
+    /// The resonance's natural frequency and damping.
+    pub mode: resonance::Mode,
+    /// The mode's response to the recorded joint trajectory (`None`: no
+    /// trajectory could be fitted; `resonance` is then unavailable).
+    pub mode_response: Option<Arc<resonance::ModeResponse>>,
+}
+
+impl CatalogueSetup {
+    /// The setup for a session over `span` whose recorded joints follow
+    /// `joints` (a spline fitted to them), with the default mode.
+    pub fn new(span: SessionSpan, mass: MassModel, g0: f64, joints: Option<&Spline>) -> Self {
+        let mode = resonance::Mode::default();
+        let mut s = Self {
+            span,
+            mass,
+            g0,
+            mode,
+            mode_response: None,
+        };
+        s.set_joints(mode, joints);
+        s
+    }
+    /// Set the resonance mode and integrate its response to `joints`.
+    pub fn set_joints(&mut self, mode: resonance::Mode, joints: Option<&Spline>) {
+        self.mode = mode;
+        self.mode_response = joints.map(|s| Arc::new(resonance::ModeResponse::of_spline(mode, s)));
+    }
+}
+
+/// The catalogue: every known effect (the one registration point).
+pub fn catalogue(setup: &CatalogueSetup) -> Vec<Box<dyn Effect>> {
+    let mut all: Vec<Box<dyn Effect>> = vec![
+        Box::new(g_sensitivity::GSensitivity),
+        Box::new(size_effect::SizeEffect),
+        Box::new(clock_drift::ClockDrift::new(setup.span.clone())),
+        Box::new(bias_drift::BiasDrift::new(setup.span.clone())),
+        Box::new(joint_elasticity::JointElasticity::new(
+            setup.mass.clone(),
+            setup.g0,
+        )),
+        Box::new(encoder_scale::EncoderScale::new(setup.mass.dof())),
+    ];
+    if let Some(response) = &setup.mode_response {
+        all.push(Box::new(resonance::Resonance::new(
+            setup.mode,
+            setup.mass.dof(),
+            response.clone(),
+            (setup.span.t0, setup.span.t1),
+        )));
+    }
+    all
+}
+
+/// Names of the catalogue's effects, in order.
+pub const NAMES: [&str; 7] = [
+    "g_sensitivity",
+    "size_effect",
+    "clock_drift",
+    "bias_drift",
+    "joint_elasticity",
+    "encoder_scale",
+    "resonance",
+];
+
+/// An unknown effect name.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("unknown effect `{0}` (known: {known})", known = NAMES.join(", "))]
+pub struct UnknownEffect(pub String);
+
+/// The effect named `name` from the catalogue.
+pub fn by_name(setup: &CatalogueSetup, name: &str) -> Result<Box<dyn Effect>, UnknownEffect> {
+    catalogue(setup)
+        .into_iter()
+        .find(|e| e.name() == name)
+        .ok_or_else(|| UnknownEffect(name.to_string()))
+}
+
+/// Several effects stacked: θ_E = [θ_e1, θ_e2, …].
+#[derive(Default)]
+pub struct EffectSet {
+    effects: Vec<Box<dyn Effect>>,
+    offsets: Vec<usize>,
+    params: Vec<EffectParam>,
+}
+
+impl EffectSet {
+    /// No effect.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Append an effect.
+    pub fn push(&mut self, e: Box<dyn Effect>) {
+        self.offsets.push(self.params.len());
+        self.params.extend(e.params());
+        self.effects.push(e);
+    }
+    /// Total number of parameters.
+    pub fn len(&self) -> usize {
+        self.params.len()
+    }
+    /// No parameter at all.
+    pub fn is_empty(&self) -> bool {
+        self.params.is_empty()
+    }
+    /// All parameters, in θ_E order.
+    pub fn params(&self) -> &[EffectParam] {
+        &self.params
+    }
+    /// The effects with the offset of their parameters in θ_E.
+    pub fn effects(&self) -> impl Iterator<Item = (usize, &dyn Effect)> {
+        self.offsets
+            .iter()
+            .copied()
+            .zip(self.effects.iter().map(|e| e.as_ref()))
+    }
+    /// Names of the effects.
+    pub fn names(&self) -> Vec<&'static str> {
+        self.effects.iter().map(|e| e.name()).collect()
+    }
+    /// All columns ∂z/∂θ_E at one sample (`cols.len() == self.len()`).
+    pub fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
+        for (off, e) in self.effects() {
+            let k = e.params().len();
+            self.columns_of(e, ctx, &mut cols[off..off + k]);
+        }
+    }
+    fn columns_of(&self, e: &dyn Effect, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
+        for c in cols.iter_mut() {
+            *c = [0.0; 6];
+        }
+        e.columns(ctx, cols);
+    }
+}
+
+/// [ω̇]× r + ω × (ω × r): the acceleration of a point at r (IMU frame)
+/// relative to the IMU origin, in the IMU frame.
+pub fn lever_acceleration(inertial: &Inertial, r: V3) -> V3 {
+    let a = cross(inertial.omega_dot, r);
+    let b = cross(inertial.omega, cross(inertial.omega, r));
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+/// The trajectory closure of a simulator: q(t) of the spline inside its
+/// span, at rest at the end poses outside ([`Spline::state_at`](crate::Spline::state_at)).
+pub fn trajectory_fn(spline: &Spline) -> impl Fn(f64) -> JointState + '_ {
+    move |t| {
+        let mut js = JointState::default();
+        spline.state_at(t, &mut js);
+        js
+    }
+}
+
+#[cfg(test)]
+mod tests;

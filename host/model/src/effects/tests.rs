@@ -1,0 +1,109 @@
+//! Each effect's Jacobian ∂z/∂θ_e against central differences of its exact
+//! (simulator) form.
+
+use rand::SeedableRng;
+
+use super::*;
+use crate::trajectory::random_walk;
+use crate::{MeasurementJacobians, MeasurementModel, ParamLayout, Robot};
+
+#[test]
+fn effect_jacobians_match_finite_differences_of_the_exact_form() {
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::new(&robot);
+    let mut x = layout.nominal();
+    for (k, s) in layout.specs().iter().enumerate() {
+        x[k] += 0.3 * s.sigma * ((k as f64) * 1.7).sin();
+    }
+    x[layout.offsets().tau] = 0.02;
+    let model = MeasurementModel::new(&robot, &layout, &x).unwrap();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let spline = random_walk(&robot, 20.0, 1.0, &mut rng).unwrap();
+    let traj = trajectory_fn(&spline);
+    let setup = CatalogueSetup::new(
+        SessionSpan { t0: 0.0, t1: 20.0 },
+        MassModel::for_robot(&robot),
+        robot.gravity(),
+        Some(&spline),
+    );
+    assert_eq!(catalogue(&setup).len(), NAMES.len());
+    let mut jac = MeasurementJacobians::new(layout.len());
+    let mut checked = 0;
+    for effect in catalogue(&setup) {
+        let params = effect.params();
+        let k = params.len();
+        assert!(k > 0, "{}", effect.name());
+        for t in [2.3, 7.7, 15.1] {
+            let js = traj(t + x[layout.offsets().tau]);
+            model.jacobians(&js, &mut jac);
+            let ctx = SampleContext::new(t, &js, &model, &jac, &layout);
+            let mut cols = vec![[0.0; 6]; k];
+            effect.columns(&ctx, &mut cols);
+            let ex = ExactContext {
+                t,
+                tau: x[layout.offsets().tau],
+                model: &model,
+                trajectory: &traj,
+            };
+            let zero = vec![0.0; k];
+            let z0 = effect.exact(&ex, &zero, &layout);
+            let base = ex.baseline();
+            for c in 0..6 {
+                assert!(
+                    (z0[c] - base[c]).abs() < 1e-12,
+                    "{} not zero at θ = 0",
+                    effect.name()
+                );
+            }
+            for (e, p) in params.iter().enumerate() {
+                let h = 1e-4 * p.prior_sigma;
+                let mut th = zero.clone();
+                th[e] = h;
+                let zp = effect.exact(&ex, &th, &layout);
+                th[e] = -h;
+                let zm = effect.exact(&ex, &th, &layout);
+                let norm = cols[e].iter().map(|v| v * v).sum::<f64>().sqrt();
+                for c in 0..6 {
+                    let fd = (zp[c] - zm[c]) / (2.0 * h);
+                    assert!(
+                        (fd - cols[e][c]).abs() <= 1e-5 * norm.max(1.0),
+                        "{} {} channel {c} t {t}: fd {fd} vs {}",
+                        effect.name(),
+                        p.name,
+                        cols[e][c]
+                    );
+                }
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 40);
+}
+
+#[test]
+fn gravity_torque_matches_finite_differences_of_potential_energy() {
+    // τ_j = −∂V/∂q_j with V = Σ m_l g0 z_l (independent formula)
+    let robot = Robot::aubo_i5();
+    let mass = MassModel::for_robot(&robot);
+    let q = [0.3, -0.7, 1.1, 0.4, -0.9, 0.2];
+    let g0 = 9.81;
+    let tau = mass.gravity_torques(&q, g0);
+    let energy = |q: &[f64]| -> f64 { mass.potential_energy(q, g0) };
+    for j in 0..6 {
+        let h = 1e-6;
+        let mut qp = q;
+        qp[j] += h;
+        let mut qm = q;
+        qm[j] -= h;
+        let fd = -(energy(&qp) - energy(&qm)) / (2.0 * h);
+        assert!(
+            (fd - tau[j]).abs() < 1e-6 * (1.0 + fd.abs()),
+            "joint {j}: {fd} vs {}",
+            tau[j]
+        );
+    }
+    assert!(
+        tau[1].abs() > 1.0,
+        "shoulder carries a gravity torque: {tau:?}"
+    );
+}

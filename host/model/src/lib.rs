@@ -1,0 +1,51 @@
+//! The robot–IMU measurement model (paper §3–5; the contract is MODEL.md §1–5).
+//!
+//! Layers, each one concept:
+//! - [`robot`]: robot description (DH table, limits, noise, IMU mount, priors,
+//!   estimated generalized errors), built-in [`robot::Robot::aubo_i5`] and TOML loading;
+//! - [`params`]: the parameter vector x (names, units, priors, typed views);
+//! - [`kinematics`]: forward kinematics with generalized errors, eq. (1)–(4);
+//! - [`imu`]: gravity, inertial quantities and the sensor model, eq. (5)–(6);
+//! - [`urdf`]: robots from URDF (the revolute chain from a base to a tip link);
+//! - [`spline`]: the clamped B-spline trajectory, eq. (18)–(21);
+//! - [`measurement`]: predicted z with exact Jacobians (eq. (10));
+//! - [`jet`], [`geom`]: the scalar type (f64 or forward-mode jet) and small
+//!   geometry (3-vectors, SO(3), quaternions, rigid transforms);
+//! - [`observations`]: the joint and IMU samples of a session;
+//! - [`trajectory`]: random excitation trajectories within the joint limits;
+//! - [`error_selection`]: which generalized errors the IMU data can identify;
+//! - [`effects`]: the catalogue of model extensions that diagnose tests;
+//! - [`units`]: display units of parameters.
+//!
+//! All quantities are SI: m, rad, s, m/s², rad/s.
+
+#![deny(missing_docs)]
+// Index loops mirror the matrix formulas of the paper.
+#![allow(clippy::needless_range_loop)]
+
+pub mod effects;
+pub mod error_selection;
+pub mod geom;
+pub mod imu;
+pub mod jet;
+pub mod kinematics;
+pub mod measurement;
+pub mod observations;
+pub mod params;
+pub mod robot;
+pub mod spline;
+pub mod trajectory;
+pub mod units;
+pub mod urdf;
+
+/// Largest number of joints the model supports (fixed-size, allocation-free hot path).
+pub const MAX_JOINTS: usize = 8;
+
+pub use imu::{ImuError, ImuIntrinsics};
+pub use jet::{Jet, Scalar};
+pub use kinematics::{ImuMotion, JointState};
+pub use measurement::{MeasurementJacobians, MeasurementModel, ModelError};
+pub use observations::Measurements;
+pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
+pub use robot::{ErrorIndex, Robot, RobotDescription, RobotError};
+pub use spline::{Basis, Knots, Spline, SplineError};

@@ -1,0 +1,599 @@
+//! Clamped B-spline trajectory q(t) (paper §5, eq. (18)–(21)).
+//!
+//! Degree p ≤ [`MAX_DEGREE`], knot vector `y_1 = … = y_{p+1} = t0 ≤ interior ≤
+//! y_{m+1} = … = y_{m+p+1} = t1` (eq. (18)); m coefficients per dimension.
+//! `q_j(t) = Σ_i c_{i,j} N_i(t)` (eq. (20)); coefficients are stored basis-major,
+//! `coeffs[i·dim + j]` = c_{j,i}, which is the paper's vector c of §6.
+//!
+//! The non-zero basis functions at t are N_{μ−p..=μ} on the knot span μ
+//! (`y_μ ≤ t < y_{μ+1}`; t = t1 belongs to the last span); they and their
+//! derivatives up to order 3 come from Cox–de Boor with derivatives (Piegl &
+//! Tiller, *The NURBS Book*, A2.2 and eq. (2.9)), allocation-free.
+
+use super::kinematics::JointState;
+use super::MAX_JOINTS;
+
+/// Largest supported degree.
+pub const MAX_DEGREE: usize = 5;
+/// Highest derivative evaluated (q⃛).
+pub const MAX_DERIV: usize = 3;
+
+/// Why a spline could not be built or evaluated.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum SplineError {
+    /// Degree outside 1..=MAX_DEGREE.
+    #[error("spline degree {0} is outside 1..={MAX_DEGREE}")]
+    BadDegree(usize),
+    /// A knot is NaN or infinite, or the knots decrease.
+    #[error("knot {index} ({value}) is not finite or breaks the non-decreasing order")]
+    BadKnot {
+        /// Knot index.
+        index: usize,
+        /// Knot value.
+        value: f64,
+    },
+    /// The knot vector is not clamped (first and last p+1 knots equal), is too
+    /// short, or an interior knot has multiplicity above p.
+    #[error("knot vector is not a clamped vector of degree {degree} (first/last {} knots equal, interior multiplicity ≤ {degree}, at least {} knots)", .degree + 1, 2 * (.degree + 1))]
+    NotClamped {
+        /// Degree.
+        degree: usize,
+    },
+    /// `t0 >= t1` or a non-finite end.
+    #[error("spline interval [{t0}, {t1}] is empty or not finite")]
+    EmptyInterval {
+        /// Start.
+        t0: f64,
+        /// End.
+        t1: f64,
+    },
+    /// Knot spacing not finite and > 0.
+    #[error("knot spacing {0} must be finite and > 0")]
+    BadSpacing(f64),
+    /// t outside the spline's interval.
+    #[error("t = {t} is outside the spline interval [{t0}, {t1}]")]
+    OutOfRange {
+        /// The time asked for.
+        t: f64,
+        /// Start.
+        t0: f64,
+        /// End.
+        t1: f64,
+    },
+    /// Dimension outside 1..=MAX_JOINTS.
+    #[error("spline dimension {0} is outside 1..={MAX_JOINTS}")]
+    BadDimension(usize),
+    /// A buffer has the wrong length.
+    #[error("{what} has {found} values; expected {expected}")]
+    LengthMismatch {
+        /// Which buffer.
+        what: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Given length.
+        found: usize,
+    },
+    /// The least-squares fit is singular (too few samples under basis function `coeff`).
+    #[error("least-squares spline fit is singular at coefficient {coeff}: too few samples under its support")]
+    Singular {
+        /// Basis-function index.
+        coeff: usize,
+    },
+}
+
+/// A validated clamped knot vector with its degree.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Knots {
+    degree: usize,
+    y: Vec<f64>,
+}
+
+impl Knots {
+    /// Clamped knots on [t0, t1] with uniform interior knots: the interval is
+    /// cut into `ceil((t1 − t0)/spacing)` equal segments (so the actual spacing
+    /// is ≤ `spacing`, equal when it divides the interval).
+    pub fn uniform(t0: f64, t1: f64, spacing: f64, degree: usize) -> Result<Self, SplineError> {
+        if !(t0.is_finite() && t1.is_finite() && t0 < t1) {
+            return Err(SplineError::EmptyInterval { t0, t1 });
+        }
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(SplineError::BadSpacing(spacing));
+        }
+        let segments = (((t1 - t0) / spacing) * (1.0 - 1e-12)).ceil().max(1.0) as usize;
+        let h = (t1 - t0) / segments as f64;
+        let mut y = vec![t0; degree + 1];
+        y.extend((1..segments).map(|i| t0 + i as f64 * h));
+        y.extend(std::iter::repeat_n(t1, degree + 1));
+        Self::new(degree, y)
+    }
+
+    /// An arbitrary clamped knot vector (eq. (18)).
+    pub fn new(degree: usize, y: Vec<f64>) -> Result<Self, SplineError> {
+        if !(1..=MAX_DEGREE).contains(&degree) {
+            return Err(SplineError::BadDegree(degree));
+        }
+        for (i, &v) in y.iter().enumerate() {
+            if !v.is_finite() || (i > 0 && v < y[i - 1]) {
+                return Err(SplineError::BadKnot { index: i, value: v });
+            }
+        }
+        let p = degree;
+        if y.len() < 2 * (p + 1) {
+            return Err(SplineError::NotClamped { degree });
+        }
+        let (t0, t1) = (y[0], y[y.len() - 1]);
+        if t0 >= t1 {
+            return Err(SplineError::EmptyInterval { t0, t1 });
+        }
+        let m = y.len() - p - 1;
+        if y[p] != t0 || y[m] != t1 || y[p + 1] == t0 || y[m - 1] == t1 {
+            return Err(SplineError::NotClamped { degree });
+        }
+        // Interior multiplicity ≤ p keeps q(t) continuous.
+        let mut run = 1;
+        for i in p + 2..m {
+            run = if y[i] == y[i - 1] { run + 1 } else { 1 };
+            if run > p {
+                return Err(SplineError::NotClamped { degree });
+            }
+        }
+        Ok(Self { degree, y })
+    }
+
+    /// Degree p.
+    pub fn degree(&self) -> usize {
+        self.degree
+    }
+    /// The knot vector.
+    pub fn knots(&self) -> &[f64] {
+        &self.y
+    }
+    /// Number of basis functions m.
+    pub fn num_coeffs(&self) -> usize {
+        self.y.len() - self.degree - 1
+    }
+    /// Start t0.
+    pub fn start(&self) -> f64 {
+        self.y[0]
+    }
+    /// End t1.
+    pub fn end(&self) -> f64 {
+        self.y[self.y.len() - 1]
+    }
+    /// Whether t0 ≤ t ≤ t1.
+    pub fn contains(&self, t: f64) -> bool {
+        t >= self.start() && t <= self.end()
+    }
+
+    /// Knot span μ (p ≤ μ ≤ m−1) with y_μ ≤ t < y_{μ+1}; t1 maps to m−1.
+    pub fn span(&self, t: f64) -> Result<usize, SplineError> {
+        if !self.contains(t) {
+            return Err(SplineError::OutOfRange {
+                t,
+                t0: self.start(),
+                t1: self.end(),
+            });
+        }
+        let p = self.degree;
+        let m = self.num_coeffs();
+        Ok(p + self.y[p + 1..m].partition_point(|&u| u <= t))
+    }
+
+    /// The p+1 non-zero basis functions at t and their derivatives up to order 3.
+    pub fn basis(&self, t: f64, out: &mut Basis) -> Result<(), SplineError> {
+        let span = self.span(t)?;
+        ders_basis_funs(&self.y, self.degree, span, t, &mut out.d);
+        out.first = span - self.degree;
+        out.count = self.degree + 1;
+        Ok(())
+    }
+}
+
+/// Non-zero basis functions at one t: `d[k][j]` = k-th derivative of
+/// N_{first+j}(t), j < count = p+1, k ≤ 3 (zero for k > p).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Basis {
+    /// Index of the first non-zero basis function.
+    pub first: usize,
+    /// Number of non-zero basis functions (p + 1).
+    pub count: usize,
+    /// Values and derivatives.
+    pub d: [[f64; MAX_DEGREE + 1]; MAX_DERIV + 1],
+}
+
+/// Non-zero basis functions of degree p on span μ and their derivatives.
+///
+/// Cox–de Boor builds the triangular table `ndu[r][j]` = N_{μ−j+r, j}(u) for
+/// degrees j = 0..p (The NURBS Book A2.2) and keeps the inverted knot
+/// differences; the k-th derivative then follows from the degree p−k values by
+/// k steps of N^{(m)}_{i,q} = q [N^{(m−1)}_{i,q−1}/(u_{i+q} − u_i) −
+/// N^{(m−1)}_{i+1,q−1}/(u_{i+q+1} − u_{i+1})]. Rows k > p stay zero.
+#[inline]
+fn ders_basis_funs(y: &[f64], p: usize, mu: usize, u: f64, ders: &mut [[f64; MAX_DEGREE + 1]; 4]) {
+    const W: usize = MAX_DEGREE + 1;
+    let mut ndu = [[0.0f64; W]; W];
+    // inv[j][r] = 1 / (y[μ+r+1] − y[μ+1−j+r]), r < j: always > 0 on a non-empty span.
+    let mut inv = [[0.0f64; W]; W];
+    let mut left = [0.0f64; W];
+    let mut right = [0.0f64; W];
+    ndu[0][0] = 1.0;
+    for j in 1..=p {
+        left[j] = u - y[mu + 1 - j];
+        right[j] = y[mu + j] - u;
+        let mut saved = 0.0;
+        for r in 0..j {
+            let iv = 1.0 / (right[r + 1] + left[j - r]);
+            inv[j][r] = iv;
+            let temp = ndu[r][j - 1] * iv;
+            ndu[r][j] = saved + right[r + 1] * temp;
+            saved = left[j - r] * temp;
+        }
+        ndu[j][j] = saved;
+    }
+    *ders = [[0.0; W]; 4];
+    for r in 0..=p {
+        ders[0][r] = ndu[r][p];
+    }
+    for k in 1..=MAX_DERIV.min(p) {
+        let q0 = p - k;
+        let mut v = [0.0f64; W];
+        for r in 0..=q0 {
+            v[r] = ndu[r][q0];
+        }
+        for q in q0 + 1..=p {
+            let mut nv = [0.0f64; W];
+            for r in 0..=q {
+                let mut t = 0.0;
+                if r >= 1 {
+                    t += v[r - 1] * inv[q][r - 1];
+                }
+                if r < q {
+                    t -= v[r] * inv[q][r];
+                }
+                nv[r] = q as f64 * t;
+            }
+            v = nv;
+        }
+        ders[k][..=p].copy_from_slice(&v[..=p]);
+    }
+}
+
+/// A dim-dimensional clamped B-spline (dim ≤ [`MAX_JOINTS`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Spline {
+    knots: Knots,
+    dim: usize,
+    coeffs: Vec<f64>,
+}
+
+impl Spline {
+    /// A spline from its coefficients (`coeffs[i·dim + j]`, m·dim values).
+    pub fn new(knots: Knots, dim: usize, coeffs: Vec<f64>) -> Result<Self, SplineError> {
+        if !(1..=MAX_JOINTS).contains(&dim) {
+            return Err(SplineError::BadDimension(dim));
+        }
+        let expected = knots.num_coeffs() * dim;
+        if coeffs.len() != expected {
+            return Err(SplineError::LengthMismatch {
+                what: "coefficient vector",
+                expected,
+                found: coeffs.len(),
+            });
+        }
+        Ok(Self { knots, dim, coeffs })
+    }
+
+    /// Least-squares fit to samples `values[s·dim + j]` at `times[s]` (all in
+    /// [t0, t1]), by the banded normal equations (bandwidth p, Cholesky).
+    pub fn fit(
+        knots: Knots,
+        dim: usize,
+        times: &[f64],
+        values: &[f64],
+    ) -> Result<Self, SplineError> {
+        if !(1..=MAX_JOINTS).contains(&dim) {
+            return Err(SplineError::BadDimension(dim));
+        }
+        if values.len() != times.len() * dim {
+            return Err(SplineError::LengthMismatch {
+                what: "sample values",
+                expected: times.len() * dim,
+                found: values.len(),
+            });
+        }
+        let p = knots.degree();
+        let m = knots.num_coeffs();
+        let bw = p + 1;
+        // band[i·bw + d] = A[i][i−d]
+        let mut band = vec![0.0; m * bw];
+        let mut rhs = vec![0.0; m * dim];
+        let mut b = Basis::default();
+        for (s, &t) in times.iter().enumerate() {
+            knots.basis(t, &mut b)?;
+            let y = &values[s * dim..(s + 1) * dim];
+            for a in 0..=p {
+                let i = b.first + a;
+                let na = b.d[0][a];
+                for c in 0..=a {
+                    band[i * bw + (a - c)] += na * b.d[0][c];
+                }
+                for j in 0..dim {
+                    rhs[i * dim + j] += na * y[j];
+                }
+            }
+        }
+        // Banded Cholesky A = L Lᵀ in place.
+        let scale = (0..m).map(|i| band[i * bw]).fold(0.0, f64::max);
+        for i in 0..m {
+            for d in (0..bw.min(i + 1)).rev() {
+                let j = i - d;
+                let mut sum = band[i * bw + d];
+                // Σ_k L[i][k] L[j][k], k from max(i, j)−p … j−1
+                let k0 = i.saturating_sub(p);
+                for k in k0..j {
+                    sum -= band[i * bw + (i - k)] * band[j * bw + (j - k)];
+                }
+                if d == 0 {
+                    if sum.is_nan() || sum <= 1e-13 * scale {
+                        return Err(SplineError::Singular { coeff: i });
+                    }
+                    band[i * bw] = sum.sqrt();
+                } else {
+                    band[i * bw + d] = sum / band[j * bw];
+                }
+            }
+        }
+        // Solve L y = rhs, then Lᵀ c = y.
+        for i in 0..m {
+            for j in 0..dim {
+                let mut v = rhs[i * dim + j];
+                for k in i.saturating_sub(p)..i {
+                    v -= band[i * bw + (i - k)] * rhs[k * dim + j];
+                }
+                rhs[i * dim + j] = v / band[i * bw];
+            }
+        }
+        for i in (0..m).rev() {
+            for j in 0..dim {
+                let mut v = rhs[i * dim + j];
+                for k in i + 1..(i + bw).min(m) {
+                    v -= band[k * bw + (k - i)] * rhs[k * dim + j];
+                }
+                rhs[i * dim + j] = v / band[i * bw];
+            }
+        }
+        Self::new(knots, dim, rhs)
+    }
+
+    /// The knots.
+    pub fn knots(&self) -> &Knots {
+        &self.knots
+    }
+    /// Dimension (number of joints).
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+    /// Coefficients, `coeffs[i·dim + j]` = c_{j,i}.
+    pub fn coeffs(&self) -> &[f64] {
+        &self.coeffs
+    }
+    /// Mutable coefficients (same layout).
+    pub fn coeffs_mut(&mut self) -> &mut [f64] {
+        &mut self.coeffs
+    }
+
+    /// q, q̇, q̈, q⃛ at t from precomputed basis functions (see [`Knots::basis`]).
+    pub fn evaluate_basis(&self, basis: &Basis, out: &mut JointState) {
+        let dim = self.dim;
+        let rows: [&mut [f64; MAX_JOINTS]; 4] =
+            [&mut out.q, &mut out.qd, &mut out.qdd, &mut out.qddd];
+        for (k, row) in rows.into_iter().enumerate() {
+            row.fill(0.0);
+            for a in 0..basis.count {
+                let w = basis.d[k][a];
+                let c = &self.coeffs[(basis.first + a) * dim..(basis.first + a + 1) * dim];
+                for j in 0..dim {
+                    row[j] += w * c[j];
+                }
+            }
+        }
+    }
+
+    /// q, q̇, q̈, q⃛ at t (entries beyond `dim` are zero).
+    pub fn evaluate(&self, t: f64, out: &mut JointState) -> Result<(), SplineError> {
+        let mut b = Basis::default();
+        self.knots.basis(t, &mut b)?;
+        self.evaluate_basis(&b, out);
+        Ok(())
+    }
+
+    /// q, q̇, q̈, q⃛ at t clamped into the span (the end states, derivatives
+    /// included, outside it). Never fails: the knots of a `Spline` always
+    /// have a non-empty span.
+    pub fn evaluate_clamped(&self, t: f64, out: &mut JointState) {
+        let (t0, t1) = (self.knots.start(), self.knots.end());
+        let mut b = Basis::default();
+        // A clamped t is inside [t0, t1], where the basis is defined.
+        if self.knots.basis(t.clamp(t0, t1), &mut b).is_ok() {
+            self.evaluate_basis(&b, out);
+        }
+    }
+
+    /// The trajectory at any t: the spline inside its span, at rest at the
+    /// end poses outside it (q̇ = q̈ = q⃛ = 0). The one definition of the
+    /// motion before and after a planned trajectory (simulator, recorder,
+    /// effects).
+    pub fn state_at(&self, t: f64, out: &mut JointState) {
+        self.evaluate_clamped(t, out);
+        if t < self.knots.start() || t > self.knots.end() {
+            out.qd = Default::default();
+            out.qdd = Default::default();
+            out.qddd = Default::default();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn irregular() -> Knots {
+        Knots::new(
+            3,
+            vec![0.0, 0.0, 0.0, 0.0, 0.3, 1.1, 1.2, 2.0, 2.0, 2.0, 2.0],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn partition_of_unity_and_local_support() {
+        for knots in [
+            irregular(),
+            Knots::uniform(-1.0, 4.5, 1.0, 3).unwrap(),
+            Knots::uniform(0.0, 3.0, 0.7, 5).unwrap(),
+            Knots::uniform(0.0, 3.0, 0.5, 1).unwrap(),
+        ] {
+            let mut b = Basis::default();
+            for s in 0..=200 {
+                let t = knots.start() + (knots.end() - knots.start()) * s as f64 / 200.0;
+                knots.basis(t, &mut b).unwrap();
+                let sum: f64 = b.d[0][..b.count].iter().sum();
+                assert!((sum - 1.0).abs() < 1e-14, "sum {sum} at {t}");
+                for k in 1..=3 {
+                    let ds: f64 = b.d[k][..b.count].iter().sum();
+                    assert!(ds.abs() < 1e-9, "Σ N^({k}) = {ds} at {t}");
+                }
+                assert!(b.d[0][..b.count].iter().all(|&v| v >= -1e-15));
+                // local support (21): N_i > 0 only on (y_i, y_{i+p+1}).
+                let y = knots.knots();
+                for a in 0..b.count {
+                    let i = b.first + a;
+                    assert!(t >= y[i] && t <= y[i + knots.degree() + 1]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn derivatives_match_finite_differences() {
+        let knots = irregular();
+        let m = knots.num_coeffs();
+        let coeffs: Vec<f64> = (0..m)
+            .map(|i| (1.3 * i as f64).sin() + 0.2 * i as f64)
+            .collect();
+        let s = Spline::new(knots, 1, coeffs).unwrap();
+        let mut st = JointState::default();
+        let h = 1e-5;
+        // Points away from knots (where the cubic's q⃛ jumps).
+        for &t in &[0.1, 0.55, 0.9, 1.15, 1.5, 1.93] {
+            let mut e = |t: f64| {
+                s.evaluate(t, &mut st).unwrap();
+                [st.q[0], st.qd[0], st.qdd[0], st.qddd[0]]
+            };
+            let (fp, fm, f0) = (e(t + h), e(t - h), e(t));
+            for k in 0..3 {
+                let fd = (fp[k] - fm[k]) / (2.0 * h);
+                let tol = 1e-6 * (1.0 + f0[k + 1].abs());
+                assert!(
+                    (fd - f0[k + 1]).abs() < tol,
+                    "order {} at {t}: {fd} vs {}",
+                    k + 1,
+                    f0[k + 1]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn clamped_ends_interpolate_end_coefficients() {
+        let knots = Knots::uniform(2.0, 9.0, 1.0, 3).unwrap();
+        let m = knots.num_coeffs();
+        assert_eq!(m, 7 + 3);
+        let coeffs: Vec<f64> = (0..2 * m).map(|i| (0.7 * i as f64).cos()).collect();
+        let s = Spline::new(knots, 2, coeffs.clone()).unwrap();
+        let mut st = JointState::default();
+        s.evaluate(2.0, &mut st).unwrap();
+        assert!((st.q[0] - coeffs[0]).abs() < 1e-15 && (st.q[1] - coeffs[1]).abs() < 1e-15);
+        s.evaluate(9.0, &mut st).unwrap();
+        assert!((st.q[0] - coeffs[2 * m - 2]).abs() < 1e-14);
+        assert!((st.q[1] - coeffs[2 * m - 1]).abs() < 1e-14);
+        assert!(matches!(
+            s.evaluate(9.0 + 1e-9, &mut st),
+            Err(SplineError::OutOfRange { .. })
+        ));
+        assert!(matches!(
+            s.evaluate(1.999, &mut st),
+            Err(SplineError::OutOfRange { .. })
+        ));
+    }
+
+    #[test]
+    fn least_squares_fit_reproduces_polynomials_up_to_degree_p() {
+        for p in 1..=5usize {
+            let knots = Knots::uniform(0.0, 10.0, 1.3, p).unwrap();
+            let poly = |t: f64| -> [f64; 2] {
+                let mut a = 0.0;
+                let mut b = 0.0;
+                for k in 0..=p {
+                    a += (0.3 + 0.1 * k as f64) * (t / 10.0).powi(k as i32);
+                    b += (-0.5f64).powi(k as i32) * (t / 10.0 - 0.4).powi(k as i32);
+                }
+                [a, b]
+            };
+            let times: Vec<f64> = (0..=400)
+                .map(|i| i as f64 * 0.025 + 0.01 * (i % 3) as f64)
+                .map(|t: f64| t.min(10.0))
+                .collect();
+            let values: Vec<f64> = times.iter().flat_map(|&t| poly(t)).collect();
+            let s = Spline::fit(knots, 2, &times, &values).unwrap();
+            let mut st = JointState::default();
+            for i in 0..=97 {
+                let t = i as f64 * 10.0 / 97.0;
+                s.evaluate(t, &mut st).unwrap();
+                let want = poly(t);
+                assert!((st.q[0] - want[0]).abs() < 1e-10, "p={p} t={t}");
+                assert!((st.q[1] - want[1]).abs() < 1e-10, "p={p} t={t}");
+            }
+        }
+    }
+
+    #[test]
+    fn fit_without_data_under_a_basis_function_is_singular() {
+        let knots = Knots::uniform(0.0, 10.0, 1.0, 3).unwrap();
+        let times = [0.0, 0.5, 1.0, 9.0, 10.0];
+        let values = [0.0; 5];
+        assert!(matches!(
+            Spline::fit(knots, 1, &times, &values),
+            Err(SplineError::Singular { .. })
+        ));
+    }
+
+    #[test]
+    fn knot_validation() {
+        assert_eq!(
+            Knots::uniform(0.0, 1.0, 1.0, 6),
+            Err(SplineError::BadDegree(6))
+        );
+        assert!(matches!(
+            Knots::uniform(1.0, 1.0, 1.0, 3),
+            Err(SplineError::EmptyInterval { .. })
+        ));
+        assert!(matches!(
+            Knots::uniform(0.0, 1.0, 0.0, 3),
+            Err(SplineError::BadSpacing(_))
+        ));
+        assert!(matches!(
+            Knots::new(3, vec![0.0, 0.0, 0.0, 0.5, 1.0, 1.0, 1.0, 1.0]),
+            Err(SplineError::NotClamped { .. })
+        ));
+        assert!(matches!(
+            Knots::new(2, vec![0.0, 0.0, 0.0, 0.6, 0.5, 1.0, 1.0, 1.0]),
+            Err(SplineError::BadKnot { index: 4, .. })
+        ));
+        let k = Knots::uniform(0.0, 300.0, 1.0, 3).unwrap();
+        assert_eq!(k.num_coeffs(), 303);
+        assert_eq!(k.span(0.0), Ok(3));
+        assert_eq!(k.span(1.0), Ok(4));
+        assert_eq!(k.span(300.0), Ok(302));
+    }
+}

@@ -1,0 +1,571 @@
+//! Recording a session from an IMU board and a robot (`robimu record`).
+//!
+//! The board streams in one thread ([`imu`]), the robot's joint positions
+//! are polled in another ([`crate::controller::aubo::JointPoller`]), the plan
+//! runs in a third ([`motion`]); this module's loop writes what arrives into
+//! the session directory (MODEL.md §7) and flushes it every second, so a
+//! crash or a kill loses at most the last second. Session time is the host's
+//! monotonic clock from the start of the recording; IMU samples are placed
+//! on it by a robust fit of the board's clock against ping echoes
+//! ([`clock_fit`]), refined while recording and made final at the end
+//! ([`repair::remap_imu_times`], which `robimu repair` also runs).
+//!
+//! Files besides MODEL.md's: `imu.csv` has the extra columns `t_device`
+//! (s, the board's clock), `segment` (clock segment: a board reboot starts
+//! a new one), `seq` and `temp_c` (the sensor's temperature, °C, read back
+//! by [`robimu_session::Session`]); `pings.csv` logs every echo. From a
+//! controller with a clock (UR), `joints.csv` has the extra columns
+//! `t_robot` (s, the controller's timestamp) and `t_arrival` (s, session
+//! time of arrival); at the end `t` is recomputed from `t_robot`
+//! ([`robot_clock`], [`repair::remap_joint_times`]).
+
+pub mod arm;
+pub mod clock_fit;
+pub mod controller;
+pub mod imu;
+pub mod link;
+pub mod motion;
+pub mod repair;
+pub mod robot_clock;
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::RecvTimeoutError;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use robimu_protocol::{DecoderStats, DeviceInfo, SensorConfig};
+
+use self::arm::{Arm, ArmError};
+use self::clock_fit::{ClockFit, Echo};
+use self::imu::{ImuError, ImuEvent, ImuStream, Link};
+use self::motion::Plan;
+use crate::controller::{JointSample, RobotSpec};
+use robimu_model::Robot;
+use robimu_session::{SessionError, SessionMeta, SessionWriter};
+
+/// What to record.
+#[derive(Clone, Debug)]
+pub struct RecordOptions {
+    /// The IMU board's serial port.
+    pub imu_port: String,
+    /// Its baud rate.
+    pub baud: u32,
+    /// The robot controller.
+    pub robot_spec: RobotSpec,
+    /// The robot's description (limits, joint count).
+    pub robot: Robot,
+    /// `robot = …` in session.toml (a built-in name or a path).
+    pub robot_name: String,
+    /// The plan to execute; `None` records without moving the arm.
+    pub plan: Option<Plan>,
+    /// Without a plan: how long to record, s.
+    pub duration: f64,
+    /// The session directory.
+    pub out: PathBuf,
+    /// Joint polling rate, Hz.
+    pub joint_rate: f64,
+    /// Rest recorded before and after the motion, s.
+    pub rest: f64,
+    /// The IMU settings.
+    pub sensor: SensorConfig,
+    /// Set (e.g. by a Ctrl-C handler) to stop the recording early: the plan
+    /// is halted and everything recorded is finished as at a normal end.
+    pub interrupt: Option<Arc<AtomicBool>>,
+}
+
+/// Live figures for a progress display.
+#[derive(Clone, Debug, Default)]
+pub struct RecordProgress {
+    /// Seconds since the recording started.
+    pub elapsed: f64,
+    /// Expected length, s.
+    pub total: f64,
+    /// IMU samples written.
+    pub imu_samples: u64,
+    /// Joint samples written.
+    pub joint_samples: u64,
+    /// IMU samples per second over the last second.
+    pub imu_rate: f64,
+    /// Samples missing by sequence number.
+    pub seq_gaps: u64,
+    /// Frames that failed their CRC.
+    pub crc_errors: u64,
+    /// Other rejected frames.
+    pub bad_frames: u64,
+    /// Board reboots recovered.
+    pub restarts: u32,
+    /// Samples the board reports it dropped.
+    pub device_dropped: u32,
+}
+
+impl RecordProgress {
+    /// Takes the link's error counters.
+    fn set_link(&mut self, stats: &DecoderStats) {
+        self.crc_errors = stats.crc_errors;
+        self.bad_frames = stats.errors() - stats.crc_errors;
+    }
+}
+
+/// What a recording produced.
+#[derive(Clone, Debug)]
+pub struct RecordSummary {
+    /// The session directory.
+    pub dir: PathBuf,
+    /// Length, s.
+    pub duration: f64,
+    /// The final counters.
+    pub progress: RecordProgress,
+    /// Link decoder counters.
+    pub link: DecoderStats,
+    /// The board.
+    pub device: DeviceInfo,
+    /// Final clock fit per segment.
+    pub clock: Vec<(u32, ClockFit)>,
+    /// The joint times' mapping from the controller's clock (UR); `None`
+    /// for a controller without one (AUBO: arrival times).
+    pub joint_clock: Option<repair::JointClock>,
+}
+
+/// Why a recording failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The IMU board could not be set up (nothing recorded).
+    #[error(transparent)]
+    Imu(#[from] ImuError),
+    /// The robot could not be set up (nothing recorded).
+    #[error(transparent)]
+    Robot(#[from] ArmError),
+    /// The session could not be written.
+    #[error(transparent)]
+    Session(#[from] SessionError),
+    /// The recording stopped early; what was recorded is on disk.
+    #[error("recording stopped after {:.1} s: {cause}; the {} IMU and {} joint samples recorded are kept in {}", summary.duration, summary.progress.imu_samples, summary.progress.joint_samples, summary.dir.display())]
+    Aborted {
+        /// What stopped it.
+        cause: String,
+        /// What was kept.
+        summary: Box<RecordSummary>,
+    },
+}
+
+/// Records a session. `progress` is called about five times a second.
+pub fn record(
+    opts: &RecordOptions,
+    progress: &mut dyn FnMut(&RecordProgress),
+) -> Result<RecordSummary, RecordError> {
+    // Set-up: everything that can fail before a file is written.
+    let mut link = Link::open(&opts.imu_port, opts.baud)?;
+    let mut info = link.identify(Duration::from_secs(3))?;
+    if let Some(i) = link.configure(opts.sensor)? {
+        info = i;
+    }
+    let mut arm = Arm::connect(&opts.robot_spec)?;
+    if let Some(plan) = &opts.plan {
+        arm.prepare(&opts.robot, plan)?;
+    }
+
+    let mut meta = SessionMeta::new(opts.robot_name.clone());
+    meta.imu = Some(device_table(&info, &opts.imu_port));
+    meta.notes = Some(format!(
+        "recorded by robimu {} from {} and {}",
+        env!("CARGO_PKG_VERSION"),
+        opts.imu_port,
+        describe(&opts.robot_spec)
+    ));
+    let n = opts.robot.dof();
+    let controller_clock = matches!(opts.robot_spec, RobotSpec::Ur { .. });
+    let mut state = SessionSink::create_with_clock(&opts.out, &meta, n, controller_clock)?;
+
+    let epoch = Instant::now();
+    let stream = ImuStream::start(link, info, opts.sensor, epoch)?;
+    let motion = opts.plan.as_ref().map(|p| p.duration());
+    let mut arm = arm.start(
+        &opts.robot,
+        opts.plan.clone(),
+        opts.joint_rate,
+        epoch,
+        opts.rest,
+        &opts.robot_spec,
+    )?;
+    let total = motion.map_or(opts.duration, |d| d + 2.0 * opts.rest);
+
+    state.progress.total = total;
+    let mut stop_at = if motion.is_none() {
+        Some(epoch + Duration::from_secs_f64(opts.duration))
+    } else {
+        None
+    };
+    let mut cause: Option<String> = None;
+    let mut next_flush = Instant::now() + Duration::from_secs(1);
+    let mut next_show = Instant::now();
+    let mut rate_window = (Instant::now(), 0u64);
+    while cause.is_none() {
+        let now = Instant::now();
+        if stop_at.is_some_and(|t| now >= t) {
+            break;
+        }
+        if opts
+            .interrupt
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::Relaxed))
+        {
+            cause = Some("interrupted (Ctrl-C)".into());
+            break;
+        }
+        match stream.events().recv_timeout(Duration::from_millis(10)) {
+            Ok(ev) => {
+                if let Err(c) = state.handle(ev) {
+                    cause = Some(c);
+                }
+                while let Ok(ev) = stream.events().try_recv() {
+                    if let Err(c) = state.handle(ev) {
+                        cause = Some(c);
+                        break;
+                    }
+                }
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => {
+                cause = Some("the IMU streaming thread ended".into());
+            }
+        }
+        while let Some(sample) = arm.try_sample() {
+            match sample {
+                Ok(s) => state.joint_sample(&s, n)?,
+                Err(e) => {
+                    cause = Some(format!("the robot connection failed: {e}"));
+                    break;
+                }
+            }
+        }
+        if stop_at.is_none() {
+            match arm.motion_done() {
+                Ok(true) => stop_at = Some(Instant::now() + Duration::from_secs_f64(opts.rest)),
+                Ok(false) => {}
+                Err(e) => cause = Some(e),
+            }
+        }
+        if now >= next_flush {
+            next_flush = now + Duration::from_secs(1);
+            state.flush()?;
+        }
+        if now >= next_show {
+            next_show = now + Duration::from_millis(200);
+            state.progress.elapsed = epoch.elapsed().as_secs_f64();
+            state.progress.set_link(&stream.stats());
+            let dt = rate_window.0.elapsed().as_secs_f64();
+            if dt >= 1.0 {
+                state.progress.imu_rate = (state.progress.imu_samples - rate_window.1) as f64 / dt;
+                rate_window = (now, state.progress.imu_samples);
+            }
+            progress(&state.progress);
+        }
+    }
+
+    // Stopping early: halt the plan first.
+    if let Some(c) = cause.as_mut().filter(|_| arm.moving()) {
+        match arm.halt() {
+            Ok(()) => c.push_str("; the robot was stopped"),
+            Err(e) => c.push_str(&format!(
+                "; COULD NOT STOP THE ROBOT ({e}): stop it at the controller"
+            )),
+        }
+    }
+    // Wind down: stop the board and the poller, keep what they still hold.
+    let duration = epoch.elapsed().as_secs_f64();
+    let (rest_events, link_stats) = stream.stop();
+    for ev in rest_events.try_iter() {
+        if let Err(c) = state.handle(ev) {
+            cause.get_or_insert(c);
+        }
+    }
+    for s in arm.stop() {
+        state.joint_sample(&s, n)?;
+    }
+    state.drain_waiting(true)?;
+    state.progress.elapsed = duration;
+    state.progress.set_link(&link_stats);
+    progress(&state.progress);
+    let counters = state.progress.clone();
+    let dir = state.finish()?;
+    let (clock, _) = repair::remap_imu_times(&dir)?;
+    write_clock_notes(&dir, &clock)?;
+    let joint_clock = repair::remap_joint_times(&dir)?;
+    if let Some(c) = &joint_clock {
+        repair::write_controller_clock(&dir, c)?;
+    }
+    let summary = RecordSummary {
+        dir,
+        duration,
+        progress: counters,
+        link: link_stats,
+        device: info,
+        clock,
+        joint_clock,
+    };
+    match cause {
+        None => Ok(summary),
+        Some(cause) => Err(RecordError::Aborted {
+            cause,
+            summary: Box::new(summary),
+        }),
+    }
+}
+
+/// An IMU sample waiting for its segment's clock fit.
+struct Waiting {
+    /// Device time, s.
+    device: f64,
+    seq: u32,
+    z: [f64; 6],
+    /// Temperature, °C.
+    temp: f64,
+}
+
+/// The writing side of a recording: takes IMU events and joint samples,
+/// maps device time to session time, writes the session's files.
+pub struct SessionSink {
+    writer: SessionWriter,
+    pings: std::io::BufWriter<std::fs::File>,
+    pings_path: PathBuf,
+    echoes: BTreeMap<u32, Vec<Echo>>,
+    fits: BTreeMap<u32, ClockFit>,
+    /// Samples of segments without a clock fit yet.
+    waiting: BTreeMap<u32, Vec<Waiting>>,
+    last_seq: BTreeMap<u32, u32>,
+    /// Whether `joints.csv` has the controller clock's columns.
+    controller_clock: bool,
+    /// The counters so far.
+    pub progress: RecordProgress,
+}
+
+impl SessionSink {
+    /// Creates the session directory `dir` (session.toml, CSV headers,
+    /// `pings.csv`).
+    pub fn create(dir: &Path, meta: &SessionMeta, joints: usize) -> Result<Self, SessionError> {
+        Self::create_with_clock(dir, meta, joints, false)
+    }
+
+    /// [`Self::create`]; with `controller_clock`, `joints.csv` gets the
+    /// columns [`repair::JOINT_CLOCK_COLUMNS`] (a controller that stamps its
+    /// samples, UR).
+    pub fn create_with_clock(
+        dir: &Path,
+        meta: &SessionMeta,
+        joints: usize,
+        controller_clock: bool,
+    ) -> Result<Self, SessionError> {
+        let joint_extra: &[&str] = if controller_clock {
+            &repair::JOINT_CLOCK_COLUMNS
+        } else {
+            &[]
+        };
+        let writer = SessionWriter::create_with_extra(
+            dir,
+            meta,
+            joints,
+            joint_extra,
+            &[
+                "t_device",
+                "segment",
+                "seq",
+                robimu_session::IMU_TEMP_COLUMN,
+            ],
+        )?;
+        let pings_path = dir.join(repair::PINGS);
+        let mut pings = std::io::BufWriter::new(
+            std::fs::File::create(&pings_path).map_err(|e| SessionError::io(&pings_path, e))?,
+        );
+        writeln!(pings, "{}", repair::PINGS_HEADER)
+            .map_err(|e| SessionError::io(&pings_path, e))?;
+        Ok(SessionSink {
+            writer,
+            pings,
+            pings_path,
+            echoes: BTreeMap::new(),
+            fits: BTreeMap::new(),
+            waiting: BTreeMap::new(),
+            last_seq: BTreeMap::new(),
+            controller_clock,
+            progress: RecordProgress::default(),
+        })
+    }
+
+    /// Writes one joint sample.
+    pub fn joint(&mut self, t: f64, q: &[f64]) -> Result<(), SessionError> {
+        self.writer.joint(t, q)?;
+        self.progress.joint_samples += 1;
+        Ok(())
+    }
+
+    /// Writes the first `joints` angles of a driver's sample, with the
+    /// controller's timestamp when the session has its column (a missing
+    /// one is written as NaN; [`repair::remap_joint_times`] then keeps the
+    /// arrival times).
+    pub fn joint_sample(&mut self, s: &JointSample, joints: usize) -> Result<(), SessionError> {
+        if !self.controller_clock {
+            return self.joint(s.t, &s.q[..joints]);
+        }
+        let robot_t = s.robot_t.unwrap_or(f64::NAN);
+        self.writer
+            .joint_extra(s.t, &s.q[..joints], &[robot_t, s.t])?;
+        self.progress.joint_samples += 1;
+        Ok(())
+    }
+
+    /// Takes one IMU event; `Err(cause)` ends the recording.
+    pub fn handle(&mut self, ev: ImuEvent) -> Result<(), String> {
+        match ev {
+            ImuEvent::Sample {
+                segment,
+                device,
+                seq,
+                z,
+                temp,
+            } => {
+                if let Some(prev) = self.last_seq.insert(segment, seq) {
+                    self.progress.seq_gaps +=
+                        u64::from(seq.wrapping_sub(prev).saturating_sub(1).min(1 << 20));
+                }
+                self.waiting.entry(segment).or_default().push(Waiting {
+                    device,
+                    seq,
+                    z,
+                    temp,
+                });
+                self.drain_waiting(false).map_err(|e| e.to_string())?;
+            }
+            ImuEvent::Echo { segment, echo } => {
+                writeln!(
+                    self.pings,
+                    "{:?},{:?},{:?},{segment}",
+                    echo.host_send, echo.host_recv, echo.device
+                )
+                .map_err(|e| SessionError::io(&self.pings_path, e).to_string())?;
+                let list = self.echoes.entry(segment).or_default();
+                list.push(echo);
+                // Refit often while the fit is young, then once a second over
+                // the last minute of echoes (the final fit uses them all).
+                if list.len() >= 3 && (list.len() < 20 || list.len() % 10 == 0) {
+                    let recent = &list[list.len().saturating_sub(600)..];
+                    if let Some(fit) = ClockFit::fit(recent) {
+                        self.fits.insert(segment, fit);
+                    }
+                }
+            }
+            ImuEvent::Status(s) => self.progress.device_dropped = s.samples_dropped,
+            ImuEvent::Restarted { .. } => self.progress.restarts += 1,
+            ImuEvent::Failed(e) => return Err(e.to_string()),
+        }
+        Ok(())
+    }
+
+    /// Writes waiting samples whose segment has a fit (all of them, with
+    /// the best mapping available, when `all`).
+    pub fn drain_waiting(&mut self, all: bool) -> Result<(), SessionError> {
+        let segments: Vec<u32> = self.waiting.keys().copied().collect();
+        for segment in segments {
+            let fit = match self.fits.get(&segment) {
+                Some(f) => *f,
+                None if all => match self.echoes.get(&segment).and_then(|e| e.first()) {
+                    Some(e) => ClockFit::offset_only(e),
+                    None => continue,
+                },
+                None => continue,
+            };
+            for w in self.waiting.remove(&segment).unwrap_or_default() {
+                self.writer.imu_extra(
+                    fit.to_session(w.device),
+                    &w.z,
+                    &[w.device, f64::from(segment), f64::from(w.seq), w.temp],
+                )?;
+                self.progress.imu_samples += 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// Pushes every buffered row to the operating system.
+    pub fn flush(&mut self) -> Result<(), SessionError> {
+        self.writer.flush()?;
+        self.pings
+            .flush()
+            .map_err(|e| SessionError::io(&self.pings_path, e))
+    }
+
+    /// Writes what waits, flushes and closes.
+    pub fn finish(mut self) -> Result<PathBuf, SessionError> {
+        self.drain_waiting(true)?;
+        self.flush()?;
+        self.writer.finish()
+    }
+}
+
+fn describe(spec: &RobotSpec) -> String {
+    match spec {
+        RobotSpec::Aubo { host, port } => format!("AUBO controller {host}:{port}"),
+        RobotSpec::Ur {
+            host, rtde_port, ..
+        } => format!("UR controller {host}:{rtde_port}"),
+    }
+}
+
+/// The `[imu]` table of session.toml: who the board is and how it was set.
+fn device_table(info: &DeviceInfo, port: &str) -> toml::Table {
+    let mut t = toml::Table::new();
+    let v = info.firmware_version;
+    t.insert("port".into(), port.into());
+    t.insert(
+        "firmware".into(),
+        format!("{}.{}.{}", v[0], v[1], v[2]).into(),
+    );
+    t.insert("protocol".into(), i64::from(info.protocol_version).into());
+    t.insert("chip_id".into(), i64::from(info.chip_id).into());
+    t.insert(
+        "sample_rate_hz".into(),
+        i64::from(info.config.sample_rate_hz).into(),
+    );
+    t.insert(
+        "accel_range".into(),
+        format!("{:?}", info.config.accel_range).into(),
+    );
+    t.insert(
+        "accel_bandwidth".into(),
+        format!("{:?}", info.config.accel_bandwidth).into(),
+    );
+    t.insert(
+        "gyro_range".into(),
+        format!("{:?}", info.config.gyro_range).into(),
+    );
+    t.insert(
+        "gyro_bandwidth".into(),
+        format!("{:?}", info.config.gyro_bandwidth).into(),
+    );
+    t
+}
+
+/// Adds the clock fits to session.toml's `[imu]` table.
+fn write_clock_notes(dir: &Path, clock: &[(u32, ClockFit)]) -> Result<(), SessionError> {
+    let fits: Vec<toml::Value> = clock
+        .iter()
+        .map(|(segment, f)| {
+            repair::clock_row(
+                *segment,
+                f.offset,
+                f.drift_ppm(),
+                [
+                    ("residual_us", (f.residual_rms * 1e6).into()),
+                    ("echoes_used", (f.used as i64).into()),
+                ],
+            )
+        })
+        .collect();
+    repair::update_meta(dir, |meta| {
+        meta.imu
+            .get_or_insert_with(toml::Table::new)
+            .insert("clock".into(), fits.into());
+    })
+}

@@ -1,0 +1,669 @@
+//! Self-contained HTML reports: one page with inline CSS and every figure as
+//! inline SVG (no scripts, no external URLs), written next to the figures'
+//! PNG and SVG files.
+//!
+//! * [`calibration_report`] — parameter table (paper Table II), posterior σ
+//!   against the prior σ, convergence, and, when the session is at hand, the
+//!   joint trajectory and the IMU residuals over time;
+//! * [`validation_report`] — robot accuracy (Fig. 10), IMU accuracy
+//!   (Fig. 11) and the calibrated against the classical parameters.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::{DisplayUnit, ParameterTable};
+use crate::plot::{histogram_grid, line_panels, HistogramPanel, LinePanel, PlotError};
+use robimu_model::observations::Measurements;
+use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
+use robimu_session::CalibrationResult;
+use robimu_session::Truth;
+use robimu_workflows::calibrate::choose_knots;
+use robimu_workflows::tracker_offset::TrackerAlignment;
+use robimu_workflows::validate::{ImuAccuracy, RobotAccuracy};
+
+/// A report could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// A file could not be written or read back.
+    #[error("cannot write {}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A figure could not be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    /// The session does not fit the result.
+    #[error("{0}")]
+    Session(String),
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> ReportError + '_ {
+    move |source| ReportError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// `s` with `& < > " '` escaped for HTML text and attributes.
+pub fn escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+const CSS: &str = "body{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}\
+h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:2em}\
+table{border-collapse:collapse;font-size:.85em;margin:.5em 0}\
+th,td{border:1px solid #ddd;padding:.2em .5em;text-align:right}\
+th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}\
+.bar{display:inline-block;height:.7em;background:#4a7fd0;vertical-align:middle}\
+figure{margin:1em 0}figure svg{max-width:100%;height:auto}figcaption{font-size:.85em;color:#555}\
+.note{color:#555;font-size:.9em}";
+
+/// One HTML page built section by section.
+#[derive(Debug, Clone)]
+pub struct HtmlPage {
+    title: String,
+    body: String,
+}
+
+impl HtmlPage {
+    /// An empty page with this title (also its first heading).
+    pub fn new(title: &str) -> Self {
+        Self {
+            title: title.to_string(),
+            body: format!("<h1>{}</h1>\n", escape(title)),
+        }
+    }
+
+    /// A section heading.
+    pub fn heading(&mut self, text: &str) {
+        let _ = writeln!(self.body, "<h2>{}</h2>", escape(text));
+    }
+
+    /// A paragraph of plain text.
+    pub fn paragraph(&mut self, text: &str) {
+        let _ = writeln!(self.body, "<p>{}</p>", escape(text));
+    }
+
+    /// A table with an `id`; cells are plain text except where a cell starts
+    /// with `<span class="bar"` (a bar drawn by [`bar`]).
+    pub fn table(&mut self, id: &str, headers: &[&str], rows: &[Vec<String>]) {
+        let _ = write!(self.body, "<table id=\"{}\"><thead><tr>", escape(id));
+        for h in headers {
+            let _ = write!(self.body, "<th>{}</th>", escape(h));
+        }
+        self.body.push_str("</tr></thead><tbody>\n");
+        for row in rows {
+            self.body.push_str("<tr>");
+            for cell in row {
+                if cell.starts_with("<span class=\"bar\"") {
+                    let _ = write!(self.body, "<td>{cell}</td>");
+                } else {
+                    let _ = write!(self.body, "<td>{}</td>", escape(cell));
+                }
+            }
+            self.body.push_str("</tr>\n");
+        }
+        self.body.push_str("</tbody></table>\n");
+    }
+
+    /// A figure: the SVG file inlined, with a caption.
+    pub fn figure(&mut self, svg: &Path, caption: &str) -> Result<(), ReportError> {
+        let text = std::fs::read_to_string(svg).map_err(io(svg))?;
+        let start = text.find("<svg").unwrap_or(0);
+        let _ = writeln!(
+            self.body,
+            "<figure>{}<figcaption>{}</figcaption></figure>",
+            &text[start..],
+            escape(caption)
+        );
+        Ok(())
+    }
+
+    /// The complete document.
+    pub fn render(&self) -> String {
+        format!(
+            "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
+             <title>{}</title><style>{CSS}</style></head><body>\n{}</body></html>\n",
+            escape(&self.title),
+            self.body
+        )
+    }
+
+    /// Write the document to `path`.
+    pub fn write(&self, path: &Path) -> Result<(), ReportError> {
+        std::fs::write(path, self.render()).map_err(io(path))
+    }
+}
+
+/// A horizontal bar of `fraction` (0..1) of 8 em, as a table cell.
+pub fn bar(fraction: f64) -> String {
+    let w = (fraction.clamp(0.0, 1.0) * 8.0 * 100.0).round() / 100.0;
+    format!("<span class=\"bar\" style=\"width:{w}em\"></span>")
+}
+
+/// Time series of a session under a calibration: the joint trajectory and
+/// the IMU residuals `z − ẑ(x)` (eq. (10)).
+#[derive(Debug, Clone, Default)]
+pub struct SessionSeries {
+    /// Joint angles: per joint, (t, q in degrees).
+    pub joints: Vec<Vec<(f64, f64)>>,
+    /// IMU residuals per channel `[ax, ay, az, gx, gy, gz]`: (t, residual in
+    /// m/s² or °/s).
+    pub residuals: Vec<Vec<(f64, f64)>>,
+}
+
+/// Keep at most `max` evenly spaced points.
+fn decimate(v: Vec<(f64, f64)>, max: usize) -> Vec<(f64, f64)> {
+    if v.len() <= max {
+        return v;
+    }
+    let step = v.len().div_ceil(max);
+    v.into_iter().step_by(step).collect()
+}
+
+impl SessionSeries {
+    /// The series of `data` under parameters `x` (the trajectory spline refitted
+    /// to the joint samples with knots every `knot_spacing` s, or chosen).
+    pub fn new(
+        robot: &Robot,
+        data: &Measurements,
+        x: &[f64],
+        sigma_q: &[f64],
+        knot_spacing: Option<f64>,
+    ) -> Result<Self, ReportError> {
+        let n = robot.dof();
+        let layout = ParamLayout::new(robot);
+        let bad = |m: String| ReportError::Session(m);
+        if data.joint_t.len() < 8 || data.joint_q.len() != data.joint_t.len() * n {
+            return Err(bad(format!(
+                "the session's joint samples do not fit robot `{}`",
+                robot.name()
+            )));
+        }
+        if x.len() != layout.len() {
+            return Err(bad(format!(
+                "the result has {} parameters but robot `{}` has {}",
+                x.len(),
+                robot.name(),
+                layout.len()
+            )));
+        }
+        let fit = choose_knots(data, n, sigma_q, 3, knot_spacing)
+            .map_err(|e| bad(format!("cannot fit the joint trajectory: {e}")))?;
+        let model = MeasurementModel::new(robot, &layout, x).map_err(|e| bad(e.to_string()))?;
+        let tau = x[layout.offsets().tau];
+        let mut joints = vec![Vec::new(); n];
+        for (s, &t) in data.joint_t.iter().enumerate() {
+            for (j, series) in joints.iter_mut().enumerate() {
+                series.push((t, data.joint_q[s * n + j].to_degrees()));
+            }
+        }
+        let (a, b) = (fit.knots.start(), fit.knots.end());
+        let mut residuals = vec![Vec::new(); 6];
+        let mut js = JointState::default();
+        for (&t, z) in data.imu_t.iter().zip(&data.imu_z) {
+            let tr = t + tau;
+            if tr < a || tr > b || fit.spline.evaluate(tr, &mut js).is_err() {
+                continue;
+            }
+            let pred = model.predict(&js);
+            for c in 0..6 {
+                let r = z[c] - pred[c];
+                residuals[c].push((t, if c < 3 { r } else { r.to_degrees() }));
+            }
+        }
+        Ok(Self {
+            joints: joints.into_iter().map(|s| decimate(s, 1500)).collect(),
+            residuals: residuals.into_iter().map(|s| decimate(s, 1500)).collect(),
+        })
+    }
+}
+
+/// What the report knows of the solver's iterations.
+#[derive(Debug, Clone, Copy)]
+pub enum Convergence<'a> {
+    /// The cost at the start and after each iteration.
+    Costs(&'a [f64]),
+    /// No iteration history: why (shown on the page instead of the figure).
+    Unavailable(&'a str),
+}
+
+/// Write `dir/report.html` (and its figures, PNG + SVG) for a calibration
+/// result: the parameter table (against `truth` when given), posterior σ
+/// against prior σ, convergence (`costs`: the cost at each solver
+/// iteration, when known) and the session's series when given.
+pub fn calibration_report(
+    dir: &Path,
+    result: &CalibrationResult,
+    truth: Option<&Truth>,
+    costs: Option<&[f64]>,
+    series: Option<&SessionSeries>,
+) -> Result<PathBuf, ReportError> {
+    let convergence = match costs {
+        Some(c) => Convergence::Costs(c),
+        None => Convergence::Unavailable("the solver's iteration history was not given"),
+    };
+    calibration_report_with(dir, result, truth, convergence, series)
+}
+
+/// [`calibration_report`] with the convergence figure's data, or the reason
+/// it is missing (stated on the page).
+pub fn calibration_report_with(
+    dir: &Path,
+    result: &CalibrationResult,
+    truth: Option<&Truth>,
+    convergence: Convergence<'_>,
+    series: Option<&SessionSeries>,
+) -> Result<PathBuf, ReportError> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let mut page = HtmlPage::new("robimu calibration report");
+    let mut facts = Vec::new();
+    if let Some(r) = &result.robot {
+        facts.push(format!("robot {r}"));
+    }
+    if let Some(s) = &result.session {
+        facts.push(format!("session {s}"));
+    }
+    let active = result.parameters.iter().filter(|p| !p.frozen).count();
+    facts.push(format!(
+        "{active} of {} parameters estimated",
+        result.parameters.len()
+    ));
+    page.paragraph(&facts.join("; "));
+
+    page.heading("Parameters");
+    let table = ParameterTable::new(result, truth);
+    let mut headers = vec![
+        "parameter",
+        "unit",
+        "nominal",
+        "prior σ",
+        "estimate",
+        "posterior σ",
+        "σ / prior σ",
+        "",
+    ];
+    if truth.is_some() {
+        headers.extend(["error", "error / σ"]);
+    }
+    let rows: Vec<Vec<String>> = table
+        .rows
+        .iter()
+        .map(|r| {
+            let ratio = r.sigma.map(|s| s / r.prior_sigma);
+            let mut row = vec![
+                r.name.clone(),
+                r.unit.symbol().to_string(),
+                format!("{:.4}", r.nominal),
+                format!("{:.4}", r.prior_sigma),
+                format!("{:.4}", r.estimate),
+                r.sigma.map_or("frozen".into(), |s| format!("{s:.4}")),
+                ratio.map_or(String::new(), |v| format!("{v:.3}")),
+                ratio.map_or(String::new(), bar),
+            ];
+            if truth.is_some() {
+                row.push(r.error.map_or(String::new(), |e| format!("{e:.4}")));
+                row.push(
+                    r.normalized_error
+                        .map_or(String::new(), |z| format!("{z:.2}")),
+                );
+            }
+            row
+        })
+        .collect();
+    page.table("parameters", &headers, &rows);
+    if let Some(t) = &table.truth {
+        page.paragraph(&format!(
+            "Against the truth: largest |error|/σ = {:.2} ({}){}.",
+            t.max_abs_normalized_error,
+            t.worst,
+            t.nees.map_or(String::new(), |v| format!(
+                ", NEES {v:.1} over {} dof",
+                t.dof
+            ))
+        ));
+    }
+    // posterior σ figure
+    let sigma_points: Vec<(f64, f64)> = result
+        .parameters
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| !p.frozen && p.prior_sigma > 0.0 && p.sigma > 0.0)
+        .map(|(k, p)| (k as f64, (p.sigma / p.prior_sigma).log10()))
+        .collect();
+    let stem = dir.join("posterior_sigma");
+    let files = line_panels(
+        &stem,
+        "Posterior σ relative to the prior σ",
+        &[LinePanel {
+            title: "log10(σ / prior σ) by parameter index (x order)".into(),
+            x_label: "parameter index".into(),
+            y_label: "log10 ratio".into(),
+            series: vec![("sigma ratio".into(), sigma_points)],
+        }],
+        1,
+    )?;
+    page.figure(
+        &files[1],
+        "How much the data reduced each parameter's uncertainty (0 = not at all).",
+    )?;
+
+    page.heading("Convergence");
+    let mut text = String::new();
+    if let (Some(i), Some(c0), Some(c1)) =
+        (result.iterations, result.initial_cost, result.final_cost)
+    {
+        text = format!("{i} iterations: cost {c0:.6e} → {c1:.6e}");
+        if let Some(t) = &result.termination {
+            text.push_str(&format!(" ({t})"));
+        }
+        text.push('.');
+    }
+    if let Some(rms) = result.residual_rms {
+        text.push_str(&format!(
+            " Whitened residual RMS (1 = as modelled): ax {:.2}, ay {:.2}, az {:.2}, gx {:.2}, gy {:.2}, gz {:.2}.",
+            rms[0], rms[1], rms[2], rms[3], rms[4], rms[5]
+        ));
+    }
+    if !text.is_empty() {
+        page.paragraph(text.trim());
+    }
+    let costs = match convergence {
+        Convergence::Costs(c) if !c.is_empty() => Some(c),
+        Convergence::Costs(_) => {
+            page.paragraph("No convergence figure: the iteration history is empty.");
+            None
+        }
+        Convergence::Unavailable(why) => {
+            page.paragraph(&format!("No convergence figure: {why}."));
+            None
+        }
+    };
+    if let Some(costs) = costs {
+        let pts: Vec<(f64, f64)> = costs
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| **c > 0.0)
+            .map(|(k, c)| (k as f64, c.log10()))
+            .collect();
+        let files = line_panels(
+            &dir.join("convergence"),
+            "Convergence",
+            &[LinePanel {
+                title: "MAP cost J per iteration".into(),
+                x_label: "iteration".into(),
+                y_label: "log10 J".into(),
+                series: vec![("J".into(), pts)],
+            }],
+            1,
+        )?;
+        page.figure(&files[1], "The solver's cost at each iteration.")?;
+    }
+
+    if let Some(s) = series {
+        page.heading("Trajectory");
+        let panels: Vec<LinePanel> = s
+            .joints
+            .iter()
+            .enumerate()
+            .map(|(j, pts)| LinePanel {
+                title: format!("q{}", j + 1),
+                x_label: "t [s]".into(),
+                y_label: "deg".into(),
+                series: vec![(format!("q{}", j + 1), pts.clone())],
+            })
+            .collect();
+        let files = line_panels(&dir.join("trajectory"), "Joint trajectory", &panels, 3)?;
+        page.figure(&files[1], "The joint samples of the session.")?;
+        page.heading("Residuals");
+        let names = ["ax", "ay", "az", "gx", "gy", "gz"];
+        let panels: Vec<LinePanel> = s
+            .residuals
+            .iter()
+            .enumerate()
+            .map(|(c, pts)| LinePanel {
+                title: format!("{} residual", names[c]),
+                x_label: "t [s]".into(),
+                y_label: if c < 3 { "m/s^2" } else { "deg/s" }.into(),
+                series: vec![(names[c].into(), pts.clone())],
+            })
+            .collect();
+        let files = line_panels(
+            &dir.join("residuals"),
+            "IMU residuals z − ẑ(x) at the estimate",
+            &panels,
+            3,
+        )?;
+        page.figure(
+            &files[1],
+            "Measured minus predicted IMU output over time (the trajectory refitted to the joint samples).",
+        )?;
+    }
+    let path = dir.join("report.html");
+    page.write(&path)?;
+    Ok(path)
+}
+
+/// Write `dir/validation.html` (and the Fig. 10 / Fig. 11 histograms, PNG +
+/// SVG): robot accuracy, IMU accuracy when given, and the calibrated
+/// against the classical robot parameters.
+pub fn validation_report(
+    dir: &Path,
+    layout: &ParamLayout,
+    result: &CalibrationResult,
+    robot: &RobotAccuracy,
+    imu: Option<&ImuAccuracy>,
+) -> Result<PathBuf, ReportError> {
+    validation_report_with(dir, layout, result, robot, imu, None)
+}
+
+/// [`validation_report`] stating the tracker/robot time offset δ applied to
+/// the tracked motion (`alignment`, with the IMU accuracy).
+pub fn validation_report_with(
+    dir: &Path,
+    layout: &ParamLayout,
+    result: &CalibrationResult,
+    robot: &RobotAccuracy,
+    imu: Option<&ImuAccuracy>,
+    alignment: Option<&TrackerAlignment>,
+) -> Result<PathBuf, ReportError> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let mut page = HtmlPage::new("robimu validation against an external tracker");
+    page.heading("Robot accuracy");
+    page.paragraph(&format!(
+        "{} poses solve the tracker and marker transforms (and the classical calibration); {} held-out poses give the errors.",
+        robot.train, robot.test
+    ));
+    let methods = [
+        ("nominal", &robot.nominal),
+        ("calibrated (this method)", &robot.calibrated),
+        ("classical (tracker)", &robot.classical),
+    ];
+    let rows: Vec<Vec<String>> = methods
+        .iter()
+        .map(|(name, e)| {
+            vec![
+                name.to_string(),
+                format!("{:.3}", 1e3 * e.mean_position()),
+                format!("{:.3}", 1e3 * e.max_position()),
+                format!("{:.4}", e.mean_rotation().to_degrees()),
+                format!("{:.4}", e.max_rotation().to_degrees()),
+            ]
+        })
+        .collect();
+    page.table(
+        "robot-accuracy",
+        &[
+            "parameters",
+            "mean position error [mm]",
+            "max [mm]",
+            "mean rotation error [°]",
+            "max [°]",
+        ],
+        &rows,
+    );
+    let mut panels = Vec::new();
+    for (name, e) in methods {
+        panels.push(HistogramPanel {
+            title: format!("{name}: position [mm]"),
+            values: e.position.iter().map(|v| 1e3 * v).collect(),
+            normal: None,
+        });
+        panels.push(HistogramPanel {
+            title: format!("{name}: rotation [deg]"),
+            values: e.rotation.iter().map(|v| v.to_degrees()).collect(),
+            normal: None,
+        });
+    }
+    let files = histogram_grid(
+        &dir.join("robot_accuracy"),
+        "Robot accuracy on held-out poses",
+        &panels,
+        2,
+    )?;
+    page.figure(
+        &files[1],
+        "Position and rotation errors before calibration (top), after this calibration (middle) and after the classical calibration (bottom).",
+    )?;
+
+    page.heading("Robot parameters: calibrated and classical");
+    let rows: Vec<Vec<String>> = robot
+        .baseline
+        .estimated
+        .iter()
+        .map(|(ix, name, v)| {
+            let spec = &layout.specs()[*ix];
+            let unit = DisplayUnit::for_si(spec.unit);
+            let ours = result.parameter(name).map(|p| p.value);
+            vec![
+                name.clone(),
+                unit.symbol().to_string(),
+                format!("{:.4}", unit.show(spec.nominal)),
+                ours.map_or(String::new(), |o| format!("{:.4}", unit.show(o))),
+                format!("{:.4}", unit.show(*v)),
+            ]
+        })
+        .collect();
+    page.table(
+        "robot-parameters",
+        &["parameter", "unit", "nominal", "calibrated", "classical"],
+        &rows,
+    );
+    page.paragraph(&format!(
+        "Classical calibration: weighted pose residual RMS {:.2} (1 = tracker noise of 0.1 mm / 0.05°).",
+        robot.baseline.residual_rms
+    ));
+
+    if let Some(imu) = imu {
+        page.heading("IMU accuracy");
+        page.paragraph(&format!(
+            "Ground truth from degree-5 splines fitted to the tracked IMU pose; {} IMU samples fit the classical IMU calibration, {} held-out samples give the errors.",
+            imu.train, imu.test
+        ));
+        if let Some(a) = alignment {
+            page.paragraph(&tracker_alignment_text(a));
+        }
+        let methods = [
+            ("nominal", &imu.nominal),
+            ("calibrated (this method)", &imu.calibrated),
+            ("classical (tracker)", &imu.classical),
+        ];
+        let rows: Vec<Vec<String>> = methods
+            .iter()
+            .map(|(name, e)| {
+                vec![
+                    name.to_string(),
+                    format!("{:.3}", e.rms_gyro().to_degrees()),
+                    format!("{:.3}", e.rms_accel()),
+                ]
+            })
+            .collect();
+        page.table(
+            "imu-accuracy",
+            &[
+                "intrinsics",
+                "RMS angular-rate error [°/s]",
+                "RMS specific-force error [m/s²]",
+            ],
+            &rows,
+        );
+        let mut panels = Vec::new();
+        for (name, e) in methods {
+            panels.push(HistogramPanel {
+                title: format!("{name}: |Δω| [deg/s]"),
+                values: e.gyro.iter().map(|v| v.to_degrees()).collect(),
+                normal: None,
+            });
+            panels.push(HistogramPanel {
+                title: format!("{name}: |Δs| [m/s^2]"),
+                values: e.accel.clone(),
+                normal: None,
+            });
+        }
+        let files = histogram_grid(
+            &dir.join("imu_accuracy"),
+            "IMU accuracy against the tracked ground truth",
+            &panels,
+            2,
+        )?;
+        page.figure(
+            &files[1],
+            "Angular-rate and specific-force errors with nominal, calibrated and classical intrinsics.",
+        )?;
+    }
+    let path = dir.join("validation.html");
+    page.write(&path)?;
+    Ok(path)
+}
+
+/// One sentence on the tracker/robot time offset δ.
+pub fn tracker_alignment_text(a: &TrackerAlignment) -> String {
+    match &a.estimate {
+        Some(e) => format!(
+            "Tracker time offset δ = t_tracker − t_session = {:.1} ms, estimated by matching the tracked and the robot's angular speed (R² = {:.4}, RMS difference {:.3} °/s over {:.1} s); tracker/IMU offset τ + δ.",
+            1e3 * a.delta,
+            e.r_squared,
+            e.rms.to_degrees(),
+            e.overlap
+        ),
+        None => format!(
+            "Tracker time offset δ = t_tracker − t_session = {:.1} ms (given); tracker/IMU offset τ + δ.",
+            1e3 * a.delta
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn escapes_markup() {
+        assert_eq!(
+            escape("<a href=\"x\">&'"),
+            "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
+        );
+        let mut p = HtmlPage::new("t<1>");
+        p.table("x", &["a"], &[vec!["<b>".into()], vec![bar(0.5)]]);
+        let html = p.render();
+        assert!(html.contains("<title>t&lt;1&gt;</title>"));
+        assert!(html.contains("<td>&lt;b&gt;</td>"));
+        assert!(html.contains("<td><span class=\"bar\" style=\"width:4em\"></span></td>"));
+        assert!(!html.contains("http://") && !html.contains("https://"));
+    }
+}

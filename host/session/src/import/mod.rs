@@ -1,0 +1,223 @@
+//! Importing recordings made by other tools as session directories
+//! (MODEL.md §7).
+//!
+//! * [`mcap`]: ROS 2 recordings (`sensor_msgs/msg/JointState` and
+//!   `sensor_msgs/msg/Imu` in CDR, decoded by [`cdr`]).
+//! * [`csv`]: an EuRoC/Kalibr IMU CSV (`#timestamp [ns],w_RS_S_x [rad s^-1],…,
+//!   a_RS_S_x [m s^-2],…`) with a joints CSV on the same clock.
+//!
+//! Both read integer nanosecond timestamps into [`Streams`];
+//! [`Streams::write_session`] sorts them, takes the earliest sample of
+//! either stream as t = 0 (subtracting in integer nanoseconds, so that epoch
+//! times keep their resolution) and writes `joints.csv` and `imu.csv` with
+//! the IMU columns in the session's order `ax, ay, az, gx, gy, gz`.
+
+pub mod cdr;
+pub mod csv;
+pub mod mcap;
+
+use std::path::{Path, PathBuf};
+
+use crate::{SessionError, SessionMeta, SessionWriter};
+
+/// Why a recording could not be imported.
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    /// The file could not be read.
+    #[error("cannot read {}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The MCAP container is unreadable (truncated, bad magic, compressed
+    /// with a codec this build lacks, …).
+    #[error("{}: not a readable MCAP file: {source}{hint}", path.display())]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// The mcap crate's error.
+        #[source]
+        source: ::mcap::McapError,
+        /// What to do about it, when known.
+        hint: String,
+    },
+    /// A requested topic has no channel in the file.
+    #[error("{}: no topic {topic} (topics in the file: {available})", path.display())]
+    MissingTopic {
+        /// The file.
+        path: PathBuf,
+        /// The topic asked for.
+        topic: String,
+        /// The topics there are, with their types.
+        available: String,
+    },
+    /// A topic carries another message type or encoding.
+    #[error("{}: topic {topic}: {detail}", path.display())]
+    WrongType {
+        /// The file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// Expected and found.
+        detail: String,
+    },
+    /// A message could not be decoded.
+    #[error("{}: topic {topic}, message {index} (log time {log_time} ns): {source}", path.display())]
+    Message {
+        /// The file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// 0-based index of the message on its topic.
+        index: usize,
+        /// Its log time.
+        log_time: u64,
+        /// The decoder's error.
+        #[source]
+        source: cdr::CdrError,
+    },
+    /// A joint message does not fit the joints chosen.
+    #[error("{}: {detail}", path.display())]
+    Joints {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        detail: String,
+    },
+    /// A CSV line is malformed.
+    #[error("{}:{line}: {detail}", path.display())]
+    Line {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: u64,
+        /// What is wrong.
+        detail: String,
+    },
+    /// A file or topic gave no samples.
+    #[error("{what}: no samples")]
+    Empty {
+        /// The file or topic.
+        what: String,
+    },
+    /// The session could not be written.
+    #[error(transparent)]
+    Session(#[from] SessionError),
+}
+
+/// Joint samples: time (ns), positions (rad).
+pub type JointRows = Vec<(i64, Vec<f64>)>;
+
+/// The two sample streams of a recording, on one clock in integer ns.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Streams {
+    /// Joint samples: time (ns), positions (rad), in the order of
+    /// [`Streams::joint_names`].
+    pub joints: JointRows,
+    /// IMU samples: time (ns), `[ax, ay, az, gx, gy, gz]` (m/s², rad/s).
+    pub imu: Vec<(i64, [f64; 6])>,
+    /// Joint names, when the source has them.
+    pub joint_names: Vec<String>,
+}
+
+/// What [`Streams::write_session`] wrote.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Imported {
+    /// The session directory.
+    pub dir: PathBuf,
+    /// Joint samples written.
+    pub joint_samples: usize,
+    /// IMU samples written.
+    pub imu_samples: usize,
+    /// Joints per sample.
+    pub joint_count: usize,
+    /// The source time (ns) that became t = 0.
+    pub t0_ns: i64,
+    /// Joint names, when the source has them.
+    pub joint_names: Vec<String>,
+}
+
+impl Streams {
+    /// Sorts both streams by time and writes them as the session `dir` with
+    /// `meta` (existing session files in `dir` are replaced).
+    pub fn write_session(
+        mut self,
+        dir: &Path,
+        meta: &SessionMeta,
+    ) -> Result<Imported, ImportError> {
+        if self.joints.is_empty() {
+            return Err(ImportError::Empty {
+                what: "joint stream".into(),
+            });
+        }
+        if self.imu.is_empty() {
+            return Err(ImportError::Empty {
+                what: "IMU stream".into(),
+            });
+        }
+        self.joints.sort_by_key(|s| s.0);
+        self.imu.sort_by_key(|s| s.0);
+        let t0 = self.joints[0].0.min(self.imu[0].0);
+        let seconds = |ns: i64| (ns - t0) as f64 * 1e-9;
+        let joint_count = self.joints[0].1.len();
+        let mut w = SessionWriter::create(dir, meta, joint_count)?;
+        for (t, q) in &self.joints {
+            w.joint(seconds(*t), q)?;
+        }
+        for (t, z) in &self.imu {
+            w.imu(seconds(*t), z)?;
+        }
+        let dir = w.finish()?;
+        Ok(Imported {
+            dir,
+            joint_samples: self.joints.len(),
+            imu_samples: self.imu.len(),
+            joint_count,
+            t0_ns: t0,
+            joint_names: self.joint_names,
+        })
+    }
+}
+
+/// An IMU sample in the session's order from the sensor's gyro and
+/// accelerometer vectors.
+pub fn imu_row(gyro: [f64; 3], acc: [f64; 3]) -> [f64; 6] {
+    [acc[0], acc[1], acc[2], gyro[0], gyro[1], gyro[2]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Session;
+
+    #[test]
+    fn epoch_nanoseconds_keep_their_resolution_and_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let base = 1_700_000_000_123_456_789_i64;
+        let streams = Streams {
+            // out of order on purpose
+            joints: vec![(base + 2_000_001, vec![0.2]), (base + 1, vec![0.1])],
+            imu: vec![(base, imu_row([4.0, 5.0, 6.0], [1.0, 2.0, 3.0]))],
+            joint_names: vec!["a".into()],
+        };
+        let out = streams
+            .write_session(dir.path(), &SessionMeta::new("aubo_i5"))
+            .unwrap();
+        assert_eq!(
+            (out.t0_ns, out.joint_samples, out.imu_samples),
+            (base, 2, 1)
+        );
+        let s = Session::load(dir.path()).unwrap();
+        // 1 ns after an epoch time of 1.7e18 ns survives the subtraction.
+        assert_eq!(s.joints.t, vec![1e-9, 2_000_001.0 * 1e-9]);
+        assert_eq!(s.joints.row(1), [0.2]);
+        assert_eq!(s.imu.row(0), [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+        let e = Streams::default()
+            .write_session(dir.path(), &SessionMeta::new("aubo_i5"))
+            .unwrap_err();
+        assert!(e.to_string().contains("joint stream: no samples"), "{e}");
+    }
+}

@@ -1,0 +1,461 @@
+//! The calibration result file (MODEL.md §8), `result.json`:
+//!
+//! ```json
+//! {
+//!   "format": "robimu-result/1",
+//!   "parameters": [
+//!     {"name": "eps_1_1", "unit": "m", "value": 0.0, "prior": 0.0,
+//!      "prior_sigma": 0.001, "sigma": 0.0, "frozen": false}
+//!   ],
+//!   "covariance": {"names": ["eps_1_1", "..."], "matrix": [[0.0]]}
+//! }
+//! ```
+//!
+//! Every parameter of x is listed by its §5 name in x order, in SI units, with
+//! its estimate, prior mean and σ, and posterior σ (√diag of the marginal
+//! covariance, eq. (24); 0 when frozen). `covariance` covers the estimated
+//! parameters. The keys after these are this program's extras (solver run,
+//! residuals, weak directions); readers ignore keys they do not know, and
+//! [`CalibrationResult::parse`] accepts files without the extras.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+/// The format string this version reads and writes.
+pub const RESULT_FORMAT: &str = "robimu-result/1";
+
+/// One parameter of x (SI units).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ParameterResult {
+    /// MODEL.md §5 name.
+    pub name: String,
+    /// Unit string (`m`, `rad`, `m/s^2`, `s`, `1`, `rad/s`).
+    pub unit: String,
+    /// Estimate (the nominal value when frozen).
+    pub value: f64,
+    /// Prior mean x̂.
+    pub prior: f64,
+    /// Prior standard deviation.
+    pub prior_sigma: f64,
+    /// Posterior standard deviation (0 when frozen).
+    pub sigma: f64,
+    /// Held at its prior mean, not estimated.
+    pub frozen: bool,
+}
+
+/// Marginal posterior covariance of the estimated parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CovarianceMatrix {
+    /// Row and column names.
+    pub names: Vec<String>,
+    /// Rows, SI units.
+    pub matrix: Vec<Vec<f64>>,
+}
+
+/// One parameter's share of a weak direction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DirectionShare {
+    /// Parameter name.
+    pub name: String,
+    /// Squared component of the unit direction (the shares sum to at most 1).
+    pub share: f64,
+}
+
+/// A parameter combination the data barely determines
+/// (`robimu_workflows::calibrate::WeakDirection`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WeakDirectionRecord {
+    /// Data information along it relative to the prior's (0 = none).
+    pub relative_information: f64,
+    /// The parameters that make it up, largest share first.
+    pub parameters: Vec<DirectionShare>,
+}
+
+/// The contents of `result.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationResult {
+    /// Always [`RESULT_FORMAT`].
+    pub format: String,
+    /// Every parameter of x, in x order.
+    pub parameters: Vec<ParameterResult>,
+    /// Covariance of the estimated parameters.
+    pub covariance: CovarianceMatrix,
+    /// Robot name or description path, as the session names it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<String>,
+    /// Session directory the result was computed from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub session: Option<String>,
+    /// Whether the priors were used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub priors_used: Option<bool>,
+    /// τ found from the data before the fit, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tau_initial: Option<f64>,
+    /// Knot spacing of the estimated trajectory spline, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub knot_spacing: Option<f64>,
+    /// Solver iterations.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<usize>,
+    /// MAP cost J at the start of the fit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub initial_cost: Option<f64>,
+    /// MAP cost J at the optimum.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub final_cost: Option<f64>,
+    /// Why the solver stopped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub termination: Option<String>,
+    /// RMS of the whitened IMU residuals per channel `[ax, ay, az, gx, gy, gz]`
+    /// (about 1 when the noise model fits).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub residual_rms: Option<[f64; 6]>,
+    /// IMU samples used in the fit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imu_samples_used: Option<usize>,
+    /// Parameter combinations the data barely determines.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub weak_directions: Vec<WeakDirectionRecord>,
+}
+
+/// Why a result file could not be read, written or trusted.
+#[derive(Debug, thiserror::Error)]
+pub enum ResultError {
+    /// The file could not be read.
+    #[error("cannot read {}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file could not be written.
+    #[error("cannot write {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The text is not JSON of the documented shape.
+    #[error("{}:{line}:{column}: {message}", path.display())]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// The contents break the contract (MODEL.md §8).
+    #[error("{}: {message}", path.display())]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl CalibrationResult {
+    /// Index of parameter `name` in [`parameters`](Self::parameters).
+    pub fn index_of(&self, name: &str) -> Option<usize> {
+        self.parameters.iter().position(|p| p.name == name)
+    }
+
+    /// The parameter called `name`.
+    pub fn parameter(&self, name: &str) -> Option<&ParameterResult> {
+        self.parameters.iter().find(|p| p.name == name)
+    }
+
+    /// Covariance between two estimated parameters, by name.
+    pub fn covariance_between(&self, a: &str, b: &str) -> Option<f64> {
+        let names = &self.covariance.names;
+        let i = names.iter().position(|n| n == a)?;
+        let j = names.iter().position(|n| n == b)?;
+        Some(self.covariance.matrix[i][j])
+    }
+
+    /// Check the contract of MODEL.md §8: the format string, finite numbers,
+    /// unique names, and a square, symmetric covariance over exactly the
+    /// estimated parameters whose diagonal gives their `sigma`.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.format != RESULT_FORMAT {
+            return Err(format!(
+                "format is `{}`, this version reads `{RESULT_FORMAT}`",
+                self.format
+            ));
+        }
+        if self.parameters.is_empty() {
+            return Err("`parameters` is empty".into());
+        }
+        for (i, p) in self.parameters.iter().enumerate() {
+            if p.name.is_empty() {
+                return Err(format!("parameter {} has an empty name", i + 1));
+            }
+            if self.parameters[..i].iter().any(|q| q.name == p.name) {
+                return Err(format!("parameter `{}` is listed twice", p.name));
+            }
+            let numbers = [
+                ("value", p.value),
+                ("prior", p.prior),
+                ("prior_sigma", p.prior_sigma),
+                ("sigma", p.sigma),
+            ];
+            for (field, v) in numbers {
+                if !v.is_finite() {
+                    return Err(format!("`{}`: {field} = {v} is not finite", p.name));
+                }
+            }
+            if p.sigma < 0.0 || p.prior_sigma < 0.0 {
+                return Err(format!(
+                    "`{}`: standard deviations must not be negative",
+                    p.name
+                ));
+            }
+        }
+        let estimated: Vec<&ParameterResult> =
+            self.parameters.iter().filter(|p| !p.frozen).collect();
+        let cov = &self.covariance;
+        let n = cov.names.len();
+        if n != estimated.len() {
+            return Err(format!(
+                "covariance has {n} names but {} parameters are estimated (not frozen)",
+                estimated.len()
+            ));
+        }
+        if cov.matrix.len() != n {
+            return Err(format!(
+                "covariance matrix has {} rows for {n} names",
+                cov.matrix.len()
+            ));
+        }
+        for (i, row) in cov.matrix.iter().enumerate() {
+            if row.len() != n {
+                return Err(format!(
+                    "covariance row {} (`{}`) has {} entries, expected {n}",
+                    i + 1,
+                    cov.names[i],
+                    row.len()
+                ));
+            }
+            if let Some(v) = row.iter().find(|v| !v.is_finite()) {
+                return Err(format!(
+                    "covariance row `{}` has a non-finite entry {v}",
+                    cov.names[i]
+                ));
+            }
+        }
+        for (i, name) in cov.names.iter().enumerate() {
+            if cov.names[..i].contains(name) {
+                return Err(format!("covariance lists `{name}` twice"));
+            }
+            let Some(p) = estimated.iter().find(|p| &p.name == name) else {
+                return Err(format!(
+                    "covariance names `{name}`, which is not an estimated parameter"
+                ));
+            };
+            let var = cov.matrix[i][i];
+            if var < 0.0 {
+                return Err(format!("covariance: variance of `{name}` is negative"));
+            }
+            let sd = var.sqrt();
+            if (p.sigma - sd).abs() > 1e-4 * sd.max(p.sigma) + f64::MIN_POSITIVE {
+                return Err(format!(
+                    "`{name}`: sigma = {} but the covariance diagonal gives {sd}",
+                    p.sigma
+                ));
+            }
+            for j in 0..i {
+                let (a, b) = (cov.matrix[i][j], cov.matrix[j][i]);
+                let scale = (cov.matrix[i][i] * cov.matrix[j][j]).sqrt();
+                if (a - b).abs() > 1e-9 * scale + f64::MIN_POSITIVE {
+                    return Err(format!(
+                        "covariance is not symmetric: ({name}, {}) = {a} but ({}, {name}) = {b}",
+                        cov.names[j], cov.names[j]
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Pretty-printed JSON text.
+    ///
+    /// # Errors
+    /// If the result breaks the contract ([`validate`](Self::validate)).
+    pub fn to_json(&self) -> Result<String, String> {
+        self.validate()?;
+        serde_json::to_string_pretty(self).map_err(|e| e.to_string())
+    }
+
+    /// Validate and write to `path`.
+    pub fn write(&self, path: &Path) -> Result<(), ResultError> {
+        let text = self.to_json().map_err(|message| ResultError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        })?;
+        std::fs::write(path, text + "\n").map_err(|source| ResultError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Read and validate `path`.
+    pub fn read(path: &Path) -> Result<Self, ResultError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ResultError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parse and validate; `path` only names the file in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ResultError> {
+        let result: Self = serde_json::from_str(text).map_err(|e| ResultError::Json {
+            path: path.to_path_buf(),
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })?;
+        result.validate().map_err(|message| ResultError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        })?;
+        Ok(result)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small result with a frozen parameter and a correlated 2×2 covariance.
+    fn sample() -> CalibrationResult {
+        let (va, vb, c): (f64, f64, f64) = (4.0e-8, 2.25e-2, -1.0e-5);
+        let p = |name: &str, unit: &str, value: f64, sigma: f64, frozen: bool| ParameterResult {
+            name: name.into(),
+            unit: unit.into(),
+            value,
+            prior: 0.0,
+            prior_sigma: 1e-3,
+            sigma,
+            frozen,
+        };
+        CalibrationResult {
+            format: RESULT_FORMAT.into(),
+            parameters: vec![
+                p("eps_1_1", "m", 1.0 / 3.0 * 1e-3, va.sqrt(), false),
+                p("eps_1_6", "rad", 0.0, 0.0, true),
+                p("tau", "s", -std::f64::consts::E, vb.sqrt(), false),
+            ],
+            covariance: CovarianceMatrix {
+                names: vec!["eps_1_1".into(), "tau".into()],
+                matrix: vec![vec![va, c], vec![c, vb]],
+            },
+            robot: Some("aubo_i5".into()),
+            session: Some("/tmp/s".into()),
+            priors_used: Some(true),
+            tau_initial: Some(-2.7),
+            knot_spacing: Some(0.5),
+            iterations: Some(7),
+            initial_cost: Some(1e6),
+            final_cost: Some(1234.5),
+            termination: Some("converged".into()),
+            residual_rms: Some([1.0, 0.99, 1.01, 1.0, 1.0, 0.98]),
+            imu_samples_used: Some(3600),
+            weak_directions: vec![WeakDirectionRecord {
+                relative_information: 1e-3,
+                parameters: vec![DirectionShare {
+                    name: "eps_1_1".into(),
+                    share: 0.9,
+                }],
+            }],
+        }
+    }
+
+    #[test]
+    fn round_trip_is_exact() {
+        let r = sample();
+        let text = r.to_json().unwrap();
+        let back = CalibrationResult::parse(&text, Path::new("r.json")).unwrap();
+        assert_eq!(back, r);
+        assert_eq!(back.covariance_between("tau", "eps_1_1"), Some(-1.0e-5));
+        assert_eq!(back.covariance_between("eps_1_6", "tau"), None);
+        assert_eq!(back.index_of("tau"), Some(2));
+        // the required keys of MODEL.md §8, read without this crate's types
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(v["format"], "robimu-result/1");
+        let p = &v["parameters"][1];
+        for key in [
+            "name",
+            "unit",
+            "value",
+            "prior",
+            "prior_sigma",
+            "sigma",
+            "frozen",
+        ] {
+            assert!(p.get(key).is_some(), "missing {key}");
+        }
+        assert_eq!(p["frozen"], true);
+        assert_eq!(v["covariance"]["matrix"][1][1], 2.25e-2);
+    }
+
+    #[test]
+    fn files_with_only_the_required_keys_and_unknown_extras_are_read() {
+        let text = r#"{"format": "robimu-result/1", "from": "another tool",
+            "parameters": [{"name": "tau", "unit": "s", "value": 0.5, "prior": 0,
+              "prior_sigma": 1, "sigma": 0.1, "frozen": false}],
+            "covariance": {"names": ["tau"], "matrix": [[0.01]]}}"#;
+        let r = CalibrationResult::parse(text, Path::new("r.json")).unwrap();
+        assert_eq!(r.parameters[0].value, 0.5);
+        assert!(r.final_cost.is_none() && r.weak_directions.is_empty());
+    }
+
+    #[test]
+    fn broken_files_name_the_cause() {
+        let check = |r: CalibrationResult, want: &str| {
+            let text = serde_json::to_string_pretty(&r).unwrap();
+            let e = CalibrationResult::parse(&text, Path::new("r.json")).unwrap_err();
+            assert!(e.to_string().contains(want), "{e} (wanted {want})");
+        };
+        let mut r = sample();
+        r.format = "robimu-result/2".into();
+        check(r, "this version reads `robimu-result/1`");
+        let mut r = sample();
+        r.covariance.matrix[0][1] = 0.0;
+        check(r, "not symmetric");
+        let mut r = sample();
+        r.covariance.matrix[1].pop();
+        check(r, "row 2 (`tau`) has 1 entries");
+        let mut r = sample();
+        r.parameters[2].sigma *= 1.01;
+        check(r, "covariance diagonal gives");
+        let mut r = sample();
+        r.parameters[1].frozen = false;
+        check(r, "covariance has 2 names but 3 parameters are estimated");
+        let mut r = sample();
+        r.covariance.names[1] = "eps_1_6".into();
+        r.parameters[1].frozen = false;
+        r.parameters[2].frozen = true;
+        r.parameters[1].sigma = r.parameters[2].sigma;
+        r.parameters[2].sigma = 0.0;
+        assert!(r.validate().is_ok());
+        r.covariance.names[1] = "g_x".into();
+        check(r, "`g_x`, which is not an estimated parameter");
+        // JSON errors carry the line
+        let e = CalibrationResult::parse("{\n\"format\": 3\n}", Path::new("r.json")).unwrap_err();
+        assert!(e.to_string().starts_with("r.json:2:"), "{e}");
+        // non-finite values are refused when writing, not turned into null
+        let mut r = sample();
+        r.parameters[0].value = f64::NAN;
+        assert!(r.to_json().unwrap_err().contains("not finite"));
+    }
+}

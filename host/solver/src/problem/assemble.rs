@@ -1,0 +1,445 @@
+//! Cost, gradient and Gauss–Newton matrix of the problem, assembled per knot
+//! span straight into the arrowhead storage (see the parent module).
+
+use std::ops::Range;
+
+use faer::linalg::matmul::triangular::BlockStructure;
+use faer::{Accum, Mat, MatRef, Par};
+
+use super::{Problem, ProblemError};
+use crate::ArrowMatrix;
+use robimu_model::effects::SampleContext;
+use robimu_model::{Basis, JointState, MeasurementJacobians, MeasurementModel, Spline};
+
+/// Where one IMU sample sits on the trajectory: its basis functions and q(t_i + τ).
+#[derive(Default)]
+struct SampleEval {
+    basis: Basis,
+    js: JointState,
+    /// Storage for the effect terms (only with effects).
+    effect: Option<Box<EffectScratch>>,
+}
+
+/// Baseline Jacobians and effect columns ∂z/∂θ_E of one sample.
+struct EffectScratch {
+    jac: MeasurementJacobians,
+    cols: Vec<[f64; 6]>,
+}
+
+/// Gauss–Newton matrix A = JᵀJ and gradient g = Jᵀr being accumulated.
+struct Linearization<'m> {
+    a: &'m mut ArrowMatrix,
+    g: &'m mut [f64],
+}
+
+/// IMU samples stacked per flush of a group buffer.
+const GROUP_CAP: usize = 256;
+
+impl Problem<'_> {
+    /// The cost ½‖r‖² at θ over the selected IMU samples.
+    pub fn cost(&self, theta: &[f64]) -> Result<f64, ProblemError> {
+        let x = self.x_of(theta);
+        let model = self.model(&x)?;
+        let spline = self.spline_of(theta);
+        let [first, second] = self.imu_parts();
+        let (c1, c2) = std::thread::scope(|s| {
+            let h = s.spawn(|| self.imu_terms(&model, &spline, &x, theta, second, None));
+            let c1 = self.imu_terms(&model, &spline, &x, theta, first, None);
+            (c1, h.join().expect("cost thread panicked"))
+        });
+        Ok(c1?
+            + c2?
+            + self.joint_terms(&spline, None)
+            + self.prior_terms(&x, None, 0)
+            + self.effect_prior_terms(self.effect_params_of(theta), None, 0))
+    }
+
+    /// Storage for [`Self::linearize`].
+    pub fn new_matrix(&self) -> ArrowMatrix {
+        ArrowMatrix::zeros(
+            self.n_coeffs(),
+            self.bandwidth(),
+            self.active.len() + self.n_effect_params(),
+        )
+    }
+
+    /// Linearise at θ: fill the Gauss–Newton matrix `a` and the gradient `g`
+    /// (length nc + n_active), return the cost. The IMU terms are split over
+    /// two threads.
+    ///
+    /// # Panics
+    /// If `a` or `g` do not have the problem's dimensions.
+    pub fn linearize(
+        &self,
+        theta: &[f64],
+        a: &mut ArrowMatrix,
+        g: &mut [f64],
+    ) -> Result<f64, ProblemError> {
+        assert_eq!(a.dims(), self.new_matrix().dims());
+        let x = self.x_of(theta);
+        let model = self.model(&x)?;
+        let spline = self.spline_of(theta);
+        a.clear();
+        g.fill(0.0);
+        let [first, second] = self.imu_parts();
+        let mut a2 = self.new_matrix();
+        let mut g2 = vec![0.0; g.len()];
+        let mut out = Linearization { a, g };
+        let mut other = Linearization {
+            a: &mut a2,
+            g: &mut g2,
+        };
+        let (r1, r2) = std::thread::scope(|s| {
+            let h =
+                s.spawn(|| self.imu_terms(&model, &spline, &x, theta, second, Some(&mut other)));
+            let r1 = self.imu_terms(&model, &spline, &x, theta, first, Some(&mut out));
+            (r1, h.join().expect("assembly thread panicked"))
+        });
+        let mut cost = r1? + r2?;
+        out.a.add_assign(&a2);
+        for (u, v) in out.g.iter_mut().zip(&g2) {
+            *u += v;
+        }
+        cost += self.joint_terms(&spline, Some(&mut out));
+        let nc = self.n_coeffs();
+        cost += self.prior_terms(&x, Some(&mut out), nc);
+        cost += self.effect_prior_terms(self.effect_params_of(theta), Some(&mut out), nc);
+        Ok(cost)
+    }
+
+    /// Whitened IMU residuals r = (z − h)/σ_z at θ for every selected sample,
+    /// with the index of the sample.
+    pub fn imu_residuals(&self, theta: &[f64]) -> Result<Vec<(usize, [f64; 6])>, ProblemError> {
+        let x = self.x_of(theta);
+        let model = self.model(&x)?;
+        let spline = self.spline_of(theta);
+        let tau = x[self.layout.offsets().tau];
+        let mut at = SampleEval::default();
+        self.imu_range
+            .clone()
+            .map(|i| {
+                let theta_e = self.effect_params_of(theta);
+                Ok((
+                    i,
+                    self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
+                ))
+            })
+            .collect()
+    }
+
+    /// Whitened residual (z_i − h)/σ_z of IMU sample i; leaves the sample's
+    /// basis and joint state in `at`.
+    fn whitened_residual(
+        &self,
+        model: &MeasurementModel,
+        spline: &Spline,
+        tau: f64,
+        theta_e: &[f64],
+        i: usize,
+        at: &mut SampleEval,
+    ) -> Result<[f64; 6], ProblemError> {
+        self.locate(spline, tau, i, at)?;
+        let z = match self.effects {
+            None => model.predict(&at.js),
+            Some(_) => {
+                let mut scratch = at.effect.take().unwrap_or_else(|| {
+                    Box::new(EffectScratch {
+                        jac: MeasurementJacobians::new(self.layout.len()),
+                        cols: vec![[0.0; 6]; self.n_effect_params()],
+                    })
+                });
+                model.jacobians(&at.js, &mut scratch.jac);
+                let z = self.with_effect_terms(model, i, &at.js, theta_e, &mut scratch);
+                at.effect = Some(scratch);
+                z
+            }
+        };
+        let zm = &self.data.imu_z[i];
+        Ok(std::array::from_fn(|c| {
+            (zm[c] - z[c]) * self.inv_sigma_z[c]
+        }))
+    }
+
+    /// z of sample i with the effect terms: the baseline `scratch.jac.z`
+    /// (already evaluated) plus Σ ∂z/∂θ_E θ_E; leaves the columns in `scratch.cols`.
+    fn with_effect_terms(
+        &self,
+        model: &MeasurementModel,
+        i: usize,
+        js: &JointState,
+        theta_e: &[f64],
+        scratch: &mut EffectScratch,
+    ) -> [f64; 6] {
+        let effects = self.effects.expect("called with effects only");
+        let ctx = SampleContext::new(self.data.imu_t[i], js, model, &scratch.jac, self.layout);
+        effects.columns(&ctx, &mut scratch.cols);
+        let mut z = scratch.jac.z;
+        for (col, th) in scratch.cols.iter().zip(theta_e) {
+            for c in 0..6 {
+                z[c] += col[c] * th;
+            }
+        }
+        z
+    }
+
+    /// Zero-mean prior residuals θ_E/σ of the effect parameters (θ_E at `x0 + n_active`).
+    fn effect_prior_terms(
+        &self,
+        theta_e: &[f64],
+        mut out: Option<&mut Linearization<'_>>,
+        x0: usize,
+    ) -> f64 {
+        let Some(effects) = self.effects else {
+            return 0.0;
+        };
+        let na = self.active.len();
+        let mut cost = 0.0;
+        for (e, (p, th)) in effects.params().iter().zip(theta_e).enumerate() {
+            let w = 1.0 / p.prior_sigma;
+            let r = th * w;
+            cost += 0.5 * r * r;
+            if let Some(out) = out.as_deref_mut() {
+                out.g[x0 + na + e] += w * r;
+                out.a.add_xx(na + e, na + e, w * w);
+            }
+        }
+        cost
+    }
+
+    /// Basis functions and joint state q(t_i + τ) of IMU sample i.
+    fn locate(
+        &self,
+        spline: &Spline,
+        tau: f64,
+        i: usize,
+        at: &mut SampleEval,
+    ) -> Result<(), ProblemError> {
+        let u = self.data.imu_t[i] + tau;
+        self.knots
+            .basis(u, &mut at.basis)
+            .map_err(|_| ProblemError::SampleOutOfSpan)?;
+        spline.evaluate_basis(&at.basis, &mut at.js);
+        Ok(())
+    }
+
+    /// The selected IMU range split in two halves (one per thread; a knot span
+    /// cut in two is simply flushed twice, the sums are the same).
+    fn imu_parts(&self) -> [Range<usize>; 2] {
+        let r = self.imu_range.clone();
+        let mid = r.start + r.len() / 2;
+        [r.start..mid, mid..r.end]
+    }
+
+    /// Joint residuals: cost, and (with `out`) their band and gradient terms.
+    fn joint_terms(&self, spline: &Spline, mut out: Option<&mut Linearization<'_>>) -> f64 {
+        let n = self.n;
+        let c = spline.coeffs();
+        let mut cost = 0.0;
+        for (s, b) in self.joint_basis.iter().enumerate() {
+            let qm = &self.data.joint_q[s * n..(s + 1) * n];
+            for j in 0..n {
+                let mut q = 0.0;
+                for a in 0..b.count {
+                    q += b.d[0][a] * c[(b.first + a) * n + j];
+                }
+                let w = self.inv_sigma_q[j];
+                let r = (qm[j] - q) * w;
+                cost += 0.5 * r * r;
+                if let Some(out) = out.as_deref_mut() {
+                    for a in 0..b.count {
+                        let ia = (b.first + a) * n + j;
+                        let ja = -b.d[0][a] * w;
+                        out.g[ia] += ja * r;
+                        for bb in 0..=a {
+                            let ib = (b.first + bb) * n + j;
+                            out.a.add_cc(ia, ib, ja * (-b.d[0][bb] * w));
+                        }
+                    }
+                }
+            }
+        }
+        cost
+    }
+
+    /// Prior residuals of the estimated parameters (θ's x part at `x0`).
+    fn prior_terms(&self, x: &[f64], out: Option<&mut Linearization<'_>>, x0: usize) -> f64 {
+        if !self.use_prior {
+            return 0.0;
+        }
+        let mut cost = 0.0;
+        let mut out = out;
+        for (a, &k) in self.active.iter().enumerate() {
+            let w = self.prior_inv_sigma[k];
+            let r = (x[k] - self.prior_mean[k]) * w;
+            cost += 0.5 * r * r;
+            if let Some(out) = out.as_deref_mut() {
+                out.g[x0 + a] += w * r;
+                out.a.add_xx(a, a, w * w);
+            }
+        }
+        cost
+    }
+
+    /// IMU residuals of the samples `range`: cost, and (with `out`) their
+    /// Gauss–Newton blocks, flushed per knot span. Accelerometer and gyroscope
+    /// rows are stacked separately, each with only the x columns it depends
+    /// on ([`Problem::sensor_columns`]).
+    fn imu_terms(
+        &self,
+        model: &MeasurementModel,
+        spline: &Spline,
+        x: &[f64],
+        theta: &[f64],
+        range: Range<usize>,
+        out: Option<&mut Linearization<'_>>,
+    ) -> Result<f64, ProblemError> {
+        let theta_e = self.effect_params_of(theta);
+        let nx = self.layout.len();
+        let mut scratch = EffectScratch {
+            jac: MeasurementJacobians::new(0),
+            cols: vec![[0.0; 6]; self.n_effect_params()],
+        };
+        let n = self.n;
+        let nl = (self.knots.degree() + 1) * n;
+        let tau = x[self.layout.offsets().tau];
+        let mut at = SampleEval::default();
+        let mut cost = 0.0;
+        let Some(out) = out else {
+            for i in range {
+                let r = self.whitened_residual(model, spline, tau, theta_e, i, &mut at)?;
+                cost += 0.5 * r.iter().map(|v| v * v).sum::<f64>();
+            }
+            return Ok(cost);
+        };
+        let mut jac = MeasurementJacobians::new(self.layout.len());
+        let mut blocks = [
+            Stack::new(nl, &self.sensor_columns[0]),
+            Stack::new(nl, &self.sensor_columns[1]),
+        ];
+        let mut group_first = usize::MAX;
+        for i in range {
+            self.locate(spline, tau, i, &mut at)?;
+            let (basis, js) = (&at.basis, &at.js);
+            if (basis.first != group_first && blocks[0].rows > 0) || blocks[0].full() {
+                for b in &mut blocks {
+                    b.flush(group_first * n, out);
+                }
+            }
+            group_first = basis.first;
+            model.jacobians(js, &mut jac);
+            let z = if self.effects.is_some() {
+                std::mem::swap(&mut jac, &mut scratch.jac);
+                let z = self.with_effect_terms(model, i, js, theta_e, &mut scratch);
+                std::mem::swap(&mut jac, &mut scratch.jac);
+                z
+            } else {
+                jac.z
+            };
+            let zm = &self.data.imu_z[i];
+            for (sensor, block) in blocks.iter_mut().enumerate() {
+                for ch in 3 * sensor..3 * sensor + 3 {
+                    let w = self.inv_sigma_z[ch];
+                    let r = (zm[ch] - z[ch]) * w;
+                    cost += 0.5 * r * r;
+                    let row = block.rows;
+                    block.r[row] = r;
+                    let col = block
+                        .jt
+                        .col_mut(row)
+                        .try_as_col_major_mut()
+                        .expect("contiguous column");
+                    let col = col.as_slice_mut();
+                    // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)/σ
+                    for a in 0..basis.count {
+                        let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
+                        for j in 0..n {
+                            col[a * n + j] = -w
+                                * (jac.dz_dq[j][ch] * n0
+                                    + jac.dz_dqd[j][ch] * n1
+                                    + jac.dz_dqdd[j][ch] * n2);
+                        }
+                    }
+                    for (a, &(k, _)) in block.columns.iter().enumerate() {
+                        let d = if k < nx {
+                            jac.dz_dx[k][ch]
+                        } else {
+                            scratch.cols[k - nx][ch]
+                        };
+                        col[nl + a] = -w * d;
+                    }
+                    block.rows += 1;
+                }
+            }
+        }
+        for b in &mut blocks {
+            b.flush(group_first * n, out);
+        }
+        Ok(cost)
+    }
+}
+
+/// Rows of one sensor's whitened Jacobian for a run of samples in one knot
+/// span, stored transposed (one contiguous column per row).
+struct Stack<'c> {
+    nl: usize,
+    /// (x index, position in θ's x part) of the columns after the nl band ones.
+    columns: &'c [(usize, usize)],
+    jt: Mat<f64>,
+    r: Vec<f64>,
+    rows: usize,
+    local: Mat<f64>,
+    glocal: Mat<f64>,
+    x_index: Vec<usize>,
+}
+
+impl<'c> Stack<'c> {
+    fn new(nl: usize, columns: &'c [(usize, usize)]) -> Self {
+        let cols = nl + columns.len();
+        Self {
+            nl,
+            columns,
+            jt: Mat::zeros(cols, 3 * GROUP_CAP),
+            r: vec![0.0; 3 * GROUP_CAP],
+            rows: 0,
+            local: Mat::zeros(cols, cols),
+            glocal: Mat::zeros(cols, 1),
+            x_index: columns.iter().map(|&(_, a)| a).collect(),
+        }
+    }
+
+    fn full(&self) -> bool {
+        self.rows + 3 > self.r.len()
+    }
+
+    /// Add JᵀJ (lower triangle) and Jᵀr of the stacked rows to `out` at band
+    /// offset `c0`, and empty the stack.
+    fn flush(&mut self, c0: usize, out: &mut Linearization<'_>) {
+        if self.rows == 0 {
+            return;
+        }
+        let jt = self.jt.as_ref().subcols(0, self.rows);
+        let r = MatRef::from_column_major_slice(&self.r[..self.rows], self.rows, 1);
+        faer::linalg::matmul::triangular::matmul(
+            self.local.as_mut(),
+            BlockStructure::TriangularLower,
+            Accum::Replace,
+            jt,
+            BlockStructure::Rectangular,
+            jt.transpose(),
+            BlockStructure::Rectangular,
+            1.0,
+            Par::Seq,
+        );
+        faer::linalg::matmul::matmul(self.glocal.as_mut(), Accum::Replace, jt, r, 1.0, Par::Seq);
+        out.a
+            .add_local(c0, self.nl, &self.x_index, self.local.as_ref());
+        let nc = out.a.dims().0;
+        for a in 0..self.nl {
+            out.g[c0 + a] += self.glocal[(a, 0)];
+        }
+        for (b, &xa) in self.x_index.iter().enumerate() {
+            out.g[nc + xa] += self.glocal[(self.nl + b, 0)];
+        }
+        self.rows = 0;
+    }
+}

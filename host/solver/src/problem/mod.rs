@@ -1,0 +1,351 @@
+//! The calibration problem: residuals, priors and their exact Jacobians,
+//! assembled straight into the arrowhead normal matrix (paper §6).
+//!
+//! Unknowns θ = [c, x_a]: the spline coefficients c (basis-major, `c[b·n + j]`,
+//! the order of [`robimu_model::Spline`]) and the *estimated* (not frozen)
+//! entries x_a of x. Residuals, each whitened by its standard deviation so the
+//! MAP cost is J = ½‖r‖² (MODEL.md §4):
+//!
+//! * joint: r = (q_j − q(t_j)) / σ_q, linear in c;
+//! * IMU: r = (z_i − h(x, q(u), q̇(u), q̈(u))) / σ_z at u = t_i + τ (eq. (10));
+//! * prior: r = (x_k − x̂_k) / σ_k for each estimated parameter (eq. (16)).
+//!
+//! IMU samples are grouped by knot span; each group's stacked Jacobian J_g
+//! gives the dense block J_gᵀ J_g over its p+1 basis functions and x_a, added
+//! to the band, border and corner (never a global J).
+//!
+//! Only the IMU samples whose u lies inside the joint-sample span (with a
+//! small margin, [`Problem::margin`]) are used; the set is chosen by
+//! [`Problem::select_samples`] from the current τ at the start of each
+//! iteration and kept fixed while a step is tried, so that costs compare
+//! like with like (MODEL.md §4: the set is updated as τ moves).
+
+mod assemble;
+
+use std::ops::Range;
+
+use robimu_model::effects::EffectSet;
+pub use robimu_model::observations::Measurements;
+use robimu_model::{
+    Basis, Knots, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
+};
+
+/// Why the problem cannot be evaluated at some θ.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ProblemError {
+    /// x is outside the model's domain (e.g. |g_xy| ≥ g0).
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The spline could not be evaluated.
+    #[error(transparent)]
+    Spline(#[from] SplineError),
+    /// τ moved so far that a selected IMU sample left the joint-sample span.
+    #[error("the time offset moved IMU samples outside the joint-sample span")]
+    SampleOutOfSpan,
+    /// No IMU sample overlaps the joint samples at this τ.
+    #[error("no IMU sample falls inside the joint-sample span at tau = {tau} s")]
+    NoOverlap {
+        /// The time offset tried.
+        tau: f64,
+    },
+}
+
+/// How the problem is set up.
+#[derive(Debug, Clone)]
+pub struct ProblemOptions {
+    /// σ of each joint position, rad.
+    pub sigma_q: Vec<f64>,
+    /// σ of `[ax, ay, az, gx, gy, gz]`.
+    pub sigma_z: [f64; 6],
+    /// Include the prior residuals (off only for identifiability checks).
+    pub use_prior: bool,
+    /// Indices of x that are held fixed.
+    pub frozen: Vec<usize>,
+}
+
+/// The calibration problem for one session.
+pub struct Problem<'a> {
+    robot: &'a Robot,
+    layout: &'a ParamLayout,
+    data: &'a Measurements,
+    knots: Knots,
+    n: usize,
+    inv_sigma_q: Vec<f64>,
+    inv_sigma_z: [f64; 6],
+    prior_mean: Vec<f64>,
+    prior_inv_sigma: Vec<f64>,
+    use_prior: bool,
+    /// x indices of θ's x part.
+    active: Vec<usize>,
+    /// The full x; frozen entries keep their value, estimated ones are
+    /// overwritten from θ.
+    x_base: Vec<f64>,
+    joint_basis: Vec<Basis>,
+    imu_range: Range<usize>,
+    /// Per sensor (accelerometer, gyroscope): the estimated parameters its
+    /// rows can depend on, as (x index, position in θ's x part).
+    sensor_columns: [Vec<(usize, usize)>; 2],
+    /// Catalogue effects appended to the model ([`Problem::with_effects`]).
+    effects: Option<&'a EffectSet>,
+}
+
+impl<'a> Problem<'a> {
+    /// Margin (s) kept between the selected IMU samples and the ends of the
+    /// joint-sample span, so that a step in τ smaller than this keeps the
+    /// selected set valid.
+    pub const MARGIN: f64 = 0.05;
+
+    /// Set up the problem. `x_base` is x with the values of the frozen
+    /// entries (the others are overwritten by θ).
+    ///
+    /// # Panics
+    /// If the sizes of `opts` or `x_base` do not match the robot.
+    pub fn new(
+        robot: &'a Robot,
+        layout: &'a ParamLayout,
+        data: &'a Measurements,
+        knots: Knots,
+        x_base: Vec<f64>,
+        opts: &ProblemOptions,
+    ) -> Result<Self, ProblemError> {
+        let n = robot.dof();
+        assert_eq!(opts.sigma_q.len(), n);
+        assert_eq!(x_base.len(), layout.len());
+        let active: Vec<usize> = (0..layout.len())
+            .filter(|k| !opts.frozen.contains(k))
+            .collect();
+        let mut joint_basis = Vec::with_capacity(data.joint_t.len());
+        for &t in &data.joint_t {
+            let mut b = Basis::default();
+            knots.basis(t, &mut b)?;
+            joint_basis.push(b);
+        }
+        let specs = layout.specs();
+        let sensor_columns = [0, 1].map(|sensor| {
+            active
+                .iter()
+                .enumerate()
+                .filter(|&(_, &k)| sensor_depends_on(layout, sensor, k))
+                .map(|(a, &k)| (k, a))
+                .collect()
+        });
+        let mut p = Self {
+            robot,
+            layout,
+            data,
+            knots,
+            n,
+            inv_sigma_q: opts.sigma_q.iter().map(|s| 1.0 / s).collect(),
+            inv_sigma_z: opts.sigma_z.map(|s| 1.0 / s),
+            prior_mean: specs.iter().map(|s| s.nominal).collect(),
+            prior_inv_sigma: specs.iter().map(|s| 1.0 / s.sigma).collect(),
+            use_prior: opts.use_prior,
+            active,
+            x_base,
+            joint_basis,
+            imu_range: 0..0,
+            sensor_columns,
+            effects: None,
+        };
+        let tau = p.x_base[layout.offsets().tau];
+        p.select_samples(tau)?;
+        Ok(p)
+    }
+
+    /// The margin in use (see [`Self::MARGIN`]).
+    pub fn margin(&self) -> f64 {
+        Self::MARGIN
+    }
+
+    /// Number of spline coefficients nc = m·n.
+    pub fn n_coeffs(&self) -> usize {
+        self.knots.num_coeffs() * self.n
+    }
+
+    /// Half-bandwidth of the coefficient block: (p+1)·n − 1.
+    pub fn bandwidth(&self) -> usize {
+        (self.knots.degree() + 1) * self.n - 1
+    }
+
+    /// x indices of the estimated parameters (θ's x part, in order).
+    pub fn active(&self) -> &[usize] {
+        &self.active
+    }
+
+    /// The knots of the trajectory spline.
+    pub fn knots(&self) -> &Knots {
+        &self.knots
+    }
+
+    /// The robot.
+    pub fn robot(&self) -> &Robot {
+        self.robot
+    }
+
+    /// The parameter layout.
+    pub fn layout(&self) -> &ParamLayout {
+        self.layout
+    }
+
+    /// The observations.
+    pub fn data(&self) -> &Measurements {
+        self.data
+    }
+
+    /// IMU samples currently used.
+    pub fn imu_range(&self) -> Range<usize> {
+        self.imu_range.clone()
+    }
+
+    /// θ from a spline and a full x (effect parameters, if any, at 0).
+    pub fn theta(&self, spline: &Spline, x: &[f64]) -> Vec<f64> {
+        let mut th = spline.coeffs().to_vec();
+        th.extend(self.active.iter().map(|&k| x[k]));
+        th.extend(std::iter::repeat_n(0.0, self.n_effect_params()));
+        th
+    }
+
+    /// Append catalogue effects to the model: their parameters θ_E follow
+    /// x_a in θ (θ = [c, x_a, θ_E]), enter every IMU row through
+    /// ∂z/∂θ_E ([`robimu_model::effects`]) and carry their zero-mean priors.
+    pub fn with_effects(mut self, effects: &'a EffectSet) -> Self {
+        let (nx, na) = (self.layout.len(), self.active.len());
+        for cols in &mut self.sensor_columns {
+            cols.extend((0..effects.len()).map(|e| (nx + e, na + e)));
+        }
+        self.effects = Some(effects);
+        self
+    }
+
+    /// Number of effect parameters θ_E.
+    pub fn n_effect_params(&self) -> usize {
+        self.effects.map_or(0, |e| e.len())
+    }
+
+    /// The effect parameters θ_E of θ.
+    pub fn effect_params_of<'t>(&self, theta: &'t [f64]) -> &'t [f64] {
+        &theta[self.n_coeffs() + self.active.len()..]
+    }
+
+    /// The full x of θ.
+    pub fn x_of(&self, theta: &[f64]) -> Vec<f64> {
+        let nc = self.n_coeffs();
+        let mut x = self.x_base.clone();
+        for (a, &k) in self.active.iter().enumerate() {
+            x[k] = theta[nc + a];
+        }
+        x
+    }
+
+    /// The trajectory spline of θ.
+    pub fn spline_of(&self, theta: &[f64]) -> Spline {
+        let nc = self.n_coeffs();
+        Spline::new(self.knots.clone(), self.n, theta[..nc].to_vec())
+            .expect("coefficient count matches the knots")
+    }
+
+    /// Choose the IMU samples whose t + τ lies in the joint span (less the margin).
+    pub fn select_samples(&mut self, tau: f64) -> Result<(), ProblemError> {
+        let (a, b) = (
+            self.knots.start() + Self::MARGIN,
+            self.knots.end() - Self::MARGIN,
+        );
+        let t = &self.data.imu_t;
+        let lo = t.partition_point(|&ti| ti + tau < a);
+        let hi = t.partition_point(|&ti| ti + tau <= b);
+        if hi <= lo {
+            return Err(ProblemError::NoOverlap { tau });
+        }
+        self.imu_range = lo..hi;
+        Ok(())
+    }
+
+    /// The measurement model at x.
+    pub fn model(&self, x: &[f64]) -> Result<MeasurementModel, ProblemError> {
+        Ok(MeasurementModel::new(self.robot, self.layout, x)?)
+    }
+}
+
+/// Whether the rows of `sensor` (0: accelerometer, 1: gyroscope) can depend
+/// on x[k] (MODEL.md §1–3): the gyroscope sees only rotations — no robot
+/// length errors ε_i{1,2,3}, no gravity, no accelerometer intrinsics — and the
+/// accelerometer sees no gyroscope intrinsics.
+pub fn sensor_depends_on(layout: &ParamLayout, sensor: usize, k: usize) -> bool {
+    let o = layout.offsets();
+    let gyro_intrinsics = k >= o.gamma_w;
+    if sensor == 0 {
+        return !gyro_intrinsics;
+    }
+    if k < o.g_xy {
+        return layout.estimated_errors()[k].k >= 4;
+    }
+    k == o.tau || gyro_intrinsics
+}
+
+impl crate::LeastSquares for Problem<'_> {
+    type Error = ProblemError;
+    fn begin_iteration(&mut self, theta: &[f64]) -> Result<(), ProblemError> {
+        let tau = self.x_of(theta)[self.layout.offsets().tau];
+        self.select_samples(tau)
+    }
+    fn cost(&self, theta: &[f64]) -> Result<f64, ProblemError> {
+        Problem::cost(self, theta)
+    }
+    fn linearize(
+        &self,
+        theta: &[f64],
+        a: &mut crate::ArrowMatrix,
+        g: &mut [f64],
+    ) -> Result<f64, ProblemError> {
+        Problem::linearize(self, theta, a, g)
+    }
+    fn new_matrix(&self) -> crate::ArrowMatrix {
+        Problem::new_matrix(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robimu_model::{JointState, MeasurementJacobians};
+
+    /// The structural sparsity used by the assembly must match the model:
+    /// every column a sensor is said not to depend on is exactly zero.
+    #[test]
+    fn sensor_columns_match_the_model_jacobian() {
+        let robot = Robot::aubo_i5();
+        let layout = ParamLayout::new(&robot);
+        let mut x = layout.nominal();
+        for (k, s) in layout.specs().iter().enumerate() {
+            x[k] += 0.3 * s.sigma * ((k as f64) * 1.7).sin();
+        }
+        let model = MeasurementModel::new(&robot, &layout, &x).unwrap();
+        let mut jac = MeasurementJacobians::new(layout.len());
+        for t in [0.1, 0.7, 2.3] {
+            let f =
+                |a: f64, b: f64| [0, 1, 2, 3, 4, 5].map(|j: usize| a * (t * (j as f64 + b)).sin());
+            let (q, qd, qdd, qddd) = (f(1.0, 1.0), f(0.5, 2.0), f(0.9, 0.5), f(0.3, 1.5));
+            let js = JointState::from_slices(&q, &qd, &qdd, &qddd);
+            model.jacobians(&js, &mut jac);
+            for k in 0..layout.len() {
+                for sensor in 0..2 {
+                    let used = sensor_depends_on(&layout, sensor, k);
+                    let col = &jac.dz_dx[k][3 * sensor..3 * sensor + 3];
+                    if !used {
+                        assert!(
+                            col.iter().all(|v| *v == 0.0),
+                            "{} sensor {sensor}: {col:?}",
+                            layout.specs()[k].name
+                        );
+                    } else {
+                        assert!(
+                            col.iter().any(|v| *v != 0.0),
+                            "{} sensor {sensor} is all zero",
+                            layout.specs()[k].name
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,468 @@
+//! The calibration: MAP estimate of x and the trajectory from one session
+//! (paper §6), with the marginal posterior covariance of x (eq. (24)).
+//!
+//! 1. Fit the trajectory spline to the joint samples (least squares).
+//! 2. Find τ from the data ([`super::time_offset`]).
+//! 3. Levenberg–Marquardt from the nominal x (with that τ) over θ = [c, x].
+//! 4. Σ_x = S⁻¹, S the Schur complement of the normal matrix at the optimum;
+//!    the information the data alone carries about x is checked for directions
+//!    it does not determine (reported by parameter name).
+
+use faer::Side;
+use robimu_session::result::{
+    CalibrationResult, CovarianceMatrix, DirectionShare, ParameterResult, WeakDirectionRecord,
+    RESULT_FORMAT,
+};
+
+use super::time_offset::{find_tau, TauError, TauEstimate, TauSearch};
+use robimu_model::observations::Measurements;
+use robimu_model::{Knots, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError};
+use robimu_solver as solver;
+use robimu_solver::problem::{Problem, ProblemError, ProblemOptions};
+use robimu_solver::{IterationRecord, LmError, LmOptions, LmSummary};
+
+/// Calibration settings.
+#[derive(Debug, Clone)]
+pub struct CalibrateOptions {
+    /// Interior knot spacing of the trajectory spline, s; `None` chooses it
+    /// from the data ([`choose_knots`]).
+    pub knot_spacing: Option<f64>,
+    /// Spline degree.
+    pub degree: usize,
+    /// Use the priors (off: data only, for identifiability checks).
+    pub use_prior: bool,
+    /// Parameters held at their nominal value (indices into x).
+    pub frozen: Vec<usize>,
+    /// σ of `[ax, ay, az, gx, gy, gz]`.
+    pub sigma_z: [f64; 6],
+    /// σ of each joint, rad.
+    pub sigma_q: Vec<f64>,
+    /// The τ search (None: start from the nominal τ).
+    pub tau_search: Option<TauSearch>,
+    /// Solver settings.
+    pub lm: LmOptions,
+}
+
+impl CalibrateOptions {
+    /// Defaults for `robot`: cubic spline, one knot per second, priors on, its noise.
+    pub fn new(robot: &Robot) -> Self {
+        Self {
+            knot_spacing: None,
+            degree: 3,
+            use_prior: true,
+            frozen: Vec::new(),
+            sigma_z: robot.sigma_z(),
+            sigma_q: robot.sigma_q().to_vec(),
+            tau_search: Some(TauSearch::default()),
+            lm: LmOptions::default(),
+        }
+    }
+}
+
+/// A parameter group the data barely determines.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WeakDirection {
+    /// Data information along the direction relative to the prior's (0 = none).
+    pub relative_information: f64,
+    /// The parameters that make up the direction, largest share first, with their share.
+    pub parameters: Vec<(String, f64)>,
+}
+
+/// The outcome of a calibration.
+#[derive(Debug, Clone)]
+pub struct Calibration {
+    /// Every parameter of x, SI.
+    pub x: Vec<f64>,
+    /// Posterior σ of each parameter of x (0 when frozen).
+    pub sigma: Vec<f64>,
+    /// Estimated (not frozen) parameters, indices into x.
+    pub active: Vec<usize>,
+    /// Marginal covariance over `active` (row-major, active × active).
+    pub covariance: Vec<f64>,
+    /// The fitted trajectory.
+    pub trajectory: Spline,
+    /// The τ found before the fit.
+    pub tau_initial: Option<TauEstimate>,
+    /// Knot spacing used, s.
+    pub knot_spacing: f64,
+    /// Root-mean-square of the whitened joint residuals of the initial spline fit, per joint.
+    pub joint_fit_rms: Vec<f64>,
+    /// Solver run.
+    pub summary: LmSummary,
+    /// IMU samples used in the final fit.
+    pub imu_samples_used: usize,
+    /// Directions of x the data determines poorly (when the priors are on) or
+    /// not at all (numerically singular information).
+    pub weak_directions: Vec<WeakDirection>,
+    /// Root-mean-square of the whitened residuals per IMU channel at the optimum.
+    pub residual_rms: [f64; 6],
+}
+
+/// Why a calibration failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrateError {
+    /// The session does not fit the robot.
+    #[error("{0}")]
+    Input(String),
+    /// The joint trajectory could not be represented.
+    #[error("the joint samples cannot be fitted by the trajectory spline: {0}")]
+    Spline(#[from] SplineError),
+    /// The model is invalid at the nominal parameters.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The time offset could not be found.
+    #[error("cannot find the time offset between the IMU and the robot: {0}")]
+    Tau(#[from] TauError),
+    /// The problem could not be set up.
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    /// The solver failed.
+    #[error("the fit failed: {0}")]
+    Solver(#[from] LmError<ProblemError>),
+    /// The fit did not converge.
+    #[error("the fit did not converge: {summary}")]
+    NotConverged {
+        /// The solver run.
+        summary: Box<LmSummary>,
+    },
+    /// The data carries no information about some parameters and no priors were used.
+    #[error("the data does not determine these parameters (use the priors, or freeze them): {}", names.join(", "))]
+    Unidentifiable {
+        /// Parameter names.
+        names: Vec<String>,
+    },
+}
+
+/// Check that a session fits the robot before any numerics.
+pub fn check_measurements(robot: &Robot, data: &Measurements) -> Result<(), CalibrateError> {
+    let n = robot.dof();
+    let bad = |m: String| Err(CalibrateError::Input(m));
+    if data.joint_t.is_empty() || data.imu_t.is_empty() {
+        return bad("the session has no joint samples or no IMU samples".into());
+    }
+    if data.joint_q.len() != data.joint_t.len() * n {
+        return bad(format!(
+            "joints.csv has {} joint columns but robot `{}` has {n} joints",
+            data.joint_q.len() / data.joint_t.len(),
+            robot.name()
+        ));
+    }
+    let (a, b) = (data.joint_t[0], *data.joint_t.last().expect("non-empty"));
+    if b <= a {
+        return bad("the joint samples span no time (all at one instant)".into());
+    }
+    let (c, d) = (data.imu_t[0], *data.imu_t.last().expect("non-empty"));
+    if d < a - 10.0 || c > b + 10.0 {
+        return bad(format!(
+            "the IMU samples ({c:.3}..{d:.3} s) do not overlap the joint samples ({a:.3}..{b:.3} s): are both files on the same session clock?"
+        ));
+    }
+    for (j, lim) in robot.limits().iter().enumerate() {
+        let slack = 0.2; // rad: recorded positions may overshoot a planning limit a little
+        if let Some((s, q)) = data
+            .joint_q
+            .chunks(n)
+            .map(|row| row[j])
+            .enumerate()
+            .find(|(_, q)| *q < lim.q_min - slack || *q > lim.q_max + slack)
+        {
+            return bad(format!(
+                "joint {} sample {} is {:.3} rad, far outside the robot's limits [{:.3}, {:.3}]: are the joints in radians?",
+                j + 1,
+                s + 1,
+                q,
+                lim.q_min,
+                lim.q_max
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Calibrate `robot` from `data`. `report` sees every solver iteration.
+pub fn calibrate(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    report: impl FnMut(&IterationRecord),
+) -> Result<Calibration, CalibrateError> {
+    check_measurements(robot, data)?;
+    let layout = ParamLayout::new(robot);
+    let n = robot.dof();
+    let fit = choose_knots(data, n, &opts.sigma_q, opts.degree, opts.knot_spacing)?;
+    let (knots, spline) = (fit.knots, fit.spline);
+    let mut x0 = layout.nominal();
+    let tau_at = layout.offsets().tau;
+    let tau_initial = match (&opts.tau_search, opts.frozen.contains(&tau_at)) {
+        (Some(search), false) => {
+            let model = MeasurementModel::new(robot, &layout, &x0)?;
+            let gyro: Vec<[f64; 3]> = data.imu_z.iter().map(|z| [z[3], z[4], z[5]]).collect();
+            let est = find_tau(&model, &spline, &data.imu_t, &gyro, search)?;
+            x0[tau_at] = est.tau;
+            Some(est)
+        }
+        _ => None,
+    };
+    let popts = ProblemOptions {
+        sigma_q: opts.sigma_q.clone(),
+        sigma_z: opts.sigma_z,
+        use_prior: opts.use_prior,
+        frozen: opts.frozen.clone(),
+    };
+    let mut problem = Problem::new(robot, &layout, data, knots, x0.clone(), &popts)?;
+    let theta0 = problem.theta(&spline, &x0);
+    let sol = solver::solve(&mut problem, theta0, &opts.lm, report)?;
+    if !sol.summary.termination.converged() {
+        return Err(CalibrateError::NotConverged {
+            summary: Box::new(sol.summary),
+        });
+    }
+    let x = problem.x_of(&sol.theta);
+    let active = problem.active().to_vec();
+    let na = active.len();
+    let specs = layout.specs();
+    // information about x from the data alone, in units of the prior σ
+    let schur = sol.factor.schur();
+    let mut info = faer::Mat::from_fn(na, na, |i, j| {
+        let (si, sj) = (specs[active[i]].sigma, specs[active[j]].sigma);
+        let prior = if opts.use_prior && i == j {
+            1.0 / (si * si)
+        } else {
+            0.0
+        };
+        (schur[(i, j)] - prior) * si * sj
+    });
+    for i in 0..na {
+        for j in 0..i {
+            let v = 0.5 * (info[(i, j)] + info[(j, i)]);
+            info[(i, j)] = v;
+            info[(j, i)] = v;
+        }
+    }
+    let weak_directions = weak_directions(&info, &active, &layout, opts.use_prior);
+    if !opts.use_prior && !weak_directions.is_empty() {
+        let mut names: Vec<String> = Vec::new();
+        for (name, _) in weak_directions.iter().flat_map(|w| &w.parameters) {
+            if !names.contains(name) {
+                names.push(name.clone());
+            }
+        }
+        return Err(CalibrateError::Unidentifiable { names });
+    }
+    let cov = sol.factor.covariance_x();
+    let mut sigma = vec![0.0; layout.len()];
+    let mut covariance = vec![0.0; na * na];
+    for i in 0..na {
+        sigma[active[i]] = cov[(i, i)].max(0.0).sqrt();
+        for j in 0..na {
+            covariance[i * na + j] = cov[(i, j)];
+        }
+    }
+    let residuals = problem.imu_residuals(&sol.theta)?;
+    let mut rms = [0.0; 6];
+    for (_, r) in &residuals {
+        for c in 0..6 {
+            rms[c] += r[c] * r[c];
+        }
+    }
+    let count = residuals.len().max(1) as f64;
+    let residual_rms = rms.map(|s| (s / count).sqrt());
+    Ok(Calibration {
+        x,
+        sigma,
+        active,
+        covariance,
+        trajectory: problem.spline_of(&sol.theta),
+        tau_initial,
+        knot_spacing: fit.spacing,
+        joint_fit_rms: fit.rms,
+        imu_samples_used: residuals.len(),
+        summary: sol.summary,
+        weak_directions,
+        residual_rms,
+    })
+}
+
+/// The trajectory spline chosen for a session.
+#[derive(Debug, Clone)]
+pub struct TrajectoryFit {
+    /// Its knots.
+    pub knots: Knots,
+    /// Least-squares fit to the joint samples.
+    pub spline: Spline,
+    /// Knot spacing, s.
+    pub spacing: f64,
+    /// Whitened residual RMS per joint.
+    pub rms: Vec<f64>,
+}
+
+/// Coarsest spacing tried when choosing automatically, s.
+pub const AUTO_SPACING_START: f64 = 1.0;
+/// Finest spacing tried when choosing automatically, s.
+pub const AUTO_SPACING_MIN: f64 = 0.05;
+
+/// Fit the trajectory spline to the joint samples.
+///
+/// With `spacing = Some(s)` the knots are every s seconds. With `None` the
+/// spacing starts at [`AUTO_SPACING_START`] and is halved while the spline
+/// cannot follow the joint samples to within their noise: while, for some
+/// joint, the whitened residual sum of squares exceeds its degrees of freedom
+/// by more than 5 standard deviations of χ² (a motion with more bandwidth
+/// than the knots can carry, which would otherwise bias the IMU fit). It
+/// stops at [`AUTO_SPACING_MIN`] or when a span would hold fewer than 4 joint
+/// samples.
+pub fn choose_knots(
+    data: &Measurements,
+    n: usize,
+    sigma_q: &[f64],
+    degree: usize,
+    spacing: Option<f64>,
+) -> Result<TrajectoryFit, SplineError> {
+    let (a, b) = (
+        data.joint_t[0],
+        *data.joint_t.last().expect("checked non-empty"),
+    );
+    let samples = data.joint_t.len();
+    let min_spacing = AUTO_SPACING_MIN.max(4.0 * (b - a) / samples as f64);
+    let mut h = spacing.unwrap_or(AUTO_SPACING_START);
+    loop {
+        let knots = Knots::uniform(a, b, h, degree)?;
+        let spline = Spline::fit(knots.clone(), n, &data.joint_t, &data.joint_q)?;
+        let mut ss = vec![0.0; n];
+        let mut js = robimu_model::JointState::default();
+        for (s, &t) in data.joint_t.iter().enumerate() {
+            spline.evaluate(t, &mut js)?;
+            for j in 0..n {
+                let r = (data.joint_q[s * n + j] - js.q[j]) / sigma_q[j];
+                ss[j] += r * r;
+            }
+        }
+        let dof = (samples as f64 - knots.num_coeffs() as f64).max(1.0);
+        let rms: Vec<f64> = ss.iter().map(|v| (v / dof).sqrt()).collect();
+        let too_coarse = ss.iter().any(|&v| v > dof + 5.0 * (2.0 * dof).sqrt());
+        if spacing.is_some() || !too_coarse || h / 2.0 < min_spacing {
+            return Ok(TrajectoryFit {
+                knots,
+                spline,
+                spacing: h,
+                rms,
+            });
+        }
+        h /= 2.0;
+    }
+}
+
+/// Relative eigenvalue of the data information below which a direction is
+/// numerically undetermined (rounding level for 48 parameters; weakly but
+/// truly determined directions, such as the robot lengths at low speed, sit
+/// near 1e-11).
+pub const SINGULAR: f64 = 1e-13;
+
+/// Directions in which the data's information (prior-σ units) is negligible:
+/// below [`SINGULAR`] of the largest (numerically singular), or — with priors — below
+/// 0.01 of the prior's (the data adds almost nothing to the prior there).
+fn weak_directions(
+    info: &faer::Mat<f64>,
+    active: &[usize],
+    layout: &ParamLayout,
+    use_prior: bool,
+) -> Vec<WeakDirection> {
+    let Ok(evd) = info.self_adjoint_eigen(Side::Lower) else {
+        return Vec::new();
+    };
+    let s = evd.S();
+    let u = evd.U();
+    let na = active.len();
+    let max = (0..na).map(|i| s[i]).fold(0.0f64, f64::max);
+    let mut out = Vec::new();
+    for k in 0..na {
+        let lam = s[k];
+        let singular = lam <= SINGULAR * max;
+        let weak = use_prior && lam < 1e-2;
+        if !(singular || weak) {
+            continue;
+        }
+        let mut parts: Vec<(String, f64)> = (0..na)
+            .map(|i| {
+                (
+                    layout.specs()[active[i]].name.clone(),
+                    u[(i, k)] * u[(i, k)],
+                )
+            })
+            .filter(|(_, w)| *w > 0.05)
+            .collect();
+        parts.sort_by(|a, b| b.1.total_cmp(&a.1));
+        out.push(WeakDirection {
+            relative_information: lam.max(0.0),
+            parameters: parts,
+        });
+    }
+    out
+}
+
+impl Calibration {
+    /// The result file (docs/model.md §8) of this calibration, for the
+    /// parameter layout it was computed with.
+    ///
+    /// # Panics
+    /// If `calibration` does not belong to `layout` (different lengths).
+    #[track_caller]
+    pub fn to_result(&self, layout: &ParamLayout) -> CalibrationResult {
+        let calibration = self;
+        let specs = layout.specs();
+        assert_eq!(calibration.x.len(), specs.len(), "x length");
+        let active = &calibration.active;
+        let na = active.len();
+        let parameters = specs
+            .iter()
+            .enumerate()
+            .map(|(k, s)| ParameterResult {
+                name: s.name.clone(),
+                unit: s.unit.to_string(),
+                value: calibration.x[k],
+                prior: s.nominal,
+                prior_sigma: s.sigma,
+                sigma: calibration.sigma[k],
+                frozen: !active.contains(&k),
+            })
+            .collect();
+        let covariance = CovarianceMatrix {
+            names: active.iter().map(|&k| specs[k].name.clone()).collect(),
+            matrix: (0..na)
+                .map(|i| calibration.covariance[i * na..(i + 1) * na].to_vec())
+                .collect(),
+        };
+        let summary = &calibration.summary;
+        CalibrationResult {
+            format: RESULT_FORMAT.into(),
+            parameters,
+            covariance,
+            robot: None,
+            session: None,
+            priors_used: None,
+            tau_initial: calibration.tau_initial.as_ref().map(|t| t.tau),
+            knot_spacing: Some(calibration.knot_spacing),
+            iterations: Some(summary.iterations.len()),
+            initial_cost: Some(summary.initial_cost),
+            final_cost: Some(summary.final_cost),
+            termination: Some(summary.termination.to_string()),
+            residual_rms: Some(calibration.residual_rms),
+            imu_samples_used: Some(calibration.imu_samples_used),
+            weak_directions: calibration
+                .weak_directions
+                .iter()
+                .map(|w| WeakDirectionRecord {
+                    relative_information: w.relative_information,
+                    parameters: w
+                        .parameters
+                        .iter()
+                        .map(|(name, share)| DirectionShare {
+                            name: name.clone(),
+                            share: *share,
+                        })
+                        .collect(),
+                })
+                .collect(),
+        }
+    }
+}

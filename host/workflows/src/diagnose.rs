@@ -1,0 +1,1006 @@
+//! Model-discrepancy diagnosis: where the calibrated model and the
+//! measurement disagree, which catalogued effect ([`robimu_model::effects`]) explains
+//! it, and how much the gap shrinks when it is added.
+//!
+//! 1. Fit the baseline (the calibration of [`super::calibrate`], same
+//!    problem) and predict every IMU sample.
+//! 2. Residual analysis ([`ResidualStats`]): whitened RMS and χ² per channel,
+//!    Ljung–Box whiteness, the largest spectral peak, the time window where
+//!    residuals concentrate, the regressor they correlate with most.
+//! 3. Score every candidate effect at the current fit without refitting: the
+//!    Rao score (Lagrange-multiplier) statistic
+//!
+//!    ```text
+//!    S = gᵀ A⁻¹ g |augmented − gᵀ A⁻¹ g |current      ~ χ²(k) under H0
+//!    ```
+//!
+//!    g the gradient of the negative log-posterior and A its Gauss–Newton
+//!    information, over all unknowns θ = [c, x_a, θ_E] (spline, baseline
+//!    parameters, effects already added). With the candidate's parameters at
+//!    0 this is u_eᵀ (I_ee − I_eθ I_θθ⁻¹ I_θe)⁻¹ u_e, the *efficient* score
+//!    (baseline information partialled out); the subtraction removes the
+//!    tiny non-zero gradient a converged fit leaves on θ.
+//! 4. Rank by p-value; the winner is significant when p < α/K (Bonferroni
+//!    over the K catalogue effects). Confirm by refitting the augmented model:
+//!    likelihood-ratio statistic LR = 2 (J_before − J_after) (also Bonferroni)
+//!    and ΔBIC = −LR + k ln N (reported). Add it, and repeat until no
+//!    candidate is significant.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use super::calibrate::{check_measurements, choose_knots, CalibrateError, CalibrateOptions};
+use super::time_offset::find_tau;
+use robimu_model::effects::resonance::Mode;
+use robimu_model::effects::{self, CatalogueSetup, Effect, EffectSet, MassModel, SessionSpan};
+use robimu_model::observations::Measurements;
+use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot, Spline};
+use robimu_solver as solver;
+use robimu_solver::problem::{Problem, ProblemOptions};
+use robimu_solver::LeastSquares;
+
+/// Channel names in z order.
+pub const CHANNELS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
+
+/// A fit of the baseline model plus a set of effects.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// Effects in the model, in θ_E order.
+    pub effects: Vec<String>,
+    /// The full x.
+    pub x: Vec<f64>,
+    /// Posterior σ of x (0 when frozen).
+    pub sigma_x: Vec<f64>,
+    /// θ = [c, x_a, θ_E] at the optimum.
+    pub theta: Vec<f64>,
+    /// θ_E.
+    pub theta_e: Vec<f64>,
+    /// Posterior σ of θ_E.
+    pub sigma_e: Vec<f64>,
+    /// Names of θ_E.
+    pub effect_params: Vec<robimu_model::effects::EffectParam>,
+    /// Final cost ½‖r‖² (negative log-posterior up to a constant).
+    pub cost: f64,
+    /// The fitted trajectory.
+    pub trajectory: Spline,
+    /// Whitened IMU residuals at the optimum (sample index, r).
+    pub residuals: Vec<(usize, [f64; 6])>,
+}
+
+impl Fit {
+    /// Whitened residual RMS per channel.
+    pub fn residual_rms(&self) -> [f64; 6] {
+        let n = self.residuals.len().max(1) as f64;
+        std::array::from_fn(|c| {
+            (self.residuals.iter().map(|(_, r)| r[c] * r[c]).sum::<f64>() / n).sqrt()
+        })
+    }
+}
+
+/// Why a diagnosis failed.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    /// The fit failed.
+    #[error(transparent)]
+    Calibrate(#[from] CalibrateError),
+    /// An unknown effect.
+    #[error(transparent)]
+    Unknown(#[from] robimu_model::effects::UnknownEffect),
+    /// The information matrix is singular (an effect is not determined by the data).
+    #[error("the information about the effect parameters is singular: {0}")]
+    Singular(String),
+}
+
+impl From<robimu_solver::problem::ProblemError> for DiagnoseError {
+    fn from(e: robimu_solver::problem::ProblemError) -> Self {
+        Self::Calibrate(e.into())
+    }
+}
+
+/// The session-level setup of the catalogue for `data` (default resonance mode).
+pub fn setup_for(robot: &Robot, data: &Measurements, mass: Option<MassModel>) -> CatalogueSetup {
+    setup_with(robot, data, mass, Mode::default())
+}
+
+/// [`setup_for`] with the resonance effect's mode.
+pub fn setup_with(
+    robot: &Robot,
+    data: &Measurements,
+    mass: Option<MassModel>,
+    mode: Mode,
+) -> CatalogueSetup {
+    let t0 = data.imu_t.first().copied().unwrap_or(0.0);
+    let t1 = data.imu_t.last().copied().unwrap_or(0.0);
+    // the recorded joints as the calibration first fits them (default knots)
+    let opts = CalibrateOptions::new(robot);
+    let joints = (!data.joint_t.is_empty())
+        .then(|| choose_knots(data, robot.dof(), &opts.sigma_q, opts.degree, None).ok())
+        .flatten();
+    let mut setup = CatalogueSetup::new(
+        SessionSpan { t0, t1 },
+        mass.unwrap_or_else(|| MassModel::for_robot(robot)),
+        robot.gravity(),
+        None,
+    );
+    setup.set_joints(mode, joints.as_ref().map(|f| &f.spline));
+    setup
+}
+
+/// The effect set of `names` (catalogue order as given).
+pub fn effect_set(setup: &CatalogueSetup, names: &[String]) -> Result<EffectSet, DiagnoseError> {
+    let mut set = EffectSet::new();
+    for n in names {
+        set.push(effects::by_name(setup, n)?);
+    }
+    Ok(set)
+}
+
+fn problem_options(opts: &CalibrateOptions) -> ProblemOptions {
+    ProblemOptions {
+        sigma_q: opts.sigma_q.clone(),
+        sigma_z: opts.sigma_z,
+        use_prior: opts.use_prior,
+        frozen: opts.frozen.clone(),
+    }
+}
+
+/// Fit the baseline plus `names` effects. With `start` (a fit whose effects
+/// are a prefix of `names`), start from it (new effect parameters at 0, same
+/// knots); else as [`super::calibrate::calibrate`]: spline fit, τ search,
+/// nominal x.
+pub fn fit(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &CatalogueSetup,
+    names: &[String],
+    start: Option<&Fit>,
+    x_start: Option<&[f64]>,
+) -> Result<Fit, DiagnoseError> {
+    check_measurements(robot, data)?;
+    let layout = ParamLayout::new(robot);
+    let set = effect_set(setup, names)?;
+    let popts = problem_options(opts);
+    let (knots, spline, x0, prev_theta) = match start {
+        Some(f) => (
+            f.trajectory.knots().clone(),
+            f.trajectory.clone(),
+            f.x.clone(),
+            Some(f.theta.clone()),
+        ),
+        None => {
+            let n = robot.dof();
+            let tf = choose_knots(data, n, &opts.sigma_q, opts.degree, opts.knot_spacing)
+                .map_err(CalibrateError::from)?;
+            let mut x0 = x_start.map_or_else(|| layout.nominal(), |x| x.to_vec());
+            let tau_at = layout.offsets().tau;
+            let search = opts.tau_search.as_ref().filter(|_| x_start.is_none());
+            if let (Some(search), false) = (search, opts.frozen.contains(&tau_at)) {
+                let model =
+                    MeasurementModel::new(robot, &layout, &x0).map_err(CalibrateError::from)?;
+                let gyro: Vec<[f64; 3]> = data.imu_z.iter().map(|z| [z[3], z[4], z[5]]).collect();
+                let est = find_tau(&model, &tf.spline, &data.imu_t, &gyro, search)
+                    .map_err(CalibrateError::from)?;
+                x0[tau_at] = est.tau;
+            }
+            (tf.knots, tf.spline, x0, None)
+        }
+    };
+    let mut problem =
+        Problem::new(robot, &layout, data, knots, x0.clone(), &popts)?.with_effects(&set);
+    let mut theta0 = problem.theta(&spline, &x0);
+    if let Some(prev) = prev_theta {
+        theta0[..prev.len()].copy_from_slice(&prev);
+    }
+    let sol =
+        solver::solve(&mut problem, theta0, &opts.lm, |_| {}).map_err(CalibrateError::from)?;
+    if !sol.summary.termination.converged() {
+        return Err(CalibrateError::NotConverged {
+            summary: Box::new(sol.summary),
+        }
+        .into());
+    }
+    problem.begin_iteration(&sol.theta)?;
+    let cost = problem.cost(&sol.theta)?;
+    let x = problem.x_of(&sol.theta);
+    let active = problem.active().to_vec();
+    let na = active.len();
+    let cov = sol.factor.covariance_x();
+    let mut sigma_x = vec![0.0; layout.len()];
+    for (a, &k) in active.iter().enumerate() {
+        sigma_x[k] = cov[(a, a)].max(0.0).sqrt();
+    }
+    let ne = set.len();
+    let sigma_e = (0..ne)
+        .map(|e| cov[(na + e, na + e)].max(0.0).sqrt())
+        .collect();
+    let theta_e = problem.effect_params_of(&sol.theta).to_vec();
+    let residuals = problem.imu_residuals(&sol.theta)?;
+    Ok(Fit {
+        effects: names.to_vec(),
+        x,
+        sigma_x,
+        trajectory: problem.spline_of(&sol.theta),
+        theta: sol.theta,
+        theta_e,
+        sigma_e,
+        effect_params: set.params().to_vec(),
+        cost,
+        residuals,
+    })
+}
+
+/// gᵀ A⁻¹ g of the problem with `names` effects at θ.
+fn quadratic_score(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &CatalogueSetup,
+    names: &[String],
+    at: &Fit,
+) -> Result<f64, DiagnoseError> {
+    let layout = ParamLayout::new(robot);
+    let set = effect_set(setup, names)?;
+    let popts = problem_options(opts);
+    let mut problem = Problem::new(
+        robot,
+        &layout,
+        data,
+        at.trajectory.knots().clone(),
+        at.x.clone(),
+        &popts,
+    )?
+    .with_effects(&set);
+    let mut theta = problem.theta(&at.trajectory, &at.x);
+    theta[..at.theta.len()].copy_from_slice(&at.theta);
+    problem.begin_iteration(&theta)?;
+    let mut a = problem.new_matrix();
+    let mut g = vec![0.0; theta.len()];
+    problem.linearize(&theta, &mut a, &mut g)?;
+    let factor = a
+        .factor()
+        .map_err(|e| DiagnoseError::Singular(format!("{}: {e}", names.join("+"))))?;
+    let mut sol = g.clone();
+    factor.solve_in_place(&mut sol);
+    Ok(g.iter().zip(&sol).map(|(a, b)| a * b).sum())
+}
+
+/// The outcome of one score test.
+#[derive(Debug, Clone, Serialize)]
+pub struct Score {
+    /// Effect name.
+    pub name: String,
+    /// Rao score statistic.
+    pub statistic: f64,
+    /// Degrees of freedom k (parameters of the effect).
+    pub dof: usize,
+    /// P(χ²_k > statistic).
+    pub p_value: f64,
+}
+
+/// Score every effect of `candidates` at the fit `at` (no refit).
+pub fn score_all(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &CatalogueSetup,
+    at: &Fit,
+    candidates: &[String],
+) -> Result<Vec<Score>, DiagnoseError> {
+    let base = quadratic_score(robot, data, opts, setup, &at.effects, at)?;
+    let mut out = Vec::new();
+    for c in candidates {
+        let mut names = at.effects.clone();
+        names.push(c.clone());
+        let dof = effects::by_name(setup, c)?.params().len();
+        let s = quadratic_score(robot, data, opts, setup, &names, at)?;
+        let statistic = (s - base).max(0.0);
+        out.push(Score {
+            name: c.clone(),
+            statistic,
+            dof,
+            p_value: chi2_sf(statistic, dof as f64),
+        });
+    }
+    out.sort_by(|a, b| {
+        a.p_value
+            .total_cmp(&b.p_value)
+            .then(b.statistic.total_cmp(&a.statistic))
+    });
+    Ok(out)
+}
+
+/// P(χ²_k > x): the regularised upper incomplete gamma Q(k/2, x/2)
+/// (series for x < a+1, Lentz continued fraction otherwise; Numerical
+/// Recipes §6.2), evaluated in log space so tiny p-values do not underflow early.
+pub fn chi2_sf(x: f64, k: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let (a, x) = (0.5 * k, 0.5 * x);
+    let lg = ln_gamma(a);
+    if x < a + 1.0 {
+        let (mut sum, mut del, mut ap) = (1.0 / a, 1.0 / a, a);
+        for _ in 0..10_000 {
+            ap += 1.0;
+            del *= x / ap;
+            sum += del;
+            if del.abs() < sum.abs() * 1e-16 {
+                break;
+            }
+        }
+        1.0 - (sum.ln() - x + a * x.ln() - lg).exp()
+    } else {
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..10_000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-16 {
+                break;
+            }
+        }
+        (h.ln() - x + a * x.ln() - lg).exp()
+    }
+}
+
+/// ln Γ(a), a > 0 (Lanczos, g = 7, n = 9; relative error ~1e-15).
+#[allow(clippy::excessive_precision)] // the published coefficients, verbatim
+pub fn ln_gamma(a: f64) -> f64 {
+    const G: [f64; 9] = [
+        0.99999999999980993,
+        676.5203681218851,
+        -1259.1392167224028,
+        771.32342877765313,
+        -176.61502916214059,
+        12.507343278686905,
+        -0.13857109526572012,
+        9.9843695780195716e-6,
+        1.5056327351493116e-7,
+    ];
+    if a < 0.5 {
+        let pi = std::f64::consts::PI;
+        return (pi / (pi * a).sin()).ln() - ln_gamma(1.0 - a);
+    }
+    let a = a - 1.0;
+    let mut s = G[0];
+    for (i, g) in G.iter().enumerate().skip(1) {
+        s += g / (a + i as f64);
+    }
+    let t = a + 7.5;
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (a + 0.5) * t.ln() - t + s.ln()
+}
+
+/// Residual statistics of one fit (whitened residuals; see the module doc).
+#[derive(Debug, Clone, Serialize)]
+pub struct ResidualStats {
+    /// IMU samples.
+    pub samples: usize,
+    /// RMS per channel (1 = at the noise model).
+    pub rms: BTreeMap<String, f64>,
+    /// Σ r² per channel.
+    pub chi2: BTreeMap<String, f64>,
+    /// Σ r² over all channels, and its degrees of freedom (6 × samples).
+    pub chi2_total: (f64, usize),
+    /// Ljung–Box statistic (20 lags) and its p-value per channel.
+    pub ljung_box: BTreeMap<String, (f64, f64)>,
+    /// Largest Welch-periodogram peak per channel: (frequency Hz, power
+    /// relative to the channel's median).
+    pub spectral_peak: BTreeMap<String, (f64, f64)>,
+    /// Per channel: the tenth of the session with the largest RMS (start s,
+    /// RMS relative to the channel's).
+    pub worst_window: BTreeMap<String, (f64, f64)>,
+    /// Per channel: the regressor with the largest |correlation| (name, r, z = r√N).
+    pub top_regressor: BTreeMap<String, (String, f64, f64)>,
+}
+
+/// Ljung–Box lags.
+pub const LJUNG_BOX_LAGS: usize = 20;
+/// Welch segment length (samples).
+const SEGMENT: usize = 512;
+
+/// Residual statistics of `fit` on `data` (`rate` the IMU rate, Hz, for
+/// the spectrum; τ from the fit).
+///
+/// The candidate regressors, evaluated at each IMU sample on the fitted
+/// trajectory (at t + τ) with the fitted x:
+///
+/// ```text
+/// time                    t, s
+/// q1.. qd1.. qdd1..       joint angles, rates, accelerations (rad, rad/s, rad/s²)
+/// wx wy wz, sx sy sz      angular rate ω and specific force s at the IMU (sensor frame)
+/// tg1..tgN                gravity torque per joint, N·m (setup's mass model and g0)
+/// temp                    sensor temperature, °C (only when the session recorded it)
+/// ```
+pub fn residual_stats(
+    robot: &Robot,
+    data: &Measurements,
+    setup: &CatalogueSetup,
+    fit: &Fit,
+) -> ResidualStats {
+    let layout = ParamLayout::new(robot);
+    let res = &fit.residuals;
+    let n = res.len().max(1);
+    let ts: Vec<f64> = res.iter().map(|(i, _)| data.imu_t[*i]).collect();
+    let rate = if ts.len() > 1 {
+        (ts.len() - 1) as f64 / (ts[ts.len() - 1] - ts[0]).max(1e-9)
+    } else {
+        1.0
+    };
+    let tau = fit.x[layout.offsets().tau];
+    let model = MeasurementModel::new(robot, &layout, &fit.x).ok();
+    // regressors at each sample
+    let dof = robot.dof();
+    let mut reg_names: Vec<String> = vec!["time".into()];
+    for j in 1..=dof {
+        for k in ["q", "qd", "qdd"] {
+            reg_names.push(format!("{k}{j}"));
+        }
+    }
+    for k in ["wx", "wy", "wz", "sx", "sy", "sz"] {
+        reg_names.push(k.into());
+    }
+    let gravity = setup.mass.dof() == dof;
+    if gravity {
+        reg_names.extend((1..=dof).map(|j| format!("tg{j}")));
+    }
+    let temp = data
+        .imu_temp
+        .as_deref()
+        .filter(|c| c.len() == data.imu_t.len());
+    if temp.is_some() {
+        reg_names.push("temp".into());
+    }
+    let regs: Vec<Vec<f64>> = res
+        .iter()
+        .map(|(i, _)| {
+            let mut js = JointState::default();
+            let t = data.imu_t[*i];
+            let u = (t + tau).clamp(fit.trajectory.knots().start(), fit.trajectory.knots().end());
+            let _ = fit.trajectory.evaluate(u, &mut js);
+            let mut v = vec![t];
+            for j in 0..dof {
+                v.extend([js.q[j], js.qd[j], js.qdd[j]]);
+            }
+            if let Some(m) = &model {
+                let (_, w, s) = m.inertial(&js);
+                v.extend(w);
+                v.extend(s);
+            } else {
+                v.extend([0.0; 6]);
+            }
+            if gravity {
+                v.extend(setup.mass.gravity_torques(&js.q[..dof], setup.g0));
+            }
+            if let Some(c) = temp {
+                v.push(c[*i]);
+            }
+            v
+        })
+        .collect();
+    let mut out = ResidualStats {
+        samples: res.len(),
+        rms: BTreeMap::new(),
+        chi2: BTreeMap::new(),
+        chi2_total: (0.0, 6 * res.len()),
+        ljung_box: BTreeMap::new(),
+        spectral_peak: BTreeMap::new(),
+        worst_window: BTreeMap::new(),
+        top_regressor: BTreeMap::new(),
+    };
+    for (c, name) in CHANNELS.iter().enumerate() {
+        let r: Vec<f64> = res.iter().map(|(_, v)| v[c]).collect();
+        let ss: f64 = r.iter().map(|v| v * v).sum();
+        out.chi2_total.0 += ss;
+        let rms = (ss / n as f64).sqrt();
+        out.rms.insert(name.to_string(), rms);
+        out.chi2.insert(name.to_string(), ss);
+        out.ljung_box
+            .insert(name.to_string(), ljung_box(&r, LJUNG_BOX_LAGS));
+        let spec = welch(&r, rate);
+        let mut powers: Vec<f64> = spec.iter().map(|p| p.1).collect();
+        powers.sort_by(f64::total_cmp);
+        let median = powers
+            .get(powers.len() / 2)
+            .copied()
+            .unwrap_or(1.0)
+            .max(1e-300);
+        if let Some(&(f, p)) = spec.iter().skip(1).max_by(|a, b| a.1.total_cmp(&b.1)) {
+            out.spectral_peak.insert(name.to_string(), (f, p / median));
+        }
+        let w = (r.len() / 10).max(1);
+        let mut worst = (0.0, 0.0);
+        for (k, chunk) in r.chunks(w).enumerate() {
+            let wr = (chunk.iter().map(|v| v * v).sum::<f64>() / chunk.len() as f64).sqrt();
+            if wr > worst.1 {
+                worst = (ts[k * w], wr);
+            }
+        }
+        out.worst_window
+            .insert(name.to_string(), (worst.0, worst.1 / rms.max(1e-300)));
+        let mut best = (String::new(), 0.0f64);
+        for (g, gname) in reg_names.iter().enumerate() {
+            let x: Vec<f64> = regs.iter().map(|v| v[g]).collect();
+            let corr = correlation(&x, &r);
+            if corr.abs() > best.1.abs() {
+                best = (gname.clone(), corr);
+            }
+        }
+        out.top_regressor.insert(
+            name.to_string(),
+            (best.0, best.1, best.1 * (n as f64).sqrt()),
+        );
+    }
+    out
+}
+
+/// Pearson correlation (0 when either series is constant: tested exactly,
+/// since the rounded mean of a constant series such as a recorded 24.7 °C
+/// leaves deviations of one ulp that would otherwise give a spurious r).
+fn correlation(x: &[f64], y: &[f64]) -> f64 {
+    let constant = |s: &[f64]| s.windows(2).all(|w| w[0] == w[1]);
+    if constant(x) || constant(y) {
+        return 0.0;
+    }
+    let n = x.len().max(1) as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for (a, b) in x.iter().zip(y) {
+        sxy += (a - mx) * (b - my);
+        sxx += (a - mx) * (a - mx);
+        syy += (b - my) * (b - my);
+    }
+    if sxx <= 0.0 || syy <= 0.0 {
+        0.0
+    } else {
+        sxy / (sxx * syy).sqrt()
+    }
+}
+
+/// RMS of `r` over consecutive windows of about `window` seconds (the
+/// residual plot of `robimu diagnose`): the span of `t` (non-decreasing, each
+/// sample's time) is cut into round(span / window) equal windows, so the
+/// last one is not a stub; one (mean sample time, RMS) per window that holds
+/// samples.
+pub fn windowed_rms(t: &[f64], r: &[f64], window: f64) -> Vec<(f64, f64)> {
+    let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
+        return Vec::new();
+    };
+    let span = t1 - t0;
+    let count = if window > 0.0 && span > 0.0 {
+        (span / window).round().max(1.0)
+    } else {
+        1.0
+    };
+    let width = if span > 0.0 { span / count } else { 1.0 };
+    let mut out = Vec::new();
+    let (mut key, mut st, mut ss, mut n) = (0.0, 0.0, 0.0, 0usize);
+    for (&ti, &ri) in t.iter().zip(r) {
+        let k = ((ti - t0) / width).floor().min(count - 1.0);
+        if k != key && n > 0 {
+            out.push((st / n as f64, (ss / n as f64).sqrt()));
+            (st, ss, n) = (0.0, 0.0, 0);
+        }
+        key = k;
+        st += ti;
+        ss += ri * ri;
+        n += 1;
+    }
+    if n > 0 {
+        out.push((st / n as f64, (ss / n as f64).sqrt()));
+    }
+    out
+}
+
+/// Ljung–Box Q over `lags` lags and its p-value (χ² with `lags` dof).
+pub fn ljung_box(r: &[f64], lags: usize) -> (f64, f64) {
+    let n = r.len();
+    if n <= lags + 1 {
+        return (0.0, 1.0);
+    }
+    let m = r.iter().sum::<f64>() / n as f64;
+    let c0: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
+    if c0 <= 0.0 {
+        return (0.0, 1.0);
+    }
+    let mut q = 0.0;
+    for k in 1..=lags {
+        let ck: f64 = (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum();
+        let rho = ck / c0;
+        q += rho * rho / (n - k) as f64;
+    }
+    q *= n as f64 * (n as f64 + 2.0);
+    (q, chi2_sf(q, lags as f64))
+}
+
+/// Welch periodogram (Hann window, 50 % overlap, segments of 512): (frequency
+/// Hz, power density) for frequencies 0..rate/2.
+pub fn welch(r: &[f64], rate: f64) -> Vec<(f64, f64)> {
+    let seg = SEGMENT.min(r.len());
+    if seg < 8 {
+        return Vec::new();
+    }
+    let bins = seg / 2 + 1;
+    let win: Vec<f64> = (0..seg)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / seg as f64).cos())
+        .collect();
+    let wss: f64 = win.iter().map(|w| w * w).sum();
+    let mut p = vec![0.0; bins];
+    let mut count = 0;
+    let mut start = 0;
+    // twiddles
+    let (cs, sn): (Vec<f64>, Vec<f64>) = (0..seg)
+        .map(|i| {
+            let a = 2.0 * std::f64::consts::PI * i as f64 / seg as f64;
+            (a.cos(), a.sin())
+        })
+        .unzip();
+    while start + seg <= r.len() {
+        let x: Vec<f64> = (0..seg).map(|i| r[start + i] * win[i]).collect();
+        for (k, pk) in p.iter_mut().enumerate() {
+            let (mut re, mut im) = (0.0, 0.0);
+            for (i, xi) in x.iter().enumerate() {
+                let idx = (k * i) % seg;
+                re += xi * cs[idx];
+                im -= xi * sn[idx];
+            }
+            *pk += (re * re + im * im) / (wss * rate);
+        }
+        count += 1;
+        start += seg / 2;
+    }
+    p.iter()
+        .enumerate()
+        .map(|(k, v)| (k as f64 * rate / seg as f64, v / count.max(1) as f64))
+        .collect()
+}
+
+/// One effect added by the diagnosis.
+#[derive(Debug, Clone, Serialize)]
+pub struct FoundEffect {
+    /// Effect name.
+    pub name: String,
+    /// Score statistic at the fit before it was added.
+    pub statistic: f64,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Score p-value.
+    pub p_value: f64,
+    /// Likelihood-ratio statistic of the refit, 2 (J_before − J_after).
+    pub lr_statistic: f64,
+    /// LR p-value.
+    pub lr_p_value: f64,
+    /// ΔBIC = −LR + k ln N (negative favours the effect).
+    pub delta_bic: f64,
+    /// Whitened residual RMS per channel before and after adding it.
+    pub rms_before: [f64; 6],
+    /// After.
+    pub rms_after: [f64; 6],
+    /// Its parameters: (name, SI unit, value, σ) right after it was added.
+    pub parameters: Vec<(String, String, f64, f64)>,
+    /// Baseline parameters that moved by more than 1 σ when it was added:
+    /// (name, before, after, σ after).
+    pub baseline_moves: Vec<(String, f64, f64, f64)>,
+    /// All scores of that round, best first.
+    pub scores: Vec<Score>,
+}
+
+/// Diagnosis settings.
+#[derive(Debug, Clone)]
+pub struct DiagnoseOptions {
+    /// Family-wise significance level α (Bonferroni over the catalogue).
+    pub alpha: f64,
+    /// Candidates considered (default: the whole catalogue).
+    pub candidates: Vec<String>,
+    /// Most effects added.
+    pub max_effects: usize,
+    /// Start the baseline fit from this x (e.g. a loaded calibration; no τ search).
+    pub x_start: Option<Vec<f64>>,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        Self {
+            alpha: 0.01,
+            candidates: effects::NAMES.iter().map(|s| s.to_string()).collect(),
+            max_effects: effects::NAMES.len(),
+            x_start: None,
+        }
+    }
+}
+
+/// The outcome of [`diagnose`].
+#[derive(Debug, Clone)]
+pub struct Diagnosis {
+    /// The baseline fit.
+    pub baseline: Fit,
+    /// The final fit (baseline + every effect found).
+    pub final_fit: Fit,
+    /// Effects in the order they were added.
+    pub found: Vec<FoundEffect>,
+    /// The scores of the last round (none significant), best first.
+    pub last_scores: Vec<Score>,
+    /// Bonferroni threshold α/K used.
+    pub threshold: f64,
+    /// Residual statistics before and after.
+    pub stats_before: ResidualStats,
+    /// After.
+    pub stats_after: ResidualStats,
+    /// σ_z used (to display residuals in physical units).
+    pub sigma_z: [f64; 6],
+}
+
+/// Diagnose `data`: baseline fit, then add significant effects one at a time
+/// (see the module doc).
+pub fn diagnose(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &CatalogueSetup,
+    dopts: &DiagnoseOptions,
+    mut progress: impl FnMut(&str),
+) -> Result<Diagnosis, DiagnoseError> {
+    let layout = ParamLayout::new(robot);
+    let threshold = dopts.alpha / dopts.candidates.len().max(1) as f64;
+    progress("fitting the baseline model");
+    let baseline = fit(
+        robot,
+        data,
+        opts,
+        setup,
+        &[],
+        None,
+        dopts.x_start.as_deref(),
+    )?;
+    let mut current = baseline.clone();
+    let mut found = Vec::new();
+    let n_res = 6.0 * baseline.residuals.len() as f64;
+    let last_scores = loop {
+        let candidates: Vec<String> = dopts
+            .candidates
+            .iter()
+            .filter(|c| !current.effects.contains(c))
+            .cloned()
+            .collect();
+        if candidates.is_empty() || found.len() >= dopts.max_effects {
+            break Vec::new();
+        }
+        progress("scoring the candidate effects");
+        let scores = score_all(robot, data, opts, setup, &current, &candidates)?;
+        let best = scores[0].clone();
+        if best.p_value >= threshold {
+            break scores;
+        }
+        progress(&format!("refitting with {}", best.name));
+        let mut names = current.effects.clone();
+        names.push(best.name.clone());
+        let next = fit(robot, data, opts, setup, &names, Some(&current), None)?;
+        let lr = 2.0 * (current.cost - next.cost);
+        let lr_p = chi2_sf(lr, best.dof as f64);
+        if lr_p >= threshold {
+            break scores;
+        }
+        let ne_prev = current.theta_e.len();
+        let parameters = (ne_prev..next.theta_e.len())
+            .map(|e| {
+                let p = &next.effect_params[e];
+                (
+                    p.name.clone(),
+                    p.unit.to_string(),
+                    next.theta_e[e],
+                    next.sigma_e[e],
+                )
+            })
+            .collect();
+        let baseline_moves = layout
+            .specs()
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| {
+                next.sigma_x[*k] > 0.0 && (next.x[*k] - current.x[*k]).abs() > next.sigma_x[*k]
+            })
+            .map(|(k, s)| (s.name.clone(), current.x[k], next.x[k], next.sigma_x[k]))
+            .collect();
+        found.push(FoundEffect {
+            name: best.name.clone(),
+            statistic: best.statistic,
+            dof: best.dof,
+            p_value: best.p_value,
+            lr_statistic: lr,
+            lr_p_value: lr_p,
+            delta_bic: -lr + best.dof as f64 * n_res.ln(),
+            rms_before: current.residual_rms(),
+            rms_after: next.residual_rms(),
+            parameters,
+            baseline_moves,
+            scores,
+        });
+        current = next;
+    };
+    let stats_before = residual_stats(robot, data, setup, &baseline);
+    let stats_after = residual_stats(robot, data, setup, &current);
+    Ok(Diagnosis {
+        baseline,
+        final_fit: current,
+        found,
+        last_scores,
+        threshold,
+        stats_before,
+        stats_after,
+        sigma_z: opts.sigma_z,
+    })
+}
+
+/// Add the exact effect terms of `injected` to simulated IMU samples (each
+/// effect's [`Effect::exact`] minus the baseline; several effects superpose,
+/// their second-order cross terms left out). `data` came from
+/// [`super::simulate::simulate`] with the same truth and trajectory; the
+/// joint samples (the encoder readings) are unchanged.
+pub fn inject_effects(
+    robot: &Robot,
+    truth: &[f64],
+    trajectory: &Spline,
+    data: &mut Measurements,
+    injected: &[(Box<dyn Effect>, Vec<f64>)],
+) -> Result<(), robimu_model::ModelError> {
+    let layout = ParamLayout::new(robot);
+    let model = MeasurementModel::new(robot, &layout, truth)?;
+    let tau = truth[layout.offsets().tau];
+    let traj = effects::trajectory_fn(trajectory);
+    for (t, z) in data.imu_t.iter().zip(data.imu_z.iter_mut()) {
+        let ctx = effects::ExactContext {
+            t: *t,
+            tau,
+            model: &model,
+            trajectory: &traj,
+        };
+        let base = ctx.baseline();
+        for (e, theta) in injected {
+            let ze = e.exact(&ctx, theta, &layout);
+            for c in 0..6 {
+                z[c] += ze[c] - base[c];
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The JSON of a fit: every parameter of x and every effect parameter (SI, with σ).
+pub fn fit_json(layout: &ParamLayout, f: &Fit) -> serde_json::Value {
+    let params: Vec<serde_json::Value> = layout
+        .specs()
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            serde_json::json!({"name": s.name, "unit": s.unit.to_string(), "value": f.x[k], "sigma": f.sigma_x[k]})
+        })
+        .collect();
+    let eff: Vec<serde_json::Value> = f
+        .effect_params
+        .iter()
+        .enumerate()
+        .map(|(e, p)| {
+            serde_json::json!({"name": p.name, "unit": p.unit, "value": f.theta_e[e], "sigma": f.sigma_e[e]})
+        })
+        .collect();
+    serde_json::json!({"effects": f.effects, "parameters": params, "effect_parameters": eff})
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// χ² upper-tail probabilities against tabulated quantiles.
+    #[test]
+    fn chi2_sf_matches_tables() {
+        for (x, k, p) in [
+            (3.841458820694124, 1.0, 0.05),
+            (6.634896601021214, 1.0, 0.01),
+            (18.307038053275146, 10.0, 0.05),
+            (26.21696730553585, 12.0, 0.01),
+            (2.705543454095404, 1.0, 0.10),
+            (0.1148318018, 3.0, 0.99),
+        ] {
+            let got = chi2_sf(x, k);
+            assert!(
+                (got - p).abs() < 1e-8 * p.max(1e-3) + 1e-9,
+                "χ²({k}) > {x}: {got} vs {p}"
+            );
+        }
+        assert!((ln_gamma(5.0) - 24f64.ln()).abs() < 1e-12);
+        assert!((ln_gamma(0.5) - std::f64::consts::PI.sqrt().ln()).abs() < 1e-12);
+    }
+
+    /// Ljung–Box: white noise passes, an AR(1) series fails.
+    #[test]
+    fn ljung_box_separates_white_from_correlated() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let white: Vec<f64> = (0..5000).map(|_| StandardNormal.sample(&mut rng)).collect();
+        let mut ar = vec![0.0; 5000];
+        for i in 1..5000 {
+            ar[i] = 0.2 * ar[i - 1] + white[i];
+        }
+        assert!(ljung_box(&white, 20).1 > 1e-3);
+        assert!(ljung_box(&ar, 20).1 < 1e-10);
+    }
+
+    /// A constant regressor (a steady temperature) has correlation 0, not
+    /// NaN and not rounding noise, even when its mean is not exact in binary.
+    #[test]
+    fn constant_series_have_zero_correlation() {
+        let y: Vec<f64> = (0..1000)
+            .map(|i| ((i * 7919) % 101) as f64 - 50.0)
+            .collect();
+        for c in [25.0, 24.7, 0.1, -1e-300] {
+            let x = vec![c; y.len()];
+            let n = x.len() as f64;
+            let mean = x.iter().sum::<f64>() / n;
+            println!("{c}: mean off by {:e}", mean - c);
+            assert_eq!(correlation(&x, &y), 0.0, "{c}");
+            assert_eq!(correlation(&y, &x), 0.0, "{c}");
+        }
+        // an independent check of the non-constant case: y against 2y + 1
+        let x: Vec<f64> = y.iter().map(|v| 2.0 * v + 1.0).collect();
+        assert!((correlation(&x, &y) - 1.0).abs() < 1e-12);
+        let x: Vec<f64> = y.iter().map(|v| -v).collect();
+        assert!((correlation(&x, &y) + 1.0).abs() < 1e-12);
+    }
+
+    /// Windowed RMS: equal windows from the first sample to the last, each
+    /// the RMS of its own samples at their mean time.
+    #[test]
+    fn windowed_rms_of_known_series() {
+        // 10 Hz for 3 s; first second ±1, second 3, third alternating ±2
+        let t: Vec<f64> = (0..30).map(|i| 0.1 * i as f64).collect();
+        let r: Vec<f64> = (0..30)
+            .map(|i| match i / 10 {
+                0 => [1.0, -1.0][i % 2],
+                1 => 3.0,
+                _ => [2.0, -2.0][i % 2],
+            })
+            .collect();
+        let w = windowed_rms(&t, &r, 1.0);
+        assert_eq!(w.len(), 3, "{w:?}");
+        for (k, (tm, rms)) in w.iter().enumerate() {
+            assert!((tm - (k as f64 + 0.45)).abs() < 1e-9, "{w:?}");
+            assert!((rms - [1.0, 3.0, 2.0][k]).abs() < 1e-12, "{w:?}");
+        }
+        // 2.9 s span in windows of ~1.2 s: two of 1.45 s (15 samples each)
+        let w = windowed_rms(&t, &r, 1.2);
+        assert_eq!(w.len(), 2, "{w:?}");
+        let second: f64 = r[15..].iter().map(|v| v * v).sum::<f64>() / 15.0;
+        assert!((w[1].1 - second.sqrt()).abs() < 1e-12, "{w:?}");
+        assert_eq!(windowed_rms(&t, &r, 10.0).len(), 1);
+        assert_eq!(windowed_rms(&[3.0], &[-2.0], 1.0), [(3.0, 2.0)]);
+        assert!(windowed_rms(&[], &[], 1.0).is_empty());
+    }
+
+    /// The Welch periodogram puts a sinusoid's power at its frequency.
+    #[test]
+    fn welch_peak_is_at_the_sinusoid() {
+        let rate = 120.0;
+        let r: Vec<f64> = (0..4000)
+            .map(|i| (2.0 * std::f64::consts::PI * 7.3 * i as f64 / rate).sin())
+            .collect();
+        let spec = welch(&r, rate);
+        let peak = spec.iter().max_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+        assert!((peak.0 - 7.3).abs() < rate / 512.0, "peak at {} Hz", peak.0);
+    }
+}

@@ -1,0 +1,253 @@
+//! Identifiability studies of a trajectory (paper §8.2, §8.4): posterior σ
+//! against trajectory length (Fig. 6), the robot length parameters against
+//! speed (Fig. 8), a plan against random trajectories (Fig. 5), the
+//! approximation (26) against the estimator's covariance (24), and a Monte
+//! Carlo check that the predicted gain in precision is real.
+
+use faer::Mat;
+use rand::{Rng, SeedableRng};
+
+use super::calibrate::{calibrate, CalibrateError, CalibrateOptions};
+use super::plan::information::{
+    covariance, lambda_max, robot_lengths, without_robot_lengths, Information, Sampling,
+};
+use super::plan::random_uniform;
+use super::simulate::{simulate, SimulateOptions};
+use robimu_model::params::draw_truth;
+use robimu_model::trajectory::random_walk;
+use robimu_model::{ModelError, ParamLayout, Robot, Spline, SplineError};
+
+/// Posterior σ of every parameter at `times` (s from the start), all samples.
+pub fn sigma_vs_time(info: &Information, spline: &Spline, step: f64) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let (t0, t1) = (spline.knots().start(), spline.knots().end());
+    let all: Vec<usize> = (0..info.dim()).collect();
+    let mut lam = info.prior();
+    let mut times = Vec::new();
+    let mut sigmas = Vec::new();
+    let mut a = t0;
+    while a < t1 {
+        let b = (a + step).min(t1);
+        let last = b >= t1;
+        info.accumulate(spline, a, b, last, 1.0, Sampling::Exact, &mut lam);
+        if let Some(cov) = covariance(&lam, &all) {
+            times.push(b - t0);
+            sigmas.push(
+                (0..all.len())
+                    .map(|k| cov[(k, k)].max(0.0).sqrt())
+                    .collect(),
+            );
+        }
+        a = b;
+    }
+    (times, sigmas)
+}
+
+/// λ_max(Σ_x) (all parameters, and robot lengths known) at every `step` s.
+pub fn lambda_vs_time(info: &Information, spline: &Spline, step: f64) -> Vec<(f64, f64, f64)> {
+    let (t0, t1) = (spline.knots().start(), spline.knots().end());
+    let all: Vec<usize> = (0..info.dim()).collect();
+    let nl = without_robot_lengths(info.layout());
+    let mut lam = info.prior();
+    let mut out = Vec::new();
+    let mut a = t0;
+    while a < t1 {
+        let b = (a + step).min(t1);
+        info.accumulate(spline, a, b, b >= t1, 1.0, Sampling::Exact, &mut lam);
+        out.push((b - t0, lambda_max(&lam, &all), lambda_max(&lam, &nl)));
+        a = b;
+    }
+    out
+}
+
+/// Posterior σ of the robot length parameters (names, then one row per
+/// speed) for copies of the trajectory played `speed` times faster, sampled
+/// `speed` times faster (equal sample count; paper Fig. 8).
+pub fn length_sigma_vs_speed(
+    info: &Information,
+    spline: &Spline,
+    speeds: &[f64],
+) -> (Vec<String>, Vec<Vec<f64>>) {
+    let lengths = robot_lengths(info.layout());
+    let all: Vec<usize> = (0..info.dim()).collect();
+    let names = lengths
+        .iter()
+        .map(|&k| info.layout().specs()[k].name.clone())
+        .collect();
+    let rows = speeds
+        .iter()
+        .map(|&s| {
+            let lam = info.total(spline, s, Sampling::Exact);
+            let cov = covariance(&lam, &all);
+            lengths
+                .iter()
+                .map(|&k| cov.as_ref().map_or(f64::NAN, |c| c[(k, k)].max(0.0).sqrt()))
+                .collect()
+        })
+        .collect();
+    (names, rows)
+}
+
+/// The two random baselines of one length and limits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Baseline {
+    /// Coefficients uniform within the position limits, then shrunk (paper §8.2).
+    Uniform,
+    /// A random walk of the coefficients near the velocity limit ([`random_walk`]).
+    RandomWalk,
+}
+
+/// A random trajectory of the kind `kind` (knots every 1 s, as the paper's).
+pub fn baseline<R: Rng>(
+    robot: &Robot,
+    kind: Baseline,
+    duration: f64,
+    rng: &mut R,
+) -> Result<Spline, SplineError> {
+    match kind {
+        Baseline::Uniform => random_uniform(robot, duration, 1.0, rng),
+        Baseline::RandomWalk => random_walk(robot, duration, 1.0, rng),
+    }
+}
+
+/// Median of a non-empty list (mean of the middle two for even length).
+pub fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let k = s.len();
+    if k == 0 {
+        return f64::NAN;
+    }
+    if k % 2 == 1 {
+        s[k / 2]
+    } else {
+        0.5 * (s[k / 2 - 1] + s[k / 2])
+    }
+}
+
+/// The approximation (26) against the estimator's Σ_x (24) on the same
+/// trajectory.
+#[derive(Clone, Debug)]
+pub struct ApproximationCheck {
+    /// ‖Σ_(24) − Σ_(26)‖_F, SI.
+    pub frobenius: f64,
+    /// ‖Σ_(24)‖_F, SI.
+    pub norm: f64,
+    /// Largest |σ_(24)/σ_(26) − 1| over the parameters.
+    pub max_sigma_ratio_error: f64,
+}
+
+/// Why the approximation could not be checked.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckError {
+    /// Simulation failed.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The estimator failed.
+    #[error(transparent)]
+    Calibrate(#[from] CalibrateError),
+    /// (26) is singular.
+    #[error("the approximate information matrix (26) is not positive definite")]
+    Singular,
+}
+
+/// Noise-free data at the nominal x on `spline` (joints and IMU at `rate`),
+/// calibrated with the trajectory knots every `knot_spacing` s; its Σ_x
+/// against (26) at the same rate.
+pub fn check_approximation(
+    robot: &Robot,
+    spline: &Spline,
+    rate: f64,
+    knot_spacing: f64,
+) -> Result<ApproximationCheck, CheckError> {
+    let layout = ParamLayout::new(robot);
+    let mut sim = SimulateOptions::paper(robot);
+    sim.imu_rate = rate;
+    sim.joint_rate = rate;
+    sim.noise = false;
+    let data = simulate(robot, &layout, &layout.nominal(), spline, &sim, 1)?;
+    let mut copts = CalibrateOptions::new(robot);
+    copts.knot_spacing = Some(knot_spacing);
+    copts.tau_search = None;
+    let cal = calibrate(robot, &data, &copts, |_| {})?;
+    let info = Information::new(robot, robot.sigma_z(), rate)?;
+    let all: Vec<usize> = (0..info.dim()).collect();
+    // the same samples the estimator used: t_k = k / rate over the span
+    let lam = info.total(spline, 1.0, Sampling::Exact);
+    let approx = covariance(&lam, &all).ok_or(CheckError::Singular)?;
+    let na = cal.active.len();
+    let mut diff = 0.0;
+    let mut norm = 0.0;
+    let mut worst = 0.0f64;
+    for i in 0..na {
+        for j in 0..na {
+            let (a, b) = (cal.active[i], cal.active[j]);
+            let full = cal.covariance[i * na + j];
+            diff += (full - approx[(a, b)]).powi(2);
+            norm += full * full;
+        }
+        let a = cal.active[i];
+        let r = cal.covariance[i * na + i].sqrt() / approx[(a, a)].sqrt();
+        worst = worst.max((r - 1.0).abs());
+    }
+    Ok(ApproximationCheck {
+        frobenius: diff.sqrt(),
+        norm: norm.sqrt(),
+        max_sigma_ratio_error: worst,
+    })
+}
+
+/// Monte Carlo errors on one trajectory: per run a truth drawn from the
+/// priors, a simulated session on `spline` (120 Hz, noisy), a calibration;
+/// returns the errors x̂ − x per run (SI).
+pub fn monte_carlo_errors(
+    robot: &Robot,
+    spline: &Spline,
+    runs: usize,
+    seed: u64,
+    mut progress: impl FnMut(usize),
+) -> Result<Vec<Vec<f64>>, CheckError> {
+    let layout = ParamLayout::new(robot);
+    let sim = SimulateOptions::paper(robot);
+    let copts = CalibrateOptions::new(robot);
+    let mut out = Vec::with_capacity(runs);
+    for r in 0..runs {
+        let s = seed.wrapping_add(r as u64);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(s);
+        let truth = draw_truth(&layout, &mut rng);
+        let data = simulate(robot, &layout, &truth, spline, &sim, s)?;
+        let cal = calibrate(robot, &data, &copts, |_| {})?;
+        out.push(cal.x.iter().zip(&truth).map(|(a, b)| a - b).collect());
+        progress(r + 1);
+    }
+    Ok(out)
+}
+
+/// Mean squared error along the unit vector `v` and in total, over runs.
+pub fn error_moments(errors: &[Vec<f64>], v: &[f64]) -> (f64, f64) {
+    let n = errors.len().max(1) as f64;
+    let along = errors
+        .iter()
+        .map(|e| e.iter().zip(v).map(|(a, b)| a * b).sum::<f64>().powi(2))
+        .sum::<f64>()
+        / n;
+    let total = errors
+        .iter()
+        .map(|e| e.iter().map(|a| a * a).sum::<f64>())
+        .sum::<f64>()
+        / n;
+    (along, total)
+}
+
+/// The eigenvector of Σ = Λ⁻¹ with the largest eigenvalue (that of Λ's smallest).
+pub fn worst_direction(info: &Mat<f64>) -> Vec<f64> {
+    match info.self_adjoint_eigen(faer::Side::Lower) {
+        Ok(evd) => {
+            let s = evd.S();
+            let k = (0..info.nrows())
+                .min_by(|&a, &b| s[a].total_cmp(&s[b]))
+                .unwrap_or(0);
+            (0..info.nrows()).map(|i| evd.U()[(i, k)]).collect()
+        }
+        Err(_) => vec![0.0; info.nrows()],
+    }
+}

@@ -1,0 +1,235 @@
+//! Monte Carlo consistency of the estimator (paper §8.3): per run, draw a
+//! truth from the priors, simulate a session, calibrate, and compare the
+//! error with the reported posterior covariance.
+//!
+//! A consistent estimator gives, for every parameter, error/σ with mean 0 and
+//! standard deviation 1, and a normalised estimation error squared
+//! NEES = eᵀ Σ⁻¹ e whose average over N runs of d parameters lies in the 95 %
+//! interval of χ²(N·d)/N.
+
+use super::calibrate::{calibrate, CalibrateError, CalibrateOptions};
+use super::simulate::{random_session, RandomSession, SimulateError, SimulateOptions};
+use faer::linalg::solvers::DenseSolveCore;
+use faer::Side;
+use robimu_model::{ParamLayout, Robot};
+
+/// Settings of a Monte Carlo study.
+#[derive(Debug, Clone)]
+pub struct MonteCarloOptions {
+    /// Number of runs.
+    pub runs: usize,
+    /// Session length, s.
+    pub duration: f64,
+    /// Base seed; run k uses seed + k.
+    pub seed: u64,
+    /// How sessions are sampled.
+    pub simulate: SimulateOptions,
+    /// How they are calibrated.
+    pub calibrate: CalibrateOptions,
+}
+
+/// One run.
+#[derive(Debug, Clone)]
+pub struct RunOutcome {
+    /// The run's seed.
+    pub seed: u64,
+    /// True x.
+    pub truth: Vec<f64>,
+    /// Estimated x.
+    pub estimate: Vec<f64>,
+    /// Posterior σ.
+    pub sigma: Vec<f64>,
+    /// NEES over the estimated parameters.
+    pub nees: f64,
+    /// LM iterations.
+    pub iterations: usize,
+}
+
+/// Per-parameter statistics of error/σ over the runs.
+#[derive(Debug, Clone)]
+pub struct ParamStats {
+    /// Parameter name.
+    pub name: String,
+    /// Mean of error/σ.
+    pub mean: f64,
+    /// Standard deviation of error/σ.
+    pub std: f64,
+}
+
+/// The study's result.
+#[derive(Debug, Clone)]
+pub struct MonteCarloResult {
+    /// Every run, in order.
+    pub runs: Vec<RunOutcome>,
+    /// Per estimated parameter.
+    pub stats: Vec<ParamStats>,
+    /// Average NEES.
+    pub nees_mean: f64,
+    /// 95 % interval of the average NEES of a consistent estimator.
+    pub nees_interval: (f64, f64),
+    /// Degrees of freedom of one NEES (estimated parameters).
+    pub dof: usize,
+}
+
+/// Why the study stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum MonteCarloError {
+    /// A run's calibration failed.
+    #[error("run {run} (seed {seed}): {source}")]
+    Run {
+        /// Run index.
+        run: usize,
+        /// Its seed.
+        seed: u64,
+        /// What failed.
+        #[source]
+        source: CalibrateError,
+    },
+    /// A session could not be simulated.
+    #[error(transparent)]
+    Simulate(#[from] SimulateError),
+}
+
+/// The p-quantile of χ²(k) by the Wilson–Hilferty approximation (relative
+/// error below 1e-4 for k ≥ 100, which is where it is used here).
+pub fn chi2_quantile(k: f64, p: f64) -> f64 {
+    let z = normal_quantile(p);
+    let a = 2.0 / (9.0 * k);
+    k * (1.0 - a + z * a.sqrt()).powi(3)
+}
+
+/// The p-quantile of the standard normal (Acklam's rational approximation,
+/// relative error below 1.2e-9).
+#[allow(clippy::excessive_precision)] // the published coefficients, verbatim
+pub fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.383577518672690e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
+
+/// Run the study. `progress(k)` is called after run k.
+pub fn monte_carlo(
+    robot: &Robot,
+    opts: &MonteCarloOptions,
+    mut progress: impl FnMut(usize, &RunOutcome),
+) -> Result<MonteCarloResult, MonteCarloError> {
+    let layout = ParamLayout::new(robot);
+    let mut runs = Vec::with_capacity(opts.runs);
+    let mut dof = 0;
+    for run in 0..opts.runs {
+        let seed = opts.seed.wrapping_add(run as u64);
+        let RandomSession { truth, data, .. } =
+            random_session(robot, opts.duration, 1.0, &opts.simulate, seed)?;
+        let cal = calibrate(robot, &data, &opts.calibrate, |_| {})
+            .map_err(|source| MonteCarloError::Run { run, seed, source })?;
+        let na = cal.active.len();
+        dof = na;
+        let cov = faer::Mat::from_fn(na, na, |i, j| cal.covariance[i * na + j]);
+        let info = cov
+            .llt(Side::Lower)
+            .map(|l| l.inverse())
+            .unwrap_or_else(|_| faer::Mat::zeros(na, na));
+        let e: Vec<f64> = cal.active.iter().map(|&k| cal.x[k] - truth[k]).collect();
+        let mut nees = 0.0;
+        for i in 0..na {
+            for j in 0..na {
+                nees += e[i] * info[(i, j)] * e[j];
+            }
+        }
+        let outcome = RunOutcome {
+            seed,
+            truth,
+            estimate: cal.x,
+            sigma: cal.sigma,
+            nees,
+            iterations: cal.summary.iterations.len(),
+        };
+        progress(run, &outcome);
+        runs.push(outcome);
+    }
+    let active: Vec<usize> = (0..layout.len())
+        .filter(|k| !opts.calibrate.frozen.contains(k))
+        .collect();
+    let n = runs.len() as f64;
+    let stats = active
+        .iter()
+        .map(|&k| {
+            let z: Vec<f64> = runs
+                .iter()
+                .map(|r| (r.estimate[k] - r.truth[k]) / r.sigma[k])
+                .collect();
+            let mean = z.iter().sum::<f64>() / n;
+            let var = z.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0).max(1.0);
+            ParamStats {
+                name: layout.specs()[k].name.clone(),
+                mean,
+                std: var.sqrt(),
+            }
+        })
+        .collect();
+    let nees_mean = runs.iter().map(|r| r.nees).sum::<f64>() / n;
+    let k = n * dof as f64;
+    let nees_interval = (chi2_quantile(k, 0.025) / n, chi2_quantile(k, 0.975) / n);
+    Ok(MonteCarloResult {
+        runs,
+        stats,
+        nees_mean,
+        nees_interval,
+        dof,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_match_tabulated_values() {
+        // standard normal: Φ⁻¹(0.975) = 1.959963985, Φ⁻¹(0.001) = −3.090232306
+        assert!((normal_quantile(0.975) - 1.959963985).abs() < 1e-8);
+        assert!((normal_quantile(0.001) + 3.090232306).abs() < 1e-8);
+        // χ²(100): 2.5 % = 74.2219, 97.5 % = 129.5612 (tables)
+        assert!((chi2_quantile(100.0, 0.025) - 74.2219).abs() < 0.02);
+        assert!((chi2_quantile(100.0, 0.975) - 129.5612).abs() < 0.02);
+    }
+}
