@@ -1,5 +1,5 @@
 //! The `robimu` program end to end: simulate → calibrate round trips checked
-//! against the result-file contract (MODEL.md §8) and the hidden truth, and
+//! against the result-file contract (docs/model.md §8) and the hidden truth, and
 //! bad input that must end with a non-zero exit and a message naming the file
 //! and line or the cause — never a panic.
 
@@ -101,7 +101,7 @@ fn aubo_layout() -> ParamLayout {
     ParamLayout::new(&Robot::aubo_i5())
 }
 
-/// Checks the MODEL.md §8 contract on the raw JSON, without the crate's
+/// Checks the docs/model.md §8 contract on the raw JSON, without the crate's
 /// reader: every parameter in x order with its unit and prior, the
 /// covariance over exactly the estimated ones, square and symmetric, and
 /// sigma = √diag. Returns the estimated names.
@@ -627,7 +627,7 @@ fn unrelated_imu_data_is_refused() {
 }
 
 /// A robot described in TOML without an `[errors]` table gets its estimated
-/// generalized errors found numerically (MODEL.md §1): the UR5-style arm
+/// generalized errors found numerically (docs/model.md §1): the UR5-style arm
 /// simulates and calibrates with 21 of them.
 #[test]
 fn toml_robot_without_errors_table_uses_the_numerical_set() {

@@ -1,4 +1,4 @@
-//! The numerically found identifiable ε set (MODEL.md §1): the paper's
+//! The numerically found identifiable ε set (docs/model.md §1): the paper's
 //! Table II for the AUBO i5, 6n − 2N_r − 3 = 21 for a UR5-style arm, checked
 //! against an independent SVD of the same identification Jacobian.
 

@@ -424,7 +424,7 @@ fn robimu(args: &[&str]) -> std::process::Output {
         .expect("the robimu binary runs")
 }
 
-/// A result.json holding `x` for `robot` (the MODEL.md §8 shape).
+/// A result.json holding `x` for `robot` (the docs/model.md §8 shape).
 fn write_result(dir: &Path, robot_spec: &str, layout: &ParamLayout, x: &[f64]) -> PathBuf {
     let params: Vec<_> = layout
         .specs()

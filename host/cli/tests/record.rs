@@ -176,7 +176,7 @@ fn corrupted_and_dropped_bytes_are_counted_and_skipped() {
     assert!(p.imu_samples as f64 > 0.85 * 120.0 * 5.0, "{p:?}");
     let session = check_session(dir.path());
     assert_eq!(session.measurements().imu_t.len() as u64, p.imu_samples);
-    // AUBO sends no controller time: MODEL.md's joint columns only
+    // AUBO sends no controller time: the joint columns of docs/model.md §7 only
     assert!(s.joint_clock.is_none());
     let joints = std::fs::read_to_string(dir.path().join("joints.csv")).unwrap();
     assert!(

@@ -4,7 +4,7 @@
 //! time the firmware latches a reading it takes the simulated arm's true
 //! joint state at that instant ([`TrueMotion::now`], from the simulated
 //! AUBO or UR controller), predicts the sensor
-//! output with the measurement model at the hidden truth x* (MODEL.md §2–3,
+//! output with the measurement model at the hidden truth x* (docs/model.md §2–3,
 //! paper (5)–(6)), adds Gaussian noise Σ_z, and turns it into register
 //! counts as the chip does: rounded to the LSB (0.01 m/s², 1/900 rad/s with
 //! the firmware's `UNIT_SEL`) and saturated at the configured full scale.

@@ -1,11 +1,11 @@
-//! The identifiable set of generalized errors of any robot (MODEL.md §1):
+//! The identifiable set of generalized errors of any robot (docs/model.md §1):
 //! which ε_ik the IMU data can determine, found numerically from the
 //! identification Jacobian over a rich trajectory.
 //!
 //! # Method
 //!
 //! * Candidates: ε_i1..6 of links i = 1..n−1 and ε_n1..3 (E_0 is never
-//!   estimated and E_n's rotation is fixed, MODEL.md §1).
+//!   estimated and E_n's rotation is fixed, docs/model.md §1).
 //! * A random excitation trajectory ([`super::trajectory::random_walk`]) is
 //!   sampled at `sample_rate`; at every sample the exact ∂z/∂x
 //!   ([`MeasurementModel::jacobians`]) of the robot estimating all candidates is
@@ -156,7 +156,7 @@ pub fn preference_order(n: usize) -> Vec<ErrorIndex> {
 pub struct IdentificationMatrix {
     /// Rows (6 per sample).
     pub rows: usize,
-    /// Column names: the 27 always-estimated parameters (MODEL.md §5 names,
+    /// Column names: the 27 always-estimated parameters (docs/model.md §5 names,
     /// x order), then `eps_<link>_<k>` of every candidate.
     pub names: Vec<String>,
     /// The candidates, in the order of their columns (after the 27).

@@ -1,5 +1,5 @@
 //! Gravity, inertial quantities and the inertial sensor model (paper eq. (5),
-//! (6); MODEL.md §2–3).
+//! (6); docs/model.md §2–3).
 //!
 //! ```text
 //! g = [g_x, g_y, −sqrt(g0² − g_x² − g_y²)]      (base frame)

@@ -1,4 +1,4 @@
-//! Forward kinematics with generalized errors (paper §3.1, eq. (1)–(4); MODEL.md §1).
+//! Forward kinematics with generalized errors (paper §3.1, eq. (1)–(4); docs/model.md §1).
 //!
 //! ```text
 //! T_i(q_i) = Rz(q_i + θ0_i)·Tz(d_i)·Tx(a_i)·Rx(α_i)                  (1)

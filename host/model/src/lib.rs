@@ -1,4 +1,4 @@
-//! The robot–IMU measurement model (paper §3–5; the contract is MODEL.md §1–5).
+//! The robot–IMU measurement model (paper §3–5; the contract is docs/model.md §1–5).
 //!
 //! Layers, each one concept:
 //! - [`robot`]: robot description (DH table, limits, noise, IMU mount, priors,

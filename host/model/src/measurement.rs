@@ -1,5 +1,5 @@
 //! Predicted IMU measurement z = [s̃; ω̃] = `[ax, ay, az, gx, gy, gz]` at one
-//! sample (paper eq. (10); MODEL.md §4) with exact Jacobians ∂z/∂x, ∂z/∂q,
+//! sample (paper eq. (10); docs/model.md §4) with exact Jacobians ∂z/∂x, ∂z/∂q,
 //! ∂z/∂q̇, ∂z/∂q̈.
 //!
 //! The joint state is q(t_i + τ) and its derivatives; so

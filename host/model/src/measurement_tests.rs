@@ -254,7 +254,7 @@ fn vee_of_skew(m: &M3) -> V3 {
     ]
 }
 
-/// MODEL.md must-show: forward kinematics and the predicted ω, s along a
+/// docs/model.md §1.5: forward kinematics and the predicted ω, s along a
 /// spline agree with finite differences of the pose along the spline:
 /// ω_n from (R(t+h) − R(t−h))/2h · Rᵀ, a_n from the central second difference
 /// of p, both Richardson-extrapolated.

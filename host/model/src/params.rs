@@ -1,4 +1,4 @@
-//! The parameter vector x (paper Table I; MODEL.md §5): names, units, prior
+//! The parameter vector x (paper Table I; docs/model.md §5): names, units, prior
 //! means and σ, and typed views.
 //!
 //! Order: ε (estimated set, by link then k), g_x, g_y, τ, γ_a, r_a, k_a, b_a,
@@ -13,7 +13,7 @@ use super::robot::{ErrorIndex, Robot};
 /// One entry of x.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParamSpec {
-    /// Name from MODEL.md §5 (`eps_2_4`, `g_x`, `tau`, `gamma_a_yz`, …).
+    /// Name from docs/model.md §5 (`eps_2_4`, `g_x`, `tau`, `gamma_a_yz`, …).
     pub name: String,
     /// Unit string in files: `m`, `rad`, `m/s^2`, `s`, `1`, `rad/s`.
     pub unit: &'static str,
@@ -215,7 +215,7 @@ impl ParamLayout {
     pub fn fixed_eps(&self) -> &[[f64; 6]] {
         &self.fixed_eps
     }
-    /// Index of the parameter named `name` (MODEL.md §5).
+    /// Index of the parameter named `name` (docs/model.md §5).
     pub fn index_of(&self, name: &str) -> Option<usize> {
         self.specs.iter().position(|s| s.name == name)
     }

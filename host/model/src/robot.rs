@@ -1,5 +1,5 @@
 //! Robot description: DH table, joint limits, default noise, IMU mount and
-//! priors, gravity, and which generalized errors are estimated (MODEL.md §1, §6).
+//! priors, gravity, and which generalized errors are estimated (docs/model.md §1, §6).
 //!
 //! Link `i` (1-based) has the standard DH transform (paper eq. (1))
 //! `T_i(q_i) = Rz(q_i + θ0_i)·Tz(d_i)·Tx(a_i)·Rx(α_i)`, followed by the
@@ -15,13 +15,13 @@
 //! ```
 //!
 //! Joint i always turns about the z axis of the frame before `T_i`. With every
-//! `C_i = I` (no `origin` key) this is exactly MODEL.md §1. `C_i` describes
+//! `C_i = I` (no `origin` key) this is exactly docs/model.md §1. `C_i` describes
 //! (a) a robot imported from URDF ([`super::urdf`]: DH part zero, `C_i` the
 //! transform from joint i's frame to joint i+1's, each rotated so its axis is
 //! z), or (b) a calibrated robot (`C_i` = the nominal `C_i` times the
 //! estimated `E_i`, see `robimu_session::export`). The generalized errors `E_i` always
 //! sit after `C_i`, i.e. on the fixed transform from joint i to joint i+1
-//! expressed in the frame of joint i+1, as in MODEL.md for DH robots.
+//! expressed in the frame of joint i+1, as in docs/model.md §1.6 for DH robots.
 //!
 //! # TOML format
 //!
@@ -95,7 +95,7 @@ use super::MAX_JOINTS;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
-/// Standard DH parameters of one revolute link (MODEL.md §1).
+/// Standard DH parameters of one revolute link (docs/model.md §1).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DhLink {
@@ -278,7 +278,7 @@ pub struct Priors {
 }
 
 impl Default for Priors {
-    /// The paper's Table II (MODEL.md §6), in SI.
+    /// The paper's Table II (docs/model.md §6), in SI.
     fn default() -> Self {
         Self {
             eps_length_sigma: 1e-3,
@@ -643,7 +643,7 @@ impl Robot {
         }
     }
 
-    /// The AUBO i5 reference setup of MODEL.md §6 (paper §8), in SI.
+    /// The AUBO i5 reference setup of docs/model.md §6 (paper §8), in SI.
     pub fn aubo_i5() -> Self {
         use std::f64::consts::{FRAC_PI_2, PI};
         // (θ0, d, a, α, q_min°, q_max°, q̇max °/s, σ_q °)

@@ -1,4 +1,4 @@
-//! Display units: files hold SI (MODEL.md §5), people read millimetres and
+//! Display units: files hold SI (docs/model.md §5), people read millimetres and
 //! degrees (the paper's Table II).
 
 use std::f64::consts::PI;

@@ -1,5 +1,5 @@
 //! Robots from URDF: the serial chain of revolute joints from a base link to
-//! a tip link, as a [`Robot`] (MODEL.md §1 with fixed transforms `C_i`, see
+//! a tip link, as a [`Robot`] (docs/model.md §1 with fixed transforms `C_i`, see
 //! [`super::robot`]).
 //!
 //! URDF link frames follow `L_j = L_{j−1}·O_j·Rot(axis_j, q_j)` (`O_j` the
@@ -15,7 +15,7 @@
 //! ```
 //!
 //! The model's base frame is therefore joint 1's frame (its z axis is joint
-//! 1's axis): gravity g (MODEL.md §2) is expressed in it. For the usual URDF,
+//! 1's axis): gravity g (docs/model.md §2) is expressed in it. For the usual URDF,
 //! where joint 1 turns about the base link's vertical z axis, it differs from
 //! the base link by a translation and a rotation about the vertical, which
 //! the IMU cannot see. The flange (IMU mount, `E_n`) frame is the tip link's
@@ -26,7 +26,7 @@
 //! speed from `<limit velocity>`; URDF has no acceleration limit, so every
 //! joint gets [`UrdfOptions::qdd_max`]. Joint noise, IMU noise, IMU mount and
 //! priors are not in URDF: they take [`UrdfOptions`] (defaults: the AUBO i5
-//! reference setup of MODEL.md §6). The estimated generalized errors are left
+//! reference setup of docs/model.md §6). The estimated generalized errors are left
 //! unset, to be found numerically (`crate::error_selection`).
 
 use std::collections::HashMap;
@@ -76,9 +76,9 @@ pub struct UrdfOptions {
     pub qdd_max: f64,
     /// Joint sample noise σ of every joint, rad (default 1e-4).
     pub sigma_q: f64,
-    /// IMU noise (default: MODEL.md §6).
+    /// IMU noise (default: docs/model.md §6).
     pub noise: NoiseDescription,
-    /// IMU mount prior (default: MODEL.md §6).
+    /// IMU mount prior (default: docs/model.md §6).
     pub imu_mount: ImuMount,
     /// Prior σ (default: paper Table II).
     pub priors: Priors,

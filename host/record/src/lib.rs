@@ -3,14 +3,14 @@
 //! The board streams in one thread ([`imu`]), the robot's joint positions
 //! are polled in another ([`crate::controller::aubo::JointPoller`]), the plan
 //! runs in a third ([`motion`]); this module's loop writes what arrives into
-//! the session directory (MODEL.md §7) and flushes it every second, so a
+//! the session directory (docs/model.md §7) and flushes it every second, so a
 //! crash or a kill loses at most the last second. Session time is the host's
 //! monotonic clock from the start of the recording; IMU samples are placed
 //! on it by a robust fit of the board's clock against ping echoes
 //! ([`clock_fit`]), refined while recording and made final at the end
 //! ([`repair::remap_imu_times`], which `robimu repair` also runs).
 //!
-//! Files besides MODEL.md's: `imu.csv` has the extra columns `t_device`
+//! Files besides those of docs/model.md §7: `imu.csv` has the extra columns `t_device`
 //! (s, the board's clock), `segment` (clock segment: a board reboot starts
 //! a new one), `seq` and `temp_c` (the sensor's temperature, °C, read back
 //! by [`robimu_session::Session`]); `pings.csv` logs every echo. From a

@@ -85,7 +85,7 @@ impl Plan {
         Plan { dt, q }
     }
 
-    /// Writes `plan.csv` (header `t,q1,…,q6`; s, rad; MODEL.md §7's table form).
+    /// Writes `plan.csv` (header `t,q1,…,q6`; s, rad; docs/model.md §7's table form).
     pub fn write_csv(&self, path: &std::path::Path) -> std::io::Result<()> {
         let mut out = String::from("t,q1,q2,q3,q4,q5,q6\n");
         for (k, q) in self.q.iter().enumerate() {

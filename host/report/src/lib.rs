@@ -1,6 +1,6 @@
 //! What a calibration hands to people and to later tools.
 //!
-//! * [`result`] — the result file `result.json` (MODEL.md §8): writing it
+//! * [`result`] — the result file `result.json` (docs/model.md §8): writing it
 //!   from a [`Calibration`](robimu_workflows::calibrate::Calibration) and
 //!   reading it back, validated;
 //! * [`html`] — self-contained HTML reports (calibration, validation);

@@ -1,5 +1,5 @@
 //! The session directory, the interchange format of recordings and
-//! simulations (MODEL.md §7):
+//! simulations (docs/model.md §7):
 //!
 //! * `session.toml` — [`SessionMeta`]
 //! * `joints.csv` — `t,q1,…,qn` (s, rad)
@@ -45,7 +45,7 @@ pub use writer::SessionWriter;
 /// `imu.csv` value columns.
 pub const IMU_COLUMNS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
 /// The optional `imu.csv` column of the sensor temperature, °C (an extra
-/// column after [`IMU_COLUMNS`], MODEL.md §7).
+/// column after [`IMU_COLUMNS`], docs/model.md §7).
 pub const IMU_TEMP_COLUMN: &str = "temp_c";
 /// `tracker.csv` value columns.
 pub const TRACKER_COLUMNS: [&str; 7] = ["px", "py", "pz", "qw", "qx", "qy", "qz"];

@@ -1,4 +1,4 @@
-//! `session.toml`: what the recording is (MODEL.md §7).
+//! `session.toml`: what the recording is (docs/model.md §7).
 //!
 //! ```toml
 //! format = "robimu-session/1"

@@ -1,4 +1,4 @@
-//! The calibration result file (MODEL.md §8), `result.json`:
+//! The calibration result file (docs/model.md §8), `result.json`:
 //!
 //! ```json
 //! {
@@ -28,7 +28,7 @@ pub const RESULT_FORMAT: &str = "robimu-result/1";
 /// One parameter of x (SI units).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ParameterResult {
-    /// MODEL.md §5 name.
+    /// docs/model.md §5 name.
     pub name: String,
     /// Unit string (`m`, `rad`, `m/s^2`, `s`, `1`, `rad/s`).
     pub unit: String,
@@ -153,7 +153,7 @@ pub enum ResultError {
         /// What is wrong.
         message: String,
     },
-    /// The contents break the contract (MODEL.md §8).
+    /// The contents break the contract (docs/model.md §8).
     #[error("{}: {message}", path.display())]
     Invalid {
         /// The file.
@@ -182,7 +182,7 @@ impl CalibrationResult {
         Some(self.covariance.matrix[i][j])
     }
 
-    /// Check the contract of MODEL.md §8: the format string, finite numbers,
+    /// Check the contract of docs/model.md §8: the format string, finite numbers,
     /// unique names, and a square, symmetric covariance over exactly the
     /// estimated parameters whose diagonal gives their `sigma`.
     pub fn validate(&self) -> Result<(), String> {
@@ -389,7 +389,7 @@ mod tests {
         assert_eq!(back.covariance_between("tau", "eps_1_1"), Some(-1.0e-5));
         assert_eq!(back.covariance_between("eps_1_6", "tau"), None);
         assert_eq!(back.index_of("tau"), Some(2));
-        // the required keys of MODEL.md §8, read without this crate's types
+        // the required keys of docs/model.md §8, read without this crate's types
         let v: serde_json::Value = serde_json::from_str(&text).unwrap();
         assert_eq!(v["format"], "robimu-result/1");
         let p = &v["parameters"][1];

@@ -1,4 +1,4 @@
-//! Time-series CSV tables (`joints.csv`, `imu.csv`, `tracker.csv`; MODEL.md §7).
+//! Time-series CSV tables (`joints.csv`, `imu.csv`, `tracker.csv`; docs/model.md §7).
 //!
 //! A table is a header naming its required columns first (extra columns after
 //! them are allowed and ignored, unless asked for by name as *optional*

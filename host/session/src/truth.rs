@@ -1,5 +1,5 @@
 //! `truth.toml`: the true value of every parameter of x, for simulated
-//! sessions (MODEL.md §7): one `name = value` line each, §5 names, SI units.
+//! sessions (docs/model.md §7): one `name = value` line each, §5 names, SI units.
 
 use std::path::Path;
 
@@ -54,7 +54,7 @@ impl Truth {
 
     /// The TOML text: one `name = value` line each, values with full precision.
     pub fn to_toml(&self) -> String {
-        let mut s = String::from("# true parameter values (SI units), MODEL.md §5 names\n");
+        let mut s = String::from("# true parameter values (SI units), docs/model.md §5 names\n");
         for (n, v) in &self.values {
             s.push_str(&format!("{n} = {v:?}\n"));
         }

@@ -68,7 +68,7 @@ impl SessionWriter {
     }
 
     /// [`Self::create`] with extra `imu.csv` columns after the required ones
-    /// (MODEL.md §7 lets readers ignore them), written by [`Self::imu_extra`].
+    /// (docs/model.md §7 lets readers ignore them), written by [`Self::imu_extra`].
     pub fn create_with_imu_extra(
         dir: &Path,
         meta: &SessionMeta,

@@ -5,7 +5,7 @@
 //! their own data.
 //!
 //! * [`robot_calibration`] — least squares on the same generalized errors
-//!   ε (MODEL.md §1) and the two constant transforms T_tracker←base and
+//!   ε (docs/model.md §1) and the two constant transforms T_tracker←base and
 //!   T_flange←marker, from the pose residuals
 //!
 //! ```text

@@ -1,12 +1,12 @@
-//! Simulated sessions (MODEL.md §7): a ground truth, a joint trajectory and the
+//! Simulated sessions (docs/model.md §7): a ground truth, a joint trajectory and the
 //! noise model turned into `joints.csv`, `imu.csv` and `truth.toml`.
 //!
-//! The simulator promises nothing MODEL.md does not: the two streams have
+//! The simulator promises nothing docs/model.md §4 does not: the two streams have
 //! their own rates, start times and optional jitter, and the trajectory's
 //! knots need not match the estimator's. Before the trajectory starts and
 //! after it ends the robot rests at its end poses, so IMU samples whose
 //! t + τ falls outside the motion are still physical (the estimator leaves
-//! them out, MODEL.md §4).
+//! them out, docs/model.md §4).
 
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
@@ -100,7 +100,7 @@ pub fn random_session(
 
 /// Sample a session: joint samples over the trajectory's span, IMU samples
 /// over the same span of the session clock, each IMU sample showing the robot
-/// at t + τ (MODEL.md §4).
+/// at t + τ (docs/model.md §4).
 pub fn simulate(
     robot: &Robot,
     layout: &ParamLayout,

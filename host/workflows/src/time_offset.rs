@@ -1,4 +1,4 @@
-//! Finding the time offset τ from the data before linearising (MODEL.md §6).
+//! Finding the time offset τ from the data before linearising (docs/model.md §6).
 //!
 //! Truths drawn from the priors put τ seconds away from 0, far outside the
 //! basin of the local solver. For each candidate lag L the measured gyroscope

@@ -69,7 +69,7 @@ pub fn row_from_pose(t: &Iso) -> [f64; 7] {
     [t.p[0], t.p[1], t.p[2], q[0], q[1], q[2], q[3]]
 }
 
-/// Static poses from a tracker table (MODEL.md §7 columns). The joint angles
+/// Static poses from a tracker table (docs/model.md §7 columns). The joint angles
 /// come from its extra columns `q1..qn` when the file has them (`extra`:
 /// those values, row-major), otherwise from `joints` linearly interpolated
 /// at each pose's time.

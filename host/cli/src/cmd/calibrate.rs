@@ -1,5 +1,5 @@
 //! `robimu calibrate`: the MAP calibration of one session, its table and its
-//! result file (MODEL.md §8).
+//! result file (docs/model.md §8).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -18,7 +18,7 @@ use super::input::{load_session, output_path, Progress};
 ///
 /// Estimates every parameter with its posterior uncertainty, prints the
 /// parameter table (against the truth when the session has a truth.toml)
-/// and writes the result file (JSON, MODEL.md §8) and, next to it, the
+/// and writes the result file (JSON, docs/model.md §8) and, next to it, the
 /// solver's iteration history (NAME.convergence.csv for NAME.json).
 #[derive(Debug, Clone, clap::Args)]
 pub struct CalibrateCmd {

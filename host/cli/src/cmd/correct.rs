@@ -11,11 +11,11 @@ use robimu_session::{read_table, Columns, IMU_COLUMNS};
 use super::input::output_path;
 
 /// Correct a raw IMU recording with a calibration: per sample and sensor
-/// v = Rᵀ·Γ⁻¹·K⁻¹·(z − b) (the inverse of MODEL.md §3), the specific force
+/// v = Rᵀ·Γ⁻¹·K⁻¹·(z − b) (the inverse of docs/model.md §3), the specific force
 /// (m/s²) and angular rate (rad/s) in the IMU frame (axes of the flange).
 ///
 /// Input and output are imu.csv files (header `t,ax,ay,az,gx,gy,gz`, SI;
-/// MODEL.md §7); extra input columns are dropped.
+/// docs/model.md §7); extra input columns are dropped.
 #[derive(Debug, Clone, clap::Args)]
 pub struct CorrectCmd {
     /// The calibration result (result.json from `robimu calibrate`).

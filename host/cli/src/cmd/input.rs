@@ -115,7 +115,7 @@ pub fn resolve_robot_with(
         Robot::from_toml_file(&path)
             .with_context(|| format!("cannot use the robot description {}", path.display()))?
     };
-    // MODEL.md §1: without an explicit `[errors]` table the estimated
+    // docs/model.md §1: without an explicit `[errors]` table the estimated
     // generalized errors are found numerically, never hand-listed.
     let robot = if robot.description().errors.is_none() {
         let set = identifiable_errors(&robot, &IdentifiableOptions::default()).with_context(|| {

@@ -17,7 +17,7 @@ use super::simulate::read_plan_table;
 /// Record a session: stream the IMU board, poll the robot's joints, and
 /// execute a plan on the robot.
 ///
-/// Writes the session directory (MODEL.md §7) as it goes, flushed every
+/// Writes the session directory (docs/model.md §7) as it goes, flushed every
 /// second; `robimu repair SESSION` finishes one cut short by a crash.
 #[derive(Debug, Clone, clap::Args)]
 pub struct RecordCmd {

@@ -21,7 +21,7 @@ use super::input::session_robot;
 /// The figures are also written as PNG and SVG.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ReportCmd {
-    /// Result file (result.json, MODEL.md §8).
+    /// Result file (result.json, docs/model.md §8).
     pub result: PathBuf,
     /// Directory to write report.html and the figures to [default: `report`
     /// next to the result file].

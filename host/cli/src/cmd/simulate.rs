@@ -1,4 +1,4 @@
-//! `robimu simulate`: a simulated session directory (MODEL.md §7).
+//! `robimu simulate`: a simulated session directory (docs/model.md §7).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -117,7 +117,7 @@ fn truth_vector(layout: &ParamLayout, truth: &Truth, path: &Path) -> anyhow::Res
         .find(|(n, _)| layout.index_of(n).is_none())
     {
         bail!(
-            "{}: `{name}` is not a parameter of this robot (see MODEL.md §5 for the names)",
+            "{}: `{name}` is not a parameter of this robot (see docs/model.md §5 for the names)",
             path.display()
         );
     }

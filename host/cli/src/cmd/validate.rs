@@ -23,7 +23,7 @@ use super::report::result_vector;
 /// Validate a calibration against an external tracker.
 ///
 /// Robot accuracy (paper Fig. 10): static poses measured by the tracker
-/// (`--tracker`: a CSV `t,px,py,pz,qw,qx,qy,qz` in MODEL.md §7's tracker
+/// (`--tracker`: a CSV `t,px,py,pz,qw,qx,qy,qz` in docs/model.md §7's tracker
 /// format, with the joint angles in extra columns `q1..qn`, or else taken
 /// from the session's joints.csv at each pose's time). The first poses
 /// solve the tracker-to-base and flange-to-marker transforms, the rest are

@@ -6,7 +6,7 @@
 //! ```
 //!
 //! with z_{j−1}, p_{j−1} the axis and origin of joint j and c_l the centre of
-//! mass of link l (nominal DH kinematics, MODEL.md §1; frame l is the DH frame
+//! mass of link l (nominal DH kinematics, docs/model.md §1; frame l is the DH frame
 //! after T_l). A TOML file gives one:
 //!
 //! ```text

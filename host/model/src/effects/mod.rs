@@ -1,5 +1,5 @@
 //! The catalogue of model extensions ("effects"): real, parametrised terms
-//! the estimator can add to the measurement model of MODEL.md when the
+//! the estimator can add to the measurement model of docs/model.md §4 when the
 //! residuals show structure the baseline model does not explain.
 //!
 //! Every effect is linear in its parameters θ_e (to first order in the

@@ -1,6 +1,6 @@
 //! The IMU intrinsics for other tools, and the inverse sensor model.
 //!
-//! The sensor model (MODEL.md §3, paper eq. (6)) is, per sensor,
+//! The sensor model (docs/model.md §3, paper eq. (6)) is, per sensor,
 //!
 //! ```text
 //! z = M·v + b,   M = K·Γ·R
@@ -101,7 +101,7 @@ impl Correction {
     pub fn to_toml(&self) -> Result<String, ExportError> {
         Ok(format!(
             "# IMU correction written by robimu. Per sensor, raw z = matrix·v + bias\n\
-             # (MODEL.md §3: matrix = K·Γ·R); apply v = inverse·(z − bias) to get the\n\
+             # (docs/model.md §3: matrix = K·Γ·R); apply v = inverse·(z − bias) to get the\n\
              # specific force (m/s²) and angular rate (rad/s) in the IMU frame (axes of\n\
              # the robot flange). Matrices are row-major: matrix[r][c].\n{}",
             toml::to_string(self)?

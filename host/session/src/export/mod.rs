@@ -4,7 +4,7 @@
 //! model applied to a raw IMU CSV ([`imu`]).
 //!
 //! Everything starts from the estimated parameters of a `result.json`
-//! (MODEL.md §8) for a robot: [`calibrated_params`].
+//! (docs/model.md §8) for a robot: [`calibrated_params`].
 
 pub mod imu;
 pub mod robot;
@@ -49,7 +49,7 @@ pub enum ExportError {
 }
 
 /// The typed parameters of a calibration result for `robot`: every
-/// parameter by its MODEL.md §5 name; generalized errors the result does not
+/// parameter by its docs/model.md §5 name; generalized errors the result does not
 /// list take the robot's fixed values (0, and the IMU mount position for
 /// ε_n1..3), as in [`ParamLayout::unpack`].
 pub fn calibrated_params(
@@ -90,7 +90,7 @@ pub fn calibrated_params(
 }
 
 /// The accelerometer and gyroscope intrinsics of a calibration result, by
-/// their MODEL.md §5 names (no robot needed).
+/// their docs/model.md §5 names (no robot needed).
 pub fn calibrated_intrinsics(
     result: &CalibrationResult,
 ) -> Result<(ImuIntrinsics, ImuIntrinsics), ExportError> {

@@ -2,7 +2,7 @@
 //! [`robimu_model::robot`]) or a corrected URDF.
 //!
 //! The calibrated chain is `T_i(q)·C_i·E_i` with the estimated `E_i`
-//! (MODEL.md §1). Both exports fold each `E_i`, i < n, into the fixed
+//! (docs/model.md §1). Both exports fold each `E_i`, i < n, into the fixed
 //! transform after joint i, so that the exported robot with all generalized
 //! errors zero has the calibrated kinematics:
 //!

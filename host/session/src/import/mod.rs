@@ -1,5 +1,5 @@
 //! Importing recordings made by other tools as session directories
-//! (MODEL.md §7).
+//! (docs/model.md §7).
 //!
 //! * [`mcap`]: ROS 2 recordings (`sensor_msgs/msg/JointState` and
 //!   `sensor_msgs/msg/Imu` in CDR, decoded by [`cdr`]).

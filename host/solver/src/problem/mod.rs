@@ -4,7 +4,7 @@
 //! Unknowns θ = [c, x_a]: the spline coefficients c (basis-major, `c[b·n + j]`,
 //! the order of [`robimu_model::Spline`]) and the *estimated* (not frozen)
 //! entries x_a of x. Residuals, each whitened by its standard deviation so the
-//! MAP cost is J = ½‖r‖² (MODEL.md §4):
+//! MAP cost is J = ½‖r‖² (docs/model.md §4):
 //!
 //! * joint: r = (q_j − q(t_j)) / σ_q, linear in c;
 //! * IMU: r = (z_i − h(x, q(u), q̇(u), q̈(u))) / σ_z at u = t_i + τ (eq. (10));
@@ -18,7 +18,7 @@
 //! small margin, [`Problem::margin`]) are used; the set is chosen by
 //! [`Problem::select_samples`] from the current τ at the start of each
 //! iteration and kept fixed while a step is tried, so that costs compare
-//! like with like (MODEL.md §4: the set is updated as τ moves).
+//! like with like (docs/model.md §4: the set is updated as τ moves).
 
 mod assemble;
 
@@ -267,7 +267,7 @@ impl<'a> Problem<'a> {
 }
 
 /// Whether the rows of `sensor` (0: accelerometer, 1: gyroscope) can depend
-/// on x[k] (MODEL.md §1–3): the gyroscope sees only rotations — no robot
+/// on x[k] (docs/model.md §1–3): the gyroscope sees only rotations — no robot
 /// length errors ε_i{1,2,3}, no gravity, no accelerometer intrinsics — and the
 /// accelerometer sees no gyroscope intrinsics.
 pub fn sensor_depends_on(layout: &ParamLayout, sensor: usize, k: usize) -> bool {
