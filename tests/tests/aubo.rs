@@ -12,7 +12,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use robimu_hil_sim::aubo::{FaultSwitches, JointLimits, SimAubo, SimAuboConfig, TrueSample};
-use robimu_record::controller::aubo::{AuboClient, JointPoller, JointSample, RobotError};
+use robimu_record::controller::aubo::{AuboClient, AuboError, JointPoller, JointSample};
 use serde_json::Value;
 
 const TIMEOUT: Duration = Duration::from_secs(2);
@@ -60,7 +60,7 @@ fn move_joint_reaches_target_within_velocity_and_acceleration_limits() {
     }
     // Beyond the position limits: refused with AUBO_POS_BOUND_ERR.
     match robot.move_joint(&[3.5, 0.0, 0.0, 0.0, 0.0, 0.0], 1.0, 1.0) {
-        Err(RobotError::Refused {
+        Err(AuboError::Refused {
             method,
             code,
             message,
@@ -129,7 +129,7 @@ fn path_buffer_sinusoid_is_followed_with_the_configured_lag_and_noise() {
     }
     assert!(matches!(
         robot.path_buffer_move("sine"),
-        Err(RobotError::Refused { code: -1, .. })
+        Err(AuboError::Refused { code: -1, .. })
     ));
     robot
         .path_buffer_eval("sine", &[10.0; 6], &[3.0; 6], h)
@@ -259,7 +259,7 @@ fn refused_and_malformed_commands_give_clear_errors() {
     let (sim, _) = spawn(0.02, 0.0, JointLimits::default(), FaultSwitches::default());
     let mut robot = AuboClient::connect(sim.addr(), TIMEOUT).unwrap();
     match robot.call("rob1.MotionControl.teleport", serde_json::json!([])) {
-        Err(RobotError::Refused {
+        Err(AuboError::Refused {
             code: -32601,
             message,
             ..
@@ -272,7 +272,7 @@ fn refused_and_malformed_commands_give_clear_errors() {
         "rob1.MotionControl.moveJoint",
         serde_json::json!([[0.0, 1.0], 1.0, 1.0, 0, 0]),
     ) {
-        Err(e @ RobotError::Refused { code: -32602, .. }) => {
+        Err(e @ AuboError::Refused { code: -32602, .. }) => {
             let text = e.to_string();
             assert!(text.contains("moveJoint") && text.contains("(q)"), "{text}")
         }
@@ -280,7 +280,7 @@ fn refused_and_malformed_commands_give_clear_errors() {
     }
     let target = [0.1, 0.0, 0.0, 0.0, 0.0, -0.1];
     match robot.servo_joint(&target, 0.5) {
-        Err(e @ RobotError::Refused { code: -13, .. }) => {
+        Err(e @ AuboError::Refused { code: -13, .. }) => {
             let text = e.to_string();
             assert!(
                 text.contains("servoJoint") && text.contains("servo mode"),
@@ -301,7 +301,7 @@ fn refused_and_malformed_commands_give_clear_errors() {
     // Too fast for the joint speed limit (π rad/s): refused.
     assert!(matches!(
         robot.servo_joint(&[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.1),
-        Err(RobotError::Refused { code: -5, .. })
+        Err(AuboError::Refused { code: -5, .. })
     ));
     robot.set_servo_mode(false).unwrap();
     // A robot in protective stop refuses motion.
@@ -311,7 +311,7 @@ fn refused_and_malformed_commands_give_clear_errors() {
     });
     assert!(matches!(
         robot.move_joint(&[0.0; 6], 1.0, 1.0),
-        Err(RobotError::Refused { code: -1, .. })
+        Err(AuboError::Refused { code: -1, .. })
     ));
     robot.joint_positions().unwrap();
     sim.stop();
@@ -332,7 +332,7 @@ fn late_replies_time_out_and_are_skipped_afterwards() {
     let mut robot = AuboClient::connect(sim.addr(), timeout).unwrap();
     let start = Instant::now();
     match robot.joint_positions() {
-        Err(e @ RobotError::Timeout { .. }) => {
+        Err(e @ AuboError::Timeout { .. }) => {
             assert!(e.to_string().contains("getJointPositions"), "{e}")
         }
         other => panic!("{other:?}"),
@@ -367,7 +367,7 @@ fn dropped_connection_gives_disconnected() {
         robot.joint_positions().unwrap();
     }
     match robot.joint_positions() {
-        Err(e @ RobotError::Disconnected { .. }) => {
+        Err(e @ AuboError::Disconnected { .. }) => {
             assert!(e.to_string().contains("getJointPositions"), "{e}")
         }
         other => panic!("{other:?}"),
@@ -384,7 +384,7 @@ fn dropped_connection_gives_disconnected() {
     let results: Vec<_> = poller.samples().iter().take(10).collect();
     assert_eq!(results.len(), 4);
     assert!(results[..3].iter().all(Result::is_ok));
-    assert!(matches!(results[3], Err(RobotError::Disconnected { .. })));
+    assert!(matches!(results[3], Err(AuboError::Disconnected { .. })));
     let (client, _) = poller.stop();
     assert!(client.is_none());
     sim.stop();

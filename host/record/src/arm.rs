@@ -16,7 +16,7 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use super::motion::{self, Plan};
-use crate::controller::aubo::{AuboClient, JointPoller, RobotError};
+use crate::controller::aubo::{AuboClient, AuboError, JointPoller};
 use crate::controller::ur::{UrError, UrPoller, UrPorts, UrRobot};
 use crate::controller::{JointSample, RobotSpec};
 use robimu_model::Robot;
@@ -26,7 +26,7 @@ use robimu_model::Robot;
 pub enum ArmError {
     /// AUBO.
     #[error(transparent)]
-    Aubo(#[from] RobotError),
+    Aubo(#[from] AuboError),
     /// Universal Robots.
     #[error(transparent)]
     Ur(#[from] UrError),
@@ -62,7 +62,7 @@ enum Poller {
 
 enum Motion {
     None,
-    Aubo(Option<JoinHandle<Result<(), RobotError>>>),
+    Aubo(Option<JoinHandle<Result<(), AuboError>>>),
     Ur {
         sent: Instant,
         duration: f64,

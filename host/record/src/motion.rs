@@ -8,7 +8,7 @@
 
 use std::time::Duration;
 
-use crate::controller::aubo::{AuboClient, Joints, RobotError};
+use crate::controller::aubo::{AuboClient, AuboError, Joints};
 use robimu_model::Robot;
 
 /// A plan: joint positions at a fixed interval.
@@ -22,7 +22,7 @@ pub struct Plan {
 
 /// Why samples are not a plan the controller can execute.
 #[derive(Debug, thiserror::Error)]
-pub enum PlanError {
+pub enum MotionPlanError {
     /// Not 6 joints.
     #[error("the plan has {0} joint columns; the AUBO driver drives 6")]
     Joints(usize),
@@ -45,18 +45,18 @@ pub enum PlanError {
 
 impl Plan {
     /// From sample times and row-major joint values (`n` per row).
-    pub fn from_samples(t: &[f64], values: &[f64], n: usize) -> Result<Plan, PlanError> {
+    pub fn from_samples(t: &[f64], values: &[f64], n: usize) -> Result<Plan, MotionPlanError> {
         if n != 6 {
-            return Err(PlanError::Joints(n));
+            return Err(MotionPlanError::Joints(n));
         }
         if t.len() < 2 {
-            return Err(PlanError::TooShort(t.len()));
+            return Err(MotionPlanError::TooShort(t.len()));
         }
         let dt = t[1] - t[0];
         for k in 1..t.len() {
             let h = t[k] - t[k - 1];
             if dt.is_nan() || dt <= 0.0 || (h - dt).abs() > 1e-6 * dt.max(1e-3) + 1e-9 {
-                return Err(PlanError::Uneven {
+                return Err(MotionPlanError::Uneven {
                     first: dt,
                     found: h,
                     t: t[k],
@@ -108,18 +108,14 @@ impl Plan {
 const APPEND_CHUNK: usize = 200;
 
 /// Moves to the plan's start and waits until the arm is there.
-pub fn move_to_start(
-    client: &mut AuboClient,
-    robot: &Robot,
-    plan: &Plan,
-) -> Result<(), RobotError> {
+pub fn move_to_start(client: &mut AuboClient, robot: &Robot, plan: &Plan) -> Result<(), AuboError> {
     let (v, a) = slowest(robot);
     client.move_joint(&plan.q[0], 0.5 * a, 0.5 * v)?;
     client.wait_idle(Duration::from_secs(120))
 }
 
 /// Executes the plan (the arm must be at its start) and waits for its end.
-pub fn execute(client: &mut AuboClient, robot: &Robot, plan: &Plan) -> Result<(), RobotError> {
+pub fn execute(client: &mut AuboClient, robot: &Robot, plan: &Plan) -> Result<(), AuboError> {
     let name = "robimu_plan";
     client.path_buffer_alloc(name, 2, plan.q.len())?;
     for chunk in plan.q.chunks(APPEND_CHUNK) {

@@ -8,7 +8,7 @@
 //! skipped). Method names and parameter shapes follow the JSON-RPC examples
 //! of the ARCS SDK headers (`MotionControl`, `RobotState`). Motion methods
 //! return a status code, not a JSON-RPC error, when the robot refuses them;
-//! a non-zero status becomes [`RobotError::Refused`] with the code's name
+//! a non-zero status becomes [`AuboError::Refused`] with the code's name
 //! ([`status_message`]). The code meanings are from the SDK's comments;
 //! what the controller's own message would say is not known.
 //!
@@ -33,7 +33,7 @@ pub use super::{JointSample, Joints};
 
 /// Why a robot call failed.
 #[derive(Debug, thiserror::Error)]
-pub enum RobotError {
+pub enum AuboError {
     /// No TCP connection could be made.
     #[error("cannot connect to the AUBO controller at {addr}: {source}")]
     Connect {
@@ -108,10 +108,10 @@ pub struct AuboClient {
 
 impl AuboClient {
     /// Connects; every call then waits at most `timeout` for its reply.
-    pub fn connect(addr: impl ToSocketAddrs, timeout: Duration) -> Result<AuboClient, RobotError> {
+    pub fn connect(addr: impl ToSocketAddrs, timeout: Duration) -> Result<AuboClient, AuboError> {
         let addrs: Vec<SocketAddr> = addr
             .to_socket_addrs()
-            .map_err(|source| RobotError::Connect {
+            .map_err(|source| AuboError::Connect {
                 addr: "(unresolved)".into(),
                 source,
             })?
@@ -132,7 +132,7 @@ impl AuboClient {
                 Err(e) => last = e,
             }
         }
-        Err(RobotError::Connect {
+        Err(AuboError::Connect {
             addr: addrs
                 .iter()
                 .map(|a| a.to_string())
@@ -148,11 +148,11 @@ impl AuboClient {
     }
 
     /// Sends one request and waits for its result.
-    pub fn call(&mut self, method: &str, params: Value) -> Result<Value, RobotError> {
+    pub fn call(&mut self, method: &str, params: Value) -> Result<Value, AuboError> {
         let id = self.next_id;
         self.next_id += 1;
         let request = json!({"jsonrpc": "2.0", "method": method, "params": params, "id": id});
-        let lost = |e: std::io::Error| RobotError::Disconnected {
+        let lost = |e: std::io::Error| AuboError::Disconnected {
             method: method.to_string(),
             detail: e.to_string(),
         };
@@ -169,13 +169,13 @@ impl AuboClient {
             }
             match read_some(&mut self.stream, &mut self.buf, deadline).map_err(lost)? {
                 ReadOutcome::Deadline => {
-                    return Err(RobotError::Timeout {
+                    return Err(AuboError::Timeout {
                         method: method.to_string(),
                         timeout: self.timeout,
                     })
                 }
                 ReadOutcome::Closed => {
-                    return Err(RobotError::Disconnected {
+                    return Err(AuboError::Disconnected {
                         method: method.to_string(),
                         detail: "the controller closed the connection".into(),
                     })
@@ -186,7 +186,7 @@ impl AuboClient {
     }
 
     /// The next complete JSON value in the receive buffer.
-    fn next_value(&mut self, method: &str) -> Result<Option<Value>, RobotError> {
+    fn next_value(&mut self, method: &str) -> Result<Option<Value>, AuboError> {
         let mut it = serde_json::Deserializer::from_slice(&self.buf).into_iter::<Value>();
         match it.next() {
             None => {
@@ -201,7 +201,7 @@ impl AuboClient {
             Some(Err(e)) if e.is_eof() => Ok(None),
             Some(Err(e)) => {
                 self.buf.clear();
-                Err(RobotError::Protocol {
+                Err(AuboError::Protocol {
                     method: method.to_string(),
                     detail: format!("reply is not JSON: {e}"),
                 })
@@ -210,16 +210,16 @@ impl AuboClient {
     }
 
     /// Calls a method that returns an ARCS status code; non-zero is refused.
-    fn call_status(&mut self, method: &str, params: Value) -> Result<(), RobotError> {
+    fn call_status(&mut self, method: &str, params: Value) -> Result<(), AuboError> {
         let result = self.call(method, params)?;
         match result.as_i64() {
             Some(0) => Ok(()),
-            Some(code) => Err(RobotError::Refused {
+            Some(code) => Err(AuboError::Refused {
                 method: method.to_string(),
                 code,
                 message: status_message(code).to_string(),
             }),
-            None => Err(RobotError::Protocol {
+            None => Err(AuboError::Protocol {
                 method: method.to_string(),
                 detail: format!("expected a status code, got {result}"),
             }),
@@ -227,10 +227,10 @@ impl AuboClient {
     }
 
     /// `RobotState.getJointPositions`: the joint angles, rad.
-    pub fn joint_positions(&mut self) -> Result<Joints, RobotError> {
+    pub fn joint_positions(&mut self) -> Result<Joints, AuboError> {
         let method = "rob1.RobotState.getJointPositions";
         let result = self.call(method, json!([]))?;
-        joints_of(&result).ok_or_else(|| RobotError::Protocol {
+        joints_of(&result).ok_or_else(|| AuboError::Protocol {
             method: method.to_string(),
             detail: format!("expected 6 joint angles, got {result}"),
         })
@@ -238,24 +238,24 @@ impl AuboClient {
 
     /// `MotionControl.moveJoint(q, a, v, blend_radius = 0, duration = 0)`:
     /// queues a joint move (`a` rad/s², `v` rad/s).
-    pub fn move_joint(&mut self, q: &Joints, a: f64, v: f64) -> Result<(), RobotError> {
+    pub fn move_joint(&mut self, q: &Joints, a: f64, v: f64) -> Result<(), AuboError> {
         self.call_status("rob1.MotionControl.moveJoint", json!([q, a, v, 0.0, 0.0]))
     }
 
     /// `MotionControl.stopJoint(acc)`: stops any motion, decelerating at
     /// `acc` rad/s².
-    pub fn stop_joint(&mut self, acc: f64) -> Result<(), RobotError> {
+    pub fn stop_joint(&mut self, acc: f64) -> Result<(), AuboError> {
         self.call_status("rob1.MotionControl.stopJoint", json!([acc]))
     }
 
     /// `MotionControl.setServoMode(enable)`.
-    pub fn set_servo_mode(&mut self, enable: bool) -> Result<(), RobotError> {
+    pub fn set_servo_mode(&mut self, enable: bool) -> Result<(), AuboError> {
         self.call_status("rob1.MotionControl.setServoMode", json!([enable]))
     }
 
     /// `MotionControl.servoJoint(q, a = 0, v = 0, t, lookahead_time = 0.1,
     /// gain = 200)`: reach `q` in `t` seconds (servo mode only).
-    pub fn servo_joint(&mut self, q: &Joints, t: f64) -> Result<(), RobotError> {
+    pub fn servo_joint(&mut self, q: &Joints, t: f64) -> Result<(), AuboError> {
         self.call_status(
             "rob1.MotionControl.servoJoint",
             json!([q, 0.0, 0.0, t, 0.1, 200.0]),
@@ -269,7 +269,7 @@ impl AuboClient {
         name: &str,
         kind: i64,
         size: usize,
-    ) -> Result<(), RobotError> {
+    ) -> Result<(), AuboError> {
         self.call_status(
             "rob1.MotionControl.pathBufferAlloc",
             json!([name, kind, size]),
@@ -281,7 +281,7 @@ impl AuboClient {
         &mut self,
         name: &str,
         waypoints: &[Joints],
-    ) -> Result<(), RobotError> {
+    ) -> Result<(), AuboError> {
         self.call_status(
             "rob1.MotionControl.pathBufferAppend",
             json!([name, waypoints]),
@@ -297,23 +297,23 @@ impl AuboClient {
         a: &Joints,
         v: &Joints,
         t: f64,
-    ) -> Result<(), RobotError> {
+    ) -> Result<(), AuboError> {
         self.call_status("rob1.MotionControl.pathBufferEval", json!([name, a, v, t]))
     }
 
     /// `MotionControl.movePathBuffer(name)`: queues the evaluated buffer.
-    pub fn path_buffer_move(&mut self, name: &str) -> Result<(), RobotError> {
+    pub fn path_buffer_move(&mut self, name: &str) -> Result<(), AuboError> {
         self.call_status("rob1.MotionControl.movePathBuffer", json!([name]))
     }
 
     /// `MotionControl.getExecId`: the running motion's id, `None` when idle.
-    pub fn exec_id(&mut self) -> Result<Option<i64>, RobotError> {
+    pub fn exec_id(&mut self) -> Result<Option<i64>, AuboError> {
         let method = "rob1.MotionControl.getExecId";
         let result = self.call(method, json!([]))?;
         match result.as_i64() {
             Some(-1) => Ok(None),
             Some(id) => Ok(Some(id)),
-            None => Err(RobotError::Protocol {
+            None => Err(AuboError::Protocol {
                 method: method.to_string(),
                 detail: format!("expected an integer, got {result}"),
             }),
@@ -321,11 +321,11 @@ impl AuboClient {
     }
 
     /// Polls [`AuboClient::exec_id`] every 10 ms until no motion runs.
-    pub fn wait_idle(&mut self, timeout: Duration) -> Result<(), RobotError> {
+    pub fn wait_idle(&mut self, timeout: Duration) -> Result<(), AuboError> {
         let deadline = Instant::now() + timeout;
         while self.exec_id()?.is_some() {
             if Instant::now() >= deadline {
-                return Err(RobotError::Timeout {
+                return Err(AuboError::Timeout {
                     method: "rob1.MotionControl.getExecId (waiting for the motion to end)".into(),
                     timeout,
                 });
@@ -348,10 +348,10 @@ fn joints_of(v: &Value) -> Option<Joints> {
     Some(q)
 }
 
-/// The result of a reply, or its error as [`RobotError::Refused`].
-fn reply_result(method: &str, mut reply: Value) -> Result<Value, RobotError> {
+/// The result of a reply, or its error as [`AuboError::Refused`].
+fn reply_result(method: &str, mut reply: Value) -> Result<Value, AuboError> {
     if let Some(error) = reply.get("error") {
-        return Err(RobotError::Refused {
+        return Err(AuboError::Refused {
             method: method.to_string(),
             code: error.get("code").and_then(Value::as_i64).unwrap_or(0),
             message: error
@@ -364,7 +364,7 @@ fn reply_result(method: &str, mut reply: Value) -> Result<Value, RobotError> {
     reply
         .get_mut("result")
         .map(Value::take)
-        .ok_or_else(|| RobotError::Protocol {
+        .ok_or_else(|| AuboError::Protocol {
             method: method.to_string(),
             detail: "reply has neither result nor error".into(),
         })
@@ -375,7 +375,7 @@ fn reply_result(method: &str, mut reply: Value) -> Result<Value, RobotError> {
 pub struct JointPoller {
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<Option<AuboClient>>>,
-    rx: Receiver<Result<JointSample, RobotError>>,
+    rx: Receiver<Result<JointSample, AuboError>>,
 }
 
 impl JointPoller {
@@ -384,7 +384,7 @@ impl JointPoller {
         mut client: AuboClient,
         rate_hz: f64,
         epoch: Instant,
-    ) -> Result<JointPoller, RobotError> {
+    ) -> Result<JointPoller, AuboError> {
         let (tx, rx) = mpsc::channel();
         let stop = Arc::new(AtomicBool::new(false));
         let flag = Arc::clone(&stop);
@@ -428,7 +428,7 @@ impl JointPoller {
                 }
                 Some(client)
             })
-            .map_err(|e| RobotError::Disconnected {
+            .map_err(|e| AuboError::Disconnected {
                 method: "rob1.RobotState.getJointPositions".into(),
                 detail: format!("cannot start the polling thread: {e}"),
             })?;
@@ -440,19 +440,14 @@ impl JointPoller {
     }
 
     /// The samples (and a final error, if polling failed).
-    pub fn samples(&self) -> &Receiver<Result<JointSample, RobotError>> {
+    pub fn samples(&self) -> &Receiver<Result<JointSample, AuboError>> {
         &self.rx
     }
 
     /// Stops polling; returns the client (unless polling had failed) and
     /// the channel, which still holds the samples not yet received.
     #[allow(clippy::type_complexity)]
-    pub fn stop(
-        mut self,
-    ) -> (
-        Option<AuboClient>,
-        Receiver<Result<JointSample, RobotError>>,
-    ) {
+    pub fn stop(mut self) -> (Option<AuboClient>, Receiver<Result<JointSample, AuboError>>) {
         self.stop.store(true, Ordering::SeqCst);
         let client = self.thread.take().and_then(|t| t.join().ok()).flatten();
         let (_, empty) = mpsc::channel();
