@@ -1,13 +1,13 @@
-//! The IMU board side of a recording: open the port, identify the board,
-//! configure and start it, then stream in a thread that also pings the
-//! board ten times a second for the clock mapping ([`super::clock_fit`]).
+//! The IMU board side of a recording: a board identified and configured
+//! through its [`ImuClient`] is started and streamed in a thread that also
+//! pings it ten times a second for the clock mapping ([`super::clock_fit`]).
 //!
 //! A board that reboots mid-stream (it announces itself with `DeviceInfo`
 //! and stops streaming) is configured and started again; samples after the
 //! restart belong to a new clock *segment*, mapped by its own fit.
 
 use std::collections::HashMap;
-use std::io::ErrorKind;
+use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex};
@@ -19,64 +19,8 @@ use robimu_protocol::{
 };
 
 use super::clock_fit::Echo;
-use crate::link::{DeviceClock, LinkError, LinkReader, LinkWriter};
-
-/// Why the IMU board could not be used.
-#[derive(Debug, thiserror::Error)]
-pub enum ImuError {
-    /// The port does not exist.
-    #[error("no serial port {path}: is the IMU board plugged in? (check `ls /dev/ttyUSB* /dev/ttyACM*`)")]
-    NotFound {
-        /// The port path.
-        path: String,
-    },
-    /// Another program holds the port.
-    #[error("the serial port {path} is busy: another program has it open ({detail})")]
-    Busy {
-        /// The port path.
-        path: String,
-        /// What the system said.
-        detail: String,
-    },
-    /// The port could not be opened for another reason.
-    #[error("cannot open the serial port {path}: {detail}")]
-    Open {
-        /// The port path.
-        path: String,
-        /// What the system said.
-        detail: String,
-    },
-    /// Nothing on the port speaks the robimu protocol.
-    #[error("{path} is not a robimu IMU board: no DeviceInfo within {waited:?} ({bytes} bytes received, {frames} valid frames, {bad} bad frames)")]
-    NotRobimu {
-        /// The port path.
-        path: String,
-        /// How long we waited.
-        waited: Duration,
-        /// Bytes received meanwhile.
-        bytes: u64,
-        /// Valid frames decoded.
-        frames: u64,
-        /// Frames rejected.
-        bad: u64,
-    },
-    /// The board refused or did not answer a command.
-    #[error("the IMU board on {path} {what}")]
-    Command {
-        /// The port path.
-        path: String,
-        /// What happened.
-        what: String,
-    },
-    /// The port failed while streaming (unplugged, closed).
-    #[error("the serial port {path} failed while streaming (unplugged?): {detail}")]
-    Vanished {
-        /// The port path.
-        path: String,
-        /// What the system said.
-        detail: String,
-    },
-}
+use crate::client::{ClientError, ImuClient};
+use crate::link::DeviceClock;
 
 /// What the streaming thread reports.
 #[derive(Debug)]
@@ -109,145 +53,7 @@ pub enum ImuEvent {
         segment: u32,
     },
     /// Streaming failed; nothing follows.
-    Failed(ImuError),
-}
-
-type Port = Box<dyn serialport::SerialPort>;
-
-/// Host side of the link during set-up.
-pub struct Link {
-    path: String,
-    reader: LinkReader<Port>,
-    writer: LinkWriter<Port>,
-}
-
-impl Link {
-    /// Opens `path` at `baud`, mapping the system's errors to [`ImuError`].
-    pub fn open(path: &str, baud: u32) -> Result<Link, ImuError> {
-        if !std::path::Path::new(path).exists() {
-            return Err(ImuError::NotFound { path: path.into() });
-        }
-        let port = serialport::new(path, baud)
-            .timeout(Duration::from_millis(20))
-            .open()
-            .map_err(|e| open_error(path, e))?;
-        let writer = port.try_clone().map_err(|e| open_error(path, e))?;
-        Ok(Link {
-            path: path.into(),
-            reader: LinkReader::new(port),
-            writer: LinkWriter::new(writer),
-        })
-    }
-
-    fn poll(&mut self) -> Result<Option<DeviceMessage>, ImuError> {
-        match self.reader.next_message() {
-            Ok(m) => Ok(m),
-            Err(LinkError::Read(e)) if e.kind() == ErrorKind::TimedOut => Ok(None),
-            Err(e) => Err(ImuError::Vanished {
-                path: self.path.clone(),
-                detail: e.to_string(),
-            }),
-        }
-    }
-
-    fn send(&mut self, msg: &HostMessage) -> Result<(), ImuError> {
-        self.writer.send(msg).map_err(|e| ImuError::Vanished {
-            path: self.path.clone(),
-            detail: e.to_string(),
-        })
-    }
-
-    fn wait_for<T>(
-        &mut self,
-        timeout: Duration,
-        mut pick: impl FnMut(&DeviceMessage) -> Option<T>,
-    ) -> Result<Option<T>, ImuError> {
-        let end = Instant::now() + timeout;
-        while Instant::now() < end {
-            if let Some(m) = self.poll()? {
-                if let Some(t) = pick(&m) {
-                    return Ok(Some(t));
-                }
-            }
-        }
-        Ok(None)
-    }
-
-    fn command(&mut self, msg: HostMessage, kind: CommandKind) -> Result<(), ImuError> {
-        self.send(&msg)?;
-        let result = self.wait_for(Duration::from_secs(3), |m| match m {
-            DeviceMessage::CommandResult(r) if r.command == kind => Some(r.result),
-            _ => None,
-        })?;
-        match result {
-            Some(Ok(())) => Ok(()),
-            Some(Err(e)) => Err(ImuError::Command {
-                path: self.path.clone(),
-                what: format!("refused {kind:?}: {e:?}"),
-            }),
-            None => Err(ImuError::Command {
-                path: self.path.clone(),
-                what: format!("did not answer {kind:?} within 3 s"),
-            }),
-        }
-    }
-
-    /// Asks for `DeviceInfo` (a board that is streaming is stopped first).
-    pub fn identify(&mut self, timeout: Duration) -> Result<DeviceInfo, ImuError> {
-        self.writer.resync().map_err(|e| ImuError::Vanished {
-            path: self.path.clone(),
-            detail: e.to_string(),
-        })?;
-        self.send(&HostMessage::Stop)?;
-        self.send(&HostMessage::GetInfo)?;
-        let info = self.wait_for(timeout, |m| match m {
-            DeviceMessage::Info(i) => Some(*i),
-            _ => None,
-        })?;
-        info.ok_or_else(|| {
-            let s = self.reader.stats();
-            ImuError::NotRobimu {
-                path: self.path.clone(),
-                waited: timeout,
-                bytes: s.bytes_received,
-                frames: s.frames_ok,
-                bad: s.crc_errors
-                    + s.cobs_errors
-                    + s.version_errors
-                    + s.too_long
-                    + s.too_short
-                    + s.deserialize_errors,
-            }
-        })
-    }
-
-    /// Configures the sensor; returns the `DeviceInfo` it reports after.
-    pub fn configure(&mut self, config: SensorConfig) -> Result<Option<DeviceInfo>, ImuError> {
-        self.command(HostMessage::Configure(config), CommandKind::Configure)?;
-        self.wait_for(Duration::from_millis(500), |m| match m {
-            DeviceMessage::Info(i) => Some(*i),
-            _ => None,
-        })
-    }
-}
-
-fn open_error(path: &str, e: serialport::Error) -> ImuError {
-    let detail = e.to_string();
-    let lower = detail.to_lowercase();
-    if lower.contains("busy") || lower.contains("exclusive") || lower.contains("locked") {
-        ImuError::Busy {
-            path: path.into(),
-            detail,
-        }
-    } else if matches!(e.kind(), serialport::ErrorKind::NoDevice) || lower.contains("no such file")
-    {
-        ImuError::NotFound { path: path.into() }
-    } else {
-        ImuError::Open {
-            path: path.into(),
-            detail,
-        }
-    }
+    Failed(ClientError),
 }
 
 /// A streaming board: events arrive on [`ImuStream::events`].
@@ -259,25 +65,29 @@ pub struct ImuStream {
 }
 
 impl ImuStream {
-    /// Starts streaming on an identified, configured link; host times are
+    /// Starts streaming on an identified, configured board; host times are
     /// seconds since `epoch`.
-    pub fn start(
-        mut link: Link,
+    pub fn start<R, W>(
+        mut link: ImuClient<R, W>,
         info: DeviceInfo,
         config: SensorConfig,
         epoch: Instant,
-    ) -> Result<ImuStream, ImuError> {
-        link.command(HostMessage::Start, CommandKind::Start)?;
+    ) -> Result<ImuStream, ClientError>
+    where
+        R: Read + Send + 'static,
+        W: Write + Send + 'static,
+    {
+        link.start()?;
         let (tx, rx) = mpsc::channel();
         let stop = Arc::new(AtomicBool::new(false));
-        let stats = Arc::new(Mutex::new(*link.reader.stats()));
+        let stats = Arc::new(Mutex::new(*link.stats()));
         let (flag, shared_stats) = (Arc::clone(&stop), Arc::clone(&stats));
         let thread = thread::Builder::new()
             .name("robimu-imu".into())
             .spawn(move || stream(link, info, config, epoch, &tx, &flag, &shared_stats))
-            .map_err(|e| ImuError::Command {
+            .map_err(|source| ClientError::Thread {
                 path: String::new(),
-                what: format!("cannot start the streaming thread: {e}"),
+                source,
             })?;
         Ok(ImuStream {
             stop,
@@ -328,8 +138,8 @@ fn decimal(x: f32) -> f64 {
 /// Seconds between pings.
 const PING_PERIOD: Duration = Duration::from_millis(100);
 
-fn stream(
-    mut link: Link,
+fn stream<R: Read, W: Write>(
+    mut link: ImuClient<R, W>,
     mut info: DeviceInfo,
     config: SensorConfig,
     epoch: Instant,
@@ -356,7 +166,7 @@ fn stream(
             }
             pending.insert(nonce, Instant::now());
             pending.retain(|_, sent| now.duration_since(*sent) < Duration::from_secs(2));
-            *stats.lock().unwrap_or_else(|e| e.into_inner()) = *link.reader.stats();
+            *stats.lock().unwrap_or_else(|e| e.into_inner()) = *link.stats();
         }
         let msg = match link.poll() {
             Ok(Some(m)) => m,
@@ -434,5 +244,5 @@ fn stream(
         }
     }
     let _ = link.send(&HostMessage::Stop);
-    *stats.lock().unwrap_or_else(|e| e.into_inner()) = *link.reader.stats();
+    *stats.lock().unwrap_or_else(|e| e.into_inner()) = *link.stats();
 }

@@ -1,6 +1,6 @@
 //! Recording a session from an IMU board and a robot (`robimu record`).
 //!
-//! The board streams in one thread ([`imu`]), the robot's joint positions
+//! The board ([`client`]) streams in one thread ([`imu`]), the robot's joint positions
 //! are polled in another ([`crate::controller::aubo::JointPoller`]), the plan
 //! runs in a third ([`motion`]); this module's loop writes what arrives into
 //! the session directory (docs/model.md §7) and flushes it every second, so a
@@ -20,6 +20,7 @@
 //! ([`robot_clock`], [`repair::remap_joint_times`]).
 
 pub mod arm;
+pub mod client;
 pub mod clock_fit;
 pub mod controller;
 pub mod imu;
@@ -39,8 +40,9 @@ use std::time::{Duration, Instant};
 use robimu_protocol::{DecoderStats, DeviceInfo, SensorConfig};
 
 use self::arm::{Arm, ArmError};
+use self::client::{ClientError, ImuClient};
 use self::clock_fit::{ClockFit, Echo};
-use self::imu::{ImuError, ImuEvent, ImuStream, Link};
+use self::imu::{ImuEvent, ImuStream};
 use self::motion::Plan;
 use crate::controller::{JointSample, RobotSpec};
 use robimu_model::Robot;
@@ -134,7 +136,7 @@ pub struct RecordSummary {
 pub enum RecordError {
     /// The IMU board could not be set up (nothing recorded).
     #[error(transparent)]
-    Imu(#[from] ImuError),
+    Imu(#[from] ClientError),
     /// The robot could not be set up (nothing recorded).
     #[error(transparent)]
     Robot(#[from] ArmError),
@@ -157,11 +159,9 @@ pub fn record(
     progress: &mut dyn FnMut(&RecordProgress),
 ) -> Result<RecordSummary, RecordError> {
     // Set-up: everything that can fail before a file is written.
-    let mut link = Link::open(&opts.imu_port, opts.baud)?;
-    let mut info = link.identify(Duration::from_secs(3))?;
-    if let Some(i) = link.configure(opts.sensor)? {
-        info = i;
-    }
+    let mut board = ImuClient::open(&opts.imu_port, opts.baud)?;
+    board.identify(Duration::from_secs(3))?;
+    let info = board.configure(&opts.sensor)?;
     let mut arm = Arm::connect(&opts.robot_spec)?;
     if let Some(plan) = &opts.plan {
         arm.prepare(&opts.robot, plan)?;
@@ -180,7 +180,7 @@ pub fn record(
     let mut state = SessionSink::create_with_clock(&opts.out, &meta, n, controller_clock)?;
 
     let epoch = Instant::now();
-    let stream = ImuStream::start(link, info, opts.sensor, epoch)?;
+    let stream = ImuStream::start(board, info, opts.sensor, epoch)?;
     let motion = opts.plan.as_ref().map(|p| p.duration());
     let mut arm = arm.start(
         &opts.robot,
