@@ -898,7 +898,7 @@ fn calibrate_windows_reports_the_repeatability() {
                 let spec = &layout.specs()[k];
                 let du = robimu_model::units::DisplayUnit::for_si(spec.unit);
                 let kind = match layout.estimated_errors().get(k) {
-                    Some(e) if e.link < n && e.k <= 3 => "robot lengths",
+                    Some(e) if e.is_length(n) => "robot lengths",
                     Some(e) if e.link < n => "robot angles",
                     Some(_) => "IMU position",
                     None if spec.name.starts_with("g_") => "gravity",
@@ -943,7 +943,7 @@ fn simulate_nominal_keeps_named_parameters_at_nominal() {
     let mut held: Vec<usize> = layout
         .estimated_errors()
         .iter()
-        .filter(|e| e.link < robot.dof() && e.k <= 3)
+        .filter(|e| e.is_length(robot.dof()))
         .filter_map(|e| layout.eps_index(e.link, e.k))
         .collect();
     held.push(layout.offsets().tau);

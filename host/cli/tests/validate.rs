@@ -23,7 +23,7 @@ fn lengths(robot: &Robot, layout: &ParamLayout) -> Vec<usize> {
     layout
         .estimated_errors()
         .iter()
-        .filter(|e| e.link < robot.dof() && e.k <= 3)
+        .filter(|e| e.is_length(robot.dof()))
         .filter_map(|e| layout.eps_index(e.link, e.k))
         .collect()
 }

@@ -82,6 +82,20 @@ pub struct ParamLengthError {
     pub found: usize,
 }
 
+/// The groups [`ParamLayout::select`] understands besides parameter names:
+/// `lengths`, the robot length errors ([`ParamLayout::lengths`]).
+pub const PARAM_GROUPS: &[&str] = &["lengths"];
+
+/// An item of a parameter selection that is neither a group nor a parameter.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown parameter `{name}`; valid: {valid}")]
+pub struct UnknownParameter {
+    /// The item.
+    pub name: String,
+    /// The groups and parameter names, comma-separated.
+    pub valid: String,
+}
+
 /// Typed view of x: the full ε table (estimated and fixed), gravity, τ and
 /// both sensors' intrinsics.
 #[derive(Clone, Debug, PartialEq)]
@@ -122,8 +136,8 @@ impl ParamLayout {
         let estimated = robot.estimated_errors().to_vec();
         let mut specs = Vec::with_capacity(estimated.len() + 27);
         for e in &estimated {
-            let imu_pos = e.link == n && e.k <= 3;
-            let (unit, sigma) = match (imu_pos, e.k <= 3) {
+            let imu_pos = e.link == n && e.is_translation();
+            let (unit, sigma) = match (imu_pos, e.is_translation()) {
                 (true, _) => ("m", mount.position_sigma),
                 (false, true) => ("m", pr.eps_length_sigma),
                 (false, false) => ("rad", pr.eps_angle_sigma),
@@ -225,6 +239,54 @@ impl ParamLayout {
             .iter()
             .position(|e| e.link == link && e.k == k)
     }
+    /// Indices in x of the robot length errors ε_i1..3 of links i < n (not
+    /// the IMU position ε_n1..3), in x order.
+    pub fn lengths(&self) -> Vec<usize> {
+        let n = self.n_links();
+        (0..self.estimated.len())
+            .filter(|&i| self.estimated[i].is_length(n))
+            .collect()
+    }
+
+    /// Indices in x, sorted and without repeats, of the parameters `items`
+    /// name: groups ([`PARAM_GROUPS`]: `lengths`) and parameter names
+    /// (docs/model.md §5); blank items are skipped.
+    pub fn select<S: AsRef<str>>(&self, items: &[S]) -> Result<Vec<usize>, UnknownParameter> {
+        let mut out = Vec::new();
+        for item in items
+            .iter()
+            .map(|s| s.as_ref().trim())
+            .filter(|s| !s.is_empty())
+        {
+            if let Some(group) = self.group(item) {
+                out.extend(group);
+            } else if let Some(k) = self.index_of(item) {
+                out.push(k);
+            } else {
+                let names: Vec<&str> = PARAM_GROUPS
+                    .iter()
+                    .copied()
+                    .chain(self.specs.iter().map(|s| s.name.as_str()))
+                    .collect();
+                return Err(UnknownParameter {
+                    name: item.to_string(),
+                    valid: names.join(", "),
+                });
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        Ok(out)
+    }
+
+    /// The members of the group named `name` ([`PARAM_GROUPS`]).
+    fn group(&self, name: &str) -> Option<Vec<usize>> {
+        match name {
+            "lengths" => Some(self.lengths()),
+            _ => None,
+        }
+    }
+
     /// Prior means x̂.
     pub fn nominal(&self) -> Vec<f64> {
         self.specs.iter().map(|s| s.nominal).collect()
@@ -302,6 +364,35 @@ pub fn draw_truth<R: rand::Rng>(layout: &ParamLayout, rng: &mut R) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn select_understands_groups_and_names() {
+        let l = ParamLayout::new(&Robot::aubo_i5());
+        let lengths = l.lengths();
+        let names: Vec<&str> = lengths
+            .iter()
+            .map(|&k| l.specs()[k].name.as_str())
+            .collect();
+        // the nine robot lengths of the paper; the IMU position eps_6_1..3 is not one
+        assert_eq!(
+            names,
+            "eps_1_1 eps_2_1 eps_2_2 eps_3_1 eps_3_2 eps_4_1 eps_4_2 eps_5_1 eps_5_2"
+                .split_whitespace()
+                .collect::<Vec<_>>()
+        );
+        let tau = l.offsets().tau;
+        let got = l.select(&[" tau", "lengths", "", "eps_2_1"]).unwrap();
+        let mut want = lengths.clone();
+        want.push(tau);
+        assert_eq!(got, want);
+        assert_eq!(l.select::<&str>(&[]).unwrap(), Vec::<usize>::new());
+        let err = l.select(&["lengths", "tua"]).unwrap_err();
+        assert_eq!(err.name, "tua");
+        assert!(err.valid.starts_with("lengths, eps_1_1, eps_1_6,"), "{err}");
+        assert!(err
+            .to_string()
+            .starts_with("unknown parameter `tua`; valid: lengths, eps_1_1"));
+    }
 
     #[test]
     fn aubo_layout_has_the_model_md_names_order_and_priors() {

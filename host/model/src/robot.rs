@@ -306,6 +306,19 @@ pub struct ErrorIndex {
     pub k: usize,
 }
 
+impl ErrorIndex {
+    /// Whether this is a translation component (k = 1..3, metres).
+    pub fn is_translation(&self) -> bool {
+        self.k <= 3
+    }
+
+    /// Whether this is a robot length error of an `n`-joint robot: a
+    /// translation ε_i1..3 of a link i < n (ε_n1..3 is the IMU position).
+    pub fn is_length(&self, n: usize) -> bool {
+        self.link < n && self.is_translation()
+    }
+}
+
 impl From<[usize; 2]> for ErrorIndex {
     fn from(v: [usize; 2]) -> Self {
         Self {

@@ -171,7 +171,7 @@ pub struct Repeatability {
 pub fn group_of(layout: &ParamLayout, k: usize) -> &'static str {
     let o = layout.offsets();
     if let Some(e) = layout.estimated_errors().get(k) {
-        return match (e.link == layout.n_links(), e.k <= 3) {
+        return match (e.link == layout.n_links(), e.is_translation()) {
             (true, true) => "IMU position",
             (true, false) => "IMU orientation",
             (false, true) => "robot lengths",

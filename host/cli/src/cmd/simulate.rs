@@ -220,7 +220,10 @@ impl SimulateCmd {
         let mut rng = rand::rngs::StdRng::seed_from_u64(self.seed);
         let mut drawn = draw_truth(&layout, &mut rng);
         let nominal = layout.nominal();
-        for k in super::calibrate::parameter_indices(&robot, &layout, &self.nominal, "--nominal")? {
+        let held = layout
+            .select(&self.nominal)
+            .map_err(|e| anyhow::anyhow!("--nominal: {e}"))?;
+        for k in held {
             drawn[k] = nominal[k];
         }
         let x_true = match &self.truth {

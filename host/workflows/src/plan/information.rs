@@ -193,7 +193,7 @@ pub fn without_robot_lengths(layout: &ParamLayout) -> Vec<usize> {
             !layout
                 .estimated_errors()
                 .get(i)
-                .is_some_and(|e| e.link < n && e.k <= 3)
+                .is_some_and(|e| e.is_length(n))
         })
         .collect()
 }
