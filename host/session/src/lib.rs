@@ -20,6 +20,7 @@ mod error;
 pub mod export;
 pub mod import;
 mod meta;
+pub mod poses;
 pub mod result;
 mod table;
 mod truth;
@@ -34,7 +35,8 @@ pub use error::SessionError;
 pub use meta::toml_error;
 pub use meta::{NoiseOverride, SessionMeta, SESSION_FORMAT};
 pub use result::{
-    CalibrationResult, CovarianceMatrix, ParameterResult, ResultError, RESULT_FORMAT,
+    CalibrationResult, CovarianceMatrix, MissingParameter, ParameterResult, ResultError,
+    RESULT_FORMAT,
 };
 pub use table::{
     parse_table, parse_table_with, read_table, read_table_with, Columns, OptionalColumns, Table,

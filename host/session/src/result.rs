@@ -20,6 +20,7 @@
 
 use std::path::{Path, PathBuf};
 
+use robimu_model::ParamLayout;
 use serde::{Deserialize, Serialize};
 
 /// The format string this version reads and writes.
@@ -163,7 +164,34 @@ pub enum ResultError {
     },
 }
 
+/// A result without a parameter of the layout it is read for.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("the result has no parameter `{0}`: it was not computed for this robot")]
+pub struct MissingParameter(pub String);
+
 impl CalibrationResult {
+    /// x in `layout` order, every parameter taken by name.
+    pub fn values(&self, layout: &ParamLayout) -> Result<Vec<f64>, MissingParameter> {
+        layout
+            .specs()
+            .iter()
+            .map(|s| {
+                self.parameter(&s.name)
+                    .map(|p| p.value)
+                    .ok_or_else(|| MissingParameter(s.name.clone()))
+            })
+            .collect()
+    }
+
+    /// Indices in `layout` of the parameters the result held frozen.
+    pub fn frozen(&self, layout: &ParamLayout) -> Vec<usize> {
+        self.parameters
+            .iter()
+            .filter(|p| p.frozen)
+            .filter_map(|p| layout.index_of(&p.name))
+            .collect()
+    }
+
     /// Index of parameter `name` in [`parameters`](Self::parameters).
     pub fn index_of(&self, name: &str) -> Option<usize> {
         self.parameters.iter().position(|p| p.name == name)

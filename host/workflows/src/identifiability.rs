@@ -251,3 +251,241 @@ pub fn worst_direction(info: &Mat<f64>) -> Vec<f64> {
         Err(_) => vec![0.0; info.nrows()],
     }
 }
+
+/// Posterior σ of every parameter against trajectory length (paper Fig. 6).
+#[derive(Clone, Debug)]
+pub struct SigmaStudy {
+    /// The parameter names, in x order.
+    pub names: Vec<String>,
+    /// Trajectory lengths, s.
+    pub times: Vec<f64>,
+    /// Per time, every parameter's posterior σ (SI).
+    pub sigma: Vec<Vec<f64>>,
+}
+
+/// [`sigma_vs_time`] every `step` s, with the parameter names.
+pub fn sigma_study(info: &Information, spline: &Spline, step: f64) -> SigmaStudy {
+    let (times, sigma) = sigma_vs_time(info, spline, step);
+    SigmaStudy {
+        names: info
+            .layout()
+            .specs()
+            .iter()
+            .map(|s| s.name.clone())
+            .collect(),
+        times,
+        sigma,
+    }
+}
+
+/// Posterior σ of the robot length parameters for time-scaled copies of a
+/// trajectory (paper Fig. 8).
+#[derive(Clone, Debug)]
+pub struct SpeedStudy {
+    /// The speed-up factors.
+    pub speeds: Vec<f64>,
+    /// The length parameters' names.
+    pub names: Vec<String>,
+    /// Per speed, each length parameter's σ, m.
+    pub rows: Vec<Vec<f64>>,
+}
+
+/// [`length_sigma_vs_speed`] at `speeds`.
+pub fn speed_study(info: &Information, spline: &Spline, speeds: &[f64]) -> SpeedStudy {
+    let (names, rows) = length_sigma_vs_speed(info, spline, speeds);
+    SpeedStudy {
+        speeds: speeds.to_vec(),
+        names,
+        rows,
+    }
+}
+
+/// λ_max(Σ_x) against time, `(t, λ_max, λ_max without the robot lengths)`.
+pub type LambdaCurve = Vec<(f64, f64, f64)>;
+
+/// A plan against random trajectories of equal length under the same limits
+/// (paper Fig. 5).
+#[derive(Clone, Debug)]
+pub struct BaselineStudy {
+    /// The plan's curve.
+    pub plan: LambdaCurve,
+    /// Random trajectories of each kind.
+    pub random: usize,
+    /// The curves of the uniform random trajectories.
+    pub uniform: Vec<LambdaCurve>,
+    /// The curves of the random walks.
+    pub walk: Vec<LambdaCurve>,
+}
+
+/// The medians over random trajectories at one time of a [`BaselineStudy`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BaselineMedians {
+    /// Uniform random: λ_max.
+    pub uniform: f64,
+    /// Uniform random: λ_max with the robot lengths known.
+    pub uniform_without_lengths: f64,
+    /// Random walks: λ_max.
+    pub walk: f64,
+    /// Random walks: λ_max with the robot lengths known.
+    pub walk_without_lengths: f64,
+}
+
+impl BaselineStudy {
+    /// The medians of the random curves at the plan's `k`-th time.
+    pub fn medians(&self, k: usize) -> BaselineMedians {
+        let med = |c: &[LambdaCurve], without: bool| -> f64 {
+            let v: Vec<f64> = c
+                .iter()
+                .filter_map(|x| x.get(k).map(|p| if without { p.2 } else { p.1 }))
+                .collect();
+            median(&v)
+        };
+        BaselineMedians {
+            uniform: med(&self.uniform, false),
+            uniform_without_lengths: med(&self.uniform, true),
+            walk: med(&self.walk, false),
+            walk_without_lengths: med(&self.walk, true),
+        }
+    }
+}
+
+/// Length of `spline`, s.
+fn span(spline: &Spline) -> f64 {
+    spline.knots().end() - spline.knots().start()
+}
+
+/// λ_max(Σ_x) every `step` s of the plan and of `random` trajectories of
+/// each [`Baseline`] kind drawn from `rng` (uniform first);
+/// `progress(kind, k)` before the k-th (1-based) of each kind.
+pub fn baseline_study<R: Rng>(
+    robot: &Robot,
+    info: &Information,
+    spline: &Spline,
+    step: f64,
+    random: usize,
+    rng: &mut R,
+    mut progress: impl FnMut(Baseline, usize),
+) -> Result<BaselineStudy, SplineError> {
+    let plan = lambda_vs_time(info, spline, step);
+    let mut curves = Vec::new();
+    for kind in [Baseline::Uniform, Baseline::RandomWalk] {
+        let mut v = Vec::new();
+        for k in 0..random {
+            progress(kind, k + 1);
+            let s = baseline(robot, kind, span(spline), rng)?;
+            v.push(lambda_vs_time(info, &s, step));
+        }
+        curves.push(v);
+    }
+    let walk = curves.pop().unwrap_or_default();
+    let uniform = curves.pop().unwrap_or_default();
+    Ok(BaselineStudy {
+        plan,
+        random,
+        uniform,
+        walk,
+    })
+}
+
+/// [`check_approximation`] with the trajectory knots as the spline's own
+/// (its first knot span).
+pub fn check_plan_approximation(
+    robot: &Robot,
+    spline: &Spline,
+    rate: f64,
+) -> Result<ApproximationCheck, CheckError> {
+    let h = spline.knots().knots()[spline.knots().degree() + 1] - spline.knots().start();
+    check_approximation(robot, spline, rate, h)
+}
+
+/// Mean squared errors of a Monte Carlo run, measured and predicted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ErrorMoments {
+    /// Along the random walk's worst direction, measured.
+    pub along: f64,
+    /// In total (the trace), measured.
+    pub total: f64,
+    /// Along the worst direction, predicted by (26).
+    pub predicted_along: f64,
+    /// The predicted trace.
+    pub predicted_total: f64,
+}
+
+/// The Monte Carlo check of the predicted gain in precision of a plan over
+/// a random walk of the same length.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PrecisionGain {
+    /// Calibrations on each trajectory.
+    pub runs: usize,
+    /// On the plan.
+    pub plan: ErrorMoments,
+    /// On the random walk.
+    pub walk: ErrorMoments,
+}
+
+/// Why the gain in precision could not be checked.
+#[derive(Debug, thiserror::Error)]
+pub enum GainError {
+    /// The random walk could not be made.
+    #[error(transparent)]
+    Trajectory(#[from] SplineError),
+    /// An information matrix is singular.
+    #[error("singular information")]
+    Singular,
+    /// The Monte Carlo calibrations failed.
+    #[error("Monte Carlo on the {trajectory}")]
+    MonteCarlo {
+        /// `plan` or `random walk`.
+        trajectory: &'static str,
+        /// Why.
+        #[source]
+        source: CheckError,
+    },
+}
+
+/// `runs` Monte Carlo calibrations ([`monte_carlo_errors`], seeded with
+/// `seed`) on the plan and on a random walk drawn from `rng`, against the
+/// precision (26) predicts; `progress(trajectory, run)` after each run.
+pub fn precision_gain<R: Rng>(
+    robot: &Robot,
+    info: &Information,
+    spline: &Spline,
+    runs: usize,
+    seed: u64,
+    rng: &mut R,
+    mut progress: impl FnMut(&str, usize),
+) -> Result<PrecisionGain, GainError> {
+    let walk = baseline(robot, Baseline::RandomWalk, span(spline), rng)?;
+    let all: Vec<usize> = (0..info.dim()).collect();
+    let lam_plan = info.total(spline, 1.0, Sampling::Exact);
+    let lam_walk = info.total(&walk, 1.0, Sampling::Exact);
+    let v = worst_direction(&lam_walk);
+    let predict = |lam: &Mat<f64>| -> Result<(f64, f64), GainError> {
+        let c = covariance(lam, &all).ok_or(GainError::Singular)?;
+        let mut along = 0.0;
+        for i in 0..all.len() {
+            for j in 0..all.len() {
+                along += v[i] * c[(i, j)] * v[j];
+            }
+        }
+        Ok((along, (0..all.len()).map(|i| c[(i, i)]).sum()))
+    };
+    let (pp, pw) = (predict(&lam_plan)?, predict(&lam_walk)?);
+    let mut measured = Vec::new();
+    for (trajectory, s) in [("plan", spline), ("random walk", &walk)] {
+        let e = monte_carlo_errors(robot, s, runs, seed, |r| progress(trajectory, r))
+            .map_err(|source| GainError::MonteCarlo { trajectory, source })?;
+        measured.push(error_moments(&e, &v));
+    }
+    let moments = |(along, total): (f64, f64), (pa, pt): (f64, f64)| ErrorMoments {
+        along,
+        total,
+        predicted_along: pa,
+        predicted_total: pt,
+    };
+    Ok(PrecisionGain {
+        runs,
+        plan: moments(measured[0], pp),
+        walk: moments(measured[1], pw),
+    })
+}

@@ -7,6 +7,7 @@
 //! * [`diagnose`] — model-discrepancy diagnosis with the effect catalogue;
 //! * [`identifiability`] — σ against length, speed and random trajectories (paper §8.2, §8.4);
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
+//! * [`motion_accuracy`] — the IMU accuracy of a tracked motion (paper Fig. 11);
 //! * [`noise`] — Σ_z and Σ_q of a recording by spline fitting (paper §8.1);
 //! * [`plan`] — excitation trajectory planning (paper §7);
 //! * [`repeatability`] — calibrations of k time windows against the full one;
@@ -25,6 +26,7 @@ pub mod calibrate;
 pub mod diagnose;
 pub mod identifiability;
 pub mod montecarlo;
+pub mod motion_accuracy;
 pub mod noise;
 pub mod plan;
 pub mod repeatability;

@@ -1,11 +1,10 @@
 //! `robimu allan`: Allan deviation of a static IMU recording.
 
-use std::fmt::Write as _;
 use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use robimu_report::plot::{loglog_panels, LogLogPanel};
+use robimu_report::allan::{write_allan_csv, write_allan_figure, AllanTable};
 use robimu_session::{files, read_table, Columns, IMU_COLUMNS};
 use robimu_workflows::allan::imu_allan;
 
@@ -62,59 +61,11 @@ impl AllanCmd {
             1.0 / tau0,
             table.len() as f64 * tau0
         )?;
-        writeln!(
-            out,
-            "{:<8} {:>14} {:>14} {:>10} {:>10} {:>16}",
-            "channel", "N [u/sqrt(Hz)]", "B [u]", "tau_B [s]", "N points", "sigma/sample [u]"
-        )?;
-        for (k, c) in channels.iter().enumerate() {
-            let unit = if k < 3 { "m/s^2" } else { "rad/s" };
-            let t = &c.terms;
-            writeln!(
-                out,
-                "{:<8} {:>14.4e} {:>14.4e} {:>10.3} {:>10} {:>16.4e}  u = {unit}{}",
-                c.name,
-                t.density,
-                t.bias_instability,
-                t.tau_min,
-                t.density_points,
-                t.density / tau0.sqrt(),
-                if t.density_points == 0 {
-                    "  (no tau^-1/2 region: N from the shortest tau)"
-                } else {
-                    ""
-                }
-            )?;
-        }
-        let mut text = String::from("tau,ax,ay,az,gx,gy,gz\n");
-        for (i, p) in channels[0].curve.iter().enumerate() {
-            write!(text, "{}", p.tau)?;
-            for c in &channels {
-                write!(text, ",{}", c.curve[i].adev)?;
-            }
-            text.push('\n');
-        }
-        let csv_out = out_dir.join("allan.csv");
-        std::fs::write(&csv_out, text)
-            .with_context(|| format!("cannot write {}", csv_out.display()))?;
+        let channels = &channels;
+        write!(out, "{}", AllanTable { tau0, channels })?;
+        let csv_out = write_allan_csv(&out_dir, channels)?;
         writeln!(out, "wrote {}", csv_out.display())?;
-        let panel = |title: &str, unit: &str, range: std::ops::Range<usize>| LogLogPanel {
-            title: title.into(),
-            x_label: "tau [s]".into(),
-            y_label: format!("Allan deviation [{unit}]"),
-            series: channels[range]
-                .iter()
-                .map(|c| {
-                    let points = c.curve.iter().map(|p| (p.tau, p.adev)).collect();
-                    (c.name.clone(), points)
-                })
-                .collect(),
-        };
-        let panels = [
-            panel("accelerometer", "m/s^2", 0..3),
-            panel("gyroscope", "rad/s", 3..6),
-        ];
-        for path in loglog_panels(&out_dir.join("allan"), "Allan deviation", &panels)? {
+        for path in write_allan_figure(&out_dir, channels)? {
             writeln!(out, "wrote {}", path.display())?;
         }
         Ok(())

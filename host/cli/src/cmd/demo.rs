@@ -5,7 +5,7 @@
 //! `robimu record`, and a calibration checked against the hidden truth.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
@@ -15,11 +15,13 @@ use robimu_protocol::SensorConfig;
 use robimu_record::controller::RobotSpec;
 use robimu_record::motion::Plan;
 use robimu_record::RecordOptions;
-use robimu_session::{files, Truth};
+use robimu_report::demo::{DemoFiles, DemoHardware, DemoPlanned, DemoRecordCommand};
+use robimu_session::files;
 use robimu_workflows::plan::PlanOptions;
 
 use super::calibrate::CalibrateCmd;
-use super::record::{print_summary, record_with_progress};
+use super::input::record_with_progress;
+use robimu_report::recording::RecordSummaryText;
 
 /// Run the main job on simulated hardware, no robot or IMU needed: plan,
 /// record from a simulated AUBO i5 and IMU board with a hidden truth,
@@ -65,125 +67,138 @@ impl DemoCmd {
         let robot = Robot::aubo_i5();
 
         writeln!(out, "== 1. plan ==")?;
+        let plan = self.plan(&robot, &plan_dir)?;
+
+        writeln!(out, "\n== 2. simulated hardware ==")?;
+        let rig = self.hardware(&robot, &plan)?;
+
+        writeln!(out, "\n== 3. record ==")?;
+        let (plan_dir, session) = (plan_dir.as_path(), session.as_path());
+        self.record(&rig, robot, plan, plan_dir, session)?;
+        drop(rig);
+
+        writeln!(out, "\n== 4. calibrate ==")?;
+        out.flush()?;
+        let t0 = Instant::now();
+        let report = dir.join("report");
+        self.calibrate(session, &report)?;
+        writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;
+        let seconds = start.elapsed().as_secs_f64();
+        let report = report.as_path();
+        write!(
+            out,
+            "{}",
+            DemoFiles {
+                plan_dir,
+                session,
+                report,
+                seconds
+            }
+        )?;
+        Ok(())
+    }
+
+    /// Plans the excitation, writes PLAN_DIR/plan.csv and says so.
+    fn plan(&self, robot: &Robot, plan_dir: &Path) -> anyhow::Result<Plan> {
         let progress = super::input::Progress::start("planning");
         let t0 = Instant::now();
-        let planned = robimu_workflows::plan::plan(
-            &robot,
-            &PlanOptions {
-                duration: self.duration,
-                seed: self.seed,
-                ..PlanOptions::default()
-            },
-            |b, nb, l| progress.set_message(format!("planning: block {b}/{nb}, λ_max ≈ {l:.3e}")),
-        )
+        let opts = PlanOptions {
+            duration: self.duration,
+            seed: self.seed,
+            ..PlanOptions::default()
+        };
+        let planned = robimu_workflows::plan::plan(robot, &opts, |b, nb, l| {
+            progress.set_message(format!("planning: block {b}/{nb}, λ_max ≈ {l:.3e}"))
+        })
         .context("cannot plan the excitation trajectory")?;
         progress.finish();
         let plan = Plan::from_spline(&planned.spline, 250.0);
-        let plan_csv = plan_dir.join("plan.csv");
-        plan.write_csv(&plan_csv)
-            .with_context(|| format!("cannot write {}", plan_csv.display()))?;
-        writeln!(
-            out,
-            "{} s excitation planned in {:.1} s (sequential, min λ_max(Σ_x) = {:.3e} in SI; exact joint limits; at rest at both ends): {} ({} waypoints at 250 Hz)",
-            self.duration,
-            t0.elapsed().as_secs_f64(),
-            planned.lambda_max.last().copied().unwrap_or(f64::NAN),
-            plan_csv.display(),
-            plan.q.len()
-        )?;
+        let path = plan_dir.join("plan.csv");
+        plan.write_csv(&path)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        let planned = DemoPlanned {
+            duration: self.duration,
+            seconds: t0.elapsed().as_secs_f64(),
+            lambda_max: planned.lambda_max.last().copied().unwrap_or(f64::NAN),
+            path: &path,
+            waypoints: plan.q.len(),
+        };
+        write!(std::io::stdout(), "{planned}")?;
+        Ok(plan)
+    }
 
-        writeln!(out, "\n== 2. simulated hardware ==")?;
+    /// Starts the simulated board and AUBO controller, the arm at the
+    /// plan's first pose, and says so.
+    fn hardware(&self, robot: &Robot, plan: &Plan) -> anyhow::Result<SimRig> {
         let mut config = SimRigConfig::drawn(robot.clone(), self.seed);
         config.clock_drift_ppm = self.drift_ppm;
         // The arm waits at the plan's first pose (a real one is moved there
         // first: `record` does that at half the slowest joint's limits).
         config.initial = plan.q[0];
         let rig = SimRig::spawn(&config).context("cannot start the simulated hardware")?;
-        writeln!(
-            out,
-            "IMU board on {} (the real firmware core over a register-level BNO055; clock {:+.1} ppm)",
-            rig.imu_port(),
-            self.drift_ppm
-        )?;
-        writeln!(
-            out,
-            "AUBO i5 controller on {} (JSON-RPC, 20 ms tracking lag, encoder noise as the paper's)",
-            rig.robot_addr()
-        )?;
-        writeln!(
-            out,
-            "hidden truth: robot errors and IMU parameters drawn from the priors (seed {})",
-            self.seed
-        )?;
+        let hardware = DemoHardware {
+            imu_port: rig.imu_port(),
+            drift_ppm: self.drift_ppm,
+            robot_addr: rig.robot_addr().to_string(),
+            seed: self.seed,
+        };
+        write!(std::io::stdout(), "{hardware}")?;
+        Ok(rig)
+    }
 
-        writeln!(out, "\n== 3. record ==")?;
-        writeln!(
-            out,
-            "robimu record --imu {} --robot {} --plan {} --out {}",
-            rig.imu_port(),
-            rig.robot_spec(),
-            plan_dir.display(),
-            session.display()
-        )?;
+    /// Records the plan from `rig` into `session` as `robimu record` does,
+    /// with the hidden truth beside it.
+    fn record(
+        &self,
+        rig: &SimRig,
+        robot: Robot,
+        plan: Plan,
+        plan_dir: &Path,
+        session: &Path,
+    ) -> anyhow::Result<()> {
+        let robot_spec = rig.robot_spec();
+        let command = DemoRecordCommand {
+            imu_port: rig.imu_port(),
+            robot_spec: &robot_spec,
+            plan_dir,
+            session,
+        };
+        write!(std::io::stdout(), "{command}")?;
         let opts = RecordOptions {
             imu_port: rig.imu_port().to_string(),
             baud: 921_600,
-            robot_spec: RobotSpec::parse(&rig.robot_spec())?,
-            robot: robot.clone(),
+            robot_spec: RobotSpec::parse(&robot_spec)?,
+            robot,
             robot_name: "aubo_i5".into(),
             plan: Some(plan),
             duration: self.duration,
-            out: session.clone(),
+            out: session.to_path_buf(),
             joint_rate: 125.0,
             rest: 1.0,
             sensor: SensorConfig::default(),
             interrupt: None,
         };
         let summary = record_with_progress(&opts)?;
-        print_summary(&summary);
-        write_truth(&session, rig.truth())?;
-        drop(rig);
+        print!("{}", RecordSummaryText(&summary));
+        let truth = session.join(files::TRUTH);
+        std::fs::write(&truth, rig.truth().to_toml())
+            .with_context(|| format!("cannot write {}", truth.display()))
+    }
 
-        writeln!(out, "\n== 4. calibrate ==")?;
-        out.flush()?;
-        let t0 = Instant::now();
+    /// `robimu calibrate SESSION --report REPORT`.
+    fn calibrate(&self, session: &Path, report: &Path) -> anyhow::Result<()> {
         CalibrateCmd {
-            session: session.clone(),
+            session: session.to_path_buf(),
             out: None,
             freeze: Vec::new(),
             no_prior: false,
             knot_spacing: None,
             noise: None,
             windows: None,
-            report: Some(dir.join("report")),
+            report: Some(report.to_path_buf()),
             effects: Vec::new(),
             resonance: Default::default(),
         }
-        .run()?;
-        writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;
-        writeln!(
-            out,
-            "\nfiles: {} (plan.csv), {} (session.toml, joints.csv, imu.csv, pings.csv, truth.toml = the hidden truth, result.json)",
-            plan_dir.display(),
-            session.display()
-        )?;
-        writeln!(
-            out,
-            "report: {} (open it in a browser; the figures are beside it as PNG and SVG)",
-            dir.join("report").join("report.html").display()
-        )?;
-        writeln!(
-            out,
-            "demo took {:.1} s; next: robimu calibrate {} --freeze lengths",
-            start.elapsed().as_secs_f64(),
-            session.display()
-        )?;
-        Ok(())
+        .run()
     }
-}
-
-fn write_truth(session: &std::path::Path, truth: &Truth) -> anyhow::Result<()> {
-    let path = session.join(files::TRUTH);
-    std::fs::write(&path, truth.to_toml())
-        .with_context(|| format!("cannot write {}", path.display()))
 }

@@ -1,5 +1,6 @@
 //! What the commands share: naming a robot, turning a loaded session into the
-//! calibrator's inputs, and printing progress.
+//! calibrator's inputs, reading a plan directory, recording with a progress
+//! bar, and printing progress.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -9,8 +10,10 @@ use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
 use robimu_model::error_selection::{identifiable_errors, IdentifiableOptions};
 use robimu_model::urdf::{robot_from_urdf_file, UrdfOptions};
-use robimu_model::Robot;
-use robimu_session::Session;
+use robimu_model::{Robot, Spline};
+use robimu_record::{record, RecordOptions, RecordProgress, RecordSummary};
+use robimu_session::{read_table, Columns, Session, Table};
+use robimu_workflows::plan::SplineFile;
 
 /// Robots built into the program (`--robot NAME`, `robot = "NAME"`).
 pub const BUILTIN_ROBOTS: &[&str] = &["aubo_i5"];
@@ -177,6 +180,163 @@ pub fn output_path(out: Option<&Path>, default: PathBuf) -> anyhow::Result<PathB
         }
     }
     Ok(path)
+}
+
+/// The plan's trajectory: spline.toml if present, else plan.csv refitted.
+pub fn read_plan_spline(robot: &Robot, dir: &Path) -> anyhow::Result<Spline> {
+    let path = dir.join("spline.toml");
+    let spline = if path.is_file() {
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let file: SplineFile = toml::from_str(&text)
+            .with_context(|| format!("{}: not a spline file", path.display()))?;
+        file.spline()
+            .with_context(|| format!("{}: not a valid spline", path.display()))?
+    } else {
+        let path = dir.join("plan.csv");
+        if !path.is_file() {
+            bail!(
+                "{}: no spline.toml or plan.csv (write one with `robimu plan --out {}`)",
+                dir.display(),
+                dir.display()
+            );
+        }
+        let table = read_table(&path, Columns::Joints)?;
+        robimu_model::trajectory::from_samples(table.width(), &table.t, &table.values)
+            .with_context(|| format!("{}: cannot represent the plan", path.display()))?
+    };
+    if spline.dim() != robot.dof() {
+        bail!(
+            "{}: the plan has {} joints but robot `{}` has {}",
+            dir.display(),
+            spline.dim(),
+            robot.name(),
+            robot.dof()
+        );
+    }
+    Ok(spline)
+}
+
+/// The trajectory of `PLAN_DIR/plan.csv`, checked against the robot.
+pub fn read_plan(robot: &Robot, dir: &Path) -> anyhow::Result<Spline> {
+    let path = dir.join("plan.csv");
+    let table = read_plan_table(robot, dir)?;
+    let n = robot.dof();
+    robimu_model::trajectory::from_samples(n, &table.t, &table.values).with_context(|| {
+        format!(
+            "{}: cannot represent the plan as a trajectory",
+            path.display()
+        )
+    })
+}
+
+/// The samples of `PLAN_DIR/plan.csv`, checked against the robot's joint
+/// count and position limits.
+pub fn read_plan_table(robot: &Robot, dir: &Path) -> anyhow::Result<Table> {
+    let path = dir.join("plan.csv");
+    let table = read_table(&path, Columns::Joints)?;
+    let n = robot.dof();
+    if table.width() != n {
+        bail!(
+            "{}: {} joint columns, but robot `{}` has {n} joints",
+            path.display(),
+            table.width(),
+            robot.name()
+        );
+    }
+    for (s, row) in table.values.chunks_exact(n).enumerate() {
+        for (j, (q, lim)) in row.iter().zip(robot.limits()).enumerate() {
+            if *q < lim.q_min - 1e-9 || *q > lim.q_max + 1e-9 {
+                bail!(
+                    "{}: row {} (t = {} s): q{} = {q} rad is outside the joint limits [{}, {}]",
+                    path.display(),
+                    s + 1,
+                    table.t[s],
+                    j + 1,
+                    lim.q_min,
+                    lim.q_max
+                );
+            }
+        }
+    }
+    if table.len() < 8 {
+        bail!(
+            "{}: a plan needs at least 8 samples, found {}",
+            path.display(),
+            table.len()
+        );
+    }
+    Ok(table)
+}
+
+/// Records with a progress bar on stderr (when it is a terminal). The first
+/// Ctrl-C (SIGINT) or SIGTERM stops the recording cleanly (the plan halted,
+/// the session finished); a second Ctrl-C ends the program at once (exit
+/// 130; `robimu repair` then finishes the session).
+pub fn record_with_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummary> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let mut ids = Vec::new();
+    for (signal, exit) in [(SIGINT, 130), (SIGTERM, 143)] {
+        // registered first: runs only when the flag is already set
+        ids.push(
+            signal_hook::flag::register_conditional_shutdown(signal, exit, flag.clone())
+                .context("cannot install the Ctrl-C handler")?,
+        );
+        ids.push(
+            signal_hook::flag::register(signal, flag.clone())
+                .context("cannot install the Ctrl-C handler")?,
+        );
+    }
+    let mut opts = opts.clone();
+    opts.interrupt = Some(flag);
+    let result = record_showing_progress(&opts);
+    for id in ids {
+        signal_hook::low_level::unregister(id);
+    }
+    result
+}
+
+fn record_showing_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummary> {
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let bar = ProgressBar::new(1000);
+        let style = ProgressStyle::with_template(
+            "{spinner} recording [{elapsed_precise}] {bar:30} {percent:>3}% (~{eta} left) {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar());
+        bar.set_style(style);
+        bar.enable_steady_tick(Duration::from_millis(200));
+        bar
+    });
+    let mut show = |p: &RecordProgress| {
+        if let Some(bar) = &bar {
+            let done = if p.total > 0.0 {
+                (p.elapsed / p.total).min(1.0)
+            } else {
+                0.0
+            };
+            bar.set_position((done * 1000.0) as u64);
+            bar.set_message(format!(
+                "{:.0} frames/s, {} IMU / {} joint samples, {} gaps, {} CRC errors, {} bad frames{}",
+                p.imu_rate,
+                p.imu_samples,
+                p.joint_samples,
+                p.seq_gaps,
+                p.crc_errors,
+                p.bad_frames,
+                if p.restarts > 0 {
+                    format!(", {} board restarts", p.restarts)
+                } else {
+                    String::new()
+                }
+            ));
+        }
+    };
+    let result = record(opts, &mut show);
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    Ok(result?)
 }
 
 /// A spinner on stderr with a message, and log lines above it; when stderr

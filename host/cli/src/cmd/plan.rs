@@ -1,13 +1,13 @@
 //! `robimu plan`: an excitation trajectory planned for identifiability (paper §7).
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::io::Write;
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use robimu_workflows::plan::information::{covariance, Information};
-use robimu_workflows::plan::{plan, sample, PlanOptions, SplineFile};
+use robimu_report::plan::{write_plan_files, write_sigma_csv, PlanSummary};
+use robimu_workflows::plan::information::{posterior_sigma, Information};
+use robimu_workflows::plan::{plan, PlanOptions};
 
 use super::input::{resolve_robot, Progress};
 
@@ -79,86 +79,24 @@ impl PlanCmd {
             progress.set_message(format!("planning: block {b}/{nb}, λ_max ≈ {l:.3e}"))
         })
         .context("cannot plan the trajectory")?;
-        let elapsed = start.elapsed().as_secs_f64();
+        let seconds = start.elapsed().as_secs_f64();
         progress.finish();
         let dir = &self.out;
-        let (t, q) = sample(&p.spline, self.rate);
-        let n = robot.dof();
-        write_csv(&dir.join("plan.csv"), n, &t, &q)?;
-        let spline_text = toml::to_string(&SplineFile::of(&p.spline))?;
-        std::fs::write(dir.join("spline.toml"), spline_text)
-            .with_context(|| format!("cannot write {}", dir.join("spline.toml").display()))?;
-        let path = dir.join("identifiability.csv");
-        let mut f = create(&path)?;
-        writeln!(f, "t,lambda_max,lambda_max_without_robot_lengths")?;
-        for k in 0..p.times.len() {
-            writeln!(
-                f,
-                "{},{:e},{:e}",
-                p.times[k], p.lambda_max[k], p.lambda_max_without_lengths[k]
-            )?;
-        }
-        f.flush()?;
+        write_plan_files(dir, &p, self.rate)?;
         let info = Information::new(&robot, robot.sigma_z(), self.imu_rate)?;
         let layout = info.layout();
-        let all: Vec<usize> = (0..layout.len()).collect();
-        let cov = covariance(&p.information, &all)
+        let posterior = posterior_sigma(&p.information)
             .context("the planned information matrix is not positive definite")?;
-        let path = dir.join("sigma.csv");
-        let mut f = create(&path)?;
-        writeln!(f, "name,unit,prior_sigma,posterior_sigma")?;
-        let mut out = std::io::stdout().lock();
-        writeln!(
-            out,
-            "planned {} s in {elapsed:.1} s ({} blocks, {} objective evaluations); wrote {}",
-            self.duration,
-            p.times.len() - 1,
-            p.evaluations,
-            dir.display()
-        )?;
-        writeln!(
-            out,
-            "lambda_max(Sigma_x), SI: {:.4e} (robot lengths known: {:.4e})",
-            p.lambda_max.last().copied().unwrap_or(f64::NAN),
-            p.lambda_max_without_lengths
-                .last()
-                .copied()
-                .unwrap_or(f64::NAN)
-        )?;
-        writeln!(
-            out,
-            "{:<12} {:>6} {:>12} {:>12}",
-            "parameter", "unit", "prior sigma", "posterior"
-        )?;
-        for (k, s) in layout.specs().iter().enumerate() {
-            let post = cov[(k, k)].max(0.0).sqrt();
-            writeln!(f, "{},{},{:e},{:e}", s.name, s.unit, s.sigma, post)?;
-            writeln!(
-                out,
-                "{:<12} {:>6} {:>12.4e} {:>12.4e}",
-                s.name, s.unit, s.sigma, post
-            )?;
-        }
-        f.flush()?;
+        write_sigma_csv(dir, layout, &posterior)?;
+        let summary = PlanSummary {
+            duration: self.duration,
+            seconds,
+            plan: &p,
+            dir,
+            layout,
+            posterior: &posterior,
+        };
+        write!(std::io::stdout().lock(), "{summary}")?;
         Ok(())
     }
-}
-
-fn create(path: &Path) -> anyhow::Result<BufWriter<File>> {
-    Ok(BufWriter::new(File::create(path).with_context(|| {
-        format!("cannot write {}", path.display())
-    })?))
-}
-
-/// `t,q1,…,qn` rows (s, rad).
-fn write_csv(path: &Path, n: usize, t: &[f64], q: &[f64]) -> anyhow::Result<()> {
-    let mut f = create(path)?;
-    let header: Vec<String> = (1..=n).map(|j| format!("q{j}")).collect();
-    writeln!(f, "t,{}", header.join(","))?;
-    for (ti, row) in t.iter().zip(q.chunks_exact(n)) {
-        let cols: Vec<String> = row.iter().map(|v| format!("{v:.9}")).collect();
-        writeln!(f, "{ti:.6},{}", cols.join(","))?;
-    }
-    f.flush()
-        .with_context(|| format!("cannot write {}", path.display()))
 }

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use robimu_record::repair::repair;
+use robimu_report::recording::RepairText;
 use robimu_session::Session;
 
 /// Repair a recorded session: drop a cut last line from each file,
@@ -20,26 +21,7 @@ impl RepairCmd {
     pub fn run(self) -> anyhow::Result<()> {
         let report = repair(&self.session)
             .with_context(|| format!("cannot repair {}", self.session.display()))?;
-        for (path, line) in &report.truncated {
-            println!("{}: removed the cut line {line}", path.display());
-        }
-        for (segment, f) in &report.clock {
-            println!(
-                "IMU times recomputed, clock segment {segment}: drift {:+.2} ppm, residual {:.1} µs ({} echoes)",
-                f.drift_ppm(),
-                f.residual_rms * 1e6,
-                f.used
-            );
-        }
-        if report.unmapped_rows > 0 {
-            println!(
-                "{} IMU rows belong to a clock segment without ping echoes; their times are as recorded",
-                report.unmapped_rows
-            );
-        }
-        if let Some(c) = &report.joint_clock {
-            super::record::print_joint_clock(c);
-        }
+        print!("{}", RepairText(&report));
         let session = Session::load(&self.session).with_context(|| {
             format!("{} is still not a readable session", self.session.display())
         })?;

@@ -8,10 +8,10 @@ use rand::SeedableRng;
 use robimu_model::params::draw_truth;
 use robimu_model::trajectory::random_walk;
 use robimu_model::{ParamLayout, Robot};
-use robimu_session::{read_table, Columns, SessionMeta, SessionWriter, Truth};
+use robimu_session::{SessionMeta, SessionWriter, Truth};
 use robimu_workflows::simulate::{simulate, SimulateOptions};
 
-use super::input::{resolve_robot_with, RobotSource, UrdfLinks};
+use super::input::{read_plan, resolve_robot_with, RobotSource, UrdfLinks};
 
 /// Simulate a recording session (joints, IMU and the hidden truth).
 ///
@@ -130,58 +130,6 @@ fn truth_vector(layout: &ParamLayout, truth: &Truth, path: &Path) -> anyhow::Res
                 .with_context(|| format!("{}: `{}` is missing", path.display(), s.name))
         })
         .collect()
-}
-
-/// The trajectory of `PLAN_DIR/plan.csv`, checked against the robot.
-fn read_plan(robot: &Robot, dir: &Path) -> anyhow::Result<robimu_model::Spline> {
-    let path = dir.join("plan.csv");
-    let table = read_plan_table(robot, dir)?;
-    let n = robot.dof();
-    robimu_model::trajectory::from_samples(n, &table.t, &table.values).with_context(|| {
-        format!(
-            "{}: cannot represent the plan as a trajectory",
-            path.display()
-        )
-    })
-}
-
-/// The samples of `PLAN_DIR/plan.csv`, checked against the robot's joint
-/// count and position limits.
-pub fn read_plan_table(robot: &Robot, dir: &Path) -> anyhow::Result<robimu_session::Table> {
-    let path = dir.join("plan.csv");
-    let table = read_table(&path, Columns::Joints)?;
-    let n = robot.dof();
-    if table.width() != n {
-        bail!(
-            "{}: {} joint columns, but robot `{}` has {n} joints",
-            path.display(),
-            table.width(),
-            robot.name()
-        );
-    }
-    for (s, row) in table.values.chunks_exact(n).enumerate() {
-        for (j, (q, lim)) in row.iter().zip(robot.limits()).enumerate() {
-            if *q < lim.q_min - 1e-9 || *q > lim.q_max + 1e-9 {
-                bail!(
-                    "{}: row {} (t = {} s): q{} = {q} rad is outside the joint limits [{}, {}]",
-                    path.display(),
-                    s + 1,
-                    table.t[s],
-                    j + 1,
-                    lim.q_min,
-                    lim.q_max
-                );
-            }
-        }
-    }
-    if table.len() < 8 {
-        bail!(
-            "{}: a plan needs at least 8 samples, found {}",
-            path.display(),
-            table.len()
-        );
-    }
-    Ok(table)
 }
 
 impl SimulateCmd {

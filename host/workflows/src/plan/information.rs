@@ -203,3 +203,11 @@ pub fn robot_lengths(layout: &ParamLayout) -> Vec<usize> {
     let keep = without_robot_lengths(layout);
     (0..layout.len()).filter(|i| !keep.contains(i)).collect()
 }
+
+/// The posterior σ of every parameter under the information `info` (SI),
+/// `None` when `info` is not positive definite.
+pub fn posterior_sigma(info: &Mat<f64>) -> Option<Vec<f64>> {
+    let all: Vec<usize> = (0..info.nrows()).collect();
+    let cov = covariance(info, &all)?;
+    Some(all.iter().map(|&k| cov[(k, k)].max(0.0).sqrt()).collect())
+}

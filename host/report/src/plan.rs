@@ -1,0 +1,109 @@
+//! The plan directory `robimu plan` writes (plan.csv, spline.toml,
+//! identifiability.csv, sigma.csv) and the summary it prints.
+
+use std::fmt;
+use std::path::Path;
+
+use robimu_model::ParamLayout;
+use robimu_workflows::plan::{sample, Plan, SplineFile};
+
+use crate::csvfile::CsvFile;
+use crate::html::ReportError;
+
+/// plan.csv (`t,q1,…,qn`, s and rad, at `rate` Hz), spline.toml and
+/// identifiability.csv (λ_max against time) in `dir`.
+pub fn write_plan_files(dir: &Path, plan: &Plan, rate: f64) -> Result<(), ReportError> {
+    let n = plan.spline.dim();
+    let (t, q) = sample(&plan.spline, rate);
+    let header: Vec<String> = (1..=n).map(|j| format!("q{j}")).collect();
+    let mut f = CsvFile::create(&dir.join("plan.csv"), &format!("t,{}", header.join(",")))?;
+    for (ti, row) in t.iter().zip(q.chunks_exact(n)) {
+        let cols: Vec<String> = row.iter().map(|v| format!("{v:.9}")).collect();
+        f.line(&format!("{ti:.6},{}", cols.join(",")))?;
+    }
+    f.finish()?;
+    let path = dir.join("spline.toml");
+    toml::to_string(&SplineFile::of(&plan.spline))
+        .map_err(std::io::Error::other)
+        .and_then(|text| std::fs::write(&path, text))
+        .map_err(|source| ReportError::Io { path, source })?;
+    let mut f = CsvFile::create(
+        &dir.join("identifiability.csv"),
+        "t,lambda_max,lambda_max_without_robot_lengths",
+    )?;
+    for k in 0..plan.times.len() {
+        f.line(&format!(
+            "{},{:e},{:e}",
+            plan.times[k], plan.lambda_max[k], plan.lambda_max_without_lengths[k]
+        ))?;
+    }
+    f.finish()
+}
+
+/// sigma.csv in `dir`: every parameter's prior and posterior σ.
+pub fn write_sigma_csv(
+    dir: &Path,
+    layout: &ParamLayout,
+    posterior: &[f64],
+) -> Result<(), ReportError> {
+    let mut f = CsvFile::create(
+        &dir.join("sigma.csv"),
+        "name,unit,prior_sigma,posterior_sigma",
+    )?;
+    for (s, post) in layout.specs().iter().zip(posterior) {
+        f.line(&format!("{},{},{:e},{:e}", s.name, s.unit, s.sigma, post))?;
+    }
+    f.finish()
+}
+
+/// What was planned: length, time taken, blocks, λ_max(Σ_x), and the
+/// prior and posterior σ of every parameter.
+pub struct PlanSummary<'a> {
+    /// The planned length, s.
+    pub duration: f64,
+    /// How long planning took, s.
+    pub seconds: f64,
+    /// The plan.
+    pub plan: &'a Plan,
+    /// Where it was written.
+    pub dir: &'a Path,
+    /// The parameters.
+    pub layout: &'a ParamLayout,
+    /// Their posterior σ.
+    pub posterior: &'a [f64],
+}
+
+impl fmt::Display for PlanSummary<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let p = self.plan;
+        writeln!(
+            f,
+            "planned {} s in {:.1} s ({} blocks, {} objective evaluations); wrote {}",
+            self.duration,
+            self.seconds,
+            p.times.len() - 1,
+            p.evaluations,
+            self.dir.display()
+        )?;
+        let last = |v: &[f64]| v.last().copied().unwrap_or(f64::NAN);
+        writeln!(
+            f,
+            "lambda_max(Sigma_x), SI: {:.4e} (robot lengths known: {:.4e})",
+            last(&p.lambda_max),
+            last(&p.lambda_max_without_lengths)
+        )?;
+        writeln!(
+            f,
+            "{:<12} {:>6} {:>12} {:>12}",
+            "parameter", "unit", "prior sigma", "posterior"
+        )?;
+        for (s, post) in self.layout.specs().iter().zip(self.posterior) {
+            writeln!(
+                f,
+                "{:<12} {:>6} {:>12.4e} {:>12.4e}",
+                s.name, s.unit, s.sigma, post
+            )?;
+        }
+        Ok(())
+    }
+}

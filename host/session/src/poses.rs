@@ -1,0 +1,109 @@
+//! Static poses measured by a tracker (`robimu validate --tracker`): a
+//! tracker table (`t` and [`TRACKER_COLUMNS`]) whose rows may also carry the
+//! joint angles in extra columns `q1..qn`.
+
+use std::path::{Path, PathBuf};
+
+use crate::{read_table, Columns, SessionError, Table, TRACKER_COLUMNS};
+
+/// Why a pose file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum PoseFileError {
+    /// The tracker columns are not readable.
+    #[error(transparent)]
+    Table(#[from] SessionError),
+    /// The file could not be opened for its joint columns.
+    #[error("cannot read {}", path.display())]
+    Open {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: csv::Error,
+    },
+    /// The header could not be read.
+    #[error(transparent)]
+    Header(csv::Error),
+    /// A row could not be read.
+    #[error("{}: row {row}", path.display())]
+    Row {
+        /// The file.
+        path: PathBuf,
+        /// 1-based data row.
+        row: usize,
+        /// Why.
+        #[source]
+        source: csv::Error,
+    },
+    /// A joint angle is not a number.
+    #[error("{}: row {row}: q{joint} = `{field}` is not a number", path.display())]
+    NotANumber {
+        /// The file.
+        path: PathBuf,
+        /// 1-based data row.
+        row: usize,
+        /// 1-based joint.
+        joint: usize,
+        /// The field.
+        field: String,
+    },
+}
+
+/// The contents of a pose file.
+#[derive(Debug, Clone)]
+pub struct PoseFile {
+    /// The tracker columns.
+    pub table: Table,
+    /// The joint angles, `n` a row, when every column `q1..qn` is present.
+    pub joints: Option<Vec<f64>>,
+}
+
+/// Reads the pose file `path` of an `n`-joint robot.
+pub fn read_pose_file(path: &Path, n: usize) -> Result<PoseFile, PoseFileError> {
+    let table = read_table(path, Columns::Fixed(&TRACKER_COLUMNS))?;
+    let mut rdr = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_path(path)
+        .map_err(|source| PoseFileError::Open {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let header = rdr.headers().map_err(PoseFileError::Header)?.clone();
+    let cols: Option<Vec<usize>> = (1..=n)
+        .map(|j| header.iter().position(|h| h == format!("q{j}")))
+        .collect();
+    let Some(cols) = cols else {
+        return Ok(PoseFile {
+            table,
+            joints: None,
+        });
+    };
+    let mut values = Vec::with_capacity(table.len() * n);
+    for (row, rec) in rdr.records().enumerate() {
+        let rec = rec.map_err(|source| PoseFileError::Row {
+            path: path.to_path_buf(),
+            row: row + 1,
+            source,
+        })?;
+        for (j, &c) in cols.iter().enumerate() {
+            let field = rec.get(c).unwrap_or("");
+            let v = field
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite())
+                .ok_or_else(|| PoseFileError::NotANumber {
+                    path: path.to_path_buf(),
+                    row: row + 1,
+                    joint: j + 1,
+                    field: field.to_string(),
+                })?;
+            values.push(v);
+        }
+    }
+    Ok(PoseFile {
+        table,
+        joints: Some(values),
+    })
+}
