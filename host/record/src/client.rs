@@ -276,30 +276,35 @@ impl<R: Read, W: Write> ImuClient<R, W> {
 
     /// Asks for a health report.
     pub fn get_status(&mut self, timeout: Duration) -> Result<Status, ClientError> {
-        self.send(&HostMessage::GetStatus)?;
-        let status = self.wait_for(timeout, |m| match m {
+        self.request(HostMessage::GetStatus, "Status", timeout, |m| match m {
             DeviceMessage::Status(s) => Some(*s),
             _ => None,
-        })?;
-        status.ok_or_else(|| ClientError::NoReport {
-            path: self.path.clone(),
-            what: "Status",
-            waited: timeout,
         })
     }
 
     /// Pings the board and waits for its echo.
     pub fn ping(&mut self, nonce: u32, timeout: Duration) -> Result<Pong, ClientError> {
-        self.send(&HostMessage::Ping { nonce })?;
-        let pong = self.wait_for(timeout, |m| match m {
+        self.request(HostMessage::Ping { nonce }, "Pong", timeout, |m| match m {
             DeviceMessage::Pong(p) if p.nonce == nonce => Some(*p),
             _ => None,
-        })?;
-        pong.ok_or_else(|| ClientError::NoReport {
-            path: self.path.clone(),
-            what: "Pong",
-            waited: timeout,
         })
+    }
+
+    /// Sends `msg` and waits for the report `pick` takes.
+    fn request<T>(
+        &mut self,
+        msg: HostMessage,
+        what: &'static str,
+        timeout: Duration,
+        pick: impl FnMut(&DeviceMessage) -> Option<T>,
+    ) -> Result<T, ClientError> {
+        self.send(&msg)?;
+        self.wait_for(timeout, pick)?
+            .ok_or_else(|| ClientError::NoReport {
+                path: self.path.clone(),
+                what,
+                waited: timeout,
+            })
     }
 }
 

@@ -36,6 +36,19 @@ impl CsvFile {
     }
 }
 
+/// Writes `path`: `header`, then `lines`.
+pub fn write_csv(
+    path: &Path,
+    header: &str,
+    lines: impl IntoIterator<Item = String>,
+) -> Result<(), ReportError> {
+    let mut f = CsvFile::create(path, header)?;
+    for line in lines {
+        f.line(&line)?;
+    }
+    f.finish()
+}
+
 fn io(path: &Path, source: std::io::Error) -> ReportError {
     ReportError::Io {
         path: path.to_path_buf(),

@@ -9,7 +9,7 @@ use robimu_workflows::identifiability::{
     ApproximationCheck, BaselineStudy, PrecisionGain, SigmaStudy, SpeedStudy,
 };
 
-use crate::csvfile::{exp_row, CsvFile};
+use crate::csvfile::{exp_row, write_csv, CsvFile};
 use crate::html::ReportError;
 use crate::plot::{loglog_panels, LogLogPanel};
 
@@ -27,14 +27,11 @@ fn panel_of(name: &str) -> usize {
 
 /// `dir/sigma_vs_time.csv` and its figure (paper Fig. 6).
 pub fn write_sigma_vs_time(dir: &Path, s: &SigmaStudy) -> Result<(), ReportError> {
-    let mut f = CsvFile::create(
+    write_csv(
         &dir.join("sigma_vs_time.csv"),
         &format!("t,{}", s.names.join(",")),
+        (s.times.iter().zip(&s.sigma)).map(|(t, row)| format!("{t},{}", exp_row(row))),
     )?;
-    for (t, row) in s.times.iter().zip(&s.sigma) {
-        f.line(&format!("{t},{}", exp_row(row)))?;
-    }
-    f.finish()?;
     let titles = [
         "robot errors eps (m, rad)",
         "g_xy, tau, r_a, r_w (SI)",
@@ -64,14 +61,11 @@ pub fn write_sigma_vs_time(dir: &Path, s: &SigmaStudy) -> Result<(), ReportError
 
 /// `dir/speed.csv` and its figure (paper Fig. 8).
 pub fn write_speed(dir: &Path, s: &SpeedStudy) -> Result<(), ReportError> {
-    let mut f = CsvFile::create(
+    write_csv(
         &dir.join("speed.csv"),
         &format!("speed,{}", s.names.join(",")),
+        (s.speeds.iter().zip(&s.rows)).map(|(v, row)| format!("{v},{}", exp_row(row))),
     )?;
-    for (speed, row) in s.speeds.iter().zip(&s.rows) {
-        f.line(&format!("{speed},{}", exp_row(row)))?;
-    }
-    f.finish()?;
     let panel = LogLogPanel {
         title: "robot length parameters".into(),
         x_label: "speed-up factor".into(),

@@ -9,6 +9,7 @@
 //! * [`convergence`] — the solver's iteration history next to a result file;
 //! * [`csvfile`] — CSV tables written beside the figures;
 //! * [`identifiability`] — the identifiability studies' tables, figures and text;
+//! * [`noise`] — the table of `robimu noise`;
 //! * [`plan`] — the plan directory and the summary of `robimu plan`;
 //! * [`recording`] — the summaries of a recording and of a repair;
 //! * [`validation`] — the accuracy tables `robimu validate` prints and validation.json;
@@ -25,6 +26,7 @@ pub mod csvfile;
 pub mod demo;
 pub mod html;
 pub mod identifiability;
+pub mod noise;
 pub mod plan;
 pub mod plot;
 pub mod recording;

@@ -7,7 +7,7 @@ use std::path::Path;
 use robimu_model::ParamLayout;
 use robimu_workflows::plan::{sample, Plan, SplineFile};
 
-use crate::csvfile::CsvFile;
+use crate::csvfile::write_csv;
 use crate::html::ReportError;
 
 /// plan.csv (`t,q1,…,qn`, s and rad, at `rate` Hz), spline.toml and
@@ -16,28 +16,31 @@ pub fn write_plan_files(dir: &Path, plan: &Plan, rate: f64) -> Result<(), Report
     let n = plan.spline.dim();
     let (t, q) = sample(&plan.spline, rate);
     let header: Vec<String> = (1..=n).map(|j| format!("q{j}")).collect();
-    let mut f = CsvFile::create(&dir.join("plan.csv"), &format!("t,{}", header.join(",")))?;
-    for (ti, row) in t.iter().zip(q.chunks_exact(n)) {
+    let rows = t.iter().zip(q.chunks_exact(n)).map(|(ti, row)| {
         let cols: Vec<String> = row.iter().map(|v| format!("{v:.9}")).collect();
-        f.line(&format!("{ti:.6},{}", cols.join(",")))?;
-    }
-    f.finish()?;
+        format!("{ti:.6},{}", cols.join(","))
+    });
+    write_csv(
+        &dir.join("plan.csv"),
+        &format!("t,{}", header.join(",")),
+        rows,
+    )?;
     let path = dir.join("spline.toml");
     toml::to_string(&SplineFile::of(&plan.spline))
         .map_err(std::io::Error::other)
         .and_then(|text| std::fs::write(&path, text))
         .map_err(|source| ReportError::Io { path, source })?;
-    let mut f = CsvFile::create(
-        &dir.join("identifiability.csv"),
-        "t,lambda_max,lambda_max_without_robot_lengths",
-    )?;
-    for k in 0..plan.times.len() {
-        f.line(&format!(
+    let rows = (0..plan.times.len()).map(|k| {
+        format!(
             "{},{:e},{:e}",
             plan.times[k], plan.lambda_max[k], plan.lambda_max_without_lengths[k]
-        ))?;
-    }
-    f.finish()
+        )
+    });
+    write_csv(
+        &dir.join("identifiability.csv"),
+        "t,lambda_max,lambda_max_without_robot_lengths",
+        rows,
+    )
 }
 
 /// sigma.csv in `dir`: every parameter's prior and posterior σ.
@@ -46,14 +49,13 @@ pub fn write_sigma_csv(
     layout: &ParamLayout,
     posterior: &[f64],
 ) -> Result<(), ReportError> {
-    let mut f = CsvFile::create(
+    let rows = (layout.specs().iter().zip(posterior))
+        .map(|(s, post)| format!("{},{},{:e},{:e}", s.name, s.unit, s.sigma, post));
+    write_csv(
         &dir.join("sigma.csv"),
         "name,unit,prior_sigma,posterior_sigma",
-    )?;
-    for (s, post) in layout.specs().iter().zip(posterior) {
-        f.line(&format!("{},{},{:e},{:e}", s.name, s.unit, s.sigma, post))?;
-    }
-    f.finish()
+        rows,
+    )
 }
 
 /// What was planned: length, time taken, blocks, λ_max(Σ_x), and the

@@ -41,7 +41,7 @@ pub use result::{
 pub use table::{
     parse_table, parse_table_with, read_table, read_table_with, Columns, OptionalColumns, Table,
 };
-pub use truth::Truth;
+pub use truth::{Truth, TruthMismatch};
 pub use writer::SessionWriter;
 
 /// `imu.csv` value columns.

@@ -35,6 +35,15 @@ pub enum PoseFileError {
         #[source]
         source: csv::Error,
     },
+    /// The file could not be written.
+    #[error("cannot write {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
     /// A joint angle is not a number.
     #[error("{}: row {row}: q{joint} = `{field}` is not a number", path.display())]
     NotANumber {
@@ -56,6 +65,61 @@ pub struct PoseFile {
     pub table: Table,
     /// The joint angles, `n` a row, when every column `q1..qn` is present.
     pub joints: Option<Vec<f64>>,
+}
+
+/// One static pose of a pose file: its time, the tracker's pose
+/// `[px, py, pz, qw, qx, qy, qz]` and the joint angles.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseRow {
+    /// Time, s.
+    pub t: f64,
+    /// The tracker's pose (m, unit quaternion).
+    pub pose: [f64; 7],
+    /// The joint angles, rad.
+    pub q: Vec<f64>,
+}
+
+/// Writes a pose file of `n`-joint poses (`t`, [`TRACKER_COLUMNS`],
+/// `q1..qn`) headed by the comment `# {comment}`.
+pub fn write_pose_file(
+    path: &Path,
+    comment: &str,
+    n: usize,
+    rows: &[PoseRow],
+) -> Result<(), PoseFileError> {
+    let qs: Vec<String> = (1..=n).map(|j| format!("q{j}")).collect();
+    let mut text = format!(
+        "# {comment}\nt,{},{}\n",
+        TRACKER_COLUMNS.join(","),
+        qs.join(",")
+    );
+    for p in rows {
+        let row: Vec<String> = p
+            .pose
+            .iter()
+            .chain(&p.q)
+            .map(|v| format!("{v:?}"))
+            .collect();
+        text.push_str(&format!("{:?},{}\n", p.t, row.join(",")));
+    }
+    std::fs::write(path, text).map_err(|source| PoseFileError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Writes a tracker table (`t` and [`TRACKER_COLUMNS`]): the pose
+/// `[px, py, pz, qw, qx, qy, qz]` at each time.
+pub fn write_tracker_file(path: &Path, rows: &[(f64, [f64; 7])]) -> Result<(), PoseFileError> {
+    let mut text = format!("t,{}\n", TRACKER_COLUMNS.join(","));
+    for (t, pose) in rows {
+        let row: Vec<String> = pose.iter().map(|v| format!("{v:?}")).collect();
+        text.push_str(&format!("{t:?},{}\n", row.join(",")));
+    }
+    std::fs::write(path, text).map_err(|source| PoseFileError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Reads the pose file `path` of an `n`-joint robot.

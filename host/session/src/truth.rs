@@ -3,8 +3,21 @@
 
 use std::path::Path;
 
+use robimu_model::ParamLayout;
+
 use super::meta::toml_error;
 use super::SessionError;
+
+/// A truth that does not list exactly the parameters of a layout.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TruthMismatch {
+    /// A value for a parameter the layout does not have.
+    #[error("`{0}` is not a parameter of this robot (see docs/model.md §5 for the names)")]
+    Unknown(String),
+    /// No value for a parameter of the layout.
+    #[error("`{0}` is missing")]
+    Missing(String),
+}
 
 /// Parameter name → true value, in file order.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -14,6 +27,37 @@ pub struct Truth {
 }
 
 impl Truth {
+    /// The truth `x` of every parameter of `layout`.
+    pub fn of(layout: &ParamLayout, x: &[f64]) -> Self {
+        Self {
+            values: layout
+                .specs()
+                .iter()
+                .zip(x)
+                .map(|(s, v)| (s.name.clone(), *v))
+                .collect(),
+        }
+    }
+
+    /// x in `layout` order: every parameter of `layout`, and nothing else.
+    pub fn vector(&self, layout: &ParamLayout) -> Result<Vec<f64>, TruthMismatch> {
+        if let Some((name, _)) = self
+            .values
+            .iter()
+            .find(|(n, _)| layout.index_of(n).is_none())
+        {
+            return Err(TruthMismatch::Unknown(name.clone()));
+        }
+        layout
+            .specs()
+            .iter()
+            .map(|s| {
+                self.get(&s.name)
+                    .ok_or_else(|| TruthMismatch::Missing(s.name.clone()))
+            })
+            .collect()
+    }
+
     /// The true value of `name`, if listed.
     pub fn get(&self, name: &str) -> Option<f64> {
         self.values.iter().find(|(n, _)| n == name).map(|(_, v)| *v)

@@ -11,6 +11,8 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
+use robimu_model::observations::Measurements;
+
 use super::{files, SessionError, SessionMeta, Truth, IMU_COLUMNS, TRACKER_COLUMNS};
 
 /// An open session directory being written.
@@ -162,6 +164,25 @@ impl SessionWriter {
             )?);
         }
         self.tracker.as_mut().expect("created above").row(t, pose)
+    }
+
+    /// Append every joint and IMU sample of `data`.
+    ///
+    /// # Panics
+    /// If `data`'s joint rows are not the joint count given to [`Self::create`].
+    #[track_caller]
+    pub fn measurements(&mut self, data: &Measurements) -> Result<(), SessionError> {
+        for (t, q) in data
+            .joint_t
+            .iter()
+            .zip(data.joint_q.chunks_exact(self.joint_count))
+        {
+            self.joint(*t, q)?;
+        }
+        for (t, z) in data.imu_t.iter().zip(&data.imu_z) {
+            self.imu(*t, z)?;
+        }
+        Ok(())
     }
 
     /// Write `truth.toml`.

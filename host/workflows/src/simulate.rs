@@ -279,3 +279,52 @@ fn true_flange_eps(layout: &ParamLayout, truth: &[f64]) -> Result<Vec<[f64; 6]>,
     }
     Ok(eps)
 }
+
+/// What a simulated tracker records for `robimu validate`.
+#[derive(Debug, Clone)]
+pub struct TrackerRecording {
+    /// The marker pose at every joint sample of the motion (tracker.csv).
+    pub motion: Vec<(f64, [f64; 7])>,
+    /// Static poses with their joint readings (poses.csv).
+    pub poses: Vec<robimu_session::poses::PoseRow>,
+}
+
+/// [`tracked_motion`] at the joint sample times of `data` and `count`
+/// [`static_poses`], as the rows of their files.
+#[allow(clippy::too_many_arguments)]
+pub fn tracker_recording(
+    robot: &Robot,
+    layout: &ParamLayout,
+    truth: &[f64],
+    trajectory: &Spline,
+    data: &Measurements,
+    opts: &SimulateOptions,
+    count: usize,
+    seed: u64,
+) -> Result<TrackerRecording, ModelError> {
+    use crate::tracker::row_from_pose;
+    let markers = tracked_motion(
+        robot,
+        layout,
+        truth,
+        trajectory,
+        &data.joint_t,
+        opts.noise,
+        seed,
+    )?;
+    let motion = data
+        .joint_t
+        .iter()
+        .zip(&markers)
+        .map(|(t, m)| (*t, row_from_pose(m)))
+        .collect();
+    let poses = static_poses(robot, layout, truth, count, opts, seed)?
+        .into_iter()
+        .map(|p| robimu_session::poses::PoseRow {
+            t: p.t,
+            pose: row_from_pose(&p.marker),
+            q: p.q,
+        })
+        .collect();
+    Ok(TrackerRecording { motion, poses })
+}

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use robimu_session::export::calibrated_intrinsics;
-use robimu_session::export::imu::correct_rows;
+use robimu_session::export::imu::{correct_rows, write_imu_csv};
 use robimu_session::result::CalibrationResult;
 use robimu_session::{read_table, Columns, IMU_COLUMNS};
 
@@ -54,16 +54,7 @@ impl CorrectCmd {
             })
             .collect();
         let corrected = correct_rows(&accel, &gyro, &rows)?;
-        let mut w = csv::Writer::from_path(&out)
-            .with_context(|| format!("cannot write {}", out.display()))?;
-        w.write_record(["t", "ax", "ay", "az", "gx", "gy", "gz"])?;
-        for (t, z) in table.t.iter().zip(&corrected) {
-            let mut rec = vec![t.to_string()];
-            rec.extend(z.iter().map(|v| v.to_string()));
-            w.write_record(&rec)?;
-        }
-        w.flush()
-            .with_context(|| format!("cannot write {}", out.display()))?;
+        write_imu_csv(&out, &table.t, &corrected)?;
         println!("wrote {} ({} samples)", out.display(), corrected.len());
         Ok(())
     }

@@ -9,7 +9,7 @@ use robimu_session::import::mcap::{read_mcap, McapOptions, TimeSource};
 use robimu_session::import::{Imported, Streams};
 use robimu_session::SessionMeta;
 
-use super::input::{resolve_robot, RobotSource};
+use super::input::resolve_robot;
 
 /// Import a recording made with other tools as a session directory.
 ///
@@ -146,13 +146,7 @@ fn write(streams: Streams, args: &SessionArgs, source: &str) -> anyhow::Result<I
             robot.dof()
         );
     }
-    let mut meta = SessionMeta::new(match kind {
-        RobotSource::Builtin => args.robot.clone(),
-        RobotSource::File(path) => std::path::absolute(&path)
-            .unwrap_or(path)
-            .display()
-            .to_string(),
-    });
+    let mut meta = SessionMeta::new(kind.session_field(&args.robot));
     meta.notes = Some(format!("imported from {source}"));
     let out = streams
         .write_session(&args.out, &meta)

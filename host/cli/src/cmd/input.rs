@@ -26,6 +26,21 @@ pub enum RobotSource {
     File(PathBuf),
 }
 
+impl RobotSource {
+    /// `robot = …` in the session.toml of a session made for the robot
+    /// `spec` names: the built-in name, or the file's absolute path (the
+    /// session must find it from its own directory).
+    pub fn session_field(self, spec: &str) -> String {
+        match self {
+            RobotSource::Builtin => spec.to_string(),
+            RobotSource::File(path) => std::path::absolute(&path)
+                .unwrap_or(path)
+                .display()
+                .to_string(),
+        }
+    }
+}
+
 /// The robot `spec` names: a built-in name, or a path to a TOML robot
 /// description or a URDF (relative paths are taken relative to `base` when given).
 pub fn resolve_robot(spec: &str, base: Option<&Path>) -> anyhow::Result<(Robot, RobotSource)> {

@@ -4,8 +4,9 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Context;
-use robimu_session::{Session, IMU_COLUMNS};
-use robimu_workflows::noise::{estimate_noise, ChannelNoise, NoiseFile, NoiseOptions};
+use robimu_report::noise::NoiseTable;
+use robimu_session::Session;
+use robimu_workflows::noise::{estimate_noise, NoiseFile, NoiseOptions};
 
 use super::input::{output_path, session_robot};
 
@@ -49,47 +50,15 @@ impl NoiseCmd {
             session.joints.len(),
             session.imu.len()
         )?;
-        writeln!(
+        let assumed = assumed.as_ref();
+        write!(
             out,
-            "{:<8} {:>12} {:>10} {:>8} {:>10}{}",
-            "channel",
-            "sigma",
-            "std.err",
-            "unit",
-            "knots [s]",
-            if assumed.is_some() { "    assumed" } else { "" }
+            "{}",
+            NoiseTable {
+                estimate: &est,
+                assumed
+            }
         )?;
-        let row = |out: &mut dyn Write,
-                   name: &str,
-                   c: &ChannelNoise,
-                   unit: &str,
-                   given: Option<f64>|
-         -> std::io::Result<()> {
-            writeln!(
-                out,
-                "{:<8} {:>12.4e} {:>10.2e} {:>8} {:>10}{}{}",
-                name,
-                c.sigma,
-                c.std_error,
-                unit,
-                c.spacing,
-                given.map_or(String::new(), |g| format!(" {g:>10.4e}")),
-                if c.resolved {
-                    ""
-                } else {
-                    "  (motion not resolved: upper bound)"
-                }
-            )
-        };
-        for (k, c) in est.sigma_z.iter().enumerate() {
-            let unit = if k < 3 { "m/s^2" } else { "rad/s" };
-            let given = assumed.as_ref().map(|(z, _)| z[k]);
-            row(&mut out, IMU_COLUMNS[k], c, unit, given)?;
-        }
-        for (j, c) in est.sigma_q.iter().enumerate() {
-            let given = assumed.as_ref().and_then(|(_, q)| q.get(j).copied());
-            row(&mut out, &format!("q{}", j + 1), c, "rad", given)?;
-        }
         let file = NoiseFile {
             noise: est.to_override(),
         };

@@ -1,17 +1,18 @@
 //! `robimu simulate`: a simulated session directory (docs/model.md §7).
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use rand::SeedableRng;
 use robimu_model::params::draw_truth;
 use robimu_model::trajectory::random_walk;
 use robimu_model::{ParamLayout, Robot};
+use robimu_session::poses::{write_pose_file, write_tracker_file};
 use robimu_session::{SessionMeta, SessionWriter, Truth};
-use robimu_workflows::simulate::{simulate, SimulateOptions};
+use robimu_workflows::simulate::{simulate, tracker_recording, SimulateOptions};
 
-use super::input::{read_plan, resolve_robot_with, RobotSource, UrdfLinks};
+use super::input::{read_plan, resolve_robot_with, UrdfLinks};
 
 /// Simulate a recording session (joints, IMU and the hidden truth).
 ///
@@ -109,29 +110,6 @@ fn in_range(what: &str, v: f64, max: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Every parameter of `layout` from `truth`, in x order.
-fn truth_vector(layout: &ParamLayout, truth: &Truth, path: &Path) -> anyhow::Result<Vec<f64>> {
-    if let Some((name, _)) = truth
-        .values
-        .iter()
-        .find(|(n, _)| layout.index_of(n).is_none())
-    {
-        bail!(
-            "{}: `{name}` is not a parameter of this robot (see docs/model.md §5 for the names)",
-            path.display()
-        );
-    }
-    layout
-        .specs()
-        .iter()
-        .map(|s| {
-            truth
-                .get(&s.name)
-                .with_context(|| format!("{}: `{}` is missing", path.display(), s.name))
-        })
-        .collect()
-}
-
 impl SimulateCmd {
     /// Simulate and write the session.
     pub fn run(self) -> anyhow::Result<()> {
@@ -156,14 +134,7 @@ impl SimulateCmd {
         let joint_rate = self.joint_rate.unwrap_or(self.rate);
         in_range("--joint-rate", joint_rate, 10_000.0)?;
         let (robot, source) = resolve_robot_with(&self.robot, None, &self.links)?;
-        let robot_field = match source {
-            RobotSource::Builtin => self.robot.clone(),
-            // absolute: the session must find it from its own directory
-            RobotSource::File(path) => std::path::absolute(&path)
-                .unwrap_or(path)
-                .display()
-                .to_string(),
-        };
+        let robot_field = source.session_field(&self.robot);
         let layout = ParamLayout::new(&robot);
         let mut rng = rand::rngs::StdRng::seed_from_u64(self.seed);
         let mut drawn = draw_truth(&layout, &mut rng);
@@ -175,10 +146,9 @@ impl SimulateCmd {
             drawn[k] = nominal[k];
         }
         let x_true = match &self.truth {
-            Some(path) => {
-                let t = Truth::read(path)?;
-                truth_vector(&layout, &t, path)?
-            }
+            Some(path) => Truth::read(path)?
+                .vector(&layout)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?,
             None => drawn,
         };
         let trajectory = match &self.trajectory {
@@ -193,43 +163,49 @@ impl SimulateCmd {
         let mut data = simulate(&robot, &layout, &x_true, &trajectory, &opts, self.seed)
             .context("cannot simulate the measurements at these true parameters")?;
         if !self.effect.is_empty() {
-            let setup =
-                robimu_workflows::diagnose::setup_with(&robot, &data, None, self.resonance.mode()?);
-            let mut injected = Vec::new();
-            for item in &self.effect {
-                let Some((name, m)) = item.split_once('=') else {
-                    bail!("--effect {item}: expected NAME=MAGNITUDE (e.g. clock_drift=50)");
-                };
-                let e = robimu_model::effects::by_name(&setup, name.trim())
-                    .with_context(|| format!("--effect {item}"))?;
-                let m: f64 = m
-                    .trim()
-                    .parse()
-                    .ok()
-                    .filter(|v: &f64| v.is_finite())
-                    .with_context(|| {
-                        format!(
-                            "--effect {item}: the magnitude must be a number in {}",
-                            e.magnitude_unit()
-                        )
-                    })?;
-                let theta = e.injection(m);
-                injected.push((e, theta));
-            }
-            robimu_workflows::diagnose::inject_effects(
-                &robot,
-                &x_true,
-                &trajectory,
-                &mut data,
-                &injected,
-            )
-            .context("cannot inject the effects")?;
+            self.inject_effects(&robot, &x_true, &trajectory, &mut data)?;
         }
         let written = self.write_session(&robot, robot_field, &layout, &x_true, &data)?;
         if self.tracker {
             self.write_tracker(&robot, &layout, &x_true, &trajectory, &data, &opts)?;
         }
         Ok(written)
+    }
+
+    /// The `--effect` items injected into `data`.
+    fn inject_effects(
+        &self,
+        robot: &Robot,
+        x_true: &[f64],
+        trajectory: &robimu_model::Spline,
+        data: &mut robimu_model::observations::Measurements,
+    ) -> anyhow::Result<()> {
+        let setup =
+            robimu_workflows::diagnose::setup_with(robot, data, None, self.resonance.mode()?);
+        let mut injected = Vec::new();
+        for item in &self.effect {
+            let Some((name, m)) = item.split_once('=') else {
+                bail!("--effect {item}: expected NAME=MAGNITUDE (e.g. clock_drift=50)");
+            };
+            let e = robimu_model::effects::by_name(&setup, name.trim())
+                .with_context(|| format!("--effect {item}"))?;
+            let m: f64 = m
+                .trim()
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite())
+                .with_context(|| {
+                    format!(
+                        "--effect {item}: the magnitude must be a number in {}",
+                        e.magnitude_unit()
+                    )
+                })?;
+            let theta = e.injection(m);
+            injected.push((e, theta));
+        }
+        robimu_workflows::diagnose::inject_effects(robot, x_true, trajectory, data, &injected)
+            .context("cannot inject the effects")?;
+        Ok(())
     }
 
     /// tracker.csv (the motion) and poses.csv (static poses with q1..qn).
@@ -242,44 +218,14 @@ impl SimulateCmd {
         data: &robimu_model::observations::Measurements,
         opts: &SimulateOptions,
     ) -> anyhow::Result<()> {
-        use robimu_workflows::simulate::{static_poses, tracked_motion};
-        use robimu_workflows::validate::row_from_pose;
         if self.poses < 4 {
             bail!("--poses must be at least 4 (got {})", self.poses);
         }
-        let markers = tracked_motion(
-            robot,
-            layout,
-            x_true,
-            trajectory,
-            &data.joint_t,
-            opts.noise,
-            self.seed,
-        )?;
-        let header = format!("t,{}", robimu_session::TRACKER_COLUMNS.join(","));
-        let path = self.out.join(robimu_session::files::TRACKER);
-        let mut text = format!("{header}\n");
-        for (t, m) in data.joint_t.iter().zip(&markers) {
-            let row: Vec<String> = row_from_pose(m).iter().map(|v| format!("{v:?}")).collect();
-            text.push_str(&format!("{t:?},{}\n", row.join(",")));
-        }
-        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
-        let poses = static_poses(robot, layout, x_true, self.poses, opts, self.seed)?;
-        let path = self.out.join("poses.csv");
-        let qs: Vec<String> = (1..=robot.dof()).map(|j| format!("q{j}")).collect();
-        let mut text = format!(
-            "# static poses for robimu validate\n{header},{}\n",
-            qs.join(",")
-        );
-        for p in &poses {
-            let row: Vec<String> = row_from_pose(&p.marker)
-                .iter()
-                .chain(&p.q)
-                .map(|v| format!("{v:?}"))
-                .collect();
-            text.push_str(&format!("{:?},{}\n", p.t, row.join(",")));
-        }
-        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        let (n, poses, seed) = (robot.dof(), self.poses, self.seed);
+        let rec = tracker_recording(robot, layout, x_true, trajectory, data, opts, poses, seed)?;
+        write_tracker_file(&self.out.join(robimu_session::files::TRACKER), &rec.motion)?;
+        let comment = "static poses for robimu validate";
+        write_pose_file(&self.out.join("poses.csv"), comment, n, &rec.poses)?;
         Ok(())
     }
 
@@ -307,20 +253,8 @@ impl SimulateCmd {
         let n = robot.dof();
         let mut w = SessionWriter::create(&self.out, &meta, n)
             .with_context(|| format!("cannot write the session {}", self.out.display()))?;
-        for (t, q) in data.joint_t.iter().zip(data.joint_q.chunks_exact(n)) {
-            w.joint(*t, q)?;
-        }
-        for (t, z) in data.imu_t.iter().zip(&data.imu_z) {
-            w.imu(*t, z)?;
-        }
-        w.truth(&Truth {
-            values: layout
-                .specs()
-                .iter()
-                .zip(x_true)
-                .map(|(s, v)| (s.name.clone(), *v))
-                .collect(),
-        })?;
+        w.measurements(data)?;
+        w.truth(&Truth::of(layout, x_true))?;
         let dir = w.finish()?;
         Ok(Simulated {
             dir,

@@ -243,3 +243,36 @@ pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
         gb2 = g.b[2],
     )
 }
+
+/// An IMU CSV could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write {}", path.display())]
+pub struct ImuCsvError {
+    /// The file.
+    pub path: std::path::PathBuf,
+    /// Why.
+    #[source]
+    pub source: csv::Error,
+}
+
+/// Writes samples `[ax, ay, az, gx, gy, gz]` at times `t` as an imu.csv
+/// (header `t,ax,ay,az,gx,gy,gz`, SI, numbers in their shortest decimal form).
+pub fn write_imu_csv(
+    path: &std::path::Path,
+    t: &[f64],
+    rows: &[[f64; 6]],
+) -> Result<(), ImuCsvError> {
+    let fail = |source| ImuCsvError {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut w = csv::Writer::from_path(path).map_err(fail)?;
+    w.write_record(["t", "ax", "ay", "az", "gx", "gy", "gz"])
+        .map_err(fail)?;
+    for (t, z) in t.iter().zip(rows) {
+        let mut rec = vec![t.to_string()];
+        rec.extend(z.iter().map(|v| v.to_string()));
+        w.write_record(&rec).map_err(fail)?;
+    }
+    w.flush().map_err(|e| fail(e.into()))
+}
