@@ -1,1 +1,3 @@
 //! Integration tests live in `tests/`.
+
+#![deny(missing_docs)]

@@ -4,6 +4,8 @@
 //! arguments and calls the `robimu` library. Errors end the program with a
 //! short cause chain on stderr and a non-zero exit code.
 
+#![deny(missing_docs)]
+
 mod cmd;
 
 use std::process::ExitCode;

@@ -7,5 +7,7 @@
 //! * [`rig`]: a simulated AUBO controller and a simulated IMU board (the
 //!   real firmware core on a pseudo-terminal) sharing one true motion.
 
+#![deny(missing_docs)]
+
 pub mod physics;
 pub mod rig;

@@ -19,6 +19,8 @@
 //! time of arrival); at the end `t` is recomputed from `t_robot`
 //! ([`robot_clock`], [`repair::remap_joint_times`]).
 
+#![deny(missing_docs)]
+
 pub mod arm;
 pub mod client;
 pub mod clock_fit;
