@@ -171,3 +171,49 @@ pub fn read_pose_file(path: &Path, n: usize) -> Result<PoseFile, PoseFileError> 
         joints: Some(values),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pose_files_round_trip_and_bad_joints_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("poses.csv");
+        let rows = [
+            PoseRow {
+                t: 0.5,
+                pose: [0.1, 0.2, 0.3, 1.0, 0.0, 0.0, 0.0],
+                q: vec![0.25, -1.0 / 3.0],
+            },
+            PoseRow {
+                t: 1.5,
+                pose: [0.4, 0.5, 0.6, 0.0, 1.0, 0.0, 0.0],
+                q: vec![1e-7, 2.0],
+            },
+        ];
+        write_pose_file(&path, "static poses", 2, &rows).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.starts_with("# static poses\nt,px,py,pz,qw,qx,qy,qz,q1,q2\n"));
+        let file = read_pose_file(&path, 2).unwrap();
+        assert_eq!(file.table.t, [0.5, 1.5]);
+        assert_eq!(file.table.row(1), rows[1].pose);
+        assert_eq!(file.joints.unwrap(), [0.25, -1.0 / 3.0, 1e-7, 2.0]);
+        // without q3 the joints come from elsewhere
+        assert!(read_pose_file(&path, 3).unwrap().joints.is_none());
+
+        let motion = dir.path().join("tracker.csv");
+        write_tracker_file(&motion, &[(0.0, rows[0].pose), (0.25, rows[1].pose)]).unwrap();
+        assert!(read_pose_file(&motion, 1).unwrap().joints.is_none());
+
+        std::fs::write(&path, "t,px,py,pz,qw,qx,qy,qz,q1\n0,0,0,0,1,0,0,0,x\n").unwrap();
+        let err = read_pose_file(&path, 1).unwrap_err();
+        assert!(
+            matches!(&err, PoseFileError::NotANumber { row: 1, joint: 1, field, .. } if field == "x"),
+            "{err}"
+        );
+        assert!(err
+            .to_string()
+            .ends_with("poses.csv: row 1: q1 = `x` is not a number"));
+    }
+}

@@ -111,6 +111,24 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_truth_lists_exactly_the_layouts_parameters() {
+        let layout = ParamLayout::new(&robimu_model::Robot::aubo_i5());
+        let x: Vec<f64> = (0..layout.len()).map(|k| k as f64 * 0.5).collect();
+        let t = Truth::of(&layout, &x);
+        assert_eq!(t.vector(&layout).unwrap(), x);
+        let mut extra = t.clone();
+        extra.values.push(("eps_9_9".into(), 0.0));
+        assert_eq!(
+            extra.vector(&layout),
+            Err(TruthMismatch::Unknown("eps_9_9".into()))
+        );
+        let mut short = t;
+        short.values.retain(|(n, _)| n != "tau");
+        let err = short.vector(&layout).unwrap_err();
+        assert_eq!(err.to_string(), "`tau` is missing");
+    }
+
+    #[test]
     fn round_trip_exact_and_ordered() {
         let t = Truth {
             values: vec![
