@@ -51,6 +51,22 @@ impl Table {
     pub fn span(&self) -> Option<(f64, f64)> {
         Some((*self.t.first()?, *self.t.last()?))
     }
+
+    /// The sample rate, Hz, of the median interval between rows (to 1 mHz:
+    /// times written in decimal carry rounding); `None` without an interval.
+    pub fn median_rate(&self) -> Option<f64> {
+        let mut dt: Vec<f64> = self
+            .t
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|d| *d > 0.0)
+            .collect();
+        if dt.is_empty() {
+            return None;
+        }
+        dt.sort_by(f64::total_cmp);
+        Some((1000.0 / dt[dt.len() / 2]).round() / 1000.0)
+    }
 }
 
 /// Which value columns a table must start with.

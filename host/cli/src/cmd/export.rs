@@ -65,21 +65,6 @@ pub struct ExportCmd {
     pub out: PathBuf,
 }
 
-/// Median sample interval of an IMU table → rate (Hz).
-fn median_rate(t: &[f64]) -> Option<f64> {
-    let mut dt: Vec<f64> = t
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .filter(|d| *d > 0.0)
-        .collect();
-    if dt.is_empty() {
-        return None;
-    }
-    dt.sort_by(f64::total_cmp);
-    // to 1 mHz: sample times written in decimal carry rounding
-    Some((1000.0 / dt[dt.len() / 2]).round() / 1000.0)
-}
-
 impl ExportCmd {
     /// Read the result, build the export, write it.
     pub fn run(self) -> anyhow::Result<()> {
@@ -119,43 +104,54 @@ impl ExportCmd {
                 };
                 corrected_urdf(&urdf, &opts, &params)?
             }
-            ExportFormat::Kalibr => {
-                let session = session_dir.as_deref().and_then(|d| Session::load(d).ok());
-                let rate = match (self.rate, &session) {
-                    (Some(r), _) => r,
-                    (None, Some(s)) => median_rate(&s.imu.t)
-                        .context("the session's imu.csv has no sample interval: give --rate")?,
-                    (None, None) => bail!(
-                        "the IMU sample rate is unknown (the result's session is not readable): give --rate"
-                    ),
-                };
-                if !(rate.is_finite() && rate > 0.0) {
-                    bail!("--rate {rate}: must be a positive number of Hz");
-                }
-                let sigma_z = match &session {
-                    Some(s) => s.noise(&robot)?.0,
-                    None => robot.sigma_z(),
-                };
-                let random_walk = match self.random_walk.as_slice() {
-                    [] => DEFAULT_RANDOM_WALK,
-                    &[a, g] if [a, g].iter().all(|v| v.is_finite() && *v > 0.0) => [a, g],
-                    other => bail!(
-                        "--random-walk {other:?}: give two positive numbers, ACCEL,GYRO (Kalibr divides by them)"
-                    ),
-                };
-                kalibr_imu_yaml(
-                    &params,
-                    &KalibrOptions {
-                        rate,
-                        sigma_z,
-                        rostopic: self.rostopic.clone(),
-                        random_walk,
-                    },
-                )
-            }
+            ExportFormat::Kalibr => self.kalibr(&robot, &params, session_dir.as_deref())?,
         };
         std::fs::write(&out, text).with_context(|| format!("cannot write {}", out.display()))?;
         println!("wrote {}", out.display());
         Ok(())
+    }
+
+    /// The Kalibr imu.yaml of `params`, the sample rate and noise from
+    /// --rate or the result's session.
+    fn kalibr(
+        &self,
+        robot: &robimu_model::Robot,
+        params: &robimu_model::ModelParams,
+        session_dir: Option<&Path>,
+    ) -> anyhow::Result<String> {
+        let session = session_dir.and_then(|d| Session::load(d).ok());
+        let rate = match (self.rate, &session) {
+            (Some(r), _) => r,
+            (None, Some(s)) => s
+                .imu
+                .median_rate()
+                .context("the session's imu.csv has no sample interval: give --rate")?,
+            (None, None) => bail!(
+                "the IMU sample rate is unknown (the result's session is not readable): give --rate"
+            ),
+        };
+        if !(rate.is_finite() && rate > 0.0) {
+            bail!("--rate {rate}: must be a positive number of Hz");
+        }
+        let sigma_z = match &session {
+            Some(s) => s.noise(robot)?.0,
+            None => robot.sigma_z(),
+        };
+        let random_walk = match self.random_walk.as_slice() {
+            [] => DEFAULT_RANDOM_WALK,
+            &[a, g] if [a, g].iter().all(|v| v.is_finite() && *v > 0.0) => [a, g],
+            other => bail!(
+                "--random-walk {other:?}: give two positive numbers, ACCEL,GYRO (Kalibr divides by them)"
+            ),
+        };
+        Ok(kalibr_imu_yaml(
+            params,
+            &KalibrOptions {
+                rate,
+                sigma_z,
+                rostopic: self.rostopic.clone(),
+                random_walk,
+            },
+        ))
     }
 }
