@@ -30,6 +30,7 @@
 //! quadrature of [`information::Sampling`]; the optimiser is random
 //! candidates followed by a compass (pattern) search on u with halving steps.
 
+pub mod files;
 pub mod information;
 
 use faer::Mat;

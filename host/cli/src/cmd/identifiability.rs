@@ -15,7 +15,9 @@ use robimu_workflows::identifiability::{
 };
 use robimu_workflows::plan::information::Information;
 
-use super::input::{read_plan_spline, resolve_robot, Progress};
+use robimu_workflows::plan::files::read_plan_spline;
+
+use super::input::{resolve_robot, Progress};
 
 /// Identifiability of a plan: σ against length and speed, against random trajectories.
 ///

@@ -1,6 +1,5 @@
 //! What the commands share: naming a robot, turning a loaded session into the
-//! calibrator's inputs, reading a plan directory, recording with a progress
-//! bar, and printing progress.
+//! calibrator's inputs, recording with a progress bar, and printing progress.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -10,10 +9,9 @@ use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
 use robimu_model::error_selection::{identifiable_errors, IdentifiableOptions};
 use robimu_model::urdf::{robot_from_urdf_file, UrdfOptions};
-use robimu_model::{Robot, Spline};
+use robimu_model::Robot;
 use robimu_record::{record, RecordOptions, RecordProgress, RecordSummary};
-use robimu_session::{read_table, Columns, Session, Table};
-use robimu_workflows::plan::SplineFile;
+use robimu_session::Session;
 
 /// Robots built into the program (`--robot NAME`, `robot = "NAME"`).
 pub const BUILTIN_ROBOTS: &[&str] = &["aubo_i5"];
@@ -195,93 +193,6 @@ pub fn output_path(out: Option<&Path>, default: PathBuf) -> anyhow::Result<PathB
         }
     }
     Ok(path)
-}
-
-/// The plan's trajectory: spline.toml if present, else plan.csv refitted.
-pub fn read_plan_spline(robot: &Robot, dir: &Path) -> anyhow::Result<Spline> {
-    let path = dir.join("spline.toml");
-    let spline = if path.is_file() {
-        let text = std::fs::read_to_string(&path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        let file: SplineFile = toml::from_str(&text)
-            .with_context(|| format!("{}: not a spline file", path.display()))?;
-        file.spline()
-            .with_context(|| format!("{}: not a valid spline", path.display()))?
-    } else {
-        let path = dir.join("plan.csv");
-        if !path.is_file() {
-            bail!(
-                "{}: no spline.toml or plan.csv (write one with `robimu plan --out {}`)",
-                dir.display(),
-                dir.display()
-            );
-        }
-        let table = read_table(&path, Columns::Joints)?;
-        robimu_model::trajectory::from_samples(table.width(), &table.t, &table.values)
-            .with_context(|| format!("{}: cannot represent the plan", path.display()))?
-    };
-    if spline.dim() != robot.dof() {
-        bail!(
-            "{}: the plan has {} joints but robot `{}` has {}",
-            dir.display(),
-            spline.dim(),
-            robot.name(),
-            robot.dof()
-        );
-    }
-    Ok(spline)
-}
-
-/// The trajectory of `PLAN_DIR/plan.csv`, checked against the robot.
-pub fn read_plan(robot: &Robot, dir: &Path) -> anyhow::Result<Spline> {
-    let path = dir.join("plan.csv");
-    let table = read_plan_table(robot, dir)?;
-    let n = robot.dof();
-    robimu_model::trajectory::from_samples(n, &table.t, &table.values).with_context(|| {
-        format!(
-            "{}: cannot represent the plan as a trajectory",
-            path.display()
-        )
-    })
-}
-
-/// The samples of `PLAN_DIR/plan.csv`, checked against the robot's joint
-/// count and position limits.
-pub fn read_plan_table(robot: &Robot, dir: &Path) -> anyhow::Result<Table> {
-    let path = dir.join("plan.csv");
-    let table = read_table(&path, Columns::Joints)?;
-    let n = robot.dof();
-    if table.width() != n {
-        bail!(
-            "{}: {} joint columns, but robot `{}` has {n} joints",
-            path.display(),
-            table.width(),
-            robot.name()
-        );
-    }
-    for (s, row) in table.values.chunks_exact(n).enumerate() {
-        for (j, (q, lim)) in row.iter().zip(robot.limits()).enumerate() {
-            if *q < lim.q_min - 1e-9 || *q > lim.q_max + 1e-9 {
-                bail!(
-                    "{}: row {} (t = {} s): q{} = {q} rad is outside the joint limits [{}, {}]",
-                    path.display(),
-                    s + 1,
-                    table.t[s],
-                    j + 1,
-                    lim.q_min,
-                    lim.q_max
-                );
-            }
-        }
-    }
-    if table.len() < 8 {
-        bail!(
-            "{}: a plan needs at least 8 samples, found {}",
-            path.display(),
-            table.len()
-        );
-    }
-    Ok(table)
 }
 
 /// Records with a progress bar on stderr (when it is a terminal). The first

@@ -9,7 +9,9 @@ use robimu_record::motion::Plan;
 use robimu_record::RecordOptions;
 use robimu_report::recording::RecordSummaryText;
 
-use super::input::{read_plan_table, record_with_progress, resolve_robot};
+use robimu_workflows::plan::files::read_plan_table;
+
+use super::input::{record_with_progress, resolve_robot};
 
 /// Record a session: stream the IMU board, poll the robot's joints, and
 /// execute a plan on the robot.

@@ -12,7 +12,9 @@ use robimu_session::poses::{write_pose_file, write_tracker_file};
 use robimu_session::{SessionMeta, SessionWriter, Truth};
 use robimu_workflows::simulate::{simulate, tracker_recording, SimulateOptions};
 
-use super::input::{read_plan, resolve_robot_with, UrdfLinks};
+use robimu_workflows::plan::files::read_plan;
+
+use super::input::{resolve_robot_with, UrdfLinks};
 
 /// Simulate a recording session (joints, IMU and the hidden truth).
 ///
