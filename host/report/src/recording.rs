@@ -110,3 +110,26 @@ impl fmt::Display for RepairText<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    #[test]
+    fn a_repair_is_told_a_line_each() {
+        let report = RepairReport {
+            truncated: vec![(PathBuf::from("s/imu.csv"), 812)],
+            clock: Vec::new(),
+            unmapped_rows: 3,
+            joint_clock: Some(JointClock::Kept("no controller clock".into())),
+        };
+        assert_eq!(
+            RepairText(&report).to_string(),
+            "s/imu.csv: removed the cut line 812\n\
+             3 IMU rows belong to a clock segment without ping echoes; their times are as recorded\n\
+             joint times are host arrival times: no controller clock\n"
+        );
+        assert_eq!(RepairText(&RepairReport::default()).to_string(), "");
+    }
+}
