@@ -286,7 +286,7 @@ impl CalibrateCmd {
         writeln!(out, "wrote {}", hpath.display())?;
         if let Some(report_dir) = &self.report {
             let costs = history.costs();
-            let series = robimu_report::html::SessionSeries::new(
+            let series = super::report::session_series(
                 &robot,
                 &data,
                 &cal.x,
