@@ -20,6 +20,7 @@
 //! - [`measurement`]: predicted z with exact Jacobians (eq. (10));
 //! - [`jet`], [`geom`]: the scalar type (f64 or forward-mode jet) and small
 //!   geometry (3-vectors, SO(3), quaternions, rigid transforms);
+//! - [`noise`]: measurement noise correlated in time (AR) and following the motion;
 //! - [`observations`]: the joint and IMU samples of a session;
 //! - [`trajectory`]: random excitation trajectories within the joint limits;
 //! - [`error_selection`]: which generalized errors the IMU data can identify;
@@ -58,6 +59,7 @@ pub mod imu;
 pub mod jet;
 pub mod kinematics;
 pub mod measurement;
+pub mod noise;
 pub mod observations;
 pub mod params;
 pub mod robot;
