@@ -129,9 +129,8 @@ pub struct WeakDirectionsWarning<'a> {
 }
 
 impl<'a> WeakDirectionsWarning<'a> {
-    /// The warning for `calibration`'s weak directions.
-    pub fn new(calibration: &'a Calibration, layout: &ParamLayout) -> Self {
-        let weak = &calibration.weak_directions[..];
+    /// The warning for the weak directions of a calibration with `layout`.
+    pub fn new(weak: &'a [WeakDirection], layout: &ParamLayout) -> Self {
         Self {
             weak,
             only_robot_lengths: weak.iter().all(|w| w.only_robot_lengths(layout)),
@@ -248,5 +247,128 @@ impl fmt::Display for RepeatabilityGroups<'_> {
             )?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robimu_model::Robot;
+    use robimu_solver::IterationRecord;
+
+    #[test]
+    fn residual_rms_and_effect_values_have_fixed_columns() {
+        let r = ResidualRms([1.0, 0.994, 1.006, 2.0, 0.5, 1.234]);
+        assert_eq!(
+            r.to_string(),
+            "ax 1.00 ay 0.99 az 1.01 gx 2.00 gy 0.50 gz 1.23"
+        );
+        let v = EffectValue {
+            name: "clock_drift.ppm",
+            value: 2.5e-6,
+            sigma: 1e-7,
+            display: ("ppm", 1e6),
+        };
+        assert_eq!(
+            v.to_string(),
+            format!("{:<34} +2.5000 ± 0.1000 ppm", "clock_drift.ppm")
+        );
+    }
+
+    /// A calibration with made-up numbers (only what the report shows).
+    fn calibration() -> Calibration {
+        use robimu_model::{Knots, Spline};
+        use robimu_solver::{IterationRecord, LmSummary, Termination};
+        let knots = Knots::uniform(0.0, 2.0, 1.0, 3).unwrap();
+        let m = knots.num_coeffs();
+        let record = |iteration, cost| IterationRecord {
+            iteration,
+            cost,
+            step_norm: 0.5,
+            lambda: 1e-4,
+            gradient_norm: 1e-3,
+            tries: 1,
+        };
+        Calibration {
+            x: vec![0.0],
+            sigma: vec![1.0],
+            active: vec![0],
+            covariance: vec![1.0],
+            trajectory: Spline::new(knots, 1, vec![0.0; m]).unwrap(),
+            tau_initial: Some(robimu_workflows::time_offset::TauEstimate {
+                tau: 0.04999,
+                r_squared: 0.99,
+                samples: 100,
+            }),
+            knot_spacing: 0.5,
+            joint_fit_rms: vec![1.0],
+            summary: LmSummary {
+                initial_cost: 2.0e5,
+                final_cost: 1.5e4,
+                iterations: vec![record(1, 2.0e4), record(2, 1.5e4)],
+                termination: Termination::FunctionTolerance,
+            },
+            imu_samples_used: 1200,
+            weak_directions: vec![WeakDirection {
+                relative_information: 2e-3,
+                parameters: vec![("tau".into(), 1.0)],
+            }],
+            residual_rms: [1.0; 6],
+        }
+    }
+
+    #[test]
+    fn brief_and_full_reports() {
+        let cal = calibration();
+        let brief = FitReport::brief(&cal, true).to_string();
+        assert_eq!(
+            brief,
+            "converged (cost change below tolerance) after 2 iterations: cost 2.000000e5 -> 1.500000e4\n\
+             trajectory spline: knots every 0.5 s (chosen from the joint samples)\n\
+             time offset found from the data before the fit: tau = 0.0500 s\n\
+             1200 IMU samples used; whitened residual rms (1 = as modelled): ax 1.00 ay 1.00 az 1.00 gx 1.00 gy 1.00 gz 1.00\n"
+        );
+        let given = FitReport::brief(&cal, false).to_string();
+        assert!(given.contains("knots every 0.5 s\n"), "{given}");
+        let full = FitReport::full(&cal, true).to_string();
+        assert!(full.starts_with(IterationRecord::HEADER), "{full}");
+        assert!(full.contains(&brief), "{full}");
+        assert!(
+            full.ends_with("weak direction: tau 100 %  (data information 2.0e-3 of the prior's)\n"),
+            "{full}"
+        );
+    }
+
+    #[test]
+    fn weak_direction_warning_names_the_parameters_and_the_length_hint() {
+        let robot = Robot::aubo_i5();
+        let layout = ParamLayout::new(&robot);
+        assert_eq!(WeakDirectionsWarning::new(&[], &layout).to_string(), "");
+        let length = layout
+            .estimated_errors()
+            .iter()
+            .find(|e| e.link < layout.n_links() && e.k <= 3)
+            .and_then(|e| layout.eps_index(e.link, e.k))
+            .unwrap();
+        let name = layout.specs()[length].name.clone();
+        let weak = [WeakDirection {
+            relative_information: 3e-3,
+            parameters: vec![(name.clone(), 0.9)],
+        }];
+        let text = WeakDirectionsWarning::new(&weak, &layout).to_string();
+        assert!(text.starts_with("warning: the data barely determines 1 parameter combination(s)"));
+        assert!(
+            text.contains(&format!(
+                "  {name} 90 %  (data information 3.0e-3 of the prior's)\n"
+            )),
+            "{text}"
+        );
+        assert!(text.contains("`--freeze lengths`"), "{text}");
+        let tau = WeakDirection {
+            relative_information: 1e-3,
+            parameters: vec![("tau".into(), 1.0)],
+        };
+        let text = WeakDirectionsWarning::new(std::slice::from_ref(&tau), &layout).to_string();
+        assert!(!text.contains("--freeze lengths"), "{text}");
     }
 }

@@ -208,7 +208,7 @@ pub fn check_measurements(robot: &Robot, data: &Measurements) -> Result<(), Cali
     Ok(())
 }
 
-/// Calibrate `robot` from `data`: the [`fit`](fit::fit) of the baseline
+/// Calibrate `robot` from `data`: the [`fit`](fn@fit::fit) of the baseline
 /// model from the nominal x, then the check of the data's information for
 /// weak directions. `report` sees every solver iteration.
 pub fn calibrate(

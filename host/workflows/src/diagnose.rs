@@ -102,7 +102,7 @@ pub fn effect_set(setup: &CatalogueSetup, names: &[String]) -> Result<EffectSet,
 }
 
 /// Fit the baseline plus the `names` effects from `start` (the
-/// [`fit`](crate::calibrate::fit::fit) with the effect set of `names`).
+/// [`fit`](fn@crate::calibrate::fit::fit) with the effect set of `names`).
 pub fn fit_effects(
     robot: &Robot,
     data: &Measurements,

@@ -165,7 +165,10 @@ impl CalibrateCmd {
             ParameterTable::new(&result, session.truth.as_ref())
         )?;
         out.flush()?;
-        eprint!("{}", WeakDirectionsWarning::new(&cal, &layout));
+        eprint!(
+            "{}",
+            WeakDirectionsWarning::new(&cal.weak_directions, &layout)
+        );
         result.write(&path)?;
         writeln!(out, "wrote {}", path.display())?;
         let history = ConvergenceLog::from_summary(&cal.summary);
