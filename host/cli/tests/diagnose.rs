@@ -16,6 +16,9 @@ use robimu_workflows::diagnose::{
 };
 use robimu_workflows::simulate::{random_session, RandomSession, SimulateOptions};
 
+mod common;
+use common::robimu;
+
 /// Session length of the detection tests, s.
 const DURATION: f64 = 90.0;
 
@@ -420,12 +423,10 @@ fn refit_optimum_is_stationary_for_the_exact_cost() {
 /// effect names and magnitudes are clear errors.
 #[test]
 fn cli_simulate_effect_then_diagnose() {
-    let exe = env!("CARGO_BIN_EXE_robimu");
     let dir = tempfile::tempdir().unwrap();
     let session = dir.path().join("s");
-    let run = |args: &[&str]| std::process::Command::new(exe).args(args).output().unwrap();
     let s = session.to_str().unwrap();
-    let o = run(&[
+    let o = robimu(&[
         "simulate",
         "--duration",
         "40",
@@ -436,11 +437,11 @@ fn cli_simulate_effect_then_diagnose() {
         "--effect",
         "clock_drift=400",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.success(), "{}", o.stderr);
     let out = dir.path().join("d");
-    let o = run(&["diagnose", s, "--out", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let stdout = String::from_utf8_lossy(&o.stdout);
+    let o = robimu(&["diagnose", s, "--out", out.to_str().unwrap()]);
+    assert!(o.success(), "{}", o.stderr);
+    let stdout = &o.stdout;
     assert!(stdout.contains("missing effect: clock_drift"), "{stdout}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json")).unwrap())
@@ -460,10 +461,10 @@ fn cli_simulate_effect_then_diagnose() {
     }
     let svg = std::fs::read_to_string(out.join("residuals.svg")).unwrap();
     assert!(svg.contains("gz residual") && svg.contains("noise model"));
-    let o = run(&["diagnose", s, "--candidates", "warp_drive"]);
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown effect `warp_drive`"));
-    let o = run(&["simulate", "--out", s, "--effect", "clock_drift"]);
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("NAME=MAGNITUDE"));
+    let o = robimu(&["diagnose", s, "--candidates", "warp_drive"]);
+    assert!(!o.success());
+    assert!(o.stderr.contains("unknown effect `warp_drive`"));
+    let o = robimu(&["simulate", "--out", s, "--effect", "clock_drift"]);
+    assert!(!o.success());
+    assert!(o.stderr.contains("NAME=MAGNITUDE"));
 }

@@ -12,7 +12,7 @@ use robimu_report::convergence::{convergence_path, ConvergenceLog};
 use robimu_report::fit_summary::{
     EffectEstimates, FitReport, RepeatabilityGroups, WeakDirectionsWarning,
 };
-use robimu_report::html::{calibration_report, SessionSeries};
+use robimu_report::html::calibration_report;
 use robimu_report::ParameterTable;
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
@@ -305,7 +305,8 @@ fn html_report(
     result: &CalibrationResult,
     session: &Session,
 ) -> anyhow::Result<PathBuf> {
-    let series = SessionSeries::new(robot, data, &cal.x, &opts.sigma_q, Some(cal.knot_spacing))?;
+    let series =
+        super::report::session_series(robot, data, &cal.x, &opts.sigma_q, Some(cal.knot_spacing))?;
     let costs = ConvergenceLog::from_summary(&cal.summary).costs();
     let truth = session.truth.as_ref();
     Ok(calibration_report(
