@@ -121,6 +121,11 @@ impl Fit {
 
 /// Fit `spec` with `opts`; `report` sees every solver iteration (see the
 /// module doc for the steps).
+///
+/// # Panics
+/// With [`Start::Refit`] from a fit whose effects are not a prefix of the
+/// spec's.
+#[track_caller]
 pub fn fit(
     spec: &FitSpec<'_>,
     opts: &CalibrateOptions,
@@ -135,14 +140,22 @@ pub fn fit(
     check_measurements(robot, data)?;
     let layout = ParamLayout::new(robot);
     let initial = match start {
-        Start::Refit(f) => Initial {
-            spline: f.trajectory.clone(),
-            x: f.x.clone(),
-            theta: Some(&f.theta),
-            tau_initial: None,
-            knot_spacing: f.knot_spacing,
-            joint_fit_rms: f.joint_fit_rms.clone(),
-        },
+        Start::Refit(f) => {
+            let names = effects.names();
+            assert!(
+                f.effects.len() <= names.len() && f.effects.iter().zip(&names).all(|(a, b)| a == b),
+                "a refit extends the effects {:?} of its start, not {names:?}",
+                f.effects
+            );
+            Initial {
+                spline: f.trajectory.clone(),
+                x: f.x.clone(),
+                theta: Some(&f.theta),
+                tau_initial: None,
+                knot_spacing: f.knot_spacing,
+                joint_fit_rms: f.joint_fit_rms.clone(),
+            }
+        }
         Start::Nominal | Start::At(_) => {
             let tf = choose_knots(
                 data,
