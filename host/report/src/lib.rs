@@ -7,7 +7,11 @@
 //!   estimate and posterior σ of every parameter, and, against a known truth,
 //!   the errors and the normalised estimation error squared (NEES);
 //! * [`html`] — self-contained HTML reports (calibration, validation);
+//! * [`montecarlo`] — the files, table and histograms of a Monte Carlo study;
 //! * [`convergence`] — the solver's iteration history next to a result file;
+//! * [`diagnosis`] — the text summary of a model-discrepancy diagnosis;
+//! * [`fit_summary`] — brief and full text reports of a fit, the
+//!   weak-direction warning, fitted effects, the repeatability table;
 //! * [`plot`] — line and histogram figures as PNG and SVG (embedded font).
 //!
 //! # Example
@@ -32,7 +36,10 @@
 #![deny(missing_docs)]
 
 pub mod convergence;
+pub mod diagnosis;
+pub mod fit_summary;
 pub mod html;
+pub mod montecarlo;
 pub mod plot;
 pub mod table;
 

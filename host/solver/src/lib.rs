@@ -1,8 +1,8 @@
 //! The calibration problem and its solvers (paper §6): the residuals,
 //! priors and exact Jacobians assembled into the arrowhead normal matrix
 //! ([`problem`]), its structured factorisation and covariance ([`arrow`]),
-//! the Levenberg–Marquardt iteration ([`lm`]) and small dense problems
-//! ([`dense`]).
+//! the Levenberg–Marquardt iteration ([`lm`]) and small dense problems on
+//! that same iteration ([`dense`]).
 //!
 //! Main types: [`ArrowMatrix`] and its factor [`ArrowFactor`] (solves and the
 //! marginal covariance of x), [`problem::Problem`] (one session's MAP problem)

@@ -3,7 +3,9 @@
 //!
 //! * [`allan`] — Allan deviation of a static IMU recording;
 //! * [`baseline`] — the classical tracker-based robot and IMU calibrations;
-//! * [`calibrate`] — the MAP calibration of one session;
+//! * [`calibrate`] — the MAP calibration of one session, on [`calibrate::fit`],
+//!   the one fit pipeline behind every estimate of x (calibration, diagnosis
+//!   refits, repeatability windows, Monte Carlo runs);
 //! * [`diagnose`] — model-discrepancy diagnosis with the effect catalogue;
 //! * [`identifiability`] — σ against length, speed and random trajectories (paper §8.2, §8.4);
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;

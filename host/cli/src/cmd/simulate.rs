@@ -292,7 +292,7 @@ impl SimulateCmd {
         opts: &SimulateOptions,
     ) -> anyhow::Result<()> {
         use robimu_workflows::simulate::{static_poses, tracked_motion};
-        use robimu_workflows::validate::row_from_pose;
+        use robimu_workflows::tracker::row_from_pose;
         if self.poses < 4 {
             bail!("--poses must be at least 4 (got {})", self.poses);
         }

@@ -9,12 +9,13 @@ use robimu_model::ParamLayout;
 use robimu_report::html::{tracker_alignment_text, validation_report_with};
 use robimu_session::result::CalibrationResult;
 use robimu_session::{read_table, Columns, Session, TRACKER_COLUMNS};
+use robimu_workflows::tracker::{tracked_poses, TrackedPose};
 use robimu_workflows::tracker_offset::{
     estimate_tracker_offset, to_session_clock, OffsetSearch, TrackerAlignment,
 };
 use robimu_workflows::validate::{
-    imu_accuracy, imu_position_and_gravity, robot_accuracy, tracked_poses, ImuAccuracy, ImuErrors,
-    ImuGroundTruth, PoseErrors, RobotAccuracy, TrackedPose,
+    imu_accuracy, imu_position_and_gravity, robot_accuracy, ImuAccuracy, ImuErrors, ImuGroundTruth,
+    PoseErrors, RobotAccuracy,
 };
 
 use super::input::load_session;
