@@ -38,10 +38,16 @@ Output: one line per crate, `crate NAME: N modules, E edges, no cycles`
 inside it with one example `file:line` (preferring non-test code) and what the
 path names, and a few shortest cycles through it. `--verbose` lists every edge.
 
-Known blind spots: a dependency reached only through a re-export in the crate
-root (`crate::Foo` where lib.rs has `pub use a::Foo`) or in M's own file counts
-as a reference to the root / to M, not to `a`; module aliases (`use crate::a
-as x; x::b::f()`) count only as the `use`; macros are not expanded.
+Re-exports are followed: a path through a name that a module file brings in
+with a top-level `use` (`pub use a::Foo;`, `pub use self::a::{Foo, b::Bar as
+Baz};`, ...; in lib.rs/main.rs or in M's own file) counts as a reference to
+the module the name comes from, so `crate::Foo` where lib.rs has `pub use
+a::Foo` is an edge to `a` (chains of re-exports too).
+
+Known blind spots: names brought in by glob re-exports (`pub use a::*`) are
+not followed (the path counts as a reference to the module holding the glob);
+module aliases (`use crate::a as x; x::b::f()`) count only as the `use`;
+macros are not expanded.
 
 Exit status: 0 no cycles, 1 at least one cycle, 2 nothing to check / bad
 usage. Python 3.11+, standard library only.
@@ -202,9 +208,17 @@ class Ref:
 
 
 @dataclass
+class Import:
+    """A name a file's module brings in with a top-level `use`: `as` `path`."""
+    name: str
+    segs: list[tuple[str, int]]  # the path as written (relative ones too)
+
+
+@dataclass
 class ParsedFile:
     decls: list[ModDecl] = field(default_factory=list)
     refs: list[Ref] = field(default_factory=list)
+    imports: list[Import] = field(default_factory=list)  # top-level `use` names
     file_is_test: bool = False  # `#![cfg(test)]` at the top
 
 
@@ -269,8 +283,12 @@ class _FileParser:
         return tok.kind == kind and (value is None or tok.value == value)
 
     # -- use trees and paths --------------------------------------------
-    def _use_tree(self, i: int) -> tuple[list[list[tuple[str, int]]], int]:
-        """Parse one use tree at `i`: (leaf paths, index after the tree)."""
+    def _use_tree(self, i: int) -> tuple[list[tuple[list[tuple[str, int]], str]], int]:
+        """Parse one use tree at `i`: (leaves, index after the tree).
+
+        A leaf is its path and the name it binds: the last segment, the `as`
+        name, `*` for a glob (`_` binds nothing).
+        """
         t = self.t
         prefix: list[tuple[str, int]] = []
         if self._is(i, "punct", "::"):
@@ -284,28 +302,32 @@ class _FileParser:
                 if self._is(i, "punct", "::"):
                     i += 1
                     continue
+                bound = tok.value
                 if self._is(i, "ident", "as"):
+                    bound = t[i + 1].value
                     i += 2
-                return [prefix], i
+                return [(prefix, bound)], i
             if self._is(i, "punct", "*"):
-                return [prefix], i + 1
+                return [(prefix, "*")], i + 1
             if self._is(i, "punct", "{"):
                 i += 1
-                out: list[list[tuple[str, int]]] = []
+                out: list[tuple[list[tuple[str, int]], str]] = []
                 while not self._is(i, "punct", "}") and t[i].kind != "eof":
                     start = i
                     subs, i = self._use_tree(i)
-                    for s in subs:
+                    for s, bound in subs:
                         if prefix and s and s[0][0] == "self":  # `{self, ...}`
-                            out.append(prefix + s[1:])
+                            if bound == "self":
+                                bound = prefix[-1][0]
+                            out.append((prefix + s[1:], bound))
                         else:
-                            out.append(prefix + s)
+                            out.append((prefix + s, bound))
                     if self._is(i, "punct", ","):
                         i += 1
                     elif i == start or not self._is(i, "punct", "}"):
                         i += 1  # malformed: make progress
                 return out, i + 1
-            return ([prefix] if prefix else []), i
+            return ([(prefix, prefix[-1][0])] if prefix else []), i
 
     def _add_ref(self, segs: list[tuple[str, int]]) -> None:
         if segs and segs[0][0] in PREFIXES:
@@ -381,9 +403,11 @@ class _FileParser:
                     while not self._is(i, "punct", ";") and t[i].kind != "eof":
                         i += 1
                     continue
-                paths, i = self._use_tree(i + 1)
-                for p in paths:
+                leaves, i = self._use_tree(i + 1)
+                for p, bound in leaves:
                     self._add_ref(p)
+                    if not self.stack and p and bound not in ("*", "_", "self"):
+                        self.out.imports.append(Import(bound, p))
                 prev = t[i - 1]
                 continue
             if (
@@ -676,11 +700,64 @@ class Level:
     edges: dict[tuple[str, str], EdgeInfo] = field(default_factory=dict)
 
 
+Reexports = dict[tuple[str, ...], dict[str, list[str]]]
+
+
+def collect_reexports(crate: Crate, nodes: set[tuple[str, ...]]) -> Reexports:
+    """Per module (the file's own, not inline ones): name -> absolute path it imports.
+
+    Paths starting with `crate`/`self`/`super` are resolved as usual; other
+    ones (2018-style relative paths) only when they start with a child module
+    of the importing module or with another name it imports (otherwise they
+    name an external crate).
+    """
+    out: Reexports = {}
+    for f in crate.files:
+        local = {imp.name for imp in f.parsed.imports}
+        for imp in f.parsed.imports:
+            first = imp.segs[0][0]
+            if first in PREFIXES:
+                target = resolve(Ref(f.mod_path, imp.segs, False))
+                if target is None:
+                    continue
+                names = [s for s, _ in target]
+            elif f.mod_path + (first,) in nodes or first in local:
+                names = list(f.mod_path) + [s for s, _ in imp.segs]
+            else:
+                continue
+            if names and names != list(f.mod_path) + [imp.name]:
+                out.setdefault(f.mod_path, {})[imp.name] = names
+    return out
+
+
+MAX_REEXPORT_HOPS = 16
+
+
+def follow_reexports(target: list[tuple[str, int]], reexports: Reexports,
+                     nodes: set[tuple[str, ...]]) -> list[tuple[str, int]]:
+    """`target` with every re-exported name on its module part replaced by its source."""
+    for _ in range(MAX_REEXPORT_HOPS):
+        prefix: tuple[str, ...] = ()
+        for k, (seg, line) in enumerate(target):
+            if prefix + (seg,) in nodes:
+                prefix += (seg,)
+                continue
+            source = reexports.get(prefix, {}).get(seg)
+            if source is None:
+                return target
+            target = [(s, line) for s in source] + target[k + 1:]
+            break
+        else:
+            return target
+    return target
+
+
 def build_levels(crate: Crate) -> dict[tuple[str, ...], Level]:
     nodes: set[tuple[str, ...]] = set()
     for f in crate.files:
         for k in range(1, len(f.mod_path) + 1):
             nodes.add(f.mod_path[:k])
+    reexports = collect_reexports(crate, nodes)
     levels: dict[tuple[str, ...], Level] = {}
     for node in sorted(nodes):
         parent = node[:-1]
@@ -691,6 +768,7 @@ def build_levels(crate: Crate) -> dict[tuple[str, ...], Level]:
             target = resolve(ref)
             if target is None:
                 continue
+            target = follow_reexports(target, reexports, nodes)
             names = tuple(s for s, _ in target)
             for k in range(len(src)):
                 parent = src[:k]

@@ -272,6 +272,67 @@ class Nested(unittest.TestCase):
             ws.close()
 
 
+class RootReexports(unittest.TestCase):
+    """`crate::Foo` through `pub use a::Foo` in lib.rs is an edge to `a`."""
+
+    FILES = {
+        "src/lib.rs": """
+            pub mod a;
+            pub mod b;
+            pub mod c;
+            pub mod d;
+            pub use a::{
+                Alpha,
+                inner::{self as deep, Deep as D},
+            };
+            pub use self::c::Gamma;
+            pub use Gamma as G2;
+            pub use serde::Serialize;
+        """,
+        "src/a.rs": """
+            pub mod inner;
+            use crate::b::Beta;
+            pub struct Alpha(pub Beta);
+        """,
+        "src/a/inner.rs": "pub struct Deep;\n",
+        # b -> a only through the root's re-export
+        "src/b.rs": """
+            pub struct Beta;
+            pub fn f(_: &crate::Alpha) {}
+        """,
+        "src/c.rs": """
+            pub struct Gamma;
+            pub fn g() -> crate::D { crate::deep::Deep }
+        """,
+        # a chain (G2 -> Gamma -> c::Gamma) and an external crate's name
+        "src/d.rs": """
+            use crate::{G2, Serialize};
+        """,
+    }
+
+    def test_reexported_names_count_to_their_module(self):
+        ws = Workspace({"reexp": self.FILES})
+        try:
+            rc, found, out = ws.cycles("--verbose")
+            self.assertEqual(rc, 1, out)
+            self.assertEqual(found, {("reexp", TOP, frozenset({"a", "b"}))}, out)
+            edges = set(re.findall(r"^    (\w+) -> (\w+) ", out, re.M))
+            self.assertEqual(edges, {("a", "b"), ("b", "a"), ("c", "a"), ("d", "c")}, out)
+            self.assertIn("b -> a  reexp/src/b.rs:2", out)
+            self.assertRegex(out, r"c -> a +reexp/src/c.rs:2  names a::inner")
+        finally:
+            ws.close()
+
+    def test_imports_of_a_file(self):
+        parsed = cmc.parse_source(
+            "pub use a::{self, b::{C, D as E}, f::*};\n"
+            "pub(crate) use crate::g::H as _;\n"
+            "fn k() { use crate::l::M; }\n")
+        imports = [(i.name, [s for s, _ in i.segs]) for i in parsed.imports]
+        self.assertEqual(imports, [("a", ["a"]), ("C", ["a", "b", "C"]),
+                                   ("E", ["a", "b", "D"])])
+
+
 class Lexer(unittest.TestCase):
     def idents(self, src: str) -> list[str]:
         return [t.value for t in cmc.lex(src) if t.kind == "ident"]

@@ -16,7 +16,8 @@ use core::marker::PhantomData;
 
 use serde::de::DeserializeOwned;
 
-use crate::frame::{crc32c, CRC_LEN, DELIMITER, MIN_DECODED_LEN};
+use crate::frame::crc32c;
+use crate::layout::{CRC_LEN, DELIMITER, MIN_DECODED_LEN};
 use crate::{
     DeviceMessage, HostMessage, WireError, DEVICE_MAX_FRAME_LEN, HOST_MAX_FRAME_LEN,
     PROTOCOL_VERSION,

@@ -34,7 +34,7 @@ pub enum WireError {
         limit: usize,
     },
     /// The decoded frame is shorter than the shortest valid frame
-    /// ([`MIN_DECODED_LEN`](crate::MIN_DECODED_LEN): version, one payload
+    /// ([`MIN_DECODED_LEN`](crate::layout::MIN_DECODED_LEN): version, one payload
     /// byte, CRC).
     FrameTooShort {
         /// Decoded length of the frame, bytes.
@@ -80,7 +80,7 @@ impl fmt::Display for WireError {
             Self::FrameTooShort { len } => write!(
                 f,
                 "frame of {len} decoded bytes is shorter than the minimum of {}",
-                crate::MIN_DECODED_LEN
+                crate::layout::MIN_DECODED_LEN
             ),
             Self::Deserialize(e) => write!(f, "frame payload is not a valid message: {e}"),
             Self::TrailingBytes { count } => {

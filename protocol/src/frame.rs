@@ -47,17 +47,8 @@
 use postcard::ser_flavors::{Cobs, Flavor, Slice};
 use serde::Serialize;
 
+use crate::layout::CRC_LEN;
 use crate::{DeviceMessage, HostMessage, WireError, PROTOCOL_VERSION};
-
-/// The frame delimiter. Never occurs inside a COBS-encoded frame.
-pub const DELIMITER: u8 = 0x00;
-
-/// Length of the CRC-32C trailer, bytes.
-pub const CRC_LEN: usize = 4;
-
-/// The shortest valid decoded frame: version byte, a one-byte message
-/// (e.g. [`HostMessage::Start`]), CRC.
-pub const MIN_DECODED_LEN: usize = 1 + 1 + CRC_LEN;
 
 /// Largest postcard payload of a [`DeviceMessage`] (`Status` with every
 /// counter at `u32::MAX`), bytes.

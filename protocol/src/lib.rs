@@ -25,6 +25,7 @@
 pub mod decoder;
 pub mod error;
 pub mod frame;
+pub mod layout;
 pub mod messages;
 
 pub use decoder::{Decoder, DecoderStats, DeviceDecoder, Frames, HostDecoder};
@@ -32,10 +33,10 @@ pub use error::WireError;
 #[cfg(feature = "use-std")]
 pub use frame::encode_to_vec;
 pub use frame::{
-    crc32c, encode, encode_device, encode_host, max_frame_len, DELIMITER, DEVICE_MAX_FRAME_LEN,
+    crc32c, encode, encode_device, encode_host, max_frame_len, DEVICE_MAX_FRAME_LEN,
     DEVICE_MAX_PAYLOAD_LEN, HOST_MAX_FRAME_LEN, HOST_MAX_PAYLOAD_LEN, MAX_FRAME_LEN,
-    MIN_DECODED_LEN,
 };
+pub use layout::{CRC_LEN, DELIMITER, MIN_DECODED_LEN};
 pub use messages::*;
 
 /// Protocol version carried in every frame. Bump on any incompatible change

@@ -4,69 +4,14 @@
 //! and line or the cause — never a panic.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use robimu_model::{ParamLayout, Robot};
 use robimu_session::result::CalibrationResult;
 use robimu_session::Truth;
 use serde_json::Value;
 
-/// Outcome of one run of the program.
-struct Run {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-fn robimu(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(args)
-        .output()
-        .expect("the robimu binary runs");
-    Run {
-        code: out.status.code(),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
-}
-
-fn ok(run: Run) -> Run {
-    assert_eq!(
-        run.code,
-        Some(0),
-        "stdout:\n{}\nstderr:\n{}",
-        run.stdout,
-        run.stderr
-    );
-    run
-}
-
-/// A non-zero exit, every `wants` in stderr, and no panic.
-fn fails(run: &Run, wants: &[&str]) {
-    assert!(
-        run.code.is_some_and(|c| c != 0),
-        "expected failure, got {:?}\nstdout:\n{}",
-        run.code,
-        run.stdout
-    );
-    assert!(!run.stderr.contains("panicked"), "panic:\n{}", run.stderr);
-    assert!(
-        run.stderr.lines().any(|l| l.starts_with("error: ")),
-        "{}",
-        run.stderr
-    );
-    for want in wants {
-        assert!(
-            run.stderr.contains(want),
-            "stderr lacks `{want}`:\n{}",
-            run.stderr
-        );
-    }
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("temporary paths are UTF-8")
-}
+mod common;
+use common::{robimu, robimu_ok, s, Run};
 
 /// A simulated AUBO i5 session of `seconds` in `dir/name`.
 fn simulate(dir: &Path, name: &str, seconds: &str, seed: &str, extra: &[&str]) -> PathBuf {
@@ -81,7 +26,7 @@ fn simulate(dir: &Path, name: &str, seconds: &str, seed: &str, extra: &[&str]) -
         s(&out),
     ];
     args.extend_from_slice(extra);
-    let run = ok(robimu(&args));
+    let run = robimu_ok(&args);
     assert!(run.stdout.contains("wrote"), "{}", run.stdout);
     out
 }
@@ -202,7 +147,7 @@ fn simulate_then_calibrate_writes_the_contract_and_recovers_the_truth() {
     assert_eq!(truth_names, spec_names, "truth.toml lists x in order");
 
     let result_path = tmp.path().join("r.json");
-    let run = ok(robimu(&["calibrate", s(&dir), "--out", s(&result_path)]));
+    let run = robimu_ok(&["calibrate", s(&dir), "--out", s(&result_path)]);
     let text = std::fs::read_to_string(&result_path).unwrap();
     let estimated = check_result_json(&text, &layout);
     assert_eq!(estimated.len(), layout.len());
@@ -274,7 +219,7 @@ fn frozen_lengths_are_left_out_of_the_covariance() {
         &["--truth", s(&truth_path), "--joint-rate", "100"],
     );
     assert_eq!(Truth::read(&dir.join("truth.toml")).unwrap(), truth);
-    let run = ok(robimu(&["calibrate", s(&dir), "--freeze", "lengths"]));
+    let run = robimu_ok(&["calibrate", s(&dir), "--freeze", "lengths"]);
     assert!(run.stdout.contains("estimating 39 of 48"), "{}", run.stdout);
     // default output: result.json in the session directory
     let text = std::fs::read_to_string(dir.join("result.json")).unwrap();
@@ -299,7 +244,7 @@ fn frozen_lengths_are_left_out_of_the_covariance() {
 fn demo_records_from_the_simulated_hardware_and_calibrates() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("demo");
-    let run = ok(robimu(&["demo", "--duration", "10", "--out", s(&out)]));
+    let run = robimu_ok(&["demo", "--duration", "10", "--out", s(&out)]);
     assert!(run.stdout.contains("chip id 0xa0"), "{}", run.stdout);
     assert!(run.stdout.contains("0 CRC errors"), "{}", run.stdout);
     let recorded = run
@@ -346,19 +291,13 @@ fn malformed_csv_line_names_file_and_line() {
             l.to_string()
         })
     });
-    fails(
-        &calibrate(&dir, &[]),
-        &["joints.csv:10:", "column `q1`", "`abc` is not a number"],
-    );
+    calibrate(&dir, &[]).assert_fails(&["joints.csv:10:", "column `q1`", "`abc` is not a number"]);
     // a line with too few fields
     let dir = session(&tmp.path().join("b"));
     edit(&dir.join("imu.csv"), |i, l| {
         Some(if i == 7 { "0.05,1,2".into() } else { l.into() })
     });
-    fails(
-        &calibrate(&dir, &[]),
-        &["imu.csv:7:", "expected at least 7 fields"],
-    );
+    calibrate(&dir, &[]).assert_fails(&["imu.csv:7:", "expected at least 7 fields"]);
 }
 
 #[test]
@@ -368,10 +307,7 @@ fn missing_column_is_named() {
     edit(&dir.join("imu.csv"), |_, l| {
         Some(l[..l.rfind(',').unwrap()].to_string())
     });
-    fails(
-        &calibrate(&dir, &[]),
-        &["imu.csv:1:", "missing column `gz`"],
-    );
+    calibrate(&dir, &[]).assert_fails(&["imu.csv:1:", "missing column `gz`"]);
 }
 
 #[test]
@@ -387,10 +323,7 @@ fn nan_is_rejected_with_its_line() {
             l.into()
         })
     });
-    fails(
-        &calibrate(&dir, &[]),
-        &["imu.csv:20:", "column `ax`", "not a finite number"],
-    );
+    calibrate(&dir, &[]).assert_fails(&["imu.csv:20:", "column `ax`", "not a finite number"]);
 }
 
 #[test]
@@ -405,10 +338,7 @@ fn time_going_backwards_is_rejected_with_its_line() {
         .collect();
     lines.swap(49, 50); // file lines 50 and 51
     std::fs::write(&path, lines.join("\n") + "\n").unwrap();
-    fails(
-        &calibrate(&dir, &[]),
-        &["joints.csv:51:", "time goes backwards"],
-    );
+    calibrate(&dir, &[]).assert_fails(&["joints.csv:51:", "time goes backwards"]);
 }
 
 #[test]
@@ -418,10 +348,7 @@ fn wrong_joint_count_is_rejected() {
     edit(&dir.join("joints.csv"), |_, l| {
         Some(l[..l.rfind(',').unwrap()].to_string())
     });
-    fails(
-        &calibrate(&dir, &[]),
-        &["joints.csv", "5 joint columns", "`aubo_i5` has 6 joints"],
-    );
+    calibrate(&dir, &[]).assert_fails(&["joints.csv", "5 joint columns", "`aubo_i5` has 6 joints"]);
 }
 
 #[test]
@@ -429,9 +356,9 @@ fn empty_imu_file_is_rejected() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = session(tmp.path());
     edit(&dir.join("imu.csv"), |i, l| (i == 1).then(|| l.to_string()));
-    fails(&calibrate(&dir, &[]), &["imu.csv", "no data rows"]);
+    calibrate(&dir, &[]).assert_fails(&["imu.csv", "no data rows"]);
     std::fs::write(dir.join("imu.csv"), "").unwrap();
-    fails(&calibrate(&dir, &[]), &["imu.csv", "empty"]);
+    calibrate(&dir, &[]).assert_fails(&["imu.csv", "empty"]);
 }
 
 #[test]
@@ -446,20 +373,15 @@ fn imu_stream_outside_the_joint_stream_is_rejected() {
             format!("{},{rest}", t.parse::<f64>().unwrap() + 1000.0)
         })
     });
-    fails(
-        &calibrate(&dir, &[]),
-        &["do not overlap", "same session clock"],
-    );
+    calibrate(&dir, &[]).assert_fails(&["do not overlap", "same session clock"]);
 }
 
 #[test]
 fn unknown_robot_is_rejected() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("x");
-    fails(
-        &robimu(&["simulate", "--robot", "ur5e", "--out", s(&out)]),
-        &["unknown robot `ur5e`", "aubo_i5"],
-    );
+    robimu(&["simulate", "--robot", "ur5e", "--out", s(&out)])
+        .assert_fails(&["unknown robot `ur5e`", "aubo_i5"]);
     assert!(!out.exists());
     let dir = session(tmp.path());
     edit(&dir.join("session.toml"), |_, l| {
@@ -469,10 +391,7 @@ fn unknown_robot_is_rejected() {
             l.into()
         })
     });
-    fails(
-        &calibrate(&dir, &[]),
-        &["session.toml", "unknown robot `ur5e`", "aubo_i5"],
-    );
+    calibrate(&dir, &[]).assert_fails(&["session.toml", "unknown robot `ur5e`", "aubo_i5"]);
     // a robot description file that is not one
     std::fs::write(dir.join("robot.toml"), "name = 3\n").unwrap();
     edit(&dir.join("session.toml"), |_, l| {
@@ -482,21 +401,18 @@ fn unknown_robot_is_rejected() {
             l.into()
         })
     });
-    fails(&calibrate(&dir, &[]), &["robot.toml"]);
+    calibrate(&dir, &[]).assert_fails(&["robot.toml"]);
 }
 
 #[test]
 fn unknown_freeze_name_lists_the_valid_ones() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = session(tmp.path());
-    fails(
-        &calibrate(&dir, &["--freeze", "lengths,eps_9_9"]),
-        &[
-            "unknown parameter `eps_9_9`",
-            "valid: lengths, eps_1_1",
-            "b_w_z",
-        ],
-    );
+    calibrate(&dir, &["--freeze", "lengths,eps_9_9"]).assert_fails(&[
+        "unknown parameter `eps_9_9`",
+        "valid: lengths, eps_1_1",
+        "b_w_z",
+    ]);
     assert!(!dir.join("result.json").exists());
 }
 
@@ -504,43 +420,31 @@ fn unknown_freeze_name_lists_the_valid_ones() {
 fn missing_session_directory_is_named() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("no-such-session");
-    fails(
-        &calibrate(&dir, &[]),
-        &["no-such-session", "not a session directory"],
-    );
+    calibrate(&dir, &[]).assert_fails(&["no-such-session", "not a session directory"]);
 }
 
 #[test]
 fn bad_session_toml_and_bad_numbers_are_named() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = session(tmp.path());
-    fails(
-        &calibrate(&dir, &["--knot-spacing", "0"]),
-        &["--knot-spacing must be a positive number"],
-    );
+    calibrate(&dir, &["--knot-spacing", "0"])
+        .assert_fails(&["--knot-spacing must be a positive number"]);
     let nowhere = tmp.path().join("no-dir").join("r.json");
-    fails(
-        &calibrate(&dir, &["--out", s(&nowhere)]),
-        &["no-dir", "does not exist"],
-    );
+    calibrate(&dir, &["--out", s(&nowhere)]).assert_fails(&["no-dir", "does not exist"]);
     std::fs::write(
         dir.join("session.toml"),
         "format = \"robimu-session/1\"\nrobot = = \"aubo_i5\"\n",
     )
     .unwrap();
-    fails(&calibrate(&dir, &[]), &["session.toml:2:"]);
+    calibrate(&dir, &[]).assert_fails(&["session.toml:2:"]);
     let out = tmp.path().join("y");
-    fails(
-        &robimu(&["simulate", "--duration=-1", "--out", s(&out)]),
-        &["--duration must be a positive number"],
-    );
+    robimu(&["simulate", "--duration=-1", "--out", s(&out)])
+        .assert_fails(&["--duration must be a positive number"]);
     // a truth file that does not list every parameter
     let truth = tmp.path().join("t.toml");
     std::fs::write(&truth, "tau = 0.1\n").unwrap();
-    fails(
-        &robimu(&["simulate", "--truth", s(&truth), "--out", s(&out)]),
-        &["t.toml", "`eps_1_1` is missing"],
-    );
+    robimu(&["simulate", "--truth", s(&truth), "--out", s(&out)])
+        .assert_fails(&["t.toml", "`eps_1_1` is missing"]);
 }
 
 /// `simulate --trajectory PLAN_DIR` executes a plan: the session's joint
@@ -560,7 +464,7 @@ fn simulate_executes_a_plan_csv() {
     std::fs::create_dir_all(&plan).unwrap();
     std::fs::copy(src.join("joints.csv"), plan.join("plan.csv")).unwrap();
     let out = tmp.path().join("from-plan");
-    let run = ok(robimu(&[
+    let run = robimu_ok(&[
         "simulate",
         "--trajectory",
         s(&plan),
@@ -569,7 +473,7 @@ fn simulate_executes_a_plan_csv() {
         "--noise-free",
         "--out",
         s(&out),
-    ]));
+    ]);
     assert!(run.stdout.contains("over 30.0 s"), "{}", run.stdout);
     let a = robimu_session::Session::load(&src).unwrap();
     let b = robimu_session::Session::load(&out).unwrap();
@@ -590,7 +494,7 @@ fn simulate_executes_a_plan_csv() {
             }
         }
     }
-    ok(robimu(&["calibrate", s(&out)]));
+    robimu_ok(&["calibrate", s(&out)]);
     // a plan outside the robot's limits is refused with its row
     edit(&plan.join("plan.csv"), |i, l| {
         if i == 5 {
@@ -608,10 +512,7 @@ fn simulate_executes_a_plan_csv() {
         "--out",
         s(&tmp.path().join("bad")),
     ]);
-    fails(
-        &run,
-        &["plan.csv: row 4", "q1 = 3 rad is outside the joint limits"],
-    );
+    run.assert_fails(&["plan.csv: row 4", "q1 = 3 rad is outside the joint limits"]);
 }
 
 /// An IMU stream unrelated to the robot's motion (another recording's data)
@@ -623,7 +524,7 @@ fn unrelated_imu_data_is_refused() {
     let b = simulate(tmp.path(), "b", "30", "2", &[]);
     std::fs::copy(b.join("imu.csv"), a.join("imu.csv")).unwrap();
     let run = robimu(&["calibrate", s(&a)]);
-    fails(&run, &["time offset"]);
+    run.assert_fails(&["time offset"]);
 }
 
 /// A robot described in TOML without an `[errors]` table gets its estimated
@@ -634,7 +535,7 @@ fn toml_robot_without_errors_table_uses_the_numerical_set() {
     let tmp = tempfile::tempdir().unwrap();
     let ur5 = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/ur5.toml");
     let dir = simulate(tmp.path(), "ur5", "40", "3", &["--robot", s(&ur5)]);
-    let run = ok(robimu(&["calibrate", s(&dir)]));
+    let run = robimu_ok(&["calibrate", s(&dir)]);
     let result: Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
     let eps = result["parameters"]
@@ -679,7 +580,7 @@ fn noise_recovers_the_simulated_sigmas_and_feeds_calibrate() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = simulate(tmp.path(), "s", "120", "21", &[]);
     let file = tmp.path().join("n.toml");
-    let run = ok(robimu(&["noise", s(&dir), "--out", s(&file)]));
+    let run = robimu_ok(&["noise", s(&dir), "--out", s(&file)]);
     assert!(
         run.stdout.contains("gz") && run.stdout.contains("q6"),
         "{}",
@@ -698,14 +599,14 @@ fn noise_recovers_the_simulated_sigmas_and_feeds_calibrate() {
         );
     }
     // calibrate with it: the IMU residuals are white at the estimated σ …
-    let run = ok(robimu(&[
+    let run = robimu_ok(&[
         "calibrate",
         s(&dir),
         "--noise",
         s(&file),
         "--out",
         s(&tmp.path().join("r1.json")),
-    ]));
+    ]);
     for r in whitened_rms(&run.stdout) {
         assert!((r - 1.0).abs() < 0.05, "{}", run.stdout);
     }
@@ -717,32 +618,28 @@ fn noise_recovers_the_simulated_sigmas_and_feeds_calibrate() {
         format!("# by hand\n[noise]\nsigma_z = [{}]\n", doubled.join(", ")),
     )
     .unwrap();
-    let run = ok(robimu(&[
+    let run = robimu_ok(&[
         "calibrate",
         s(&dir),
         "--noise",
         s(&file2),
         "--out",
         s(&tmp.path().join("r2.json")),
-    ]));
+    ]);
     for r in whitened_rms(&run.stdout) {
         assert!((r - 0.5).abs() < 0.03, "{}", run.stdout);
     }
     // a wrong joint count and bad numbers are named
     std::fs::write(&file2, "[noise]\nsigma_q = [1e-4, 1e-4]\n").unwrap();
-    fails(
-        &robimu(&["calibrate", s(&dir), "--noise", s(&file2)]),
-        &["n2.toml", "sigma_q has 2 values", "6 joints"],
-    );
+    robimu(&["calibrate", s(&dir), "--noise", s(&file2)]).assert_fails(&[
+        "n2.toml",
+        "sigma_q has 2 values",
+        "6 joints",
+    ]);
     std::fs::write(&file2, "[noise]\nsigma_z = [1, 1, 1, 1, 1, nan]\n").unwrap();
-    fails(
-        &robimu(&["calibrate", s(&dir), "--noise", s(&file2)]),
-        &["n2.toml", "positive"],
-    );
-    fails(
-        &robimu(&["noise", s(&tmp.path().join("missing"))]),
-        &["missing", "not a session directory"],
-    );
+    robimu(&["calibrate", s(&dir), "--noise", s(&file2)]).assert_fails(&["n2.toml", "positive"]);
+    robimu(&["noise", s(&tmp.path().join("missing"))])
+        .assert_fails(&["missing", "not a session directory"]);
 }
 
 #[test]
@@ -768,7 +665,7 @@ fn allan_reads_off_the_density_of_a_static_recording() {
     std::fs::write(&csv, text).unwrap();
     let out = tmp.path().join("out");
     std::fs::create_dir(&out).unwrap();
-    let run = ok(robimu(&["allan", s(&csv), "--out", s(&out)]));
+    let run = robimu_ok(&["allan", s(&csv), "--out", s(&out)]);
     for (c, name) in ["ax", "ay", "az", "gx", "gy", "gz"].iter().enumerate() {
         let line = run
             .stdout
@@ -800,17 +697,14 @@ fn allan_reads_off_the_density_of_a_static_recording() {
     assert!(out.join("allan.png").is_file() && out.join("allan.svg").is_file());
     // a session directory works too; too short a recording is refused
     let session = simulate(tmp.path(), "s", "20", "3", &[]);
-    ok(robimu(&["allan", s(&session)]));
+    robimu_ok(&["allan", s(&session)]);
     assert!(session.join("allan.csv").is_file());
     std::fs::write(
         &csv,
         "t,ax,ay,az,gx,gy,gz\n0,0,0,0,0,0,0\n0.01,0,0,0,0,0,0\n",
     )
     .unwrap();
-    fails(
-        &robimu(&["allan", s(&csv)]),
-        &["imu.csv", "2 samples are too few"],
-    );
+    robimu(&["allan", s(&csv)]).assert_fails(&["imu.csv", "2 samples are too few"]);
 }
 
 /// `calibrate --windows 2`: the group table and repeatability.csv, checked
@@ -820,7 +714,7 @@ fn allan_reads_off_the_density_of_a_static_recording() {
 fn calibrate_windows_reports_the_repeatability() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = simulate(tmp.path(), "s", "100", "4", &[]);
-    let run = ok(robimu(&["calibrate", s(&dir), "--windows", "2"]));
+    let run = robimu_ok(&["calibrate", s(&dir), "--windows", "2"]);
     let layout = aubo_layout();
     let full: Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
@@ -923,10 +817,10 @@ fn calibrate_windows_reports_the_repeatability() {
     // too short: named before anything is fitted or written
     let out = tmp.path().join("short.json");
     let run = robimu(&["calibrate", s(&dir), "--windows", "20", "--out", s(&out)]);
-    fails(&run, &["window 1 of 20", "lasts 5.0 s", "at least 10 s"]);
+    run.assert_fails(&["window 1 of 20", "lasts 5.0 s", "at least 10 s"]);
     assert!(!out.exists());
     let run = robimu(&["calibrate", s(&dir), "--windows", "1"]);
-    fails(&run, &["at least 2 windows"]);
+    run.assert_fails(&["at least 2 windows"]);
 }
 
 /// `simulate --nominal lengths` keeps the robot's length errors at nominal
@@ -959,8 +853,6 @@ fn simulate_nominal_keeps_named_parameters_at_nominal() {
     }
     assert!(drawn > 20, "{drawn} parameters drawn");
     let out = tmp.path().join("bad");
-    fails(
-        &robimu(&["simulate", "--nominal", "eps_9_9", "--out", s(&out)]),
-        &["--nominal: unknown parameter `eps_9_9`"],
-    );
+    robimu(&["simulate", "--nominal", "eps_9_9", "--out", s(&out)])
+        .assert_fails(&["--nominal: unknown parameter `eps_9_9`"]);
 }

@@ -8,11 +8,16 @@
 use robimu_model::effects::{self, Effect};
 use robimu_model::observations::Measurements;
 use robimu_model::{JointState, ParamLayout, Robot};
+use robimu_workflows::calibrate::fit::{Fit, Start};
 use robimu_workflows::calibrate::CalibrateOptions;
 use robimu_workflows::diagnose::{
-    diagnose, fit, inject_effects, residual_stats, score_all, setup_for, DiagnoseOptions, Diagnosis,
+    diagnose, fit_effects, inject_effects, residual_stats, score_all, setup_for, DiagnoseOptions,
+    Diagnosis,
 };
 use robimu_workflows::simulate::{random_session, RandomSession, SimulateOptions};
+
+mod common;
+use common::robimu;
 
 /// Session length of the detection tests, s.
 const DURATION: f64 = 90.0;
@@ -101,7 +106,7 @@ fn residuals_are_traced_to_gravity_torque_and_temperature() {
         z[4] += 2.0 * opts.sigma_z[4] * c[i];
     }
     s.data.imu_temp = Some(temp);
-    let base = fit(&robot, &s.data, &opts, &setup, &[], None, None).unwrap();
+    let base = fit_effects(&robot, &s.data, &opts, &setup, &[], Start::Nominal).unwrap();
     let stats = residual_stats(&robot, &s.data, &setup, &base);
     println!("top regressors: {:?}", stats.top_regressor);
     let (name, r, z) = &stats.top_regressor["gx"];
@@ -145,7 +150,7 @@ fn check_estimates(name: &str, parameters: &[(String, String, f64, f64)], inject
 /// The must-show of a fit with the hidden effects added: whitened residual
 /// RMS within 10 % of the noise floor (1) on every channel, and every
 /// estimated baseline parameter within 4σ of the truth.
-fn check_restored(what: &str, f: &robimu_workflows::diagnose::Fit, truth: &[f64], robot: &Robot) {
+fn check_restored(what: &str, f: &Fit, truth: &[f64], robot: &Robot) {
     let rms = f.residual_rms();
     assert!(
         rms.iter().all(|r| (r - 1.0).abs() <= 0.1),
@@ -318,7 +323,7 @@ fn score_statistic_agrees_with_likelihood_ratio_for_a_small_effect() {
     let (robot, data, _) = session(31, Some(("clock_drift", 250.0)));
     let setup = setup_for(&robot, &data, None);
     let opts = CalibrateOptions::new(&robot);
-    let base = fit(&robot, &data, &opts, &setup, &[], None, None).unwrap();
+    let base = fit_effects(&robot, &data, &opts, &setup, &[], Start::Nominal).unwrap();
     let name = "clock_drift".to_string();
     let scores = score_all(
         &robot,
@@ -329,7 +334,7 @@ fn score_statistic_agrees_with_likelihood_ratio_for_a_small_effect() {
         std::slice::from_ref(&name),
     )
     .unwrap();
-    let aug = fit(&robot, &data, &opts, &setup, &[name], Some(&base), None).unwrap();
+    let aug = fit_effects(&robot, &data, &opts, &setup, &[name], Start::Refit(&base)).unwrap();
     let lr = 2.0 * (base.cost - aug.cost);
     let score = scores[0].statistic;
     println!("score {score:.2} vs LR {lr:.2}");
@@ -347,7 +352,7 @@ fn worst_slope(
     data: &Measurements,
     opts: &CalibrateOptions,
     setup: &robimu_model::effects::CatalogueSetup,
-    f: &robimu_workflows::diagnose::Fit,
+    f: &Fit,
 ) -> (f64, usize) {
     use robimu_solver::problem::{Problem, ProblemOptions};
     use robimu_solver::LeastSquares;
@@ -367,9 +372,9 @@ fn worst_slope(
         f.trajectory.knots().clone(),
         f.x.clone(),
         &popts,
+        &set,
     )
-    .unwrap()
-    .with_effects(&set);
+    .unwrap();
     problem.begin_iteration(&f.theta).unwrap();
     let nc = problem.n_coeffs();
     let sigma: Vec<f64> = f.sigma_x.iter().chain(&f.sigma_e).copied().collect();
@@ -401,9 +406,9 @@ fn refit_optimum_is_stationary_for_the_exact_cost() {
     let (robot, data, _) = session(41, Some(("g_sensitivity", 0.3)));
     let setup = setup_for(&robot, &data, None);
     let opts = CalibrateOptions::new(&robot);
-    let base = fit(&robot, &data, &opts, &setup, &[], None, None).unwrap();
+    let base = fit_effects(&robot, &data, &opts, &setup, &[], Start::Nominal).unwrap();
     let names = vec!["g_sensitivity".to_string()];
-    let aug = fit(&robot, &data, &opts, &setup, &names, Some(&base), None).unwrap();
+    let aug = fit_effects(&robot, &data, &opts, &setup, &names, Start::Refit(&base)).unwrap();
     let wb = worst_slope(&robot, &data, &opts, &setup, &base);
     let wa = worst_slope(&robot, &data, &opts, &setup, &aug);
     println!("largest exact-cost slope per σ: baseline {:.2e} (parameter {}), with the effect {:.2e} (parameter {})", wb.0, wb.1, wa.0, wa.1);
@@ -418,12 +423,10 @@ fn refit_optimum_is_stationary_for_the_exact_cost() {
 /// effect names and magnitudes are clear errors.
 #[test]
 fn cli_simulate_effect_then_diagnose() {
-    let exe = env!("CARGO_BIN_EXE_robimu");
     let dir = tempfile::tempdir().unwrap();
     let session = dir.path().join("s");
-    let run = |args: &[&str]| std::process::Command::new(exe).args(args).output().unwrap();
     let s = session.to_str().unwrap();
-    let o = run(&[
+    let o = robimu(&[
         "simulate",
         "--duration",
         "40",
@@ -434,11 +437,11 @@ fn cli_simulate_effect_then_diagnose() {
         "--effect",
         "clock_drift=400",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.success(), "{}", o.stderr);
     let out = dir.path().join("d");
-    let o = run(&["diagnose", s, "--out", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let stdout = String::from_utf8_lossy(&o.stdout);
+    let o = robimu(&["diagnose", s, "--out", out.to_str().unwrap()]);
+    assert!(o.success(), "{}", o.stderr);
+    let stdout = &o.stdout;
     assert!(stdout.contains("missing effect: clock_drift"), "{stdout}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json")).unwrap())
@@ -458,10 +461,10 @@ fn cli_simulate_effect_then_diagnose() {
     }
     let svg = std::fs::read_to_string(out.join("residuals.svg")).unwrap();
     assert!(svg.contains("gz residual") && svg.contains("noise model"));
-    let o = run(&["diagnose", s, "--candidates", "warp_drive"]);
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown effect `warp_drive`"));
-    let o = run(&["simulate", "--out", s, "--effect", "clock_drift"]);
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("NAME=MAGNITUDE"));
+    let o = robimu(&["diagnose", s, "--candidates", "warp_drive"]);
+    assert!(!o.success());
+    assert!(o.stderr.contains("unknown effect `warp_drive`"));
+    let o = robimu(&["simulate", "--out", s, "--effect", "clock_drift"]);
+    assert!(!o.success());
+    assert!(o.stderr.contains("NAME=MAGNITUDE"));
 }

@@ -5,7 +5,6 @@
 use std::collections::BTreeMap;
 use std::io::{BufWriter, Cursor};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use rand::SeedableRng;
 use robimu_model::observations::Measurements;
@@ -16,6 +15,9 @@ use robimu_session::import::cdr::{encode, ImuMsg, JointStateMsg, Stamp};
 use robimu_session::Session;
 use robimu_workflows::calibrate::{calibrate, CalibrateOptions};
 use robimu_workflows::simulate::{simulate, SimulateOptions};
+
+mod common;
+use common::{robimu, robimu_ok, s};
 
 /// Source clock of the recordings: an epoch time, ns.
 const BASE_NS: i64 = 1_700_000_000_123_456_789;
@@ -174,23 +176,6 @@ fn write_csv(dir: &Path, data: &Measurements) -> (PathBuf, PathBuf) {
     (ip, jp)
 }
 
-fn robimu(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(args)
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
 #[test]
 fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
     let (robot, truth, data) = simulated(40.0);
@@ -210,7 +195,7 @@ fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
     let (imu_csv, joints_csv) = write_csv(d, &data);
     let (a, b) = (d.join("from_mcap"), d.join("from_csv"));
     let names = JOINTS.join(",");
-    let (ok, text) = robimu(&[
+    let text = robimu_ok(&[
         "import",
         "mcap",
         s(&bag),
@@ -222,13 +207,13 @@ fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
         &names,
         "--out",
         s(&a),
-    ]);
-    assert!(ok, "{text}");
+    ])
+    .text();
     assert!(
         text.contains(&format!("{} joint samples", data.joint_t.len())),
         "{text}"
     );
-    let (ok, text) = robimu(&[
+    robimu_ok(&[
         "import",
         "csv",
         s(&imu_csv),
@@ -237,7 +222,6 @@ fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
         "--out",
         s(&b),
     ]);
-    assert!(ok, "{text}");
 
     let sa = Session::load(&a).unwrap();
     let sb = Session::load(&b).unwrap();
@@ -290,23 +274,16 @@ fn bad_recordings_fail_naming_the_cause() {
     let bag = d.join("ok.mcap");
     write_mcap(&bag, &data, &McapSpec::default());
     // The defaults fit this file.
-    let (ok, text) = import(&bag, &[]);
-    assert!(ok, "{text}");
+    let run = import(&bag, &[]);
+    assert!(run.success(), "{}", run.text());
     // A missing topic: the topics there are are listed.
-    let (ok, text) = import(&bag, &["--imu", "/imu/missing"]);
-    assert!(!ok);
-    assert!(
-        text.contains("no topic /imu/missing")
-            && text.contains("/imu/data_raw [sensor_msgs/msg/Imu"),
-        "{text}"
-    );
+    import(&bag, &["--imu", "/imu/missing"]).assert_fails(&[
+        "no topic /imu/missing",
+        "/imu/data_raw [sensor_msgs/msg/Imu",
+    ]);
     // A topic of another type.
-    let (ok, text) = import(&bag, &["--joints", "/imu/other"]);
-    assert!(!ok);
-    assert!(
-        text.contains("carries sensor_msgs/msg/Imu, expected sensor_msgs/msg/JointState"),
-        "{text}"
-    );
+    import(&bag, &["--joints", "/imu/other"])
+        .assert_fails(&["carries sensor_msgs/msg/Imu, expected sensor_msgs/msg/JointState"]);
     // Another message encoding.
     let bad = d.join("json.mcap");
     write_mcap(
@@ -317,38 +294,22 @@ fn bad_recordings_fail_naming_the_cause() {
             ..McapSpec::default()
         },
     );
-    let (ok, text) = import(&bad, &[]);
-    assert!(
-        !ok && text.contains("message encoding is \"json\""),
-        "{text}"
-    );
+    import(&bad, &[]).assert_fails(&["message encoding is \"json\""]);
     // Truncated: half the file.
     let bytes = std::fs::read(&bag).unwrap();
     let cut = d.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
-    let (ok, text) = import(&cut, &[]);
-    assert!(
-        !ok && text.contains("not a readable MCAP file") && text.contains("truncated"),
-        "{text}"
-    );
+    import(&cut, &[]).assert_fails(&["not a readable MCAP file", "truncated"]);
     // Not MCAP at all.
     let junk = d.join("junk.mcap");
     std::fs::write(&junk, b"#timestamp,a,b\n1,2,3\n").unwrap();
-    let (ok, text) = import(&junk, &[]);
-    assert!(!ok && text.contains("not a readable MCAP file"), "{text}");
+    import(&junk, &[]).assert_fails(&["not a readable MCAP file"]);
     // A joint name not in the messages.
-    let (ok, text) = import(&bag, &["--joint-names", "a,b,c,d,e,f"]);
-    assert!(
-        !ok && text.contains("no message on /joint_states has all of the joints"),
-        "{text}"
-    );
+    import(&bag, &["--joint-names", "a,b,c,d,e,f"])
+        .assert_fails(&["no message on /joint_states has all of the joints"]);
     // Five joints for a six-joint robot.
     let five = JOINTS[..5].join(",");
-    let (ok, text) = import(&bag, &["--joint-names", &five]);
-    assert!(
-        !ok && text.contains("5 joints imported") && text.contains("has 6"),
-        "{text}"
-    );
+    import(&bag, &["--joint-names", &five]).assert_fails(&["5 joints imported", "has 6"]);
     // A message cut short inside an otherwise valid file.
     let mut w = mcap::Writer::new(Cursor::new(Vec::new())).unwrap();
     let sc = w.add_schema("sensor_msgs/msg/Imu", "ros2msg", b"").unwrap();
@@ -384,17 +345,13 @@ fn bad_recordings_fail_naming_the_cause() {
     w.finish().unwrap();
     let short = d.join("short.mcap");
     std::fs::write(&short, w.into_inner().into_inner()).unwrap();
-    let (ok, text) = import(&short, &[]);
-    assert!(
-        !ok && text.contains("topic /imu/data_raw, message 0") && text.contains("truncated"),
-        "{text}"
-    );
+    import(&short, &[]).assert_fails(&["topic /imu/data_raw, message 0", "truncated"]);
     // CSV: a joints file with a bad line.
     let (imu_csv, joints_csv) = write_csv(d, &data);
     let mut text = std::fs::read_to_string(&joints_csv).unwrap();
     text.push_str("1,2,3\n");
     std::fs::write(&joints_csv, text).unwrap();
-    let (ok, text) = robimu(&[
+    robimu(&[
         "import",
         "csv",
         s(&imu_csv),
@@ -402,9 +359,6 @@ fn bad_recordings_fail_naming_the_cause() {
         s(&joints_csv),
         "--out",
         s(&out),
-    ]);
-    assert!(
-        !ok && text.contains("joints.csv:") && text.contains("3 fields"),
-        "{text}"
-    );
+    ])
+    .assert_fails(&["joints.csv:", "3 fields"]);
 }

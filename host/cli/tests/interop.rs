@@ -5,7 +5,6 @@
 #![allow(clippy::needless_range_loop)]
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use nalgebra::{Matrix4, Rotation3, Translation3, Unit, Vector3};
 use rand::{Rng, SeedableRng};
@@ -17,6 +16,9 @@ use robimu_model::{ImuIntrinsics, MeasurementJacobians, MeasurementModel, ParamL
 use robimu_session::export::imu::{correct_rows, inverse, Correction};
 use robimu_session::export::robot::{corrected_toml, corrected_urdf};
 use robimu_workflows::simulate::{random_session, SimulateOptions};
+
+mod common;
+use common::{robimu, robimu_ok};
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -417,13 +419,6 @@ fn m3_from(m: &robimu_model::geom::M3) -> nalgebra::Matrix3<f64> {
     nalgebra::Matrix3::from_fn(|i, j| m[i][j])
 }
 
-fn robimu(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(args)
-        .output()
-        .expect("the robimu binary runs")
-}
-
 /// A result.json holding `x` for `robot` (the docs/model.md §8 shape).
 fn write_result(dir: &Path, robot_spec: &str, layout: &ParamLayout, x: &[f64]) -> PathBuf {
     let params: Vec<_> = layout
@@ -465,11 +460,7 @@ fn cli_export_and_correct() {
             args.extend(["--rate", "200"]);
         }
         let run = robimu(&args);
-        assert!(
-            run.status.success(),
-            "{format}: {}",
-            String::from_utf8_lossy(&run.stderr)
-        );
+        assert!(run.success(), "{format}: {}", run.stderr);
     }
     // The exported URDF and TOML are usable robots.
     let again = Robot::from_toml_file(dir.path().join("robot.toml")).unwrap();
@@ -509,11 +500,7 @@ fn cli_export_and_correct() {
         ])
     };
     let run = export_kalibr("0.002,3e-5");
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert!(run.success(), "{}", run.stderr);
     let yaml2 = std::fs::read_to_string(&given).unwrap();
     assert!(
         yaml2.contains("accelerometer_random_walk: 0.002"),
@@ -521,8 +508,8 @@ fn cli_export_and_correct() {
     );
     assert!(yaml2.contains("gyroscope_random_walk: 3e-5"), "{yaml2}");
     let run = export_kalibr("0,1e-4");
-    assert!(!run.status.success());
-    assert!(String::from_utf8_lossy(&run.stderr).contains("two positive numbers"));
+    assert!(!run.success());
+    assert!(run.stderr.contains("two positive numbers"));
     // σ_ax / √200 as the accelerometer noise density (the largest σ is ax).
     let nd = 0.38 / 200f64.sqrt();
     assert!(
@@ -579,12 +566,7 @@ fn cli_export_and_correct() {
     }
     let raw = dir.path().join("raw.csv");
     std::fs::write(&raw, csv).unwrap();
-    let run = robimu(&["correct", "--calibration", res, raw.to_str().unwrap()]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    robimu_ok(&["correct", "--calibration", res, raw.to_str().unwrap()]);
     let table = robimu_session::read_table(
         &dir.path().join("raw_corrected.csv"),
         robimu_session::Columns::Fixed(&robimu_session::IMU_COLUMNS),
@@ -603,8 +585,8 @@ fn cli_export_and_correct() {
     let bad = dir.path().join("bad.csv");
     std::fs::write(&bad, "t,ax,ay\n0,1,2\n").unwrap();
     let run = robimu(&["correct", "--calibration", res, bad.to_str().unwrap()]);
-    assert!(!run.status.success());
-    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.success());
+    let err = &run.stderr;
     assert!(
         err.contains("bad.csv") && !err.contains("panicked"),
         "{err}"
@@ -620,6 +602,6 @@ fn cli_export_and_correct() {
         "--out",
         dir.path().join("x.urdf").to_str().unwrap(),
     ]);
-    assert!(!run.status.success());
-    assert!(String::from_utf8_lossy(&run.stderr).contains("needs a URDF robot"));
+    assert!(!run.success());
+    assert!(run.stderr.contains("needs a URDF robot"));
 }

@@ -2,8 +2,6 @@
 //! at every 1 kHz sample of the exported plan, the information matches an
 //! independent per-sample sum, and the plan beats random trajectories.
 
-use std::process::Command;
-
 use faer::Mat;
 use rand::SeedableRng;
 use robimu_model::trajectory::from_samples;
@@ -11,6 +9,9 @@ use robimu_model::{JointState, MeasurementJacobians, MeasurementModel, ParamLayo
 use robimu_workflows::identifiability::{baseline, median, Baseline};
 use robimu_workflows::plan::information::{lambda_max, Information, Sampling};
 use robimu_workflows::plan::{check_limits, plan, PlanOptions, SplineFile};
+
+mod common;
+use common::{robimu, robimu_ok, s};
 
 fn short(duration: f64) -> PlanOptions {
     PlanOptions {
@@ -23,16 +24,15 @@ fn short(duration: f64) -> PlanOptions {
 #[test]
 fn exported_plan_respects_every_limit_at_1khz() {
     let dir = std::env::temp_dir().join(format!("robimu-plan-test-{}", std::process::id()));
-    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(["plan", "--duration", "40", "--evaluations", "60", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    robimu_ok([
+        "plan",
+        "--duration",
+        "40",
+        "--evaluations",
+        "60",
+        "--out",
+        s(&dir),
+    ]);
     let robot = Robot::aubo_i5();
     // the spline as written
     let text = std::fs::read_to_string(dir.join("spline.toml")).unwrap();
@@ -206,12 +206,9 @@ fn bad_options_are_refused_with_the_cause() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("no free coefficients"), "{e}");
-    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(["identifiability", "--plan", "/nonexistent-plan-dir"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let out = robimu(["identifiability", "--plan", "/nonexistent-plan-dir"]);
+    assert!(!out.success());
+    let err = &out.stderr;
     assert!(
         err.contains("no spline.toml or plan.csv") && !err.contains("panicked"),
         "{err}"

@@ -22,6 +22,9 @@ use robimu_session::{Session, Truth};
 use robimu_workflows::calibrate::{calibrate, CalibrateOptions, Calibration};
 use serialport::SerialPort;
 
+mod common;
+use common::{robimu, Run};
+
 fn rig(seed: u64) -> SimRig {
     SimRig::spawn(&SimRigConfig::drawn(Robot::aubo_i5(), seed)).unwrap()
 }
@@ -320,7 +323,7 @@ fn start_recording(
     stdout: Stdio,
     start_timeout: Duration,
 ) -> std::process::Child {
-    let child = Command::new(env!("CARGO_BIN_EXE_robimu"))
+    let child = common::command()
         .args([
             "record",
             "--imu",
@@ -365,13 +368,9 @@ fn a_recording_killed_with_sigkill_leaves_a_readable_session() {
         imu > 120.0 * (elapsed - 1.5),
         "{imu} IMU samples after {elapsed:.1} s"
     );
-    let status = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .arg("repair")
-        .arg(&out)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&status.stdout);
-    assert!(status.status.success(), "{text}");
+    let status = robimu([std::ffi::OsStr::new("repair"), out.as_os_str()]);
+    let text = &status.stdout;
+    assert!(status.success(), "{text}");
     assert!(text.contains("is readable"), "{text}");
     let repaired = check_session(&out);
     assert_eq!(repaired.measurements().imu_t.len() as f64, imu);
@@ -402,9 +401,9 @@ fn ctrl_c_halts_the_robot_and_finishes_the_session() {
         .status()
         .unwrap();
     assert!(sent.success());
-    let output = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    let output = Run::from(child.wait_with_output().unwrap());
+    let stderr = &output.stderr;
+    assert_eq!(output.code(), Some(1), "{stderr}");
     assert!(stderr.contains("interrupted (Ctrl-C)"), "{stderr}");
     assert!(stderr.contains("the robot was stopped"), "{stderr}");
     assert!(stderr.contains("are kept in"), "{stderr}");
@@ -427,12 +426,8 @@ fn ctrl_c_halts_the_robot_and_finishes_the_session() {
         "{} joint samples",
         m.joint_t.len()
     );
-    let repaired = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .arg("repair")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(repaired.status.success());
+    let repaired = robimu([std::ffi::OsStr::new("repair"), out.as_os_str()]);
+    assert!(repaired.success());
     assert_eq!(check_session(&out).measurements().imu_t, m.imu_t);
 }
 

@@ -5,19 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn robimu(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(args)
-        .output()
-        .expect("run robimu");
-    assert!(
-        out.status.success(),
-        "robimu {args:?} failed:\n{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+mod common;
+use common::{robimu, robimu_ok};
 
 /// Headless Chromium, or `None` when it is not installed. In CI (env `CI`
 /// set) a missing browser is a failure, not a skip.
@@ -112,7 +101,7 @@ fn cli_reports_render_in_headless_chromium() {
     let dir = tempfile::tempdir().unwrap();
     let s = dir.path().join("s");
     let s = s.to_str().unwrap();
-    robimu(&[
+    robimu_ok(&[
         "simulate",
         "--duration",
         "60",
@@ -125,7 +114,7 @@ fn cli_reports_render_in_headless_chromium() {
         s,
     ]);
     let rep = dir.path().join("rep");
-    robimu(&[
+    robimu_ok(&[
         "calibrate",
         s,
         "--freeze",
@@ -134,28 +123,29 @@ fn cli_reports_render_in_headless_chromium() {
         rep.to_str().unwrap(),
     ]);
     let result = format!("{s}/result.json");
-    let text = robimu(&[
+    let text = robimu_ok(&[
         "validate",
         s,
         "--calibration",
         &result,
         "--tracker",
         &format!("{s}/poses.csv"),
-    ]);
+    ])
+    .stdout;
     assert!(
         text.contains("robot accuracy on 24 held-out poses"),
         "{text}"
     );
     assert!(text.contains("IMU accuracy"), "{text}");
     let out2 = dir.path().join("rep2");
-    robimu(&["report", &result, "--out", out2.to_str().unwrap()]);
+    robimu_ok(&["report", &result, "--out", out2.to_str().unwrap()]);
     check_convergence_history(Path::new(&result), &out2);
     // a result without its iteration history: the page says why
     let bare = dir.path().join("bare");
     std::fs::create_dir_all(&bare).unwrap();
     std::fs::copy(&result, bare.join("result.json")).unwrap();
     let out3 = dir.path().join("rep3");
-    robimu(&[
+    robimu_ok(&[
         "report",
         bare.join("result.json").to_str().unwrap(),
         "--out",
@@ -223,29 +213,23 @@ fn validate_rejects_bad_inputs_with_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let s = dir.path().join("s");
     let s = s.to_str().unwrap();
-    robimu(&["simulate", "--duration", "20", "--out", s]);
+    robimu_ok(&["simulate", "--duration", "20", "--out", s]);
     let poses = dir.path().join("poses.csv");
     std::fs::write(&poses, "t,px,py,pz,qw,qx,qy,qz\n0,0,0,0,0,0,0,0\n").unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args([
-            "validate",
-            s,
-            "--calibration",
-            &format!("{s}/nope.json"),
-            "--tracker",
-        ])
-        .arg(&poses)
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let out = robimu([
+        "validate",
+        s,
+        "--calibration",
+        &format!("{s}/nope.json"),
+        "--tracker",
+        poses.to_str().unwrap(),
+    ]);
+    assert!(!out.success());
+    let err = &out.stderr;
     assert!(err.contains("nope.json"), "{err}");
-    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(["report", &format!("{s}/missing.json")])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("missing.json"));
+    let out = robimu(["report", &format!("{s}/missing.json")]);
+    assert!(!out.success());
+    assert!(out.stderr.contains("missing.json"));
 }
 
 /// `calibrate` wrote result.convergence.csv: its costs decrease (LM accepts
@@ -325,7 +309,7 @@ fn check_tracker_offset(session: &Path, tmp: &Path, result: &str) {
         "--report",
         report.to_str().unwrap(),
     ];
-    let text = robimu(&base);
+    let text = robimu_ok(&base).stdout;
     eprintln!("{text}");
     assert!(text.contains("estimated by matching"), "{text}");
     let json: serde_json::Value =
@@ -337,15 +321,11 @@ fn check_tracker_offset(session: &Path, tmp: &Path, result: &str) {
     let page = std::fs::read_to_string(report.join("validation.html")).unwrap();
     assert!(page.contains("Tracker time offset"));
 
-    let given = robimu(&[&base[..], &["--tracker-offset", "0.137"]].concat());
+    let given = robimu_ok(&[&base[..], &["--tracker-offset", "0.137"]].concat()).stdout;
     assert!(given.contains("137.0 ms (given)"), "{given}");
-    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(base)
-        .args(["--tracker-offset", "-500"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let out = robimu([&base[..], &["--tracker-offset", "-500"]].concat());
+    assert!(!out.success());
+    let err = &out.stderr;
     assert!(
         err.contains("does not overlap") && err.contains("tracker.csv"),
         "{err}"

@@ -12,10 +12,11 @@ use robimu_workflows::plan::{plan, PlanOptions};
 use robimu_workflows::simulate::{
     simulate, simulated_registration, static_poses, tracked_motion, SimulateOptions,
 };
+use robimu_workflows::tracker::row_from_pose;
 use robimu_workflows::tracker_offset::{estimate_tracker_offset, to_session_clock, OffsetSearch};
 use robimu_workflows::validate::{
-    imu_accuracy, imu_position_and_gravity, robot_accuracy, row_from_pose, ImuAccuracy,
-    ImuGroundTruth, RobotAccuracy,
+    imu_accuracy, imu_position_and_gravity, robot_accuracy, ImuAccuracy, ImuGroundTruth,
+    RobotAccuracy,
 };
 
 /// Robot length errors (eps_i_1..3, i < n): frozen in both calibrations (paper §9).

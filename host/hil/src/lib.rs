@@ -6,6 +6,24 @@
 //!   with noise, quantisation and saturation as the chip has them.
 //! * [`rig`]: a simulated AUBO controller and a simulated IMU board (the
 //!   real firmware core on a pseudo-terminal) sharing one true motion.
+//!
+//! Main types: [`rig::SimRigConfig`] (the robot, its hidden truth, clock
+//! errors) and the running rigs [`rig::SimRig`] (AUBO) and [`rig::SimUrRig`]
+//! (Universal Robots), which `robimu record` connects to like real hardware.
+//!
+//! # Example
+//!
+//! ```
+//! use robimu_hil::rig::{SimRig, SimRigConfig};
+//! use robimu_model::Robot;
+//!
+//! // an AUBO i5 whose true parameters are drawn from its priors (seed 7)
+//! let rig = SimRig::spawn(&SimRigConfig::drawn(Robot::aubo_i5(), 7))?;
+//! println!("robimu record --imu {} --robot {}", rig.imu_port(), rig.robot_spec());
+//! assert!(rig.robot_spec().starts_with("aubo:"));
+//! assert!(rig.truth().get("tau").is_some());
+//! # Ok::<(), robimu_hil::rig::RigError>(())
+//! ```
 
 #![deny(missing_docs)]
 

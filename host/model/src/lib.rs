@@ -1,4 +1,13 @@
-//! The robot–IMU measurement model (paper §3–5; the contract is docs/model.md §1–5).
+//! The robot–IMU measurement model (paper §3–5; the contract is docs/model.md §1–5):
+//! what an IMU on a robot's flange measures, as a function of the joint
+//! trajectory and of the parameter vector x (robot errors, IMU mount, IMU
+//! intrinsics, time offset τ), with exact Jacobians.
+//!
+//! Main types: [`Robot`] (a robot description: DH table or URDF chain,
+//! limits, noise, priors; built-in [`Robot::aubo_i5`]), [`ParamLayout`] (the
+//! names, units and priors of x), [`MeasurementModel`] (predicted IMU output
+//! z at a [`JointState`]), [`Spline`] (the joint trajectory) and
+//! [`Measurements`] (the samples of a session).
 //!
 //! Layers, each one concept:
 //! - [`robot`]: robot description (DH table, limits, noise, IMU mount, priors,
@@ -11,6 +20,7 @@
 //! - [`measurement`]: predicted z with exact Jacobians (eq. (10));
 //! - [`jet`], [`geom`]: the scalar type (f64 or forward-mode jet) and small
 //!   geometry (3-vectors, SO(3), quaternions, rigid transforms);
+//! - [`noise`]: measurement noise correlated in time (AR) and following the motion;
 //! - [`observations`]: the joint and IMU samples of a session;
 //! - [`trajectory`]: random excitation trajectories within the joint limits;
 //! - [`error_selection`]: which generalized errors the IMU data can identify;
@@ -18,6 +28,25 @@
 //! - [`units`]: display units of parameters.
 //!
 //! All quantities are SI: m, rad, s, m/s², rad/s.
+//!
+//! # Example
+//!
+//! What the IMU of an AUBO i5 at its nominal parameters reads with the arm at
+//! rest: gravity's specific force and no rotation.
+//!
+//! ```
+//! use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
+//!
+//! let robot = Robot::aubo_i5();
+//! let layout = ParamLayout::new(&robot);
+//! let x = layout.nominal();
+//! let model = MeasurementModel::new(&robot, &layout, &x)?;
+//! let z = model.predict(&JointState::default()); // [ax, ay, az, gx, gy, gz]
+//! let s = (z[0] * z[0] + z[1] * z[1] + z[2] * z[2]).sqrt();
+//! assert!((s - 9.81).abs() < 0.05, "|s| = {s} m/s²");
+//! assert!(z[3..].iter().all(|w| w.abs() < 1e-9), "ω = {:?} rad/s", &z[3..]);
+//! # Ok::<(), robimu_model::ModelError>(())
+//! ```
 
 #![deny(missing_docs)]
 // Index loops mirror the matrix formulas of the paper.
@@ -30,6 +59,7 @@ pub mod imu;
 pub mod jet;
 pub mod kinematics;
 pub mod measurement;
+pub mod noise;
 pub mod observations;
 pub mod params;
 pub mod robot;

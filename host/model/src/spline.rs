@@ -505,6 +505,34 @@ mod tests {
     }
 
     #[test]
+    fn outside_the_span_the_trajectory_rests_at_its_end_poses() {
+        let knots = Knots::uniform(2.0, 9.0, 1.0, 3).unwrap();
+        let m = knots.num_coeffs();
+        let coeffs: Vec<f64> = (0..2 * m).map(|i| (0.7 * i as f64).sin()).collect();
+        let s = Spline::new(knots, 2, coeffs).unwrap();
+        let (mut inside, mut at, mut end) = Default::default();
+        let mut rest = JointState::default();
+        for t in [2.0, 3.3, 8.99, 9.0] {
+            s.evaluate(t, &mut inside).unwrap();
+            s.state_at(t, &mut at);
+            assert_eq!(at, inside, "t = {t}");
+            s.evaluate_clamped(t, &mut at);
+            assert_eq!(at, inside, "t = {t}");
+        }
+        for (t, edge) in [(1.5, 2.0), (-40.0, 2.0), (9.0 + 1e-9, 9.0), (30.0, 9.0)] {
+            s.evaluate(edge, &mut end).unwrap();
+            s.evaluate_clamped(t, &mut at);
+            assert_eq!(at, end, "clamped at t = {t}");
+            s.state_at(t, &mut rest);
+            assert_eq!(rest.q, end.q, "t = {t}");
+            assert!(end.qd[..2].iter().any(|v| v.abs() > 1e-3), "a moving end");
+            for d in [rest.qd, rest.qdd, rest.qddd] {
+                assert_eq!(d, [0.0; crate::MAX_JOINTS], "at rest at t = {t}");
+            }
+        }
+    }
+
+    #[test]
     fn clamped_ends_interpolate_end_coefficients() {
         let knots = Knots::uniform(2.0, 9.0, 1.0, 3).unwrap();
         let m = knots.num_coeffs();

@@ -18,6 +18,44 @@
 //! `t_robot` (s, the controller's timestamp) and `t_arrival` (s, session
 //! time of arrival); at the end `t` is recomputed from `t_robot`
 //! ([`robot_clock`], [`repair::remap_joint_times`]).
+//!
+//! Main types: [`RecordOptions`] (the board's port, the robot controller
+//! ([`controller::RobotSpec`]), the plan ([`motion::Plan`]), the session
+//! directory), [`record`] itself, [`RecordSummary`] (what was recorded, the
+//! link's error counters, the clock fits) and [`RecordError`] (an aborted
+//! recording keeps what it wrote).
+//!
+//! # Example
+//!
+//! A minute at rest from an AUBO arm and a board on a USB serial port (needs
+//! the hardware; `robimu_hil::rig` simulates both for tests):
+//!
+//! ```no_run
+//! use robimu_model::Robot;
+//! use robimu_protocol::SensorConfig;
+//! use robimu_record::controller::RobotSpec;
+//! use robimu_record::{record, RecordOptions};
+//!
+//! let opts = RecordOptions {
+//!     imu_port: "/dev/ttyACM0".into(),
+//!     baud: 921_600,
+//!     robot_spec: RobotSpec::parse("aubo:192.168.1.10")?,
+//!     robot: Robot::aubo_i5(),
+//!     robot_name: "aubo_i5".into(),
+//!     plan: None, // record without moving the arm …
+//!     duration: 60.0, // … for a minute
+//!     out: "session".into(),
+//!     joint_rate: 125.0,
+//!     rest: 1.0,
+//!     sensor: SensorConfig::default(),
+//!     interrupt: None,
+//! };
+//! let summary = record(&opts, &mut |p| {
+//!     eprint!("\r{:.0} of {:.0} s, {} IMU samples", p.elapsed, p.total, p.imu_samples)
+//! })?;
+//! println!("{:.1} s recorded into {}", summary.duration, summary.dir.display());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 #![deny(missing_docs)]
 

@@ -14,10 +14,9 @@ use std::path::{Path, PathBuf};
 use super::{DisplayUnit, ParameterTable};
 use crate::plot::{histogram_grid, line_panels, HistogramPanel, LinePanel, PlotError};
 use robimu_model::observations::Measurements;
-use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
+use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot, Spline};
 use robimu_session::CalibrationResult;
 use robimu_session::Truth;
-use robimu_workflows::calibrate::choose_knots;
 use robimu_workflows::tracker_offset::TrackerAlignment;
 use robimu_workflows::validate::{ImuAccuracy, RobotAccuracy};
 
@@ -177,35 +176,42 @@ fn decimate(v: Vec<(f64, f64)>, max: usize) -> Vec<(f64, f64)> {
 }
 
 impl SessionSeries {
-    /// The series of `data` under parameters `x` (the trajectory spline refitted
-    /// to the joint samples with knots every `knot_spacing` s, or chosen).
-    pub fn new(
-        robot: &Robot,
-        data: &Measurements,
-        x: &[f64],
-        sigma_q: &[f64],
-        knot_spacing: Option<f64>,
-    ) -> Result<Self, ReportError> {
+    /// Checks that `data` and `x` belong to `robot`: enough joint samples
+    /// with one value per joint, and one value per parameter of its layout.
+    pub fn check(robot: &Robot, data: &Measurements, x: &[f64]) -> Result<(), ReportError> {
         let n = robot.dof();
-        let layout = ParamLayout::new(robot);
-        let bad = |m: String| ReportError::Session(m);
+        let layout_len = ParamLayout::new(robot).len();
         if data.joint_t.len() < 8 || data.joint_q.len() != data.joint_t.len() * n {
-            return Err(bad(format!(
+            return Err(ReportError::Session(format!(
                 "the session's joint samples do not fit robot `{}`",
                 robot.name()
             )));
         }
-        if x.len() != layout.len() {
-            return Err(bad(format!(
-                "the result has {} parameters but robot `{}` has {}",
+        if x.len() != layout_len {
+            return Err(ReportError::Session(format!(
+                "the result has {} parameters but robot `{}` has {layout_len}",
                 x.len(),
-                robot.name(),
-                layout.len()
+                robot.name()
             )));
         }
-        let fit = choose_knots(data, n, sigma_q, 3, knot_spacing)
-            .map_err(|e| bad(format!("cannot fit the joint trajectory: {e}")))?;
-        let model = MeasurementModel::new(robot, &layout, x).map_err(|e| bad(e.to_string()))?;
+        Ok(())
+    }
+
+    /// The series of `data` under parameters `x`: the joint samples, and the
+    /// IMU residuals along `trajectory` (the joint trajectory fitted to the
+    /// samples, e.g. with the calibration's knot spacing; IMU samples outside
+    /// it are left out).
+    pub fn new(
+        robot: &Robot,
+        data: &Measurements,
+        x: &[f64],
+        trajectory: &Spline,
+    ) -> Result<Self, ReportError> {
+        Self::check(robot, data, x)?;
+        let n = robot.dof();
+        let layout = ParamLayout::new(robot);
+        let model = MeasurementModel::new(robot, &layout, x)
+            .map_err(|e| ReportError::Session(e.to_string()))?;
         let tau = x[layout.offsets().tau];
         let mut joints = vec![Vec::new(); n];
         for (s, &t) in data.joint_t.iter().enumerate() {
@@ -213,12 +219,12 @@ impl SessionSeries {
                 series.push((t, data.joint_q[s * n + j].to_degrees()));
             }
         }
-        let (a, b) = (fit.knots.start(), fit.knots.end());
+        let (a, b) = (trajectory.knots().start(), trajectory.knots().end());
         let mut residuals = vec![Vec::new(); 6];
         let mut js = JointState::default();
         for (&t, z) in data.imu_t.iter().zip(&data.imu_z) {
             let tr = t + tau;
-            if tr < a || tr > b || fit.spline.evaluate(tr, &mut js).is_err() {
+            if tr < a || tr > b || trajectory.evaluate(tr, &mut js).is_err() {
                 continue;
             }
             let pred = model.predict(&js);

@@ -1,22 +1,45 @@
-//! What a calibration hands to people and to later tools.
+//! What a calibration hands to people: tables, figures and HTML pages made
+//! from finished results (a [`CalibrationResult`](robimu_session::CalibrationResult),
+//! the solver's iteration history, the validation's accuracies). Nothing here
+//! fits or calibrates; the callers pass in what those computed.
 //!
-//! * [`result`] — the result file `result.json` (docs/model.md §8): writing it
-//!   from a [`Calibration`](robimu_workflows::calibrate::Calibration) and
-//!   reading it back, validated;
-//! * [`demo`] — the text of `robimu demo` between its stages;
+//! * [`table`] — the paper's Table II as text ([`ParameterTable`]): prior,
+//!   estimate and posterior σ of every parameter, and, against a known truth,
+//!   the errors and the normalised estimation error squared (NEES);
 //! * [`html`] — self-contained HTML reports (calibration, validation);
-//! * [`allan`] — the Allan deviation table, allan.csv and its figure;
+//! * [`montecarlo`] — the files, table and histograms of a Monte Carlo study;
 //! * [`convergence`] — the solver's iteration history next to a result file;
+//! * [`diagnosis`] — the text summary of a model-discrepancy diagnosis;
+//! * [`fit_summary`] — brief and full text reports of a fit, the
+//!   weak-direction warning, fitted effects, the repeatability table;
+//! * [`plot`] — line and histogram figures as PNG and SVG (embedded font);
+//! * [`allan`] — the Allan deviation table, allan.csv and its figure;
 //! * [`csvfile`] — CSV tables written beside the figures;
+//! * [`demo`] — the text of `robimu demo` between its stages;
 //! * [`identifiability`] — the identifiability studies' tables, figures and text;
 //! * [`noise`] — the table of `robimu noise`;
 //! * [`plan`] — the plan directory and the summary of `robimu plan`;
 //! * [`recording`] — the summaries of a recording and of a repair;
-//! * [`validation`] — the accuracy tables `robimu validate` prints and validation.json;
-//! * [`units`] — display units (mm, degrees, °/s) for the SI values in files;
-//! * [`table`] — the paper's Table II as text: prior, estimate and posterior σ
-//!   of every parameter, and, against a known truth, the errors and the
-//!   normalised estimation error squared (NEES).
+//! * [`validation`] — the accuracy tables `robimu validate` prints and validation.json.
+//!
+//! # Example
+//!
+//! The table and the HTML report of a result file (from `robimu calibrate`):
+//!
+//! ```no_run
+//! use std::path::Path;
+//!
+//! use robimu_report::html::calibration_report;
+//! use robimu_report::ParameterTable;
+//! use robimu_session::CalibrationResult;
+//!
+//! let result = CalibrationResult::read(Path::new("session/result.json"))?;
+//! println!("{}", ParameterTable::new(&result, None));
+//! // no truth, no iteration history, no session series
+//! let page = calibration_report(Path::new("report"), &result, None, None, None)?;
+//! println!("wrote {}", page.display());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 #![deny(missing_docs)]
 
@@ -24,8 +47,11 @@ pub mod allan;
 pub mod convergence;
 pub mod csvfile;
 pub mod demo;
+pub mod diagnosis;
+pub mod fit_summary;
 pub mod html;
 pub mod identifiability;
+pub mod montecarlo;
 pub mod noise;
 pub mod plan;
 pub mod plot;

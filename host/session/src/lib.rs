@@ -12,6 +12,37 @@
 //! line of the first problem. Writing goes through [`SessionWriter`], which
 //! appends rows and flushes, so that a recording killed mid-run leaves a
 //! readable session.
+//!
+//! Main types: [`Session`] (a loaded session: [`Session::load`],
+//! [`Session::measurements`], [`Session::noise`]), [`CalibrationResult`] (the
+//! result file, docs/model.md §8), [`SessionError`] (the file and line of a
+//! problem); [`import`] reads ROS 2 recordings and CSV files, [`export`] writes
+//! corrected robots and IMU corrections.
+//!
+//! # Example
+//!
+//! A two-joint session of two joint rows and one IMU row, written and loaded:
+//!
+//! ```
+//! use robimu_session::Session;
+//!
+//! let dir = tempfile::tempdir()?;
+//! let d = dir.path();
+//! std::fs::write(d.join("session.toml"), "format = \"robimu-session/1\"\nrobot = \"aubo_i5\"\n")?;
+//! std::fs::write(d.join("joints.csv"), "t,q1,q2\n0,0,0\n1,0.1,0.2\n")?;
+//! std::fs::write(d.join("imu.csv"), "t,ax,ay,az,gx,gy,gz\n0.5,0,0,9.81,0,0,0.01\n")?;
+//!
+//! let session = Session::load(d)?;
+//! assert_eq!(session.joint_count(), 2);
+//! let m = session.measurements();
+//! assert_eq!((m.joint_t.len(), m.imu_t.len()), (2, 1));
+//! assert_eq!(m.imu_z[0], [0.0, 0.0, 9.81, 0.0, 0.0, 0.01]);
+//! // a broken file is named with its line
+//! std::fs::write(d.join("joints.csv"), "t,q1,q2\n0,0,0\n1,x,0.2\n")?;
+//! let e = Session::load(d).unwrap_err();
+//! assert!(e.to_string().contains("joints.csv:3"), "{e}");
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 #![deny(missing_docs)]
 #![allow(clippy::needless_range_loop)]

@@ -428,6 +428,47 @@ mod tests {
         }
     }
 
+    /// With no band (nc = 0) the matrix is its dense corner: the factor is
+    /// its Cholesky factorisation, the covariance its inverse (the dense
+    /// problems of [`crate::dense`]).
+    #[test]
+    fn no_band_is_the_dense_corner() {
+        let nx = 4;
+        let mut a = ArrowMatrix::zeros(0, 0, nx);
+        assert_eq!(a.dims(), (0, 0, nx));
+        let m = Mat::from_fn(nx, nx, |i, j| {
+            let (i, j) = (i as f64, j as f64);
+            (0.3 * (i + j)).cos() + if i == j { 3.0 } else { 0.0 }
+        });
+        for i in 0..nx {
+            for j in 0..=i {
+                a.add_xx(i, j, m[(i, j)]);
+            }
+        }
+        assert_eq!(dense(&a), m);
+        assert_eq!(a.diagonal().len(), nx);
+        let f = a.factor().unwrap();
+        assert_eq!(f.schur(), m.as_ref());
+        let rhs = [1.0, -2.0, 0.5, 3.0];
+        let mut x = rhs.to_vec();
+        f.solve_in_place(&mut x);
+        let inv = m.llt(Side::Lower).unwrap().inverse();
+        let cov = f.covariance_x();
+        for i in 0..nx {
+            let want: f64 = (0..nx).map(|j| inv[(i, j)] * rhs[j]).sum();
+            assert!((x[i] - want).abs() < 1e-12, "{i}");
+            for j in 0..nx {
+                assert!((cov[(i, j)] - inv[(i, j)]).abs() < 1e-12);
+            }
+        }
+        let mut singular = ArrowMatrix::zeros(0, 0, 2);
+        singular.add_xx(0, 0, 1.0);
+        assert_eq!(
+            singular.factor().unwrap_err(),
+            FactorError::SchurNotPositiveDefinite
+        );
+    }
+
     #[test]
     fn damping_and_diagonal() {
         let mut a = random_arrow(10, 2, 3, 9);

@@ -98,6 +98,22 @@ pub struct IterationRecord {
     pub tries: usize,
 }
 
+impl IterationRecord {
+    /// The column header of the iteration log (the columns of [`Display`](std::fmt::Display)).
+    pub const HEADER: &'static str = "iter           cost       step    lambda   gradient";
+}
+
+impl std::fmt::Display for IterationRecord {
+    /// One line of the iteration log: iteration, cost, step, λ, gradient.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:>4} {:>14.6e} {:>10.3e} {:>9.1e} {:>10.3e}",
+            self.iteration, self.cost, self.step_norm, self.lambda, self.gradient_norm
+        )
+    }
+}
+
 /// Why the solver stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Termination {
@@ -147,17 +163,9 @@ pub struct LmSummary {
 
 impl std::fmt::Display for LmSummary {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(
-            f,
-            "{:>4} {:>14} {:>10} {:>9} {:>10}",
-            "iter", "cost", "step", "lambda", "gradient"
-        )?;
+        writeln!(f, "{}", IterationRecord::HEADER)?;
         for r in &self.iterations {
-            writeln!(
-                f,
-                "{:>4} {:>14.6e} {:>10.3e} {:>9.1e} {:>10.3e}",
-                r.iteration, r.cost, r.step_norm, r.lambda, r.gradient_norm
-            )?;
+            writeln!(f, "{r}")?;
         }
         write!(
             f,
@@ -450,6 +458,28 @@ mod tests {
         // costs never increase
         let costs: Vec<f64> = sol.summary.iterations.iter().map(|r| r.cost).collect();
         assert!(costs.windows(2).all(|w| w[1] <= w[0]));
+    }
+
+    #[test]
+    fn iteration_log_lines_match_the_header() {
+        let old = format!(
+            "{:>4} {:>14} {:>10} {:>9} {:>10}",
+            "iter", "cost", "step", "lambda", "gradient"
+        );
+        assert_eq!(IterationRecord::HEADER, old);
+        let r = IterationRecord {
+            iteration: 3,
+            cost: 1234.5,
+            step_norm: 0.25,
+            lambda: 1e-4,
+            gradient_norm: 2e-3,
+            tries: 1,
+        };
+        assert_eq!(
+            r.to_string(),
+            "   3     1.234500e3   2.500e-1    1.0e-4   2.000e-3"
+        );
+        assert_eq!(r.to_string().len(), IterationRecord::HEADER.len());
     }
 
     #[test]

@@ -20,10 +20,12 @@
 use crate::tracker::{
     flange_pose, pose_residual, register, Registration, TrackedPose, ValidateError,
 };
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
 use robimu_model::geom::inverse3;
 use robimu_model::geom::{mul_mv, sub, M3, V3};
 use robimu_model::{ParamLayout, Robot};
-use robimu_solver::dense::{cholesky_solve, dense_lm};
+use robimu_solver::{dense, LmOptions};
 
 pub use crate::tracker::TRACKER_SIGMA;
 
@@ -87,7 +89,17 @@ pub fn robot_calibration(
         }
         out
     };
-    let (theta, cost) = dense_lm(vec![0.0; 12 + active.len()], &residuals, 100);
+    let sol = dense::solve(
+        residuals,
+        vec![0.0; 12 + active.len()],
+        &LmOptions::default(),
+    )
+    .map_err(|e| {
+        ValidateError::Input(format!(
+            "the tracked poses do not determine the robot calibration: {e}"
+        ))
+    })?;
+    let (theta, cost) = (sol.theta, 2.0 * sol.summary.final_cost);
     let mut eps = eps0;
     let mut estimated = Vec::with_capacity(active.len());
     for (k, &(ix, l, c)) in active.iter().enumerate() {
@@ -139,35 +151,35 @@ pub fn imu_calibration(truth: &[(V3, V3)], raw: &[[f64; 6]]) -> Result<ImuBaseli
         )));
     }
     let fit = |pick: &dyn Fn(usize) -> (V3, V3)| -> Result<LinearSensor, ValidateError> {
-        // Per output axis: z_a = m_a · v + b_a, regressors [v, 1].
-        let mut ata = [[0.0; 4]; 4];
-        let mut atz = [[0.0; 4]; 3];
+        // Per output axis: z_a = m_a · v + b_a, regressors [v, 1]; the
+        // normal equations of the three axes share AᵀA (one Cholesky).
+        let mut ata = Mat::<f64>::zeros(4, 4);
+        let mut atz = Mat::<f64>::zeros(4, 3);
         for i in 0..truth.len() {
             let (v, z) = pick(i);
             let reg = [v[0], v[1], v[2], 1.0];
             for a in 0..4 {
                 for b in 0..4 {
-                    ata[a][b] += reg[a] * reg[b];
+                    ata[(a, b)] += reg[a] * reg[b];
                 }
-                for (ax, row) in atz.iter_mut().enumerate() {
-                    row[a] += reg[a] * z[ax];
+                for ax in 0..3 {
+                    atz[(a, ax)] += reg[a] * z[ax];
                 }
             }
         }
-        let mut m = [[0.0; 3]; 3];
-        let mut b = [0.0; 3];
-        for ax in 0..3 {
-            let mut a: Vec<f64> = ata.iter().flatten().copied().collect();
-            let sol = cholesky_solve(&mut a, &atz[ax], 4).ok_or_else(|| {
+        let sol = ata
+            .llt(Side::Lower)
+            .map_err(|_| {
                 ValidateError::Input(
                     "the tracked motion does not excite every axis: the IMU calibration is singular"
                         .into(),
                 )
-            })?;
-            m[ax] = [sol[0], sol[1], sol[2]];
-            b[ax] = sol[3];
-        }
-        Ok(LinearSensor { m, b })
+            })?
+            .solve(atz);
+        Ok(LinearSensor {
+            m: std::array::from_fn(|ax| [sol[(0, ax)], sol[(1, ax)], sol[(2, ax)]]),
+            b: std::array::from_fn(|ax| sol[(3, ax)]),
+        })
     };
     let accel = fit(&|i| (truth[i].1, [raw[i][0], raw[i][1], raw[i][2]]))?;
     let gyro = fit(&|i| (truth[i].0, [raw[i][3], raw[i][4], raw[i][5]]))?;
@@ -177,25 +189,6 @@ pub fn imu_calibration(truth: &[(V3, V3)], raw: &[[f64; 6]]) -> Result<ImuBaseli
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn dense_lm_fits_a_nonlinear_curve() {
-        // y = a·exp(b·t) from exact samples.
-        let t: Vec<f64> = (0..20).map(|k| k as f64 * 0.1).collect();
-        let y: Vec<f64> = t.iter().map(|t| 2.5 * (-1.3 * t).exp()).collect();
-        let f = |x: &[f64]| -> Vec<f64> {
-            t.iter()
-                .zip(&y)
-                .map(|(t, y)| x[0] * (x[1] * t).exp() - y)
-                .collect()
-        };
-        let (x, cost) = dense_lm(vec![1.0, 0.0], &f, 100);
-        assert!(
-            (x[0] - 2.5).abs() < 1e-6 && (x[1] + 1.3).abs() < 1e-6,
-            "{x:?}"
-        );
-        assert!(cost < 1e-12);
-    }
 
     #[test]
     fn inverse3_inverts() {

@@ -1,12 +1,14 @@
 //! The calibration: MAP estimate of x and the trajectory from one session
 //! (paper §6), with the marginal posterior covariance of x (eq. (24)).
 //!
-//! 1. Fit the trajectory spline to the joint samples (least squares).
-//! 2. Find τ from the data ([`super::time_offset`]).
-//! 3. Levenberg–Marquardt from the nominal x (with that τ) over θ = [c, x].
-//! 4. Σ_x = S⁻¹, S the Schur complement of the normal matrix at the optimum;
-//!    the information the data alone carries about x is checked for directions
-//!    it does not determine (reported by parameter name).
+//! 1. The [`fit`] of the baseline model: trajectory spline fitted to the
+//!    joint samples, τ found from the data ([`super::time_offset`]),
+//!    Levenberg–Marquardt from the nominal x (with that τ) over θ = [c, x],
+//!    Σ_x = S⁻¹ with S the Schur complement of the normal matrix at the optimum.
+//! 2. The information the data alone carries about x is checked for
+//!    directions it does not determine (reported by parameter name).
+
+pub mod fit;
 
 use faer::Side;
 use robimu_session::result::{
@@ -14,11 +16,11 @@ use robimu_session::result::{
     RESULT_FORMAT,
 };
 
-use super::time_offset::{find_tau, TauError, TauEstimate, TauSearch};
+use super::time_offset::{TauError, TauEstimate, TauSearch};
+use fit::FitSpec;
 use robimu_model::observations::Measurements;
-use robimu_model::{Knots, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError};
-use robimu_solver as solver;
-use robimu_solver::problem::{Problem, ProblemError, ProblemOptions};
+use robimu_model::{Knots, ModelError, ParamLayout, Robot, Spline, SplineError};
+use robimu_solver::problem::{ProblemError, ProblemOptions};
 use robimu_solver::{IterationRecord, LmError, LmOptions, LmSummary};
 
 /// Calibration settings.
@@ -57,6 +59,16 @@ impl CalibrateOptions {
             lm: LmOptions::default(),
         }
     }
+
+    /// How the calibration problem is set up with these settings.
+    pub fn problem_options(&self) -> ProblemOptions {
+        ProblemOptions {
+            sigma_q: self.sigma_q.clone(),
+            sigma_z: self.sigma_z,
+            use_prior: self.use_prior,
+            frozen: self.frozen.clone(),
+        }
+    }
 }
 
 /// A parameter group the data barely determines.
@@ -66,6 +78,23 @@ pub struct WeakDirection {
     pub relative_information: f64,
     /// The parameters that make up the direction, largest share first, with their share.
     pub parameters: Vec<(String, f64)>,
+}
+
+impl WeakDirection {
+    /// Whether every parameter of the direction is a robot length error
+    /// ε_i{1,2,3} of a link i < n (not the IMU position): the errors a slow
+    /// motion cannot observe.
+    pub fn only_robot_lengths(&self, layout: &ParamLayout) -> bool {
+        let n = layout.n_links();
+        self.parameters.iter().all(|(name, _)| {
+            layout.index_of(name).is_some_and(|k| {
+                layout
+                    .estimated_errors()
+                    .get(k)
+                    .is_some_and(|e| e.is_length(n))
+            })
+        })
+    }
 }
 
 /// The outcome of a calibration.
@@ -179,50 +208,22 @@ pub fn check_measurements(robot: &Robot, data: &Measurements) -> Result<(), Cali
     Ok(())
 }
 
-/// Calibrate `robot` from `data`. `report` sees every solver iteration.
+/// Calibrate `robot` from `data`: the [`fit`](fn@fit::fit) of the baseline
+/// model from the nominal x, then the check of the data's information for
+/// weak directions. `report` sees every solver iteration.
 pub fn calibrate(
     robot: &Robot,
     data: &Measurements,
     opts: &CalibrateOptions,
     report: impl FnMut(&IterationRecord),
 ) -> Result<Calibration, CalibrateError> {
-    check_measurements(robot, data)?;
+    let f = fit::fit(&FitSpec::baseline(robot, data), opts, report)?;
     let layout = ParamLayout::new(robot);
-    let n = robot.dof();
-    let fit = choose_knots(data, n, &opts.sigma_q, opts.degree, opts.knot_spacing)?;
-    let (knots, spline) = (fit.knots, fit.spline);
-    let mut x0 = layout.nominal();
-    let tau_at = layout.offsets().tau;
-    let tau_initial = match (&opts.tau_search, opts.frozen.contains(&tau_at)) {
-        (Some(search), false) => {
-            let model = MeasurementModel::new(robot, &layout, &x0)?;
-            let gyro: Vec<[f64; 3]> = data.imu_z.iter().map(|z| [z[3], z[4], z[5]]).collect();
-            let est = find_tau(&model, &spline, &data.imu_t, &gyro, search)?;
-            x0[tau_at] = est.tau;
-            Some(est)
-        }
-        _ => None,
-    };
-    let popts = ProblemOptions {
-        sigma_q: opts.sigma_q.clone(),
-        sigma_z: opts.sigma_z,
-        use_prior: opts.use_prior,
-        frozen: opts.frozen.clone(),
-    };
-    let mut problem = Problem::new(robot, &layout, data, knots, x0.clone(), &popts)?;
-    let theta0 = problem.theta(&spline, &x0);
-    let sol = solver::solve(&mut problem, theta0, &opts.lm, report)?;
-    if !sol.summary.termination.converged() {
-        return Err(CalibrateError::NotConverged {
-            summary: Box::new(sol.summary),
-        });
-    }
-    let x = problem.x_of(&sol.theta);
-    let active = problem.active().to_vec();
+    let active = &f.active;
     let na = active.len();
     let specs = layout.specs();
     // information about x from the data alone, in units of the prior σ
-    let schur = sol.factor.schur();
+    let schur = &f.information;
     let mut info = faer::Mat::from_fn(na, na, |i, j| {
         let (si, sj) = (specs[active[i]].sigma, specs[active[j]].sigma);
         let prior = if opts.use_prior && i == j {
@@ -239,7 +240,7 @@ pub fn calibrate(
             info[(j, i)] = v;
         }
     }
-    let weak_directions = weak_directions(&info, &active, &layout, opts.use_prior);
+    let weak_directions = weak_directions(&info, active, &layout, opts.use_prior);
     if !opts.use_prior && !weak_directions.is_empty() {
         let mut names: Vec<String> = Vec::new();
         for (name, _) in weak_directions.iter().flat_map(|w| &w.parameters) {
@@ -249,37 +250,21 @@ pub fn calibrate(
         }
         return Err(CalibrateError::Unidentifiable { names });
     }
-    let cov = sol.factor.covariance_x();
-    let mut sigma = vec![0.0; layout.len()];
-    let mut covariance = vec![0.0; na * na];
-    for i in 0..na {
-        sigma[active[i]] = cov[(i, i)].max(0.0).sqrt();
-        for j in 0..na {
-            covariance[i * na + j] = cov[(i, j)];
-        }
-    }
-    let residuals = problem.imu_residuals(&sol.theta)?;
-    let mut rms = [0.0; 6];
-    for (_, r) in &residuals {
-        for c in 0..6 {
-            rms[c] += r[c] * r[c];
-        }
-    }
-    let count = residuals.len().max(1) as f64;
-    let residual_rms = rms.map(|s| (s / count).sqrt());
+    let cov = &f.covariance;
+    let covariance = (0..na * na).map(|k| cov[(k / na, k % na)]).collect();
     Ok(Calibration {
-        x,
-        sigma,
-        active,
+        residual_rms: f.residual_rms(),
+        imu_samples_used: f.residuals.len(),
+        x: f.x,
+        sigma: f.sigma_x,
+        active: f.active,
         covariance,
-        trajectory: problem.spline_of(&sol.theta),
-        tau_initial,
-        knot_spacing: fit.spacing,
-        joint_fit_rms: fit.rms,
-        imu_samples_used: residuals.len(),
-        summary: sol.summary,
+        trajectory: f.trajectory,
+        tau_initial: f.tau_initial,
+        knot_spacing: f.knot_spacing,
+        joint_fit_rms: f.joint_fit_rms,
+        summary: f.summary,
         weak_directions,
-        residual_rms,
     })
 }
 

@@ -2,8 +2,9 @@
 //! measurement disagree, which catalogued effect ([`robimu_model::effects`]) explains
 //! it, and how much the gap shrinks when it is added.
 //!
-//! 1. Fit the baseline (the calibration of [`super::calibrate`], same
-//!    problem) and predict every IMU sample.
+//! 1. Fit the baseline (the [`fit`](crate::calibrate::fit) of every
+//!    calibration) and predict every IMU sample; refits with effects are the
+//!    same fit with the effects' parameter blocks added.
 //! 2. Residual analysis ([`ResidualStats`]): whitened RMS and χ² per channel,
 //!    Ljung–Box whiteness, the largest spectral peak, the time window where
 //!    residuals concentrate, the regressor they correlate with most.
@@ -30,53 +31,17 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use super::calibrate::{check_measurements, choose_knots, CalibrateError, CalibrateOptions};
-use super::time_offset::find_tau;
+use super::calibrate::fit::{fit, Fit, FitSpec, Start};
+use super::calibrate::{choose_knots, CalibrateError, CalibrateOptions};
 use robimu_model::effects::resonance::Mode;
 use robimu_model::effects::{self, CatalogueSetup, Effect, EffectSet, MassModel, SessionSpan};
 use robimu_model::observations::Measurements;
 use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot, Spline};
-use robimu_solver as solver;
-use robimu_solver::problem::{Problem, ProblemOptions};
+use robimu_solver::problem::Problem;
 use robimu_solver::LeastSquares;
 
 /// Channel names in z order.
 pub const CHANNELS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
-
-/// A fit of the baseline model plus a set of effects.
-#[derive(Debug, Clone)]
-pub struct Fit {
-    /// Effects in the model, in θ_E order.
-    pub effects: Vec<String>,
-    /// The full x.
-    pub x: Vec<f64>,
-    /// Posterior σ of x (0 when frozen).
-    pub sigma_x: Vec<f64>,
-    /// θ = [c, x_a, θ_E] at the optimum.
-    pub theta: Vec<f64>,
-    /// θ_E.
-    pub theta_e: Vec<f64>,
-    /// Posterior σ of θ_E.
-    pub sigma_e: Vec<f64>,
-    /// Names of θ_E.
-    pub effect_params: Vec<robimu_model::effects::EffectParam>,
-    /// Final cost ½‖r‖² (negative log-posterior up to a constant).
-    pub cost: f64,
-    /// The fitted trajectory.
-    pub trajectory: Spline,
-    /// Whitened IMU residuals at the optimum (sample index, r).
-    pub residuals: Vec<(usize, [f64; 6])>,
-}
-
-impl Fit {
-    /// Whitened residual RMS per channel.
-    pub fn residual_rms(&self) -> [f64; 6] {
-        let n = self.residuals.len().max(1) as f64;
-        std::array::from_fn(|c| {
-            (self.residuals.iter().map(|(_, r)| r[c] * r[c]).sum::<f64>() / n).sqrt()
-        })
-    }
-}
 
 /// Why a diagnosis failed.
 #[derive(Debug, thiserror::Error)]
@@ -136,99 +101,24 @@ pub fn effect_set(setup: &CatalogueSetup, names: &[String]) -> Result<EffectSet,
     Ok(set)
 }
 
-fn problem_options(opts: &CalibrateOptions) -> ProblemOptions {
-    ProblemOptions {
-        sigma_q: opts.sigma_q.clone(),
-        sigma_z: opts.sigma_z,
-        use_prior: opts.use_prior,
-        frozen: opts.frozen.clone(),
-    }
-}
-
-/// Fit the baseline plus `names` effects. With `start` (a fit whose effects
-/// are a prefix of `names`), start from it (new effect parameters at 0, same
-/// knots); else as [`super::calibrate::calibrate`]: spline fit, τ search,
-/// nominal x.
-pub fn fit(
+/// Fit the baseline plus the `names` effects from `start` (the
+/// [`fit`](fn@crate::calibrate::fit::fit) with the effect set of `names`).
+pub fn fit_effects(
     robot: &Robot,
     data: &Measurements,
     opts: &CalibrateOptions,
     setup: &CatalogueSetup,
     names: &[String],
-    start: Option<&Fit>,
-    x_start: Option<&[f64]>,
+    start: Start<'_>,
 ) -> Result<Fit, DiagnoseError> {
-    check_measurements(robot, data)?;
-    let layout = ParamLayout::new(robot);
     let set = effect_set(setup, names)?;
-    let popts = problem_options(opts);
-    let (knots, spline, x0, prev_theta) = match start {
-        Some(f) => (
-            f.trajectory.knots().clone(),
-            f.trajectory.clone(),
-            f.x.clone(),
-            Some(f.theta.clone()),
-        ),
-        None => {
-            let n = robot.dof();
-            let tf = choose_knots(data, n, &opts.sigma_q, opts.degree, opts.knot_spacing)
-                .map_err(CalibrateError::from)?;
-            let mut x0 = x_start.map_or_else(|| layout.nominal(), |x| x.to_vec());
-            let tau_at = layout.offsets().tau;
-            let search = opts.tau_search.as_ref().filter(|_| x_start.is_none());
-            if let (Some(search), false) = (search, opts.frozen.contains(&tau_at)) {
-                let model =
-                    MeasurementModel::new(robot, &layout, &x0).map_err(CalibrateError::from)?;
-                let gyro: Vec<[f64; 3]> = data.imu_z.iter().map(|z| [z[3], z[4], z[5]]).collect();
-                let est = find_tau(&model, &tf.spline, &data.imu_t, &gyro, search)
-                    .map_err(CalibrateError::from)?;
-                x0[tau_at] = est.tau;
-            }
-            (tf.knots, tf.spline, x0, None)
-        }
+    let spec = FitSpec {
+        robot,
+        data,
+        effects: &set,
+        start,
     };
-    let mut problem =
-        Problem::new(robot, &layout, data, knots, x0.clone(), &popts)?.with_effects(&set);
-    let mut theta0 = problem.theta(&spline, &x0);
-    if let Some(prev) = prev_theta {
-        theta0[..prev.len()].copy_from_slice(&prev);
-    }
-    let sol =
-        solver::solve(&mut problem, theta0, &opts.lm, |_| {}).map_err(CalibrateError::from)?;
-    if !sol.summary.termination.converged() {
-        return Err(CalibrateError::NotConverged {
-            summary: Box::new(sol.summary),
-        }
-        .into());
-    }
-    problem.begin_iteration(&sol.theta)?;
-    let cost = problem.cost(&sol.theta)?;
-    let x = problem.x_of(&sol.theta);
-    let active = problem.active().to_vec();
-    let na = active.len();
-    let cov = sol.factor.covariance_x();
-    let mut sigma_x = vec![0.0; layout.len()];
-    for (a, &k) in active.iter().enumerate() {
-        sigma_x[k] = cov[(a, a)].max(0.0).sqrt();
-    }
-    let ne = set.len();
-    let sigma_e = (0..ne)
-        .map(|e| cov[(na + e, na + e)].max(0.0).sqrt())
-        .collect();
-    let theta_e = problem.effect_params_of(&sol.theta).to_vec();
-    let residuals = problem.imu_residuals(&sol.theta)?;
-    Ok(Fit {
-        effects: names.to_vec(),
-        x,
-        sigma_x,
-        trajectory: problem.spline_of(&sol.theta),
-        theta: sol.theta,
-        theta_e,
-        sigma_e,
-        effect_params: set.params().to_vec(),
-        cost,
-        residuals,
-    })
+    Ok(fit(&spec, opts, |_| {})?)
 }
 
 /// gᵀ A⁻¹ g of the problem with `names` effects at θ.
@@ -242,16 +132,15 @@ fn quadratic_score(
 ) -> Result<f64, DiagnoseError> {
     let layout = ParamLayout::new(robot);
     let set = effect_set(setup, names)?;
-    let popts = problem_options(opts);
     let mut problem = Problem::new(
         robot,
         &layout,
         data,
         at.trajectory.knots().clone(),
         at.x.clone(),
-        &popts,
-    )?
-    .with_effects(&set);
+        &opts.problem_options(),
+        &set,
+    )?;
     let mut theta = problem.theta(&at.trajectory, &at.x);
     theta[..at.theta.len()].copy_from_slice(&at.theta);
     problem.begin_iteration(&theta)?;
@@ -471,8 +360,7 @@ pub fn residual_stats(
         .map(|(i, _)| {
             let mut js = JointState::default();
             let t = data.imu_t[*i];
-            let u = (t + tau).clamp(fit.trajectory.knots().start(), fit.trajectory.knots().end());
-            let _ = fit.trajectory.evaluate(u, &mut js);
+            fit.trajectory.evaluate_clamped(t + tau, &mut js);
             let mut v = vec![t];
             for j in 0..dof {
                 v.extend([js.q[j], js.qd[j], js.qdd[j]]);
@@ -745,6 +633,30 @@ pub struct Diagnosis {
     pub sigma_z: [f64; 6],
 }
 
+impl Diagnosis {
+    /// The `diagnosis.json` document (format `robimu-diagnosis/1`).
+    pub fn to_json(&self, layout: &ParamLayout) -> serde_json::Value {
+        let rms_map = |rms: [f64; 6]| -> serde_json::Value {
+            let mut m = serde_json::Map::new();
+            for (c, v) in CHANNELS.iter().zip(rms) {
+                m.insert(c.to_string(), v.into());
+            }
+            m.into()
+        };
+        serde_json::json!({
+            "format": "robimu-diagnosis/1",
+            "threshold": self.threshold,
+            "effects_found": self.found,
+            "last_scores": self.last_scores,
+            "residual_rms_before": rms_map(self.baseline.residual_rms()),
+            "residual_rms_after": rms_map(self.final_fit.residual_rms()),
+            "residual_stats_before": self.stats_before,
+            "residual_stats_after": self.stats_after,
+            "final_model": fit_json(layout, &self.final_fit),
+        })
+    }
+}
+
 /// Diagnose `data`: baseline fit, then add significant effects one at a time
 /// (see the module doc).
 pub fn diagnose(
@@ -758,15 +670,8 @@ pub fn diagnose(
     let layout = ParamLayout::new(robot);
     let threshold = dopts.alpha / dopts.candidates.len().max(1) as f64;
     progress("fitting the baseline model");
-    let baseline = fit(
-        robot,
-        data,
-        opts,
-        setup,
-        &[],
-        None,
-        dopts.x_start.as_deref(),
-    )?;
+    let start = dopts.x_start.as_deref().map_or(Start::Nominal, Start::At);
+    let baseline = fit_effects(robot, data, opts, setup, &[], start)?;
     let mut current = baseline.clone();
     let mut found = Vec::new();
     let n_res = 6.0 * baseline.residuals.len() as f64;
@@ -789,7 +694,7 @@ pub fn diagnose(
         progress(&format!("refitting with {}", best.name));
         let mut names = current.effects.clone();
         names.push(best.name.clone());
-        let next = fit(robot, data, opts, setup, &names, Some(&current), None)?;
+        let next = fit_effects(robot, data, opts, setup, &names, Start::Refit(&current))?;
         let lr = 2.0 * (current.cost - next.cost);
         let lr_p = chi2_sf(lr, best.dof as f64);
         if lr_p >= threshold {

@@ -3,7 +3,9 @@
 //!
 //! * [`allan`] — Allan deviation of a static IMU recording;
 //! * [`baseline`] — the classical tracker-based robot and IMU calibrations;
-//! * [`calibrate`] — the MAP calibration of one session;
+//! * [`calibrate`] — the MAP calibration of one session, on [`calibrate::fit`],
+//!   the one fit pipeline behind every estimate of x (calibration, diagnosis
+//!   refits, repeatability windows, Monte Carlo runs);
 //! * [`diagnose`] — model-discrepancy diagnosis with the effect catalogue;
 //! * [`identifiability`] — σ against length, speed and random trajectories (paper §8.2, §8.4);
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
@@ -16,6 +18,34 @@
 //! * [`tracker_offset`] — the tracker/robot time offset δ (paper §9);
 //! * [`tracker`] — tracker poses and their registration to the robot (paper §9);
 //! * [`validate`] — robot and IMU accuracy against an external tracker.
+//!
+//! Main entry points: [`calibrate::calibrate`] (with [`calibrate::CalibrateOptions`];
+//! it returns a [`calibrate::Calibration`]: x, its posterior σ and covariance,
+//! the fitted trajectory, the solver's run), [`simulate::simulate`] and
+//! [`simulate::random_session`] (sessions with a known truth) and
+//! [`plan::plan`] (an excitation trajectory).
+//!
+//! # Example
+//!
+//! Simulate 20 s of random motion of an AUBO i5 (a truth drawn from the
+//! priors, the paper's rates and noise), calibrate it and read the time offset
+//! τ with its posterior σ:
+//!
+//! ```
+//! use robimu_model::{ParamLayout, Robot};
+//! use robimu_workflows::calibrate::{calibrate, CalibrateOptions};
+//! use robimu_workflows::simulate::{random_session, SimulateOptions};
+//!
+//! let robot = Robot::aubo_i5();
+//! let session = random_session(&robot, 20.0, 1.0, &SimulateOptions::paper(&robot), 1)?;
+//! let cal = calibrate(&robot, &session.data, &CalibrateOptions::new(&robot), |_| {})?;
+//!
+//! let tau = ParamLayout::new(&robot).offsets().tau;
+//! println!("τ = {:.5} ± {:.5} s", cal.x[tau], cal.sigma[tau]);
+//! assert!(cal.sigma[tau] > 0.0);
+//! assert!((cal.x[tau] - session.truth[tau]).abs() < 5.0 * cal.sigma[tau]);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 #![deny(missing_docs)]
 #![allow(clippy::needless_range_loop)]

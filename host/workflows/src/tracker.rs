@@ -5,6 +5,8 @@
 //! ([`crate::baseline`]), the tracker clock offset ([`crate::tracker_offset`])
 //! and the simulator.
 
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
 use robimu_model::geom::{
     self, add, matrix_from_quat, mul_mm, mul_mv, nearest_rotation, quat_from_matrix, sub, Iso, V3,
 };
@@ -12,7 +14,7 @@ use robimu_model::geom::{exp_so3, log_so3};
 use robimu_model::kinematics::forward_kinematics;
 use robimu_model::{ParamLayout, Robot};
 use robimu_session::Table;
-use robimu_solver::dense::{cholesky_solve, dense_lm};
+use robimu_solver::{dense, LmOptions};
 
 /// Why a validation could not be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -210,7 +212,8 @@ pub(crate) fn pose_residual(meas: &Iso, pred: &Iso, sp: f64, sr: f64) -> [f64; 6
 
 /// Solve T_tb and T_fm from flange poses F_k and marker poses M_k
 /// (M_k ≈ T_tb F_k T_fm): closed-form start (rotation axes of relative
-/// motions, then linear translations), refined by least squares.
+/// motions, then linear translations), refined by nonlinear least squares
+/// ([`robimu_solver::dense`]).
 pub fn register(flanges: &[Iso], markers: &[Iso]) -> Result<Registration, ValidateError> {
     let n = flanges.len();
     if n != markers.len() || n < 3 {
@@ -247,26 +250,29 @@ pub fn register(flanges: &[Iso], markers: &[Iso]) -> Result<Registration, Valida
         }
     }
     let r_tb = nearest_rotation(&hx).ok_or_else(too_little_rotation)?;
-    // M.p − R_tb F.p = R_tb F.R p_fm + p_tb: linear in (p_fm, p_tb).
-    let mut ata = vec![0.0; 36];
-    let mut atb = vec![0.0; 6];
+    // M.p − R_tb F.p = R_tb F.R p_fm + p_tb: linear in (p_fm, p_tb), solved
+    // by the normal equations (Cholesky).
+    let mut ata = Mat::<f64>::zeros(6, 6);
+    let mut atb = Mat::<f64>::zeros(6, 1);
     for (f, m) in flanges.iter().zip(markers) {
         let a = mul_mm(&r_tb, &f.r);
         let b = sub(m.p, mul_mv(&r_tb, f.p));
         for row in 0..3 {
-            let reg = [a[row][0], a[row][1], a[row][2], 0.0, 0.0, 0.0];
-            let mut reg = reg;
+            let mut reg = [a[row][0], a[row][1], a[row][2], 0.0, 0.0, 0.0];
             reg[3 + row] = 1.0;
             for u in 0..6 {
-                atb[u] += reg[u] * b[row];
+                atb[(u, 0)] += reg[u] * b[row];
                 for v in 0..6 {
-                    ata[u * 6 + v] += reg[u] * reg[v];
+                    ata[(u, v)] += reg[u] * reg[v];
                 }
             }
         }
     }
-    let sol = cholesky_solve(&mut ata, &atb, 6)
-        .ok_or_else(|| input("the poses do not determine the tracker and marker positions"))?;
+    let sol = ata
+        .llt(Side::Lower)
+        .map_err(|_| input("the poses do not determine the tracker and marker positions"))?
+        .solve(atb);
+    let sol: Vec<f64> = (0..6).map(|i| sol[(i, 0)]).collect();
     let start = Registration {
         tracker_base: Iso {
             r: r_tb,
@@ -286,6 +292,14 @@ pub fn register(flanges: &[Iso], markers: &[Iso]) -> Result<Registration, Valida
             .flat_map(|(fl, m)| pose_residual(m, &reg.predict(fl), sp, sr))
             .collect()
     };
-    let (d, _) = dense_lm(vec![0.0; 12], &f, 50);
-    Ok(start.perturbed(&d))
+    let opts = LmOptions {
+        max_iterations: 50,
+        ..LmOptions::default()
+    };
+    let sol = dense::solve(f, vec![0.0; 12], &opts).map_err(|e| {
+        input(format!(
+            "the poses do not determine the tracker and marker transforms: {e}"
+        ))
+    })?;
+    Ok(start.perturbed(&sol.theta))
 }

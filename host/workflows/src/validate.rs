@@ -20,9 +20,8 @@
 //! and standard-calibration intrinsics is compared against them.
 
 use crate::baseline::{self, ImuBaseline, RobotBaseline};
-pub use crate::tracker::{
-    flange_eps, flange_pose, pose_from_row, register, row_from_pose, tracked_poses, Registration,
-    TrackedPose, ValidateError,
+use crate::tracker::{
+    flange_eps, flange_pose, pose_from_row, register, Registration, TrackedPose, ValidateError,
 };
 use robimu_model::geom::{log_so3, matrix_from_quat, quat_from_matrix, quat_mul};
 
@@ -371,6 +370,7 @@ pub fn imu_position_and_gravity(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tracker::tracked_poses;
     use robimu_model::geom::exp_so3;
 
     fn pose(w: V3, p: V3) -> Iso {

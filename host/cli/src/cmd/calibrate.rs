@@ -2,15 +2,26 @@
 //! result file (docs/model.md §8).
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
+use robimu_model::effects::EffectSet;
+use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
 use robimu_report::convergence::{convergence_path, ConvergenceLog};
+use robimu_report::fit_summary::{
+    EffectEstimates, FitReport, RepeatabilityGroups, WeakDirectionsWarning,
+};
+use robimu_report::html::calibration_report;
 use robimu_report::ParameterTable;
-use robimu_workflows::calibrate::{calibrate, check_measurements, CalibrateOptions};
+use robimu_session::result::CalibrationResult;
+use robimu_session::Session;
+use robimu_solver::IterationRecord;
+use robimu_workflows::calibrate::fit::{fit, FitSpec, Start};
+use robimu_workflows::calibrate::{calibrate, check_measurements, CalibrateOptions, Calibration};
+use robimu_workflows::diagnose::{effect_set, fit_json, setup_with};
 use robimu_workflows::noise::NoiseFile;
-use robimu_workflows::repeatability::{self, check_windows, Repeatability};
+use robimu_workflows::repeatability::{self, check_windows, Repeatability, Window};
 
 use super::input::{load_session, output_path, Progress};
 
@@ -114,8 +125,85 @@ impl CalibrateCmd {
         let dir = &self.session;
         let (session, robot) = load_session(dir)?;
         let layout = ParamLayout::new(&robot);
-        let mut opts = CalibrateOptions::new(&robot);
-        (opts.sigma_z, opts.sigma_q) = session.noise(&robot)?;
+        let opts = self.options(&session, &robot, &layout)?;
+        let path = output_path(self.out.as_deref(), dir.join("result.json"))?;
+        let data = session.measurements();
+        check_measurements(&robot, &data)
+            .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+        let effects = self.effect_set(&robot, &data)?;
+        let windows = match self.windows {
+            Some(k) => Some(
+                check_windows(&data, k)
+                    .with_context(|| format!("--windows {k}: cannot split {}", dir.display()))?,
+            ),
+            None => None,
+        };
+        let mut out = std::io::stdout().lock();
+        write_header(&mut out, dir, &session, &layout, &opts)?;
+
+        let progress = Progress::start("fitting the trajectory and finding the time offset tau");
+        progress.println(IterationRecord::HEADER);
+        let cal = calibrate(&robot, &data, &opts, |r| {
+            progress.println(r.to_string());
+            progress.set_message(format!(
+                "iteration {}: cost {:.6e}, lambda {:.1e}",
+                r.iteration, r.cost, r.lambda
+            ));
+        });
+        progress.finish();
+        let cal = cal.with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+        write!(
+            out,
+            "{}",
+            FitReport::brief(&cal, self.knot_spacing.is_none())
+        )?;
+        let result = result_file(&cal, &layout, &session, dir, opts.use_prior);
+        writeln!(out)?;
+        write!(
+            out,
+            "{}",
+            ParameterTable::new(&result, session.truth.as_ref())
+        )?;
+        out.flush()?;
+        eprint!(
+            "{}",
+            WeakDirectionsWarning::new(&cal.weak_directions, &layout)
+        );
+        result.write(&path)?;
+        writeln!(out, "wrote {}", path.display())?;
+        let history = ConvergenceLog::from_summary(&cal.summary);
+        let hpath = convergence_path(&path);
+        history.write(&hpath)?;
+        writeln!(out, "wrote {}", hpath.display())?;
+        if let Some(report_dir) = &self.report {
+            let html = html_report(report_dir, &robot, &data, &opts, &cal, &result, &session)?;
+            writeln!(out, "wrote {}", html.display())?;
+        }
+        if let Some(set) = &effects {
+            fit_effects(&mut out, &robot, &data, &opts, set, &cal, &path)?;
+        }
+        if let Some(windows) = windows {
+            let study = calibrate_windows(&robot, &opts, windows, cal, dir)?;
+            writeln!(out)?;
+            write!(out, "{}", RepeatabilityGroups(&study))?;
+            let csv = path.with_file_name("repeatability.csv");
+            write_windows_csv(&csv, &layout, &study)
+                .with_context(|| format!("cannot write {}", csv.display()))?;
+            writeln!(out, "wrote {}", csv.display())?;
+        }
+        Ok(())
+    }
+
+    /// The calibration settings: the session's (or `--noise`'s) σ,
+    /// `--freeze`, `--no-prior`, `--knot-spacing`.
+    fn options(
+        &self,
+        session: &Session,
+        robot: &Robot,
+        layout: &ParamLayout,
+    ) -> anyhow::Result<CalibrateOptions> {
+        let mut opts = CalibrateOptions::new(robot);
+        (opts.sigma_z, opts.sigma_q) = session.noise(robot)?;
         if let Some(path) = &self.noise {
             let file = NoiseFile::read(path).context("--noise")?;
             if let Some(z) = file.noise.sigma_z {
@@ -134,7 +222,7 @@ impl CalibrateCmd {
                 opts.sigma_q = q;
             }
         }
-        opts.frozen = frozen_indices(&robot, &layout, &self.freeze)?;
+        opts.frozen = frozen_indices(robot, layout, &self.freeze)?;
         opts.use_prior = !self.no_prior;
         if let Some(h) = self.knot_spacing {
             if !(h.is_finite() && h > 0.0) {
@@ -142,258 +230,151 @@ impl CalibrateCmd {
             }
         }
         opts.knot_spacing = self.knot_spacing;
-        let path = output_path(self.out.as_deref(), dir.join("result.json"))?;
-        let data = session.measurements();
-        check_measurements(&robot, &data)
-            .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-        let effect_setup =
-            robimu_workflows::diagnose::setup_with(&robot, &data, None, self.resonance.mode()?);
-        let effect_names: Vec<String> = self
+        Ok(opts)
+    }
+
+    /// The `--effects` set (`None` without effects: then the catalogue, and
+    /// its resonance response to the joint trajectory, is never set up).
+    fn effect_set(&self, robot: &Robot, data: &Measurements) -> anyhow::Result<Option<EffectSet>> {
+        let mode = self.resonance.mode()?;
+        let names: Vec<String> = self
             .effects
             .iter()
             .map(|s| s.trim().to_string())
             .filter(|s| !s.is_empty())
             .collect();
-        for name in &effect_names {
-            robimu_model::effects::by_name(&effect_setup, name).context("--effects")?;
+        if names.is_empty() {
+            return Ok(None);
         }
-        let windows = match self.windows {
-            Some(k) => Some(
-                check_windows(&data, k)
-                    .with_context(|| format!("--windows {k}: cannot split {}", dir.display()))?,
-            ),
-            None => None,
-        };
-        let mut out = std::io::stdout().lock();
-        let (ta, tb) = session.joints.span().unwrap_or_default();
-        writeln!(
-            out,
-            "session {}: robot {}, {} joint samples, {} IMU samples, {:.1} s; estimating {} of {} parameters{}",
-            dir.display(),
-            session.meta.robot,
-            session.joints.len(),
-            session.imu.len(),
-            tb - ta,
-            layout.len() - opts.frozen.len(),
-            layout.len(),
-            if opts.use_prior { "" } else { " without priors" }
-        )?;
-        out.flush()?;
-
-        let progress = Progress::start("fitting the trajectory and finding the time offset tau");
-        progress.println(format!(
-            "{:>4} {:>14} {:>10} {:>9} {:>10}",
-            "iter", "cost", "step", "lambda", "gradient"
-        ));
-        let cal = calibrate(&robot, &data, &opts, |r| {
-            progress.println(format!(
-                "{:>4} {:>14.6e} {:>10.3e} {:>9.1e} {:>10.3e}",
-                r.iteration, r.cost, r.step_norm, r.lambda, r.gradient_norm
-            ));
-            progress.set_message(format!(
-                "iteration {}: cost {:.6e}, lambda {:.1e}",
-                r.iteration, r.cost, r.lambda
-            ));
-        });
-        progress.finish();
-        let cal = cal.with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-
-        let summary = &cal.summary;
-        writeln!(
-            out,
-            "{} after {} iterations: cost {:.6e} -> {:.6e}",
-            summary.termination,
-            summary.iterations.len(),
-            summary.initial_cost,
-            summary.final_cost
-        )?;
-        writeln!(
-            out,
-            "trajectory spline: knots every {} s{}",
-            cal.knot_spacing,
-            if self.knot_spacing.is_none() {
-                " (chosen from the joint samples)"
-            } else {
-                ""
-            }
-        )?;
-        if let Some(t) = &cal.tau_initial {
-            writeln!(
-                out,
-                "time offset found from the data before the fit: tau = {:.4} s",
-                t.tau
-            )?;
-        }
-        let rms = cal.residual_rms;
-        writeln!(
-            out,
-            "{} IMU samples used; whitened residual rms (1 = as modelled): ax {:.2} ay {:.2} az {:.2} gx {:.2} gy {:.2} gz {:.2}",
-            cal.imu_samples_used, rms[0], rms[1], rms[2], rms[3], rms[4], rms[5]
-        )?;
-        let mut result = cal.to_result(&layout);
-        result.robot = Some(session.meta.robot.clone());
-        result.session = Some(
-            std::path::absolute(dir)
-                .unwrap_or_else(|_| dir.clone())
-                .display()
-                .to_string(),
-        );
-        result.priors_used = Some(opts.use_prior);
-        writeln!(out)?;
-        write!(
-            out,
-            "{}",
-            ParameterTable::new(&result, session.truth.as_ref())
-        )?;
-        out.flush()?;
-        if !cal.weak_directions.is_empty() {
-            eprintln!(
-                "warning: the data barely determines {} parameter combination(s); their estimates rest on the priors:",
-                cal.weak_directions.len()
-            );
-            for w in &cal.weak_directions {
-                let parts: Vec<String> = w
-                    .parameters
-                    .iter()
-                    .map(|(name, share)| format!("{name} {:.0} %", 100.0 * share))
-                    .collect();
-                eprintln!(
-                    "  {}  (data information {:.1e} of the prior's)",
-                    parts.join(", "),
-                    w.relative_information
-                );
-            }
-            let n = robot.dof();
-            let only_lengths = cal.weak_directions.iter().all(|w| {
-                w.parameters.iter().all(|(name, _)| {
-                    layout.index_of(name).is_some_and(|k| {
-                        layout
-                            .estimated_errors()
-                            .get(k)
-                            .is_some_and(|e| e.link < n && e.k <= 3)
-                    })
-                })
-            });
-            if only_lengths {
-                eprintln!("  (all are robot length errors: the motion is too slow to observe them; `--freeze lengths` holds them at nominal)");
-            }
-        }
-        result.write(&path)?;
-        writeln!(out, "wrote {}", path.display())?;
-        let history = ConvergenceLog::from_summary(&cal.summary);
-        let hpath = convergence_path(&path);
-        history.write(&hpath)?;
-        writeln!(out, "wrote {}", hpath.display())?;
-        if let Some(report_dir) = &self.report {
-            let costs = history.costs();
-            let series = robimu_report::html::SessionSeries::new(
-                &robot,
-                &data,
-                &cal.x,
-                &opts.sigma_q,
-                Some(cal.knot_spacing),
-            )?;
-            let html = robimu_report::html::calibration_report(
-                report_dir,
-                &result,
-                session.truth.as_ref(),
-                Some(&costs),
-                Some(&series),
-            )?;
-            writeln!(out, "wrote {}", html.display())?;
-        }
-        if !effect_names.is_empty() {
-            let progress = Progress::start(format!("fitting with {}", effect_names.join(", ")));
-            let fit = robimu_workflows::diagnose::fit(
-                &robot,
-                &data,
-                &opts,
-                &effect_setup,
-                &effect_names,
-                None,
-                Some(&cal.x),
-            );
-            progress.finish();
-            let fit =
-                fit.with_context(|| format!("--effects: cannot fit {}", effect_names.join(", ")))?;
-            writeln!(out, "\neffects (fitted with the baseline):")?;
-            for (e, p) in fit.effect_params.iter().enumerate() {
-                let (unit, scale) = p.display;
-                writeln!(
-                    out,
-                    "  {:<34} {:+.4} ± {:.4} {unit}",
-                    p.name,
-                    fit.theta_e[e] * scale,
-                    fit.sigma_e[e] * scale
-                )?;
-            }
-            let rms = fit.residual_rms();
-            writeln!(
-                out,
-                "whitened residual rms with the effects: ax {:.2} ay {:.2} az {:.2} gx {:.2} gy {:.2} gz {:.2}",
-                rms[0], rms[1], rms[2], rms[3], rms[4], rms[5]
-            )?;
-            let epath = path.with_file_name("effects.json");
-            let json = robimu_workflows::diagnose::fit_json(&layout, &fit);
-            std::fs::write(&epath, serde_json::to_string_pretty(&json)?)
-                .with_context(|| format!("cannot write {}", epath.display()))?;
-            writeln!(out, "wrote {}", epath.display())?;
-        }
-        if let Some(windows) = windows {
-            let count = windows.len();
-            let progress = Progress::start(format!("calibrating {count} windows"));
-            let results = repeatability::calibrate_windows(&robot, windows, &opts, |w, r| {
-                progress.set_message(format!(
-                    "window {} of {count}: iteration {}, cost {:.6e}",
-                    w + 1,
-                    r.iteration,
-                    r.cost
-                ));
-            });
-            progress.finish();
-            let results =
-                results.with_context(|| format!("--windows {count}: {}", dir.display()))?;
-            let study = repeatability::compare(&layout, cal, results);
-            writeln!(out)?;
-            write_groups(&mut out, &study)?;
-            let csv = path.with_file_name("repeatability.csv");
-            write_windows_csv(&csv, &layout, &study)
-                .with_context(|| format!("cannot write {}", csv.display()))?;
-            writeln!(out, "wrote {}", csv.display())?;
-        }
-        Ok(())
+        let setup = setup_with(robot, data, None, mode);
+        Ok(Some(effect_set(&setup, &names).context("--effects")?))
     }
 }
 
-/// The table of each parameter group's largest difference from the full
-/// calibration.
-fn write_groups(out: &mut impl Write, study: &Repeatability) -> std::io::Result<()> {
-    let (first, last) = (study.windows.first(), study.windows.last());
+/// The first line: the session, its samples and what is estimated.
+fn write_header(
+    out: &mut impl Write,
+    dir: &Path,
+    session: &Session,
+    layout: &ParamLayout,
+    opts: &CalibrateOptions,
+) -> std::io::Result<()> {
+    let (ta, tb) = session.joints.span().unwrap_or_default();
     writeln!(
         out,
-        "repeatability: {} windows of {:.1} s ({:.1}..{:.1} s), largest difference from the full calibration per parameter group",
-        study.windows.len(),
-        first.map_or(0.0, |w| w.t1 - w.t0),
-        first.map_or(0.0, |w| w.t0),
-        last.map_or(0.0, |w| w.t1),
+        "session {}: robot {}, {} joint samples, {} IMU samples, {:.1} s; estimating {} of {} parameters{}",
+        dir.display(),
+        session.meta.robot,
+        session.joints.len(),
+        session.imu.len(),
+        tb - ta,
+        layout.len() - opts.frozen.len(),
+        layout.len(),
+        if opts.use_prior { "" } else { " without priors" }
     )?;
-    writeln!(
-        out,
-        "{:<16} {:<12} {:>12} {:<6} {:>14}",
-        "group", "parameter", "difference", "unit", "diff/sigma_win"
-    )?;
-    for g in &study.groups {
-        writeln!(
-            out,
-            "{:<16} {:<12} {:>12.4} {:<6} {:>14.2}",
-            g.group,
-            g.name,
-            g.difference,
-            g.unit.symbol(),
-            g.relative_to_window
-        )?;
-    }
+    out.flush()
+}
+
+/// The result file of `cal`, with the session's robot and path.
+fn result_file(
+    cal: &Calibration,
+    layout: &ParamLayout,
+    session: &Session,
+    dir: &Path,
+    use_prior: bool,
+) -> CalibrationResult {
+    let mut result = cal.to_result(layout);
+    result.robot = Some(session.meta.robot.clone());
+    result.session = Some(
+        std::path::absolute(dir)
+            .unwrap_or_else(|_| dir.to_path_buf())
+            .display()
+            .to_string(),
+    );
+    result.priors_used = Some(use_prior);
+    result
+}
+
+/// `--report`: the HTML report of the calibration.
+fn html_report(
+    report_dir: &Path,
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    cal: &Calibration,
+    result: &CalibrationResult,
+    session: &Session,
+) -> anyhow::Result<PathBuf> {
+    let series =
+        super::report::session_series(robot, data, &cal.x, &opts.sigma_q, Some(cal.knot_spacing))?;
+    let costs = ConvergenceLog::from_summary(&cal.summary).costs();
+    let truth = session.truth.as_ref();
+    Ok(calibration_report(
+        report_dir,
+        result,
+        truth,
+        Some(&costs),
+        Some(&series),
+    )?)
+}
+
+/// `--effects`: the baseline plus the effects from the calibration's x,
+/// printed and written to effects.json next to the result file.
+fn fit_effects(
+    out: &mut impl Write,
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    set: &EffectSet,
+    cal: &Calibration,
+    path: &Path,
+) -> anyhow::Result<()> {
+    let names = set.names().join(", ");
+    let progress = Progress::start(format!("fitting with {names}"));
+    let spec = FitSpec {
+        robot,
+        data,
+        effects: set,
+        start: Start::At(&cal.x),
+    };
+    let f = fit(&spec, opts, |_| {});
+    progress.finish();
+    let f = f.with_context(|| format!("--effects: cannot fit {names}"))?;
+    writeln!(out)?;
+    write!(out, "{}", EffectEstimates(&f))?;
+    let epath = path.with_file_name("effects.json");
+    let json = fit_json(&ParamLayout::new(robot), &f);
+    std::fs::write(&epath, serde_json::to_string_pretty(&json)?)
+        .with_context(|| format!("cannot write {}", epath.display()))?;
+    writeln!(out, "wrote {}", epath.display())?;
     Ok(())
+}
+
+/// `--windows`: calibrate each window and compare with the full calibration.
+fn calibrate_windows(
+    robot: &Robot,
+    opts: &CalibrateOptions,
+    windows: Vec<Window>,
+    full: Calibration,
+    dir: &Path,
+) -> anyhow::Result<Repeatability> {
+    let count = windows.len();
+    let progress = Progress::start(format!("calibrating {count} windows"));
+    let results = repeatability::calibrate_windows(robot, windows, opts, |w, r| {
+        progress.set_message(format!(
+            "window {} of {count}: iteration {}, cost {:.6e}",
+            w + 1,
+            r.iteration,
+            r.cost
+        ));
+    });
+    progress.finish();
+    let results = results.with_context(|| format!("--windows {count}: {}", dir.display()))?;
+    Ok(repeatability::compare(
+        &ParamLayout::new(robot),
+        full,
+        results,
+    ))
 }
 
 /// repeatability.csv: per window and parameter (x order), SI units.

@@ -8,11 +8,12 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use robimu_model::effects::{self, MassModel};
 use robimu_model::ParamLayout;
+use robimu_report::diagnosis::DiagnosisSummary;
 use robimu_report::plot::{line_panels, loglog_panels, LinePanel, LogLogPanel};
 use robimu_session::result::CalibrationResult;
 use robimu_workflows::calibrate::{check_measurements, CalibrateOptions};
 use robimu_workflows::diagnose::{
-    diagnose, setup_with, welch, windowed_rms, DiagnoseOptions, Diagnosis, ResidualStats, CHANNELS,
+    diagnose, setup_with, welch, windowed_rms, DiagnoseOptions, Diagnosis, CHANNELS,
 };
 
 use super::input::{load_session, Progress};
@@ -110,8 +111,8 @@ impl DiagnoseCmd {
         progress.finish();
         let d = d.with_context(|| format!("cannot diagnose the session {}", dir.display()))?;
         let mut out = std::io::stdout().lock();
-        write_summary(&mut out, &layout, &d)?;
-        let json = diagnosis_json(&layout, &d);
+        write!(out, "{}", DiagnosisSummary(&d))?;
+        let json = d.to_json(&layout);
         let path = out_dir.join("diagnosis.json");
         std::fs::write(&path, serde_json::to_string_pretty(&json)?)
             .with_context(|| format!("cannot write {}", path.display()))?;
@@ -124,173 +125,6 @@ impl DiagnoseCmd {
         }
         Ok(())
     }
-}
-
-/// Channel display: whitened RMS × σ in physical units (m/s², °/s).
-fn physical_rms(rms: &[f64; 6], sigma: &[f64; 6]) -> [f64; 6] {
-    std::array::from_fn(|c| {
-        let s = if c < 3 {
-            1.0
-        } else {
-            180.0 / std::f64::consts::PI
-        };
-        rms[c] * sigma[c] * s
-    })
-}
-
-fn write_summary(out: &mut impl Write, layout: &ParamLayout, d: &Diagnosis) -> anyhow::Result<()> {
-    let before = &d.stats_before;
-    writeln!(
-        out,
-        "baseline: {} IMU samples, chi2 {:.0} for {} dof ({:.3} per dof)",
-        before.samples,
-        before.chi2_total.0,
-        before.chi2_total.1,
-        before.chi2_total.0 / before.chi2_total.1.max(1) as f64
-    )?;
-    write_stats(out, before)?;
-    if d.found.is_empty() {
-        writeln!(
-            out,
-            "no catalogued effect is significant (Bonferroni threshold p < {:.2e})",
-            d.threshold
-        )?;
-    }
-    for (k, f) in d.found.iter().enumerate() {
-        writeln!(
-            out,
-            "\n{}. missing effect: {}  (score {:.1}, {} dof, p = {:.2e}; refit LR {:.1}, p = {:.2e}, dBIC {:.1})",
-            k + 1,
-            f.name,
-            f.statistic,
-            f.dof,
-            f.p_value,
-            f.lr_statistic,
-            f.lr_p_value,
-            f.delta_bic
-        )?;
-        let params = &d.final_fit.effect_params;
-        for (name, _unit, v, s) in &f.parameters {
-            let (du, scale) = params
-                .iter()
-                .find(|p| &p.name == name)
-                .map_or(("", 1.0), |p| p.display);
-            writeln!(
-                out,
-                "   {name:<34} {:+.4} ± {:.4} {du}",
-                v * scale,
-                s * scale
-            )?;
-        }
-        let rb = f.rms_before;
-        let ra = f.rms_after;
-        let line: Vec<String> = CHANNELS
-            .iter()
-            .enumerate()
-            .map(|(c, n)| format!("{n} {:.3}→{:.3}", rb[c], ra[c]))
-            .collect();
-        writeln!(out, "   whitened residual rms: {}", line.join("  "))?;
-        if !f.baseline_moves.is_empty() {
-            let moves: Vec<String> = f
-                .baseline_moves
-                .iter()
-                .map(|(n, a, b, s)| format!("{n} {a:.4e}→{b:.4e} (σ {s:.1e})"))
-                .collect();
-            writeln!(
-                out,
-                "   baseline parameters moved > 1σ: {}",
-                moves.join(", ")
-            )?;
-        }
-    }
-    let sz = d.sigma_z;
-    let pb = physical_rms(&d.baseline.residual_rms(), &sz);
-    let pa = physical_rms(&d.final_fit.residual_rms(), &sz);
-    writeln!(
-        out,
-        "\nresidual rms before → after: accel {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} m/s^2, gyro {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} deg/s",
-        pb[0], pb[1], pb[2], pa[0], pa[1], pa[2], pb[3], pb[4], pb[5], pa[3], pa[4], pa[5]
-    )?;
-    writeln!(
-        out,
-        "final model: baseline + [{}]",
-        d.final_fit.effects.join(", ")
-    )?;
-    write_stats(out, &d.stats_after)?;
-    // structure left that no candidate explains
-    let lb_threshold = 0.01 / 6.0;
-    let left: Vec<String> = d
-        .stats_after
-        .ljung_box
-        .iter()
-        .filter(|(_, (_, p))| *p < lb_threshold)
-        .map(|(c, _)| {
-            let (f, pk) = d.stats_after.spectral_peak.get(c).copied().unwrap_or_default();
-            let (r, corr, z) = d
-                .stats_after
-                .top_regressor
-                .get(c)
-                .cloned()
-                .unwrap_or_default();
-            format!("{c} (peak {f:.2} Hz at {pk:.0}× median power; follows {r}, r = {corr:+.3}, z = {z:.1})")
-        })
-        .collect();
-    if left.is_empty() {
-        writeln!(
-            out,
-            "residuals are white in every channel (Ljung–Box, p ≥ {lb_threshold:.1e})"
-        )?;
-    } else {
-        writeln!(
-            out,
-            "structure remains that no candidate explains: {}",
-            left.join("; ")
-        )?;
-    }
-    let _ = layout;
-    Ok(())
-}
-
-fn write_stats(out: &mut impl Write, s: &ResidualStats) -> std::io::Result<()> {
-    writeln!(
-        out,
-        "  {:<4} {:>7} {:>10} {:>10} {:>9} {:>10} {:>12}",
-        "ch", "rms", "LjungBox", "p", "peak Hz", "peak/med", "top regressor"
-    )?;
-    for c in CHANNELS {
-        let (q, p) = s.ljung_box[c];
-        let (f, pk) = s.spectral_peak.get(c).copied().unwrap_or_default();
-        let (r, corr, _) = s.top_regressor.get(c).cloned().unwrap_or_default();
-        writeln!(
-            out,
-            "  {:<4} {:>7.3} {:>10.1} {:>10.2e} {:>9.2} {:>10.1} {:>6} {:+.3}",
-            c, s.rms[c], q, p, f, pk, r, corr
-        )?;
-    }
-    Ok(())
-}
-
-fn rms_map(rms: [f64; 6]) -> serde_json::Value {
-    let mut m = serde_json::Map::new();
-    for (c, v) in CHANNELS.iter().zip(rms) {
-        m.insert(c.to_string(), v.into());
-    }
-    m.into()
-}
-
-/// The `diagnosis.json` document.
-fn diagnosis_json(layout: &ParamLayout, d: &Diagnosis) -> serde_json::Value {
-    serde_json::json!({
-        "format": "robimu-diagnosis/1",
-        "threshold": d.threshold,
-        "effects_found": d.found,
-        "last_scores": d.last_scores,
-        "residual_rms_before": rms_map(d.baseline.residual_rms()),
-        "residual_rms_after": rms_map(d.final_fit.residual_rms()),
-        "residual_stats_before": d.stats_before,
-        "residual_stats_after": d.stats_after,
-        "final_model": robimu_workflows::diagnose::fit_json(layout, &d.final_fit),
-    })
 }
 
 /// Window of the residual plot, s.

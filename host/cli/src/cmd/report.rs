@@ -3,11 +3,13 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use robimu_model::ParamLayout;
+use robimu_model::observations::Measurements;
+use robimu_model::{ParamLayout, Robot};
 use robimu_report::convergence::{convergence_path, ConvergenceLog};
-use robimu_report::html::{calibration_report_with, Convergence, SessionSeries};
+use robimu_report::html::{calibration_report_with, Convergence, ReportError, SessionSeries};
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
+use robimu_workflows::calibrate::choose_knots;
 
 use super::input::session_robot;
 
@@ -49,19 +51,55 @@ pub fn result_vector(layout: &ParamLayout, result: &CalibrationResult) -> anyhow
         .collect()
 }
 
+/// The series of `data` under parameters `x` for the report: the IMU
+/// residuals along the joint trajectory refitted to the samples with the
+/// calibration's knot spacing (`knot_spacing`; chosen from the data when
+/// the result does not give it).
+pub fn session_series(
+    robot: &Robot,
+    data: &Measurements,
+    x: &[f64],
+    sigma_q: &[f64],
+    knot_spacing: Option<f64>,
+) -> anyhow::Result<SessionSeries> {
+    SessionSeries::check(robot, data, x)?;
+    let fit = choose_knots(data, robot.dof(), sigma_q, 3, knot_spacing)
+        .map_err(|e| ReportError::Session(format!("cannot fit the joint trajectory: {e}")))?;
+    Ok(SessionSeries::new(robot, data, x, &fit.spline)?)
+}
+
 /// The session's trajectory and residual series under `result`.
 pub fn series_for(session: &Session, result: &CalibrationResult) -> anyhow::Result<SessionSeries> {
     let robot = session_robot(session)?;
     let layout = ParamLayout::new(&robot);
     let x = result_vector(&layout, result)?;
     let (_, sigma_q) = session.noise(&robot)?;
-    Ok(SessionSeries::new(
+    session_series(
         &robot,
         &session.measurements(),
         &x,
         &sigma_q,
         result.knot_spacing,
-    )?)
+    )
+    .with_context(|| {
+        format!(
+            "cannot plot the session {} under this result",
+            session.dir.display()
+        )
+    })
+}
+
+/// The costs of the solver's iteration history written next to `result`
+/// (NAME.convergence.csv), or why the report has none (`Ok(Err(why))`).
+fn convergence_history(result: &Path) -> anyhow::Result<Result<Vec<f64>, String>> {
+    let path = convergence_path(result);
+    if path.is_file() {
+        return Ok(Ok(ConvergenceLog::read(&path)?.costs()));
+    }
+    Ok(Err(format!(
+        "the solver's iteration history {} is missing (`robimu calibrate` writes it next to the result file; results written before it did, or copied without it, have none)",
+        path.display()
+    )))
 }
 
 impl ReportCmd {
@@ -89,29 +127,14 @@ impl ReportCmd {
             None => None,
         };
         let series = match &session {
-            Some(s) => Some(series_for(s, &result).with_context(|| {
-                format!(
-                    "cannot plot the session {} under this result",
-                    s.dir.display()
-                )
-            })?),
+            Some(s) => Some(series_for(s, &result)?),
             None => None,
         };
         let truth = session.as_ref().and_then(|s| s.truth.as_ref());
-        let history_path = convergence_path(&self.result);
-        let history = if history_path.is_file() {
-            Some(ConvergenceLog::read(&history_path)?)
-        } else {
-            None
-        };
-        let costs = history.as_ref().map(ConvergenceLog::costs);
-        let why = format!(
-            "the solver's iteration history {} is missing (`robimu calibrate` writes it next to the result file; results written before it did, or copied without it, have none)",
-            history_path.display()
-        );
-        let convergence = match &costs {
-            Some(c) => Convergence::Costs(c),
-            None => Convergence::Unavailable(&why),
+        let history = convergence_history(&self.result)?;
+        let convergence = match &history {
+            Ok(costs) => Convergence::Costs(costs),
+            Err(why) => Convergence::Unavailable(why),
         };
         let path = calibration_report_with(&dir, &result, truth, convergence, series.as_ref())?;
         println!("wrote {}", path.display());

@@ -12,8 +12,9 @@ use robimu_session::poses::read_pose_file;
 use robimu_session::result::CalibrationResult;
 use robimu_session::{files, Session};
 use robimu_workflows::motion_accuracy::{align_tracker, motion_imu_accuracy};
+use robimu_workflows::tracker::{tracked_poses, TrackedPose};
 use robimu_workflows::tracker_offset::TrackerAlignment;
-use robimu_workflows::validate::{robot_accuracy, tracked_poses, TrackedPose};
+use robimu_workflows::validate::robot_accuracy;
 
 use super::input::load_session;
 

@@ -319,7 +319,8 @@ pub fn by_name(setup: &CatalogueSetup, name: &str) -> Result<Box<dyn Effect>, Un
         .ok_or_else(|| UnknownEffect(name.to_string()))
 }
 
-/// Several effects stacked: θ_E = [θ_e1, θ_e2, …].
+/// Several effects stacked: θ_E = [θ_e1, θ_e2, …]. The empty set is the
+/// baseline model ([`EffectSet::none`]).
 #[derive(Default)]
 pub struct EffectSet {
     effects: Vec<Box<dyn Effect>>,
@@ -329,8 +330,17 @@ pub struct EffectSet {
 
 impl EffectSet {
     /// No effect.
-    pub fn new() -> Self {
-        Self::default()
+    pub const fn new() -> Self {
+        Self {
+            effects: Vec::new(),
+            offsets: Vec::new(),
+            params: Vec::new(),
+        }
+    }
+    /// The empty set, for problems of the baseline model alone.
+    pub fn none() -> &'static EffectSet {
+        static NONE: EffectSet = EffectSet::new();
+        &NONE
     }
     /// Append an effect.
     pub fn push(&mut self, e: Box<dyn Effect>) {

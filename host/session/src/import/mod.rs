@@ -1,8 +1,8 @@
 //! Importing recordings made by other tools as session directories
 //! (docs/model.md §7).
 //!
-//! * [`mcap`]: ROS 2 recordings (`sensor_msgs/msg/JointState` and
-//!   `sensor_msgs/msg/Imu` in CDR, decoded by [`cdr`]).
+//! * `mcap` (feature `ros2`): ROS 2 recordings (`sensor_msgs/msg/JointState`
+//!   and `sensor_msgs/msg/Imu` in CDR, decoded by [`cdr`]).
 //! * [`csv`]: an EuRoC/Kalibr IMU CSV (`#timestamp [ns],w_RS_S_x [rad s^-1],…,
 //!   a_RS_S_x [m s^-2],…`) with a joints CSV on the same clock.
 //!
@@ -14,6 +14,7 @@
 
 pub mod cdr;
 pub mod csv;
+#[cfg(feature = "ros2")]
 pub mod mcap;
 
 use std::path::{Path, PathBuf};
@@ -34,6 +35,7 @@ pub enum ImportError {
     },
     /// The MCAP container is unreadable (truncated, bad magic, compressed
     /// with a codec this build lacks, …).
+    #[cfg(feature = "ros2")]
     #[error("{}: not a readable MCAP file: {source}{hint}", path.display())]
     Mcap {
         /// The file.

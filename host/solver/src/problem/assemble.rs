@@ -11,16 +11,17 @@ use crate::ArrowMatrix;
 use robimu_model::effects::SampleContext;
 use robimu_model::{Basis, JointState, MeasurementJacobians, MeasurementModel, Spline};
 
-/// Where one IMU sample sits on the trajectory: its basis functions and q(t_i + τ).
-#[derive(Default)]
+/// Where one IMU sample sits on the trajectory: its basis functions and
+/// q(t_i + τ), and storage for its effect terms.
 struct SampleEval {
     basis: Basis,
     js: JointState,
-    /// Storage for the effect terms (only with effects).
-    effect: Option<Box<EffectScratch>>,
+    effect: EffectScratch,
 }
 
-/// Baseline Jacobians and effect columns ∂z/∂θ_E of one sample.
+/// Per-sample storage of the effect terms: the baseline Jacobians the
+/// effect columns are built from, and the columns ∂z/∂θ_E (both empty when
+/// the problem has no effects).
 struct EffectScratch {
     jac: MeasurementJacobians,
     cols: Vec<[f64; 6]>,
@@ -114,11 +115,11 @@ impl Problem<'_> {
         let model = self.model(&x)?;
         let spline = self.spline_of(theta);
         let tau = x[self.layout.offsets().tau];
-        let mut at = SampleEval::default();
+        let theta_e = self.effect_params_of(theta);
+        let mut at = self.sample_eval();
         self.imu_range
             .clone()
             .map(|i| {
-                let theta_e = self.effect_params_of(theta);
                 Ok((
                     i,
                     self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
@@ -127,8 +128,27 @@ impl Problem<'_> {
             .collect()
     }
 
+    /// Storage for one sample (the effect part empty without effects).
+    fn sample_eval(&self) -> SampleEval {
+        let nx = if self.effects.is_empty() {
+            0
+        } else {
+            self.layout.len()
+        };
+        SampleEval {
+            basis: Basis::default(),
+            js: JointState::default(),
+            effect: EffectScratch {
+                jac: MeasurementJacobians::new(nx),
+                cols: vec![[0.0; 6]; self.n_effect_params()],
+            },
+        }
+    }
+
     /// Whitened residual (z_i − h)/σ_z of IMU sample i; leaves the sample's
-    /// basis and joint state in `at`.
+    /// basis and joint state in `at`. Without effects z is the baseline
+    /// prediction alone; with them, the effect columns need the baseline
+    /// Jacobians (computed into `at.effect`).
     fn whitened_residual(
         &self,
         model: &MeasurementModel,
@@ -139,20 +159,12 @@ impl Problem<'_> {
         at: &mut SampleEval,
     ) -> Result<[f64; 6], ProblemError> {
         self.locate(spline, tau, i, at)?;
-        let z = match self.effects {
-            None => model.predict(&at.js),
-            Some(_) => {
-                let mut scratch = at.effect.take().unwrap_or_else(|| {
-                    Box::new(EffectScratch {
-                        jac: MeasurementJacobians::new(self.layout.len()),
-                        cols: vec![[0.0; 6]; self.n_effect_params()],
-                    })
-                });
-                model.jacobians(&at.js, &mut scratch.jac);
-                let z = self.with_effect_terms(model, i, &at.js, theta_e, &mut scratch);
-                at.effect = Some(scratch);
-                z
-            }
+        let z = if self.effects.is_empty() {
+            model.predict(&at.js)
+        } else {
+            let e = &mut at.effect;
+            model.jacobians(&at.js, &mut e.jac);
+            self.with_effect_terms(model, i, &at.js, &e.jac, theta_e, &mut e.cols)
         };
         let zm = &self.data.imu_z[i];
         Ok(std::array::from_fn(|c| {
@@ -160,21 +172,22 @@ impl Problem<'_> {
         }))
     }
 
-    /// z of sample i with the effect terms: the baseline `scratch.jac.z`
-    /// (already evaluated) plus Σ ∂z/∂θ_E θ_E; leaves the columns in `scratch.cols`.
+    /// z of sample i with the effect terms: the baseline `jac.z` (already
+    /// evaluated) plus Σ ∂z/∂θ_E θ_E; leaves the columns in `cols`. With no
+    /// effects this is `jac.z` (no column is built).
     fn with_effect_terms(
         &self,
         model: &MeasurementModel,
         i: usize,
         js: &JointState,
+        jac: &MeasurementJacobians,
         theta_e: &[f64],
-        scratch: &mut EffectScratch,
+        cols: &mut [[f64; 6]],
     ) -> [f64; 6] {
-        let effects = self.effects.expect("called with effects only");
-        let ctx = SampleContext::new(self.data.imu_t[i], js, model, &scratch.jac, self.layout);
-        effects.columns(&ctx, &mut scratch.cols);
-        let mut z = scratch.jac.z;
-        for (col, th) in scratch.cols.iter().zip(theta_e) {
+        let mut z = jac.z;
+        let ctx = SampleContext::new(self.data.imu_t[i], js, model, jac, self.layout);
+        self.effects.columns(&ctx, cols);
+        for (col, th) in cols.iter().zip(theta_e) {
             for c in 0..6 {
                 z[c] += col[c] * th;
             }
@@ -189,12 +202,9 @@ impl Problem<'_> {
         mut out: Option<&mut Linearization<'_>>,
         x0: usize,
     ) -> f64 {
-        let Some(effects) = self.effects else {
-            return 0.0;
-        };
         let na = self.active.len();
         let mut cost = 0.0;
-        for (e, (p, th)) in effects.params().iter().zip(theta_e).enumerate() {
+        for (e, (p, th)) in self.effects.params().iter().zip(theta_e).enumerate() {
             let w = 1.0 / p.prior_sigma;
             let r = th * w;
             cost += 0.5 * r * r;
@@ -295,14 +305,10 @@ impl Problem<'_> {
     ) -> Result<f64, ProblemError> {
         let theta_e = self.effect_params_of(theta);
         let nx = self.layout.len();
-        let mut scratch = EffectScratch {
-            jac: MeasurementJacobians::new(0),
-            cols: vec![[0.0; 6]; self.n_effect_params()],
-        };
         let n = self.n;
         let nl = (self.knots.degree() + 1) * n;
         let tau = x[self.layout.offsets().tau];
-        let mut at = SampleEval::default();
+        let mut at = self.sample_eval();
         let mut cost = 0.0;
         let Some(out) = out else {
             for i in range {
@@ -327,14 +333,8 @@ impl Problem<'_> {
             }
             group_first = basis.first;
             model.jacobians(js, &mut jac);
-            let z = if self.effects.is_some() {
-                std::mem::swap(&mut jac, &mut scratch.jac);
-                let z = self.with_effect_terms(model, i, js, theta_e, &mut scratch);
-                std::mem::swap(&mut jac, &mut scratch.jac);
-                z
-            } else {
-                jac.z
-            };
+            let cols = &mut at.effect.cols;
+            let z = self.with_effect_terms(model, i, js, &jac, theta_e, cols);
             let zm = &self.data.imu_z[i];
             for (sensor, block) in blocks.iter_mut().enumerate() {
                 for ch in 3 * sensor..3 * sensor + 3 {
@@ -363,7 +363,7 @@ impl Problem<'_> {
                         let d = if k < nx {
                             jac.dz_dx[k][ch]
                         } else {
-                            scratch.cols[k - nx][ch]
+                            at.effect.cols[k - nx][ch]
                         };
                         col[nl + a] = -w * d;
                     }

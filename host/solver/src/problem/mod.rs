@@ -83,10 +83,11 @@ pub struct Problem<'a> {
     joint_basis: Vec<Basis>,
     imu_range: Range<usize>,
     /// Per sensor (accelerometer, gyroscope): the estimated parameters its
-    /// rows can depend on, as (x index, position in θ's x part).
+    /// rows can depend on, as (x index, position in θ's x part); effect
+    /// parameter e follows as (nx + e, n_active + e).
     sensor_columns: [Vec<(usize, usize)>; 2],
-    /// Catalogue effects appended to the model ([`Problem::with_effects`]).
-    effects: Option<&'a EffectSet>,
+    /// Catalogue effects appended to the model (empty: the baseline model).
+    effects: &'a EffectSet,
 }
 
 impl<'a> Problem<'a> {
@@ -96,7 +97,11 @@ impl<'a> Problem<'a> {
     pub const MARGIN: f64 = 0.05;
 
     /// Set up the problem. `x_base` is x with the values of the frozen
-    /// entries (the others are overwritten by θ).
+    /// entries (the others are overwritten by θ). The catalogue `effects`
+    /// extend the model ([`EffectSet::none`] for the baseline alone): their
+    /// parameters θ_E follow x_a in θ (θ = [c, x_a, θ_E]), enter every IMU
+    /// row through ∂z/∂θ_E ([`robimu_model::effects`]) and carry their
+    /// zero-mean priors. An empty set adds no unknown and no per-sample work.
     ///
     /// # Panics
     /// If the sizes of `opts` or `x_base` do not match the robot.
@@ -107,6 +112,7 @@ impl<'a> Problem<'a> {
         knots: Knots,
         x_base: Vec<f64>,
         opts: &ProblemOptions,
+        effects: &'a EffectSet,
     ) -> Result<Self, ProblemError> {
         let n = robot.dof();
         assert_eq!(opts.sigma_q.len(), n);
@@ -121,12 +127,14 @@ impl<'a> Problem<'a> {
             joint_basis.push(b);
         }
         let specs = layout.specs();
+        let (nx, na) = (layout.len(), active.len());
         let sensor_columns = [0, 1].map(|sensor| {
             active
                 .iter()
                 .enumerate()
                 .filter(|&(_, &k)| sensor_depends_on(layout, sensor, k))
                 .map(|(a, &k)| (k, a))
+                .chain((0..effects.len()).map(|e| (nx + e, na + e)))
                 .collect()
         });
         let mut p = Self {
@@ -145,7 +153,7 @@ impl<'a> Problem<'a> {
             joint_basis,
             imu_range: 0..0,
             sensor_columns,
-            effects: None,
+            effects,
         };
         let tau = p.x_base[layout.offsets().tau];
         p.select_samples(tau)?;
@@ -205,21 +213,14 @@ impl<'a> Problem<'a> {
         th
     }
 
-    /// Append catalogue effects to the model: their parameters θ_E follow
-    /// x_a in θ (θ = [c, x_a, θ_E]), enter every IMU row through
-    /// ∂z/∂θ_E ([`robimu_model::effects`]) and carry their zero-mean priors.
-    pub fn with_effects(mut self, effects: &'a EffectSet) -> Self {
-        let (nx, na) = (self.layout.len(), self.active.len());
-        for cols in &mut self.sensor_columns {
-            cols.extend((0..effects.len()).map(|e| (nx + e, na + e)));
-        }
-        self.effects = Some(effects);
-        self
+    /// The effects in the model.
+    pub fn effects(&self) -> &EffectSet {
+        self.effects
     }
 
     /// Number of effect parameters θ_E.
     pub fn n_effect_params(&self) -> usize {
-        self.effects.map_or(0, |e| e.len())
+        self.effects.len()
     }
 
     /// The effect parameters θ_E of θ.

@@ -128,11 +128,8 @@ impl Information {
         let mut jt = Mat::<f64>::zeros(np, rows);
         let mut js = JointState::default();
         let mut jac = MeasurementJacobians::new(np);
-        let (t0, t1) = (trajectory.knots().start(), trajectory.knots().end());
         for (s, &(t, w)) in pts.iter().enumerate() {
-            trajectory
-                .evaluate(t.clamp(t0, t1), &mut js)
-                .expect("t clamped into the spline");
+            trajectory.evaluate_clamped(t, &mut js);
             for j in 0..trajectory.dim() {
                 js.qd[j] *= speed;
                 js.qdd[j] *= speed * speed;

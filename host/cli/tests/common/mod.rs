@@ -1,0 +1,128 @@
+//! Running the `robimu` program from the integration tests: one way for
+//! every test file (`mod common;`).
+//!
+//! * [`robimu`] runs it with arguments and returns its [`Run`] (exit status,
+//!   stdout, stderr as text);
+//! * [`robimu_ok`] also asserts that it succeeded, printing both streams
+//!   when not;
+//! * [`Run::assert_fails`] asserts a clean failure (non-zero exit, an
+//!   `error: ` line naming the causes, no panic);
+//! * [`command`] is the bare [`Command`] for the tests that set the
+//!   environment or standard streams themselves or [`Command::spawn`] the
+//!   program; [`Run::from`] turns its [`Output`] into a [`Run`].
+
+// Each test binary uses its own part of this module.
+#![allow(dead_code)]
+
+use std::ffi::OsStr;
+use std::fmt::Debug;
+use std::path::Path;
+use std::process::{Command, ExitStatus, Output};
+
+/// The `robimu` program (built by cargo for the integration tests), not
+/// yet started.
+pub fn command() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_robimu"))
+}
+
+/// Outcome of one run of the program.
+#[derive(Debug, Clone)]
+pub struct Run {
+    /// How it ended.
+    pub status: ExitStatus,
+    /// Standard output (lossy UTF-8).
+    pub stdout: String,
+    /// Standard error (lossy UTF-8).
+    pub stderr: String,
+}
+
+impl From<Output> for Run {
+    fn from(out: Output) -> Self {
+        Self {
+            status: out.status,
+            stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+            stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        }
+    }
+}
+
+impl Run {
+    /// Exit code (`None` when killed by a signal).
+    pub fn code(&self) -> Option<i32> {
+        self.status.code()
+    }
+
+    /// Exit code 0.
+    pub fn success(&self) -> bool {
+        self.status.success()
+    }
+
+    /// Standard output followed by standard error.
+    pub fn text(&self) -> String {
+        format!("{}{}", self.stdout, self.stderr)
+    }
+
+    /// Asserts a non-zero exit, no panic, an `error: ` line and every `wants`
+    /// in stderr.
+    #[track_caller]
+    pub fn assert_fails(&self, wants: &[&str]) {
+        assert!(
+            self.code().is_some_and(|c| c != 0),
+            "expected failure, got {:?}\nstdout:\n{}",
+            self.code(),
+            self.stdout
+        );
+        assert!(!self.stderr.contains("panicked"), "panic:\n{}", self.stderr);
+        assert!(
+            self.stderr.lines().any(|l| l.starts_with("error: ")),
+            "{}",
+            self.stderr
+        );
+        for want in wants {
+            assert!(
+                self.stderr.contains(want),
+                "stderr lacks `{want}`:\n{}",
+                self.stderr
+            );
+        }
+    }
+}
+
+/// Runs `robimu ARGS…` to its end.
+#[track_caller]
+pub fn robimu<I>(args: I) -> Run
+where
+    I: IntoIterator,
+    I::Item: AsRef<OsStr>,
+{
+    command()
+        .args(args)
+        .output()
+        .expect("the robimu binary runs")
+        .into()
+}
+
+/// Runs `robimu ARGS…` and asserts that it succeeded (exit code 0; both
+/// streams and the arguments are printed when not).
+#[track_caller]
+pub fn robimu_ok<I>(args: I) -> Run
+where
+    I: IntoIterator,
+    I::Item: AsRef<OsStr> + Debug,
+{
+    let args: Vec<I::Item> = args.into_iter().collect();
+    let run = robimu(&args);
+    assert!(
+        run.success(),
+        "robimu {args:?} failed ({}):\nstdout:\n{}\nstderr:\n{}",
+        run.status,
+        run.stdout,
+        run.stderr
+    );
+    run
+}
+
+/// `p` as a command-line argument (temporary paths are UTF-8).
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("temporary paths are UTF-8")
+}

@@ -1,0 +1,163 @@
+//! The text summary of a model-discrepancy diagnosis
+//! ([`robimu_workflows::diagnose`]).
+
+use std::fmt;
+
+use robimu_workflows::diagnose::{Diagnosis, ResidualStats, CHANNELS};
+
+use crate::fit_summary::EffectValue;
+
+/// Channel display: whitened RMS × σ in physical units (m/s², °/s).
+fn physical_rms(rms: &[f64; 6], sigma: &[f64; 6]) -> [f64; 6] {
+    std::array::from_fn(|c| {
+        let s = if c < 3 {
+            1.0
+        } else {
+            180.0 / std::f64::consts::PI
+        };
+        rms[c] * sigma[c] * s
+    })
+}
+
+/// The summary `robimu diagnose` prints: the baseline's residual
+/// statistics, each effect found (score and refit tests, its parameters,
+/// the residual RMS before and after, the baseline parameters it moved),
+/// the residual RMS before and after in physical units, the final model and
+/// what structure remains.
+pub struct DiagnosisSummary<'a>(pub &'a Diagnosis);
+
+impl fmt::Display for DiagnosisSummary<'_> {
+    fn fmt(&self, out: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let d = self.0;
+        let before = &d.stats_before;
+        writeln!(
+            out,
+            "baseline: {} IMU samples, chi2 {:.0} for {} dof ({:.3} per dof)",
+            before.samples,
+            before.chi2_total.0,
+            before.chi2_total.1,
+            before.chi2_total.0 / before.chi2_total.1.max(1) as f64
+        )?;
+        write_stats(out, before)?;
+        if d.found.is_empty() {
+            writeln!(
+                out,
+                "no catalogued effect is significant (Bonferroni threshold p < {:.2e})",
+                d.threshold
+            )?;
+        }
+        for (k, f) in d.found.iter().enumerate() {
+            writeln!(
+            out,
+            "\n{}. missing effect: {}  (score {:.1}, {} dof, p = {:.2e}; refit LR {:.1}, p = {:.2e}, dBIC {:.1})",
+            k + 1,
+            f.name,
+            f.statistic,
+            f.dof,
+            f.p_value,
+            f.lr_statistic,
+            f.lr_p_value,
+            f.delta_bic
+        )?;
+            let params = &d.final_fit.effect_params;
+            for (name, _unit, v, s) in &f.parameters {
+                let display = params
+                    .iter()
+                    .find(|p| &p.name == name)
+                    .map_or(("", 1.0), |p| p.display);
+                let value = EffectValue {
+                    name,
+                    value: *v,
+                    sigma: *s,
+                    display,
+                };
+                writeln!(out, "   {value}")?;
+            }
+            let rb = f.rms_before;
+            let ra = f.rms_after;
+            let line: Vec<String> = CHANNELS
+                .iter()
+                .enumerate()
+                .map(|(c, n)| format!("{n} {:.3}→{:.3}", rb[c], ra[c]))
+                .collect();
+            writeln!(out, "   whitened residual rms: {}", line.join("  "))?;
+            if !f.baseline_moves.is_empty() {
+                let moves: Vec<String> = f
+                    .baseline_moves
+                    .iter()
+                    .map(|(n, a, b, s)| format!("{n} {a:.4e}→{b:.4e} (σ {s:.1e})"))
+                    .collect();
+                writeln!(
+                    out,
+                    "   baseline parameters moved > 1σ: {}",
+                    moves.join(", ")
+                )?;
+            }
+        }
+        let sz = d.sigma_z;
+        let pb = physical_rms(&d.baseline.residual_rms(), &sz);
+        let pa = physical_rms(&d.final_fit.residual_rms(), &sz);
+        writeln!(
+        out,
+        "\nresidual rms before → after: accel {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} m/s^2, gyro {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} deg/s",
+        pb[0], pb[1], pb[2], pa[0], pa[1], pa[2], pb[3], pb[4], pb[5], pa[3], pa[4], pa[5]
+    )?;
+        writeln!(
+            out,
+            "final model: baseline + [{}]",
+            d.final_fit.effects.join(", ")
+        )?;
+        write_stats(out, &d.stats_after)?;
+        // structure left that no candidate explains
+        let lb_threshold = 0.01 / 6.0;
+        let left: Vec<String> = d
+        .stats_after
+        .ljung_box
+        .iter()
+        .filter(|(_, (_, p))| *p < lb_threshold)
+        .map(|(c, _)| {
+            let (f, pk) = d.stats_after.spectral_peak.get(c).copied().unwrap_or_default();
+            let (r, corr, z) = d
+                .stats_after
+                .top_regressor
+                .get(c)
+                .cloned()
+                .unwrap_or_default();
+            format!("{c} (peak {f:.2} Hz at {pk:.0}× median power; follows {r}, r = {corr:+.3}, z = {z:.1})")
+        })
+        .collect();
+        if left.is_empty() {
+            writeln!(
+                out,
+                "residuals are white in every channel (Ljung–Box, p ≥ {lb_threshold:.1e})"
+            )?;
+        } else {
+            writeln!(
+                out,
+                "structure remains that no candidate explains: {}",
+                left.join("; ")
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// The per-channel table of residual statistics.
+fn write_stats(out: &mut fmt::Formatter<'_>, s: &ResidualStats) -> fmt::Result {
+    writeln!(
+        out,
+        "  {:<4} {:>7} {:>10} {:>10} {:>9} {:>10} {:>12}",
+        "ch", "rms", "LjungBox", "p", "peak Hz", "peak/med", "top regressor"
+    )?;
+    for c in CHANNELS {
+        let (q, p) = s.ljung_box[c];
+        let (f, pk) = s.spectral_peak.get(c).copied().unwrap_or_default();
+        let (r, corr, _) = s.top_regressor.get(c).cloned().unwrap_or_default();
+        writeln!(
+            out,
+            "  {:<4} {:>7.3} {:>10.1} {:>10.2e} {:>9.2} {:>10.1} {:>6} {:+.3}",
+            c, s.rms[c], q, p, f, pk, r, corr
+        )?;
+    }
+    Ok(())
+}

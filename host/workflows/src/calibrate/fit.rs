@@ -1,0 +1,254 @@
+//! The one fit pipeline behind every estimate of x (paper §4–6): the plain
+//! calibration ([`super::calibrate`]), the diagnosis' baseline and its refits
+//! with catalogue effects ([`crate::diagnose`]), the repeatability windows
+//! ([`crate::repeatability`]), the Monte Carlo runs ([`crate::montecarlo`])
+//! and the calibration a validation starts from all call [`fit`].
+//!
+//! 1. Check the session against the robot ([`super::check_measurements`]).
+//! 2. Represent the trajectory q(t) by a B-spline (eq. (20)) fitted to the
+//!    joint samples ([`super::choose_knots`]), or take a previous fit's.
+//! 3. Find τ from the data ([`crate::time_offset`]) unless the fit starts
+//!    from a given x or τ is frozen.
+//! 4. Levenberg–Marquardt over θ = [c, x_a, θ_E] on the MAP cost
+//!    J = ½‖e‖² of eq. (22) (residuals eq. (10), priors eq. (16)), the
+//!    effects of the spec as extra parameter blocks θ_E with their priors
+//!    ([`robimu_solver::problem::Problem`]; none in a plain calibration).
+//! 5. Convergence check, then the posterior covariance of [x_a, θ_E] as the
+//!    inverse of the Schur complement S of the normal matrix at the optimum
+//!    (eq. (24) restricted to x), and the whitened IMU residuals.
+
+use faer::Mat;
+
+use super::{check_measurements, choose_knots, CalibrateError, CalibrateOptions};
+use crate::time_offset::{find_tau, TauEstimate};
+use robimu_model::effects::{EffectParam, EffectSet};
+use robimu_model::observations::Measurements;
+use robimu_model::{MeasurementModel, ParamLayout, Robot, Spline};
+use robimu_solver as solver;
+use robimu_solver::problem::Problem;
+use robimu_solver::{IterationRecord, LeastSquares, LmSummary};
+
+/// Where a fit starts.
+#[derive(Debug, Clone, Copy)]
+pub enum Start<'a> {
+    /// Nominal x; τ found from the data (when the options ask for a τ
+    /// search and τ is estimated). The trajectory spline is fitted to the
+    /// joint samples.
+    Nominal,
+    /// This x (e.g. a loaded calibration), no τ search; the trajectory
+    /// spline is fitted to the joint samples.
+    At(&'a [f64]),
+    /// A previous fit whose effects are a prefix of the spec's: its knots,
+    /// trajectory, x and θ (the new effect parameters at 0).
+    Refit(&'a Fit),
+}
+
+/// What is fitted: a session, the model's effects, the starting point.
+#[derive(Clone, Copy)]
+pub struct FitSpec<'a> {
+    /// The robot.
+    pub robot: &'a Robot,
+    /// The session's samples.
+    pub data: &'a Measurements,
+    /// Effects added to the baseline model ([`EffectSet::none`] for a plain
+    /// calibration: then no effect work is done at any sample).
+    pub effects: &'a EffectSet,
+    /// The starting point.
+    pub start: Start<'a>,
+}
+
+impl<'a> FitSpec<'a> {
+    /// The baseline model of `data`, from the nominal x.
+    pub fn baseline(robot: &'a Robot, data: &'a Measurements) -> Self {
+        Self {
+            robot,
+            data,
+            effects: EffectSet::none(),
+            start: Start::Nominal,
+        }
+    }
+}
+
+/// The outcome of a fit.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// Effects in the model, in θ_E order.
+    pub effects: Vec<String>,
+    /// The full x.
+    pub x: Vec<f64>,
+    /// Posterior σ of x (0 when frozen).
+    pub sigma_x: Vec<f64>,
+    /// Estimated (not frozen) parameters, indices into x.
+    pub active: Vec<usize>,
+    /// Posterior covariance Σ of [x_a, θ_E] (eq. (24)), (n_active + n_E)².
+    pub covariance: Mat<f64>,
+    /// Its inverse: the Schur complement S of the normal matrix at the
+    /// optimum, the information about [x_a, θ_E] from data and priors.
+    pub information: Mat<f64>,
+    /// θ = [c, x_a, θ_E] at the optimum.
+    pub theta: Vec<f64>,
+    /// θ_E.
+    pub theta_e: Vec<f64>,
+    /// Posterior σ of θ_E.
+    pub sigma_e: Vec<f64>,
+    /// Names of θ_E.
+    pub effect_params: Vec<EffectParam>,
+    /// Final cost ½‖r‖² (negative log-posterior up to a constant).
+    pub cost: f64,
+    /// The fitted trajectory.
+    pub trajectory: Spline,
+    /// Whitened IMU residuals at the optimum (sample index, r).
+    pub residuals: Vec<(usize, [f64; 6])>,
+    /// The solver run.
+    pub summary: LmSummary,
+    /// The τ found before the fit (none when started from a given x or a fit).
+    pub tau_initial: Option<TauEstimate>,
+    /// Knot spacing of the trajectory spline, s.
+    pub knot_spacing: f64,
+    /// Whitened residual RMS per joint of the initial spline fit.
+    pub joint_fit_rms: Vec<f64>,
+}
+
+impl Fit {
+    /// Whitened residual RMS per IMU channel.
+    pub fn residual_rms(&self) -> [f64; 6] {
+        let n = self.residuals.len().max(1) as f64;
+        std::array::from_fn(|c| {
+            (self.residuals.iter().map(|(_, r)| r[c] * r[c]).sum::<f64>() / n).sqrt()
+        })
+    }
+}
+
+/// Fit `spec` with `opts`; `report` sees every solver iteration (see the
+/// module doc for the steps).
+///
+/// # Panics
+/// With [`Start::Refit`] from a fit whose effects are not a prefix of the
+/// spec's.
+#[track_caller]
+pub fn fit(
+    spec: &FitSpec<'_>,
+    opts: &CalibrateOptions,
+    report: impl FnMut(&IterationRecord),
+) -> Result<Fit, CalibrateError> {
+    let FitSpec {
+        robot,
+        data,
+        effects,
+        start,
+    } = *spec;
+    check_measurements(robot, data)?;
+    let layout = ParamLayout::new(robot);
+    let initial = match start {
+        Start::Refit(f) => {
+            let names = effects.names();
+            assert!(
+                f.effects.len() <= names.len() && f.effects.iter().zip(&names).all(|(a, b)| a == b),
+                "a refit extends the effects {:?} of its start, not {names:?}",
+                f.effects
+            );
+            Initial {
+                spline: f.trajectory.clone(),
+                x: f.x.clone(),
+                theta: Some(&f.theta),
+                tau_initial: None,
+                knot_spacing: f.knot_spacing,
+                joint_fit_rms: f.joint_fit_rms.clone(),
+            }
+        }
+        Start::Nominal | Start::At(_) => {
+            let tf = choose_knots(
+                data,
+                robot.dof(),
+                &opts.sigma_q,
+                opts.degree,
+                opts.knot_spacing,
+            )?;
+            let mut x = match start {
+                Start::At(x) => x.to_vec(),
+                _ => layout.nominal(),
+            };
+            let tau_at = layout.offsets().tau;
+            let tau_initial = match (&opts.tau_search, start) {
+                (Some(search), Start::Nominal) if !opts.frozen.contains(&tau_at) => {
+                    let model = MeasurementModel::new(robot, &layout, &x)?;
+                    let gyro: Vec<[f64; 3]> =
+                        data.imu_z.iter().map(|z| [z[3], z[4], z[5]]).collect();
+                    let est = find_tau(&model, &tf.spline, &data.imu_t, &gyro, search)?;
+                    x[tau_at] = est.tau;
+                    Some(est)
+                }
+                _ => None,
+            };
+            Initial {
+                spline: tf.spline,
+                x,
+                theta: None,
+                tau_initial,
+                knot_spacing: tf.spacing,
+                joint_fit_rms: tf.rms,
+            }
+        }
+    };
+    let mut problem = Problem::new(
+        robot,
+        &layout,
+        data,
+        initial.spline.knots().clone(),
+        initial.x.clone(),
+        &opts.problem_options(),
+        effects,
+    )?;
+    let mut theta0 = problem.theta(&initial.spline, &initial.x);
+    if let Some(prev) = initial.theta {
+        theta0[..prev.len()].copy_from_slice(prev);
+    }
+    let sol = solver::solve(&mut problem, theta0, &opts.lm, report)?;
+    if !sol.summary.termination.converged() {
+        return Err(CalibrateError::NotConverged {
+            summary: Box::new(sol.summary),
+        });
+    }
+    problem.begin_iteration(&sol.theta)?;
+    let cost = problem.cost(&sol.theta)?;
+    let active = problem.active().to_vec();
+    let na = active.len();
+    let covariance = sol.factor.covariance_x();
+    let mut sigma_x = vec![0.0; layout.len()];
+    for (a, &k) in active.iter().enumerate() {
+        sigma_x[k] = covariance[(a, a)].max(0.0).sqrt();
+    }
+    let sigma_e = (0..effects.len())
+        .map(|e| covariance[(na + e, na + e)].max(0.0).sqrt())
+        .collect();
+    Ok(Fit {
+        effects: effects.names().iter().map(|s| s.to_string()).collect(),
+        x: problem.x_of(&sol.theta),
+        sigma_x,
+        information: sol.factor.schur().to_owned(),
+        covariance,
+        theta_e: problem.effect_params_of(&sol.theta).to_vec(),
+        sigma_e,
+        effect_params: effects.params().to_vec(),
+        cost,
+        trajectory: problem.spline_of(&sol.theta),
+        residuals: problem.imu_residuals(&sol.theta)?,
+        active,
+        theta: sol.theta,
+        summary: sol.summary,
+        tau_initial: initial.tau_initial,
+        knot_spacing: initial.knot_spacing,
+        joint_fit_rms: initial.joint_fit_rms,
+    })
+}
+
+/// The starting point of the solver and what led to it.
+struct Initial<'f> {
+    spline: Spline,
+    x: Vec<f64>,
+    /// θ of a previous fit (a prefix of the new θ).
+    theta: Option<&'f [f64]>,
+    tau_initial: Option<TauEstimate>,
+    knot_spacing: f64,
+    joint_fit_rms: Vec<f64>,
+}
