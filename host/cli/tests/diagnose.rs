@@ -81,15 +81,13 @@ fn residuals_are_traced_to_gravity_torque_and_temperature() {
     let opts = CalibrateOptions::new(&robot);
     let tau = s.truth[layout.offsets().tau];
     let n = robot.dof();
-    let knots = s.trajectory.knots().clone();
     let tg2: Vec<f64> = s
         .data
         .imu_t
         .iter()
         .map(|t| {
             let mut js = JointState::default();
-            let u = (t + tau).clamp(knots.start(), knots.end());
-            s.trajectory.evaluate(u, &mut js).unwrap();
+            s.trajectory.evaluate_clamped(t + tau, &mut js);
             setup.mass.gravity_torques(&js.q[..n], setup.g0)[1]
         })
         .collect();

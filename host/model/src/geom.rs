@@ -328,3 +328,34 @@ impl Iso<f64> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotation_maps_round_trip() {
+        for w in [
+            [0.1, -0.2, 0.3],
+            [2.0, 1.0, -0.5],
+            [1e-9, 0.0, 0.0],
+            [0.0, 3.1, 0.0],
+        ] {
+            let r = exp_so3(w);
+            let back = log_so3(&r);
+            for k in 0..3 {
+                assert!((back[k] - w[k]).abs() < 1e-9, "{w:?} -> {back:?}");
+            }
+            let r2 = matrix_from_quat(quat_from_matrix(&r));
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!((r[i][j] - r2[i][j]).abs() < 1e-12);
+                }
+            }
+        }
+        // q ⊗ q* = identity
+        let q = quat_from_matrix(&exp_so3([0.3, 0.2, -0.7]));
+        let e = quat_mul(q, [q[0], -q[1], -q[2], -q[3]]);
+        assert!((e[0] - 1.0).abs() < 1e-12 && e[1].abs() < 1e-12);
+    }
+}

@@ -76,49 +76,6 @@ pub struct CalibrateCmd {
     pub resonance: super::input::ResonanceMode,
 }
 
-/// Indices into x of the `--freeze` items.
-pub fn frozen_indices(
-    robot: &Robot,
-    layout: &ParamLayout,
-    items: &[String],
-) -> anyhow::Result<Vec<usize>> {
-    parameter_indices(robot, layout, items, "--freeze")
-}
-
-/// Indices in x of `items` (`lengths` and/or parameter names), the errors
-/// naming `flag`.
-pub fn parameter_indices(
-    robot: &Robot,
-    layout: &ParamLayout,
-    items: &[String],
-    flag: &str,
-) -> anyhow::Result<Vec<usize>> {
-    let n = robot.dof();
-    let mut out = Vec::new();
-    for item in items.iter().map(|s| s.trim()).filter(|s| !s.is_empty()) {
-        if item == "lengths" {
-            out.extend(
-                layout
-                    .estimated_errors()
-                    .iter()
-                    .filter(|e| e.link < n && e.k <= 3)
-                    .filter_map(|e| layout.eps_index(e.link, e.k)),
-            );
-        } else if let Some(k) = layout.index_of(item) {
-            out.push(k);
-        } else {
-            let names: Vec<&str> = layout.specs().iter().map(|s| s.name.as_str()).collect();
-            bail!(
-                "{flag}: unknown parameter `{item}`; valid: lengths, {}",
-                names.join(", ")
-            );
-        }
-    }
-    out.sort_unstable();
-    out.dedup();
-    Ok(out)
-}
-
 impl CalibrateCmd {
     /// Calibrate, print the table and write the result file.
     pub fn run(self) -> anyhow::Result<()> {
@@ -222,7 +179,9 @@ impl CalibrateCmd {
                 opts.sigma_q = q;
             }
         }
-        opts.frozen = frozen_indices(robot, layout, &self.freeze)?;
+        opts.frozen = layout
+            .select(&self.freeze)
+            .map_err(|e| anyhow::anyhow!("--freeze: {e}"))?;
         opts.use_prior = !self.no_prior;
         if let Some(h) = self.knot_spacing {
             if !(h.is_finite() && h > 0.0) {

@@ -35,22 +35,6 @@ pub struct ReportCmd {
     pub session: Option<PathBuf>,
 }
 
-/// x in `layout` order from a result file's parameters (by name).
-pub fn result_vector(layout: &ParamLayout, result: &CalibrationResult) -> anyhow::Result<Vec<f64>> {
-    layout
-        .specs()
-        .iter()
-        .map(|s| {
-            result.parameter(&s.name).map(|p| p.value).with_context(|| {
-                format!(
-                    "the result has no parameter `{}`: it was not computed for this robot",
-                    s.name
-                )
-            })
-        })
-        .collect()
-}
-
 /// The series of `data` under parameters `x` for the report: the IMU
 /// residuals along the joint trajectory refitted to the samples with the
 /// calibration's knot spacing (`knot_spacing`; chosen from the data when
@@ -72,7 +56,7 @@ pub fn session_series(
 pub fn series_for(session: &Session, result: &CalibrationResult) -> anyhow::Result<SessionSeries> {
     let robot = session_robot(session)?;
     let layout = ParamLayout::new(&robot);
-    let x = result_vector(&layout, result)?;
+    let x = result.values(&layout)?;
     let (_, sigma_q) = session.noise(&robot)?;
     session_series(
         &robot,
