@@ -264,6 +264,43 @@ impl ChannelNoise {
     }
 }
 
+/// The noise of the six IMU channels `[ax, ay, az, gx, gy, gz]` (the
+/// estimator's Σ_z when every channel is white and of constant level).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NoiseModel {
+    /// One model per channel, in the session's column order.
+    pub imu: [ChannelNoise; 6],
+}
+
+impl NoiseModel {
+    /// White noise of standard deviations `sigma_z` (the paper's model).
+    pub fn white(sigma_z: [f64; 6]) -> Result<Self, NoiseModelError> {
+        let mut imu = Vec::with_capacity(6);
+        for s in sigma_z {
+            imu.push(ChannelNoise::white(s)?);
+        }
+        Ok(Self {
+            imu: imu.try_into().expect("six channels"),
+        })
+    }
+
+    /// Whether every channel is white of constant level.
+    pub fn is_white(&self) -> bool {
+        self.imu.iter().all(ChannelNoise::is_white)
+    }
+
+    /// The marginal σ of each channel at rest.
+    pub fn sigma_z(&self) -> [f64; 6] {
+        std::array::from_fn(|c| self.imu[c].ar.sigma())
+    }
+
+    /// The largest AR order over the channels (how many samples back a
+    /// whitened residual reaches).
+    pub fn max_order(&self) -> usize {
+        self.imu.iter().map(|c| c.ar.order()).max().unwrap_or(0)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
