@@ -131,7 +131,7 @@ pub fn forward_kinematics<S: Scalar, L: LinkTransform>(
 pub struct ImuMotion<S = f64> {
     /// Pose [R p].
     pub pose: Iso<S>,
-    /// Angular velocity ω_n (Ṙ Rᵀ = [ω_n]×).
+    /// Angular velocity ω_n (Ṙ Rᵀ = \[ω_n\]×).
     pub omega_n: V3<S>,
     /// Angular acceleration α_n = ω̇_n.
     pub alpha_n: V3<S>,

@@ -217,7 +217,7 @@ impl ParamLayout {
     pub fn offsets(&self) -> Offsets {
         self.offsets
     }
-    /// Estimated ε in x order (x[i] is ε `estimated_errors()[i]` for i < count).
+    /// Estimated ε in x order (`x[i]` is ε `estimated_errors()[i]` for i < count).
     pub fn estimated_errors(&self) -> &[ErrorIndex] {
         &self.estimated
     }

@@ -10,7 +10,7 @@
 //! * `joints.csv` rows of a UR recording carry the controller's timestamp
 //!   and the host's arrival time (`t_robot`, `t_arrival` columns); their
 //!   session times are recomputed from `t_robot` with the lower-envelope
-//!   fit of [`robot_clock`](super::robot_clock), which `session.toml`'s
+//!   fit of [`super::robot_clock`], which `session.toml`'s
 //!   `[controller]` table records.
 
 use std::collections::BTreeMap;

@@ -43,7 +43,7 @@ pub struct RobotBaseline {
     pub residual_rms: f64,
 }
 
-/// Standard robot calibration (paper §9, ref. [38]) from tracked static
+/// Standard robot calibration (paper §9, ref. \[38\]) from tracked static
 /// poses: the generalized errors of `layout`'s estimated set on links
 /// 1..n−1 (those of link n are redundant with T_flange←marker), except the
 /// indices in `frozen`, plus both constant transforms.
@@ -140,7 +140,7 @@ pub struct ImuBaseline {
     pub gyro: LinearSensor,
 }
 
-/// Standard IMU calibration (paper §9, ref. [7]) from ground-truth
+/// Standard IMU calibration (paper §9, ref. \[7\]) from ground-truth
 /// `(ω, s)` (IMU frame) and the raw outputs `[ax, ay, az, gx, gy, gz]` at the
 /// same instants: each sensor's `M`, `b` by linear least squares.
 pub fn imu_calibration(truth: &[(V3, V3)], raw: &[[f64; 6]]) -> Result<ImuBaseline, ValidateError> {
