@@ -948,4 +948,17 @@ fn simulate_noise_model_is_recorded_and_correlated() {
         s(&out),
     ])
     .assert_fails(&["--noise-free"]);
+    let mc = tmp.path().join("mc");
+    robimu(&[
+        "montecarlo",
+        "--runs",
+        "2",
+        "--duration",
+        "10",
+        "--noise-model",
+        "ar1:accel=x",
+        "--out",
+        s(&mc),
+    ])
+    .assert_fails(&["--noise-model ar1:accel=x", "must be a number"]);
 }
