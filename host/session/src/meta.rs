@@ -425,7 +425,10 @@ mod tests {
         // (the table it writes reads back as a [noise] table without σ)
         m2.noise = Some(NoiseOverride::default());
         assert_eq!(back, m2);
-        assert_eq!(SessionMeta::parse(&m2.to_toml(), Path::new("s.toml")).unwrap(), m2);
+        assert_eq!(
+            SessionMeta::parse(&m2.to_toml(), Path::new("s.toml")).unwrap(),
+            m2
+        );
         // white: no keys, and the model is white
         assert_eq!(
             NoiseShape::from_model(&NoiseModel::white(sz).unwrap()),
