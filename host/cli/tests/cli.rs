@@ -856,3 +856,109 @@ fn simulate_nominal_keeps_named_parameters_at_nominal() {
     robimu(&["simulate", "--nominal", "eps_9_9", "--out", s(&out)])
         .assert_fails(&["--nominal: unknown parameter `eps_9_9`"]);
 }
+
+/// `simulate --noise-model`: correlated IMU noise, recorded in session.toml's
+/// [noise] table; `white` is the default bit for bit; bad SPECs say why.
+#[test]
+fn simulate_noise_model_is_recorded_and_correlated() {
+    let tmp = tempfile::tempdir().unwrap();
+    let spec = "ar1:accel=50,gyro=20,motion=1e-4";
+    let ar = simulate(tmp.path(), "ar", "60", "3", &["--noise-model", spec]);
+    let free = simulate(tmp.path(), "free", "60", "3", &["--noise-free"]);
+    let session = robimu_session::Session::load(&ar).unwrap();
+    let robot = Robot::aubo_i5();
+    let model = session.noise_model(&robot).unwrap();
+    let dt = 1.0 / 120.0;
+    let (pa, pg) = ((-dt / 0.05_f64).exp(), (-dt / 0.02_f64).exp());
+    assert_eq!(model.sigma_z(), robot.sigma_z());
+    assert_eq!(model.imu[1].ar.phi(), &[pa]);
+    assert_eq!(model.imu[4].ar.phi(), &[pg]);
+    assert!(model.imu.iter().all(|c| c.motion == 1e-4));
+    // the samples' noise has the lag-1 correlation φ
+    let clean = robimu_session::Session::load(&free).unwrap();
+    let (a, b) = (session.measurements(), clean.measurements());
+    for (c, phi) in [(0, pa), (4, pg)] {
+        let r: Vec<f64> = a
+            .imu_z
+            .iter()
+            .zip(&b.imu_z)
+            .map(|(x, y)| x[c] - y[c])
+            .collect();
+        let g0: f64 = r.iter().map(|v| v * v).sum();
+        let g1: f64 = r.windows(2).map(|w| w[0] * w[1]).sum();
+        assert!(
+            (g1 / g0 - phi).abs() < 0.05,
+            "channel {c}: {} vs {phi}",
+            g1 / g0
+        );
+    }
+    // `white` is the default: the same files
+    let w = simulate(tmp.path(), "w", "10", "3", &["--noise-model", "white"]);
+    let d = simulate(tmp.path(), "d", "10", "3", &[]);
+    for f in ["imu.csv", "joints.csv", "truth.toml", "session.toml"] {
+        assert_eq!(
+            std::fs::read_to_string(w.join(f)).unwrap(),
+            std::fs::read_to_string(d.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    // a file with a [noise] table
+    let file = tmp.path().join("noise.toml");
+    std::fs::write(
+        &file,
+        "[noise]\nsigma_z = [0.1, 0.1, 0.1, 0.01, 0.01, 0.01]\nar_z = [[1.2, -0.5], [], [], [], [], [0.9]]\n",
+    )
+    .unwrap();
+    let f = simulate(tmp.path(), "f", "10", "3", &["--noise-model", s(&file)]);
+    let m = robimu_session::Session::load(&f)
+        .unwrap()
+        .noise_model(&robot)
+        .unwrap();
+    assert_eq!(m.sigma_z(), [0.1, 0.1, 0.1, 0.01, 0.01, 0.01]);
+    assert_eq!(m.imu[0].ar.phi(), &[1.2, -0.5]);
+    assert_eq!(m.imu[5].ar.phi(), &[0.9]);
+    assert!(m.imu[1].ar.is_white() && m.imu[0].motion == 0.0);
+    // bad SPECs
+    let out = tmp.path().join("bad");
+    let bad = |spec: &str| {
+        robimu(&[
+            "simulate",
+            "--duration",
+            "5",
+            "--noise-model",
+            spec,
+            "--out",
+            s(&out),
+        ])
+    };
+    bad("pink").assert_fails(&["--noise-model pink", "expected `white`"]);
+    bad("ar1:accel=0").assert_fails(&["positive number of ms"]);
+    bad("ar1:gyro=5,motion=-2").assert_fails(&["motion gain must be a number >= 0"]);
+    bad("ar1:tau=5").assert_fails(&["unknown key `tau`"]);
+    std::fs::write(&file, "[noise]\nar_z = [[1.5], [], [], [], [], []]\n").unwrap();
+    bad(s(&file)).assert_fails(&["noise.toml", "ar_z, channel ax", "not stationary"]);
+    std::fs::write(&file, "[noise]\nmotion_z = [0, 0, 0]\n").unwrap();
+    bad(s(&file)).assert_fails(&["noise.toml", "motion_z has 3 entries"]);
+    robimu(&[
+        "simulate",
+        "--noise-free",
+        "--noise-model",
+        "white",
+        "--out",
+        s(&out),
+    ])
+    .assert_fails(&["--noise-free"]);
+    let mc = tmp.path().join("mc");
+    robimu(&[
+        "montecarlo",
+        "--runs",
+        "2",
+        "--duration",
+        "10",
+        "--noise-model",
+        "ar1:accel=x",
+        "--out",
+        s(&mc),
+    ])
+    .assert_fails(&["--noise-model ar1:accel=x", "must be a number"]);
+}

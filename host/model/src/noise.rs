@@ -301,6 +301,71 @@ impl NoiseModel {
     }
 }
 
+/// Draws a [`NoiseModel`]'s noise sample by sample along one segment, from
+/// standard normal draws e_t: per channel the whitening inverted exactly,
+/// u_t = Σ_k a_k u_{t−k} + e_t / scale with `(a, scale)` = [`ArNoise::whitening`]`(t)`
+/// (the stationary process from t = 0, no burn-in), then n_t = s_t·u_t with
+/// s_t = [`ChannelNoise::level`]. A white channel of constant level gives
+/// σ·e_t exactly. Keeps only the last p values of each channel.
+#[derive(Debug, Clone)]
+pub struct NoiseSampler {
+    model: NoiseModel,
+    t: usize,
+    /// u_{t−1}, u_{t−2}, … (most recent first), at most p per channel.
+    past: [Vec<f64>; 6],
+}
+
+impl NoiseSampler {
+    /// A sampler at the start of a segment.
+    pub fn new(model: NoiseModel) -> Self {
+        Self {
+            model,
+            t: 0,
+            past: Default::default(),
+        }
+    }
+
+    /// The model sampled.
+    pub fn model(&self) -> &NoiseModel {
+        &self.model
+    }
+
+    /// Start a new segment (a gap in the stream): forget the past.
+    pub fn restart(&mut self) {
+        self.t = 0;
+        self.past.iter_mut().for_each(Vec::clear);
+    }
+
+    /// The noise of the next sample from the standard normal draws `e` (one
+    /// per channel), at a joint acceleration of norm² `qdd2`.
+    pub fn next(&mut self, e: [f64; 6], qdd2: f64) -> [f64; 6] {
+        let t = self.t;
+        self.t += 1;
+        std::array::from_fn(|c| {
+            let ch = &self.model.imu[c];
+            if ch.is_white() {
+                return ch.ar.sigma() * e[c];
+            }
+            let u = if ch.ar.is_white() {
+                ch.ar.sigma() * e[c]
+            } else {
+                let (a, scale) = ch.ar.whitening(t);
+                let past = &mut self.past[c];
+                let u = a
+                    .iter()
+                    .zip(past.iter())
+                    .map(|(ak, uk)| ak * uk)
+                    .sum::<f64>()
+                    + e[c] / scale;
+                past.insert(0, u);
+                past.truncate(ch.ar.order());
+                u
+            };
+            ch.level(qdd2) * u
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

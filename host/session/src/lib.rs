@@ -64,7 +64,7 @@ use robimu_model::Robot;
 
 pub use error::SessionError;
 pub use meta::toml_error;
-pub use meta::{NoiseOverride, SessionMeta, SESSION_FORMAT};
+pub use meta::{check_ar_order_for_data, NoiseOverride, NoiseShape, SessionMeta, SESSION_FORMAT};
 pub use result::{
     CalibrationResult, CovarianceMatrix, MissingParameter, ParameterResult, ResultError,
     RESULT_FORMAT,
@@ -209,6 +209,18 @@ impl Session {
             ));
         }
         Ok((sigma_z, sigma_q))
+    }
+
+    /// The IMU noise model (docs/model.md §4.6): [`Self::noise`]'s σ_z with
+    /// the `[noise]` table's `ar_z` and `motion_z` (white when absent).
+    pub fn noise_model(
+        &self,
+        robot: &Robot,
+    ) -> Result<robimu_model::noise::NoiseModel, SessionError> {
+        let (sigma_z, _) = self.noise(robot)?;
+        self.meta
+            .noise_model(sigma_z)
+            .map_err(|e| SessionError::file(self.dir.join(files::META), format!("[noise]: {e}")))
     }
 }
 

@@ -8,6 +8,8 @@
 //! [noise]                    # optional, standard deviations overriding the robot's defaults
 //! sigma_z = [0.38, 0.21, 0.19, 0.0056, 0.0082, 0.0099]   # m/s² ×3, rad/s ×3
 //! sigma_q = [6.6e-5, 8.7e-5, 7.5e-5, 1.8e-4, 1.8e-4, 1.5e-4]  # rad, one per joint
+//! ar_z = [[0.9], [0.9], [0.9], [], [], []]   # optional, AR(p) φ per IMU channel ([] white)
+//! motion_z = [1e-3, 1e-3, 1e-3, 0, 0, 0]     # optional, c of σ² + c‖q̈‖² per IMU channel
 //! [imu]                      # optional, free-form description of the device
 //! [controller]               # optional, free-form description of the robot controller
 //! ```
@@ -15,9 +17,11 @@
 
 use std::path::Path;
 
+use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError};
 use serde::{Deserialize, Serialize};
 
 use super::SessionError;
+use crate::IMU_COLUMNS;
 
 /// The format string this version reads and writes.
 pub const SESSION_FORMAT: &str = "robimu-session/1";
@@ -46,6 +50,158 @@ pub struct SessionMeta {
     /// Free-form notes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub notes: Option<String>,
+    /// The `[noise]` table's keys for noise that is not white
+    /// (docs/model.md §4.6): read from and written to the `[noise]` table
+    /// beside [`Self::noise`]'s standard deviations.
+    #[serde(skip)]
+    pub noise_shape: Option<NoiseShape>,
+}
+
+/// The `[noise]` table's optional keys for IMU noise correlated in time and
+/// following the motion (docs/model.md §4.6), beside [`NoiseOverride`]'s
+/// standard deviations (which give each channel's marginal σ at rest).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct NoiseShape {
+    /// AR coefficients φ_1…φ_p of each IMU channel `ax…gz` (six lists; an
+    /// empty list is white noise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ar_z: Option<Vec<Vec<f64>>>,
+    /// c of σ²(t) = σ² + c‖q̈(t)‖² for each IMU channel (six values ≥ 0,
+    /// the channel's unit² per (rad/s²)²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion_z: Option<Vec<f64>>,
+}
+
+/// A TOML document's optional `[noise]` table, read for its shape keys only.
+#[derive(Deserialize)]
+struct ShapeDocument {
+    #[serde(default)]
+    noise: Option<NoiseShape>,
+}
+
+impl NoiseShape {
+    /// Whether neither key is given.
+    pub fn is_empty(&self) -> bool {
+        self.ar_z.is_none() && self.motion_z.is_none()
+    }
+
+    /// Check both keys: six channels each, every AR model stationary of
+    /// order ≤ [`robimu_model::noise::MAX_AR_ORDER`] with finite
+    /// coefficients, every motion gain a number ≥ 0. `path` names the file.
+    pub fn validate(&self, path: &Path) -> Result<(), SessionError> {
+        let count = |key: &str, n: usize| -> Result<(), SessionError> {
+            if n == IMU_COLUMNS.len() {
+                Ok(())
+            } else {
+                Err(SessionError::file(
+                    path,
+                    format!(
+                        "[noise] {key} has {n} entries, it needs six: one per IMU channel {}",
+                        IMU_COLUMNS.join(", ")
+                    ),
+                ))
+            }
+        };
+        if let Some(ar) = &self.ar_z {
+            count("ar_z", ar.len())?;
+            for (c, phi) in ar.iter().enumerate() {
+                ArNoise::new(phi.clone(), 1.0).map_err(|e| {
+                    SessionError::file(
+                        path,
+                        format!("[noise] ar_z, channel {}: {e}", IMU_COLUMNS[c]),
+                    )
+                })?;
+            }
+        }
+        if let Some(motion) = &self.motion_z {
+            count("motion_z", motion.len())?;
+            for (c, m) in motion.iter().enumerate() {
+                if !(m.is_finite() && *m >= 0.0) {
+                    return Err(SessionError::file(
+                        path,
+                        format!(
+                            "[noise] motion_z, channel {}: {m} must be a non-negative number",
+                            IMU_COLUMNS[c]
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The IMU noise model: channel c an AR process of coefficients
+    /// `ar_z[c]` (white when absent) and marginal σ `sigma_z[c]` at rest,
+    /// with motion gain `motion_z[c]` (0 when absent).
+    pub fn noise_model(&self, sigma_z: [f64; 6]) -> Result<NoiseModel, NoiseModelError> {
+        let mut imu = Vec::with_capacity(6);
+        for (c, &sigma) in sigma_z.iter().enumerate() {
+            let phi = self
+                .ar_z
+                .as_ref()
+                .and_then(|a| a.get(c).cloned())
+                .unwrap_or_default();
+            let motion = self
+                .motion_z
+                .as_ref()
+                .and_then(|m| m.get(c).copied())
+                .unwrap_or(0.0);
+            imu.push(ChannelNoise::new(ArNoise::new(phi, sigma)?, motion)?);
+        }
+        Ok(NoiseModel {
+            imu: imu.try_into().expect("six channels"),
+        })
+    }
+
+    /// The keys that describe `model` (its σ go to [`NoiseOverride::sigma_z`]);
+    /// `None` when it is white of constant level.
+    pub fn from_model(model: &NoiseModel) -> Option<Self> {
+        let ar = model.imu.iter().any(|c| !c.ar.is_white());
+        let motion = model.imu.iter().any(|c| c.motion != 0.0);
+        let shape = Self {
+            ar_z: ar.then(|| model.imu.iter().map(|c| c.ar.phi().to_vec()).collect()),
+            motion_z: motion.then(|| model.imu.iter().map(|c| c.motion).collect()),
+        };
+        (!shape.is_empty()).then_some(shape)
+    }
+
+    /// The largest AR order given (0 when white).
+    pub fn max_order(&self) -> usize {
+        self.ar_z.iter().flatten().map(Vec::len).max().unwrap_or(0)
+    }
+
+    /// The shape keys of a TOML document's `[noise]` table (session.toml or a
+    /// `--noise` file), validated; `None` when it has neither key. `path`
+    /// only names the file in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Option<Self>, SessionError> {
+        let doc: ShapeDocument = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
+        match doc.noise.filter(|s| !s.is_empty()) {
+            Some(shape) => {
+                shape.validate(path)?;
+                Ok(Some(shape))
+            }
+            None => Ok(None),
+        }
+    }
+
+    /// [`Self::parse`] of the file `path`.
+    pub fn read(path: &Path) -> Result<Option<Self>, SessionError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+        Self::parse(&text, path)
+    }
+}
+
+/// Refuse an AR noise model of order `order` for a fit of `samples` samples
+/// per channel when the order is not small beside the data (p ≥ N/10): the
+/// whitening would rest on too few samples per coefficient.
+pub fn check_ar_order_for_data(order: usize, samples: usize) -> Result<(), String> {
+    if order > 0 && order.saturating_mul(10) >= samples {
+        return Err(format!(
+            "the noise model's AR order {order} is too high for {samples} samples \
+             (it must stay below a tenth of them)"
+        ));
+    }
+    Ok(())
 }
 
 /// The optional `[noise]` table: standard deviations in SI units.
@@ -91,7 +247,18 @@ impl SessionMeta {
             imu: None,
             controller: None,
             notes: None,
+            noise_shape: None,
         }
+    }
+
+    /// The IMU noise model of this session at the standard deviations
+    /// `sigma_z` (the `[noise]` table's or the robot's): white unless the
+    /// table has `ar_z` or `motion_z`.
+    pub fn noise_model(&self, sigma_z: [f64; 6]) -> Result<NoiseModel, NoiseModelError> {
+        self.noise_shape
+            .clone()
+            .unwrap_or_default()
+            .noise_model(sigma_z)
     }
 
     /// Read and validate `path`.
@@ -102,7 +269,7 @@ impl SessionMeta {
 
     /// Parse and validate; `path` only names the file in errors.
     pub fn parse(text: &str, path: &Path) -> Result<Self, SessionError> {
-        let meta: Self = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
+        let mut meta: Self = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         if meta.format != SESSION_FORMAT {
             return Err(SessionError::file(
                 path,
@@ -123,12 +290,23 @@ impl SessionMeta {
         if let Some(noise) = &meta.noise {
             noise.validate(path)?;
         }
+        meta.noise_shape = NoiseShape::parse(text, path)?;
         Ok(meta)
     }
 
     /// The TOML text of this description.
     pub fn to_toml(&self) -> String {
-        toml::to_string(self).expect("session metadata always serialises")
+        let mut doc = toml::Table::try_from(self).expect("session metadata always serialises");
+        if let Some(shape) = self.noise_shape.as_ref().filter(|s| !s.is_empty()) {
+            let keys = toml::Table::try_from(shape).expect("the noise shape always serialises");
+            let table = doc
+                .entry("noise")
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            if let toml::Value::Table(t) = table {
+                t.extend(keys);
+            }
+        }
+        toml::to_string(&doc).expect("session metadata always serialises")
     }
 }
 
@@ -196,5 +374,136 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().starts_with("s.toml:4:"), "{e}");
+    }
+
+    const HEAD: &str = "format = \"robimu-session/1\"\nrobot = \"x\"\n[noise]\n";
+
+    fn bad(keys: &str) -> String {
+        SessionMeta::parse(&format!("{HEAD}{keys}"), Path::new("s.toml"))
+            .unwrap_err()
+            .to_string()
+    }
+
+    #[test]
+    fn noise_shape_round_trips_and_builds_the_model() {
+        let mut m = SessionMeta::new("aubo_i5");
+        m.noise = Some(NoiseOverride {
+            sigma_z: Some([0.1, 0.2, 0.3, 0.01, 0.02, 0.03]),
+            sigma_q: None,
+        });
+        let shape = NoiseShape {
+            ar_z: Some(vec![
+                vec![0.9],
+                vec![1.2, -0.5],
+                vec![],
+                vec![0.3],
+                vec![],
+                vec![],
+            ]),
+            motion_z: Some(vec![1e-3, 0.0, 2.5e-4, 0.0, 0.0, 1e-6]),
+        };
+        m.noise_shape = Some(shape.clone());
+        let text = m.to_toml();
+        assert!(text.contains("ar_z") && text.contains("motion_z"), "{text}");
+        let back = SessionMeta::parse(&text, Path::new("s.toml")).unwrap();
+        assert_eq!(back, m);
+        let sz = [0.1, 0.2, 0.3, 0.01, 0.02, 0.03];
+        let model = back.noise_model(sz).unwrap();
+        assert_eq!(model.sigma_z(), sz);
+        assert_eq!(model.imu[1].ar.phi(), &[1.2, -0.5]);
+        assert_eq!(model.imu[2].motion, 2.5e-4);
+        assert_eq!(model.max_order(), 2);
+        assert_eq!(NoiseShape::from_model(&model), Some(shape.clone()));
+        assert_eq!(shape.max_order(), 2);
+        // only one key; and a [noise] table with only shape keys
+        let mut m2 = SessionMeta::new("aubo_i5");
+        m2.noise_shape = Some(NoiseShape {
+            ar_z: None,
+            motion_z: Some(vec![0.0, 0.0, 0.0, 1e-4, 0.0, 0.0]),
+        });
+        let back = SessionMeta::parse(&m2.to_toml(), Path::new("s.toml")).unwrap();
+        // (the table it writes reads back as a [noise] table without σ)
+        m2.noise = Some(NoiseOverride::default());
+        assert_eq!(back, m2);
+        assert_eq!(
+            SessionMeta::parse(&m2.to_toml(), Path::new("s.toml")).unwrap(),
+            m2
+        );
+        // white: no keys, and the model is white
+        assert_eq!(
+            NoiseShape::from_model(&NoiseModel::white(sz).unwrap()),
+            None
+        );
+        assert!(SessionMeta::new("x").noise_model(sz).unwrap().is_white());
+        // the old files have no shape
+        let plain =
+            SessionMeta::parse(&format!("{HEAD}sigma_q = [1e-4]\n"), Path::new("s.toml")).unwrap();
+        assert_eq!(plain.noise_shape, None);
+    }
+
+    #[test]
+    fn a_noise_file_gives_its_shape() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("noise.toml");
+        std::fs::write(&path, "[noise]\nar_z = [[0.5], [], [], [], [], []]\n").unwrap();
+        let s = NoiseShape::read(&path).unwrap().unwrap();
+        assert_eq!(s.ar_z.unwrap()[0], vec![0.5]);
+        std::fs::write(&path, "[noise]\nsigma_z = [1, 1, 1, 1, 1, 1]\n").unwrap();
+        assert_eq!(NoiseShape::read(&path).unwrap(), None);
+        std::fs::write(&path, "[noise]\nar_z = [[1.5], [], [], [], [], []]\n").unwrap();
+        let e = NoiseShape::read(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("noise.toml") && e.contains("ar_z, channel ax"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn bad_noise_shapes_name_the_key_and_channel() {
+        let e = bad("ar_z = [[0.5], [], [], [], [1.0], []]\n");
+        assert!(
+            e.starts_with("s.toml: [noise] ar_z, channel gy:") && e.contains("not stationary"),
+            "{e}"
+        );
+        // explosive AR(2) (a root inside the unit circle)
+        let e = bad("ar_z = [[], [0.5, 0.6], [], [], [], []]\n");
+        assert!(
+            e.contains("ar_z, channel ay") && e.contains("not stationary"),
+            "{e}"
+        );
+        let e = bad("ar_z = [[], [], [nan], [], [], []]\n");
+        assert!(
+            e.contains("ar_z, channel az") && e.contains("finite"),
+            "{e}"
+        );
+        let e = bad("ar_z = [[], [], []]\n");
+        assert!(e.contains("ar_z has 3 entries, it needs six"), "{e}");
+        let long = vec!["0.01"; robimu_model::noise::MAX_AR_ORDER + 1].join(", ");
+        let e = bad(&format!("ar_z = [[], [], [], [], [], [{long}]]\n"));
+        assert!(
+            e.contains("ar_z, channel gz") && e.contains("above the largest supported order"),
+            "{e}"
+        );
+        let e = bad("motion_z = [0, 0, 0, -1e-3, 0, 0]\n");
+        assert!(
+            e.contains("motion_z, channel gx: -0.001 must be a non-negative number"),
+            "{e}"
+        );
+        let e = bad("motion_z = [0, 0, nan, 0, 0, 0]\n");
+        assert!(e.contains("motion_z, channel az: NaN"), "{e}");
+        let e = bad("motion_z = [0, 0]\n");
+        assert!(e.contains("motion_z has 2 entries"), "{e}");
+        // not numbers: a TOML error with the line
+        let e = bad("ar_z = [\"a\"]\n");
+        assert!(e.starts_with("s.toml:4:"), "{e}");
+    }
+
+    #[test]
+    fn an_order_beyond_the_data_is_refused() {
+        assert!(check_ar_order_for_data(0, 0).is_ok());
+        assert!(check_ar_order_for_data(2, 21).is_ok());
+        let e = check_ar_order_for_data(2, 20).unwrap_err();
+        assert!(e.contains("AR order 2 is too high for 20 samples"), "{e}");
+        assert!(check_ar_order_for_data(1, 5).is_err());
     }
 }

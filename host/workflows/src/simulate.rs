@@ -12,6 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robimu_model::params::draw_truth;
 
+use robimu_model::noise::{NoiseModel, NoiseSampler};
 use robimu_model::observations::Measurements;
 use robimu_model::{
     JointState, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
@@ -36,6 +37,10 @@ pub struct SimulateOptions {
     pub sigma_z: [f64; 6],
     /// σ of each joint, rad.
     pub sigma_q: Vec<f64>,
+    /// The IMU noise when it is not white (docs/model.md §4.6): correlated
+    /// in time and following the motion; its σ replace `sigma_z`. `None`:
+    /// white noise of σ `sigma_z` (the paper's model).
+    pub noise_model: Option<NoiseModel>,
 }
 
 impl SimulateOptions {
@@ -50,6 +55,7 @@ impl SimulateOptions {
             noise: true,
             sigma_z: robot.sigma_z(),
             sigma_q: robot.sigma_q().to_vec(),
+            noise_model: None,
         }
     }
 }
@@ -150,12 +156,22 @@ pub fn simulate(
         }
     }
     data.imu_t = times(opts.imu_start.max(t0), opts.imu_rate, &mut rng);
+    // The IMU stream is one segment: the correlated noise runs along it.
+    let mut sampler = opts.noise_model.clone().map(NoiseSampler::new);
     for &t in &data.imu_t {
         trajectory.state_at(t + tau, &mut js);
         let z = model.predict(&js);
-        data.imu_z.push(std::array::from_fn(|c| {
-            z[c] + noise(opts.sigma_z[c], &mut rng)
-        }));
+        match sampler.as_mut().filter(|_| opts.noise) {
+            None => data.imu_z.push(std::array::from_fn(|c| {
+                z[c] + noise(opts.sigma_z[c], &mut rng)
+            })),
+            Some(sampler) => {
+                let e: [f64; 6] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
+                let qdd2: f64 = js.qdd[..n].iter().map(|a| a * a).sum();
+                let w = sampler.next(e, qdd2);
+                data.imu_z.push(std::array::from_fn(|c| z[c] + w[c]));
+            }
+        }
     }
     Ok(data)
 }
@@ -327,4 +343,194 @@ pub fn tracker_recording(
         })
         .collect();
     Ok(TrackerRecording { motion, poses })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robimu_model::noise::{ArNoise, ChannelNoise};
+
+    /// A random session, and its IMU noise under `model`: the same truth and
+    /// trajectory simulated with the model, minus without noise; plus
+    /// ‖q̈(t + τ)‖² at each IMU sample.
+    fn noise_of(model: Option<NoiseModel>, duration: f64, seed: u64) -> (Vec<[f64; 6]>, Vec<f64>) {
+        let robot = Robot::aubo_i5();
+        let layout = ParamLayout::new(&robot);
+        let base = SimulateOptions::paper(&robot);
+        let s = random_session(&robot, duration, 1.0, &base, seed).unwrap();
+        let opts = SimulateOptions {
+            noise_model: model,
+            ..base.clone()
+        };
+        let clean = SimulateOptions {
+            noise: false,
+            ..base
+        };
+        let noisy = simulate(&robot, &layout, &s.truth, &s.trajectory, &opts, seed).unwrap();
+        let free = simulate(&robot, &layout, &s.truth, &s.trajectory, &clean, seed).unwrap();
+        assert_eq!(noisy.imu_t, free.imu_t);
+        let tau = s.truth[layout.offsets().tau];
+        let mut js = JointState::default();
+        let qdd2 = noisy
+            .imu_t
+            .iter()
+            .map(|&t| {
+                s.trajectory.state_at(t + tau, &mut js);
+                js.qdd[..robot.dof()].iter().map(|a| a * a).sum()
+            })
+            .collect();
+        let r = noisy
+            .imu_z
+            .iter()
+            .zip(&free.imu_z)
+            .map(|(a, b)| std::array::from_fn(|c| a[c] - b[c]))
+            .collect();
+        (r, qdd2)
+    }
+
+    #[test]
+    fn white_noise_model_gives_the_same_samples_as_none() {
+        let robot = Robot::aubo_i5();
+        let layout = ParamLayout::new(&robot);
+        let base = SimulateOptions::paper(&robot);
+        let s = random_session(&robot, 20.0, 1.0, &base, 5).unwrap();
+        let opts = SimulateOptions {
+            noise_model: Some(NoiseModel::white(robot.sigma_z()).unwrap()),
+            ..base
+        };
+        let d = simulate(&robot, &layout, &s.truth, &s.trajectory, &opts, 5).unwrap();
+        assert_eq!(d.imu_t, s.data.imu_t);
+        assert_eq!(d.joint_q, s.data.joint_q);
+        for (a, b) in d.imu_z.iter().zip(&s.data.imu_z) {
+            for c in 0..6 {
+                assert_eq!(a[c].to_bits(), b[c].to_bits());
+            }
+        }
+    }
+
+    /// Bartlett's standard error of the sample autocovariance at lag h of
+    /// N samples of a process of autocovariances `g` (known zero mean).
+    fn bartlett_se(g: &[f64], h: usize, n: usize) -> f64 {
+        let at = |j: i64| g.get(j.unsigned_abs() as usize).copied().unwrap_or(0.0);
+        let l = g.len() as i64 - 1;
+        let h = h as i64;
+        let v: f64 = (-l..=l)
+            .map(|j| at(j) * at(j) + at(j + h) * at(j - h))
+            .sum();
+        (v / n as f64).sqrt()
+    }
+
+    #[test]
+    fn correlated_noise_has_the_model_autocovariance() {
+        let sz = Robot::aubo_i5().sigma_z();
+        let mut model = NoiseModel::white(sz).unwrap();
+        model.imu[0].ar = ArNoise::new(vec![1.2, -0.5], sz[0]).unwrap();
+        model.imu[3].ar = ArNoise::new(vec![0.9], sz[3]).unwrap();
+        model.imu[5].ar = ArNoise::new(vec![0.5, 0.2, -0.3], sz[5]).unwrap();
+        let (r, _) = noise_of(Some(model.clone()), 600.0, 11);
+        let n = r.len();
+        assert!(n > 70_000);
+        for c in 0..6 {
+            let g = model.imu[c].ar.autocovariance(400);
+            for h in 0..=6 {
+                let got: f64 = (0..n - h).map(|t| r[t][c] * r[t + h][c]).sum::<f64>() / n as f64;
+                let se = bartlett_se(&g, h, n);
+                assert!(
+                    (got - g[h]).abs() < 4.0 * se,
+                    "channel {c} lag {h}: {got} vs {} (se {se})",
+                    g[h]
+                );
+            }
+        }
+        // Stationary from the first sample (no burn-in): over many short
+        // segments, the first samples' covariances are the model's.
+        let ar = ArNoise::new(vec![1.2, -0.5], 1.0).unwrap();
+        let g = ar.autocovariance(2);
+        let mut m = NoiseModel::white([1.0; 6]).unwrap();
+        m.imu[0].ar = ar;
+        let mut sampler = NoiseSampler::new(m);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let reps = 40_000;
+        let mut acc = [[0.0; 3]; 3];
+        for _ in 0..reps {
+            sampler.restart();
+            let u: Vec<f64> = (0..3)
+                .map(|_| {
+                    sampler.next(
+                        std::array::from_fn(|_| StandardNormal.sample(&mut rng)),
+                        0.0,
+                    )[0]
+                })
+                .collect();
+            for i in 0..3 {
+                for j in 0..3 {
+                    acc[i][j] += u[i] * u[j] / reps as f64;
+                }
+            }
+        }
+        for i in 0..3_usize {
+            for j in 0..3_usize {
+                let want = g[i.abs_diff(j)];
+                // Var of a product of two unit-variance normals ≤ 2.
+                let se = (2.0 / reps as f64).sqrt();
+                assert!(
+                    (acc[i][j] - want).abs() < 4.0 * se,
+                    "({i},{j}) {} vs {want}",
+                    acc[i][j]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn noise_level_follows_the_motion() {
+        let sz = Robot::aubo_i5().sigma_z();
+        let (_, qdd2) = noise_of(None, 300.0, 17);
+        let mean = qdd2.iter().sum::<f64>() / qdd2.len() as f64;
+        let mut model = NoiseModel::white(sz).unwrap();
+        // Channel 1 white with a motion gain, channel 4 AR(1) with one,
+        // both three times σ² at the mean ‖q̈‖².
+        model.imu[1] =
+            ChannelNoise::new(model.imu[1].ar.clone(), 3.0 * sz[1] * sz[1] / mean).unwrap();
+        let ar = ArNoise::new(vec![0.8], sz[4]).unwrap();
+        model.imu[4] = ChannelNoise::new(ar, 3.0 * sz[4] * sz[4] / mean).unwrap();
+        let (r, qdd2) = noise_of(Some(model.clone()), 300.0, 17);
+        let mut order: Vec<usize> = (0..qdd2.len()).collect();
+        order.sort_by(|&a, &b| qdd2[a].total_cmp(&qdd2[b]));
+        let bins = 5;
+        for c in [0, 1, 4] {
+            let ch = &model.imu[c];
+            let s2 = ch.ar.sigma().powi(2);
+            let mut ratios = Vec::new();
+            for b in 0..bins {
+                let idx = &order[b * order.len() / bins..(b + 1) * order.len() / bins];
+                let k = idx.len() as f64;
+                let got = idx.iter().map(|&i| r[i][c] * r[i][c]).sum::<f64>() / k;
+                let want = idx.iter().map(|&i| s2 + ch.motion * qdd2[i]).sum::<f64>() / k;
+                // n_t/σ_t is unit normal; correlated samples inflate the
+                // variance of the mean square by S(0)-like factor ≤ (1+φ²)/(1−φ²).
+                let inflate = if c == 4 {
+                    (1.0 + 0.64) / (1.0 - 0.64)
+                } else {
+                    1.0
+                };
+                let max_rel = idx
+                    .iter()
+                    .map(|&i| (s2 + ch.motion * qdd2[i]) / want)
+                    .fold(0.0, f64::max);
+                let se = (2.0 * inflate / k).sqrt() * max_rel;
+                assert!(
+                    (got / want - 1.0).abs() < 4.0 * se,
+                    "channel {c} bin {b}: {got} vs {want} (rel se {se})"
+                );
+                ratios.push(got / s2);
+            }
+            if c != 0 {
+                assert!(
+                    ratios[bins - 1] > 3.0 * ratios[0],
+                    "channel {c}: {ratios:?}"
+                );
+            }
+        }
+    }
 }

@@ -12,6 +12,7 @@ pub mod import;
 pub mod input;
 pub mod montecarlo;
 pub mod noise;
+pub mod noise_spec;
 pub mod plan;
 pub mod record;
 pub mod repair;

@@ -42,6 +42,11 @@ pub struct MonteCarloCmd {
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
+    /// IMU noise of the simulated sessions, as `robimu simulate
+    /// --noise-model`: `white` (default), `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]`
+    /// or a TOML file with a [noise] table. The fits still assume white Σ_z.
+    #[arg(long, value_name = "SPEC")]
+    pub noise_model: Option<String>,
 }
 
 impl MonteCarloCmd {
@@ -56,11 +61,18 @@ impl MonteCarloCmd {
         let layout = ParamLayout::new(&robot);
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("cannot create {}", self.out.display()))?;
+        let mut simulate = SimulateOptions::paper(&robot);
+        if let Some(spec) = &self.noise_model {
+            let model =
+                super::noise_spec::parse_noise_model(spec, robot.sigma_z(), simulate.imu_rate)?;
+            simulate.sigma_z = model.sigma_z();
+            simulate.noise_model = (!model.is_white()).then_some(model);
+        }
         let opts = MonteCarloOptions {
             runs: self.runs,
             duration: self.duration,
             seed: self.seed,
-            simulate: SimulateOptions::paper(&robot),
+            simulate,
             calibrate: CalibrateOptions::new(&robot),
         };
         let bar = indicatif::ProgressBar::new(self.runs as u64);

@@ -5,11 +5,12 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use rand::SeedableRng;
+use robimu_model::noise::NoiseModel;
 use robimu_model::params::draw_truth;
 use robimu_model::trajectory::random_walk;
 use robimu_model::{ParamLayout, Robot};
 use robimu_session::poses::{write_pose_file, write_tracker_file};
-use robimu_session::{SessionMeta, SessionWriter, Truth};
+use robimu_session::{NoiseOverride, NoiseShape, SessionMeta, SessionWriter, Truth};
 use robimu_workflows::simulate::{simulate, tracker_recording, SimulateOptions};
 
 use robimu_workflows::plan::files::read_plan;
@@ -84,6 +85,13 @@ pub struct SimulateCmd {
     pub effect: Vec<String>,
     #[command(flatten)]
     pub resonance: super::input::ResonanceMode,
+    /// IMU noise: `white` (default), `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]`
+    /// (AR(1) of correlation time TAU ms, same σ; motion=C adds C·|q̈|² to
+    /// each channel's variance), or a TOML file with a [noise] table
+    /// (`ar_z`, `motion_z`, `sigma_z` as in session.toml). Recorded in
+    /// session.toml's [noise] table.
+    #[arg(long, value_name = "SPEC", conflicts_with = "noise_free")]
+    pub noise_model: Option<String>,
 }
 
 /// What [`SimulateCmd::write`] produced.
@@ -162,12 +170,24 @@ impl SimulateCmd {
         opts.imu_rate = self.rate;
         opts.joint_rate = joint_rate;
         opts.noise = !self.noise_free;
+        let noise_model = self
+            .noise_model
+            .as_deref()
+            .map(|spec| super::noise_spec::parse_noise_model(spec, robot.sigma_z(), self.rate))
+            .transpose()?;
+        if let Some(model) = &noise_model {
+            opts.sigma_z = model.sigma_z();
+            opts.noise_model = (!model.is_white()).then(|| model.clone());
+        }
         let mut data = simulate(&robot, &layout, &x_true, &trajectory, &opts, self.seed)
             .context("cannot simulate the measurements at these true parameters")?;
         if !self.effect.is_empty() {
             self.inject_effects(&robot, &x_true, &trajectory, &mut data)?;
         }
-        let written = self.write_session(&robot, robot_field, &layout, &x_true, &data)?;
+        let noise = noise_model
+            .as_ref()
+            .filter(|m| m.sigma_z() != robot.sigma_z() || !m.is_white());
+        let written = self.write_session(&robot, robot_field, &layout, &x_true, &data, noise)?;
         if self.tracker {
             self.write_tracker(&robot, &layout, &x_true, &trajectory, &data, &opts)?;
         }
@@ -238,8 +258,17 @@ impl SimulateCmd {
         layout: &ParamLayout,
         x_true: &[f64],
         data: &robimu_model::observations::Measurements,
+        noise: Option<&NoiseModel>,
     ) -> anyhow::Result<Simulated> {
         let mut meta = SessionMeta::new(robot_field);
+        // the noise the samples were made with, when not the robot's white Σ_z
+        if let Some(model) = noise {
+            meta.noise = Some(NoiseOverride {
+                sigma_z: Some(model.sigma_z()),
+                sigma_q: None,
+            });
+            meta.noise_shape = NoiseShape::from_model(model);
+        }
         meta.notes = Some(format!(
             "simulated by robimu simulate: seed {}, {} s, IMU {} Hz, joints {} Hz{}",
             self.seed,
@@ -248,6 +277,10 @@ impl SimulateCmd {
             self.joint_rate.unwrap_or(self.rate),
             if self.noise_free { ", noise-free" } else { "" }
         ));
+        if let Some(spec) = self.noise_model.as_ref().filter(|_| noise.is_some()) {
+            let notes = meta.notes.get_or_insert_with(String::new);
+            notes.push_str(&format!("; noise model {spec}"));
+        }
         if !self.effect.is_empty() {
             let notes = meta.notes.get_or_insert_with(String::new);
             notes.push_str(&format!("; effects injected: {}", self.effect.join(", ")));

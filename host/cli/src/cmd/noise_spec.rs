@@ -1,0 +1,140 @@
+//! `--noise-model SPEC` of `robimu simulate` and `robimu montecarlo`: the
+//! IMU noise the simulated sessions get (docs/model.md §4.6).
+//!
+//! SPEC is `white` (the paper's model, the default), or
+//! `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]` (AR(1) of correlation time
+//! TAU ms, φ = exp(−dt/TAU) with dt the IMU sample period, on the
+//! accelerometer and/or gyroscope channels, same marginal σ; `motion=C`
+//! adds C‖q̈‖² to every channel's variance, channel unit² per (rad/s²)²),
+//! or a TOML file whose `[noise]` table has session.toml's keys (`ar_z`,
+//! `motion_z`, and optionally `sigma_z`).
+
+use std::path::Path;
+
+use anyhow::{bail, Context};
+use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
+use robimu_session::NoiseShape;
+
+/// What SPEC accepts, for error messages.
+const EXPECTED: &str =
+    "expected `white`, `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]` or a TOML file with a [noise] table";
+
+/// The noise model of `spec` at the robot's standard deviations `sigma_z`
+/// (a file's `sigma_z` replaces them) and the IMU sample rate `imu_rate` Hz.
+pub fn parse_noise_model(
+    spec: &str,
+    sigma_z: [f64; 6],
+    imu_rate: f64,
+) -> anyhow::Result<NoiseModel> {
+    let spec = spec.trim();
+    let what = || format!("--noise-model {spec}");
+    if spec == "white" {
+        return NoiseModel::white(sigma_z).with_context(what);
+    }
+    if let Some(keys) = spec.strip_prefix("ar1:") {
+        let dt = 1.0 / imu_rate;
+        let (mut accel, mut gyro, mut motion) = (None, None, 0.0);
+        for item in keys.split(',').map(str::trim).filter(|k| !k.is_empty()) {
+            let Some((key, value)) = item.split_once('=') else {
+                bail!("{}: `{item}` is not KEY=VALUE ({EXPECTED})", what());
+            };
+            let v: f64 = value
+                .trim()
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite())
+                .with_context(|| format!("{}: `{item}`: the value must be a number", what()))?;
+            match key.trim() {
+                "accel" | "gyro" => {
+                    if v <= 0.0 {
+                        bail!(
+                            "{}: `{item}`: the correlation time must be a positive number of ms",
+                            what()
+                        );
+                    }
+                    let phi = (-dt / (v * 1e-3)).exp();
+                    if key.trim() == "accel" {
+                        accel = Some(phi);
+                    } else {
+                        gyro = Some(phi);
+                    }
+                }
+                "motion" => {
+                    if v < 0.0 {
+                        bail!(
+                            "{}: `{item}`: the motion gain must be a number >= 0",
+                            what()
+                        );
+                    }
+                    motion = v;
+                }
+                other => bail!(
+                    "{}: unknown key `{other}` (the keys are accel, gyro and motion)",
+                    what()
+                ),
+            }
+        }
+        if accel.is_none() && gyro.is_none() {
+            bail!("{}: give accel=TAU_MS and/or gyro=TAU_MS", what());
+        }
+        let mut imu = Vec::with_capacity(6);
+        for (c, &sigma) in sigma_z.iter().enumerate() {
+            let phi = if c < 3 { accel } else { gyro };
+            let ar = ArNoise::new(phi.into_iter().collect(), sigma).with_context(what)?;
+            imu.push(ChannelNoise::new(ar, motion).with_context(what)?);
+        }
+        return Ok(NoiseModel {
+            imu: imu.try_into().expect("six channels"),
+        });
+    }
+    let path = Path::new(spec);
+    if !path.is_file() {
+        bail!("{}: {EXPECTED} (no such file)", what());
+    }
+    let table = robimu_workflows::noise::NoiseFile::read(path).with_context(what)?;
+    let sigma_z = table.noise.sigma_z.unwrap_or(sigma_z);
+    let shape = NoiseShape::read(path)
+        .with_context(what)?
+        .unwrap_or_default();
+    shape
+        .noise_model(sigma_z)
+        .map_err(|e| anyhow::anyhow!("{}: {}: [noise]: {e}", what(), path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SZ: [f64; 6] = [0.38, 0.21, 0.19, 0.0056, 0.0082, 0.0099];
+
+    #[test]
+    fn ar1_spec_gives_the_correlation_time() {
+        let m = parse_noise_model("ar1:accel=50,gyro=20,motion=1e-4", SZ, 120.0).unwrap();
+        let dt = 1.0 / 120.0;
+        assert_eq!(m.imu[0].ar.phi(), &[(-dt / 0.05_f64).exp()]);
+        assert_eq!(m.imu[5].ar.phi(), &[(-dt / 0.02_f64).exp()]);
+        assert_eq!(m.sigma_z(), SZ);
+        assert!(m.imu.iter().all(|c| c.motion == 1e-4));
+        let exact = dt / ((dt / 0.05_f64).exp() - 1.0);
+        assert!((m.imu[0].ar.correlation_time(dt) - exact).abs() < 1e-12);
+        let a = parse_noise_model("ar1:accel=10", SZ, 120.0).unwrap();
+        assert!(!a.imu[0].ar.is_white() && a.imu[3].ar.is_white());
+        assert!(parse_noise_model("white", SZ, 120.0).unwrap().is_white());
+    }
+
+    #[test]
+    fn bad_specs_say_why() {
+        let e = |s: &str| format!("{:#}", parse_noise_model(s, SZ, 120.0).unwrap_err());
+        assert!(e("pink").contains("expected `white`"), "{}", e("pink"));
+        assert!(
+            e("ar1:").contains("accel=TAU_MS and/or gyro"),
+            "{}",
+            e("ar1:")
+        );
+        assert!(e("ar1:accel=-5").contains("positive number of ms"));
+        assert!(e("ar1:accel=abc").contains("must be a number"));
+        assert!(e("ar1:accel=5,motion=-1").contains(">= 0"));
+        assert!(e("ar1:accel=5,jerk=1").contains("unknown key `jerk`"));
+        assert!(e("ar1:accel").contains("not KEY=VALUE"));
+    }
+}
