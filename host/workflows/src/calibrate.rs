@@ -9,6 +9,8 @@
 //!    directions it does not determine (reported by parameter name).
 
 pub mod fit;
+#[cfg(test)]
+mod gls_montecarlo;
 
 use faer::Side;
 use robimu_session::result::{
