@@ -314,6 +314,7 @@ mod tests {
                 parameters: vec![("tau".into(), 1.0)],
             }],
             residual_rms: [1.0; 6],
+            noise_model: robimu_model::noise::NoiseModel::white([1.0; 6]).unwrap(),
         }
     }
 

@@ -299,6 +299,7 @@ mod tests {
             residual_rms: None,
             imu_samples_used: None,
             weak_directions: Vec::new(),
+            noise_model: None,
         };
         r.validate().unwrap();
         r

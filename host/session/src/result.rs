@@ -119,6 +119,37 @@ pub struct CalibrationResult {
     /// Parameter combinations the data barely determines.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub weak_directions: Vec<WeakDirectionRecord>,
+    /// The IMU noise model the fit used (robimu extension, docs/model.md
+    /// §4.6; absent in files from other tools or older versions).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_model: Option<NoiseModelRecord>,
+}
+
+/// The IMU noise model of a fit, as written to result.json:
+/// `{"kind": "white"}` (σ_z alone, the paper's model) or
+/// `{"kind": "ar", "channels": [{"phi": [..], "sigma": .., "motion": ..}; 6]}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum NoiseModelRecord {
+    /// White noise of constant level.
+    White,
+    /// Per channel `[ax, ay, az, gx, gy, gz]`: AR coefficients, marginal σ
+    /// and motion gain.
+    Ar {
+        /// The six channels.
+        channels: Vec<ChannelNoiseRecord>,
+    },
+}
+
+/// One channel of [`NoiseModelRecord::Ar`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChannelNoiseRecord {
+    /// AR coefficients φ_1…φ_p (empty: white).
+    pub phi: Vec<f64>,
+    /// Marginal σ at rest, in the channel's unit.
+    pub sigma: f64,
+    /// Motion gain c of σ²(t) = σ² + c‖q̈‖².
+    pub motion: f64,
 }
 
 /// Why a result file could not be read, written or trusted.
@@ -398,6 +429,16 @@ mod tests {
             termination: Some("converged".into()),
             residual_rms: Some([1.0, 0.99, 1.01, 1.0, 1.0, 0.98]),
             imu_samples_used: Some(3600),
+            noise_model: Some(NoiseModelRecord::Ar {
+                channels: vec![
+                    ChannelNoiseRecord {
+                        phi: vec![0.75],
+                        sigma: 0.02,
+                        motion: 1e-4,
+                    };
+                    6
+                ],
+            }),
             weak_directions: vec![WeakDirectionRecord {
                 relative_information: 1e-3,
                 parameters: vec![DirectionShare {
@@ -406,6 +447,23 @@ mod tests {
                 }],
             }],
         }
+    }
+
+    #[test]
+    fn noise_model_records_carry_their_kind() {
+        let w = serde_json::to_value(NoiseModelRecord::White).unwrap();
+        assert_eq!(w, serde_json::json!({"kind": "white"}));
+        let ar = NoiseModelRecord::Ar {
+            channels: vec![ChannelNoiseRecord {
+                phi: vec![0.5, -0.1],
+                sigma: 0.3,
+                motion: 0.0,
+            }],
+        };
+        let v = serde_json::to_value(&ar).unwrap();
+        assert_eq!(v["kind"], "ar");
+        assert_eq!(v["channels"][0]["phi"][1], -0.1);
+        assert_eq!(serde_json::from_value::<NoiseModelRecord>(v).unwrap(), ar);
     }
 
     #[test]

@@ -9,15 +9,18 @@
 //!    directions it does not determine (reported by parameter name).
 
 pub mod fit;
+#[cfg(test)]
+mod gls_montecarlo;
 
 use faer::Side;
 use robimu_session::result::{
-    CalibrationResult, CovarianceMatrix, DirectionShare, ParameterResult, WeakDirectionRecord,
-    RESULT_FORMAT,
+    CalibrationResult, ChannelNoiseRecord, CovarianceMatrix, DirectionShare, NoiseModelRecord,
+    ParameterResult, WeakDirectionRecord, RESULT_FORMAT,
 };
 
 use super::time_offset::{TauError, TauEstimate, TauSearch};
 use fit::FitSpec;
+use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{Knots, ModelError, ParamLayout, Robot, Spline, SplineError};
 use robimu_solver::problem::{ProblemError, ProblemOptions};
@@ -37,6 +40,10 @@ pub struct CalibrateOptions {
     pub frozen: Vec<usize>,
     /// σ of `[ax, ay, az, gx, gy, gz]`.
     pub sigma_z: [f64; 6],
+    /// The IMU noise model of the fit (None: white of `sigma_z`, the
+    /// paper's model; given, it replaces `sigma_z` and the fit is the
+    /// generalised least squares of [`robimu_solver::problem`]).
+    pub noise: Option<NoiseModel>,
     /// σ of each joint, rad.
     pub sigma_q: Vec<f64>,
     /// The τ search (None: start from the nominal τ).
@@ -54,6 +61,7 @@ impl CalibrateOptions {
             use_prior: true,
             frozen: Vec::new(),
             sigma_z: robot.sigma_z(),
+            noise: None,
             sigma_q: robot.sigma_q().to_vec(),
             tau_search: Some(TauSearch::default()),
             lm: LmOptions::default(),
@@ -65,6 +73,7 @@ impl CalibrateOptions {
         ProblemOptions {
             sigma_q: self.sigma_q.clone(),
             sigma_z: self.sigma_z,
+            noise: self.noise.clone(),
             use_prior: self.use_prior,
             frozen: self.frozen.clone(),
         }
@@ -125,6 +134,8 @@ pub struct Calibration {
     pub weak_directions: Vec<WeakDirection>,
     /// Root-mean-square of the whitened residuals per IMU channel at the optimum.
     pub residual_rms: [f64; 6],
+    /// The IMU noise model the fit used.
+    pub noise_model: NoiseModel,
 }
 
 /// Why a calibration failed.
@@ -254,6 +265,7 @@ pub fn calibrate(
     let covariance = (0..na * na).map(|k| cov[(k / na, k % na)]).collect();
     Ok(Calibration {
         residual_rms: f.residual_rms(),
+        noise_model: f.noise.clone(),
         imu_samples_used: f.residuals.len(),
         x: f.x,
         sigma: f.sigma_x,
@@ -433,6 +445,7 @@ impl Calibration {
             termination: Some(summary.termination.to_string()),
             residual_rms: Some(calibration.residual_rms),
             imu_samples_used: Some(calibration.imu_samples_used),
+            noise_model: Some(noise_model_record(&calibration.noise_model)),
             weak_directions: calibration
                 .weak_directions
                 .iter()
@@ -449,5 +462,23 @@ impl Calibration {
                 })
                 .collect(),
         }
+    }
+}
+
+/// The result.json record of a noise model (`{"kind": "white"}` when white).
+pub fn noise_model_record(m: &NoiseModel) -> NoiseModelRecord {
+    if m.is_white() {
+        return NoiseModelRecord::White;
+    }
+    NoiseModelRecord::Ar {
+        channels: m
+            .imu
+            .iter()
+            .map(|c| ChannelNoiseRecord {
+                phi: c.ar.phi().to_vec(),
+                sigma: c.ar.sigma(),
+                motion: c.motion,
+            })
+            .collect(),
     }
 }

@@ -117,6 +117,13 @@ impl Problem<'_> {
         let tau = x[self.layout.offsets().tau];
         let theta_e = self.effect_params_of(theta);
         let mut at = self.sample_eval();
+        if !self.white {
+            let mut out = Vec::with_capacity(self.imu_range.len());
+            self.gls_residuals(&model, &spline, tau, theta_e, self.imu_range(), |i, w| {
+                out.push((i, w))
+            })?;
+            return Ok(out);
+        }
         self.imu_range
             .clone()
             .map(|i| {
@@ -158,6 +165,20 @@ impl Problem<'_> {
         i: usize,
         at: &mut SampleEval,
     ) -> Result<[f64; 6], ProblemError> {
+        let r = self.raw_residual(model, spline, tau, theta_e, i, at)?;
+        Ok(std::array::from_fn(|c| r[c] * self.inv_sigma_z[c]))
+    }
+
+    /// Raw residual z_i − h of IMU sample i (see [`Self::whitened_residual`]).
+    fn raw_residual(
+        &self,
+        model: &MeasurementModel,
+        spline: &Spline,
+        tau: f64,
+        theta_e: &[f64],
+        i: usize,
+        at: &mut SampleEval,
+    ) -> Result<[f64; 6], ProblemError> {
         self.locate(spline, tau, i, at)?;
         let z = if self.effects.is_empty() {
             model.predict(&at.js)
@@ -167,9 +188,7 @@ impl Problem<'_> {
             self.with_effect_terms(model, i, &at.js, &e.jac, theta_e, &mut e.cols)
         };
         let zm = &self.data.imu_z[i];
-        Ok(std::array::from_fn(|c| {
-            (zm[c] - z[c]) * self.inv_sigma_z[c]
-        }))
+        Ok(std::array::from_fn(|c| zm[c] - z[c]))
     }
 
     /// z of sample i with the effect terms: the baseline `jac.z` (already
@@ -303,6 +322,9 @@ impl Problem<'_> {
         range: Range<usize>,
         out: Option<&mut Linearization<'_>>,
     ) -> Result<f64, ProblemError> {
+        if !self.white {
+            return self.imu_terms_gls(model, spline, x, theta, range, out);
+        }
         let theta_e = self.effect_params_of(theta);
         let nx = self.layout.len();
         let n = self.n;
@@ -375,6 +397,306 @@ impl Problem<'_> {
             b.flush(group_first * n, out);
         }
         Ok(cost)
+    }
+}
+
+/// The raw (unwhitened) residual and Jacobian rows of one sample, kept in a
+/// ring of the last P+1 samples for the whitening of the next ones.
+struct RawSample {
+    /// First basis function of the sample's knot span.
+    first: usize,
+    /// z_i − h_i.
+    r: [f64; 6],
+    /// 1/s_i per channel.
+    inv_level: [f64; 6],
+    /// Per sensor, its three channels' rows ∂r/∂θ (nl band entries, then
+    /// the sensor's columns), one after the other.
+    rows: [Vec<f64>; 2],
+}
+
+impl Problem<'_> {
+    /// 1/s_i of sample i (1 without motion levels).
+    fn inv_level(&self, i: usize) -> [f64; 6] {
+        self.inv_levels.get(i).copied().unwrap_or([1.0; 6])
+    }
+
+    /// The first sample whose raw terms the whitening of `range` needs.
+    fn warm_start(&self, range: &Range<usize>) -> usize {
+        range
+            .start
+            .saturating_sub(self.noise.max_order())
+            .max(self.imu_range.start)
+    }
+
+    /// Whitened residual of channel `ch` of sample `i`, from the ring.
+    fn whiten(&self, ring: &[RawSample], i: usize, ch: usize) -> f64 {
+        let pos = self.seg_pos[i - self.imu_range.start] as usize;
+        let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
+        let len = ring.len();
+        let s = &ring[i % len];
+        let mut u = s.r[ch] * s.inv_level[ch];
+        for (k, ak) in a.iter().enumerate() {
+            let p = &ring[(i - k - 1) % len];
+            u -= ak * p.r[ch] * p.inv_level[ch];
+        }
+        scale * u
+    }
+
+    /// GLS-whitened residuals of the samples `range` (module doc), passed to
+    /// `emit` in order.
+    fn gls_residuals(
+        &self,
+        model: &MeasurementModel,
+        spline: &Spline,
+        tau: f64,
+        theta_e: &[f64],
+        range: Range<usize>,
+        mut emit: impl FnMut(usize, [f64; 6]),
+    ) -> Result<(), ProblemError> {
+        let mut at = self.sample_eval();
+        let mut ring: Vec<RawSample> = (0..=self.noise.max_order())
+            .map(|_| RawSample {
+                first: 0,
+                r: [0.0; 6],
+                inv_level: [1.0; 6],
+                rows: [Vec::new(), Vec::new()],
+            })
+            .collect();
+        let len = ring.len();
+        for i in self.warm_start(&range)..range.end {
+            let r = self.raw_residual(model, spline, tau, theta_e, i, &mut at)?;
+            let slot = &mut ring[i % len];
+            slot.r = r;
+            slot.inv_level = self.inv_level(i);
+            if i >= range.start {
+                emit(i, std::array::from_fn(|ch| self.whiten(&ring, i, ch)));
+            }
+        }
+        Ok(())
+    }
+
+    /// [`Self::imu_terms`] for noise that is not white: rows whitened along
+    /// time, each combining the raw rows of up to P samples before it, which
+    /// may lie in earlier knot spans (module doc).
+    fn imu_terms_gls(
+        &self,
+        model: &MeasurementModel,
+        spline: &Spline,
+        x: &[f64],
+        theta: &[f64],
+        range: Range<usize>,
+        out: Option<&mut Linearization<'_>>,
+    ) -> Result<f64, ProblemError> {
+        let theta_e = self.effect_params_of(theta);
+        let tau = x[self.layout.offsets().tau];
+        let mut cost = 0.0;
+        let Some(out) = out else {
+            self.gls_residuals(model, spline, tau, theta_e, range, |_, w| {
+                cost += 0.5 * w.iter().map(|v| v * v).sum::<f64>();
+            })?;
+            return Ok(cost);
+        };
+        let nx = self.layout.len();
+        let n = self.n;
+        let deg = self.knots.degree();
+        let nl = (deg + 1) * n;
+        let extra = self.extra_spans;
+        let widths = [0, 1].map(|s| nl + self.sensor_columns[s].len());
+        let mut ring: Vec<RawSample> = (0..=self.noise.max_order())
+            .map(|_| RawSample {
+                first: 0,
+                r: [0.0; 6],
+                inv_level: [1.0; 6],
+                rows: widths.map(|w| vec![0.0; 3 * w]),
+            })
+            .collect();
+        let len = ring.len();
+        let mut at = self.sample_eval();
+        let mut jac = MeasurementJacobians::new(nx);
+        let mut blocks = [
+            GlsStack::new(nl, extra * n, &self.sensor_columns[0]),
+            GlsStack::new(nl, extra * n, &self.sensor_columns[1]),
+        ];
+        let mut group_first = usize::MAX;
+        for i in self.warm_start(&range)..range.end {
+            self.locate(spline, tau, i, &mut at)?;
+            let (basis, js) = (&at.basis, &at.js);
+            model.jacobians(js, &mut jac);
+            let cols = &mut at.effect.cols;
+            let z = self.with_effect_terms(model, i, js, &jac, theta_e, cols);
+            let zm = &self.data.imu_z[i];
+            let slot = &mut ring[i % len];
+            slot.first = basis.first;
+            slot.r = std::array::from_fn(|c| zm[c] - z[c]);
+            slot.inv_level = self.inv_level(i);
+            for (sensor, rows) in slot.rows.iter_mut().enumerate() {
+                let w = widths[sensor];
+                for (c, row) in rows.chunks_exact_mut(w).enumerate() {
+                    let ch = 3 * sensor + c;
+                    // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)
+                    for a in 0..=deg {
+                        for j in 0..n {
+                            row[a * n + j] = if a < basis.count {
+                                -(jac.dz_dq[j][ch] * basis.d[0][a]
+                                    + jac.dz_dqd[j][ch] * basis.d[1][a]
+                                    + jac.dz_dqdd[j][ch] * basis.d[2][a])
+                            } else {
+                                0.0
+                            };
+                        }
+                    }
+                    for (a, &(k, _)) in self.sensor_columns[sensor].iter().enumerate() {
+                        row[nl + a] = -if k < nx {
+                            jac.dz_dx[k][ch]
+                        } else {
+                            at.effect.cols[k - nx][ch]
+                        };
+                    }
+                }
+            }
+            if i < range.start {
+                continue;
+            }
+            let g = basis.first;
+            if (g != group_first && blocks[0].rows > 0) || blocks[0].full() {
+                for b in &mut blocks {
+                    b.flush(out);
+                }
+            }
+            if g != group_first {
+                for b in &mut blocks {
+                    b.start_group(g, extra, n);
+                }
+                group_first = g;
+            }
+            let pos = self.seg_pos[i - self.imu_range.start] as usize;
+            for (sensor, block) in blocks.iter_mut().enumerate() {
+                let w = widths[sensor];
+                for c in 0..3 {
+                    let ch = 3 * sensor + c;
+                    let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
+                    let row = block.rows;
+                    let (b0, nl_cur) = (block.b0, block.nl_cur);
+                    let col = block
+                        .jt
+                        .col_mut(row)
+                        .try_as_col_major_mut()
+                        .expect("contiguous column");
+                    let col = &mut col.as_slice_mut()[..nl_cur + block.columns.len()];
+                    col.fill(0.0);
+                    let mut u = 0.0;
+                    for k in 0..=a.len() {
+                        let s = &ring[(i - k) % len];
+                        let coef = scale * s.inv_level[ch] * if k == 0 { 1.0 } else { -a[k - 1] };
+                        u += coef * s.r[ch];
+                        assert!(
+                            s.first >= b0 && s.first <= g,
+                            "a whitened row reaches beyond the widened band"
+                        );
+                        let off = (s.first - b0) * n;
+                        let raw = &s.rows[sensor][c * w..(c + 1) * w];
+                        for (d, v) in col[off..off + nl].iter_mut().zip(&raw[..nl]) {
+                            *d += coef * v;
+                        }
+                        for (d, v) in col[nl_cur..].iter_mut().zip(&raw[nl..]) {
+                            *d += coef * v;
+                        }
+                    }
+                    cost += 0.5 * u * u;
+                    block.r[row] = u;
+                    block.rows += 1;
+                }
+            }
+        }
+        for b in &mut blocks {
+            b.flush(out);
+        }
+        Ok(cost)
+    }
+}
+
+/// [`Stack`] for whitened rows: the rows of the samples of knot span g over
+/// the band unknowns of spans b0 = max(g − E, 0) … g + p_s.
+struct GlsStack<'c> {
+    nl: usize,
+    columns: &'c [(usize, usize)],
+    jt: Mat<f64>,
+    r: Vec<f64>,
+    rows: usize,
+    local: Mat<f64>,
+    glocal: Mat<f64>,
+    x_index: Vec<usize>,
+    /// First span of the group's band unknowns.
+    b0: usize,
+    /// Band columns of the current group, (g − b0)·n + nl.
+    nl_cur: usize,
+    /// Its first band unknown, b0·n.
+    c0: usize,
+}
+
+impl<'c> GlsStack<'c> {
+    fn new(nl: usize, extra: usize, columns: &'c [(usize, usize)]) -> Self {
+        let cols = nl + extra + columns.len();
+        Self {
+            nl,
+            columns,
+            jt: Mat::zeros(cols, 3 * GROUP_CAP),
+            r: vec![0.0; 3 * GROUP_CAP],
+            rows: 0,
+            local: Mat::zeros(cols, cols),
+            glocal: Mat::zeros(cols, 1),
+            x_index: columns.iter().map(|&(_, a)| a).collect(),
+            b0: 0,
+            nl_cur: nl,
+            c0: 0,
+        }
+    }
+
+    fn full(&self) -> bool {
+        self.rows + 3 > self.r.len()
+    }
+
+    /// Begin the rows of span `g` (the stack must be empty).
+    fn start_group(&mut self, g: usize, extra: usize, n: usize) {
+        debug_assert_eq!(self.rows, 0);
+        self.b0 = g.saturating_sub(extra);
+        self.nl_cur = (g - self.b0) * n + self.nl;
+        self.c0 = self.b0 * n;
+    }
+
+    /// Add JᵀJ (lower triangle) and Jᵀr of the stacked rows to `out`, and
+    /// empty the stack.
+    fn flush(&mut self, out: &mut Linearization<'_>) {
+        if self.rows == 0 {
+            return;
+        }
+        let (nl, cols) = (self.nl_cur, self.nl_cur + self.columns.len());
+        let jt = self.jt.as_ref().submatrix(0, 0, cols, self.rows);
+        let r = MatRef::from_column_major_slice(&self.r[..self.rows], self.rows, 1);
+        let mut local = self.local.as_mut().submatrix_mut(0, 0, cols, cols);
+        faer::linalg::matmul::triangular::matmul(
+            local.as_mut(),
+            BlockStructure::TriangularLower,
+            Accum::Replace,
+            jt,
+            BlockStructure::Rectangular,
+            jt.transpose(),
+            BlockStructure::Rectangular,
+            1.0,
+            Par::Seq,
+        );
+        let mut glocal = self.glocal.as_mut().submatrix_mut(0, 0, cols, 1);
+        faer::linalg::matmul::matmul(glocal.as_mut(), Accum::Replace, jt, r, 1.0, Par::Seq);
+        let c0 = self.c0;
+        out.a.add_local(c0, nl, &self.x_index, local.as_ref());
+        let nc = out.a.dims().0;
+        for a in 0..nl {
+            out.g[c0 + a] += glocal[(a, 0)];
+        }
+        for (b, &xa) in self.x_index.iter().enumerate() {
+            out.g[nc + xa] += glocal[(nl + b, 0)];
+        }
+        self.rows = 0;
     }
 }
 

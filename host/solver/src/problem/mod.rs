@@ -14,6 +14,47 @@
 //! gives the dense block J_gᵀ J_g over its p+1 basis functions and x_a, added
 //! to the band, border and corner (never a global J).
 //!
+//! **Noise that is not white** (docs/model.md §4.6, [`robimu_model::noise`]).
+//! With a [`NoiseModel`] in [`ProblemOptions::noise`] the IMU rows are the
+//! generalised-least-squares ones: per channel, the raw residuals
+//! r_i = z_i − h_i divided by their level s_i are prewhitened by the
+//! channel's AR filter along the selected samples in time order,
+//!
+//! ```text
+//! w_t = scale_t·(u_t − Σ_{k=1..m} a_k u_{t−k}),  u_i = r_i / s_i,
+//! (a, scale_t) = ArNoise::whitening(t),  t = position in the segment,
+//! ```
+//!
+//! so that ½‖w‖² = ½ rᵀΣ⁻¹r with Σ the block-Toeplitz covariance (exact,
+//! no approximation at segment starts). Segments start at the first
+//! selected sample and after every gap (a time step > 1.5× the median step
+//! of the session's IMU stream); different segments are independent. The
+//! levels s_i = sqrt(1 + c‖q̈(t_i+τ)‖²/σ²) are computed from the current
+//! trajectory in [`crate::LeastSquares::begin_iteration`] (with the sample
+//! selection) and **held fixed** during the linearisation: they are not
+//! differentiated (the Gauss–Newton matrix is that of the weighted problem
+//! with the weights frozen, as in iteratively reweighted least squares).
+//! Until the first `begin_iteration` every level is 1.
+//!
+//! **Rows spanning knot intervals.** A whitened row of sample t combines the
+//! raw Jacobian rows of samples t−m … t, whose basis functions may begin in
+//! earlier knot spans: the row's band part covers the union of their
+//! basis functions, from span `first(t) − E` to `first(t) + p_s` (p_s the
+//! spline degree). The extra number of spans E is bounded a priori by
+//! E = ⌊P·Δt_max / h_min⌋ + 1 (P the largest AR order, Δt_max = 1.5× the median
+//! step the largest step inside a segment, h_min the shortest knot
+//! interval), and the arrowhead band is widened to
+//! w = (p_s + 1 + E)·n − 1 ([`Problem::bandwidth`]). The assembly keeps the
+//! per-span grouping of the white case: a group holds the rows of the samples
+//! whose own span is g, stacked over the band unknowns of spans g−E … g+p_s
+//! (clipped at 0), and is flushed as one dense block. Each sample's raw
+//! residual and Jacobian are computed once and kept in a ring of the last
+//! P+1 samples, from which the whitened rows are combined; the two assembly
+//! threads each recompute the P samples before their half. The effect
+//! columns ([`EffectSet`]) are part of those rows and so are whitened alike.
+//! With a white model (every channel white, no motion level) the original
+//! white assembly runs unchanged and E = 0.
+//!
 //! Only the IMU samples whose u lies inside the joint-sample span (with a
 //! small margin, [`Problem::margin`]) are used; the set is chosen by
 //! [`Problem::select_samples`] from the current τ at the start of each
@@ -21,13 +62,16 @@
 //! like with like (docs/model.md §4: the set is updated as τ moves).
 
 mod assemble;
+#[cfg(test)]
+mod gls_tests;
 
 use std::ops::Range;
 
 use robimu_model::effects::EffectSet;
+use robimu_model::noise::NoiseModel;
 pub use robimu_model::observations::Measurements;
 use robimu_model::{
-    Basis, Knots, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
+    Basis, JointState, Knots, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
 };
 
 /// Why the problem cannot be evaluated at some θ.
@@ -55,8 +99,11 @@ pub enum ProblemError {
 pub struct ProblemOptions {
     /// σ of each joint position, rad.
     pub sigma_q: Vec<f64>,
-    /// σ of `[ax, ay, az, gx, gy, gz]`.
+    /// σ of `[ax, ay, az, gx, gy, gz]` (white noise; ignored when `noise` is given).
     pub sigma_z: [f64; 6],
+    /// The IMU noise model (None: white of `sigma_z`, the paper's model). A
+    /// white model gives exactly the white problem.
+    pub noise: Option<NoiseModel>,
     /// Include the prior residuals (off only for identifiability checks).
     pub use_prior: bool,
     /// Indices of x that are held fixed.
@@ -72,6 +119,19 @@ pub struct Problem<'a> {
     n: usize,
     inv_sigma_q: Vec<f64>,
     inv_sigma_z: [f64; 6],
+    /// The IMU noise model in use.
+    noise: NoiseModel,
+    /// Whether it is white (then the white assembly runs).
+    white: bool,
+    /// Extra knot spans E a whitened row reaches back (0 when white).
+    extra_spans: usize,
+    /// Median step of the IMU stream (segments break at > 1.5× it).
+    median_dt: f64,
+    /// Position of each selected sample in its segment (index i − imu_range.start).
+    seg_pos: Vec<u32>,
+    /// 1/s_i per channel for every IMU sample (empty when no channel has a
+    /// motion level; set for the selected samples by `begin_iteration`).
+    inv_levels: Vec<[f64; 6]>,
     prior_mean: Vec<f64>,
     prior_inv_sigma: Vec<f64>,
     use_prior: bool,
@@ -137,6 +197,22 @@ impl<'a> Problem<'a> {
                 .chain((0..effects.len()).map(|e| (nx + e, na + e)))
                 .collect()
         });
+        let noise = match &opts.noise {
+            Some(m) => m.clone(),
+            None => NoiseModel::white(opts.sigma_z).expect("positive sigma_z"),
+        };
+        let white = noise.is_white();
+        let median_dt = median_step(&data.imu_t);
+        let extra_spans = if white {
+            0
+        } else {
+            extra_spans(&knots, noise.max_order(), 1.5 * median_dt)
+        };
+        let inv_levels = if noise.imu.iter().any(|c| c.motion > 0.0) {
+            vec![[1.0; 6]; data.imu_t.len()]
+        } else {
+            Vec::new()
+        };
         let mut p = Self {
             robot,
             layout,
@@ -144,7 +220,13 @@ impl<'a> Problem<'a> {
             knots,
             n,
             inv_sigma_q: opts.sigma_q.iter().map(|s| 1.0 / s).collect(),
-            inv_sigma_z: opts.sigma_z.map(|s| 1.0 / s),
+            inv_sigma_z: noise.sigma_z().map(|s| 1.0 / s),
+            noise,
+            white,
+            extra_spans,
+            median_dt,
+            seg_pos: Vec::new(),
+            inv_levels,
             prior_mean: specs.iter().map(|s| s.nominal).collect(),
             prior_inv_sigma: specs.iter().map(|s| 1.0 / s.sigma).collect(),
             use_prior: opts.use_prior,
@@ -170,9 +252,40 @@ impl<'a> Problem<'a> {
         self.knots.num_coeffs() * self.n
     }
 
-    /// Half-bandwidth of the coefficient block: (p+1)·n − 1.
+    /// Half-bandwidth of the coefficient block: (p+1+E)·n − 1, E the extra
+    /// knot spans a whitened row reaches back (0 for white noise; module doc).
     pub fn bandwidth(&self) -> usize {
-        (self.knots.degree() + 1) * self.n - 1
+        (self.knots.degree() + 1 + self.extra_spans) * self.n - 1
+    }
+
+    /// The IMU noise model in use.
+    pub fn noise(&self) -> &NoiseModel {
+        &self.noise
+    }
+
+    /// Extra knot spans E a whitened IMU row reaches back (module doc).
+    pub fn extra_spans(&self) -> usize {
+        self.extra_spans
+    }
+
+    /// Compute the levels s_i of the selected samples from the trajectory
+    /// of θ (held fixed until the next call; see the module doc). Nothing to
+    /// do when no channel has a motion level.
+    pub fn update_levels(&mut self, theta: &[f64]) -> Result<(), ProblemError> {
+        if self.inv_levels.is_empty() {
+            return Ok(());
+        }
+        let spline = self.spline_of(theta);
+        let tau = self.x_of(theta)[self.layout.offsets().tau];
+        let mut js = JointState::default();
+        for i in self.imu_range.clone() {
+            spline
+                .evaluate(self.data.imu_t[i] + tau, &mut js)
+                .map_err(|_| ProblemError::SampleOutOfSpan)?;
+            let qdd2: f64 = js.qdd[..self.n].iter().map(|v| v * v).sum();
+            self.inv_levels[i] = std::array::from_fn(|c| 1.0 / self.noise.imu[c].level(qdd2));
+        }
+        Ok(())
     }
 
     /// x indices of the estimated parameters (θ's x part, in order).
@@ -258,6 +371,18 @@ impl<'a> Problem<'a> {
             return Err(ProblemError::NoOverlap { tau });
         }
         self.imu_range = lo..hi;
+        if !self.white {
+            let gap = 1.5 * self.median_dt;
+            self.seg_pos.clear();
+            let mut pos = 0u32;
+            for i in lo..hi {
+                if i > lo && t[i] - t[i - 1] > gap {
+                    pos = 0;
+                }
+                self.seg_pos.push(pos);
+                pos = pos.saturating_add(1);
+            }
+        }
         Ok(())
     }
 
@@ -265,6 +390,32 @@ impl<'a> Problem<'a> {
     pub fn model(&self, x: &[f64]) -> Result<MeasurementModel, ProblemError> {
         Ok(MeasurementModel::new(self.robot, self.layout, x)?)
     }
+}
+
+/// Median of the steps of `t` (0 with fewer than two samples).
+fn median_step(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// E = ⌊order·dt_max / h_min⌋ + 1: how many knot spans `order` steps of at most
+/// `dt_max` can cross (h_min the shortest non-empty knot interval).
+fn extra_spans(knots: &Knots, order: usize, dt_max: f64) -> usize {
+    if order == 0 {
+        return 0;
+    }
+    let h_min = knots
+        .knots()
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|&h| h > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    // An interval of length L contains at most ⌊L/h_min⌋ + 1 knots.
+    (order as f64 * dt_max / h_min).floor() as usize + 1
 }
 
 /// Whether the rows of `sensor` (0: accelerometer, 1: gyroscope) can depend
@@ -287,7 +438,8 @@ impl crate::LeastSquares for Problem<'_> {
     type Error = ProblemError;
     fn begin_iteration(&mut self, theta: &[f64]) -> Result<(), ProblemError> {
         let tau = self.x_of(theta)[self.layout.offsets().tau];
-        self.select_samples(tau)
+        self.select_samples(tau)?;
+        self.update_levels(theta)
     }
     fn cost(&self, theta: &[f64]) -> Result<f64, ProblemError> {
         Problem::cost(self, theta)

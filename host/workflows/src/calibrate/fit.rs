@@ -16,12 +16,20 @@
 //! 5. Convergence check, then the posterior covariance of [x_a, θ_E] as the
 //!    inverse of the Schur complement S of the normal matrix at the optimum
 //!    (eq. (24) restricted to x), and the whitened IMU residuals.
+//!
+//! The IMU noise is white of σ_z (the paper's model) unless
+//! [`CalibrateOptions::noise`] gives a [`NoiseModel`]: then every step's
+//! cost is the generalised least squares ½ rᵀΣ⁻¹r of that model (AR
+//! correlation in time, motion-dependent level; see
+//! [`robimu_solver::problem`]), so the covariance, the residuals and the
+//! effects' score tests all account for it.
 
 use faer::Mat;
 
 use super::{check_measurements, choose_knots, CalibrateError, CalibrateOptions};
 use crate::time_offset::{find_tau, TauEstimate};
 use robimu_model::effects::{EffectParam, EffectSet};
+use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{MeasurementModel, ParamLayout, Robot, Spline};
 use robimu_solver as solver;
@@ -107,10 +115,14 @@ pub struct Fit {
     pub knot_spacing: f64,
     /// Whitened residual RMS per joint of the initial spline fit.
     pub joint_fit_rms: Vec<f64>,
+    /// The IMU noise model of the fit (white of σ_z unless
+    /// [`CalibrateOptions::noise`] gave one); the residuals are whitened by it.
+    pub noise: NoiseModel,
 }
 
 impl Fit {
-    /// Whitened residual RMS per IMU channel.
+    /// RMS per IMU channel of the whitened residuals (GLS-whitened with a
+    /// noise model that is not white: about 1 when the model fits).
     pub fn residual_rms(&self) -> [f64; 6] {
         let n = self.residuals.len().max(1) as f64;
         std::array::from_fn(|c| {
@@ -239,6 +251,7 @@ pub fn fit(
         tau_initial: initial.tau_initial,
         knot_spacing: initial.knot_spacing,
         joint_fit_rms: initial.joint_fit_rms,
+        noise: problem.noise().clone(),
     })
 }
 
