@@ -331,6 +331,119 @@ pub fn identify_channel(
     qdd2: Option<&[f64]>,
     opts: &IdOptions,
 ) -> Result<ChannelIdentification, NoiseIdError> {
+    identify_channel_with(channel, t, r, qdd2, opts, None)
+}
+
+/// Σ over segments of Σ_t u_t u_{t−k}, over the total sample count, k = 0..=lags.
+fn pooled_autocovariance(parts: &[&[f64]], lags: usize) -> Vec<f64> {
+    let n: usize = parts.iter().map(|p| p.len()).sum();
+    (0..=lags)
+        .map(|k| {
+            parts
+                .iter()
+                .map(|u| (k..u.len()).map(|i| u[i] * u[i - k]).sum::<f64>())
+                .sum::<f64>()
+                / n.max(1) as f64
+        })
+        .collect()
+}
+
+/// Levinson–Durbin on autocovariances γ_0…γ_pmax, as a [`Burg`] (orders
+/// stop before the first |k| ≥ 1, where γ is not positive definite).
+fn levinson(g: &[f64], samples: usize) -> Burg {
+    let mut a: Vec<f64> = Vec::new();
+    let mut v = vec![g[0]];
+    let mut reflection = Vec::new();
+    for m in 1..g.len() {
+        let s: f64 = (0..m - 1).map(|j| a[j] * g[m - 1 - j]).sum();
+        let k = (g[m] - s) / v[m - 1];
+        if k.is_nan() || k.abs() >= 1.0 {
+            break;
+        }
+        let mut next: Vec<f64> = (0..m - 1).map(|j| a[j] - k * a[m - 2 - j]).collect();
+        next.push(k);
+        a = next;
+        reflection.push(k);
+        v.push(v[m - 1] * (1.0 - k * k));
+    }
+    Burg {
+        reflection,
+        error_variance: v,
+        samples,
+    }
+}
+
+/// The AR fit of `parts`: Burg, or with an `imprint` the corrected
+/// Yule–Walker fit (γ_k = c_k + S(0)·imprint_k, S(0) = σ_e²/(1 − Σφ)² to a
+/// fixed point). Returns (φ, γ_0).
+fn fit_ar(parts: &[&[f64]], p_max: usize, imprint: Option<&[f64]>) -> (Vec<f64>, f64) {
+    let Some(imp) = imprint else {
+        let b = burg(parts, p_max);
+        let p = b.best_order();
+        return (b.phi(p), b.error_variance[0]);
+    };
+    let n: usize = parts.iter().map(|p| p.len()).sum();
+    let p_max = p_max.min(imp.len() - 1);
+    let c = pooled_autocovariance(parts, p_max);
+    let mut s0 = c[0] / (1.0 - imp[0]).max(1e-3);
+    let mut out = (Vec::new(), c[0] + s0 * imp[0]);
+    for _ in 0..50 {
+        let g: Vec<f64> = (0..=p_max).map(|k| c[k] + s0 * imp[k]).collect();
+        let b = levinson(&g, n);
+        let p = b.best_order();
+        let phi = b.phi(p);
+        let sum: f64 = phi.iter().sum();
+        let next = b.error_variance[p] / ((1.0 - sum) * (1.0 - sum)).max(1e-12);
+        out = (phi, g[0]);
+        if (next - s0).abs() <= 1e-9 * s0 {
+            break;
+        }
+        s0 = next;
+    }
+    out
+}
+
+/// Ljung–Box p-value with `dof` degrees of freedom; with an `imprint` the
+/// autocovariances are first corrected as for white noise (S(0) = γ_0).
+fn ljung_box_corrected(r: &[f64], lags: usize, dof: usize, imprint: Option<&[f64]>) -> f64 {
+    let Some(imp) = imprint else {
+        return ljung_box_p(r, lags, dof);
+    };
+    let n = r.len();
+    let lags = lags.min(imp.len() - 1).min(n.saturating_sub(2));
+    let c = pooled_autocovariance(&[r], lags);
+    let s0 = c[0] / (1.0 - imp[0]).max(1e-3);
+    let g0 = c[0] + s0 * imp[0];
+    if g0 <= 0.0 {
+        return 1.0;
+    }
+    let nf = n as f64;
+    let q: f64 = (1..=lags)
+        .map(|k| {
+            let rho = (c[k] + s0 * imp[k]) / g0;
+            rho * rho / (nf - k as f64)
+        })
+        .sum::<f64>()
+        * nf
+        * (nf + 2.0);
+    chi2_sf(q, dof.max(1) as f64)
+}
+
+/// [`identify_channel`] for residuals of a linear fit (a spline over time)
+/// that has left its `imprint` on them: for unit white noise the fit's
+/// residuals have E[c_k] = δ_k − imprint_k (k = 0…, at least p_max and the
+/// Ljung–Box lags; estimate it by fitting white draws). The AR is then
+/// fitted to autocovariances corrected by S(0)·imprint_k — valid when the
+/// fit varies slowly on the noise's correlation time — and Ljung–Box tests
+/// the corrected autocorrelations.
+pub fn identify_channel_with(
+    channel: &str,
+    t: &[f64],
+    r: &[f64],
+    qdd2: Option<&[f64]>,
+    opts: &IdOptions,
+    imprint: Option<&[f64]>,
+) -> Result<ChannelIdentification, NoiseIdError> {
     let bad = |message: String| NoiseIdError::BadSamples {
         channel: channel.to_string(),
         message,
@@ -371,9 +484,7 @@ pub fn identify_channel(
     let r: Vec<f64> = r.iter().map(|v| v - mean).collect();
     let fit = |u: &[f64]| {
         let parts: Vec<&[f64]> = segs.iter().map(|s| &u[s.clone()]).collect();
-        let b = burg(&parts, p_max);
-        let p = b.best_order();
-        (b.phi(p), b.error_variance[0])
+        fit_ar(&parts, p_max, imprint)
     };
     let (mut phi, ms) = fit(&r);
     if ms <= 0.0 {
@@ -423,8 +534,13 @@ pub fn identify_channel(
         correlation_time_s: ar.correlation_time(dt),
         n_eff_fraction: ar.effective_fraction(),
         sigma_understatement: ar.low_frequency_ratio().sqrt(),
-        ljung_box_p: ljung_box_p(&r, opts.lags, opts.lags),
-        ljung_box_whitened_p: ljung_box_p(&w, opts.lags, opts.lags.saturating_sub(p)),
+        ljung_box_p: ljung_box_corrected(&r, opts.lags, opts.lags, imprint),
+        ljung_box_whitened_p: ljung_box_corrected(
+            &w,
+            opts.lags,
+            opts.lags.saturating_sub(p),
+            imprint,
+        ),
         samples: n,
         segments: segs.len(),
         dt,
@@ -467,15 +583,27 @@ pub fn identify(
         let rc: Vec<f64> = r.iter().map(|v| v[c]).collect();
         channels.push(identify_channel(name, t, &rc, qdd2, opts)?);
     }
-    let p: Vec<f64> = channels.iter().map(|c| c.ljung_box_p).collect();
-    let white = white_by_bonferroni(&p, WHITENESS_ALPHA);
-    Ok(Identification {
-        model: NoiseModel {
-            imu: std::array::from_fn(|c| channels[c].noise.clone()),
-        },
-        white: std::array::from_fn(|c| white[c]),
-        channels,
-    })
+    Ok(Identification::from_channels(channels))
+}
+
+impl Identification {
+    /// The six channels' identifications `[ax, …, gz]` gathered, with the
+    /// family-wise whiteness decision.
+    ///
+    /// # Panics
+    /// When not given exactly six channels.
+    pub fn from_channels(channels: Vec<ChannelIdentification>) -> Self {
+        assert_eq!(channels.len(), 6, "six IMU channels");
+        let p: Vec<f64> = channels.iter().map(|c| c.ljung_box_p).collect();
+        let white = white_by_bonferroni(&p, WHITENESS_ALPHA);
+        Self {
+            model: NoiseModel {
+                imu: std::array::from_fn(|c| channels[c].noise.clone()),
+            },
+            white: std::array::from_fn(|c| white[c]),
+            channels,
+        }
+    }
 }
 
 #[cfg(test)]
