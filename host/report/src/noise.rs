@@ -76,6 +76,8 @@ impl fmt::Display for NoiseTable<'_> {
 pub struct NoiseCorrelationTable<'a> {
     /// The identification.
     pub id: &'a robimu_workflows::noise_id::Identification,
+    /// The spline fits whose residuals it used.
+    pub estimate: &'a NoiseEstimate,
 }
 
 impl fmt::Display for NoiseCorrelationTable<'_> {
@@ -90,11 +92,17 @@ impl fmt::Display for NoiseCorrelationTable<'_> {
             "{:<8} {:>5} {:>9} {:>9} {:>8} {:>10} {:>10} {:>6}  phi",
             "channel", "order", "corr [ms]", "N_eff/N", "x sigma", "motion c", "LB p", "white"
         )?;
-        for (c, w) in self.id.channels.iter().zip(self.id.white) {
+        for ((c, w), fit) in self
+            .id
+            .channels
+            .iter()
+            .zip(self.id.white)
+            .zip(&self.estimate.sigma_z)
+        {
             let phi: Vec<String> = c.phi.iter().map(|v| format!("{v:.3}")).collect();
             writeln!(
                 f,
-                "{:<8} {:>5} {:>9.2} {:>9.3} {:>8.2} {:>10} {:>10.2e} {:>6}  [{}]",
+                "{:<8} {:>5} {:>9.2} {:>9.3} {:>8.2} {:>10} {:>10.2e} {:>6}  [{}]{}",
                 c.channel,
                 c.order,
                 1e3 * c.correlation_time_s,
@@ -107,13 +115,18 @@ impl fmt::Display for NoiseCorrelationTable<'_> {
                 },
                 c.ljung_box_p,
                 if w { "yes" } else { "no" },
-                phi.join(", ")
+                phi.join(", "),
+                if fit.resolved || w {
+                    ""
+                } else {
+                    "  (knot search unresolved: the spline absorbed slow noise; time, N_eff, factor and sigma understated)"
+                }
             )?;
         }
         writeln!(
             f,
             "(x sigma: how much a white model understates the sigma of a slowly determined parameter; \
-             spline residuals flag correlation reliably but understate its time when it is comparable to the knot spacing)"
+             spline residuals flag correlation reliably but understate its time when it is not short against the knot spacing)"
         )
     }
 }

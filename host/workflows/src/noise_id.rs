@@ -22,6 +22,12 @@
 //!   when t = κ/se(κ) > [`IdOptions::motion_t`], otherwise c = 0. When
 //!   accepted, σ² at rest is mean(r²)/(1 + κ x̄) and the AR is refitted to
 //!   the residuals divided by their level s_i.
+//! * **Residuals of a flexible fit** (a spline over time, `robimu noise`):
+//!   the fit removes the noise's slow part, so even white noise leaves
+//!   correlated residuals; [`identify_channel_with`] corrects the sample
+//!   autocovariances by the fit's imprint on white noise, γ_k = c_k +
+//!   S(0)·imprint_k (S(0) to a fixed point), and fits the AR to those by
+//!   Levinson–Durbin.
 //! * **Whiteness**: Ljung–Box ([`crate::diagnose::ljung_box`], 20 lags) on
 //!   the residuals as given (H0: white) and on the whitened residuals (H0:
 //!   the AR model is adequate; χ² with lags − p dof). Over the six IMU
@@ -175,9 +181,7 @@ pub fn segments(t: &[f64], gap_factor: f64) -> Vec<std::ops::Range<usize>> {
     if t.len() < 2 {
         return std::iter::once(0..t.len()).collect();
     }
-    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    steps.sort_by(f64::total_cmp);
-    let median = steps[steps.len() / 2];
+    let median = median_step(t);
     let mut out = Vec::new();
     let mut start = 0;
     for i in 1..t.len() {

@@ -73,7 +73,14 @@ impl NoiseCmd {
             &IdOptions::default(),
         )
         .with_context(|| format!("cannot identify the noise of {}", dir.display()))?;
-        write!(out, "{}", NoiseCorrelationTable { id: &id })?;
+        write!(
+            out,
+            "{}",
+            NoiseCorrelationTable {
+                id: &id,
+                estimate: &est
+            }
+        )?;
         let file = NoiseFile {
             noise: est.to_override(),
         };
