@@ -642,6 +642,82 @@ fn noise_recovers_the_simulated_sigmas_and_feeds_calibrate() {
         .assert_fails(&["missing", "not a session directory"]);
 }
 
+/// `robimu noise` on a session whose accelerometer noise is AR(1) (30 ms)
+/// and gyroscope noise white: the correlation table flags exactly the
+/// accelerometer channels, and noise.toml carries `ar_z` and `motion_z`.
+#[test]
+fn noise_reports_the_correlation_of_correlated_accelerometer_noise() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = simulate(tmp.path(), "s", "60", "21", &["--noise-free"]);
+    let robot = Robot::aubo_i5();
+    let sigma = robot.sigma_z();
+    let dt = 1.0 / 120.0;
+    let phi = (-dt / 0.03_f64).exp();
+    let ar = robimu_model::noise::ArNoise::new(vec![phi], 1.0).unwrap();
+    let imu = dir.join("imu.csv");
+    let rows = std::fs::read_to_string(&imu).unwrap().lines().count() - 1;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let mut u = [0.0; 3];
+    let noise: Vec<[f64; 6]> = (0..rows)
+        .map(|i| {
+            let (a, scale) = ar.whitening(i);
+            std::array::from_fn(|c| {
+                let e: f64 = StandardNormal.sample(&mut rng);
+                if c < 3 {
+                    u[c] = a.first().map_or(0.0, |a| a * u[c]) + e / scale;
+                    sigma[c] * u[c]
+                } else {
+                    sigma[c] * e
+                }
+            })
+        })
+        .collect();
+    edit(&imu, |line, l| {
+        if line == 1 {
+            assert!(l.starts_with("t,ax,ay,az,gx,gy,gz"), "{l}");
+            return Some(l.to_string());
+        }
+        let mut v: Vec<String> = l.split(',').map(str::to_string).collect();
+        for c in 0..6 {
+            let x: f64 = v[c + 1].parse().unwrap();
+            v[c + 1] = format!("{}", x + noise[line - 2][c]);
+        }
+        Some(v.join(","))
+    });
+    let file = tmp.path().join("n.toml");
+    let run = robimu_ok(&["noise", s(&dir), "--out", s(&file)]);
+    let table = run
+        .stdout
+        .split("noise correlation")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no correlation table:\n{}", run.stdout));
+    for (c, name) in ["ax", "ay", "az", "gx", "gy", "gz"].iter().enumerate() {
+        let row: Vec<&str> = table
+            .lines()
+            .find(|l| l.starts_with(name))
+            .unwrap_or_else(|| panic!("no {name} row:\n{}", run.stdout))
+            .split_whitespace()
+            .collect();
+        let order: usize = row[1].parse().unwrap();
+        let white = row[7];
+        if c < 3 {
+            assert!(order > 0 && white == "no", "{name}:\n{}", run.stdout);
+        } else {
+            assert!(order == 0 && white == "yes", "{name}:\n{}", run.stdout);
+        }
+    }
+    let doc: toml::Table = toml::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    let ar_z = doc["noise"]["ar_z"].as_array().unwrap();
+    assert_eq!(ar_z.len(), 6);
+    for (c, phi) in ar_z.iter().enumerate() {
+        assert_eq!(phi.as_array().unwrap().is_empty(), c >= 3, "{ar_z:?}");
+    }
+    assert_eq!(doc["noise"]["motion_z"].as_array().unwrap().len(), 6);
+    assert_eq!(doc["noise"]["sigma_z"].as_array().unwrap().len(), 6);
+}
+
 #[test]
 fn allan_reads_off_the_density_of_a_static_recording() {
     use rand::SeedableRng;

@@ -70,3 +70,63 @@ impl fmt::Display for NoiseTable<'_> {
         Ok(())
     }
 }
+
+/// The identified correlation and motion level of each IMU channel's noise
+/// (`robimu noise`, after the σ table), one row a channel.
+pub struct NoiseCorrelationTable<'a> {
+    /// The identification.
+    pub id: &'a robimu_workflows::noise_id::Identification,
+    /// The spline fits whose residuals it used.
+    pub estimate: &'a NoiseEstimate,
+}
+
+impl fmt::Display for NoiseCorrelationTable<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "noise correlation (AR by BIC on the spline residuals; white: Ljung-Box, Bonferroni over 6 at {}):",
+            robimu_workflows::noise_id::WHITENESS_ALPHA
+        )?;
+        writeln!(
+            f,
+            "{:<8} {:>5} {:>9} {:>9} {:>8} {:>10} {:>10} {:>6}  phi",
+            "channel", "order", "corr [ms]", "N_eff/N", "x sigma", "motion c", "LB p", "white"
+        )?;
+        for ((c, w), fit) in self
+            .id
+            .channels
+            .iter()
+            .zip(self.id.white)
+            .zip(&self.estimate.sigma_z)
+        {
+            let phi: Vec<String> = c.phi.iter().map(|v| format!("{v:.3}")).collect();
+            writeln!(
+                f,
+                "{:<8} {:>5} {:>9.2} {:>9.3} {:>8.2} {:>10} {:>10.2e} {:>6}  [{}]{}",
+                c.channel,
+                c.order,
+                1e3 * c.correlation_time_s,
+                c.n_eff_fraction,
+                c.sigma_understatement,
+                if c.motion > 0.0 {
+                    format!("{:.3e}", c.motion)
+                } else {
+                    "-".to_string()
+                },
+                c.ljung_box_p,
+                if w { "yes" } else { "no" },
+                phi.join(", "),
+                if fit.resolved || w {
+                    ""
+                } else {
+                    "  (knot search unresolved: the spline absorbed slow noise; time, N_eff, factor and sigma understated)"
+                }
+            )?;
+        }
+        writeln!(
+            f,
+            "(x sigma: how much a white model understates the sigma of a slowly determined parameter; \
+             spline residuals flag correlation reliably but understate its time when it is not short against the knot spacing)"
+        )
+    }
+}

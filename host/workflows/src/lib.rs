@@ -11,6 +11,7 @@
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
 //! * [`motion_accuracy`] — the IMU accuracy of a tracked motion (paper Fig. 11);
 //! * [`noise`] — Σ_z and Σ_q of a recording by spline fitting (paper §8.1);
+//! * [`noise_id`] — a channel's noise model (AR correlation, motion level) from its residuals;
 //! * [`plan`] — excitation trajectory planning (paper §7);
 //! * [`repeatability`] — calibrations of k time windows against the full one;
 //! * [`simulate`] — simulated sessions from a ground truth;
@@ -58,6 +59,7 @@ pub mod identifiability;
 pub mod montecarlo;
 pub mod motion_accuracy;
 pub mod noise;
+pub mod noise_id;
 pub mod plan;
 pub mod repeatability;
 pub mod simulate;

@@ -25,9 +25,14 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{JointState, Knots, Spline, SplineError};
 use robimu_session::{toml_error, NoiseOverride, SessionError, IMU_COLUMNS};
+
+use crate::noise_id::{
+    identify_channel_with, ChannelIdentification, IdOptions, Identification, NoiseIdError,
+};
 
 /// Settings of the spacing search.
 #[derive(Debug, Clone)]
@@ -123,6 +128,33 @@ pub enum NoiseError {
         /// The cause.
         source: SplineError,
     },
+    /// The identification of a channel's correlation failed.
+    #[error(transparent)]
+    Identification(#[from] NoiseIdError),
+}
+
+/// The spline fit at spacing h.
+fn fit_spline(
+    t: &[f64],
+    y: &[f64],
+    span: (f64, f64),
+    h: f64,
+    degree: usize,
+) -> Result<Spline, SplineError> {
+    let knots = Knots::uniform(span.0, span.1, h, degree)?;
+    Spline::fit(knots, 1, t, y)
+}
+
+/// The residuals y − spline(t).
+fn spline_residuals(spline: &Spline, t: &[f64], y: &[f64]) -> Result<Vec<f64>, SplineError> {
+    let mut js = JointState::default();
+    t.iter()
+        .zip(y)
+        .map(|(&ti, &yi)| {
+            spline.evaluate(ti, &mut js)?;
+            Ok(yi - js.q[0])
+        })
+        .collect()
 }
 
 /// A fit at spacing h: (RSS, m).
@@ -133,16 +165,9 @@ fn fit_rss(
     h: f64,
     degree: usize,
 ) -> Result<(f64, usize), SplineError> {
-    let knots = Knots::uniform(span.0, span.1, h, degree)?;
-    let m = knots.num_coeffs();
-    let spline = Spline::fit(knots, 1, t, y)?;
-    let mut js = JointState::default();
-    let mut rss = 0.0;
-    for (&ti, &yi) in t.iter().zip(y) {
-        spline.evaluate(ti, &mut js)?;
-        let r = yi - js.q[0];
-        rss += r * r;
-    }
+    let spline = fit_spline(t, y, span, h, degree)?;
+    let m = spline.knots().num_coeffs();
+    let rss = spline_residuals(&spline, t, y)?.iter().map(|r| r * r).sum();
     Ok((rss, m))
 }
 
@@ -262,6 +287,149 @@ pub fn estimate_noise(
     Ok(NoiseEstimate { sigma_z, sigma_q })
 }
 
+/// The time span of `t` (finite samples assumed).
+fn span_of(t: &[f64]) -> (f64, f64) {
+    t.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        })
+}
+
+/// The residuals of the spline fit of `y` at spacing `h`, and the fit's
+/// imprint on white noise (lags 0..=`lags`): for unit white noise the
+/// residuals' autocovariances are δ_k − imprint_k, here averaged over
+/// [`IMPRINT_DRAWS`] draws fitted with the same knots at the same times.
+fn residuals_and_imprint(
+    channel: &str,
+    t: &[f64],
+    y: &[f64],
+    h: f64,
+    degree: usize,
+    lags: usize,
+) -> Result<(Vec<f64>, Vec<f64>), NoiseError> {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let spline_err = |source| NoiseError::Spline {
+        channel: channel.to_string(),
+        source,
+    };
+    let span = span_of(t);
+    let spline = fit_spline(t, y, span, h, degree).map_err(spline_err)?;
+    let r = spline_residuals(&spline, t, y).map_err(spline_err)?;
+    let n = t.len();
+    let mut imprint = vec![0.0; lags + 1];
+    let mut rng = rand::rngs::StdRng::seed_from_u64(0x1A7E_5EED);
+    for _ in 0..IMPRINT_DRAWS {
+        let e: Vec<f64> = (0..n).map(|_| StandardNormal.sample(&mut rng)).collect();
+        let s = fit_spline(t, &e, span, h, degree).map_err(spline_err)?;
+        let w = spline_residuals(&s, t, &e).map_err(spline_err)?;
+        // δ_k − c_k(w), with the draw's own c_k(e) for δ_k (a control
+        // variate: the same draw's sampling error largely cancels)
+        for (k, v) in imprint.iter_mut().enumerate() {
+            let ce: f64 = (k..n).map(|i| e[i] * e[i - k]).sum::<f64>() / n as f64;
+            let cw: f64 = (k..n).map(|i| w[i] * w[i - k]).sum::<f64>() / n as f64;
+            *v += (ce - cw) / IMPRINT_DRAWS as f64;
+        }
+    }
+    Ok((r, imprint))
+}
+
+/// White draws averaged for a fit's imprint.
+const IMPRINT_DRAWS: usize = 4;
+
+/// ‖q̈‖² at the IMU sample times, from each joint's spline at the spacing
+/// the noise search chose for it (clamped to the joints' time span).
+fn joint_acceleration2(
+    data: &Measurements,
+    n: usize,
+    est: &NoiseEstimate,
+    opts: &NoiseOptions,
+) -> Result<Vec<f64>, NoiseError> {
+    let mut out = vec![0.0; data.imu_t.len()];
+    let span = span_of(&data.joint_t);
+    let mut js = JointState::default();
+    for j in 0..n {
+        let name = format!("q{}", j + 1);
+        let y: Vec<f64> = data.joint_q.iter().skip(j).step_by(n).copied().collect();
+        let spline = fit_spline(&data.joint_t, &y, span, est.sigma_q[j].spacing, opts.degree)
+            .map_err(|source| NoiseError::Spline {
+                channel: name,
+                source,
+            })?;
+        for (o, &t) in out.iter_mut().zip(&data.imu_t) {
+            spline.evaluate_clamped(t, &mut js);
+            *o += js.qdd[0] * js.qdd[0];
+        }
+    }
+    Ok(out)
+}
+
+/// The noise model of one IMU channel from its spline residuals.
+///
+/// Any fit removes the noise's slow part: the residuals of white noise are
+/// themselves correlated at the knot scale (a spline of m coefficients takes
+/// m/N of their variance, below the knot frequency), so the AR is fitted to
+/// autocovariances corrected by the fit's imprint on white noise
+/// ([`identify_channel_with`]), and white channels come out white.
+///
+/// Limitation: the knot search of [`channel_noise`] cannot tell correlated
+/// noise from motion (slow noise power makes every refinement look
+/// significant), so on a correlated channel it refines to its finest
+/// spacing and the spline absorbs most of the slow noise. The channel is
+/// then reliably flagged as correlated (Ljung–Box, order > 0), but its
+/// correlation time, N_eff and σ are not recovered from these residuals:
+/// take them from a calibration's residuals, where the model has far fewer
+/// parameters than a spline.
+fn identify_spline_channel(
+    channel: &str,
+    t: &[f64],
+    y: &[f64],
+    spacing: f64,
+    qdd2: &[f64],
+    opts: &NoiseOptions,
+    id_opts: &IdOptions,
+) -> Result<ChannelIdentification, NoiseError> {
+    let lags = id_opts.lags.max(id_opts.max_order);
+    let (r, imprint) = residuals_and_imprint(channel, t, y, spacing, opts.degree, lags)?;
+    Ok(identify_channel_with(
+        channel,
+        t,
+        &r,
+        Some(qdd2),
+        id_opts,
+        Some(&imprint),
+    )?)
+}
+
+/// The noise model of the six IMU channels (AR correlation, motion level,
+/// whiteness; [`crate::noise_id`]) from the residuals of the spline fits of
+/// `est` (corrected for the spline's imprint on white noise; see
+/// [`identify_spline_channel`] for what these residuals cannot tell), with
+/// the motion regressor ‖q̈‖² from the joint splines.
+pub fn identify_imu_noise(
+    data: &Measurements,
+    n: usize,
+    est: &NoiseEstimate,
+    opts: &NoiseOptions,
+    id_opts: &IdOptions,
+) -> Result<Identification, NoiseError> {
+    let qdd2 = joint_acceleration2(data, n, est, opts)?;
+    let mut channels = Vec::with_capacity(6);
+    for (c, name) in IMU_COLUMNS.iter().enumerate() {
+        let y: Vec<f64> = data.imu_z.iter().map(|v| v[c]).collect();
+        channels.push(identify_spline_channel(
+            name,
+            &data.imu_t,
+            &y,
+            est.sigma_z[c].spacing,
+            &qdd2,
+            opts,
+            id_opts,
+        )?);
+    }
+    Ok(Identification::from_channels(channels))
+}
+
 /// A noise file: a TOML document whose `[noise]` table has session.toml's
 /// format (other keys are ignored).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -283,11 +451,33 @@ impl NoiseFile {
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("a noise table always serialises")
     }
+
+    /// The TOML text with the noise model's correlation and motion level as
+    /// optional keys of `[noise]`: `ar_z` (per IMU channel the AR
+    /// coefficients φ_1…φ_p, an empty list when white) and `motion_z` (per
+    /// channel the motion gain c of σ²(t) = σ² + c‖q̈‖²).
+    pub fn to_toml_with_model(&self, model: &NoiseModel) -> String {
+        let mut doc = toml::Table::try_from(self).expect("a noise table always serialises");
+        let table = doc
+            .get_mut("noise")
+            .and_then(toml::Value::as_table_mut)
+            .expect("the [noise] table");
+        let ar: Vec<toml::Value> = model
+            .imu
+            .iter()
+            .map(|c| toml::Value::Array(c.ar.phi().iter().map(|&v| v.into()).collect()))
+            .collect();
+        let motion: Vec<toml::Value> = model.imu.iter().map(|c| c.motion.into()).collect();
+        table.insert("ar_z".into(), toml::Value::Array(ar));
+        table.insert("motion_z".into(), toml::Value::Array(motion));
+        toml::to_string(&doc).expect("a noise table always serialises")
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::noise_id::IdOptions;
     use crate::simulate::{random_session, SimulateOptions};
     use robimu_model::Robot;
 
@@ -364,6 +554,86 @@ mod tests {
         let e = channel_noise("y", &t, &y, &NoiseOptions::default()).unwrap();
         assert!(e.resolved && e.spacing < 1.0, "{e:?}");
         assert!((e.sigma - 0.3).abs() < 4.0 * e.std_error, "{e:?}");
+    }
+
+    /// Noise-free motion plus AR(1) accelerometer noise of correlation time
+    /// 30 ms and white gyroscope and joint noise: the accelerometer channels
+    /// are flagged as correlated, the gyroscope channels come out white
+    /// (order 0, Ljung–Box not rejecting) despite the spline's imprint.
+    #[test]
+    fn identifies_correlated_accelerometer_noise() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let robot = Robot::aubo_i5();
+        let mut opts = SimulateOptions::paper(&robot);
+        opts.noise = false;
+        let mut s = random_session(&robot, 120.0, 1.0, &opts, 21).unwrap();
+        let paper = SimulateOptions::paper(&robot);
+        let dt = 1.0 / paper.imu_rate;
+        let tc = 0.03;
+        let ar =
+            robimu_model::noise::ArNoise::new(vec![(-dt / tc).exp()], paper.sigma_z[0]).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+        let mut normal = || -> f64 { StandardNormal.sample(&mut rng) };
+        let mut u = [0.0; 3];
+        for (i, z) in s.data.imu_z.iter_mut().enumerate() {
+            let (a, scale) = ar.whitening(i);
+            for c in 0..3 {
+                let pred = a.first().map_or(0.0, |a| a * u[c]);
+                u[c] = pred + normal() / scale;
+                z[c] += u[c] * paper.sigma_z[c] / paper.sigma_z[0];
+            }
+            for c in 3..6 {
+                z[c] += paper.sigma_z[c] * normal();
+            }
+        }
+        let nq = robot.dof();
+        for (k, q) in s.data.joint_q.iter_mut().enumerate() {
+            *q += paper.sigma_q[k % nq] * normal();
+        }
+        let o = NoiseOptions::default();
+        let est = estimate_noise(&s.data, nq, &o).unwrap();
+        for (c, e) in est.sigma_z.iter().enumerate() {
+            eprintln!("spline {c}: {e:?} (true σ {:.3e})", paper.sigma_z[c]);
+        }
+        let id = identify_imu_noise(&s.data, nq, &est, &o, &IdOptions::default()).unwrap();
+        let want = ar.correlation_time(dt);
+        for c in &id.channels {
+            eprintln!(
+                "{}: p = {} φ = {:?} T = {:.1} ms (true {:.1}) σ = {:.3e} c = {:.2e} LB p = {:.2e}",
+                c.channel,
+                c.order,
+                c.phi,
+                1e3 * c.correlation_time_s,
+                1e3 * want,
+                c.sigma,
+                c.motion,
+                c.ljung_box_p
+            );
+        }
+        for c in 0..3 {
+            let ch = &id.channels[c];
+            assert!(
+                !id.white[c] && ch.order > 0 && ch.ljung_box_p < 1e-6,
+                "{ch:?}"
+            );
+        }
+        for c in 3..6 {
+            assert!(
+                id.white[c] && id.channels[c].order == 0,
+                "{:?}",
+                id.channels[c]
+            );
+        }
+        let text = NoiseFile {
+            noise: est.to_override(),
+        }
+        .to_toml_with_model(&id.model);
+        let doc: toml::Table = toml::from_str(&text).unwrap();
+        let ar_z = doc["noise"]["ar_z"].as_array().unwrap();
+        assert_eq!(ar_z.len(), 6);
+        assert!(ar_z[3].as_array().unwrap().is_empty());
+        assert_eq!(doc["noise"]["motion_z"].as_array().unwrap().len(), 6);
     }
 
     #[test]

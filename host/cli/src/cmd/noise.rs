@@ -4,9 +4,10 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Context;
-use robimu_report::noise::NoiseTable;
+use robimu_report::noise::{NoiseCorrelationTable, NoiseTable};
 use robimu_session::Session;
-use robimu_workflows::noise::{estimate_noise, NoiseFile, NoiseOptions};
+use robimu_workflows::noise::{estimate_noise, identify_imu_noise, NoiseFile, NoiseOptions};
+use robimu_workflows::noise_id::IdOptions;
 
 use super::input::{output_path, session_robot};
 
@@ -16,8 +17,12 @@ use super::input::{output_path, session_robot};
 /// time, the knot spacing halved while that still explains significantly
 /// more of the signal, and takes the residual σ (corrected for the fit's
 /// degrees of freedom). Prints the table (with the σ a calibration would
-/// otherwise assume: the session's `[noise]` or the robot's) and writes a TOML file with a
-/// `[noise]` table in session.toml's format, for `robimu calibrate --noise`.
+/// otherwise assume: the session's `[noise]` or the robot's), then each IMU
+/// channel's identified noise correlation (AR order and coefficients,
+/// correlation time, N_eff/N, the factor a white model understates σ by,
+/// motion gain, Ljung–Box whiteness), and writes a TOML file with a
+/// `[noise]` table in session.toml's format (plus `ar_z` and `motion_z`),
+/// for `robimu calibrate --noise`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct NoiseCmd {
     /// Session directory (session.toml, joints.csv, imu.csv), recorded while
@@ -36,7 +41,8 @@ impl NoiseCmd {
             .with_context(|| format!("cannot load the session {}", dir.display()))?;
         let path = output_path(self.out.as_deref(), dir.join("noise.toml"))?;
         let data = session.measurements();
-        let est = estimate_noise(&data, session.joint_count(), &NoiseOptions::default())
+        let opts = NoiseOptions::default();
+        let est = estimate_noise(&data, session.joint_count(), &opts)
             .with_context(|| format!("cannot estimate the noise of {}", dir.display()))?;
         // the σ a calibration would otherwise assume, for comparison
         let assumed = session_robot(&session)
@@ -59,10 +65,26 @@ impl NoiseCmd {
                 assumed
             }
         )?;
+        let id = identify_imu_noise(
+            &data,
+            session.joint_count(),
+            &est,
+            &opts,
+            &IdOptions::default(),
+        )
+        .with_context(|| format!("cannot identify the noise of {}", dir.display()))?;
+        write!(
+            out,
+            "{}",
+            NoiseCorrelationTable {
+                id: &id,
+                estimate: &est
+            }
+        )?;
         let file = NoiseFile {
             noise: est.to_override(),
         };
-        std::fs::write(&path, file.to_toml())
+        std::fs::write(&path, file.to_toml_with_model(&id.model))
             .with_context(|| format!("cannot write {}", path.display()))?;
         writeln!(out, "wrote {}", path.display())?;
         Ok(())
