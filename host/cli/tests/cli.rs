@@ -1038,3 +1038,124 @@ fn simulate_noise_model_is_recorded_and_correlated() {
     ])
     .assert_fails(&["--noise-model ar1:accel=x", "must be a number"]);
 }
+
+/// `calibrate --noise-model auto` (the default) on white noise keeps the
+/// white model; on AR(1) accelerometer noise (the session's `[noise]`
+/// table stripped of its `ar_z`, so nothing tells the fit) it identifies φ
+/// from the residuals, refits by GLS, writes the model into result.json,
+/// and its σ cover the errors where the white fit's do not.
+#[test]
+fn calibrate_identifies_correlated_noise_and_keeps_white_noise_white() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (white, ar) = (tmp.path().join("white"), tmp.path().join("ar"));
+    robimu_ok([
+        "simulate",
+        "--duration",
+        "90",
+        "--seed",
+        "5",
+        "--out",
+        s(&white),
+    ]);
+    robimu_ok([
+        "simulate",
+        "--duration",
+        "90",
+        "--seed",
+        "5",
+        "--noise-model",
+        "ar1:accel=30",
+        "--out",
+        s(&ar),
+    ]);
+    let meta = ar.join("session.toml");
+    let text = std::fs::read_to_string(&meta).unwrap();
+    assert!(text.contains("ar_z"), "{text}");
+    let stripped: String = text
+        .lines()
+        .filter(|l| !l.starts_with("ar_z") && !l.starts_with("motion_z"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&meta, stripped).unwrap();
+
+    let run = robimu_ok(["calibrate", s(&white)]);
+    assert!(
+        run.stdout.contains("noise model: white ("),
+        "{}",
+        run.stdout
+    );
+    assert!(
+        !run.stdout.contains("generalised least squares"),
+        "{}",
+        run.stdout
+    );
+
+    let nees = |out: &str| -> f64 {
+        let line = out
+            .lines()
+            .find(|l| l.contains("NEES = "))
+            .expect("NEES line");
+        line.split("NEES = ")
+            .nth(1)
+            .unwrap()
+            .split(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let run = robimu_ok(["calibrate", s(&ar)]);
+    assert!(
+        run.stdout
+            .contains("noise model: identified from the residuals"),
+        "{}",
+        run.stdout
+    );
+    let phi = 0.7575; // exp(-1/(120 Hz · 30 ms))
+    for c in ["ax", "ay", "az"] {
+        let line = run
+            .stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("  {c}: AR(1) phi [")))
+            .unwrap();
+        let got: f64 = line
+            .split('[')
+            .nth(1)
+            .unwrap()
+            .split(']')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!((got - phi).abs() < 0.03, "{c}: phi {got} vs {phi}");
+    }
+    for c in ["gx", "gy", "gz"] {
+        assert!(
+            run.stdout.contains(&format!("  {c}: white")),
+            "{}",
+            run.stdout
+        );
+    }
+    let gls = nees(&run.stdout);
+    let result: Value =
+        serde_json::from_str(&std::fs::read_to_string(ar.join("result.json")).unwrap()).unwrap();
+    assert_eq!(
+        result["noise_model"]["kind"], "ar",
+        "{}",
+        result["noise_model"]
+    );
+    let white_fit = robimu_ok(["calibrate", s(&ar), "--noise-model", "white"]);
+    let naive = nees(&white_fit.stdout);
+    // 48 parameters: the 95 % range of NEES is 30.7 .. 69.0
+    assert!(gls < 69.0, "GLS NEES {gls}");
+    assert!(
+        naive > gls && naive > 69.0,
+        "white NEES {naive} vs GLS {gls}"
+    );
+
+    // a noise file with an explosive AR model is refused with the reason
+    let bad = tmp.path().join("bad.toml");
+    std::fs::write(&bad, "[noise]\nar_z = [[1.2], [], [], [], [], []]\n").unwrap();
+    robimu(["calibrate", s(&ar), "--noise-model", s(&bad)]).assert_fails(&["stationary"]);
+    robimu(["calibrate", s(&ar), "--noise-model", "nonsense"]).assert_fails(&["--noise-model"]);
+}

@@ -130,3 +130,97 @@ impl fmt::Display for NoiseCorrelationTable<'_> {
         )
     }
 }
+
+/// The noise model a calibration used, and why (`calibrate --noise-model`).
+pub struct NoiseSummary<'a> {
+    choice: &'a robimu_workflows::calibrate::noise_choice::NoiseChoice,
+    outcome: &'a robimu_workflows::calibrate::noise_choice::NoiseOutcome,
+    used: &'a robimu_model::noise::NoiseModel,
+}
+
+impl<'a> NoiseSummary<'a> {
+    /// The summary of `outcome` under `choice`, the fit having used `used`.
+    pub fn new(
+        choice: &'a robimu_workflows::calibrate::noise_choice::NoiseChoice,
+        outcome: &'a robimu_workflows::calibrate::noise_choice::NoiseOutcome,
+        used: &'a robimu_model::noise::NoiseModel,
+    ) -> Self {
+        Self {
+            choice,
+            outcome,
+            used,
+        }
+    }
+}
+
+impl fmt::Display for NoiseSummary<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use robimu_workflows::calibrate::noise_choice::NoiseChoice;
+        let channels = |f: &mut fmt::Formatter<'_>| -> fmt::Result {
+            for (name, c) in IMU_COLUMNS.iter().zip(&self.used.imu) {
+                if c.is_white() {
+                    writeln!(f, "  {name}: white")?;
+                    continue;
+                }
+                let phi: Vec<String> = c.ar.phi().iter().map(|v| format!("{v:.3}")).collect();
+                write!(
+                    f,
+                    "  {name}: AR({}) phi [{}], N_eff/N {:.3}, a white model understates slow parameters' sigma x{:.2}",
+                    c.ar.order(),
+                    phi.join(", "),
+                    c.ar.effective_fraction(),
+                    c.ar.low_frequency_ratio().sqrt()
+                )?;
+                if c.motion > 0.0 {
+                    write!(f, ", motion gain {:.3e}", c.motion)?;
+                }
+                writeln!(f)?;
+            }
+            Ok(())
+        };
+        match self.choice {
+            NoiseChoice::White => writeln!(f, "noise model: white (--noise-model white)"),
+            NoiseChoice::Given(_) => {
+                writeln!(f, "noise model: given (generalised least squares):")?;
+                channels(f)
+            }
+            NoiseChoice::Auto => {
+                let p = |id: &robimu_workflows::noise_id::Identification| -> String {
+                    IMU_COLUMNS
+                        .iter()
+                        .zip(&id.channels)
+                        .map(|(n, c)| format!("{n} {:.2e}", c.ljung_box_p))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                match (&self.outcome.white_test, &self.outcome.identified) {
+                    (Some(t), None) if self.outcome.warning.is_none() => {
+                        if t.white.iter().all(|&w| w) {
+                            writeln!(
+                                f,
+                                "noise model: white (the residuals pass the Ljung-Box whiteness test; p: {})",
+                                p(t)
+                            )
+                        } else {
+                            writeln!(
+                                f,
+                                "noise model: white (Ljung-Box p: {}; no AR order or motion level is supported by the data)",
+                                p(t)
+                            )
+                        }
+                    }
+                    (Some(t), Some(_)) => {
+                        writeln!(
+                            f,
+                            "noise model: identified from the residuals, which are not white (Ljung-Box p: {}); refitted by generalised least squares ({} refits):",
+                            p(t),
+                            self.outcome.refits
+                        )?;
+                        channels(f)
+                    }
+                    _ => writeln!(f, "noise model: white (not identified; see the warning)"),
+                }
+            }
+        }
+    }
+}

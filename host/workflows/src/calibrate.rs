@@ -11,6 +11,7 @@
 pub mod fit;
 #[cfg(test)]
 mod gls_montecarlo;
+pub mod noise_choice;
 
 use faer::Side;
 use robimu_session::result::{

@@ -27,6 +27,7 @@
 //!    and ΔBIC = −LR + k ln N (reported). Add it, and repeat until no
 //!    candidate is significant.
 
+pub use crate::stats::{chi2_sf, ljung_box, ln_gamma, LJUNG_BOX_LAGS};
 use std::collections::BTreeMap;
 
 use serde::Serialize;
@@ -200,81 +201,6 @@ pub fn score_all(
     Ok(out)
 }
 
-/// P(χ²_k > x): the regularised upper incomplete gamma Q(k/2, x/2)
-/// (series for x < a+1, Lentz continued fraction otherwise; Numerical
-/// Recipes §6.2), evaluated in log space so tiny p-values do not underflow early.
-pub fn chi2_sf(x: f64, k: f64) -> f64 {
-    if x <= 0.0 {
-        return 1.0;
-    }
-    let (a, x) = (0.5 * k, 0.5 * x);
-    let lg = ln_gamma(a);
-    if x < a + 1.0 {
-        let (mut sum, mut del, mut ap) = (1.0 / a, 1.0 / a, a);
-        for _ in 0..10_000 {
-            ap += 1.0;
-            del *= x / ap;
-            sum += del;
-            if del.abs() < sum.abs() * 1e-16 {
-                break;
-            }
-        }
-        1.0 - (sum.ln() - x + a * x.ln() - lg).exp()
-    } else {
-        let tiny = 1e-300;
-        let mut b = x + 1.0 - a;
-        let mut c = 1.0 / tiny;
-        let mut d = 1.0 / b;
-        let mut h = d;
-        for i in 1..10_000 {
-            let an = -(i as f64) * (i as f64 - a);
-            b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let del = d * c;
-            h *= del;
-            if (del - 1.0).abs() < 1e-16 {
-                break;
-            }
-        }
-        (h.ln() - x + a * x.ln() - lg).exp()
-    }
-}
-
-/// ln Γ(a), a > 0 (Lanczos, g = 7, n = 9; relative error ~1e-15).
-#[allow(clippy::excessive_precision)] // the published coefficients, verbatim
-pub fn ln_gamma(a: f64) -> f64 {
-    const G: [f64; 9] = [
-        0.99999999999980993,
-        676.5203681218851,
-        -1259.1392167224028,
-        771.32342877765313,
-        -176.61502916214059,
-        12.507343278686905,
-        -0.13857109526572012,
-        9.9843695780195716e-6,
-        1.5056327351493116e-7,
-    ];
-    if a < 0.5 {
-        let pi = std::f64::consts::PI;
-        return (pi / (pi * a).sin()).ln() - ln_gamma(1.0 - a);
-    }
-    let a = a - 1.0;
-    let mut s = G[0];
-    for (i, g) in G.iter().enumerate().skip(1) {
-        s += g / (a + i as f64);
-    }
-    let t = a + 7.5;
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (a + 0.5) * t.ln() - t + s.ln()
-}
-
 /// Residual statistics of one fit (whitened residuals; see the module doc).
 #[derive(Debug, Clone, Serialize)]
 pub struct ResidualStats {
@@ -298,8 +224,6 @@ pub struct ResidualStats {
     pub top_regressor: BTreeMap<String, (String, f64, f64)>,
 }
 
-/// Ljung–Box lags.
-pub const LJUNG_BOX_LAGS: usize = 20;
 /// Welch segment length (samples).
 const SEGMENT: usize = 512;
 
@@ -493,27 +417,6 @@ pub fn windowed_rms(t: &[f64], r: &[f64], window: f64) -> Vec<(f64, f64)> {
         out.push((st / n as f64, (ss / n as f64).sqrt()));
     }
     out
-}
-
-/// Ljung–Box Q over `lags` lags and its p-value (χ² with `lags` dof).
-pub fn ljung_box(r: &[f64], lags: usize) -> (f64, f64) {
-    let n = r.len();
-    if n <= lags + 1 {
-        return (0.0, 1.0);
-    }
-    let m = r.iter().sum::<f64>() / n as f64;
-    let c0: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
-    if c0 <= 0.0 {
-        return (0.0, 1.0);
-    }
-    let mut q = 0.0;
-    for k in 1..=lags {
-        let ck: f64 = (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum();
-        let rho = ck / c0;
-        q += rho * rho / (n - k) as f64;
-    }
-    q *= n as f64 * (n as f64 + 2.0);
-    (q, chi2_sf(q, lags as f64))
 }
 
 /// Welch periodogram (Hann window, 50 % overlap, segments of 512): (frequency

@@ -15,6 +15,7 @@
 //! * [`plan`] — excitation trajectory planning (paper §7);
 //! * [`repeatability`] — calibrations of k time windows against the full one;
 //! * [`simulate`] — simulated sessions from a ground truth;
+//! * [`stats`] — χ² tail and Ljung–Box whiteness of residual sequences;
 //! * [`time_offset`] — finding τ before linearising;
 //! * [`tracker_offset`] — the tracker/robot time offset δ (paper §9);
 //! * [`tracker`] — tracker poses and their registration to the robot (paper §9);
@@ -63,6 +64,7 @@ pub mod noise_id;
 pub mod plan;
 pub mod repeatability;
 pub mod simulate;
+pub mod stats;
 pub mod time_offset;
 pub mod tracker;
 pub mod tracker_offset;

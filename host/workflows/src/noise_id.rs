@@ -28,7 +28,7 @@
 //!   autocovariances by the fit's imprint on white noise, γ_k = c_k +
 //!   S(0)·imprint_k (S(0) to a fixed point), and fits the AR to those by
 //!   Levinson–Durbin.
-//! * **Whiteness**: Ljung–Box ([`crate::diagnose::ljung_box`], 20 lags) on
+//! * **Whiteness**: Ljung–Box ([`crate::stats::ljung_box`], 20 lags) on
 //!   the residuals as given (H0: white) and on the whitened residuals (H0:
 //!   the AR model is adequate; χ² with lags − p dof). Over the six IMU
 //!   channels, [`white_by_bonferroni`] rejects whiteness of a channel when
@@ -37,7 +37,7 @@
 use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError};
 use robimu_session::IMU_COLUMNS;
 
-use crate::diagnose::{chi2_sf, ljung_box, LJUNG_BOX_LAGS};
+use crate::stats::{chi2_sf, ljung_box, LJUNG_BOX_LAGS};
 
 /// Fewest samples accepted: order 1 needs N/20 ≥ 1.
 pub const MIN_SAMPLES: usize = 20;

@@ -13,12 +13,14 @@ use robimu_report::fit_summary::{
     EffectEstimates, FitReport, RepeatabilityGroups, WeakDirectionsWarning,
 };
 use robimu_report::html::calibration_report;
+use robimu_report::noise::NoiseSummary;
 use robimu_report::ParameterTable;
 use robimu_session::result::CalibrationResult;
-use robimu_session::Session;
+use robimu_session::{check_ar_order_for_data, NoiseShape, Session};
 use robimu_solver::IterationRecord;
 use robimu_workflows::calibrate::fit::{fit, FitSpec, Start};
-use robimu_workflows::calibrate::{calibrate, check_measurements, CalibrateOptions, Calibration};
+use robimu_workflows::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
+use robimu_workflows::calibrate::{check_measurements, CalibrateOptions, Calibration};
 use robimu_workflows::diagnose::{effect_set, fit_json, setup_with};
 use robimu_workflows::noise::NoiseFile;
 use robimu_workflows::repeatability::{self, check_windows, Repeatability, Window};
@@ -74,6 +76,14 @@ pub struct CalibrateCmd {
     pub effects: Vec<String>,
     #[command(flatten)]
     pub resonance: super::input::ResonanceMode,
+    /// The IMU noise model: `auto` (white unless the residuals fail the
+    /// whiteness test; then identified from them and refitted by
+    /// generalised least squares; a session whose `[noise]` table gives
+    /// `ar_z`/`motion_z` is fitted with that model), `white` (the paper's
+    /// model), or a TOML FILE with a `[noise]` table of `sigma_z`, `ar_z`,
+    /// `motion_z` (docs/model.md §4.6, §7.2).
+    #[arg(long, value_name = "white|auto|FILE", default_value = "auto")]
+    pub noise_model: String,
 }
 
 impl CalibrateCmd {
@@ -100,7 +110,8 @@ impl CalibrateCmd {
 
         let progress = Progress::start("fitting the trajectory and finding the time offset tau");
         progress.println(IterationRecord::HEADER);
-        let cal = calibrate(&robot, &data, &opts, |r| {
+        let choice = self.noise_choice(&session, &robot, &opts, data.imu_t.len())?;
+        let cal = calibrate_with_noise(&robot, &data, &opts, &choice, |r| {
             progress.println(r.to_string());
             progress.set_message(format!(
                 "iteration {}: cost {:.6e}, lambda {:.1e}",
@@ -108,12 +119,21 @@ impl CalibrateCmd {
             ));
         });
         progress.finish();
-        let cal = cal.with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+        let (cal, noise) =
+            cal.with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
         write!(
             out,
             "{}",
             FitReport::brief(&cal, self.knot_spacing.is_none())
         )?;
+        write!(
+            out,
+            "{}",
+            NoiseSummary::new(&choice, &noise, &cal.noise_model)
+        )?;
+        if let Some(w) = &noise.warning {
+            eprintln!("warning: {w}");
+        }
         let result = result_file(&cal, &layout, &session, dir, opts.use_prior);
         writeln!(out)?;
         write!(
@@ -190,6 +210,47 @@ impl CalibrateCmd {
         }
         opts.knot_spacing = self.knot_spacing;
         Ok(opts)
+    }
+
+    /// The `--noise-model` choice: a FILE or the session's AR model as given,
+    /// else `white` or `auto`; an AR order beyond the data is refused.
+    fn noise_choice(
+        &self,
+        session: &Session,
+        robot: &Robot,
+        opts: &CalibrateOptions,
+        samples: usize,
+    ) -> anyhow::Result<NoiseChoice> {
+        let given = match self.noise_model.trim() {
+            "white" => return Ok(NoiseChoice::White),
+            "auto" => {
+                let m = session.noise_model(robot)?;
+                if m.is_white() {
+                    return Ok(NoiseChoice::Auto);
+                }
+                m
+            }
+            file => {
+                let path = Path::new(file);
+                if !path.is_file() {
+                    bail!("--noise-model `{file}`: not `white`, `auto` or a readable TOML file");
+                }
+                let shape = NoiseShape::read(path)
+                    .context("--noise-model")?
+                    .unwrap_or_default();
+                let sigma_z = NoiseFile::read(path)
+                    .context("--noise-model")?
+                    .noise
+                    .sigma_z
+                    .unwrap_or(opts.sigma_z);
+                shape
+                    .noise_model(sigma_z)
+                    .map_err(|e| anyhow::anyhow!("--noise-model {file}: [noise]: {e}"))?
+            }
+        };
+        check_ar_order_for_data(given.max_order(), samples)
+            .map_err(|e| anyhow::anyhow!("--noise-model: {e}"))?;
+        Ok(NoiseChoice::Given(Box::new(given)))
     }
 
     /// The `--effects` set (`None` without effects: then the catalogue, and

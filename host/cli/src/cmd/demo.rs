@@ -198,6 +198,7 @@ impl DemoCmd {
             report: Some(report.to_path_buf()),
             effects: Vec::new(),
             resonance: Default::default(),
+            noise_model: "auto".into(),
         }
         .run()
     }

@@ -1,0 +1,166 @@
+//! Which IMU noise model a calibration uses (docs/model.md §4.6): white
+//! (the paper's), a given one, or one identified from the calibration's own
+//! residuals.
+//!
+//! `Auto` fits with white noise first and tests each channel's residuals
+//! for whiteness (Ljung–Box, Bonferroni over the six channels at
+//! [`WHITENESS_ALPHA`](crate::noise_id::WHITENESS_ALPHA)). When they pass,
+//! or fail with no AR order or motion level the data support (the
+//! identified model is white), that is the result. When they fail, the noise is identified from the raw
+//! residuals r_i = z_i − h(x̂, q(t_i + τ̂)) ([`crate::noise_id::identify`]),
+//! the data are refitted by generalised least squares with it, and the
+//! noise is identified again from the new fit's residuals, until the model
+//! settles (every channel's order unchanged, φ within
+//! [`SETTLE_PHI`] and σ within [`SETTLE_SIGMA`] relative) or
+//! [`MAX_REFITS`] refits; a model that does not settle leaves the white
+//! result, with a warning.
+
+use robimu_model::noise::NoiseModel;
+use robimu_model::observations::Measurements;
+use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
+use robimu_solver::IterationRecord;
+
+use super::{calibrate, CalibrateError, CalibrateOptions, Calibration};
+use crate::noise_id::{identify, IdOptions, Identification};
+
+/// Most GLS refits of `Auto`.
+pub const MAX_REFITS: usize = 4;
+/// φ change below which the identified model has settled.
+pub const SETTLE_PHI: f64 = 0.02;
+/// Relative σ change below which the identified model has settled.
+pub const SETTLE_SIGMA: f64 = 0.02;
+
+/// The noise model to calibrate with.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NoiseChoice {
+    /// White noise of the options' σ_z.
+    White,
+    /// White unless the residuals show otherwise; then identified.
+    Auto,
+    /// This model.
+    Given(Box<NoiseModel>),
+}
+
+/// What the noise choice did.
+#[derive(Debug, Clone)]
+pub struct NoiseOutcome {
+    /// The identification from the white fit's residuals (`Auto`).
+    pub white_test: Option<Identification>,
+    /// The identification the final fit used (`Auto` with refits).
+    pub identified: Option<Identification>,
+    /// GLS refits made.
+    pub refits: usize,
+    /// Why the white result was kept although the residuals are not white.
+    pub warning: Option<String>,
+}
+
+/// Calibrate `data` with the noise model `choice` (see the module docs).
+pub fn calibrate_with_noise(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    choice: &NoiseChoice,
+    mut report: impl FnMut(&IterationRecord),
+) -> Result<(Calibration, NoiseOutcome), CalibrateError> {
+    let mut outcome = NoiseOutcome {
+        white_test: None,
+        identified: None,
+        refits: 0,
+        warning: None,
+    };
+    let with = |m: Option<NoiseModel>| CalibrateOptions {
+        noise: m,
+        ..opts.clone()
+    };
+    match choice {
+        NoiseChoice::White => {
+            return Ok((calibrate(robot, data, &with(None), &mut report)?, outcome))
+        }
+        NoiseChoice::Given(m) => {
+            return Ok((
+                calibrate(robot, data, &with(Some((**m).clone())), &mut report)?,
+                outcome,
+            ))
+        }
+        NoiseChoice::Auto => {}
+    }
+    let white = calibrate(robot, data, &with(None), &mut report)?;
+    let id_opts = IdOptions::default();
+    let first = match residual_identification(robot, data, &white, &id_opts) {
+        Ok(id) => id,
+        Err(e) => {
+            outcome.warning = Some(format!("noise not identified ({e}); white noise kept"));
+            return Ok((white, outcome));
+        }
+    };
+    let passes = first.white.iter().all(|&w| w);
+    // Failing the test but with no order or motion level that BIC or the
+    // level's t test supports, the white model is the identified one.
+    let nothing_to_model = first.model.is_white();
+    outcome.white_test = Some(first.clone());
+    if passes || nothing_to_model {
+        return Ok((white, outcome));
+    }
+    let mut current = first;
+    for k in 1..=MAX_REFITS {
+        let cal = calibrate(robot, data, &with(Some(current.model.clone())), &mut report)?;
+        outcome.refits = k;
+        let next = match residual_identification(robot, data, &cal, &id_opts) {
+            Ok(id) => id,
+            Err(e) => {
+                outcome.warning = Some(format!(
+                    "noise identification failed after refit {k} ({e}); white noise kept"
+                ));
+                return Ok((white, outcome));
+            }
+        };
+        if settled(&current.model, &next.model) {
+            outcome.identified = Some(current);
+            return Ok((cal, outcome));
+        }
+        current = next;
+    }
+    outcome.warning = Some(format!(
+        "the identified noise model did not settle in {MAX_REFITS} refits; the white-noise \
+         result is kept and its σ are too small where the residuals are correlated"
+    ));
+    Ok((white, outcome))
+}
+
+/// Whether two identified models agree (same orders, φ within
+/// [`SETTLE_PHI`], σ within [`SETTLE_SIGMA`]).
+fn settled(a: &NoiseModel, b: &NoiseModel) -> bool {
+    a.imu.iter().zip(&b.imu).all(|(a, b)| {
+        let (pa, pb) = (a.ar.phi(), b.ar.phi());
+        pa.len() == pb.len()
+            && pa.iter().zip(pb).all(|(x, y)| (x - y).abs() < SETTLE_PHI)
+            && (a.ar.sigma() / b.ar.sigma() - 1.0).abs() < SETTLE_SIGMA
+            && (a.motion - b.motion).abs() <= SETTLE_SIGMA * a.motion.max(b.motion)
+    })
+}
+
+/// The noise identified from the raw IMU residuals of `cal`, with ‖q̈‖² of
+/// its trajectory as the motion regressor.
+pub fn residual_identification(
+    robot: &Robot,
+    data: &Measurements,
+    cal: &Calibration,
+    opts: &IdOptions,
+) -> Result<Identification, String> {
+    let layout = ParamLayout::new(robot);
+    let model = MeasurementModel::new(robot, &layout, &cal.x).map_err(|e| e.to_string())?;
+    let tau = cal.x[layout.offsets().tau];
+    let n = robot.dof();
+    let (mut t, mut r, mut qdd2) = (Vec::new(), Vec::new(), Vec::new());
+    let mut js = JointState::default();
+    for (&ti, z) in data.imu_t.iter().zip(&data.imu_z) {
+        if cal.trajectory.evaluate(ti + tau, &mut js).is_err() {
+            continue;
+        }
+        let pred = model.predict(&js);
+        t.push(ti);
+        r.push(std::array::from_fn(|c| z[c] - pred[c]));
+        qdd2.push(js.qdd[..n].iter().map(|a| a * a).sum());
+    }
+    identify(&t, &r, Some(&qdd2), opts).map_err(|e| e.to_string())
+}
