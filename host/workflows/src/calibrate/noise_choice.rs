@@ -12,8 +12,9 @@
 //! noise is identified again from the new fit's residuals, until the model
 //! settles (every channel's order unchanged, φ within
 //! [`SETTLE_PHI`] and σ within [`SETTLE_SIGMA`] relative) or
-//! [`MAX_REFITS`] refits; a model that does not settle leaves the white
-//! result, with a warning.
+//! [`MAX_REFITS`] refits; a model that does not settle, or a refit that
+//! fails, leaves the white result, with a warning (never an error where the
+//! white fit succeeded).
 
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
@@ -103,7 +104,15 @@ pub fn calibrate_with_noise(
     }
     let mut current = first;
     for k in 1..=MAX_REFITS {
-        let cal = calibrate(robot, data, &with(Some(current.model.clone())), &mut report)?;
+        let cal = match calibrate(robot, data, &with(Some(current.model.clone())), &mut report) {
+            Ok(cal) => cal,
+            Err(e) => {
+                outcome.warning = Some(format!(
+                    "the refit with the identified noise failed ({e}); white noise kept"
+                ));
+                return Ok((white, outcome));
+            }
+        };
         outcome.refits = k;
         let next = match residual_identification(robot, data, &cal, &id_opts) {
             Ok(id) => id,
