@@ -18,6 +18,22 @@
 //! are configuration (`Configure`, about 40 ms of mode-switch delays) and
 //! re-initialisation (the chip's 650 ms reset time).
 //!
+//! # Sampling and the chip's internal rates
+//!
+//! In AMG mode the BNO055's accelerometer and gyroscope each filter at
+//! their configured bandwidth and update their data registers at their own
+//! internal output data rate (ODR: 2 × bandwidth for the accelerometer,
+//! 100–2000 Hz by bandwidth for the gyroscope; datasheet tables 3-8 and
+//! 3-9), on clocks the board cannot see (the chip has no data-ready signal
+//! in AMG mode). The core therefore reads **asynchronously** at its own
+//! `sample_rate_hz` on the board's clock, and reports the bandwidths and
+//! ODRs in `DeviceInfo::timing`. A reading is the last internal update:
+//! each sensor's value is delayed by its filter's group delay plus an age
+//! spread over [0, 1/ODR) (mean 1/(2·ODR)). While `sample_rate_hz` is at
+//! most both ODRs (the default: 120 Hz against 125 Hz and 1000 Hz), reads
+//! a full sample period apart never return the same update (read jitter
+//! aside); above an ODR some reads repeat the previous update. The host records both rates (session.toml `[imu]`).
+//!
 //! # Sequence numbers and drops
 //!
 //! `seq` numbers sample *slots* (deadlines): it advances by one per deadline,
@@ -43,7 +59,7 @@ use embedded_hal::i2c::I2c;
 use embedded_io::{Read, ReadReady, Write, WriteReady};
 use robimu_protocol::{
     encode_device, CommandError, CommandKind, CommandResult, DeviceInfo, DeviceMessage,
-    HostDecoder, HostMessage, ImuSample, Pong, SensorConfig, Status, DELIMITER,
+    HostDecoder, HostMessage, ImuSample, Pong, SensorConfig, SensorTiming, Status, DELIMITER,
     DEVICE_MAX_FRAME_LEN, PROTOCOL_VERSION,
 };
 
@@ -244,7 +260,13 @@ where
             accel_scale_mps2_per_lsb: regs::ACCEL_SCALE_MPS2_PER_LSB,
             gyro_scale_rads_per_lsb: regs::GYRO_SCALE_RADS_PER_LSB,
             temp_scale_c_per_lsb: regs::TEMP_SCALE_C_PER_LSB,
+            timing: SensorTiming::of(&self.config.sensor),
         }
+    }
+
+    /// The bus (a simulator runs the simulated chip's clocks through it).
+    pub fn bus_mut(&mut self) -> &mut I2C {
+        self.sensor.bus_mut()
     }
 
     /// Gives back the bus, delay, port and clock.

@@ -73,6 +73,11 @@ impl<I2C: I2c> Sensor<I2C> {
         self.i2c
     }
 
+    /// The bus.
+    pub fn bus_mut(&mut self) -> &mut I2C {
+        &mut self.i2c
+    }
+
     /// A driver over the borrowed bus that believes the chip is in `mode`.
     fn driver(&mut self, mode: BNO055OperationMode) -> Result<Bno055<&mut I2C>, Error> {
         let driver = Bno055::new(&mut self.i2c);

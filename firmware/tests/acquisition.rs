@@ -9,7 +9,8 @@ use robimu_firmware::acquisition::{TX_QUEUE_LEN, TX_RESERVE};
 use robimu_firmware::{Config, Error};
 use robimu_protocol::{
     AccelBandwidth, AccelRange, CommandError, CommandKind, CommandResult, DeviceInfo,
-    DeviceMessage, GyroBandwidth, GyroRange, HostMessage, ImuSample, Pong, SensorConfig, Status,
+    DeviceMessage, GyroBandwidth, GyroRange, HostMessage, ImuSample, Pong, SensorConfig,
+    SensorTiming, Status,
 };
 use support::{encode_time, Rig};
 
@@ -95,7 +96,7 @@ fn boot_waits_for_a_booting_chip_and_announces_the_device() {
         info,
         DeviceInfo {
             firmware_version: [0, 1, 0],
-            protocol_version: 1,
+            protocol_version: 2,
             chip_id: 0xA0,
             accel_id: 0xFB,
             mag_id: 0x32,
@@ -106,6 +107,13 @@ fn boot_waits_for_a_booting_chip_and_announces_the_device() {
             accel_scale_mps2_per_lsb: 0.01,
             gyro_scale_rads_per_lsb: 1.0 / 900.0,
             temp_scale_c_per_lsb: 1.0,
+            // the defaults' 62.5 Hz and 116 Hz: ODR 125 Hz and 1000 Hz
+            timing: SensorTiming {
+                accel_bandwidth_hz: 62.5,
+                accel_odr_hz: 125.0,
+                gyro_bandwidth_hz: 116.0,
+                gyro_odr_hz: 1000.0,
+            },
         }
     );
     let status = rig.core.status();
@@ -146,6 +154,61 @@ fn configuration_registers_are_set_in_the_chip() {
     assert_eq!(sim.operation_mode(), 0x07, "AMG");
     assert_eq!(sim.page(), 0, "page 0 left selected for burst reads");
     assert_eq!(sim.ignored_write_count(), 0, "no write outside CONFIG mode");
+}
+
+/// `DeviceInfo::timing` (the protocol's table) agrees with what the
+/// simulated chip does with the registers the core wrote (the simulator's
+/// own datasheet table), for every bandwidth setting.
+#[test]
+fn device_info_reports_the_chips_bandwidths_and_internal_rates() {
+    use robimu_bno055_sim::Sensor;
+    let accel = [
+        AccelBandwidth::Hz7_81,
+        AccelBandwidth::Hz15_63,
+        AccelBandwidth::Hz31_25,
+        AccelBandwidth::Hz62_5,
+        AccelBandwidth::Hz125,
+        AccelBandwidth::Hz250,
+        AccelBandwidth::Hz500,
+        AccelBandwidth::Hz1000,
+    ];
+    let gyro = [
+        GyroBandwidth::Hz523,
+        GyroBandwidth::Hz230,
+        GyroBandwidth::Hz116,
+        GyroBandwidth::Hz47,
+        GyroBandwidth::Hz23,
+        GyroBandwidth::Hz12,
+        GyroBandwidth::Hz64,
+        GyroBandwidth::Hz32,
+    ];
+    for (accel_bandwidth, gyro_bandwidth) in accel.into_iter().zip(gyro) {
+        let sensor = SensorConfig {
+            accel_bandwidth,
+            gyro_bandwidth,
+            ..SensorConfig::default()
+        };
+        let mut rig = Rig::new(
+            Config {
+                sensor,
+                ..rig_config()
+            },
+            0,
+            0,
+        );
+        rig.core.start().unwrap();
+        let t = rig.core.device_info().timing;
+        let sim = rig.bus.borrow();
+        let (a, g) = (sim.timing(Sensor::Accel), sim.timing(Sensor::Gyro));
+        assert_eq!(
+            f64::from(t.accel_bandwidth_hz),
+            a.bandwidth_hz,
+            "{sensor:?}"
+        );
+        assert_eq!(f64::from(t.accel_odr_hz), a.odr_hz, "{sensor:?}");
+        assert_eq!(f64::from(t.gyro_bandwidth_hz), g.bandwidth_hz, "{sensor:?}");
+        assert_eq!(f64::from(t.gyro_odr_hz), g.odr_hz, "{sensor:?}");
+    }
 }
 
 #[test]

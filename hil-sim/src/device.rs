@@ -21,7 +21,7 @@ use embedded_hal::delay::DelayNs;
 use nix::errno::Errno;
 use nix::fcntl::{fcntl, FcntlArg, OFlag};
 use nix::poll::{poll, PollFd, PollFlags};
-use robimu_bno055_sim::{Bno055Sim, SampleSource, SineSource};
+use robimu_bno055_sim::{Bno055Sim, ChipModel, SampleSource, SineSource};
 use robimu_firmware::{Acquisition, Clock, Config};
 use robimu_protocol::Status;
 use serialport::{SerialPort, TTYPort};
@@ -49,6 +49,10 @@ pub struct SimDeviceConfig {
     pub source: Box<dyn SampleSource + Send>,
     /// The firmware settings (address, rate, status period, autostart, …).
     pub config: Config,
+    /// How the simulated chip fills its data registers; in
+    /// [`ChipModel::Datasheet`] the device thread runs the chip's clocks
+    /// before every poll of the core (every `poll_interval`).
+    pub chip_model: ChipModel,
     /// Device clock at spawn time, µs.
     pub clock_offset_us: u64,
     /// Device clock rate error, ppm (positive: the device clock runs fast).
@@ -69,6 +73,7 @@ impl SimDeviceConfig {
         Self {
             source,
             config: Config::default(),
+            chip_model: ChipModel::Ideal,
             clock_offset_us: 0,
             clock_drift_ppm: 0.0,
             boot_busy_transactions: 0,
@@ -385,6 +390,7 @@ impl Drop for SimDevice {
 
 fn run(config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Status {
     let sim = Bno055Sim::new(config.config.i2c_address, config.source)
+        .with_model(config.chip_model)
         .booting_for(config.boot_busy_transactions);
     let clock = DriftingClock::new(config.clock_offset_us, config.clock_drift_ppm);
     let mut core: SimCore = Acquisition::new(sim, SleepDelay, serial, clock, config.config);
@@ -399,11 +405,13 @@ fn run(config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Status 
             control.resets.fetch_sub(1, Ordering::SeqCst);
             let (sim, delay, serial, _) = core.release();
             let sim = Bno055Sim::new(config.config.i2c_address, sim.into_source())
+                .with_model(config.chip_model)
                 .booting_for(config.boot_busy_transactions);
             let clock = DriftingClock::new(0, config.clock_drift_ppm);
             core = Acquisition::new(sim, delay, serial, clock, config.config);
             let _ = core.start();
         }
+        core.bus_mut().advance();
         core.poll();
         thread::sleep(config.poll_interval);
     }

@@ -51,6 +51,9 @@ pub struct DecoderStats {
     pub crc_errors: u64,
     /// [`WireError::WrongVersion`] count.
     pub version_errors: u64,
+    /// The version byte of the last frame refused for its version (a
+    /// device or host of another protocol version), if any.
+    pub foreign_version: Option<u8>,
     /// [`WireError::FrameTooLong`] count.
     pub too_long: u64,
     /// [`WireError::FrameTooShort`] count.
@@ -71,6 +74,9 @@ impl DecoderStats {
     }
 
     fn count_error(&mut self, e: &WireError) {
+        if let WireError::WrongVersion { found } = e {
+            self.foreign_version = Some(*found);
+        }
         let counter = match e {
             WireError::Cobs => &mut self.cobs_errors,
             WireError::Crc { .. } => &mut self.crc_errors,
@@ -150,6 +156,7 @@ impl<M: DeserializeOwned, const N: usize> Decoder<M, N> {
                 cobs_errors: 0,
                 crc_errors: 0,
                 version_errors: 0,
+                foreign_version: None,
                 too_long: 0,
                 too_short: 0,
                 deserialize_errors: 0,

@@ -30,9 +30,9 @@
 //!
 //! | message                         | max payload | max frame |
 //! |---------------------------------|------------:|----------:|
-//! | `DeviceMessage::Info`           | 32          | 39        |
+//! | `DeviceMessage::Info`           | 48          | **55**    |
 //! | `DeviceMessage::Sample`         | 30          | 37        |
-//! | `DeviceMessage::Status`         | 37          | **44**    |
+//! | `DeviceMessage::Status`         | 37          | 44        |
 //! | `DeviceMessage::Pong`           | 11          | 18        |
 //! | `DeviceMessage::CommandResult`  | 4           | 11        |
 //! | `HostMessage::Configure`        | 8           | **15**    |
@@ -50,9 +50,9 @@ use serde::Serialize;
 use crate::layout::CRC_LEN;
 use crate::{DeviceMessage, HostMessage, WireError, PROTOCOL_VERSION};
 
-/// Largest postcard payload of a [`DeviceMessage`] (`Status` with every
-/// counter at `u32::MAX`), bytes.
-pub const DEVICE_MAX_PAYLOAD_LEN: usize = 37;
+/// Largest postcard payload of a [`DeviceMessage`] (`Info` with a
+/// three-byte software revision and sample rate), bytes.
+pub const DEVICE_MAX_PAYLOAD_LEN: usize = 48;
 
 /// Largest postcard payload of a [`HostMessage`] (`Configure` with a
 /// three-byte sample rate), bytes.

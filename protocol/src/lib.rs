@@ -40,5 +40,11 @@ pub use layout::{CRC_LEN, DELIMITER, MIN_DECODED_LEN};
 pub use messages::*;
 
 /// Protocol version carried in every frame. Bump on any incompatible change
-/// to the message table or the framing.
-pub const PROTOCOL_VERSION: u8 = 1;
+/// to the message table or the framing; a receiver refuses frames of any
+/// other version ([`WireError::WrongVersion`], the version kept in
+/// [`DecoderStats::foreign_version`]).
+///
+/// History: 1, the first; 2, [`DeviceInfo::timing`] (the sensors'
+/// bandwidths and internal output data rates) — every other message is
+/// byte for byte as in version 1.
+pub const PROTOCOL_VERSION: u8 = 2;

@@ -78,6 +78,85 @@ pub enum GyroBandwidth {
     Hz32,
 }
 
+impl AccelBandwidth {
+    /// The low-pass bandwidth, Hz.
+    pub fn hz(self) -> f32 {
+        match self {
+            Self::Hz7_81 => 7.8125,
+            Self::Hz15_63 => 15.625,
+            Self::Hz31_25 => 31.25,
+            Self::Hz62_5 => 62.5,
+            Self::Hz125 => 125.0,
+            Self::Hz250 => 250.0,
+            Self::Hz500 => 500.0,
+            Self::Hz1000 => 1000.0,
+        }
+    }
+
+    /// The accelerometer's internal output data rate at this bandwidth:
+    /// twice the bandwidth (BNO055 table 3-8; its BMA280-class accelerometer), Hz.
+    pub fn odr_hz(self) -> f32 {
+        2.0 * self.hz()
+    }
+}
+
+impl GyroBandwidth {
+    /// The low-pass bandwidth, Hz.
+    pub fn hz(self) -> f32 {
+        match self {
+            Self::Hz523 => 523.0,
+            Self::Hz230 => 230.0,
+            Self::Hz116 => 116.0,
+            Self::Hz47 => 47.0,
+            Self::Hz23 => 23.0,
+            Self::Hz12 => 12.0,
+            Self::Hz64 => 64.0,
+            Self::Hz32 => 32.0,
+        }
+    }
+
+    /// The gyroscope's internal output data rate at this bandwidth (BNO055
+    /// table 3-9; its BMG160-class gyroscope), Hz.
+    pub fn odr_hz(self) -> f32 {
+        match self {
+            Self::Hz523 | Self::Hz230 => 2000.0,
+            Self::Hz116 => 1000.0,
+            Self::Hz47 => 400.0,
+            Self::Hz23 | Self::Hz64 => 200.0,
+            Self::Hz12 | Self::Hz32 => 100.0,
+        }
+    }
+}
+
+/// What the chip does between the board's reads: each sensor low-pass
+/// filters at its bandwidth and updates its data registers at its internal
+/// output data rate (ODR), on its own clock. The board reads asynchronously
+/// at [`SensorConfig::sample_rate_hz`]: a reading is the last internal
+/// update, whose age is spread over [0, 1/ODR).
+#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
+pub struct SensorTiming {
+    /// Accelerometer low-pass bandwidth, Hz.
+    pub accel_bandwidth_hz: f32,
+    /// Accelerometer internal output data rate, Hz.
+    pub accel_odr_hz: f32,
+    /// Gyroscope low-pass bandwidth, Hz.
+    pub gyro_bandwidth_hz: f32,
+    /// Gyroscope internal output data rate, Hz.
+    pub gyro_odr_hz: f32,
+}
+
+impl SensorTiming {
+    /// The timing the BNO055 has with `config`'s bandwidths.
+    pub fn of(config: &SensorConfig) -> Self {
+        Self {
+            accel_bandwidth_hz: config.accel_bandwidth.hz(),
+            accel_odr_hz: config.accel_bandwidth.odr_hz(),
+            gyro_bandwidth_hz: config.gyro_bandwidth.hz(),
+            gyro_odr_hz: config.gyro_bandwidth.odr_hz(),
+        }
+    }
+}
+
 /// Acquisition settings, sent by the host in [`HostMessage::Configure`] and
 /// reported back in [`DeviceInfo::config`].
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -135,6 +214,8 @@ pub struct DeviceInfo {
     pub gyro_scale_rads_per_lsb: f32,
     /// °C per temperature count (1.0).
     pub temp_scale_c_per_lsb: f32,
+    /// The sensors' bandwidths and internal output data rates (protocol 2).
+    pub timing: SensorTiming,
 }
 
 /// One accelerometer + gyroscope reading.

@@ -90,19 +90,21 @@ fn single_bit_flips_in_a_frame_never_decode() {
 #[test]
 fn wrong_version_carries_the_version_seen() {
     let mut dec = HostDecoder::new();
-    for version in [0u8, 2, 0xFF] {
+    // 1: the previous version (its frames are refused, not misread)
+    for version in [0u8, 1, 3, 0xFF] {
         assert_eq!(
             decode_all(&mut dec, &ref_frame(version, &[1])),
             vec![Err(WireError::WrongVersion { found: version })]
         );
     }
-    assert_eq!(dec.stats().version_errors, 3);
+    assert_eq!(dec.stats().version_errors, 4);
+    assert_eq!(dec.stats().foreign_version, Some(0xFF));
 }
 
 #[test]
 fn corrupted_version_byte_is_a_crc_error_not_a_version_error() {
     let mut f = frame_of(&HostMessage::Stop);
-    f[1] ^= 0x02; // version 1 -> 3; the CRC covers it
+    f[1] ^= 0x01; // version 2 -> 3; the CRC covers it
     let mut dec = HostDecoder::new();
     assert!(matches!(
         decode_all(&mut dec, &f)[..],

@@ -1,4 +1,4 @@
-//! Golden byte vectors: the exact frames of protocol version 1, checked in
+//! Golden byte vectors: the exact frames of protocol version 2, checked in
 //! at `tests/golden/frames.txt`, and pinned against independent references
 //! (bitwise CRC-32C, textbook COBS, hand-built postcard payloads).
 //!
@@ -33,6 +33,7 @@ fn realistic_info() -> DeviceInfo {
         accel_scale_mps2_per_lsb: 0.01,
         gyro_scale_rads_per_lsb: 1.0 / 900.0,
         temp_scale_c_per_lsb: 1.0,
+        timing: SensorTiming::of(&SensorConfig::default()),
     }
 }
 
@@ -186,7 +187,7 @@ fn golden_path() -> PathBuf {
 }
 
 const HEADER: &str = "\
-# robimu wire protocol v1: golden frames, `<name> <hex of the whole frame, 0x00 delimiter included>`.
+# robimu wire protocol v2: golden frames, `<name> <hex of the whole frame, 0x00 delimiter included>`.
 # frame = COBS(version ++ postcard(message) ++ crc32c_le(version ++ payload)) ++ 00
 # Checked by protocol/tests/golden.rs. Regenerate ONLY for a deliberate wire change (and bump
 # PROTOCOL_VERSION): ROBIMU_BLESS=1 cargo test -p robimu-protocol --test golden
@@ -346,12 +347,15 @@ fn payloads_match_hand_built_wire_format() {
     );
 
     let info = realistic_info();
-    let mut inf = vec![0u8, 0, 1, 0, 1, 0xA0, 0xFB, 0x32, 0x0F];
+    let mut inf = vec![0u8, 0, 1, 0, PROTOCOL_VERSION, 0xA0, 0xFB, 0x32, 0x0F];
     inf.extend(leb(0x0311));
     inf.push(0x15);
     inf.extend([1, 3, 0, 2]); // G4, Hz62_5, Dps2000, Hz116 (variant indices)
     inf.extend(leb(120));
-    for f in [0.01f32, 1.0 / 900.0, 1.0] {
+    // scales, then (protocol 2) accel bandwidth and ODR, gyro bandwidth and
+    // ODR of the defaults: 62.5 Hz → 125 Hz, 116 Hz → 1000 Hz (datasheet
+    // tables 3-8, 3-9)
+    for f in [0.01f32, 1.0 / 900.0, 1.0, 62.5, 125.0, 116.0, 1000.0] {
         inf.extend(f.to_le_bytes());
     }
     assert_eq!(
@@ -367,11 +371,11 @@ fn payloads_match_hand_built_wire_format() {
         ref_frame(PROTOCOL_VERSION, &[3, 0xEF, 0xFD, 0xB6, 0xF5, 0x0D])
     );
 
-    // Start: the smallest frame, version 01, variant 01, CRC; no zero byte
+    // Start: the smallest frame, version 02, variant 01, CRC; no zero byte
     // anywhere, so COBS is a single block: header 07, the 6 bytes, delimiter.
-    let crc = ref_crc32c(&[1, 1]).to_le_bytes();
+    let crc = ref_crc32c(&[2, 1]).to_le_bytes();
     assert!(!crc.contains(&0));
-    let mut start = vec![7, 1, 1];
+    let mut start = vec![7, 2, 1];
     start.extend(crc);
     start.push(0);
     assert_eq!(frame_of(&HostMessage::Start), start);
@@ -386,7 +390,7 @@ fn worst_case_sizes_match_the_documented_table() {
             .expect("named golden message");
         encode_golden(&g).len()
     };
-    assert_eq!(len("device/info_max"), 39);
+    assert_eq!(len("device/info_max"), 55);
     assert_eq!(len("device/sample_max"), 37);
     assert_eq!(len("device/status_max"), 44);
     assert_eq!(len("device/pong_max"), 18);
@@ -394,9 +398,9 @@ fn worst_case_sizes_match_the_documented_table() {
     assert_eq!(len("host/configure_max"), 15);
     assert_eq!(len("host/ping_max"), 13);
     assert_eq!(len("host/start"), 8);
-    assert_eq!(DEVICE_MAX_FRAME_LEN, len("device/status_max"));
+    assert_eq!(DEVICE_MAX_FRAME_LEN, len("device/info_max"));
     assert_eq!(HOST_MAX_FRAME_LEN, len("host/configure_max"));
-    assert_eq!(MAX_FRAME_LEN, 44);
+    assert_eq!(MAX_FRAME_LEN, 55);
     assert_eq!(max_frame_len(DEVICE_MAX_PAYLOAD_LEN), DEVICE_MAX_FRAME_LEN);
     // The sample at rest quoted in the docs.
     assert_eq!(len("device/sample"), 24);
@@ -413,4 +417,26 @@ fn encode_to_vec_matches_the_golden_frames() {
         .expect("encodes");
         assert_eq!(v, encode_golden(&g), "{name}");
     }
+}
+
+/// The `DeviceInfo` frame of protocol version 1 (as checked in before the
+/// step to version 2): a version-2 receiver refuses it by its version and
+/// keeps the version it found, so a host can name the mismatch.
+#[test]
+fn a_version_1_frame_is_refused_by_its_version() {
+    let v1_info = unhex("02010102010b01a0fb320f91061501030b02780ad7233cb4a2913a0107803f758cae2200");
+    let mut device = DeviceDecoder::new();
+    let out: Vec<_> = device.feed(&v1_info).collect();
+    assert_eq!(out, vec![Err(WireError::WrongVersion { found: 1 })]);
+    assert_eq!(device.stats().version_errors, 1);
+    assert_eq!(device.stats().foreign_version, Some(1));
+    // the same message re-framed as version 1 by the reference encoder is
+    // those very bytes: only the version byte (and CRC) tell them apart
+    let mut buf = [0u8; 64];
+    let mut v1 = realistic_info();
+    v1.protocol_version = 1;
+    let payload = postcard::to_slice(&DeviceMessage::Info(v1), &mut buf).unwrap();
+    // a v1 payload is the v2 one without the 16 bytes of `timing`
+    let v1_payload = &payload[..payload.len() - 16];
+    assert_eq!(ref_frame(1, v1_payload), v1_info);
 }

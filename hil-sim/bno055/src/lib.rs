@@ -8,7 +8,16 @@
 //! starts at a data register. For tests it can also refuse transactions while
 //! "booting" and fail transactions on demand ([`Bno055Sim::fail_next`]).
 //!
-//! The simulator has no clock: busy periods are counted in bus transactions.
+//! Two chip models ([`ChipModel`]): the ideal chip (the default) latches a
+//! fresh reading from the source at every data read; in datasheet mode the
+//! accelerometer and gyroscope sample on their own internal clocks at the
+//! output data rates their configured bandwidths imply, low-pass filtered
+//! at those bandwidths, and the registers hold the last update between two
+//! ([`timing`]: the datasheet facts and what is assumed).
+//!
+//! The simulator has no clock of its own: busy periods are counted in bus
+//! transactions, and in datasheet mode time is the source's
+//! ([`Stimulus::t_s`]).
 #![no_std]
 #![deny(unsafe_code, missing_docs)]
 
@@ -21,7 +30,9 @@ mod error;
 pub mod regs;
 mod sim;
 mod source;
+pub mod timing;
 
 pub use error::SimError;
-pub use sim::Bno055Sim;
-pub use source::{ConstantSource, RawReading, SampleSource, SineSource};
+pub use sim::{Bno055Sim, ChipModel};
+pub use source::{ConstantSource, RawReading, SampleSource, SineSource, Stimulus};
+pub use timing::{Sensor, Timing};

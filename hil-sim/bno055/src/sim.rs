@@ -3,6 +3,7 @@
 use embedded_hal::i2c::{ErrorType, I2c, Operation, SevenBitAddress};
 
 use crate::regs::*;
+use crate::timing::{self, Pipeline, Sensor, Timing};
 use crate::{RawReading, SampleSource, SimError};
 
 /// Registers per page.
@@ -15,6 +16,21 @@ const SYS_STATUS_IDLE: u8 = 0;
 const SYS_STATUS_FUSION: u8 = 5;
 const SYS_STATUS_NO_FUSION: u8 = 6;
 
+/// How the data registers get their values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum ChipModel {
+    /// A fresh reading from [`SampleSource::sample`] at every data read: no
+    /// filter, no internal clock (the default).
+    #[default]
+    Ideal,
+    /// The datasheet's AMG behaviour ([`crate::timing`]): each sensor
+    /// filters [`SampleSource::stimulus`] at its configured bandwidth and
+    /// updates its registers at its output data rate; reads between updates
+    /// return the previous update; range and `UNIT_SEL` saturate and scale.
+    /// A source without stimuli is served as by the ideal chip.
+    Datasheet,
+}
+
 /// A register-level simulated BNO055 on one 7-bit address.
 ///
 /// Implements [`I2c`]: a write's first byte sets the register pointer, further
@@ -24,6 +40,9 @@ const SYS_STATUS_NO_FUSION: u8 = 6;
 pub struct Bno055Sim<Src> {
     address: u8,
     source: Src,
+    model: ChipModel,
+    accel: Option<Pipeline>,
+    gyro: Option<Pipeline>,
     pages: [[u8; PAGE_LEN]; 2],
     pointer: u8,
     busy_remaining: u32,
@@ -43,6 +62,9 @@ impl<Src: SampleSource> Bno055Sim<Src> {
         let mut sim = Self {
             address,
             source,
+            model: ChipModel::Ideal,
+            accel: None,
+            gyro: None,
             pages: [[0; PAGE_LEN]; 2],
             pointer: 0,
             busy_remaining: 0,
@@ -56,6 +78,46 @@ impl<Src: SampleSource> Bno055Sim<Src> {
         };
         sim.load_reset_values();
         sim
+    }
+
+    /// The chip in `model` (default [`ChipModel::Ideal`]).
+    pub fn with_model(mut self, model: ChipModel) -> Self {
+        self.model = model;
+        self
+    }
+
+    /// The chip model.
+    pub fn model(&self) -> ChipModel {
+        self.model
+    }
+
+    /// Runs the internal clocks (datasheet mode) up to the source's next
+    /// [`Stimulus`](crate::Stimulus): every internal update in between is
+    /// written to the data registers. Call it often (at several times the
+    /// highest output data rate) so the filters see the signal finely; a
+    /// data read runs the clocks too. Nothing in the ideal model.
+    pub fn advance(&mut self) {
+        if self.model == ChipModel::Datasheet {
+            self.run_clocks();
+        }
+    }
+
+    /// The configured timing of `sensor` (from `ACC_Config` / `GYR_Config_0`).
+    pub fn timing(&self, sensor: Sensor) -> Timing {
+        match sensor {
+            Sensor::Accel => Timing::accel(self.pages[1][usize::from(ACC_CONFIG)]),
+            Sensor::Gyro => Timing::gyro(self.pages[1][usize::from(GYR_CONFIG_0)]),
+        }
+    }
+
+    /// Register updates of `sensor` since it last started (datasheet mode:
+    /// leaving CONFIG mode starts the sensors).
+    pub fn updates(&self, sensor: Sensor) -> u64 {
+        let pipe = match sensor {
+            Sensor::Accel => &self.accel,
+            Sensor::Gyro => &self.gyro,
+        };
+        pipe.as_ref().map_or(0, Pipeline::updates)
     }
 
     /// Models the power-up time: the next `transactions` transactions are not
@@ -152,7 +214,10 @@ impl<Src: SampleSource> Bno055Sim<Src> {
     fn read_register(&mut self, reg: u8, burst_start: bool) -> u8 {
         let page = usize::from(self.page());
         if burst_start && page == 0 && (DATA_FIRST..=DATA_LAST).contains(&reg) {
-            self.latch_reading();
+            let clocked = self.model == ChipModel::Datasheet && self.run_clocks();
+            if !clocked {
+                self.latch_reading();
+            }
         }
         self.pages[page][usize::from(reg) % PAGE_LEN]
     }
@@ -183,12 +248,74 @@ impl<Src: SampleSource> Bno055Sim<Src> {
     }
 
     fn store_vector(&mut self, first: u8, v: [i16; 3]) {
-        for (axis, value) in v.iter().enumerate() {
-            let bytes = value.to_le_bytes();
-            let at = usize::from(first) + 2 * axis;
-            self.pages[0][at] = bytes[0];
-            self.pages[0][at + 1] = bytes[1];
+        store_vector(&mut self.pages[0], first, v);
+    }
+
+    /// Datasheet mode: takes one stimulus and runs each enabled sensor's
+    /// pipeline to its time (a sensor (re)starts settled at the stimulus,
+    /// its registers written with it, when it was off or its timing
+    /// changed). `false` if the source has no stimuli.
+    fn run_clocks(&mut self) -> bool {
+        let Some(st) = self.source.stimulus() else {
+            return false;
+        };
+        let Some((acc, _, gyr)) = enabled_sensors(self.operation_mode()) else {
+            self.accel = None;
+            self.gyro = None;
+            return true;
+        };
+        let unit_sel = self.pages[0][usize::from(UNIT_SEL)];
+        let (acc_per_unit, gyr_per_unit) = timing::counts_per_unit(unit_sel);
+        let acc_config = self.pages[1][usize::from(ACC_CONFIG)];
+        let gyr_config = self.pages[1][usize::from(GYR_CONFIG_0)];
+        let channels = [
+            (
+                Sensor::Accel,
+                acc,
+                st.accel_mps2,
+                ACC_DATA,
+                acc_per_unit,
+                timing::accel_full_scale_mps2(acc_config),
+            ),
+            (
+                Sensor::Gyro,
+                gyr,
+                st.gyro_rads,
+                GYR_DATA,
+                gyr_per_unit,
+                timing::gyro_full_scale_rads(gyr_config),
+            ),
+        ];
+        for (sensor, enabled, x, first, per_unit, full_scale) in channels {
+            let configured = self.timing(sensor);
+            let slot = match sensor {
+                Sensor::Accel => &mut self.accel,
+                Sensor::Gyro => &mut self.gyro,
+            };
+            if !enabled {
+                *slot = None;
+                continue;
+            }
+            let (source, page0) = (&mut self.source, &mut self.pages[0]);
+            let mut write = |y: [f64; 3]| {
+                let n = source.output_noise(sensor);
+                let counts =
+                    core::array::from_fn(|i| timing::to_counts(y[i] + n[i], per_unit, full_scale));
+                store_vector(page0, first, counts);
+            };
+            match slot {
+                Some(pipe) if pipe.timing() == configured => pipe.run_to(st.t_s, x, write),
+                _ => {
+                    // A sensor starting has its first value ready at once
+                    // (the mode switch takes 7 ms, datasheet table 3-6).
+                    write(x);
+                    *slot = Some(Pipeline::start(configured, st.t_s, x));
+                }
+            }
         }
+        self.pages[0][usize::from(TEMP)] =
+            timing::temp_counts(unit_sel, st.temp_c).to_le_bytes()[0];
+        true
     }
 
     /// Writes register `reg` of the selected page under the datasheet rules
@@ -232,6 +359,11 @@ impl<Src: SampleSource> Bno055Sim<Src> {
         }
         let was_config = self.in_config_mode();
         self.pages[0][usize::from(OPR_MODE)] = mode;
+        if mode == MODE_CONFIG {
+            // Sensors off: they restart when an operating mode is entered.
+            self.accel = None;
+            self.gyro = None;
+        }
         if mode == MODE_CONFIG && !was_config {
             // "All output data is reset to zero" in CONFIG mode (section 3.3.1).
             for reg in DATA_FIRST..=DATA_LAST {
@@ -247,6 +379,8 @@ impl<Src: SampleSource> Bno055Sim<Src> {
 
     fn reset(&mut self) {
         self.load_reset_values();
+        self.accel = None;
+        self.gyro = None;
         self.resets = self.resets.wrapping_add(1);
         self.busy_remaining = self.reset_busy;
     }
@@ -276,6 +410,16 @@ impl<Src: SampleSource> Bno055Sim<Src> {
                 }
             }
         }
+    }
+}
+
+/// Writes `v` little-endian at `first` of page 0.
+fn store_vector(page0: &mut [u8; PAGE_LEN], first: u8, v: [i16; 3]) {
+    for (axis, value) in v.iter().enumerate() {
+        let bytes = value.to_le_bytes();
+        let at = usize::from(first) + 2 * axis;
+        page0[at] = bytes[0];
+        page0[at + 1] = bytes[1];
     }
 }
 
@@ -323,5 +467,7 @@ impl<Src: SampleSource> I2c<SevenBitAddress> for Bno055Sim<Src> {
     }
 }
 
+#[cfg(test)]
+mod datasheet_tests;
 #[cfg(test)]
 mod tests;

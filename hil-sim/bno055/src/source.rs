@@ -1,5 +1,7 @@
 //! Where the simulated sensor's readings come from.
 
+use crate::timing::Sensor;
+
 /// One raw AMG reading as the BNO055 data registers hold it (sensor axes x, y, z).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct RawReading {
@@ -13,16 +15,56 @@ pub struct RawReading {
     pub temp: i8,
 }
 
-/// Produces the reading latched into the data registers when a burst read
-/// starts at a data register.
+/// What the sensing elements see at one instant, in SI units (sensor axes):
+/// the input of a chip in datasheet mode ([`crate::ChipModel::Datasheet`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Stimulus {
+    /// Time, s: the chip's internal clocks tick at multiples of 1/ODR of it.
+    /// Stimuli not later than the previous one are ignored.
+    pub t_s: f64,
+    /// Specific force, m/s².
+    pub accel_mps2: [f64; 3],
+    /// Angular velocity, rad/s.
+    pub gyro_rads: [f64; 3],
+    /// Die temperature, °C.
+    pub temp_c: f64,
+}
+
+/// Produces what the simulated chip serves.
+///
+/// An ideal chip ([`crate::ChipModel::Ideal`]) latches [`sample`](Self::sample)
+/// into the data registers whenever a burst read starts at a data register.
+/// A chip in datasheet mode takes [`stimulus`](Self::stimulus) whenever it
+/// runs its clocks ([`crate::Bno055Sim::advance`], and before each data
+/// read), filters it and writes the registers at its internal rates, adding
+/// [`output_noise`](Self::output_noise) to each register update.
 pub trait SampleSource {
-    /// The next reading.
+    /// The next reading (ideal chip).
     fn sample(&mut self) -> RawReading;
+
+    /// The physical input now (datasheet mode); `None`, the default: the
+    /// source only has readings, and the chip serves them as an ideal chip.
+    fn stimulus(&mut self) -> Option<Stimulus> {
+        None
+    }
+
+    /// Noise added to one register update of `sensor` (datasheet mode), in
+    /// its SI unit (m/s², rad/s); zero by default.
+    fn output_noise(&mut self, sensor: Sensor) -> [f64; 3] {
+        let _ = sensor;
+        [0.0; 3]
+    }
 }
 
 impl<T: SampleSource + ?Sized> SampleSource for &mut T {
     fn sample(&mut self) -> RawReading {
         (**self).sample()
+    }
+    fn stimulus(&mut self) -> Option<Stimulus> {
+        (**self).stimulus()
+    }
+    fn output_noise(&mut self, sensor: Sensor) -> [f64; 3] {
+        (**self).output_noise(sensor)
     }
 }
 
@@ -30,6 +72,12 @@ impl<T: SampleSource + ?Sized> SampleSource for &mut T {
 impl<T: SampleSource + ?Sized> SampleSource for alloc::boxed::Box<T> {
     fn sample(&mut self) -> RawReading {
         (**self).sample()
+    }
+    fn stimulus(&mut self) -> Option<Stimulus> {
+        (**self).stimulus()
+    }
+    fn output_noise(&mut self, sensor: Sensor) -> [f64; 3] {
+        (**self).output_noise(sensor)
     }
 }
 

@@ -666,3 +666,227 @@ fn ur_joint_times_follow_the_controller_clock_despite_arrival_jitter() {
     assert_eq!(std::fs::read_to_string(&joints_csv).unwrap(), text);
     check_session(dir.path());
 }
+
+/// imu.csv's rows as (seq, [ax … gz], temp_c), by the header's names.
+fn imu_rows(dir: &Path) -> Vec<(f64, [f64; 6], f64)> {
+    let text = std::fs::read_to_string(dir.join("imu.csv")).unwrap();
+    let mut lines = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty());
+    let header: Vec<&str> = lines.next().unwrap().split(',').map(str::trim).collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (seq, temp) = (col("seq"), col("temp_c"));
+    let z: Vec<usize> = ["ax", "ay", "az", "gx", "gy", "gz"].map(col).to_vec();
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.trim().parse().unwrap()).collect();
+            (v[seq], std::array::from_fn(|c| v[z[c]]), v[temp])
+        })
+        .collect()
+}
+
+fn mean(x: &[f64]) -> f64 {
+    x.iter().sum::<f64>() / x.len() as f64
+}
+
+/// With the arm at rest the true signal is constant, so each channel's
+/// deviation from its mean is the noise: its lag-1 autocorrelation over
+/// pairs of consecutive samples (no `seq` gap) is the AR(1) φ, per firmware
+/// read (the ideal chip draws the noise per read).
+#[test]
+fn the_rigs_vibration_noise_has_the_configured_correlation() {
+    let phi = 0.8;
+    let config = SimRigConfig::drawn(Robot::aubo_i5(), 41)
+        .with_vibration_noise(phi, 1e-3)
+        .unwrap();
+    let rig = SimRig::spawn(&config).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    record(&options(&rig, dir.path(), None, 8.0), &mut |_| {}).unwrap();
+    drop(rig);
+    let rows = imu_rows(dir.path());
+    assert!(rows.len() > 900, "{} rows", rows.len());
+    let sigma = Robot::aubo_i5().sigma_z();
+    for c in 0..6 {
+        let x: Vec<f64> = rows.iter().map(|r| r.1[c]).collect();
+        let m = mean(&x);
+        let var = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / x.len() as f64;
+        let (mut num, mut pairs) = (0.0, 0);
+        for w in rows.windows(2) {
+            if w[1].0 == w[0].0 + 1.0 {
+                num += (w[1].1[c] - m) * (w[0].1[c] - m);
+                pairs += 1;
+            }
+        }
+        let r1 = num / pairs as f64 / var;
+        let want = if c < 3 { phi } else { 0.0 };
+        // sampling error sqrt((1 − φ²)/N) ≈ 0.02 (accel), 0.03 (gyro)
+        eprintln!(
+            "channel {c}: r1 {r1:.3} (want {want}), σ {:.4} (robot {:.4})",
+            var.sqrt(),
+            sigma[c]
+        );
+        assert!(
+            (r1 - want).abs() < 0.09,
+            "channel {c}: lag-1 correlation {r1}, want {want}"
+        );
+        // the marginal σ is the robot's (correlated samples: a wider margin
+        // on the accelerometer; LSB quantisation adds a little on the gyro)
+        let tol = if c < 3 { 0.25 } else { 0.15 };
+        assert!(
+            (var.sqrt() / sigma[c] - 1.0).abs() < tol,
+            "channel {c}: σ {}",
+            var.sqrt()
+        );
+    }
+}
+
+/// A warm-up from 20 °C to 36 °C with τ = 4 s: the temperature column
+/// rises along the exponential (τ recovered from it), and the biases move
+/// with it: the drop of the mean reading between the first and the last
+/// two seconds is the bias offset times the drop of f = (36 − T)/16.
+#[test]
+fn the_rigs_warm_up_shows_in_the_temperature_column_and_the_biases() {
+    let mut config = SimRigConfig::drawn(Robot::aubo_i5(), 43);
+    let offset = [2.0, 0.0, 0.0, 0.05, 0.0, 0.0];
+    config.warm_up = Some(robimu_hil::rig::WarmUp {
+        time_constant_s: 4.0,
+        temp_start_c: 20.0,
+        temp_end_c: 36.0,
+        bias_start_offset: offset,
+    });
+    let rig = SimRig::spawn(&config).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    record(&options(&rig, dir.path(), None, 10.0), &mut |_| {}).unwrap();
+    drop(rig);
+    let s = Session::load(dir.path()).unwrap();
+    let m = s.measurements();
+    let temp = m.imu_temp.clone().unwrap();
+    assert!(
+        temp.windows(2).all(|w| w[1] >= w[0]),
+        "temperature not rising"
+    );
+    assert!(
+        temp[0] < 33.0 && *temp.last().unwrap() >= 35.0,
+        "{} … {}",
+        temp[0],
+        temp.last().unwrap()
+    );
+    // log(36 − T) = const − t/τ: least squares over rows still ≥ 2 °C away
+    let (mut ts, mut ls) = (Vec::new(), Vec::new());
+    for (t, c) in m.imu_t.iter().zip(&temp) {
+        if 36.0 - c >= 2.0 {
+            ts.push(*t);
+            ls.push((36.0 - c).ln());
+        }
+    }
+    let (mt, ml) = (mean(&ts), mean(&ls));
+    let slope = ts
+        .iter()
+        .zip(&ls)
+        .map(|(t, l)| (t - mt) * (l - ml))
+        .sum::<f64>()
+        / ts.iter().map(|t| (t - mt).powi(2)).sum::<f64>();
+    let tau = -1.0 / slope;
+    eprintln!(
+        "warm-up τ from the temperature column: {tau:.2} s ({} rows)",
+        ts.len()
+    );
+    assert!((tau - 4.0).abs() < 0.8, "τ {tau}");
+    // the biases follow the same curve
+    let rows = imu_rows(dir.path());
+    let n = 240; // two seconds at 120 Hz
+    let f = |r: &[(f64, [f64; 6], f64)]| {
+        mean(&r.iter().map(|x| (36.0 - x.2) / 16.0).collect::<Vec<_>>())
+    };
+    let z =
+        |r: &[(f64, [f64; 6], f64)], c: usize| mean(&r.iter().map(|x| x.1[c]).collect::<Vec<_>>());
+    let (first, last) = (&rows[..n], &rows[rows.len() - n..]);
+    let df = f(first) - f(last);
+    assert!(df > 0.2, "f drops by {df}");
+    let sigma = Robot::aubo_i5().sigma_z();
+    for c in 0..6 {
+        let dz = z(first, c) - z(last, c);
+        let want = offset[c] * df;
+        // noise of the two means, plus the rounding of T in f (≤ 1/32)
+        let tol = 5.0 * sigma[c] * (2.0 / n as f64).sqrt() + offset[c] / 32.0;
+        eprintln!("channel {c}: drop {dz:.4}, want {want:.4} ± {tol:.4}");
+        assert!((dz - want).abs() < tol, "channel {c}: {dz} vs {want}");
+    }
+}
+
+/// The rig with the simulated BNO055 in datasheet mode (filters, internal
+/// rates, the chip's own saturation and quantisation): at rest each
+/// channel's mean is the hidden truth's prediction and its spread the
+/// robot's σ (white noise drawn per internal update; 120 Hz reads of the
+/// 125 Hz and 1000 Hz updates see each update at most once).
+#[test]
+fn the_rig_with_a_datasheet_chip_reads_the_truth_at_rest() {
+    let robot = Robot::aubo_i5();
+    let mut config = SimRigConfig::drawn(robot.clone(), 45);
+    config.chip = robimu_hil::rig::ChipModel::Datasheet;
+    let rig = SimRig::spawn(&config).unwrap();
+    let truth: Vec<f64> = {
+        let layout = ParamLayout::new(&robot);
+        layout
+            .specs()
+            .iter()
+            .map(|s| rig.truth().get(&s.name).unwrap())
+            .collect()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    record(&options(&rig, dir.path(), None, 4.0), &mut |_| {}).unwrap();
+    drop(rig);
+    let session = Session::load(dir.path()).unwrap();
+    // the board's reported timing is in session.toml's [imu] table
+    let timing = session
+        .meta
+        .imu_timing(&dir.path().join("session.toml"))
+        .unwrap()
+        .expect("[imu] timing keys");
+    assert_eq!(
+        [
+            timing.accel_bandwidth_hz,
+            timing.accel_odr_hz,
+            timing.gyro_bandwidth_hz,
+            timing.gyro_odr_hz
+        ],
+        [62.5, 125.0, 116.0, 1000.0]
+    );
+    let m = session.measurements();
+    let layout = ParamLayout::new(&robot);
+    let model = robimu_model::MeasurementModel::new(&robot, &layout, &truth).unwrap();
+    let dof = robot.dof();
+    let q: Vec<f64> = (0..dof)
+        .map(|j| {
+            mean(
+                &m.joint_q
+                    .iter()
+                    .skip(j)
+                    .step_by(dof)
+                    .copied()
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .collect();
+    let zero = vec![0.0; dof];
+    let predicted = model.predict(&robimu_model::JointState::from_slices(
+        &q, &zero, &zero, &zero,
+    ));
+    let sigma = robot.sigma_z();
+    let n = m.imu_z.len() as f64;
+    assert!(n > 400.0);
+    for c in 0..6 {
+        let x: Vec<f64> = m.imu_z.iter().map(|z| z[c]).collect();
+        let mu = mean(&x);
+        let sd = (x.iter().map(|v| (v - mu).powi(2)).sum::<f64>() / n).sqrt();
+        eprintln!(
+            "channel {c}: mean {mu:.4} vs {:.4}, σ {sd:.4} vs {:.4}",
+            predicted[c], sigma[c]
+        );
+        assert!(
+            (mu - predicted[c]).abs() < 5.0 * sigma[c] / n.sqrt() + 0.01,
+            "channel {c}"
+        );
+        assert!((sd / sigma[c] - 1.0).abs() < 0.15, "channel {c}: σ {sd}");
+    }
+}

@@ -13,14 +13,23 @@
 //! time and follows the motion (docs/model.md §4.6), drawn sample by sample
 //! as the chip latches readings ([`NoiseSampler`]).
 //!
-//! The reading is computed at the instant the firmware stamps it, so the
-//! true time offset τ is zero; what the host's clock mapping adds to it is
-//! the recording's own error.
+//! With [`ModelSource::with_warm_up`] the biases settle after power-up along
+//! an exponential warm-up curve and the die temperature (the `TEMP`
+//! register, the recording's `temp_c` column) follows the same curve.
+//!
+//! For the ideal chip ([`robimu_bno055_sim::ChipModel::Ideal`]) the reading
+//! is computed at the instant the firmware stamps it, so the true time
+//! offset τ is zero; what the host's clock mapping adds to it is the
+//! recording's own error. For a chip in datasheet mode the source gives the
+//! noise-free signal as a [`Stimulus`] (the chip filters, holds, saturates
+//! and quantises it) and the noise per register update
+//! ([`SampleSource::output_noise`]): the noise model's correlation is then
+//! per internal update of each sensor, not per firmware read.
 
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
-use robimu_bno055_sim::{RawReading, SampleSource};
+use robimu_bno055_sim::{RawReading, SampleSource, Sensor, Stimulus};
 use robimu_hil_sim::aubo::{TrueMotion, TrueState};
 
 use robimu_model::noise::{NoiseModel, NoiseSampler};
@@ -31,6 +40,43 @@ pub const ACCEL_LSB: f64 = 0.01;
 /// rad/s per gyroscope count (`UNIT_SEL` rad/s: 900 LSB per rad/s).
 pub const GYRO_LSB: f64 = 1.0 / 900.0;
 
+/// A warm-up after power-up: with f(t) = exp(−t/τ) (t from power-up), the
+/// die temperature is `temp_end_c + (temp_start_c − temp_end_c)·f(t)` and
+/// the biases are the hidden truth's plus `bias_start_offset·f(t)`: the
+/// truth's biases are the settled ones.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WarmUp {
+    /// τ, s.
+    pub time_constant_s: f64,
+    /// Die temperature at power-up, °C.
+    pub temp_start_c: f64,
+    /// Die temperature once warm, °C.
+    pub temp_end_c: f64,
+    /// Bias at power-up minus the settled bias (m/s² ×3, rad/s ×3).
+    pub bias_start_offset: [f64; 6],
+}
+
+impl WarmUp {
+    /// f(t) = exp(−t/τ), t seconds after power-up (1 before it).
+    pub fn remaining(&self, t: f64) -> f64 {
+        (-t.max(0.0) / self.time_constant_s).exp()
+    }
+
+    /// The die temperature t seconds after power-up, °C.
+    pub fn temperature_c(&self, t: f64) -> f64 {
+        self.temp_end_c + (self.temp_start_c - self.temp_end_c) * self.remaining(t)
+    }
+
+    /// The bias offset t seconds after power-up.
+    pub fn bias_offset(&self, t: f64) -> [f64; 6] {
+        let f = self.remaining(t);
+        self.bias_start_offset.map(|b| b * f)
+    }
+}
+
+/// Die temperature without a warm-up, °C.
+const TEMPERATURE_C: f64 = 25.0;
+
 /// IMU readings computed from the simulated arm's true motion.
 pub struct ModelSource {
     probe: Box<dyn TrueMotion>,
@@ -38,32 +84,44 @@ pub struct ModelSource {
     sigma_z: [f64; 6],
     accel_full_scale: f64,
     gyro_full_scale: f64,
-    temperature_c: i8,
     rng: StdRng,
     latched: u64,
     sampler: Option<NoiseSampler>,
+    /// Datasheet mode: the gyroscope's noise sampler (the accelerometer's
+    /// is `sampler`), as the two sensors update at their own rates.
+    gyro_sampler: Option<NoiseSampler>,
+    warm_up: Option<WarmUp>,
+    /// Arm time at power-up (the source's creation), s.
+    t_power_on: f64,
+    /// ‖q̈‖² at the last stimulus (datasheet mode's noise level).
+    last_qdd2: f64,
 }
 
 impl ModelSource {
     /// Readings of `model` (the hidden truth) along the arm `probe` reads,
     /// with noise of standard deviations `sigma_z` (m/s² ×3, rad/s ×3), the
-    /// chip's default ranges (±4 g, ±2000 °/s) and 25 °C.
+    /// chip's default ranges (±4 g, ±2000 °/s) and 25 °C. Power-up (the
+    /// warm-up's time zero) is now.
     pub fn new(
         probe: Box<dyn TrueMotion>,
         model: MeasurementModel,
         sigma_z: [f64; 6],
         seed: u64,
     ) -> Self {
+        let t_power_on = probe.now().t;
         Self {
             probe,
             model,
             sigma_z,
             accel_full_scale: 4.0 * 9.80665,
             gyro_full_scale: 2000f64.to_radians(),
-            temperature_c: 25,
             rng: StdRng::seed_from_u64(seed),
             latched: 0,
             sampler: None,
+            gyro_sampler: None,
+            warm_up: None,
+            t_power_on,
+            last_qdd2: 0.0,
         }
     }
 
@@ -71,11 +129,41 @@ impl ModelSource {
     /// readings form one segment from the first latched one.
     pub fn with_noise_model(mut self, model: NoiseModel) -> Self {
         self.sigma_z = model.sigma_z();
+        self.gyro_sampler = Some(NoiseSampler::new(model.clone()));
         self.sampler = Some(NoiseSampler::new(model));
         self
     }
 
-    /// How many readings were latched so far.
+    /// Biases and temperature following `warm_up` from power-up.
+    pub fn with_warm_up(mut self, warm_up: WarmUp) -> Self {
+        self.warm_up = Some(warm_up);
+        self
+    }
+
+    /// The die temperature at arm time `t`, °C.
+    pub fn temperature_c(&self, t: f64) -> f64 {
+        self.warm_up
+            .map_or(TEMPERATURE_C, |w| w.temperature_c(t - self.t_power_on))
+    }
+
+    /// The noise-free sensor output with the warm-up's bias offset, and ‖q̈‖².
+    fn signal_at(&self, state: &TrueState) -> ([f64; 6], f64) {
+        let mut z = self.ideal_at(state);
+        if let Some(w) = &self.warm_up {
+            let offset = w.bias_offset(state.t - self.t_power_on);
+            for c in 0..6 {
+                z[c] += offset[c];
+            }
+        }
+        let n = self.model.dof();
+        (z, state.qdd[..n].iter().map(|a| a * a).sum())
+    }
+
+    fn normals(&mut self) -> [f64; 6] {
+        std::array::from_fn(|_| StandardNormal.sample(&mut self.rng))
+    }
+
+    /// How many readings (ideal chip) or stimuli (datasheet mode) were taken so far.
     pub fn latched(&self) -> u64 {
         self.latched
     }
@@ -106,20 +194,17 @@ pub fn to_counts(value: f64, lsb: f64, full_scale: f64) -> i16 {
 impl SampleSource for ModelSource {
     fn sample(&mut self) -> RawReading {
         let state = self.probe.now();
-        let ideal = self.ideal_at(&state);
+        let (ideal, qdd2) = self.signal_at(&state);
         let mut z = [0.0; 6];
+        let e = self.normals();
         if let Some(sampler) = &mut self.sampler {
-            let e: [f64; 6] = std::array::from_fn(|_| StandardNormal.sample(&mut self.rng));
-            let n = self.model.dof();
-            let qdd2: f64 = state.qdd[..n].iter().map(|a| a * a).sum();
             let w = sampler.next(e, qdd2);
             for c in 0..6 {
                 z[c] = ideal[c] + w[c];
             }
         } else {
             for c in 0..6 {
-                let n: f64 = StandardNormal.sample(&mut self.rng);
-                z[c] = ideal[c] + self.sigma_z[c] * n;
+                z[c] = ideal[c] + self.sigma_z[c] * e[c];
             }
         }
         self.latched += 1;
@@ -127,8 +212,38 @@ impl SampleSource for ModelSource {
             accel: std::array::from_fn(|i| to_counts(z[i], ACCEL_LSB, self.accel_full_scale)),
             gyro: std::array::from_fn(|i| to_counts(z[3 + i], GYRO_LSB, self.gyro_full_scale)),
             mag: [0; 3],
-            temp: self.temperature_c,
+            temp: self.temperature_c(state.t).round().clamp(-128.0, 127.0) as i8,
         }
+    }
+
+    fn stimulus(&mut self) -> Option<Stimulus> {
+        let state = self.probe.now();
+        let (z, qdd2) = self.signal_at(&state);
+        self.last_qdd2 = qdd2;
+        self.latched += 1;
+        Some(Stimulus {
+            t_s: state.t,
+            accel_mps2: [z[0], z[1], z[2]],
+            gyro_rads: [z[3], z[4], z[5]],
+            temp_c: self.temperature_c(state.t),
+        })
+    }
+
+    fn output_noise(&mut self, sensor: Sensor) -> [f64; 3] {
+        let e = self.normals();
+        let first = match sensor {
+            Sensor::Accel => 0,
+            Sensor::Gyro => 3,
+        };
+        let sampler = match sensor {
+            Sensor::Accel => self.sampler.as_mut(),
+            Sensor::Gyro => self.gyro_sampler.as_mut(),
+        };
+        let w = match sampler {
+            Some(s) => s.next(e, self.last_qdd2),
+            None => std::array::from_fn(|c| self.sigma_z[c] * e[c]),
+        };
+        [w[first], w[first + 1], w[first + 2]]
     }
 }
 

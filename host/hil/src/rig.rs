@@ -8,6 +8,14 @@
 //! [`ModelSource`] at the hidden truth x*. A recorder talks to them exactly
 //! as to hardware: `--imu` [`SimRig::imu_port`], `--robot`
 //! [`SimRig::robot_spec`].
+//!
+//! Realism switches, all off by default (the ideal twin): the chip model
+//! ([`SimRigConfig::chip`]: the register-level BNO055 in datasheet mode
+//! filters and holds at its internal rates), IMU noise correlated in time
+//! and stronger with motion ([`SimRigConfig::imu_noise`], docs/model.md
+//! §4.6; [`SimRigConfig::with_vibration_noise`] builds issue 14's
+//! accelerometer model), and a bias and temperature warm-up
+//! ([`SimRigConfig::warm_up`]).
 
 use std::net::SocketAddr;
 
@@ -16,7 +24,11 @@ use robimu_hil_sim::aubo::{JointLimits, SimAubo, SimAuboConfig, SimAuboError, Tr
 use robimu_hil_sim::device::{SimDevice, SimDeviceConfig, SimDeviceError};
 use robimu_hil_sim::ur::{SimUr, SimUrConfig, SimUrError};
 
+pub use robimu_bno055_sim::ChipModel;
+
 use super::physics::ModelSource;
+pub use super::physics::WarmUp;
+use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError};
 use robimu_model::params::draw_truth;
 use robimu_model::{MeasurementModel, ModelError, ParamLayout, Robot};
 use robimu_session::Truth;
@@ -44,6 +56,9 @@ pub enum RigError {
     /// The simulated IMU board did not start.
     #[error("cannot start the simulated IMU board: {0}")]
     Device(#[from] SimDeviceError),
+    /// The IMU noise model asked for is not valid.
+    #[error("bad simulated IMU noise: {0}")]
+    Noise(#[from] NoiseModelError),
 }
 
 /// What to simulate.
@@ -64,6 +79,16 @@ pub struct SimRigConfig {
     pub clock_drift_ppm: f64,
     /// The controller's first-order tracking lag, s.
     pub tracking_lag_s: f64,
+    /// How the simulated BNO055 fills its data registers (default
+    /// [`ChipModel::Ideal`]: the model's reading at each firmware read).
+    pub chip: ChipModel,
+    /// IMU noise of this model instead of the robot's white Σ_z (default
+    /// `None`); with the ideal chip drawn per firmware read, in datasheet
+    /// mode per internal update of each sensor.
+    pub imu_noise: Option<NoiseModel>,
+    /// Bias and temperature warm-up from the board's power-up (default
+    /// `None`: constant biases, 25 °C).
+    pub warm_up: Option<WarmUp>,
 }
 
 impl SimRigConfig {
@@ -87,7 +112,24 @@ impl SimRigConfig {
             clock_offset_us: 1_234_000,
             clock_drift_ppm: 48.7,
             tracking_lag_s: 0.02,
+            chip: ChipModel::Ideal,
+            imu_noise: None,
+            warm_up: None,
         }
+    }
+
+    /// Accelerometer noise dominated by the arm's vibration (issue 14's
+    /// model, docs/model.md §4.6): each accelerometer channel AR(1) with
+    /// coefficient `phi` and the robot's σ at rest, its variance growing
+    /// as σ² + `motion`·‖q̈‖²; the gyroscope stays white.
+    pub fn with_vibration_noise(mut self, phi: f64, motion: f64) -> Result<Self, RigError> {
+        let sigma = self.robot.sigma_z();
+        let mut model = NoiseModel::white(sigma)?;
+        for c in 0..3 {
+            model.imu[c] = ChannelNoise::new(ArNoise::new(vec![phi], sigma[c])?, motion)?;
+        }
+        self.imu_noise = Some(model);
+        Ok(self)
     }
 }
 
@@ -169,8 +211,15 @@ fn imu_board(
         *tau = 0.0;
     }
     let model = MeasurementModel::new(robot, &layout, &x)?;
-    let source = ModelSource::new(motion, model, robot.sigma_z(), config.seed);
+    let mut source = ModelSource::new(motion, model, robot.sigma_z(), config.seed);
+    if let Some(noise) = &config.imu_noise {
+        source = source.with_noise_model(noise.clone());
+    }
+    if let Some(warm_up) = config.warm_up {
+        source = source.with_warm_up(warm_up);
+    }
     let mut device_config = SimDeviceConfig::new(Box::new(source));
+    device_config.chip_model = config.chip;
     device_config.clock_offset_us = config.clock_offset_us;
     device_config.clock_drift_ppm = config.clock_drift_ppm;
     device_config.fault_seed = config.seed ^ 0xFA17;

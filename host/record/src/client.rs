@@ -61,6 +61,17 @@ pub enum ClientError {
         /// Frames rejected.
         bad: u64,
     },
+    /// The board speaks another protocol version: its frames are intact but
+    /// cannot be read by this host.
+    #[error("the IMU board on {path} speaks robimu protocol version {found}, this robimu speaks version {expected}: flash the firmware that comes with this robimu (or use the robimu release of the board's firmware)")]
+    ProtocolVersion {
+        /// The port path.
+        path: String,
+        /// The board's version.
+        found: u8,
+        /// This host's version.
+        expected: u8,
+    },
     /// The board refused a command, for the reason it gave.
     #[error("the IMU board on {path} refused {command:?}: {error:?}")]
     Refused {
@@ -235,6 +246,13 @@ impl<R: Read, W: Write> ImuClient<R, W> {
         })?;
         info.ok_or_else(|| {
             let s = self.reader.stats();
+            if let Some(found) = s.foreign_version {
+                return ClientError::ProtocolVersion {
+                    path: self.path.clone(),
+                    found,
+                    expected: robimu_protocol::PROTOCOL_VERSION,
+                };
+            }
             ClientError::NotRobimu {
                 path: self.path.clone(),
                 waited: timeout,
@@ -346,6 +364,7 @@ mod tests {
             accel_scale_mps2_per_lsb: 0.01,
             gyro_scale_rads_per_lsb: 1.0 / 900.0,
             temp_scale_c_per_lsb: 1.0,
+            timing: robimu_protocol::SensorTiming::of(&SensorConfig::default()),
         }
     }
 
@@ -398,6 +417,36 @@ mod tests {
         ]);
         c.identify(Duration::from_millis(50)).unwrap();
         assert_eq!(c.configure(&SensorConfig::default()).unwrap(), info());
+    }
+
+    #[test]
+    fn a_board_of_another_protocol_version_is_named() {
+        // A version-1 board's DeviceInfo (protocol/tests/golden.rs): intact
+        // frames of the old version, sent twice.
+        let v1 = "02010102010b01a0fb320f91061501030b02780ad7233cb4a2913a0107803f758cae2200";
+        let frame: Vec<u8> = (0..v1.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&v1[i..i + 2], 16).unwrap())
+            .collect();
+        let bytes = [frame.clone(), frame].concat();
+        let mut c = ImuClient::from_parts("/dev/test", std::io::Cursor::new(bytes), Vec::new());
+        let err = c.identify(Duration::from_millis(20)).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ClientError::ProtocolVersion {
+                    found: 1,
+                    expected: 2,
+                    ..
+                }
+            ),
+            "{err:?}"
+        );
+        let text = err.to_string();
+        assert!(
+            text.contains("protocol version 1") && text.contains("version 2"),
+            "{text}"
+        );
     }
 
     #[test]

@@ -131,7 +131,7 @@ impl Drop for ImuStream {
 
 /// The f64 an f32 scale stands for: its shortest decimal form (0.01f32
 /// is 0.009999999776 as an f64; the board means 0.01).
-fn decimal(x: f32) -> f64 {
+pub(crate) fn decimal(x: f32) -> f64 {
     x.to_string().parse().unwrap_or(f64::from(x))
 }
 

@@ -86,7 +86,7 @@ use self::imu::{ImuEvent, ImuStream};
 use self::motion::Plan;
 use crate::controller::{JointSample, RobotSpec};
 use robimu_model::Robot;
-use robimu_session::{SessionError, SessionMeta, SessionWriter};
+use robimu_session::{ImuTiming, SessionError, SessionMeta, SessionWriter};
 
 /// What to record.
 #[derive(Clone, Debug)]
@@ -584,6 +584,15 @@ fn device_table(info: &DeviceInfo, port: &str) -> toml::Table {
         "gyro_bandwidth".into(),
         format!("{:?}", info.config.gyro_bandwidth).into(),
     );
+    let timing = info.timing;
+    let decimal = imu::decimal;
+    ImuTiming {
+        accel_bandwidth_hz: decimal(timing.accel_bandwidth_hz),
+        accel_odr_hz: decimal(timing.accel_odr_hz),
+        gyro_bandwidth_hz: decimal(timing.gyro_bandwidth_hz),
+        gyro_odr_hz: decimal(timing.gyro_odr_hz),
+    }
+    .insert_into(&mut t);
     t
 }
 

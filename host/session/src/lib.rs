@@ -64,7 +64,9 @@ use robimu_model::Robot;
 
 pub use error::SessionError;
 pub use meta::toml_error;
-pub use meta::{check_ar_order_for_data, NoiseOverride, NoiseShape, SessionMeta, SESSION_FORMAT};
+pub use meta::{
+    check_ar_order_for_data, ImuTiming, NoiseOverride, NoiseShape, SessionMeta, SESSION_FORMAT,
+};
 pub use result::{
     CalibrationResult, CovarianceMatrix, MissingParameter, ParameterResult, ResultError,
     RESULT_FORMAT,

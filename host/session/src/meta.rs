@@ -10,7 +10,11 @@
 //! sigma_q = [6.6e-5, 8.7e-5, 7.5e-5, 1.8e-4, 1.8e-4, 1.5e-4]  # rad, one per joint
 //! ar_z = [[0.9], [0.9], [0.9], [], [], []]   # optional, AR(p) φ per IMU channel ([] white)
 //! motion_z = [1e-3, 1e-3, 1e-3, 0, 0, 0]     # optional, c of σ² + c‖q̈‖² per IMU channel
-//! [imu]                      # optional, free-form description of the device
+//! [imu]                      # optional, free-form description of the device; robimu
+//! accel_bandwidth_hz = 62.5  #   record adds the sensors' low-pass bandwidths and
+//! accel_odr_hz = 125.0       #   internal output data rates (optional keys,
+//! gyro_bandwidth_hz = 116.0  #   [`ImuTiming`])
+//! gyro_odr_hz = 1000.0
 //! [controller]               # optional, free-form description of the robot controller
 //! ```
 //! Unknown keys are kept out of the way (ignored), as the contract allows.
@@ -236,7 +240,103 @@ impl NoiseOverride {
     }
 }
 
+/// The IMU's internal timing, as `robimu record` writes it into session.toml's
+/// `[imu]` table (docs/model.md §7): each sensor's low-pass bandwidth and
+/// internal output data rate (the BNO055 filters at the bandwidth and
+/// updates its registers at the ODR; the board's reads are asynchronous).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuTiming {
+    /// Accelerometer bandwidth, Hz.
+    pub accel_bandwidth_hz: f64,
+    /// Accelerometer internal output data rate, Hz.
+    pub accel_odr_hz: f64,
+    /// Gyroscope bandwidth, Hz.
+    pub gyro_bandwidth_hz: f64,
+    /// Gyroscope internal output data rate, Hz.
+    pub gyro_odr_hz: f64,
+}
+
+impl ImuTiming {
+    /// The `[imu]` keys, in the order of the fields.
+    pub const KEYS: [&'static str; 4] = [
+        "accel_bandwidth_hz",
+        "accel_odr_hz",
+        "gyro_bandwidth_hz",
+        "gyro_odr_hz",
+    ];
+
+    fn values(&self) -> [f64; 4] {
+        [
+            self.accel_bandwidth_hz,
+            self.accel_odr_hz,
+            self.gyro_bandwidth_hz,
+            self.gyro_odr_hz,
+        ]
+    }
+
+    /// Writes the four keys into an `[imu]` table.
+    pub fn insert_into(&self, table: &mut toml::Table) {
+        for (key, v) in Self::KEYS.iter().zip(self.values()) {
+            table.insert((*key).into(), v.into());
+        }
+    }
+
+    /// The timing in an `[imu]` table: `None` when none of the keys is
+    /// there (sessions recorded before them, or by other tools); an error
+    /// naming the key when only some are, or one is not a positive number.
+    /// `path` names the file.
+    pub fn from_table(table: &toml::Table, path: &Path) -> Result<Option<Self>, SessionError> {
+        if Self::KEYS.iter().all(|k| !table.contains_key(*k)) {
+            return Ok(None);
+        }
+        let mut v = [0.0; 4];
+        for (slot, key) in v.iter_mut().zip(Self::KEYS) {
+            let value = match table.get(key) {
+                Some(toml::Value::Float(f)) => *f,
+                Some(toml::Value::Integer(i)) => *i as f64,
+                Some(other) => {
+                    return Err(SessionError::file(
+                        path,
+                        format!("[imu] {key} = {other} is not a number of Hz"),
+                    ))
+                }
+                None => {
+                    return Err(SessionError::file(
+                        path,
+                        format!(
+                            "[imu] has some of {} but not {key}: give all four or none",
+                            Self::KEYS.join(", ")
+                        ),
+                    ))
+                }
+            };
+            if !(value.is_finite() && value > 0.0) {
+                return Err(SessionError::file(
+                    path,
+                    format!("[imu] {key} = {value} must be a positive frequency, Hz"),
+                ));
+            }
+            *slot = value;
+        }
+        Ok(Some(Self {
+            accel_bandwidth_hz: v[0],
+            accel_odr_hz: v[1],
+            gyro_bandwidth_hz: v[2],
+            gyro_odr_hz: v[3],
+        }))
+    }
+}
+
 impl SessionMeta {
+    /// The IMU's timing from the `[imu]` table ([`ImuTiming::from_table`]),
+    /// `None` without one.
+    pub fn imu_timing(&self, path: &Path) -> Result<Option<ImuTiming>, SessionError> {
+        match &self.imu {
+            Some(table) => ImuTiming::from_table(table, path),
+            None => Ok(None),
+        }
+    }
+
     /// A description for a built-in or file robot with everything else default.
     pub fn new(robot: impl Into<String>) -> Self {
         Self {
@@ -325,6 +425,55 @@ pub fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> SessionError 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn imu_timing_keys_are_optional_all_or_none_and_positive() {
+        let path = Path::new("s.toml");
+        let parse = |imu: &str| {
+            let text = format!("format = \"robimu-session/1\"\nrobot = \"aubo_i5\"\n{imu}");
+            SessionMeta::parse(&text, path).unwrap().imu_timing(path)
+        };
+        // no [imu], or one without the keys: as before
+        assert_eq!(parse("").unwrap(), None);
+        assert_eq!(parse("[imu]\nport = \"/dev/ttyUSB0\"\n").unwrap(), None);
+        let t = ImuTiming {
+            accel_bandwidth_hz: 62.5,
+            accel_odr_hz: 125.0,
+            gyro_bandwidth_hz: 116.0,
+            gyro_odr_hz: 1000.0,
+        };
+        // what the recorder writes reads back
+        let mut table = toml::Table::new();
+        t.insert_into(&mut table);
+        let mut meta = SessionMeta::new("aubo_i5");
+        meta.imu = Some(table);
+        let back = SessionMeta::parse(&meta.to_toml(), path).unwrap();
+        assert_eq!(back.imu_timing(path).unwrap(), Some(t));
+        // integers are numbers of Hz too
+        let ok = parse("[imu]\naccel_bandwidth_hz = 62.5\naccel_odr_hz = 125\ngyro_bandwidth_hz = 116\ngyro_odr_hz = 1000\n");
+        assert_eq!(ok.unwrap(), Some(t));
+        let err = parse("[imu]\naccel_bandwidth_hz = 62.5\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("not accel_odr_hz") && err.contains("s.toml"),
+            "{err}"
+        );
+        let err = parse("[imu]\naccel_bandwidth_hz = 62.5\naccel_odr_hz = -125\ngyro_bandwidth_hz = 116\ngyro_odr_hz = 1000\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("accel_odr_hz = -125") && err.contains("positive"),
+            "{err}"
+        );
+        let err = parse("[imu]\naccel_bandwidth_hz = \"fast\"\naccel_odr_hz = 1\ngyro_bandwidth_hz = 1\ngyro_odr_hz = 1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("accel_bandwidth_hz") && err.contains("not a number"),
+            "{err}"
+        );
+    }
 
     #[test]
     fn round_trip_and_defaults() {

@@ -115,7 +115,7 @@ pub fn host_variant(m: &HostMessage) -> &'static str {
 /// Worst-case frame length per variant, from the table in `frame.rs` docs.
 pub fn device_variant_max_frame(m: &DeviceMessage) -> usize {
     match m {
-        DeviceMessage::Info(_) => 39,
+        DeviceMessage::Info(_) => 55,
         DeviceMessage::Sample(_) => 37,
         DeviceMessage::Status(_) => 44,
         DeviceMessage::Pong(_) => 18,
@@ -190,9 +190,15 @@ pub fn device_info() -> impl Strategy<Value = DeviceInfo> {
         any::<u8>(),
         sensor_config(),
         [any_f32_bits(), any_f32_bits(), any_f32_bits()],
+        [
+            any_f32_bits(),
+            any_f32_bits(),
+            any_f32_bits(),
+            any_f32_bits(),
+        ],
     )
         .prop_map(
-            |(fw, ids, sw_revision, bootloader_revision, config, scales)| {
+            |(fw, ids, sw_revision, bootloader_revision, config, scales, rates)| {
                 let [protocol_version, chip_id, accel_id, mag_id, gyro_id] = ids;
                 let [accel_scale_mps2_per_lsb, gyro_scale_rads_per_lsb, temp_scale_c_per_lsb] =
                     scales;
@@ -209,6 +215,12 @@ pub fn device_info() -> impl Strategy<Value = DeviceInfo> {
                     accel_scale_mps2_per_lsb,
                     gyro_scale_rads_per_lsb,
                     temp_scale_c_per_lsb,
+                    timing: SensorTiming {
+                        accel_bandwidth_hz: rates[0],
+                        accel_odr_hz: rates[1],
+                        gyro_bandwidth_hz: rates[2],
+                        gyro_odr_hz: rates[3],
+                    },
                 }
             },
         )
