@@ -262,8 +262,8 @@ impl Pipeline {
 
     fn advance(&mut self, t: f64, x: [f64; 3], tc: f64) {
         let h = t - self.t;
-        for i in 0..3 {
-            self.axes[i].step(h, self.x[i], x[i], tc);
+        for ((axis, x0), x1) in self.axes.iter_mut().zip(self.x).zip(x) {
+            axis.step(h, x0, x1, tc);
         }
         self.t = t;
         self.x = x;

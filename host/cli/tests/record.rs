@@ -694,6 +694,8 @@ fn mean(x: &[f64]) -> f64 {
 /// pairs of consecutive samples (no `seq` gap) is the AR(1) φ, per firmware
 /// read (the ideal chip draws the noise per read).
 #[test]
+// channel loops index several per-channel arrays
+#[allow(clippy::needless_range_loop)]
 fn the_rigs_vibration_noise_has_the_configured_correlation() {
     let phi = 0.8;
     let config = SimRigConfig::drawn(Robot::aubo_i5(), 41)
@@ -745,6 +747,8 @@ fn the_rigs_vibration_noise_has_the_configured_correlation() {
 /// with it: the drop of the mean reading between the first and the last
 /// two seconds is the bias offset times the drop of f = (36 − T)/16.
 #[test]
+// channel loops index several per-channel arrays
+#[allow(clippy::needless_range_loop)]
 fn the_rigs_warm_up_shows_in_the_temperature_column_and_the_biases() {
     let mut config = SimRigConfig::drawn(Robot::aubo_i5(), 43);
     let offset = [2.0, 0.0, 0.0, 0.05, 0.0, 0.0];
@@ -820,6 +824,8 @@ fn the_rigs_warm_up_shows_in_the_temperature_column_and_the_biases() {
 /// robot's σ (white noise drawn per internal update; 120 Hz reads of the
 /// 125 Hz and 1000 Hz updates see each update at most once).
 #[test]
+// channel loops index several per-channel arrays
+#[allow(clippy::needless_range_loop)]
 fn the_rig_with_a_datasheet_chip_reads_the_truth_at_rest() {
     let robot = Robot::aubo_i5();
     let mut config = SimRigConfig::drawn(robot.clone(), 45);

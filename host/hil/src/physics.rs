@@ -305,6 +305,57 @@ mod tests {
         assert!(c.latched() == 2000);
     }
 
+    /// The rig's vibration noise (issue 14's model) drawn by the source:
+    /// the accelerometer residual divided by √(σ² + c‖q̈‖²) has unit
+    /// variance whether the arm accelerates little or much (while the raw
+    /// residual's variance grows with ‖q̈‖²), and lag-1 correlation φ.
+    #[test]
+    fn vibration_noise_is_correlated_and_stronger_with_motion() {
+        let robot = robimu_model::Robot::aubo_i5();
+        let (phi, c) = (0.8, 5.0);
+        let noise = crate::rig::SimRigConfig::drawn(robot.clone(), 1)
+            .with_vibration_noise(phi, c)
+            .unwrap()
+            .imu_noise
+            .unwrap();
+        let layout = robimu_model::ParamLayout::new(&robot);
+        let model = || MeasurementModel::new(&robot, &layout, &layout.nominal()).unwrap();
+        let reference = model();
+        let probe = Box::new(Swinging(Default::default()));
+        let mut s = ModelSource::new(probe, model(), robot.sigma_z(), 5).with_noise_model(noise);
+        let sigma = robot.sigma_z()[0];
+        let (mut u, mut raw) = (Vec::new(), Vec::new());
+        for i in 0..20_000 {
+            let r = s.sample();
+            // reading i is probe step i + 1 (`new` took step 0)
+            let t = (i + 1) as f64 / 100.0;
+            let js = JointState::from_slices(
+                &[0.3 * t.sin(), 0.5, -0.4, 0.2, 0.1, 0.0],
+                &[0.3 * t.cos(), 0.0, 0.0, 0.0, 0.0, 0.0],
+                &[-0.3 * t.sin(), 0.0, 0.0, 0.0, 0.0, 0.0],
+                &[0.0; 6],
+            );
+            let e = f64::from(r.accel[0]) * ACCEL_LSB - reference.predict(&js)[0];
+            let qdd2 = (0.3 * t.sin()).powi(2);
+            u.push(e / (sigma * sigma + c * qdd2).sqrt());
+            raw.push((e, qdd2));
+        }
+        let var = |f: &dyn Fn(f64) -> bool, x: &dyn Fn(usize) -> f64| {
+            let idx: Vec<usize> = (0..u.len()).filter(|&i| f(raw[i].1)).collect();
+            idx.iter().map(|&i| x(i).powi(2)).sum::<f64>() / idx.len() as f64
+        };
+        let (calm, busy) = (|q: f64| q < 0.02, |q: f64| q > 0.06);
+        for band in [&calm as &dyn Fn(f64) -> bool, &busy] {
+            let v = var(band, &|i| u[i]);
+            assert!((v - 1.0).abs() < 0.15, "normalised variance {v}");
+        }
+        let ratio = var(&busy, &|i| raw[i].0) / var(&calm, &|i| raw[i].0);
+        assert!(ratio > 2.5, "raw variance ratio busy/calm {ratio}");
+        let r1 =
+            u.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / u.iter().map(|x| x * x).sum::<f64>();
+        assert!((r1 - phi).abs() < 0.03, "lag-1 correlation {r1}");
+    }
+
     #[test]
     fn counts_round_to_the_lsb_and_saturate() {
         assert_eq!(to_counts(9.81, ACCEL_LSB, 39.2266), 981);

@@ -125,8 +125,8 @@ impl SimRigConfig {
     pub fn with_vibration_noise(mut self, phi: f64, motion: f64) -> Result<Self, RigError> {
         let sigma = self.robot.sigma_z();
         let mut model = NoiseModel::white(sigma)?;
-        for c in 0..3 {
-            model.imu[c] = ChannelNoise::new(ArNoise::new(vec![phi], sigma[c])?, motion)?;
+        for (channel, s) in model.imu.iter_mut().zip(sigma).take(3) {
+            *channel = ChannelNoise::new(ArNoise::new(vec![phi], s)?, motion)?;
         }
         self.imu_noise = Some(model);
         Ok(self)

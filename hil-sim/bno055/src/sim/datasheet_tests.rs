@@ -67,9 +67,11 @@ fn configure(sim: &mut Bno055Sim<Clocked>, acc_config: u8, gyr_config_0: u8, uni
     write(sim, OPR_MODE, MODE_AMG);
 }
 
-/// One 18-byte AMG burst as the firmware reads it (one stimulus):
-/// (time of the stimulus it ran to, accelerometer, gyroscope counts).
-fn read(sim: &mut Bno055Sim<Clocked>) -> (f64, [i16; 3], [i16; 3]) {
+/// (time of the stimulus a read ran to, accelerometer, gyroscope counts).
+type Read = (f64, [i16; 3], [i16; 3]);
+
+/// One 18-byte AMG burst as the firmware reads it (one stimulus).
+fn read(sim: &mut Bno055Sim<Clocked>) -> Read {
     let t = sim.source_mut().t;
     let mut buf = [0u8; 18];
     sim.write_read(ADDR, &[ACC_DATA], &mut buf).unwrap();
@@ -238,7 +240,7 @@ fn reads_between_updates_return_the_previous_value_at_power_on_defaults() {
     assert_eq!(sim.timing(Sensor::Gyro).odr_hz, 100.0);
     // 0.3 s: the ramps stay within ±4 g and ±2000 °/s
     let reads: std::vec::Vec<_> = (0..300).map(|_| read(&mut sim)).collect();
-    let runs = |pick: fn(&(f64, [i16; 3], [i16; 3])) -> i16| {
+    let runs = |pick: fn(&Read) -> i16| {
         let mut runs = std::vec::Vec::new();
         let mut n = 1;
         for w in reads.windows(2) {
@@ -271,7 +273,7 @@ fn range_unit_and_bandwidth_registers_drive_the_output() {
     }
     let mut sim = chip(1e-3, strong);
     // ±2 g, 250 Hz (ODR 500 Hz); ±250 °/s, 47 Hz (ODR 400 Hz); m/s², rad/s
-    configure(&mut sim, (5 << 2) | 0x00, (3 << 3) | 0x03, 0x02);
+    configure(&mut sim, 5 << 2, (3 << 3) | 0x03, 0x02);
     for _ in 0..200 {
         read(&mut sim);
     }
