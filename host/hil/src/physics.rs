@@ -32,7 +32,7 @@ use rand_distr::{Distribution, StandardNormal};
 use robimu_bno055_sim::{RawReading, SampleSource, Sensor, Stimulus};
 use robimu_hil_sim::aubo::{TrueMotion, TrueState};
 
-use robimu_model::noise::{NoiseModel, NoiseSampler};
+use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError, NoiseSampler};
 use robimu_model::{JointState, MeasurementModel};
 
 /// m/s² per accelerometer count (`UNIT_SEL` m/s²: 100 LSB per m/s²).
@@ -72,6 +72,22 @@ impl WarmUp {
         let f = self.remaining(t);
         self.bias_start_offset.map(|b| b * f)
     }
+}
+
+/// Accelerometer noise dominated by vibration (issue 14's model,
+/// docs/model.md §4.6): channels `ax, ay, az` AR(1) with coefficient `phi`
+/// and marginal σ at rest from `sigma_z`, variance σ² + `motion`·‖q̈‖²; the
+/// gyroscope white with `sigma_z`.
+pub fn vibration_noise(
+    sigma_z: [f64; 6],
+    phi: f64,
+    motion: f64,
+) -> Result<NoiseModel, NoiseModelError> {
+    let mut model = NoiseModel::white(sigma_z)?;
+    for (channel, s) in model.imu.iter_mut().zip(sigma_z).take(3) {
+        *channel = ChannelNoise::new(ArNoise::new(vec![phi], s)?, motion)?;
+    }
+    Ok(model)
 }
 
 /// Die temperature without a warm-up, °C.
@@ -313,11 +329,7 @@ mod tests {
     fn vibration_noise_is_correlated_and_stronger_with_motion() {
         let robot = robimu_model::Robot::aubo_i5();
         let (phi, c) = (0.8, 5.0);
-        let noise = crate::rig::SimRigConfig::drawn(robot.clone(), 1)
-            .with_vibration_noise(phi, c)
-            .unwrap()
-            .imu_noise
-            .unwrap();
+        let noise = vibration_noise(robot.sigma_z(), phi, c).unwrap();
         let layout = robimu_model::ParamLayout::new(&robot);
         let model = || MeasurementModel::new(&robot, &layout, &layout.nominal()).unwrap();
         let reference = model();

@@ -26,9 +26,9 @@ use robimu_hil_sim::ur::{SimUr, SimUrConfig, SimUrError};
 
 pub use robimu_bno055_sim::ChipModel;
 
-use super::physics::ModelSource;
 pub use super::physics::WarmUp;
-use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError};
+use super::physics::{vibration_noise, ModelSource};
+use robimu_model::noise::{NoiseModel, NoiseModelError};
 use robimu_model::params::draw_truth;
 use robimu_model::{MeasurementModel, ModelError, ParamLayout, Robot};
 use robimu_session::Truth;
@@ -123,12 +123,7 @@ impl SimRigConfig {
     /// coefficient `phi` and the robot's σ at rest, its variance growing
     /// as σ² + `motion`·‖q̈‖²; the gyroscope stays white.
     pub fn with_vibration_noise(mut self, phi: f64, motion: f64) -> Result<Self, RigError> {
-        let sigma = self.robot.sigma_z();
-        let mut model = NoiseModel::white(sigma)?;
-        for (channel, s) in model.imu.iter_mut().zip(sigma).take(3) {
-            *channel = ChannelNoise::new(ArNoise::new(vec![phi], s)?, motion)?;
-        }
-        self.imu_noise = Some(model);
+        self.imu_noise = Some(vibration_noise(self.robot.sigma_z(), phi, motion)?);
         Ok(self)
     }
 }
