@@ -45,6 +45,6 @@ pub use messages::*;
 /// [`DecoderStats::foreign_version`]).
 ///
 /// History: 1, the first; 2, [`DeviceInfo::timing`] (the sensors'
-/// bandwidths and internal output data rates) — every other message is
-/// byte for byte as in version 1.
+/// bandwidths and internal output data rates) — every other message's
+/// payload is as in version 1.
 pub const PROTOCOL_VERSION: u8 = 2;
