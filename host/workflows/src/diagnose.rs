@@ -575,7 +575,7 @@ pub struct DiagnoseOptions {
     /// Start the baseline fit from this x (e.g. a loaded calibration; no τ search).
     pub x_start: Option<Vec<f64>>,
     /// The IMU noise model of the fits and tests (default `Auto`; see the
-    /// module doc). `Given` replaces the calibration options' `noise`.
+    /// module doc); it decides, the calibration options' `noise` is not used.
     pub noise: NoiseChoice,
     /// How `Auto` identifies the noise (largest AR order
     /// [`NOISE_MAX_ORDER`], …).
