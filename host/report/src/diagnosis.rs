@@ -3,9 +3,54 @@
 
 use std::fmt;
 
-use robimu_workflows::diagnose::{Diagnosis, ResidualStats, CHANNELS};
+use robimu_workflows::diagnose::{Diagnosis, ResidualStats, CHANNELS, UNEXPLAINED_ALPHA};
 
 use crate::fit_summary::EffectValue;
+use crate::noise::NoiseChannels;
+
+/// Which noise model the diagnosis used and why.
+fn write_noise(out: &mut fmt::Formatter<'_>, d: &Diagnosis) -> fmt::Result {
+    let n = &d.noise;
+    let lb = n.white_test.as_ref().map(|id| {
+        CHANNELS
+            .iter()
+            .zip(&id.channels)
+            .map(|(c, ch)| format!("{c} {:.2e}", ch.ljung_box_p))
+            .collect::<Vec<_>>()
+            .join(", ")
+    });
+    let tests = "scores, refits and residual statistics on the prewhitened residuals";
+    match (n.choice, &lb) {
+        ("white", _) => writeln!(out, "noise model: white (--noise-model white)")?,
+        ("given", _) => {
+            writeln!(out, "noise model: given (generalised least squares; {tests}):")?;
+            write!(out, "{}", NoiseChannels(&d.baseline.noise))?;
+        }
+        (_, Some(p)) if n.identified => {
+            writeln!(
+                out,
+                "noise model: identified from the residuals of the white fit, which are not white (Ljung-Box p: {p}); {tests}:"
+            )?;
+            write!(out, "{}", NoiseChannels(&d.baseline.noise))?;
+        }
+        (_, Some(p)) if n.warnings.is_empty() => writeln!(
+            out,
+            "noise model: white (the white fit's residuals pass the Ljung-Box whiteness test, or no AR order or motion level is supported; p: {p})"
+        )?,
+        _ => writeln!(out, "noise model: white (not identified; see the warning)")?,
+    }
+    for e in &n.reidentified_after {
+        writeln!(out, "noise model identified again after adding {e}")?;
+    }
+    if d.final_fit.noise != d.baseline.noise {
+        writeln!(out, "final noise model:")?;
+        write!(out, "{}", NoiseChannels(&d.final_fit.noise))?;
+    }
+    for w in &n.warnings {
+        writeln!(out, "warning: {w}")?;
+    }
+    Ok(())
+}
 
 /// Channel display: whitened RMS × σ in physical units (m/s², °/s).
 fn physical_rms(rms: &[f64; 6], sigma: &[f64; 6]) -> [f64; 6] {
@@ -30,6 +75,7 @@ impl fmt::Display for DiagnosisSummary<'_> {
     fn fmt(&self, out: &mut fmt::Formatter<'_>) -> fmt::Result {
         let d = self.0;
         let before = &d.stats_before;
+        write_noise(out, d)?;
         writeln!(
             out,
             "baseline: {} IMU samples, chi2 {:.0} for {} dof ({:.3} per dof)",
@@ -136,6 +182,24 @@ impl fmt::Display for DiagnosisSummary<'_> {
                 out,
                 "structure remains that no candidate explains: {}",
                 left.join("; ")
+            )?;
+        }
+        if !d.unexplained.is_empty() {
+            let peaks: Vec<String> = d
+                .unexplained
+                .iter()
+                .map(|u| {
+                    format!(
+                        "{} at {:.2} Hz ({:.1}× median power, p = {:.1e}; follows {}, r = {:+.3})",
+                        u.channel, u.frequency_hz, u.peak_ratio, u.p_value, u.regressor, u.r
+                    )
+                })
+                .collect();
+            writeln!(
+                out,
+                "unexplained structure (a narrow spectral peak the noise model does not capture, p < {:.1e} against a flat spectrum): {}",
+                UNEXPLAINED_ALPHA / CHANNELS.len() as f64,
+                peaks.join("; ")
             )?;
         }
         Ok(())

@@ -16,7 +16,7 @@ use robimu_report::html::calibration_report;
 use robimu_report::noise::NoiseSummary;
 use robimu_report::ParameterTable;
 use robimu_session::result::CalibrationResult;
-use robimu_session::{check_ar_order_for_data, NoiseShape, Session};
+use robimu_session::Session;
 use robimu_solver::IterationRecord;
 use robimu_workflows::calibrate::fit::{fit, FitSpec, Start};
 use robimu_workflows::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
@@ -212,8 +212,7 @@ impl CalibrateCmd {
         Ok(opts)
     }
 
-    /// The `--noise-model` choice: a FILE or the session's AR model as given,
-    /// else `white` or `auto`; an AR order beyond the data is refused.
+    /// The `--noise-model` choice ([`super::noise_spec::noise_choice`]).
     fn noise_choice(
         &self,
         session: &Session,
@@ -221,36 +220,7 @@ impl CalibrateCmd {
         opts: &CalibrateOptions,
         samples: usize,
     ) -> anyhow::Result<NoiseChoice> {
-        let given = match self.noise_model.trim() {
-            "white" => return Ok(NoiseChoice::White),
-            "auto" => {
-                let m = session.noise_model(robot)?;
-                if m.is_white() {
-                    return Ok(NoiseChoice::Auto);
-                }
-                m
-            }
-            file => {
-                let path = Path::new(file);
-                if !path.is_file() {
-                    bail!("--noise-model `{file}`: not `white`, `auto` or a readable TOML file");
-                }
-                let shape = NoiseShape::read(path)
-                    .context("--noise-model")?
-                    .unwrap_or_default();
-                let sigma_z = NoiseFile::read(path)
-                    .context("--noise-model")?
-                    .noise
-                    .sigma_z
-                    .unwrap_or(opts.sigma_z);
-                shape
-                    .noise_model(sigma_z)
-                    .map_err(|e| anyhow::anyhow!("--noise-model {file}: [noise]: {e}"))?
-            }
-        };
-        check_ar_order_for_data(given.max_order(), samples)
-            .map_err(|e| anyhow::anyhow!("--noise-model: {e}"))?;
-        Ok(NoiseChoice::Given(Box::new(given)))
+        super::noise_spec::noise_choice(&self.noise_model, session, robot, opts.sigma_z, samples)
     }
 
     /// The `--effects` set (`None` without effects: then the catalogue, and

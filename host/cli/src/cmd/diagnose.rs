@@ -20,14 +20,16 @@ use super::input::{load_session, Progress};
 
 /// Diagnose model discrepancies of a session.
 ///
-/// Fits the baseline calibration, analyses the whitened residuals (RMS and
-/// χ² per channel, Ljung–Box whiteness, spectral peaks, where in time they
-/// concentrate, the regressor they follow), scores every catalogued effect
+/// Fits the baseline calibration under the noise model of --noise-model,
+/// analyses the whitened residuals (prewhitened with a correlated noise
+/// model; RMS and χ² per channel, Ljung–Box whiteness, spectral peaks, where
+/// in time they concentrate, the regressor they follow), scores every catalogued effect
 /// (g_sensitivity, size_effect, clock_drift, bias_drift, joint_elasticity,
 /// encoder_scale, resonance) with a Rao score test, adds the most significant one
 /// (Bonferroni at --alpha across the catalogue, confirmed by a refit's
-/// likelihood ratio), and repeats until none is significant. Prints the
-/// summary and writes DIR/diagnosis.json, the residuals over time
+/// likelihood ratio), and repeats until none is significant; a narrow
+/// spectral peak left in a channel is reported as unexplained structure.
+/// Prints the summary (with the noise model used) and writes DIR/diagnosis.json, the residuals over time
 /// (residuals.png/svg) and their spectra (residual_spectra.png/svg), before
 /// and after the effects.
 #[derive(Debug, Clone, clap::Args)]
@@ -52,6 +54,15 @@ pub struct DiagnoseCmd {
     pub candidates: Vec<String>,
     #[command(flatten)]
     pub resonance: super::input::ResonanceMode,
+    /// The IMU noise model of the fits and tests: `auto` (white unless the
+    /// white baseline's residuals fail the whiteness test; then identified
+    /// from them, again after each effect is added, and every score, refit
+    /// and residual statistic is on the prewhitened residuals; a session
+    /// whose `[noise]` table gives `ar_z`/`motion_z` uses that model),
+    /// `white` (the paper's model), or a TOML FILE with a `[noise]` table
+    /// (docs/model.md §4.6).
+    #[arg(long, value_name = "white|auto|FILE", default_value = "auto")]
+    pub noise_model: String,
 }
 
 impl DiagnoseCmd {
@@ -76,8 +87,16 @@ impl DiagnoseCmd {
             None => None,
         };
         let setup = setup_with(&robot, &data, mass, self.resonance.mode()?);
+        let noise = super::noise_spec::noise_choice(
+            &self.noise_model,
+            &session,
+            &robot,
+            opts.sigma_z,
+            data.imu_t.len(),
+        )?;
         let mut dopts = DiagnoseOptions {
             alpha: self.alpha,
+            noise,
             ..DiagnoseOptions::default()
         };
         if !self.candidates.is_empty() {

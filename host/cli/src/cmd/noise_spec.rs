@@ -1,5 +1,7 @@
 //! `--noise-model SPEC` of `robimu simulate` and `robimu montecarlo`: the
-//! IMU noise the simulated sessions get (docs/model.md §4.6).
+//! IMU noise the simulated sessions get (docs/model.md §4.6); and
+//! `--noise-model white|auto|FILE` of `robimu calibrate` and `robimu
+//! diagnose` ([`noise_choice`]): the noise model they fit with.
 //!
 //! SPEC is `white` (the paper's model, the default), or
 //! `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]` (AR(1) of correlation time
@@ -13,7 +15,8 @@ use std::path::Path;
 
 use anyhow::{bail, Context};
 use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
-use robimu_session::NoiseShape;
+use robimu_session::{check_ar_order_for_data, NoiseShape, Session};
+use robimu_workflows::calibrate::noise_choice::NoiseChoice;
 
 /// What SPEC accepts, for error messages.
 const EXPECTED: &str =
@@ -99,6 +102,49 @@ pub fn parse_noise_model(
     shape
         .noise_model(sigma_z)
         .map_err(|e| anyhow::anyhow!("{}: {}: [noise]: {e}", what(), path.display()))
+}
+
+/// The `--noise-model white|auto|FILE` choice of calibrate and diagnose:
+/// a FILE (σ from its `sigma_z`, else `sigma_z`) or the session's AR model
+/// as given, else `white` or `auto`; an AR order beyond the `samples` is
+/// refused.
+pub fn noise_choice(
+    spec: &str,
+    session: &Session,
+    robot: &robimu_model::Robot,
+    sigma_z: [f64; 6],
+    samples: usize,
+) -> anyhow::Result<NoiseChoice> {
+    let given = match spec.trim() {
+        "white" => return Ok(NoiseChoice::White),
+        "auto" => {
+            let m = session.noise_model(robot)?;
+            if m.is_white() {
+                return Ok(NoiseChoice::Auto);
+            }
+            m
+        }
+        file => {
+            let path = Path::new(file);
+            if !path.is_file() {
+                bail!("--noise-model `{file}`: not `white`, `auto` or a readable TOML file");
+            }
+            let shape = NoiseShape::read(path)
+                .context("--noise-model")?
+                .unwrap_or_default();
+            let sigma_z = robimu_workflows::noise::NoiseFile::read(path)
+                .context("--noise-model")?
+                .noise
+                .sigma_z
+                .unwrap_or(sigma_z);
+            shape
+                .noise_model(sigma_z)
+                .map_err(|e| anyhow::anyhow!("--noise-model {file}: [noise]: {e}"))?
+        }
+    };
+    check_ar_order_for_data(given.max_order(), samples)
+        .map_err(|e| anyhow::anyhow!("--noise-model: {e}"))?;
+    Ok(NoiseChoice::Given(Box::new(given)))
 }
 
 #[cfg(test)]

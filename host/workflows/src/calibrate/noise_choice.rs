@@ -138,7 +138,7 @@ pub fn calibrate_with_noise(
 
 /// Whether two identified models agree (same orders, φ within
 /// [`SETTLE_PHI`], σ within [`SETTLE_SIGMA`]).
-fn settled(a: &NoiseModel, b: &NoiseModel) -> bool {
+pub fn settled(a: &NoiseModel, b: &NoiseModel) -> bool {
     a.imu.iter().zip(&b.imu).all(|(a, b)| {
         let (pa, pb) = (a.ar.phi(), b.ar.phi());
         pa.len() == pb.len()
