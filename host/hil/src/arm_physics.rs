@@ -453,8 +453,8 @@ fn mode_rhs(mode: &StructuralMode, w0: f64, x: &[f64; 12], f: &[f64; 6]) -> [f64
     let mut d = [0.0; 12];
     for c in 0..6 {
         d[c] = x[6 + c];
-        d[6 + c] = -gain(mode, c) * f[c] - 2.0 * mode.damping_ratio * w0 * x[6 + c]
-            - w0 * w0 * x[c];
+        d[6 + c] =
+            -gain(mode, c) * f[c] - 2.0 * mode.damping_ratio * w0 * x[6 + c] - w0 * w0 * x[c];
     }
     d
 }

@@ -5,7 +5,10 @@ use robimu_model::robot::default_estimated_errors;
 use robimu_model::{JointState, MeasurementModel};
 
 fn fixture(name: &str) -> String {
-    format!("{}/../cli/tests/fixtures/{name}", env!("CARGO_MANIFEST_DIR"))
+    format!(
+        "{}/../cli/tests/fixtures/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    )
 }
 
 /// The AUBO i5 (plain DH), the UR5 (DH, other signs and offsets) and the
@@ -70,7 +73,11 @@ fn the_urdf_chain_matches_the_model_to_1e_9() {
                 let z = model.predict(&js);
                 let zz = physics.signal(i as f64 * 0.01, &q, &qd, &qdd);
                 let err = max_abs((0..6).map(|c| zz[c] - z[c]));
-                assert!(err <= 1e-9 * max_abs(z), "{} z off by {err:e}", robot.name());
+                assert!(
+                    err <= 1e-9 * max_abs(z),
+                    "{} z off by {err:e}",
+                    robot.name()
+                );
             }
         }
     }
@@ -104,7 +111,10 @@ fn general_axes_and_rotated_link_frames_give_the_same_signal() {
     assert!(other.joints.iter().any(|j| j.axis[2].abs() < 0.9));
     for _ in 0..20 {
         let [q, qd, qdd] = random_state(&robot, &mut rng);
-        let (a, c) = (arm.kinematics(&q, &qd, &qdd), other.kinematics(&q, &qd, &qdd));
+        let (a, c) = (
+            arm.kinematics(&q, &qd, &qdd),
+            other.kinematics(&q, &qd, &qdd),
+        );
         let err = max_abs((0..3).flat_map(|i| [a.s[i] - c.s[i], a.omega[i] - c.omega[i]]));
         assert!(err < 1e-10, "{err:e}");
     }
@@ -135,7 +145,9 @@ fn elastic_joints_read_as_the_model_at_the_deflected_trajectory() {
         let f = |j: usize| 0.7 + 0.3 * j as f64;
         let q = (0..6).map(|j| 0.3 + 0.5 * (f(j) * t).sin()).collect();
         let qd = (0..6).map(|j| 0.5 * f(j) * (f(j) * t).cos()).collect();
-        let qdd = (0..6).map(|j| -0.5 * f(j) * f(j) * (f(j) * t).sin()).collect();
+        let qdd = (0..6)
+            .map(|j| -0.5 * f(j) * f(j) * (f(j) * t).sin())
+            .collect();
         [q, qd, qdd]
     };
     let deflected = |t: f64| -> Vec<f64> {
@@ -159,7 +171,10 @@ fn elastic_joints_read_as_the_model_at_the_deflected_trajectory() {
         let err = max_abs((0..6).map(|c| zz[c] - z[c]));
         let effect = max_abs((0..6).map(|c| rigid[c] - z[c]));
         biggest = biggest.max(effect);
-        assert!(err < 1e-5 + 1e-3 * effect, "t {t}: {err:e} (effect {effect:e})");
+        assert!(
+            err < 1e-5 + 1e-3 * effect,
+            "t {t}: {err:e} (effect {effect:e})"
+        );
     }
     // the deflection is far above the check's tolerance
     assert!(biggest > 1e-3, "elasticity changes z by only {biggest:e}");
@@ -285,5 +300,8 @@ fn bad_effects_are_named() {
     .unwrap_err();
     assert!(e.to_string().contains("damping"), "{e}");
     let e = UrdfArm::from_model(&robot, &layout, &[0.0; 3]).unwrap_err();
-    assert!(e.to_string().contains("length") || e.to_string().contains("entries"), "{e}");
+    assert!(
+        e.to_string().contains("length") || e.to_string().contains("entries"),
+        "{e}"
+    );
 }
