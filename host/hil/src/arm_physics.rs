@@ -18,9 +18,9 @@
 //! v̇_j = Rᵀ (v̇_{j−1} + ω̇_{j−1} × p_j + ω_{j−1} × (ω_{j−1} × p_j))
 //! ```
 //!
-//! (R, p the rotation and translation of `O_j·Rot(a_j, q_j)`). Only the
-//! sensor model (eq. (6), [`ImuIntrinsics::apply`]) is shared with the
-//! estimator. Hidden effects ([`ArmEffects`], each off unless set):
+//! (R, p the rotation and translation of `O_j·Rot(a_j, q_j)`). Only
+//! gravity (eq. (5)) and the sensor model (eq. (6), [`ImuIntrinsics::apply`])
+//! are shared with the estimator. Hidden effects ([`ArmEffects`], each off unless set):
 //!
 //! * joint elasticity: the joints stand at `q + c∘τ_g(q)` (τ_g from a
 //!   [`MassModel`], c per joint in rad/(N·m)), rates and accelerations by
@@ -140,16 +140,8 @@ impl UrdfArm {
             });
         }
         let p = layout.unpack(x).map_err(ModelError::from)?;
-        let g0 = robot.gravity();
-        let [gx, gy] = p.g_xy;
-        let gz2 = g0 * g0 - gx * gx - gy * gy;
-        if !(gz2 > 0.0) {
-            return Err(ModelError::Imu(robimu_model::ImuError::GravityOutOfRange {
-                gx,
-                gy,
-                g0,
-            }));
-        }
+        // gravity (eq. (5)) and the sensor model (eq. (6)) are shared
+        let gravity = robimu_model::imu::gravity(p.g_xy, robot.gravity())?;
         let (x_axis, y_axis, z_axis) = (Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis());
         let mut joints = Vec::with_capacity(robot.dof());
         let mut origin = Isometry3::identity();
@@ -180,7 +172,7 @@ impl UrdfArm {
         Ok(Self {
             joints,
             tip: UrdfOrigin::from_isometry(&origin),
-            gravity: [gx, gy, -gz2.sqrt()],
+            gravity,
             accel: p.accel,
             gyro: p.gyro,
         })
