@@ -4,6 +4,9 @@
 //! * [`physics`]: a BNO055 sample source that computes what an IMU on the
 //!   simulated arm's flange measures (docs/model.md §2–3 with a hidden truth),
 //!   with noise, quantisation and saturation as the chip has them.
+//! * [`arm_physics`]: the same signal from an independent URDF-style chain
+//!   (Newton–Euler forward pass), with joint elasticity and a structural
+//!   mode the estimator's model does not have.
 //! * [`rig`]: a simulated AUBO controller and a simulated IMU board (the
 //!   real firmware core on a pseudo-terminal) sharing one true motion.
 //!
@@ -27,5 +30,6 @@
 
 #![deny(missing_docs)]
 
+pub mod arm_physics;
 pub mod physics;
 pub mod rig;

@@ -17,6 +17,10 @@
 //! an exponential warm-up curve and the die temperature (the `TEMP`
 //! register, the recording's `temp_c` column) follows the same curve.
 //!
+//! With [`ModelSource::with_arm_physics`] the noise-free signal comes from
+//! an independent implementation of the chain with hidden effects
+//! ([`crate::arm_physics`]) instead of the measurement model.
+//!
 //! For the ideal chip ([`robimu_bno055_sim::ChipModel::Ideal`]) the reading
 //! is computed at the instant the firmware stamps it, so the true time
 //! offset τ is zero; what the host's clock mapping adds to it is the
@@ -31,6 +35,8 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use robimu_bno055_sim::{RawReading, SampleSource, Sensor, Stimulus};
 use robimu_hil_sim::aubo::{TrueMotion, TrueState};
+
+use super::arm_physics::ArmPhysics;
 
 use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError, NoiseSampler};
 use robimu_model::{JointState, MeasurementModel};
@@ -97,6 +103,8 @@ const TEMPERATURE_C: f64 = 25.0;
 pub struct ModelSource {
     probe: Box<dyn TrueMotion>,
     model: MeasurementModel,
+    /// The independent chain with hidden effects instead of `model`.
+    arm: Option<ArmPhysics>,
     sigma_z: [f64; 6],
     accel_full_scale: f64,
     gyro_full_scale: f64,
@@ -128,6 +136,7 @@ impl ModelSource {
         Self {
             probe,
             model,
+            arm: None,
             sigma_z,
             accel_full_scale: 4.0 * 9.80665,
             gyro_full_scale: 2000f64.to_radians(),
@@ -150,6 +159,13 @@ impl ModelSource {
         self
     }
 
+    /// The signal from `arm` (an independent chain with hidden effects,
+    /// [`crate::arm_physics`]) instead of the measurement model.
+    pub fn with_arm_physics(mut self, arm: ArmPhysics) -> Self {
+        self.arm = Some(arm);
+        self
+    }
+
     /// Biases and temperature following `warm_up` from power-up.
     pub fn with_warm_up(mut self, warm_up: WarmUp) -> Self {
         self.warm_up = Some(warm_up);
@@ -163,7 +179,7 @@ impl ModelSource {
     }
 
     /// The noise-free sensor output with the warm-up's bias offset, and ‖q̈‖².
-    fn signal_at(&self, state: &TrueState) -> ([f64; 6], f64) {
+    fn signal_at(&mut self, state: &TrueState) -> ([f64; 6], f64) {
         let mut z = self.ideal_at(state);
         if let Some(w) = &self.warm_up {
             let offset = w.bias_offset(state.t - self.t_power_on);
@@ -185,12 +201,16 @@ impl ModelSource {
     }
 
     /// The noise-free sensor output now (m/s², rad/s), before quantisation.
-    pub fn ideal_now(&self) -> [f64; 6] {
-        self.ideal_at(&self.probe.now())
+    pub fn ideal_now(&mut self) -> [f64; 6] {
+        let state = self.probe.now();
+        self.ideal_at(&state)
     }
 
-    fn ideal_at(&self, state: &TrueState) -> [f64; 6] {
+    fn ideal_at(&mut self, state: &TrueState) -> [f64; 6] {
         let n = self.model.dof();
+        if let Some(arm) = &mut self.arm {
+            return arm.signal(state.t, &state.q[..n], &state.qd[..n], &state.qdd[..n]);
+        }
         let js = JointState::from_slices(
             &state.q[..n],
             &state.qd[..n],

@@ -15,7 +15,9 @@
 //! and stronger with motion ([`SimRigConfig::imu_noise`], docs/model.md
 //! §4.6; [`SimRigConfig::with_vibration_noise`] builds issue 14's
 //! accelerometer model), and a bias and temperature warm-up
-//! ([`SimRigConfig::warm_up`]).
+//! ([`SimRigConfig::warm_up`]), and the IMU signal from an independent
+//! chain with joint elasticity and a structural mode
+//! ([`SimRigConfig::arm_physics`], [`crate::arm_physics`]).
 
 use std::net::SocketAddr;
 
@@ -26,6 +28,8 @@ use robimu_hil_sim::ur::{SimUr, SimUrConfig, SimUrError};
 
 pub use robimu_bno055_sim::ChipModel;
 
+pub use super::arm_physics::{ArmEffects, Elasticity, StructuralMode};
+use super::arm_physics::{ArmPhysics, ArmPhysicsError, UrdfArm};
 pub use super::physics::WarmUp;
 use super::physics::{vibration_noise, ModelSource};
 use robimu_model::noise::{NoiseModel, NoiseModelError};
@@ -56,6 +60,9 @@ pub enum RigError {
     /// The simulated IMU board did not start.
     #[error("cannot start the simulated IMU board: {0}")]
     Device(#[from] SimDeviceError),
+    /// The arm's hidden effects are not valid.
+    #[error("bad simulated arm: {0}")]
+    Arm(#[from] ArmPhysicsError),
     /// The IMU noise model asked for is not valid.
     #[error("bad simulated IMU noise: {0}")]
     Noise(#[from] NoiseModelError),
@@ -89,6 +96,10 @@ pub struct SimRigConfig {
     /// Bias and temperature warm-up from the board's power-up (default
     /// `None`: constant biases, 25 °C).
     pub warm_up: Option<WarmUp>,
+    /// The IMU signal from the independent URDF-style chain with these
+    /// hidden effects ([`crate::arm_physics`]) instead of the measurement
+    /// model (default `None`).
+    pub arm_physics: Option<ArmEffects>,
 }
 
 impl SimRigConfig {
@@ -115,6 +126,7 @@ impl SimRigConfig {
             chip: ChipModel::Ideal,
             imu_noise: None,
             warm_up: None,
+            arm_physics: None,
         }
     }
 
@@ -212,6 +224,10 @@ fn imu_board(
     }
     if let Some(warm_up) = config.warm_up {
         source = source.with_warm_up(warm_up);
+    }
+    if let Some(effects) = &config.arm_physics {
+        let arm = UrdfArm::from_model(robot, &layout, &x)?;
+        source = source.with_arm_physics(ArmPhysics::new(arm, effects.clone(), robot.gravity())?);
     }
     let mut device_config = SimDeviceConfig::new(Box::new(source));
     device_config.chip_model = config.chip;
