@@ -16,7 +16,7 @@ use robimu_report::html::calibration_report;
 use robimu_report::noise::NoiseSummary;
 use robimu_report::ParameterTable;
 use robimu_session::result::CalibrationResult;
-use robimu_session::{check_ar_order_for_data, NoiseShape, Session};
+use robimu_session::{check_ar_order_for_data, Session};
 use robimu_solver::IterationRecord;
 use robimu_workflows::calibrate::fit::{fit, FitSpec, Start};
 use robimu_workflows::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
@@ -26,6 +26,16 @@ use robimu_workflows::noise::NoiseFile;
 use robimu_workflows::repeatability::{self, check_windows, Repeatability, Window};
 
 use super::input::{load_session, output_path, Progress};
+
+/// A noise file given on the command line, read once.
+struct NoiseFileArg {
+    /// `--noise` or `--noise-model`.
+    flag: &'static str,
+    path: PathBuf,
+    file: NoiseFile,
+    /// Its `ar_z`/`motion_z`, if any.
+    shape: Option<robimu_session::NoiseShape>,
+}
 
 /// Calibrate the robot and the IMU together from a session.
 ///
@@ -55,7 +65,10 @@ pub struct CalibrateCmd {
     #[arg(long)]
     pub knot_spacing: Option<f64>,
     /// Noise file whose `[noise]` table (session.toml's format, e.g. written
-    /// by `robimu noise`) replaces the session's and the robot's σ.
+    /// by `robimu noise`) replaces the session's key by key: `sigma_z`,
+    /// `sigma_q` replace the session's and the robot's σ, and `ar_z`,
+    /// `motion_z` (when given) the session's noise model, which
+    /// `--noise-model auto` then fits as given (docs/model.md §4.6, §7.2).
     #[arg(long, value_name = "FILE")]
     pub noise: Option<PathBuf>,
     /// Repeatability: also calibrate each of N equal time windows (N >= 2;
@@ -78,10 +91,11 @@ pub struct CalibrateCmd {
     pub resonance: super::input::ResonanceMode,
     /// The IMU noise model: `auto` (white unless the residuals fail the
     /// whiteness test; then identified from them and refitted by
-    /// generalised least squares; a session whose `[noise]` table gives
-    /// `ar_z`/`motion_z` is fitted with that model), `white` (the paper's
-    /// model), or a TOML FILE with a `[noise]` table of `sigma_z`, `ar_z`,
-    /// `motion_z` (docs/model.md §4.6, §7.2).
+    /// generalised least squares; a `[noise]` table — the session's or
+    /// `--noise`'s — that gives `ar_z`/`motion_z` is fitted with that
+    /// model), `white` (the paper's model), or a noise FILE: the same as
+    /// `--noise FILE` with the file's model fitted as given even when it is
+    /// white (docs/model.md §4.6, §7.2).
     #[arg(long, value_name = "white|auto|FILE", default_value = "auto")]
     pub noise_model: String,
 }
@@ -92,7 +106,8 @@ impl CalibrateCmd {
         let dir = &self.session;
         let (session, robot) = load_session(dir)?;
         let layout = ParamLayout::new(&robot);
-        let opts = self.options(&session, &robot, &layout)?;
+        let file = self.noise_file()?;
+        let opts = self.options(&session, &robot, &layout, file.as_ref())?;
         let path = output_path(self.out.as_deref(), dir.join("result.json"))?;
         let data = session.measurements();
         check_measurements(&robot, &data)
@@ -110,7 +125,7 @@ impl CalibrateCmd {
 
         let progress = Progress::start("fitting the trajectory and finding the time offset tau");
         progress.println(IterationRecord::HEADER);
-        let choice = self.noise_choice(&session, &robot, &opts, data.imu_t.len())?;
+        let choice = self.noise_choice(&session, &opts, data.imu_t.len(), file.as_ref())?;
         let cal = calibrate_with_noise(&robot, &data, &opts, &choice, |r| {
             progress.println(r.to_string());
             progress.set_message(format!(
@@ -171,32 +186,65 @@ impl CalibrateCmd {
         Ok(())
     }
 
-    /// The calibration settings: the session's (or `--noise`'s) σ,
-    /// `--freeze`, `--no-prior`, `--knot-spacing`.
+    /// The noise file of `--noise FILE` or `--noise-model FILE`, read once:
+    /// its flag, path, σ and model keys. Two different files are refused.
+    fn noise_file(&self) -> anyhow::Result<Option<NoiseFileArg>> {
+        let model_file = match self.noise_model.trim() {
+            "white" | "auto" => None,
+            file => {
+                let path = Path::new(file);
+                if !path.is_file() {
+                    bail!("--noise-model `{file}`: not `white`, `auto` or a readable TOML file");
+                }
+                Some(path.to_path_buf())
+            }
+        };
+        let (flag, path) = match (&self.noise, model_file) {
+            (Some(a), Some(b)) if a != &b => bail!(
+                "--noise {} and --noise-model {}: give the noise file once",
+                a.display(),
+                b.display()
+            ),
+            (Some(a), _) => ("--noise", a.clone()),
+            (None, Some(b)) => ("--noise-model", b),
+            (None, None) => return Ok(None),
+        };
+        let (file, shape) = NoiseFile::read_with_shape(&path).context(flag)?;
+        Ok(Some(NoiseFileArg {
+            flag,
+            path,
+            file,
+            shape,
+        }))
+    }
+
+    /// The calibration settings: the session's σ (replaced by the noise
+    /// file's), `--freeze`, `--no-prior`, `--knot-spacing`.
     fn options(
         &self,
         session: &Session,
         robot: &Robot,
         layout: &ParamLayout,
+        file: Option<&NoiseFileArg>,
     ) -> anyhow::Result<CalibrateOptions> {
         let mut opts = CalibrateOptions::new(robot);
         (opts.sigma_z, opts.sigma_q) = session.noise(robot)?;
-        if let Some(path) = &self.noise {
-            let file = NoiseFile::read(path).context("--noise")?;
-            if let Some(z) = file.noise.sigma_z {
+        if let Some(f) = file {
+            if let Some(z) = f.file.noise.sigma_z {
                 opts.sigma_z = z;
             }
-            if let Some(q) = file.noise.sigma_q {
+            if let Some(q) = &f.file.noise.sigma_q {
                 if q.len() != robot.dof() {
                     bail!(
-                        "--noise {}: [noise] sigma_q has {} values but robot `{}` has {} joints",
-                        path.display(),
+                        "{} {}: [noise] sigma_q has {} values but robot `{}` has {} joints",
+                        f.flag,
+                        f.path.display(),
                         q.len(),
                         robot.name(),
                         robot.dof()
                     );
                 }
-                opts.sigma_q = q;
+                opts.sigma_q = q.clone();
             }
         }
         opts.frozen = layout
@@ -212,42 +260,36 @@ impl CalibrateCmd {
         Ok(opts)
     }
 
-    /// The `--noise-model` choice: a FILE or the session's AR model as given,
-    /// else `white` or `auto`; an AR order beyond the data is refused.
+    /// The `--noise-model` choice: `white`; `auto` (the noise table's AR
+    /// model — the noise file's keys, else the session's — as given, else
+    /// identified when needed); a FILE's model as given. The σ are `opts`'
+    /// (the noise file's over the session's); an AR order beyond the data is
+    /// refused.
     fn noise_choice(
         &self,
         session: &Session,
-        robot: &Robot,
         opts: &CalibrateOptions,
         samples: usize,
+        file: Option<&NoiseFileArg>,
     ) -> anyhow::Result<NoiseChoice> {
-        let given = match self.noise_model.trim() {
-            "white" => return Ok(NoiseChoice::White),
-            "auto" => {
-                let m = session.noise_model(robot)?;
-                if m.is_white() {
-                    return Ok(NoiseChoice::Auto);
-                }
-                m
-            }
-            file => {
-                let path = Path::new(file);
-                if !path.is_file() {
-                    bail!("--noise-model `{file}`: not `white`, `auto` or a readable TOML file");
-                }
-                let shape = NoiseShape::read(path)
-                    .context("--noise-model")?
-                    .unwrap_or_default();
-                let sigma_z = NoiseFile::read(path)
-                    .context("--noise-model")?
-                    .noise
-                    .sigma_z
-                    .unwrap_or(opts.sigma_z);
-                shape
-                    .noise_model(sigma_z)
-                    .map_err(|e| anyhow::anyhow!("--noise-model {file}: [noise]: {e}"))?
-            }
+        let mode = self.noise_model.trim();
+        if mode == "white" {
+            return Ok(NoiseChoice::White);
+        }
+        let from_file = file.and_then(|f| f.shape.clone().map(|s| (s, f)));
+        let (shape, origin) = match &from_file {
+            Some((s, f)) => (s.clone(), format!("{} {}", f.flag, f.path.display())),
+            None => (
+                session.meta.noise_shape.clone().unwrap_or_default(),
+                session.dir.join("session.toml").display().to_string(),
+            ),
         };
+        let given = shape
+            .noise_model(opts.sigma_z)
+            .map_err(|e| anyhow::anyhow!("{origin}: [noise]: {e}"))?;
+        if mode == "auto" && given.is_white() {
+            return Ok(NoiseChoice::Auto);
+        }
         check_ar_order_for_data(given.max_order(), samples)
             .map_err(|e| anyhow::anyhow!("--noise-model: {e}"))?;
         Ok(NoiseChoice::Given(Box::new(given)))

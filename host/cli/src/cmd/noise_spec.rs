@@ -1,5 +1,6 @@
-//! `--noise-model SPEC` of `robimu simulate` and `robimu montecarlo`: the
-//! IMU noise the simulated sessions get (docs/model.md §4.6).
+//! `--noise-model SPEC` of `robimu simulate` and `robimu montecarlo` (the
+//! IMU noise the simulated sessions get) and of `robimu plan` and
+//! `robimu identifiability` (the noise a plan is made for; docs/model.md §4.6).
 //!
 //! SPEC is `white` (the paper's model, the default), or
 //! `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]` (AR(1) of correlation time
@@ -13,7 +14,6 @@ use std::path::Path;
 
 use anyhow::{bail, Context};
 use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
-use robimu_session::NoiseShape;
 
 /// What SPEC accepts, for error messages.
 const EXPECTED: &str =
@@ -91,12 +91,11 @@ pub fn parse_noise_model(
     if !path.is_file() {
         bail!("{}: {EXPECTED} (no such file)", what());
     }
-    let table = robimu_workflows::noise::NoiseFile::read(path).with_context(what)?;
+    let (table, shape) =
+        robimu_workflows::noise::NoiseFile::read_with_shape(path).with_context(what)?;
     let sigma_z = table.noise.sigma_z.unwrap_or(sigma_z);
-    let shape = NoiseShape::read(path)
-        .with_context(what)?
-        .unwrap_or_default();
     shape
+        .unwrap_or_default()
         .noise_model(sigma_z)
         .map_err(|e| anyhow::anyhow!("{}: {}: [noise]: {e}", what(), path.display()))
 }
