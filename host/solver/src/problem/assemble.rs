@@ -108,20 +108,31 @@ impl Problem<'_> {
         Ok(cost)
     }
 
-    /// Whitened IMU residuals at θ for every selected sample, with the index
-    /// of the sample: (z − h)/σ_z for white noise, the GLS-whitened ones
-    /// otherwise (module doc).
+    /// Whitened IMU residuals r = (z − h)/σ_z at θ for every selected sample,
+    /// with the index of the sample.
     pub fn imu_residuals(&self, theta: &[f64]) -> Result<Vec<(usize, [f64; 6])>, ProblemError> {
         let x = self.x_of(theta);
         let model = self.model(&x)?;
         let spline = self.spline_of(theta);
         let tau = x[self.layout.offsets().tau];
         let theta_e = self.effect_params_of(theta);
-        let mut out = Vec::with_capacity(self.imu_range.len());
-        self.gls_residuals(&model, &spline, tau, theta_e, self.imu_range(), |i, w| {
-            out.push((i, w))
-        })?;
-        Ok(out)
+        let mut at = self.sample_eval();
+        if !self.white {
+            let mut out = Vec::with_capacity(self.imu_range.len());
+            self.gls_residuals(&model, &spline, tau, theta_e, self.imu_range(), |i, w| {
+                out.push((i, w))
+            })?;
+            return Ok(out);
+        }
+        self.imu_range
+            .clone()
+            .map(|i| {
+                Ok((
+                    i,
+                    self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
+                ))
+            })
+            .collect()
     }
 
     /// Storage for one sample (the effect part empty without effects).
@@ -141,10 +152,24 @@ impl Problem<'_> {
         }
     }
 
-    /// Raw residual z_i − h of IMU sample i; leaves the sample's basis and
-    /// joint state in `at`. Without effects z is the baseline prediction
-    /// alone; with them, the effect columns need the baseline Jacobians
-    /// (computed into `at.effect`).
+    /// Whitened residual (z_i − h)/σ_z of IMU sample i; leaves the sample's
+    /// basis and joint state in `at`. Without effects z is the baseline
+    /// prediction alone; with them, the effect columns need the baseline
+    /// Jacobians (computed into `at.effect`).
+    fn whitened_residual(
+        &self,
+        model: &MeasurementModel,
+        spline: &Spline,
+        tau: f64,
+        theta_e: &[f64],
+        i: usize,
+        at: &mut SampleEval,
+    ) -> Result<[f64; 6], ProblemError> {
+        let r = self.raw_residual(model, spline, tau, theta_e, i, at)?;
+        Ok(std::array::from_fn(|c| r[c] * self.inv_sigma_z[c]))
+    }
+
+    /// Raw residual z_i − h of IMU sample i (see [`Self::whitened_residual`]).
     fn raw_residual(
         &self,
         model: &MeasurementModel,
@@ -283,6 +308,101 @@ impl Problem<'_> {
         }
         cost
     }
+
+    /// IMU residuals of the samples `range`: cost, and (with `out`) their
+    /// Gauss–Newton blocks, flushed per knot span. Accelerometer and gyroscope
+    /// rows are stacked separately, each with only the x columns it depends
+    /// on ([`Problem::sensor_columns`]).
+    fn imu_terms(
+        &self,
+        model: &MeasurementModel,
+        spline: &Spline,
+        x: &[f64],
+        theta: &[f64],
+        range: Range<usize>,
+        out: Option<&mut Linearization<'_>>,
+    ) -> Result<f64, ProblemError> {
+        if !self.white {
+            return self.imu_terms_gls(model, spline, x, theta, range, out);
+        }
+        let theta_e = self.effect_params_of(theta);
+        let nx = self.layout.len();
+        let n = self.n;
+        let nl = (self.knots.degree() + 1) * n;
+        let tau = x[self.layout.offsets().tau];
+        let mut at = self.sample_eval();
+        let mut cost = 0.0;
+        let Some(out) = out else {
+            for i in range {
+                let r = self.whitened_residual(model, spline, tau, theta_e, i, &mut at)?;
+                cost += 0.5 * r.iter().map(|v| v * v).sum::<f64>();
+            }
+            return Ok(cost);
+        };
+        let mut jac = MeasurementJacobians::new(self.layout.len());
+        let mut blocks = [
+            Stack::new(nl, 0, &self.sensor_columns[0]),
+            Stack::new(nl, 0, &self.sensor_columns[1]),
+        ];
+        let mut group_first = usize::MAX;
+        for i in range {
+            self.locate(spline, tau, i, &mut at)?;
+            let (basis, js) = (&at.basis, &at.js);
+            if (basis.first != group_first && blocks[0].rows > 0) || blocks[0].full() {
+                for b in &mut blocks {
+                    b.flush(out);
+                }
+            }
+            if basis.first != group_first {
+                for b in &mut blocks {
+                    b.start_group(basis.first, 0, n);
+                }
+            }
+            group_first = basis.first;
+            model.jacobians(js, &mut jac);
+            let cols = &mut at.effect.cols;
+            let z = self.with_effect_terms(model, i, js, &jac, theta_e, cols);
+            let zm = &self.data.imu_z[i];
+            for (sensor, block) in blocks.iter_mut().enumerate() {
+                for ch in 3 * sensor..3 * sensor + 3 {
+                    let w = self.inv_sigma_z[ch];
+                    let r = (zm[ch] - z[ch]) * w;
+                    cost += 0.5 * r * r;
+                    let row = block.rows;
+                    block.r[row] = r;
+                    let col = block
+                        .jt
+                        .col_mut(row)
+                        .try_as_col_major_mut()
+                        .expect("contiguous column");
+                    let col = col.as_slice_mut();
+                    // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)/σ
+                    for a in 0..basis.count {
+                        let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
+                        for j in 0..n {
+                            col[a * n + j] = -w
+                                * (jac.dz_dq[j][ch] * n0
+                                    + jac.dz_dqd[j][ch] * n1
+                                    + jac.dz_dqdd[j][ch] * n2);
+                        }
+                    }
+                    for (a, &(k, _)) in block.columns.iter().enumerate() {
+                        let d = if k < nx {
+                            jac.dz_dx[k][ch]
+                        } else {
+                            at.effect.cols[k - nx][ch]
+                        };
+                        col[nl + a] = -w * d;
+                    }
+                    block.rows += 1;
+                }
+            }
+        }
+        for b in &mut blocks {
+            b.flush(out);
+        }
+        Ok(cost)
+    }
 }
 
 /// The raw (unwhitened) residual and Jacobian rows of one sample, kept in a
@@ -360,14 +480,10 @@ impl Problem<'_> {
         Ok(())
     }
 
-    /// IMU residuals of the samples `range`: cost, and (with `out`) their
-    /// Gauss–Newton blocks, flushed per knot span. Each row is whitened along
-    /// time, combining the raw rows of up to P samples before it, which may
-    /// lie in earlier knot spans (module doc); white noise is the case P = 0
-    /// (the filter is the scaling by 1/σ). Accelerometer and gyroscope rows
-    /// are stacked separately, each with only the x columns it depends on
-    /// ([`Problem::sensor_columns`]).
-    fn imu_terms(
+    /// [`Self::imu_terms`] for noise that is not white: rows whitened along
+    /// time, each combining the raw rows of up to P samples before it, which
+    /// may lie in earlier knot spans (module doc).
+    fn imu_terms_gls(
         &self,
         model: &MeasurementModel,
         spline: &Spline,
@@ -506,8 +622,9 @@ impl Problem<'_> {
 
 /// Rows of one sensor's whitened Jacobian for the samples of knot span g,
 /// stored transposed (one contiguous column per row), over the band unknowns
-/// of spans b0 = max(g − E, 0) … g + p_s (E = 0 for white noise), then the
-/// sensor's x columns.
+/// of spans b0 = max(g − E, 0) … g + p_s, then the sensor's x columns. The
+/// white assembly uses it with E = 0 (its rows are its own samples'), the
+/// GLS one with the E of the widened band.
 struct Stack<'c> {
     nl: usize,
     columns: &'c [(usize, usize)],

@@ -52,8 +52,11 @@
 //! P+1 samples, from which the whitened rows are combined; the two assembly
 //! threads each recompute the P samples before their half. The effect
 //! columns ([`EffectSet`]) are part of those rows and so are whitened alike.
-//! White noise is the same mechanism with P = 0 (every row is its own
-//! sample's, scaled by 1/σ, the paper's whitening) and E = 0.
+//! With a white model (every channel white, no motion level) E = 0 and the
+//! white assembly writes each sample's rows straight into the same per-span
+//! stack (no ring: a row is its own sample's, scaled by 1/σ); the GLS loop
+//! with P = 0 gives the same matrix (`gls_tests`) but copies every row once
+//! more, which cost the white fit 4–9 % more CPU in `--bench calibrate`.
 //!
 //! Only the IMU samples whose u lies inside the joint-sample span (with a
 //! small margin, [`Problem::margin`]) are used; the set is chosen by
@@ -118,8 +121,11 @@ pub struct Problem<'a> {
     knots: Knots,
     n: usize,
     inv_sigma_q: Vec<f64>,
+    inv_sigma_z: [f64; 6],
     /// The IMU noise model in use.
     noise: NoiseModel,
+    /// Whether it is white (then the white assembly runs).
+    white: bool,
     /// Extra knot spans E a whitened row reaches back (0 when white).
     extra_spans: usize,
     /// Median step of the IMU stream (segments break at > 1.5× it).
@@ -198,8 +204,13 @@ impl<'a> Problem<'a> {
             Some(m) => m.clone(),
             None => NoiseModel::white(opts.sigma_z).expect("positive sigma_z"),
         };
+        let white = noise.is_white();
         let median_dt = median_step(&data.imu_t);
-        let extra_spans = extra_spans(&knots, noise.max_order(), 1.5 * median_dt);
+        let extra_spans = if white {
+            0
+        } else {
+            extra_spans(&knots, noise.max_order(), 1.5 * median_dt)
+        };
         let inv_levels = if noise.imu.iter().any(|c| c.motion > 0.0) {
             vec![[1.0; 6]; data.imu_t.len()]
         } else {
@@ -212,7 +223,9 @@ impl<'a> Problem<'a> {
             knots,
             n,
             inv_sigma_q: opts.sigma_q.iter().map(|s| 1.0 / s).collect(),
+            inv_sigma_z: noise.sigma_z().map(|s| 1.0 / s),
             noise,
+            white,
             extra_spans,
             median_dt,
             seg_pos: Vec::new(),
@@ -361,15 +374,17 @@ impl<'a> Problem<'a> {
             return Err(ProblemError::NoOverlap { tau });
         }
         self.imu_range = lo..hi;
-        let gap = 1.5 * self.median_dt;
-        self.seg_pos.clear();
-        let mut pos = 0u32;
-        for i in lo..hi {
-            if i > lo && t[i] - t[i - 1] > gap {
-                pos = 0;
+        if !self.white {
+            let gap = 1.5 * self.median_dt;
+            self.seg_pos.clear();
+            let mut pos = 0u32;
+            for i in lo..hi {
+                if i > lo && t[i] - t[i - 1] > gap {
+                    pos = 0;
+                }
+                self.seg_pos.push(pos);
+                pos = pos.saturating_add(1);
             }
-            self.seg_pos.push(pos);
-            pos = pos.saturating_add(1);
         }
         Ok(())
     }
