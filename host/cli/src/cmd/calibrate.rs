@@ -94,8 +94,9 @@ pub struct CalibrateCmd {
     /// generalised least squares; a `[noise]` table — the session's or
     /// `--noise`'s — that gives `ar_z`/`motion_z` is fitted with that
     /// model), `white` (the paper's model), or a noise FILE: the same as
-    /// `--noise FILE` with the file's model fitted as given even when it is
-    /// white (docs/model.md §4.6, §7.2).
+    /// `--noise FILE`, with the resulting model (the file's keys over the
+    /// session's) fitted as given even when it is white (docs/model.md
+    /// §4.6, §7.2).
     #[arg(long, value_name = "white|auto|FILE", default_value = "auto")]
     pub noise_model: String,
 }
