@@ -1157,5 +1157,38 @@ fn calibrate_identifies_correlated_noise_and_keeps_white_noise_white() {
     let bad = tmp.path().join("bad.toml");
     std::fs::write(&bad, "[noise]\nar_z = [[1.2], [], [], [], [], []]\n").unwrap();
     robimu(["calibrate", s(&ar), "--noise-model", s(&bad)]).assert_fails(&["stationary"]);
+    robimu(["calibrate", s(&ar), "--noise", s(&bad)]).assert_fails(&["--noise", "stationary"]);
     robimu(["calibrate", s(&ar), "--noise-model", "nonsense"]).assert_fails(&["--noise-model"]);
+    // `--noise FILE` carries the model keys too: fitted as given under auto
+    let given = tmp.path().join("given.toml");
+    std::fs::write(
+        &given,
+        format!("[noise]\nar_z = [[{phi}], [{phi}], [{phi}], [], [], []]\n"),
+    )
+    .unwrap();
+    let run = robimu_ok([
+        "calibrate",
+        s(&ar),
+        "--noise",
+        s(&given),
+        "--out",
+        s(&tmp.path().join("given.json")),
+    ]);
+    assert!(
+        run.stdout
+            .contains("noise model: given (generalised least squares):")
+            && run.stdout.contains("  ax: AR(1) phi [0.75"),
+        "{}",
+        run.stdout
+    );
+    // one noise file only
+    robimu([
+        "calibrate",
+        s(&ar),
+        "--noise",
+        s(&given),
+        "--noise-model",
+        s(&bad),
+    ])
+    .assert_fails(&["give the noise file once"]);
 }

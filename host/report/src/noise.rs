@@ -131,6 +131,36 @@ impl fmt::Display for NoiseCorrelationTable<'_> {
     }
 }
 
+/// One line per IMU channel of a noise model: `white`, or its AR order and
+/// coefficients, N_eff/N, the factor a white model understates slow
+/// parameters' σ by, and the motion gain (docs/model.md §4.6).
+pub struct NoiseChannels<'a>(pub &'a robimu_model::noise::NoiseModel);
+
+impl fmt::Display for NoiseChannels<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (name, c) in IMU_COLUMNS.iter().zip(&self.0.imu) {
+            if c.is_white() {
+                writeln!(f, "  {name}: white")?;
+                continue;
+            }
+            let phi: Vec<String> = c.ar.phi().iter().map(|v| format!("{v:.3}")).collect();
+            write!(
+                f,
+                "  {name}: AR({}) phi [{}], N_eff/N {:.3}, a white model understates slow parameters' sigma x{:.2}",
+                c.ar.order(),
+                phi.join(", "),
+                c.ar.effective_fraction(),
+                c.ar.low_frequency_ratio().sqrt()
+            )?;
+            if c.motion > 0.0 {
+                write!(f, ", motion gain {:.3e}", c.motion)?;
+            }
+            writeln!(f)?;
+        }
+        Ok(())
+    }
+}
+
 /// The noise model a calibration used, and why (`calibrate --noise-model`).
 pub struct NoiseSummary<'a> {
     choice: &'a robimu_workflows::calibrate::noise_choice::NoiseChoice,
@@ -201,34 +231,5 @@ impl fmt::Display for NoiseSummary<'_> {
                 }
             }
         }
-    }
-}
-
-/// A noise model's channels, one line each (white, or the AR order, φ,
-/// N_eff/N, the white model's σ understatement and the motion gain).
-pub struct NoiseChannels<'a>(pub &'a robimu_model::noise::NoiseModel);
-
-impl fmt::Display for NoiseChannels<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        for (name, c) in IMU_COLUMNS.iter().zip(&self.0.imu) {
-            if c.is_white() {
-                writeln!(f, "  {name}: white")?;
-                continue;
-            }
-            let phi: Vec<String> = c.ar.phi().iter().map(|v| format!("{v:.3}")).collect();
-            write!(
-                f,
-                "  {name}: AR({}) phi [{}], N_eff/N {:.3}, a white model understates slow parameters' sigma x{:.2}",
-                c.ar.order(),
-                phi.join(", "),
-                c.ar.effective_fraction(),
-                c.ar.low_frequency_ratio().sqrt()
-            )?;
-            if c.motion > 0.0 {
-                write!(f, ", motion gain {:.3e}", c.motion)?;
-            }
-            writeln!(f)?;
-        }
-        Ok(())
     }
 }

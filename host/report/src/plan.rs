@@ -73,6 +73,9 @@ pub struct PlanSummary<'a> {
     pub layout: &'a ParamLayout,
     /// Their posterior σ.
     pub posterior: &'a [f64],
+    /// The IMU noise model the plan assumed, and the `--noise-model` spec it
+    /// came from.
+    pub noise: (&'a robimu_model::noise::NoiseModel, &'a str),
 }
 
 impl fmt::Display for PlanSummary<'_> {
@@ -87,6 +90,18 @@ impl fmt::Display for PlanSummary<'_> {
             p.evaluations,
             self.dir.display()
         )?;
+        let (model, spec) = self.noise;
+        if model.is_white() {
+            let s: Vec<String> = model.sigma_z().iter().map(|v| format!("{v:.3e}")).collect();
+            writeln!(
+                f,
+                "noise model assumed: white (--noise-model {spec}), sigma_z [{}]",
+                s.join(", ")
+            )?;
+        } else {
+            writeln!(f, "noise model assumed (--noise-model {spec}):")?;
+            write!(f, "{}", crate::noise::NoiseChannels(model))?;
+        }
         let last = |v: &[f64]| v.last().copied().unwrap_or(f64::NAN);
         writeln!(
             f,

@@ -9,10 +9,12 @@ use rand::{Rng, SeedableRng};
 
 use super::calibrate::{calibrate, CalibrateError, CalibrateOptions};
 use super::plan::information::{
-    covariance, lambda_max, robot_lengths, without_robot_lengths, Information, Sampling,
+    covariance, lambda_max, robot_lengths, without_robot_lengths, Information, InformationError,
+    Sampling,
 };
 use super::plan::random_uniform;
 use super::simulate::{simulate, SimulateOptions};
+use robimu_model::noise::NoiseModel;
 use robimu_model::params::draw_truth;
 use robimu_model::trajectory::random_walk;
 use robimu_model::{ModelError, ParamLayout, Robot, Spline, SplineError};
@@ -142,6 +144,9 @@ pub enum CheckError {
     /// Simulation failed.
     #[error(transparent)]
     Model(#[from] ModelError),
+    /// The information model could not be built.
+    #[error(transparent)]
+    Information(#[from] InformationError),
     /// The estimator failed.
     #[error(transparent)]
     Calibrate(#[from] CalibrateError),
@@ -151,13 +156,15 @@ pub enum CheckError {
 }
 
 /// Noise-free data at the nominal x on `spline` (joints and IMU at `rate`),
-/// calibrated with the trajectory knots every `knot_spacing` s; its Σ_x
-/// against (26) at the same rate.
+/// calibrated with the trajectory knots every `knot_spacing` s under the IMU
+/// noise model `noise` (generalised least squares unless white); its Σ_x
+/// against (26) with that noise at the same rate.
 pub fn check_approximation(
     robot: &Robot,
     spline: &Spline,
     rate: f64,
     knot_spacing: f64,
+    noise: &NoiseModel,
 ) -> Result<ApproximationCheck, CheckError> {
     let layout = ParamLayout::new(robot);
     let mut sim = SimulateOptions::paper(robot);
@@ -165,11 +172,11 @@ pub fn check_approximation(
     sim.joint_rate = rate;
     sim.noise = false;
     let data = simulate(robot, &layout, &layout.nominal(), spline, &sim, 1)?;
-    let mut copts = CalibrateOptions::new(robot);
+    let mut copts = fit_options(robot, noise);
     copts.knot_spacing = Some(knot_spacing);
     copts.tau_search = None;
     let cal = calibrate(robot, &data, &copts, |_| {})?;
-    let info = Information::new(robot, robot.sigma_z(), rate)?;
+    let info = Information::with_noise(robot, noise.clone(), rate)?;
     let all: Vec<usize> = (0..info.dim()).collect();
     // the same samples the estimator used: t_k = k / rate over the span
     let lam = info.total(spline, 1.0, Sampling::Exact);
@@ -196,19 +203,32 @@ pub fn check_approximation(
     })
 }
 
+/// The calibration settings of a fit under `noise`: the robot's defaults,
+/// σ_z from `noise`, generalised least squares unless it is white.
+fn fit_options(robot: &Robot, noise: &NoiseModel) -> CalibrateOptions {
+    let mut copts = CalibrateOptions::new(robot);
+    copts.sigma_z = noise.sigma_z();
+    copts.noise = (!noise.is_white()).then(|| noise.clone());
+    copts
+}
+
 /// Monte Carlo errors on one trajectory: per run a truth drawn from the
-/// priors, a simulated session on `spline` (120 Hz, noisy), a calibration;
-/// returns the errors x̂ − x per run (SI).
+/// priors, a simulated session on `spline` (120 Hz, IMU noise `noise`), a
+/// calibration under that noise ([`fit_options`]); returns the errors
+/// x̂ − x per run (SI).
 pub fn monte_carlo_errors(
     robot: &Robot,
     spline: &Spline,
+    noise: &NoiseModel,
     runs: usize,
     seed: u64,
     mut progress: impl FnMut(usize),
 ) -> Result<Vec<Vec<f64>>, CheckError> {
     let layout = ParamLayout::new(robot);
-    let sim = SimulateOptions::paper(robot);
-    let copts = CalibrateOptions::new(robot);
+    let mut sim = SimulateOptions::paper(robot);
+    sim.sigma_z = noise.sigma_z();
+    sim.noise_model = (!noise.is_white()).then(|| noise.clone());
+    let copts = fit_options(robot, noise);
     let mut out = Vec::with_capacity(runs);
     for r in 0..runs {
         let s = seed.wrapping_add(r as u64);
@@ -393,9 +413,10 @@ pub fn check_plan_approximation(
     robot: &Robot,
     spline: &Spline,
     rate: f64,
+    noise: &NoiseModel,
 ) -> Result<ApproximationCheck, CheckError> {
     let h = spline.knots().knots()[spline.knots().degree() + 1] - spline.knots().start();
-    check_approximation(robot, spline, rate, h)
+    check_approximation(robot, spline, rate, h, noise)
 }
 
 /// Mean squared errors of a Monte Carlo run, measured and predicted.
@@ -444,8 +465,9 @@ pub enum GainError {
 }
 
 /// `runs` Monte Carlo calibrations ([`monte_carlo_errors`], seeded with
-/// `seed`) on the plan and on a random walk drawn from `rng`, against the
-/// precision (26) predicts; `progress(trajectory, run)` after each run.
+/// `seed`, with `info`'s noise model) on the plan and on a random walk drawn
+/// from `rng`, against the precision (26) predicts; `progress(trajectory,
+/// run)` after each run.
 pub fn precision_gain<R: Rng>(
     robot: &Robot,
     info: &Information,
@@ -473,8 +495,10 @@ pub fn precision_gain<R: Rng>(
     let (pp, pw) = (predict(&lam_plan)?, predict(&lam_walk)?);
     let mut measured = Vec::new();
     for (trajectory, s) in [("plan", spline), ("random walk", &walk)] {
-        let e = monte_carlo_errors(robot, s, runs, seed, |r| progress(trajectory, r))
-            .map_err(|source| GainError::MonteCarlo { trajectory, source })?;
+        let e = monte_carlo_errors(robot, s, info.noise(), runs, seed, |r| {
+            progress(trajectory, r)
+        })
+        .map_err(|source| GainError::MonteCarlo { trajectory, source })?;
         measured.push(error_moments(&e, &v));
     }
     let moments = |(along, total): (f64, f64), (pa, pt): (f64, f64)| ErrorMoments {

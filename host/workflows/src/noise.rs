@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{JointState, Knots, Spline, SplineError};
-use robimu_session::{toml_error, NoiseOverride, SessionError, IMU_COLUMNS};
+use robimu_session::{toml_error, NoiseOverride, NoiseShape, SessionError, IMU_COLUMNS};
 
 use crate::noise_id::{
     identify_channel_with, ChannelIdentification, IdOptions, Identification, NoiseIdError,
@@ -441,10 +441,18 @@ pub struct NoiseFile {
 impl NoiseFile {
     /// Read `path` and check that every σ is a positive number.
     pub fn read(path: &Path) -> Result<Self, SessionError> {
+        Ok(Self::read_with_shape(path)?.0)
+    }
+
+    /// Read `path` once: its σ (checked as [`Self::read`]) and its `[noise]`
+    /// table's optional `ar_z`/`motion_z` ([`NoiseShape::parse`], validated;
+    /// `None` when it has neither).
+    pub fn read_with_shape(path: &Path) -> Result<(Self, Option<NoiseShape>), SessionError> {
         let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
         let file: Self = toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?;
         file.noise.validate(path)?;
-        Ok(file)
+        let shape = NoiseShape::parse(&text, path)?;
+        Ok((file, shape))
     }
 
     /// The TOML text.

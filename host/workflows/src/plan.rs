@@ -37,8 +37,11 @@ use faer::Mat;
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use self::information::{lambda_max, without_robot_lengths, Information, Sampling};
-use robimu_model::{JointState, Knots, ModelError, Robot, Spline, SplineError};
+use self::information::{
+    lambda_max, without_robot_lengths, Information, InformationError, Sampling,
+};
+use robimu_model::noise::NoiseModel;
+use robimu_model::{JointState, Knots, Robot, Spline, SplineError};
 
 /// Spline degree of a plan.
 pub const DEGREE: usize = 3;
@@ -64,11 +67,15 @@ pub struct PlanOptions {
     pub margin: f64,
     /// Seed of the optimiser.
     pub seed: u64,
+    /// The IMU noise the plan is made for (None: white of the robot's σ_z);
+    /// its AR coefficients are per sample at `sample_rate`
+    /// ([`information`], docs/model.md §4.6).
+    pub noise: Option<NoiseModel>,
 }
 
 impl Default for PlanOptions {
     /// 300 s, h = 0.5 s, N_c = 8, 120 Hz, quadrature 20 per s, 12 candidates,
-    /// 240 evaluations per block, 99 % of the velocity limit, seed 1.
+    /// 240 evaluations per block, 99 % of the velocity limit, seed 1, white noise.
     fn default() -> Self {
         Self {
             duration: 300.0,
@@ -80,6 +87,7 @@ impl Default for PlanOptions {
             evaluations: 240,
             margin: 0.99,
             seed: 1,
+            noise: None,
         }
     }
 }
@@ -118,9 +126,9 @@ pub enum PlanError {
     /// The spline could not be built.
     #[error(transparent)]
     Spline(#[from] SplineError),
-    /// The nominal model is invalid.
+    /// The nominal model or the noise model is invalid.
     #[error(transparent)]
-    Model(#[from] ModelError),
+    Information(#[from] InformationError),
     /// The dense check found a limit violated (a bug: the constraints are sufficient).
     #[error("the planned trajectory violates a limit: {0}")]
     Violation(String),
@@ -236,7 +244,10 @@ pub fn plan(
     let y = knots.knots().to_vec();
     let h = y[DEGREE + 1] - y[DEGREE];
     let geo = Box6::new(robot, h, opts.margin)?;
-    let info_model = Information::new(robot, robot.sigma_z(), opts.sample_rate)?;
+    let info_model = match &opts.noise {
+        Some(m) => Information::with_noise(robot, m.clone(), opts.sample_rate)?,
+        None => Information::new(robot, robot.sigma_z(), opts.sample_rate)?,
+    };
     let keep_all: Vec<usize> = (0..info_model.dim()).collect();
     // at rest at mid-range, all columns (the padding blocks and the initial guess)
     let mut c = vec![0.0; m * n];

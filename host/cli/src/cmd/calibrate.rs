@@ -22,10 +22,10 @@ use robimu_workflows::calibrate::fit::{fit, FitSpec, Start};
 use robimu_workflows::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
 use robimu_workflows::calibrate::{check_measurements, CalibrateOptions, Calibration};
 use robimu_workflows::diagnose::{effect_set, fit_json, setup_with};
-use robimu_workflows::noise::NoiseFile;
 use robimu_workflows::repeatability::{self, check_windows, Repeatability, Window};
 
 use super::input::{load_session, output_path, Progress};
+use super::noise_spec::{noise_choice, NoiseFileArg};
 
 /// Calibrate the robot and the IMU together from a session.
 ///
@@ -55,7 +55,10 @@ pub struct CalibrateCmd {
     #[arg(long)]
     pub knot_spacing: Option<f64>,
     /// Noise file whose `[noise]` table (session.toml's format, e.g. written
-    /// by `robimu noise`) replaces the session's and the robot's σ.
+    /// by `robimu noise`) replaces the session's key by key: `sigma_z`,
+    /// `sigma_q` replace the session's and the robot's σ, and `ar_z`,
+    /// `motion_z` (when given) the session's noise model, which
+    /// `--noise-model auto` then fits as given (docs/model.md §4.6, §7.2).
     #[arg(long, value_name = "FILE")]
     pub noise: Option<PathBuf>,
     /// Repeatability: also calibrate each of N equal time windows (N >= 2;
@@ -78,10 +81,12 @@ pub struct CalibrateCmd {
     pub resonance: super::input::ResonanceMode,
     /// The IMU noise model: `auto` (white unless the residuals fail the
     /// whiteness test; then identified from them and refitted by
-    /// generalised least squares; a session whose `[noise]` table gives
-    /// `ar_z`/`motion_z` is fitted with that model), `white` (the paper's
-    /// model), or a TOML FILE with a `[noise]` table of `sigma_z`, `ar_z`,
-    /// `motion_z` (docs/model.md §4.6, §7.2).
+    /// generalised least squares; a `[noise]` table — the session's or
+    /// `--noise`'s — that gives `ar_z`/`motion_z` is fitted with that
+    /// model), `white` (the paper's model), or a noise FILE: the same as
+    /// `--noise FILE`, with the resulting model (the file's keys over the
+    /// session's) fitted as given even when it is white (docs/model.md
+    /// §4.6, §7.2).
     #[arg(long, value_name = "white|auto|FILE", default_value = "auto")]
     pub noise_model: String,
 }
@@ -92,7 +97,8 @@ impl CalibrateCmd {
         let dir = &self.session;
         let (session, robot) = load_session(dir)?;
         let layout = ParamLayout::new(&robot);
-        let opts = self.options(&session, &robot, &layout)?;
+        let file = self.noise_file()?;
+        let opts = self.options(&session, &robot, &layout, file.as_ref())?;
         let path = output_path(self.out.as_deref(), dir.join("result.json"))?;
         let data = session.measurements();
         check_measurements(&robot, &data)
@@ -110,7 +116,7 @@ impl CalibrateCmd {
 
         let progress = Progress::start("fitting the trajectory and finding the time offset tau");
         progress.println(IterationRecord::HEADER);
-        let choice = self.noise_choice(&session, &robot, &opts, data.imu_t.len())?;
+        let choice = self.noise_choice(&session, &opts, data.imu_t.len(), file.as_ref())?;
         let cal = calibrate_with_noise(&robot, &data, &opts, &choice, |r| {
             progress.println(r.to_string());
             progress.set_message(format!(
@@ -171,32 +177,39 @@ impl CalibrateCmd {
         Ok(())
     }
 
-    /// The calibration settings: the session's (or `--noise`'s) σ,
-    /// `--freeze`, `--no-prior`, `--knot-spacing`.
+    /// The noise file of `--noise FILE` or `--noise-model FILE`, read once:
+    /// its flag, path, σ and model keys. Two different files are refused.
+    fn noise_file(&self) -> anyhow::Result<Option<NoiseFileArg>> {
+        NoiseFileArg::from_flags(self.noise.as_deref(), &self.noise_model)
+    }
+
+    /// The calibration settings: the session's σ (replaced by the noise
+    /// file's), `--freeze`, `--no-prior`, `--knot-spacing`.
     fn options(
         &self,
         session: &Session,
         robot: &Robot,
         layout: &ParamLayout,
+        file: Option<&NoiseFileArg>,
     ) -> anyhow::Result<CalibrateOptions> {
         let mut opts = CalibrateOptions::new(robot);
         (opts.sigma_z, opts.sigma_q) = session.noise(robot)?;
-        if let Some(path) = &self.noise {
-            let file = NoiseFile::read(path).context("--noise")?;
-            if let Some(z) = file.noise.sigma_z {
+        if let Some(f) = file {
+            if let Some(z) = f.file.noise.sigma_z {
                 opts.sigma_z = z;
             }
-            if let Some(q) = file.noise.sigma_q {
+            if let Some(q) = &f.file.noise.sigma_q {
                 if q.len() != robot.dof() {
                     bail!(
-                        "--noise {}: [noise] sigma_q has {} values but robot `{}` has {} joints",
-                        path.display(),
+                        "{} {}: [noise] sigma_q has {} values but robot `{}` has {} joints",
+                        f.flag,
+                        f.path.display(),
                         q.len(),
                         robot.name(),
                         robot.dof()
                     );
                 }
-                opts.sigma_q = q;
+                opts.sigma_q = q.clone();
             }
         }
         opts.frozen = layout
@@ -212,15 +225,19 @@ impl CalibrateCmd {
         Ok(opts)
     }
 
-    /// The `--noise-model` choice ([`super::noise_spec::noise_choice`]).
+    /// The `--noise-model` choice: `white`; `auto` (the noise table's AR
+    /// model — the noise file's keys, else the session's — as given, else
+    /// identified when needed); a FILE's model as given. The σ are `opts`'
+    /// (the noise file's over the session's); an AR order beyond the data is
+    /// refused.
     fn noise_choice(
         &self,
         session: &Session,
-        robot: &Robot,
         opts: &CalibrateOptions,
         samples: usize,
+        file: Option<&NoiseFileArg>,
     ) -> anyhow::Result<NoiseChoice> {
-        super::noise_spec::noise_choice(&self.noise_model, session, robot, opts.sigma_z, samples)
+        noise_choice(&self.noise_model, session, opts.sigma_z, samples, file)
     }
 
     /// The `--effects` set (`None` without effects: then the catalogue, and

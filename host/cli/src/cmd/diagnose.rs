@@ -17,6 +17,7 @@ use robimu_workflows::diagnose::{
 };
 
 use super::input::{load_session, Progress};
+use super::noise_spec::{noise_choice, NoiseFileArg};
 
 /// Diagnose model discrepancies of a session.
 ///
@@ -87,12 +88,16 @@ impl DiagnoseCmd {
             None => None,
         };
         let setup = setup_with(&robot, &data, mass, self.resonance.mode()?);
-        let noise = super::noise_spec::noise_choice(
+        let file = NoiseFileArg::from_flags(None, &self.noise_model)?;
+        if let Some(z) = file.as_ref().and_then(|f| f.file.noise.sigma_z) {
+            opts.sigma_z = z;
+        }
+        let noise = noise_choice(
             &self.noise_model,
             &session,
-            &robot,
             opts.sigma_z,
             data.imu_t.len(),
+            file.as_ref(),
         )?;
         let mut dopts = DiagnoseOptions {
             alpha: self.alpha,

@@ -18,6 +18,8 @@ use robimu_workflows::plan::information::Information;
 use robimu_workflows::plan::files::read_plan_spline;
 
 use super::input::{resolve_robot, Progress};
+use super::noise_spec::parse_noise_model;
+use robimu_report::noise::NoiseChannels;
 
 /// Identifiability of a plan: σ against length and speed, against random trajectories.
 ///
@@ -29,7 +31,10 @@ use super::input::{resolve_robot, Progress};
 /// largest eigenvalue of Σ_x, SI, against time for the plan and random
 /// trajectories of equal length under the same limits, Fig. 5). Prints the
 /// ratios of λ_max(Σ_x) and the check of the approximation (26) against the
-/// estimator's covariance (24) on the same plan.
+/// estimator's covariance (24) on the same plan. With `--noise-model` every
+/// study is under that IMU noise (the generalised least squares' information,
+/// docs/model.md §4.6; the Monte Carlo sessions get that noise and are fitted
+/// with it).
 #[derive(Debug, Clone, clap::Args)]
 pub struct IdentifiabilityCmd {
     /// The plan directory.
@@ -56,6 +61,12 @@ pub struct IdentifiabilityCmd {
     /// Seed of the random trajectories and the Monte Carlo runs.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The IMU noise assumed: `white` (the robot's σ_z),
+    /// `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]`, or a TOML FILE with a
+    /// `[noise]` table (`sigma_z`, `ar_z`, `motion_z`); AR coefficients per
+    /// sample at --rate.
+    #[arg(long, value_name = "SPEC", default_value = "white")]
+    pub noise_model: String,
     /// Directory for the tables and figures [default: PLAN_DIR].
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -76,9 +87,24 @@ impl IdentifiabilityCmd {
         if !dir.is_dir() {
             bail!("--out {}: not a directory", dir.display());
         }
-        let info = Information::new(&robot, robot.sigma_z(), self.rate)?;
-        let progress = Progress::start("identifiability");
+        let noise = parse_noise_model(&self.noise_model, robot.sigma_z(), self.rate)?;
+        let info = Information::with_noise(&robot, noise.clone(), self.rate)?;
         let mut out = std::io::stdout().lock();
+        if noise.is_white() {
+            writeln!(
+                out,
+                "noise model assumed: white (--noise-model {})",
+                self.noise_model
+            )?;
+        } else {
+            writeln!(
+                out,
+                "noise model assumed (--noise-model {}):",
+                self.noise_model
+            )?;
+            write!(out, "{}", NoiseChannels(&noise))?;
+        }
+        let progress = Progress::start("identifiability");
 
         progress.set_message("posterior sigma against trajectory length");
         write_sigma_vs_time(&dir, &sigma_study(&info, &spline, 5.0))?;
@@ -99,7 +125,7 @@ impl IdentifiabilityCmd {
 
         if !self.no_check {
             progress.set_message("estimator covariance (24) on the plan");
-            let c = check_plan_approximation(&robot, &spline, self.rate)
+            let c = check_plan_approximation(&robot, &spline, self.rate, &noise)
                 .context("cannot compute the estimator's covariance on the plan")?;
             write!(out, "{}", ApproximationLine(&c))?;
         }

@@ -1,7 +1,8 @@
-//! `--noise-model SPEC` of `robimu simulate` and `robimu montecarlo`: the
-//! IMU noise the simulated sessions get (docs/model.md §4.6); and
-//! `--noise-model white|auto|FILE` of `robimu calibrate` and `robimu
-//! diagnose` ([`noise_choice`]): the noise model they fit with.
+//! `--noise-model SPEC` of `robimu simulate` and `robimu montecarlo` (the
+//! IMU noise the simulated sessions get) and of `robimu plan` and `robimu
+//! identifiability` (the noise a plan is made for); and `--noise-model
+//! white|auto|FILE` of `robimu calibrate` and `robimu diagnose`
+//! ([`noise_choice`]): the noise model they fit with (docs/model.md §4.6).
 //!
 //! SPEC is `white` (the paper's model, the default), or
 //! `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]` (AR(1) of correlation time
@@ -11,11 +12,12 @@
 //! or a TOML file whose `[noise]` table has session.toml's keys (`ar_z`,
 //! `motion_z`, and optionally `sigma_z`).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
 use robimu_session::{check_ar_order_for_data, NoiseShape, Session};
+use robimu_workflows::noise::NoiseFile;
 use robimu_workflows::calibrate::noise_choice::NoiseChoice;
 
 /// What SPEC accepts, for error messages.
@@ -94,54 +96,93 @@ pub fn parse_noise_model(
     if !path.is_file() {
         bail!("{}: {EXPECTED} (no such file)", what());
     }
-    let table = robimu_workflows::noise::NoiseFile::read(path).with_context(what)?;
+    let (table, shape) =
+        robimu_workflows::noise::NoiseFile::read_with_shape(path).with_context(what)?;
     let sigma_z = table.noise.sigma_z.unwrap_or(sigma_z);
-    let shape = NoiseShape::read(path)
-        .with_context(what)?
-        .unwrap_or_default();
     shape
+        .unwrap_or_default()
         .noise_model(sigma_z)
         .map_err(|e| anyhow::anyhow!("{}: {}: [noise]: {e}", what(), path.display()))
 }
 
+/// A noise file given on the command line (`--noise FILE` or `--noise-model
+/// FILE`), read once: its flag, path, σ and model keys.
+pub struct NoiseFileArg {
+    /// `--noise` or `--noise-model`.
+    pub flag: &'static str,
+    /// The file.
+    pub path: PathBuf,
+    /// Its σ.
+    pub file: NoiseFile,
+    /// Its `ar_z`/`motion_z`, if any.
+    pub shape: Option<NoiseShape>,
+}
+
+impl NoiseFileArg {
+    /// The file of `--noise FILE` (`noise`) or `--noise-model FILE` (`spec`
+    /// when it is neither `white` nor `auto`), read once; two different
+    /// files are refused.
+    pub fn from_flags(noise: Option<&Path>, spec: &str) -> anyhow::Result<Option<Self>> {
+        let model_file = match spec.trim() {
+            "white" | "auto" => None,
+            file => {
+                let path = Path::new(file);
+                if !path.is_file() {
+                    bail!("--noise-model `{file}`: not `white`, `auto` or a readable TOML file");
+                }
+                Some(path.to_path_buf())
+            }
+        };
+        let (flag, path) = match (noise, model_file) {
+            (Some(a), Some(b)) if a != b => bail!(
+                "--noise {} and --noise-model {}: give the noise file once",
+                a.display(),
+                b.display()
+            ),
+            (Some(a), _) => ("--noise", a.to_path_buf()),
+            (None, Some(b)) => ("--noise-model", b),
+            (None, None) => return Ok(None),
+        };
+        let (file, shape) = NoiseFile::read_with_shape(&path).context(flag)?;
+        Ok(Some(Self {
+            flag,
+            path,
+            file,
+            shape,
+        }))
+    }
+}
+
 /// The `--noise-model white|auto|FILE` choice of calibrate and diagnose:
-/// a FILE (σ from its `sigma_z`, else `sigma_z`) or the session's AR model
-/// as given, else `white` or `auto`; an AR order beyond the `samples` is
-/// refused.
+/// `white`; `auto` (the noise table's AR model — the noise file's keys,
+/// else the session's — as given, else identified when needed); a FILE's
+/// model as given. The σ are `sigma_z` (the noise file's over the
+/// session's); an AR order beyond the `samples` is refused.
 pub fn noise_choice(
     spec: &str,
     session: &Session,
-    robot: &robimu_model::Robot,
     sigma_z: [f64; 6],
     samples: usize,
+    file: Option<&NoiseFileArg>,
 ) -> anyhow::Result<NoiseChoice> {
-    let given = match spec.trim() {
-        "white" => return Ok(NoiseChoice::White),
-        "auto" => {
-            let m = session.noise_model(robot)?;
-            if m.is_white() {
-                return Ok(NoiseChoice::Auto);
-            }
-            m
-        }
-        file => {
-            let path = Path::new(file);
-            if !path.is_file() {
-                bail!("--noise-model `{file}`: not `white`, `auto` or a readable TOML file");
-            }
-            let shape = NoiseShape::read(path)
-                .context("--noise-model")?
-                .unwrap_or_default();
-            let sigma_z = robimu_workflows::noise::NoiseFile::read(path)
-                .context("--noise-model")?
-                .noise
-                .sigma_z
-                .unwrap_or(sigma_z);
-            shape
-                .noise_model(sigma_z)
-                .map_err(|e| anyhow::anyhow!("--noise-model {file}: [noise]: {e}"))?
-        }
+    let mode = spec.trim();
+    if mode == "white" {
+        return Ok(NoiseChoice::White);
+    }
+    let from_file = file.and_then(|f| f.shape.clone().map(|s| (s, f)));
+    let (shape, origin) = match &from_file {
+        Some((s, f)) => (s.clone(), format!("{} {}", f.flag, f.path.display())),
+        None => (
+            session.meta.noise_shape.clone().unwrap_or_default(),
+            session.dir.join("session.toml").display().to_string(),
+        ),
     };
+    let given = shape
+        .noise_model(sigma_z)
+        .map_err(|e| anyhow::anyhow!("{origin}: [noise]: {e}"))?;
+    if mode == "auto" && given.is_white() {
+        return Ok(NoiseChoice::Auto);
+    }
     check_ar_order_for_data(given.max_order(), samples)
         .map_err(|e| anyhow::anyhow!("--noise-model: {e}"))?;
     Ok(NoiseChoice::Given(Box::new(given)))

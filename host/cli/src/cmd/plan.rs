@@ -5,11 +5,13 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
+use robimu_model::ParamLayout;
 use robimu_report::plan::{write_plan_files, write_sigma_csv, PlanSummary};
-use robimu_workflows::plan::information::{posterior_sigma, Information};
+use robimu_workflows::plan::information::posterior_sigma;
 use robimu_workflows::plan::{plan, PlanOptions};
 
 use super::input::{resolve_robot, Progress};
+use super::noise_spec::parse_noise_model;
 
 /// Plan an excitation trajectory that makes x as identifiable as possible.
 ///
@@ -20,7 +22,10 @@ use super::input::{resolve_robot, Progress};
 /// control points and checked at 1 kHz). Writes to PLAN_DIR: plan.csv (header
 /// `t,q1,…,qn`; s, rad) at the controller rate, spline.toml (knots and
 /// coefficients), identifiability.csv (the measure against time) and
-/// sigma.csv (every parameter's prior and posterior σ).
+/// sigma.csv (every parameter's prior and posterior σ). With `--noise-model`
+/// the information is that of the generalised least squares under that IMU
+/// noise (docs/model.md §4.6), so the plan is optimised for, and its σ
+/// predicted under, the noise it will meet.
 #[derive(Debug, Clone, clap::Args)]
 pub struct PlanCmd {
     /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description.
@@ -47,6 +52,12 @@ pub struct PlanCmd {
     /// Seed of the optimiser.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The IMU noise the plan assumes: `white` (the robot's σ_z),
+    /// `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]`, or a TOML FILE with a
+    /// `[noise]` table (`sigma_z`, `ar_z`, `motion_z`; e.g. from `robimu
+    /// noise`); AR coefficients per sample at --imu-rate.
+    #[arg(long, value_name = "SPEC", default_value = "white")]
+    pub noise_model: String,
     /// Plan directory to write (created if needed).
     #[arg(long, value_name = "PLAN_DIR")]
     pub out: PathBuf,
@@ -62,6 +73,7 @@ impl PlanCmd {
             bail!("--duration must be in (0, 86400] s (got {})", self.duration);
         }
         let (robot, _) = resolve_robot(&self.robot, None)?;
+        let noise = parse_noise_model(&self.noise_model, robot.sigma_z(), self.imu_rate)?;
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("cannot create the plan directory {}", self.out.display()))?;
         let opts = PlanOptions {
@@ -71,6 +83,7 @@ impl PlanCmd {
             sample_rate: self.imu_rate,
             evaluations: self.evaluations,
             seed: self.seed,
+            noise: Some(noise.clone()),
             ..PlanOptions::default()
         };
         let progress = Progress::start("planning");
@@ -83,8 +96,8 @@ impl PlanCmd {
         progress.finish();
         let dir = &self.out;
         write_plan_files(dir, &p, self.rate)?;
-        let info = Information::new(&robot, robot.sigma_z(), self.imu_rate)?;
-        let layout = info.layout();
+        let layout = ParamLayout::new(&robot);
+        let layout = &layout;
         let posterior = posterior_sigma(&p.information)
             .context("the planned information matrix is not positive definite")?;
         write_sigma_csv(dir, layout, &posterior)?;
@@ -95,6 +108,7 @@ impl PlanCmd {
             dir,
             layout,
             posterior: &posterior,
+            noise: (&noise, &self.noise_model),
         };
         write!(std::io::stdout().lock(), "{summary}")?;
         Ok(())

@@ -341,8 +341,8 @@ impl Problem<'_> {
         };
         let mut jac = MeasurementJacobians::new(self.layout.len());
         let mut blocks = [
-            Stack::new(nl, &self.sensor_columns[0]),
-            Stack::new(nl, &self.sensor_columns[1]),
+            Stack::new(nl, 0, &self.sensor_columns[0]),
+            Stack::new(nl, 0, &self.sensor_columns[1]),
         ];
         let mut group_first = usize::MAX;
         for i in range {
@@ -350,7 +350,12 @@ impl Problem<'_> {
             let (basis, js) = (&at.basis, &at.js);
             if (basis.first != group_first && blocks[0].rows > 0) || blocks[0].full() {
                 for b in &mut blocks {
-                    b.flush(group_first * n, out);
+                    b.flush(out);
+                }
+            }
+            if basis.first != group_first {
+                for b in &mut blocks {
+                    b.start_group(basis.first, 0, n);
                 }
             }
             group_first = basis.first;
@@ -394,7 +399,7 @@ impl Problem<'_> {
             }
         }
         for b in &mut blocks {
-            b.flush(group_first * n, out);
+            b.flush(out);
         }
         Ok(cost)
     }
@@ -514,8 +519,8 @@ impl Problem<'_> {
         let mut at = self.sample_eval();
         let mut jac = MeasurementJacobians::new(nx);
         let mut blocks = [
-            GlsStack::new(nl, extra * n, &self.sensor_columns[0]),
-            GlsStack::new(nl, extra * n, &self.sensor_columns[1]),
+            Stack::new(nl, extra * n, &self.sensor_columns[0]),
+            Stack::new(nl, extra * n, &self.sensor_columns[1]),
         ];
         let mut group_first = usize::MAX;
         for i in self.warm_start(&range)..range.end {
@@ -615,9 +620,12 @@ impl Problem<'_> {
     }
 }
 
-/// [`Stack`] for whitened rows: the rows of the samples of knot span g over
-/// the band unknowns of spans b0 = max(g − E, 0) … g + p_s.
-struct GlsStack<'c> {
+/// Rows of one sensor's whitened Jacobian for the samples of knot span g,
+/// stored transposed (one contiguous column per row), over the band unknowns
+/// of spans b0 = max(g − E, 0) … g + p_s, then the sensor's x columns. The
+/// white assembly uses it with E = 0 (its rows are its own samples'), the
+/// GLS one with the E of the widened band.
+struct Stack<'c> {
     nl: usize,
     columns: &'c [(usize, usize)],
     jt: Mat<f64>,
@@ -634,7 +642,7 @@ struct GlsStack<'c> {
     c0: usize,
 }
 
-impl<'c> GlsStack<'c> {
+impl<'c> Stack<'c> {
     fn new(nl: usize, extra: usize, columns: &'c [(usize, usize)]) -> Self {
         let cols = nl + extra + columns.len();
         Self {
@@ -695,72 +703,6 @@ impl<'c> GlsStack<'c> {
         }
         for (b, &xa) in self.x_index.iter().enumerate() {
             out.g[nc + xa] += glocal[(nl + b, 0)];
-        }
-        self.rows = 0;
-    }
-}
-
-/// Rows of one sensor's whitened Jacobian for a run of samples in one knot
-/// span, stored transposed (one contiguous column per row).
-struct Stack<'c> {
-    nl: usize,
-    /// (x index, position in θ's x part) of the columns after the nl band ones.
-    columns: &'c [(usize, usize)],
-    jt: Mat<f64>,
-    r: Vec<f64>,
-    rows: usize,
-    local: Mat<f64>,
-    glocal: Mat<f64>,
-    x_index: Vec<usize>,
-}
-
-impl<'c> Stack<'c> {
-    fn new(nl: usize, columns: &'c [(usize, usize)]) -> Self {
-        let cols = nl + columns.len();
-        Self {
-            nl,
-            columns,
-            jt: Mat::zeros(cols, 3 * GROUP_CAP),
-            r: vec![0.0; 3 * GROUP_CAP],
-            rows: 0,
-            local: Mat::zeros(cols, cols),
-            glocal: Mat::zeros(cols, 1),
-            x_index: columns.iter().map(|&(_, a)| a).collect(),
-        }
-    }
-
-    fn full(&self) -> bool {
-        self.rows + 3 > self.r.len()
-    }
-
-    /// Add JᵀJ (lower triangle) and Jᵀr of the stacked rows to `out` at band
-    /// offset `c0`, and empty the stack.
-    fn flush(&mut self, c0: usize, out: &mut Linearization<'_>) {
-        if self.rows == 0 {
-            return;
-        }
-        let jt = self.jt.as_ref().subcols(0, self.rows);
-        let r = MatRef::from_column_major_slice(&self.r[..self.rows], self.rows, 1);
-        faer::linalg::matmul::triangular::matmul(
-            self.local.as_mut(),
-            BlockStructure::TriangularLower,
-            Accum::Replace,
-            jt,
-            BlockStructure::Rectangular,
-            jt.transpose(),
-            BlockStructure::Rectangular,
-            1.0,
-            Par::Seq,
-        );
-        faer::linalg::matmul::matmul(self.glocal.as_mut(), Accum::Replace, jt, r, 1.0, Par::Seq);
-        out.a
-            .add_local(c0, self.nl, &self.x_index, self.local.as_ref());
-        let nc = out.a.dims().0;
-        for a in 0..self.nl {
-            out.g[c0 + a] += self.glocal[(a, 0)];
-        }
-        for (b, &xa) in self.x_index.iter().enumerate() {
-            out.g[nc + xa] += self.glocal[(self.nl + b, 0)];
         }
         self.rows = 0;
     }

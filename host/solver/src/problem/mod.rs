@@ -52,8 +52,11 @@
 //! P+1 samples, from which the whitened rows are combined; the two assembly
 //! threads each recompute the P samples before their half. The effect
 //! columns ([`EffectSet`]) are part of those rows and so are whitened alike.
-//! With a white model (every channel white, no motion level) the original
-//! white assembly runs unchanged and E = 0.
+//! With a white model (every channel white, no motion level) E = 0 and the
+//! white assembly writes each sample's rows straight into the same per-span
+//! stack (no ring: a row is its own sample's, scaled by 1/σ); the GLS loop
+//! with P = 0 gives the same matrix (`gls_tests`) but copies every row once
+//! more, which cost the white fit 4–9 % more CPU in `--bench calibrate`.
 //!
 //! Only the IMU samples whose u lies inside the joint-sample span (with a
 //! small margin, [`Problem::margin`]) are used; the set is chosen by
@@ -419,7 +422,7 @@ fn extra_spans(knots: &Knots, order: usize, dt_max: f64) -> usize {
 }
 
 /// Whether the rows of `sensor` (0: accelerometer, 1: gyroscope) can depend
-/// on x[k] (docs/model.md §1–3): the gyroscope sees only rotations — no robot
+/// on `x[k]` (docs/model.md §1–3): the gyroscope sees only rotations — no robot
 /// length errors ε_i{1,2,3}, no gravity, no accelerometer intrinsics — and the
 /// accelerometer sees no gyroscope intrinsics.
 pub fn sensor_depends_on(layout: &ParamLayout, sensor: usize, k: usize) -> bool {
