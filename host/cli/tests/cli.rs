@@ -1233,7 +1233,7 @@ fn calibrate_noise_that_does_not_settle_keeps_white_with_a_warning() {
         "the white result, unchanged"
     );
     assert_eq!(a["covariance"], w["covariance"]);
-    robimu(["calibrate", s(&ar), "--noise-settle", "-1"]).assert_fails(&["--noise-settle"]);
+    robimu(["calibrate", s(&ar), "--noise-settle=-1"]).assert_fails(&["--noise-settle"]);
     robimu(["calibrate", s(&ar), "--noise-refits", "0"]).assert_fails(&["--noise-refits"]);
 
     // explosive AR in the session's own [noise] table
@@ -1258,7 +1258,7 @@ fn calibrate_noise_that_does_not_settle_keeps_white_with_a_warning() {
         .map(|l| format!("{l}\n"))
         .collect();
     std::fs::write(&imu, lines.concat()).unwrap();
-    let phi = vec!["0.01"; 12].join(", ");
+    let phi = ["0.01"; 12].join(", ");
     std::fs::write(
         &file,
         format!("[noise]\nar_z = [[{phi}], [], [], [], [], []]\n"),

@@ -286,7 +286,7 @@ pub fn calibration_of(
         active: f.active.clone(),
         covariance,
         trajectory: f.trajectory.clone(),
-        tau_initial: f.tau_initial.clone(),
+        tau_initial: f.tau_initial,
         knot_spacing: f.knot_spacing,
         joint_fit_rms: f.joint_fit_rms.clone(),
         summary: f.summary.clone(),
