@@ -80,7 +80,8 @@ fn noise_free_without_priors_recovers_every_parameter_exactly() {
 }
 
 /// A smaller version of the paper's §8.3 study: 40 runs of 60 s, truths
-/// drawn from the priors. Bounds are those of 100 runs scaled to 40
+/// drawn from the priors, fitted with `calibrate`'s default noise choice
+/// (auto: white noise passes the whiteness test and stays white). Bounds are those of 100 runs scaled to 40
 /// (3.5 standard errors), so a real inconsistency fails.
 #[test]
 fn monte_carlo_is_consistent() {
@@ -93,6 +94,7 @@ fn monte_carlo_is_consistent() {
         seed: 1000,
         simulate: SimulateOptions::paper(&robot),
         calibrate: CalibrateOptions::new(&robot),
+        noise: robimu_workflows::calibrate::noise_choice::NoiseChoice::Auto,
     };
     let res = monte_carlo(&robot, &opts, |_, _| {}).unwrap();
     let se = 1.0 / (runs as f64).sqrt();

@@ -1192,3 +1192,111 @@ fn calibrate_identifies_correlated_noise_and_keeps_white_noise_white() {
     ])
     .assert_fails(&["give the noise file once"]);
 }
+
+/// `calibrate --noise-model auto` whose identification cannot settle
+/// (`--noise-settle 0`) keeps the white result, bit for bit, with a warning
+/// on stderr and in result.json (`noise_warning`, `noise_model` white); and
+/// the `[noise]` tables calibrate refuses, with the reason: an explosive AR
+/// model in session.toml, a negative motion level and an AR order beyond
+/// the data in a `--noise-model` file, and a bad `--noise-settle`.
+#[test]
+fn calibrate_noise_that_does_not_settle_keeps_white_with_a_warning() {
+    let tmp = tempfile::tempdir().unwrap();
+    let ar = simulate(
+        tmp.path(),
+        "ar",
+        "60",
+        "8",
+        &["--noise-model", "ar1:accel=30"],
+    );
+    let meta = ar.join("session.toml");
+    let text = std::fs::read_to_string(&meta).unwrap();
+    let stripped: String = text
+        .lines()
+        .filter(|l| !l.starts_with("ar_z") && !l.starts_with("motion_z"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&meta, &stripped).unwrap();
+    let (auto, white) = (tmp.path().join("auto.json"), tmp.path().join("white.json"));
+    let run = robimu_ok([
+        "calibrate",
+        s(&ar),
+        "--noise-settle",
+        "0",
+        "--noise-refits",
+        "2",
+        "--out",
+        s(&auto),
+    ]);
+    assert!(
+        run.stderr
+            .contains("warning: the identified noise model did not settle in 2 refits"),
+        "{}",
+        run.stderr
+    );
+    assert!(
+        run.stdout
+            .contains("noise model: white (kept; see the warning)")
+            && run.stdout.contains("error/σ"),
+        "{}",
+        run.stdout
+    );
+    robimu_ok([
+        "calibrate",
+        s(&ar),
+        "--noise-model",
+        "white",
+        "--out",
+        s(&white),
+    ]);
+    let read =
+        |p: &Path| -> Value { serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap() };
+    let (a, w) = (read(&auto), read(&white));
+    assert_eq!(a["noise_model"]["kind"], "white", "{}", a["noise_model"]);
+    assert!(
+        a["noise_warning"]
+            .as_str()
+            .is_some_and(|m| m.contains("did not settle")),
+        "{}",
+        a["noise_warning"]
+    );
+    assert!(w.get("noise_warning").is_none());
+    assert_eq!(
+        a["parameters"], w["parameters"],
+        "the white result, unchanged"
+    );
+    assert_eq!(a["covariance"], w["covariance"]);
+    robimu(["calibrate", s(&ar), "--noise-settle=-1"]).assert_fails(&["--noise-settle"]);
+    robimu(["calibrate", s(&ar), "--noise-refits", "0"]).assert_fails(&["--noise-refits"]);
+
+    // explosive AR in the session's own [noise] table
+    std::fs::write(
+        &meta,
+        format!("{stripped}ar_z = [[1.2], [], [], [], [], []]\n"),
+    )
+    .unwrap();
+    robimu(["calibrate", s(&ar)]).assert_fails(&["ar_z, channel ax", "not stationary"]);
+    std::fs::write(&meta, &stripped).unwrap();
+    // a negative motion level in a --noise-model file
+    let file = tmp.path().join("noise.toml");
+    std::fs::write(&file, "[noise]\nmotion_z = [0, 0, 0, -1e-3, 0, 0]\n").unwrap();
+    robimu(["calibrate", s(&ar), "--noise-model", s(&file)])
+        .assert_fails(&["motion_z, channel gx", "non-negative"]);
+    // an AR order beyond the data: 12 coefficients for 100 IMU samples
+    let imu = ar.join("imu.csv");
+    let lines: Vec<String> = std::fs::read_to_string(&imu)
+        .unwrap()
+        .lines()
+        .take(101)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&imu, lines.concat()).unwrap();
+    let phi = ["0.01"; 12].join(", ");
+    std::fs::write(
+        &file,
+        format!("[noise]\nar_z = [[{phi}], [], [], [], [], []]\n"),
+    )
+    .unwrap();
+    robimu(["calibrate", s(&ar), "--noise-model", s(&file)])
+        .assert_fails(&["AR order 12 is too high for 100 samples"]);
+}

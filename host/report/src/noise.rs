@@ -227,7 +227,7 @@ impl fmt::Display for NoiseSummary<'_> {
                         )?;
                         channels(f)
                     }
-                    _ => writeln!(f, "noise model: white (not identified; see the warning)"),
+                    _ => writeln!(f, "noise model: white (kept; see the warning)"),
                 }
             }
         }

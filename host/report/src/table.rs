@@ -300,6 +300,7 @@ mod tests {
             imu_samples_used: None,
             weak_directions: Vec::new(),
             noise_model: None,
+            noise_warning: None,
         };
         r.validate().unwrap();
         r

@@ -123,6 +123,10 @@ pub struct CalibrationResult {
     /// §4.6; absent in files from other tools or older versions).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_model: Option<NoiseModelRecord>,
+    /// Why the fit kept `noise_model` although the residuals say otherwise
+    /// (e.g. an identified model that did not settle; robimu extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_warning: Option<String>,
 }
 
 /// The IMU noise model of a fit, as written to result.json:
@@ -439,6 +443,7 @@ mod tests {
                     6
                 ],
             }),
+            noise_warning: Some("kept".into()),
             weak_directions: vec![WeakDirectionRecord {
                 relative_information: 1e-3,
                 parameters: vec![DirectionShare {

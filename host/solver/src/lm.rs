@@ -217,6 +217,8 @@ pub fn solve<P: LeastSquares>(
     let mut log = Vec::new();
     let mut termination = Termination::MaxIterations;
     let mut delta = vec![0.0; n];
+    // the cost of `a` when it is the linearisation at the final θ
+    let mut current = None;
     let mut record = |log: &mut Vec<IterationRecord>, r: IterationRecord| {
         report(&r);
         log.push(r);
@@ -242,6 +244,7 @@ pub fn solve<P: LeastSquares>(
             .fold(0.0f64, f64::max);
         if gnorm < opts.gradient_tolerance {
             termination = Termination::GradientTolerance;
+            current = Some(cost);
             record(
                 &mut log,
                 IterationRecord {
@@ -347,11 +350,17 @@ pub fn solve<P: LeastSquares>(
             nu *= 2.0;
         }
     }
-    // the undamped matrix at the final θ, for the covariance
-    problem.begin_iteration(&theta).map_err(LmError::Start)?;
-    let final_cost = problem
-        .linearize(&theta, &mut a, &mut g)
-        .map_err(LmError::Start)?;
+    // the undamped matrix at the final θ, for the covariance (already in
+    // `a` when the gradient test stopped right after linearising there)
+    let final_cost = match current {
+        Some(cost) => cost,
+        None => {
+            problem.begin_iteration(&theta).map_err(LmError::Start)?;
+            problem
+                .linearize(&theta, &mut a, &mut g)
+                .map_err(LmError::Start)?
+        }
+    };
     let factor = a.factor()?;
     Ok(LmSolution {
         theta,

@@ -12,6 +12,9 @@ pub mod fit;
 #[cfg(test)]
 mod gls_montecarlo;
 pub mod noise_choice;
+pub mod sandwich;
+#[cfg(test)]
+mod sandwich_montecarlo;
 
 use faer::Side;
 use robimu_session::result::{
@@ -230,6 +233,16 @@ pub fn calibrate(
     report: impl FnMut(&IterationRecord),
 ) -> Result<Calibration, CalibrateError> {
     let f = fit::fit(&FitSpec::baseline(robot, data), opts, report)?;
+    calibration_of(robot, opts, &f)
+}
+
+/// The calibration of a finished baseline fit `f` made with `opts`: the
+/// check of the data's information for weak directions (module doc, step 2).
+pub fn calibration_of(
+    robot: &Robot,
+    opts: &CalibrateOptions,
+    f: &fit::Fit,
+) -> Result<Calibration, CalibrateError> {
     let layout = ParamLayout::new(robot);
     let active = &f.active;
     let na = active.len();
@@ -268,15 +281,15 @@ pub fn calibrate(
         residual_rms: f.residual_rms(),
         noise_model: f.noise.clone(),
         imu_samples_used: f.residuals.len(),
-        x: f.x,
-        sigma: f.sigma_x,
-        active: f.active,
+        x: f.x.clone(),
+        sigma: f.sigma_x.clone(),
+        active: f.active.clone(),
         covariance,
-        trajectory: f.trajectory,
+        trajectory: f.trajectory.clone(),
         tau_initial: f.tau_initial,
         knot_spacing: f.knot_spacing,
-        joint_fit_rms: f.joint_fit_rms,
-        summary: f.summary,
+        joint_fit_rms: f.joint_fit_rms.clone(),
+        summary: f.summary.clone(),
         weak_directions,
     })
 }
@@ -447,6 +460,7 @@ impl Calibration {
             residual_rms: Some(calibration.residual_rms),
             imu_samples_used: Some(calibration.imu_samples_used),
             noise_model: Some(noise_model_record(&calibration.noise_model)),
+            noise_warning: None,
             weak_directions: calibration
                 .weak_directions
                 .iter()

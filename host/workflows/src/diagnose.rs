@@ -67,7 +67,7 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use super::calibrate::fit::{fit, Fit, FitSpec, Start};
-use super::calibrate::noise_choice::{settled, NoiseChoice, MAX_REFITS};
+use super::calibrate::noise_choice::{settled, NoiseChoice, Settle, MAX_REFITS};
 use super::calibrate::{choose_knots, noise_model_record, CalibrateError, CalibrateOptions};
 use crate::noise_id::{identify, IdOptions, Identification};
 use robimu_model::effects::resonance::Mode;
@@ -810,7 +810,7 @@ fn settle_noise(
         let want = wanted(&id);
         let same = match &want {
             None => current.noise.is_white(),
-            Some(m) => !current.noise.is_white() && settled(m, &current.noise),
+            Some(m) => !current.noise.is_white() && settled(m, &current.noise, &Settle::default()),
         };
         if same {
             return Ok((current, k));

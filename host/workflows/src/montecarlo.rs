@@ -1,13 +1,15 @@
 //! Monte Carlo consistency of the estimator (paper §8.3): per run, draw a
-//! truth from the priors, simulate a session, calibrate, and compare the
-//! error with the reported posterior covariance.
+//! truth from the priors, simulate a session, calibrate with the chosen
+//! noise model ([`NoiseChoice`]), and compare the error with the reported
+//! posterior covariance.
 //!
 //! A consistent estimator gives, for every parameter, error/σ with mean 0 and
 //! standard deviation 1, and a normalised estimation error squared
 //! NEES = eᵀ Σ⁻¹ e whose average over N runs of d parameters lies in the 95 %
 //! interval of χ²(N·d)/N.
 
-use super::calibrate::{calibrate, CalibrateError, CalibrateOptions};
+use super::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
+use super::calibrate::{CalibrateError, CalibrateOptions};
 use super::simulate::{random_session, RandomSession, SimulateError, SimulateOptions};
 use faer::linalg::solvers::DenseSolveCore;
 use faer::Side;
@@ -26,6 +28,8 @@ pub struct MonteCarloOptions {
     pub simulate: SimulateOptions,
     /// How they are calibrated.
     pub calibrate: CalibrateOptions,
+    /// The noise model of the fits (`Auto` is `robimu calibrate`'s default).
+    pub noise: NoiseChoice,
 }
 
 /// One run.
@@ -41,8 +45,12 @@ pub struct RunOutcome {
     pub sigma: Vec<f64>,
     /// NEES over the estimated parameters.
     pub nees: f64,
-    /// LM iterations.
+    /// LM iterations (of the final fit).
     pub iterations: usize,
+    /// GLS refits of `Auto` (0: the white fit was kept).
+    pub refits: usize,
+    /// Why `Auto` kept the white fit although the residuals are correlated.
+    pub warning: Option<String>,
 }
 
 /// Per-parameter statistics of error/σ over the runs.
@@ -160,7 +168,7 @@ pub fn monte_carlo(
         let seed = opts.seed.wrapping_add(run as u64);
         let RandomSession { truth, data, .. } =
             random_session(robot, opts.duration, 1.0, &opts.simulate, seed)?;
-        let cal = calibrate(robot, &data, &opts.calibrate, |_| {})
+        let (cal, noise) = calibrate_with_noise(robot, &data, &opts.calibrate, &opts.noise, |_| {})
             .map_err(|source| MonteCarloError::Run { run, seed, source })?;
         let na = cal.active.len();
         dof = na;
@@ -183,6 +191,8 @@ pub fn monte_carlo(
             sigma: cal.sigma,
             nees,
             iterations: cal.summary.iterations.len(),
+            refits: noise.refits,
+            warning: noise.warning,
         };
         progress(run, &outcome);
         runs.push(outcome);

@@ -19,7 +19,9 @@ use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
 use robimu_solver::IterationRecord;
 use robimu_workflows::calibrate::fit::{fit, FitSpec, Start};
-use robimu_workflows::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
+use robimu_workflows::calibrate::noise_choice::{
+    calibrate_with_noise_settle, NoiseChoice, Settle, MAX_REFITS,
+};
 use robimu_workflows::calibrate::{check_measurements, CalibrateOptions, Calibration};
 use robimu_workflows::diagnose::{effect_set, fit_json, setup_with};
 use robimu_workflows::repeatability::{self, check_windows, Repeatability, Window};
@@ -89,6 +91,16 @@ pub struct CalibrateCmd {
     /// §4.6, §7.2).
     #[arg(long, value_name = "white|auto|FILE", default_value = "auto")]
     pub noise_model: String,
+    /// `--noise-model auto`: the most GLS refits while the identified model
+    /// settles (at least 1).
+    #[arg(long, value_name = "N", default_value_t = MAX_REFITS)]
+    pub noise_refits: usize,
+    /// `--noise-model auto`: the identified model has settled when, from one
+    /// refit to the next, no AR coefficient moves by TOL or more and no σ or
+    /// motion gain by TOL relative (0 never settles: the white result is
+    /// kept with a warning) [default: 0.02].
+    #[arg(long, value_name = "TOL")]
+    pub noise_settle: Option<f64>,
 }
 
 impl CalibrateCmd {
@@ -117,7 +129,8 @@ impl CalibrateCmd {
         let progress = Progress::start("fitting the trajectory and finding the time offset tau");
         progress.println(IterationRecord::HEADER);
         let choice = self.noise_choice(&session, &opts, data.imu_t.len(), file.as_ref())?;
-        let cal = calibrate_with_noise(&robot, &data, &opts, &choice, |r| {
+        let settle = self.settle()?;
+        let cal = calibrate_with_noise_settle(&robot, &data, &opts, &choice, &settle, |r| {
             progress.println(r.to_string());
             progress.set_message(format!(
                 "iteration {}: cost {:.6e}, lambda {:.1e}",
@@ -140,7 +153,8 @@ impl CalibrateCmd {
         if let Some(w) = &noise.warning {
             eprintln!("warning: {w}");
         }
-        let result = result_file(&cal, &layout, &session, dir, opts.use_prior);
+        let mut result = result_file(&cal, &layout, &session, dir, opts.use_prior);
+        result.noise_warning = noise.warning.clone();
         writeln!(out)?;
         write!(
             out,
@@ -223,6 +237,24 @@ impl CalibrateCmd {
         }
         opts.knot_spacing = self.knot_spacing;
         Ok(opts)
+    }
+
+    /// `--noise-refits` and `--noise-settle`.
+    fn settle(&self) -> anyhow::Result<Settle> {
+        if self.noise_refits == 0 {
+            bail!("--noise-refits must be at least 1");
+        }
+        let mut settle = Settle {
+            max_refits: self.noise_refits,
+            ..Settle::default()
+        };
+        if let Some(tol) = self.noise_settle {
+            if !(tol.is_finite() && tol >= 0.0) {
+                bail!("--noise-settle must be a number >= 0 (got {tol})");
+            }
+            (settle.phi, settle.sigma) = (tol, tol);
+        }
+        Ok(settle)
     }
 
     /// The `--noise-model` choice: `white`; `auto` (the noise table's AR

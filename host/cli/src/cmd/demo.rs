@@ -199,6 +199,8 @@ impl DemoCmd {
             effects: Vec::new(),
             resonance: Default::default(),
             noise_model: "auto".into(),
+            noise_refits: robimu_workflows::calibrate::noise_choice::MAX_REFITS,
+            noise_settle: None,
         }
         .run()
     }

@@ -4,10 +4,12 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use robimu_model::noise::NoiseModel;
 use robimu_model::ParamLayout;
 use robimu_report::montecarlo::{
     error_histograms, write_runs_csv, write_summary_csv, MonteCarloSummary,
 };
+use robimu_workflows::calibrate::noise_choice::NoiseChoice;
 use robimu_workflows::calibrate::CalibrateOptions;
 use robimu_workflows::montecarlo::{monte_carlo, MonteCarloOptions};
 use robimu_workflows::simulate::SimulateOptions;
@@ -44,9 +46,15 @@ pub struct MonteCarloCmd {
     pub out: PathBuf,
     /// IMU noise of the simulated sessions, as `robimu simulate
     /// --noise-model`: `white` (default), `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]`
-    /// or a TOML file with a [noise] table. The fits still assume white Σ_z.
+    /// or a TOML file with a [noise] table.
     #[arg(long, value_name = "SPEC")]
     pub noise_model: Option<String>,
+    /// The noise model of the fits: `auto` (`robimu calibrate`'s default:
+    /// white unless the residuals fail the whiteness test, then identified
+    /// from them and refitted by GLS), `white` (the paper's model), or
+    /// `true` (the simulated sessions' model, given).
+    #[arg(long, value_name = "auto|white|true", default_value = "auto")]
+    pub fit_noise: String,
 }
 
 impl MonteCarloCmd {
@@ -62,18 +70,27 @@ impl MonteCarloCmd {
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("cannot create {}", self.out.display()))?;
         let mut simulate = SimulateOptions::paper(&robot);
+        let mut truth = NoiseModel::white(robot.sigma_z())?;
         if let Some(spec) = &self.noise_model {
-            let model =
-                super::noise_spec::parse_noise_model(spec, robot.sigma_z(), simulate.imu_rate)?;
-            simulate.sigma_z = model.sigma_z();
-            simulate.noise_model = (!model.is_white()).then_some(model);
+            truth = super::noise_spec::parse_noise_model(spec, robot.sigma_z(), simulate.imu_rate)?;
+            simulate.sigma_z = truth.sigma_z();
+            simulate.noise_model = (!truth.is_white()).then_some(truth.clone());
         }
+        let noise = match self.fit_noise.trim() {
+            "auto" => NoiseChoice::Auto,
+            "white" => NoiseChoice::White,
+            "true" => NoiseChoice::Given(Box::new(truth)),
+            other => anyhow::bail!("--fit-noise `{other}`: expected `auto`, `white` or `true`"),
+        };
+        let mut calibrate = CalibrateOptions::new(&robot);
+        calibrate.sigma_z = simulate.sigma_z;
         let opts = MonteCarloOptions {
             runs: self.runs,
             duration: self.duration,
             seed: self.seed,
             simulate,
-            calibrate: CalibrateOptions::new(&robot),
+            calibrate,
+            noise,
         };
         let bar = indicatif::ProgressBar::new(self.runs as u64);
         bar.set_style(
@@ -101,6 +118,14 @@ impl MonteCarloCmd {
             elapsed,
         };
         print!("{summary}");
+        if matches!(opts.noise, NoiseChoice::Auto) {
+            let refitted = result.runs.iter().filter(|r| r.refits > 0).count();
+            let warned = result.runs.iter().filter(|r| r.warning.is_some()).count();
+            println!(
+                "fit noise auto: identified and refitted by GLS in {refitted} of {} runs; white kept with a warning in {warned}",
+                result.runs.len()
+            );
+        }
         let files = error_histograms(&self.out.join("histograms"), &layout, &result)?;
         println!(
             "wrote {}, {} and {}",

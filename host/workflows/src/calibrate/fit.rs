@@ -34,7 +34,7 @@ use robimu_model::observations::Measurements;
 use robimu_model::{MeasurementModel, ParamLayout, Robot, Spline};
 use robimu_solver as solver;
 use robimu_solver::problem::Problem;
-use robimu_solver::{IterationRecord, LeastSquares, LmSummary};
+use robimu_solver::{IterationRecord, LmSummary};
 
 /// Where a fit starts.
 #[derive(Debug, Clone, Copy)]
@@ -221,8 +221,9 @@ pub fn fit(
             summary: Box::new(sol.summary),
         });
     }
-    problem.begin_iteration(&sol.theta)?;
-    let cost = problem.cost(&sol.theta)?;
+    // the solver ends with the problem set up at its final θ (samples
+    // selected, levels) and its cost there
+    let cost = sol.summary.final_cost;
     let active = problem.active().to_vec();
     let na = active.len();
     let covariance = sol.factor.covariance_x();

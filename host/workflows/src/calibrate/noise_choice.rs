@@ -12,7 +12,8 @@
 //! noise is identified again from the new fit's residuals, until the model
 //! settles (every channel's order unchanged, φ within
 //! [`SETTLE_PHI`] and σ within [`SETTLE_SIGMA`] relative) or
-//! [`MAX_REFITS`] refits; a model that does not settle, or a refit that
+//! [`MAX_REFITS`] refits ([`Settle`]); each refit starts from the
+//! previous fit. A model that does not settle, or a refit that
 //! fails, leaves the white result, with a warning (never an error where the
 //! white fit succeeded).
 
@@ -21,7 +22,8 @@ use robimu_model::observations::Measurements;
 use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
 use robimu_solver::IterationRecord;
 
-use super::{calibrate, CalibrateError, CalibrateOptions, Calibration};
+use super::fit::{fit, FitSpec, Start};
+use super::{calibrate, calibration_of, CalibrateError, CalibrateOptions, Calibration};
 use crate::noise_id::{identify, IdOptions, Identification};
 
 /// Most GLS refits of `Auto`.
@@ -30,6 +32,10 @@ pub const MAX_REFITS: usize = 4;
 pub const SETTLE_PHI: f64 = 0.02;
 /// Relative σ change below which the identified model has settled.
 pub const SETTLE_SIGMA: f64 = 0.02;
+/// Gradient tolerance of a refit (max |g_k|/√A_kk, [`robimu_solver::LmOptions`]):
+/// every parameter's remaining Newton step below 1 % of its conditional σ
+/// (the white fit ends about there, by its cost change).
+pub const REFIT_GRADIENT: f64 = 1e-2;
 
 /// The noise model to calibrate with.
 #[derive(Debug, Clone, PartialEq)]
@@ -55,12 +61,50 @@ pub struct NoiseOutcome {
     pub warning: Option<String>,
 }
 
+/// How `Auto` iterates: the most GLS refits and when the identified model
+/// has settled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settle {
+    /// Most refits ([`MAX_REFITS`]).
+    pub max_refits: usize,
+    /// Largest change of any φ_k ([`SETTLE_PHI`]).
+    pub phi: f64,
+    /// Largest relative change of σ and of the motion gain ([`SETTLE_SIGMA`]).
+    pub sigma: f64,
+}
+
+impl Default for Settle {
+    fn default() -> Self {
+        Self {
+            max_refits: MAX_REFITS,
+            phi: SETTLE_PHI,
+            sigma: SETTLE_SIGMA,
+        }
+    }
+}
+
 /// Calibrate `data` with the noise model `choice` (see the module docs).
 pub fn calibrate_with_noise(
     robot: &Robot,
     data: &Measurements,
     opts: &CalibrateOptions,
     choice: &NoiseChoice,
+    report: impl FnMut(&IterationRecord),
+) -> Result<(Calibration, NoiseOutcome), CalibrateError> {
+    calibrate_with_noise_settle(robot, data, opts, choice, &Settle::default(), report)
+}
+
+/// [`calibrate_with_noise`] with `Auto` iterating as `settle` says.
+///
+/// Each refit starts from the previous fit ([`Start::Refit`]: its knots,
+/// trajectory and x; no τ search, no knot choice), so that a refit costs
+/// the few Gauss–Newton steps from the white optimum to the GLS one.
+pub fn calibrate_with_noise_settle(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    choice: &NoiseChoice,
+    settle: &Settle,
     mut report: impl FnMut(&IterationRecord),
 ) -> Result<(Calibration, NoiseOutcome), CalibrateError> {
     let mut outcome = NoiseOutcome {
@@ -85,7 +129,9 @@ pub fn calibrate_with_noise(
         }
         NoiseChoice::Auto => {}
     }
-    let white = calibrate(robot, data, &with(None), &mut report)?;
+    let white_opts = with(None);
+    let white_fit = fit(&FitSpec::baseline(robot, data), &white_opts, &mut report)?;
+    let white = calibration_of(robot, &white_opts, &white_fit)?;
     let id_opts = IdOptions::default();
     let first = match residual_identification(robot, data, &white, &id_opts) {
         Ok(id) => id,
@@ -103,9 +149,21 @@ pub fn calibrate_with_noise(
         return Ok((white, outcome));
     }
     let mut current = first;
-    for k in 1..=MAX_REFITS {
-        let cal = match calibrate(robot, data, &with(Some(current.model.clone())), &mut report) {
-            Ok(cal) => cal,
+    let mut previous = white_fit;
+    for k in 1..=settle.max_refits {
+        let mut gls_opts = with(Some(current.model.clone()));
+        gls_opts.lm.gradient_tolerance = gls_opts.lm.gradient_tolerance.max(REFIT_GRADIENT);
+        let spec = FitSpec {
+            start: Start::Refit(&previous),
+            ..FitSpec::baseline(robot, data)
+        };
+        let refit = fit(&spec, &gls_opts, &mut report).and_then(|f| {
+            let mut cal = calibration_of(robot, &gls_opts, &f)?;
+            cal.tau_initial = white.tau_initial;
+            Ok((f, cal))
+        });
+        let (f, cal) = match refit {
+            Ok(r) => r,
             Err(e) => {
                 outcome.warning = Some(format!(
                     "the refit with the identified noise failed ({e}); white noise kept"
@@ -123,28 +181,30 @@ pub fn calibrate_with_noise(
                 return Ok((white, outcome));
             }
         };
-        if settled(&current.model, &next.model) {
+        if settled(&current.model, &next.model, settle) {
             outcome.identified = Some(current);
             return Ok((cal, outcome));
         }
         current = next;
+        previous = f;
     }
     outcome.warning = Some(format!(
-        "the identified noise model did not settle in {MAX_REFITS} refits; the white-noise \
-         result is kept and its σ are too small where the residuals are correlated"
+        "the identified noise model did not settle in {} refits; the white-noise \
+         result is kept and its σ are too small where the residuals are correlated",
+        settle.max_refits
     ));
     Ok((white, outcome))
 }
 
 /// Whether two identified models agree (same orders, φ within
-/// [`SETTLE_PHI`], σ within [`SETTLE_SIGMA`]).
-pub fn settled(a: &NoiseModel, b: &NoiseModel) -> bool {
+/// `settle.phi`, σ and motion gain within `settle.sigma` relative).
+pub fn settled(a: &NoiseModel, b: &NoiseModel, settle: &Settle) -> bool {
     a.imu.iter().zip(&b.imu).all(|(a, b)| {
         let (pa, pb) = (a.ar.phi(), b.ar.phi());
         pa.len() == pb.len()
-            && pa.iter().zip(pb).all(|(x, y)| (x - y).abs() < SETTLE_PHI)
-            && (a.ar.sigma() / b.ar.sigma() - 1.0).abs() < SETTLE_SIGMA
-            && (a.motion - b.motion).abs() <= SETTLE_SIGMA * a.motion.max(b.motion)
+            && pa.iter().zip(pb).all(|(x, y)| (x - y).abs() < settle.phi)
+            && (a.ar.sigma() / b.ar.sigma() - 1.0).abs() < settle.sigma
+            && (a.motion - b.motion).abs() <= settle.sigma * a.motion.max(b.motion)
     })
 }
 

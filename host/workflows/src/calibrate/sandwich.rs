@@ -1,0 +1,311 @@
+//! Sandwich (heteroscedasticity- and autocorrelation-consistent, HAC)
+//! covariance of a white-noise fit's x: what the white estimate's spread
+//! really is when the IMU noise is correlated in time (docs/model.md §4.6;
+//! a cross-check of the GLS fit's σ, not used by `calibrate`).
+//!
+//! The white fit θ̂ = [ĉ, x̂] minimises J = ½‖e(θ)‖², e the joint, IMU and
+//! prior residuals whitened by their assumed σ (eq. (22)). To first order
+//! θ̂ − θ = −A⁻¹ g, with g = Σ_i J_iᵀ e_i the score at the truth and A = JᵀJ
+//! the Gauss–Newton matrix at the optimum (priors included), so
+//!
+//! ```text
+//! Σ_θ = A⁻¹ B A⁻¹,   B = Cov(g),
+//! ```
+//!
+//! which is the reported A⁻¹ only when the rows are independent with unit
+//! variance (B = A). B is estimated from the per-sample score contributions
+//! g_t = J_tᵀ e_t at θ̂ (the six rows of IMU sample t together, the n rows
+//! of a joint sample together):
+//!
+//! ```text
+//! B̂ = Σ_t g_t g_tᵀ + Σ_{l=1..L} (1 − l/(L+1)) Σ_t (g_t g_{t−l}ᵀ + g_{t−l} g_tᵀ)   (IMU, Newey–West)
+//!   + Σ_s g_s g_sᵀ                                                            (joint samples, white)
+//!   + P                                                                       (prior)
+//! ```
+//!
+//! over the selected IMU samples in time order (Bartlett kernel of
+//! bandwidth L; cross-channel correlation included, segments after gaps
+//! simply joined), the joint samples as independent (lag 0), and the
+//! prior's information P = diag(1/σ_k²): the prior term's score at a truth
+//! drawn from the prior has covariance P, so that with white noise
+//! B = A in expectation and the sandwich is A⁻¹ (the Bayesian posterior
+//! covariance that the Monte Carlo checks).
+//!
+//! **The spline coefficients are nuisance parameters.** θ holds ~1 800
+//! coefficients besides x; B over θ is never formed. Σ_x = R B Rᵀ with
+//! R = [A⁻¹]_{x,·} (the x rows of A⁻¹: one arrowhead solve per parameter),
+//! so each contribution is reduced to its influence on x, ψ_t = R g_t, and
+//! B̂ is accumulated over the 48-vectors ψ_t. This is the sandwich of x with
+//! c profiled out: R g = S⁻¹ (g_x − A_xc A_cc⁻¹ g_c) (S the Schur complement),
+//! the score of x with the spline directions projected out, and R A Rᵀ = S⁻¹.
+//! The Bartlett sum is Ψᵀ W Ψ with W the banded Toeplitz matrix of the
+//! kernel, computed as two running box sums (the triangle is a box
+//! convolved with itself): O(N·48) for any L.
+//!
+//! **Bandwidth** ([`bandwidth`]): L = ⌈25 T/Δt⌉ from the largest
+//! correlation time T of a noise model identified from the residuals
+//! ([`robimu_model::noise::ArNoise::correlation_time`]; for AR(1) the
+//! Bartlett kernel's downward bias of the long-run variance is then about
+//! 2φ/((1 − φ²)(L + 1)) < 5 %), the Newey–West rule ⌊4 (N/100)^{2/9}⌋ when
+//! it is white; at most N/4.
+
+use faer::Mat;
+use robimu_model::effects::EffectSet;
+use robimu_model::noise::NoiseModel;
+use robimu_model::observations::Measurements;
+use robimu_model::{Basis, JointState, MeasurementJacobians, ParamLayout, Robot};
+use robimu_solver::problem::Problem;
+use robimu_solver::LeastSquares;
+
+use super::fit::Fit;
+use super::{CalibrateError, CalibrateOptions};
+
+/// The sandwich covariance of a white fit's x.
+#[derive(Debug, Clone)]
+pub struct Sandwich {
+    /// Σ_x over the fit's active parameters (active × active).
+    pub covariance: Mat<f64>,
+    /// √diag per entry of x (0 when frozen).
+    pub sigma: Vec<f64>,
+    /// The Bartlett bandwidth L used, IMU samples.
+    pub bandwidth: usize,
+}
+
+/// The bandwidth L for `samples` IMU samples `dt` apart whose noise is
+/// `model` (module doc).
+pub fn bandwidth(model: &NoiseModel, dt: f64, samples: usize) -> usize {
+    let t = model
+        .imu
+        .iter()
+        .map(|c| c.ar.correlation_time(dt))
+        .fold(0.0, f64::max);
+    let l = if t > 0.0 {
+        (25.0 * t / dt).ceil() as usize
+    } else {
+        (4.0 * (samples as f64 / 100.0).powf(2.0 / 9.0)).floor() as usize
+    };
+    l.min(samples / 4)
+}
+
+/// The sandwich covariance (module doc) of the white-noise baseline fit `f`
+/// of `data`, made with `opts`, with Bartlett bandwidth `bandwidth`.
+pub fn sandwich(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    f: &Fit,
+    bandwidth: usize,
+) -> Result<Sandwich, CalibrateError> {
+    if !f.noise.is_white() || !f.effects.is_empty() {
+        return Err(CalibrateError::Input(
+            "the sandwich covariance is for a white-noise fit of the baseline model".into(),
+        ));
+    }
+    let layout = ParamLayout::new(robot);
+    let mut problem = Problem::new(
+        robot,
+        &layout,
+        data,
+        f.trajectory.knots().clone(),
+        f.x.clone(),
+        &CalibrateOptions {
+            noise: None,
+            ..opts.clone()
+        }
+        .problem_options(),
+        EffectSet::none(),
+    )?;
+    let theta = &f.theta;
+    problem.begin_iteration(theta)?;
+    let (nc, na) = (problem.n_coeffs(), problem.active().len());
+    let mut a = problem.new_matrix();
+    let mut g = vec![0.0; nc + na];
+    problem.linearize(theta, &mut a, &mut g)?;
+    let factor = a
+        .factor()
+        .map_err(|e| CalibrateError::Input(format!("the normal matrix: {e}")))?;
+    // R = [A⁻¹]_{x,·}: row a is A⁻¹ e_{nc+a} (A symmetric)
+    let mut r = Mat::<f64>::zeros(na, nc + na);
+    let mut col = vec![0.0; nc + na];
+    for i in 0..na {
+        col.fill(0.0);
+        col[nc + i] = 1.0;
+        factor.solve_in_place(&mut col);
+        for (j, v) in col.iter().enumerate() {
+            r[(i, j)] = *v;
+        }
+    }
+    let x = problem.x_of(theta);
+    let model = problem.model(&x)?;
+    let spline = problem.spline_of(theta);
+    let knots = problem.knots();
+    let n = robot.dof();
+    let active = problem.active().to_vec();
+    let tau = x[layout.offsets().tau];
+    let sz = opts.sigma_z;
+    // ψ = R g for a sparse g: band entries from `first·n`, then x_a
+    let influence = |first: usize, band: &[f64], gx: &[f64], out: &mut [f64]| {
+        for (i, o) in out.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (j, v) in band.iter().enumerate() {
+                s += r[(i, first + j)] * v;
+            }
+            for (j, v) in gx.iter().enumerate() {
+                s += r[(i, nc + j)] * v;
+            }
+            *o = s;
+        }
+    };
+    let range = problem.imu_range();
+    let len = range.len();
+    let mut psi = Mat::<f64>::zeros(len, na);
+    let (mut basis, mut js) = (Basis::default(), JointState::default());
+    let mut jac = MeasurementJacobians::new(layout.len());
+    let nl = (knots.degree() + 1) * n;
+    let (mut band, mut gx, mut out) = (vec![0.0; nl], vec![0.0; na], vec![0.0; na]);
+    for (row, i) in range.enumerate() {
+        knots.basis(data.imu_t[i] + tau, &mut basis)?;
+        spline.evaluate_basis(&basis, &mut js);
+        model.jacobians(&js, &mut jac);
+        band.fill(0.0);
+        gx.fill(0.0);
+        for ch in 0..6 {
+            let w = 1.0 / sz[ch];
+            let e = (data.imu_z[i][ch] - jac.z[ch]) * w;
+            // J = −∂h/∂θ / σ
+            for a in 0..basis.count {
+                let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
+                for j in 0..n {
+                    band[a * n + j] -= w
+                        * e
+                        * (jac.dz_dq[j][ch] * n0
+                            + jac.dz_dqd[j][ch] * n1
+                            + jac.dz_dqdd[j][ch] * n2);
+                }
+            }
+            for (ga, &k) in gx.iter_mut().zip(&active) {
+                *ga -= w * e * jac.dz_dx[k][ch];
+            }
+        }
+        influence(basis.first * n, &band[..basis.count * n], &gx, &mut out);
+        for (c, v) in out.iter().enumerate() {
+            psi[(row, c)] = *v;
+        }
+    }
+    let mut b = bartlett(&psi, bandwidth);
+    // joint samples: white, lag 0
+    let coeffs = spline.coeffs();
+    gx.fill(0.0);
+    for (s, &t) in data.joint_t.iter().enumerate() {
+        knots.basis(t, &mut basis)?;
+        band.fill(0.0);
+        for j in 0..n {
+            let mut q = 0.0;
+            for a in 0..basis.count {
+                q += basis.d[0][a] * coeffs[(basis.first + a) * n + j];
+            }
+            let w = 1.0 / opts.sigma_q[j];
+            let e = (data.joint_q[s * n + j] - q) * w;
+            for a in 0..basis.count {
+                band[a * n + j] -= w * e * basis.d[0][a];
+            }
+        }
+        influence(basis.first * n, &band[..basis.count * n], &gx, &mut out);
+        for p in 0..na {
+            for q in 0..na {
+                b[(p, q)] += out[p] * out[q];
+            }
+        }
+    }
+    // the prior: R_x P R_xᵀ
+    if opts.use_prior {
+        let specs = layout.specs();
+        for (c, &k) in active.iter().enumerate() {
+            let info = 1.0 / (specs[k].sigma * specs[k].sigma);
+            for p in 0..na {
+                for q in 0..na {
+                    b[(p, q)] += r[(p, nc + c)] * info * r[(q, nc + c)];
+                }
+            }
+        }
+    }
+    let mut sigma = vec![0.0; layout.len()];
+    for (c, &k) in active.iter().enumerate() {
+        sigma[k] = b[(c, c)].max(0.0).sqrt();
+    }
+    Ok(Sandwich {
+        covariance: b,
+        sigma,
+        bandwidth,
+    })
+}
+
+/// Σ_{t,s} w(t − s) ψ_t ψ_sᵀ over the rows ψ_t of `psi`, w the Bartlett
+/// kernel 1 − |l|/(L+1) for |l| ≤ L: Ψᵀ (box ∗ box ∗ Ψ) / (L + 1).
+fn bartlett(psi: &Mat<f64>, l: usize) -> Mat<f64> {
+    let (len, na) = (psi.nrows(), psi.ncols());
+    let mut v = Mat::<f64>::zeros(len, na);
+    // u runs L past the end, where it still sums the last ψ
+    let ext = len + l;
+    let mut u = vec![0.0; ext];
+    for c in 0..na {
+        // u_t = Σ_{k=0..L} ψ_{t−k} (ψ = 0 outside the series)
+        let mut run = 0.0;
+        for t in 0..ext {
+            if t < len {
+                run += psi[(t, c)];
+            }
+            if t > l {
+                run -= psi[(t - l - 1, c)];
+            }
+            u[t] = run;
+        }
+        // v_t = Σ_{k=0..L} u_{t+k} = Σ_d (L + 1 − |d|) ψ_{t+d}
+        let mut run: f64 = u[len..].iter().sum();
+        for t in (0..len).rev() {
+            run += u[t];
+            if t + l + 1 < ext {
+                run -= u[t + l + 1];
+            }
+            v[(t, c)] = run;
+        }
+    }
+    let mut b = psi.transpose() * &v;
+    let scale = 1.0 / (l + 1) as f64;
+    for p in 0..na {
+        for q in 0..p {
+            let s = 0.5 * (b[(p, q)] + b[(q, p)]) * scale;
+            b[(p, q)] = s;
+            b[(q, p)] = s;
+        }
+        b[(p, p)] *= scale;
+    }
+    b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The box-sum form equals the Bartlett double sum written out.
+    #[test]
+    fn bartlett_matches_the_double_sum() {
+        let (len, na, l) = (40, 3, 5);
+        let psi = Mat::from_fn(len, na, |t, c| ((t * 7 + c * 3) as f64 * 0.37).sin());
+        let b = bartlett(&psi, l);
+        for p in 0..na {
+            for q in 0..na {
+                let mut s = 0.0;
+                for t in 0..len {
+                    for u in 0..len {
+                        let d = t.abs_diff(u);
+                        if d <= l {
+                            s += (1.0 - d as f64 / (l + 1) as f64) * psi[(t, p)] * psi[(u, q)];
+                        }
+                    }
+                }
+                assert!((b[(p, q)] - s).abs() < 1e-12 * s.abs().max(1.0), "{p},{q}");
+            }
+        }
+    }
+}
