@@ -218,8 +218,14 @@ fn check_detected(name: &str, magnitude: f64, seed: u64) {
     check_detected_in(name, magnitude, seed, None);
 }
 
-/// [`check_detected`] with the IMU noise `noise` (None: white).
-fn check_detected_in(name: &str, magnitude: f64, seed: u64, noise: Option<NoiseModel>) {
+/// [`check_detected`] with the IMU noise `noise` (None: white); the
+/// diagnosis and the truth.
+fn check_detected_in(
+    name: &str,
+    magnitude: f64,
+    seed: u64,
+    noise: Option<NoiseModel>,
+) -> (Diagnosis, Vec<f64>) {
     let (robot, data, truth, injected) =
         session_with_noise(seed, DURATION, &[(name, magnitude)], noise);
     let (_, d) = diagnose_all(&robot, &data);
@@ -245,11 +251,36 @@ fn check_detected_in(name: &str, magnitude: f64, seed: u64, noise: Option<NoiseM
     );
     check_estimates(name, &f.parameters, &injected[0]);
     check_restored(name, &d.final_fit, &truth, &robot);
+    (d, truth)
 }
 
 #[test]
 fn clock_drift_is_named_and_estimated() {
     check_detected("clock_drift", 100.0, 11);
+}
+
+/// The accelerometer 8 ms behind the gyroscope: sensor_delay named first
+/// and within 4σ (in check_detected), and the final fit's τ within 4σ of
+/// the gyroscope's true offset (not pulled between the two sensors).
+#[test]
+fn sensor_delay_is_named_and_estimated_with_tau_at_the_gyroscope() {
+    let (d, truth) = check_detected_in("sensor_delay", 8.0, 18, None);
+    let tau = ParamLayout::new(&Robot::aubo_i5()).offsets().tau;
+    let (est, sigma) = (d.final_fit.x[tau], d.final_fit.sigma_x[tau]);
+    println!(
+        "τ {:.4} ± {:.4} ms vs {:.4} ms (baseline fit: {:.4} ± {:.4} ms)",
+        est * 1e3,
+        sigma * 1e3,
+        truth[tau] * 1e3,
+        d.baseline.x[tau] * 1e3,
+        d.baseline.sigma_x[tau] * 1e3
+    );
+    assert!(sigma > 0.0);
+    assert!(
+        ((est - truth[tau]) / sigma).abs() < 4.0,
+        "τ {est} ± {sigma} vs the gyroscope's {}",
+        truth[tau]
+    );
 }
 
 #[test]

@@ -896,3 +896,62 @@ fn the_rig_with_a_datasheet_chip_reads_the_truth_at_rest() {
         assert!((sd / sigma[c] - 1.0).abs() < 0.15, "channel {c}: σ {sd}");
     }
 }
+
+/// A rig recording with the datasheet chip at the rig's bandwidths
+/// (accelerometer 62.5 Hz, ODR 125 Hz; gyroscope 116 Hz, ODR 1000 Hz; 120 Hz
+/// reads), diagnosed: sensor_delay is named first, δ within 4σ of the
+/// accelerometer's effective delay minus the gyroscope's. Each sensor's
+/// effective delay is its filter's group delay plus the mean age of the
+/// held register value at an asynchronous read, 1/(2·ODR):
+/// (3.28 + 4.00) − (1.77 + 0.50) = +5.01 ms. (Measured on one 45 s
+/// recording: δ = 4.2 ± 1.3 ms by `calibrate --effects sensor_delay`,
+/// score 10.3, just short of the Bonferroni level; hence 90 s.)
+#[test]
+#[ignore = "the baseline fit of datasheet-chip recordings in motion mostly stops NotConverged (LM NoProgress at the cost's rounding floor); 90 s real time"]
+fn a_datasheet_chip_is_diagnosed_with_its_sensor_delay() {
+    use robimu_workflows::diagnose::{diagnose, setup_for, DiagnoseOptions};
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(33);
+    let traj = random_walk(&robot, 90.0, 1.0, &mut rng).unwrap();
+    let plan = Plan::from_spline(&traj, 250.0);
+    let mut config = SimRigConfig::drawn(robot.clone(), 33);
+    config.chip = robimu_hil::rig::ChipModel::Datasheet;
+    let rig = SimRig::spawn(&config).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    record(&options(&rig, dir.path(), Some(plan), 0.0), &mut |_| {}).unwrap();
+    drop(rig);
+    let session = Session::load(dir.path()).unwrap();
+    let timing = session
+        .meta
+        .imu_timing(&dir.path().join("session.toml"))
+        .unwrap()
+        .expect("[imu] timing keys");
+    let delay = |bw: f64, odr: f64| {
+        robimu_bno055_sim::Timing {
+            bandwidth_hz: bw,
+            odr_hz: odr,
+        }
+        .group_delay_s()
+            + 0.5 / odr
+    };
+    let want = delay(timing.accel_bandwidth_hz, timing.accel_odr_hz)
+        - delay(timing.gyro_bandwidth_hz, timing.gyro_odr_hz);
+    let data = session.measurements();
+    let setup = setup_for(&robot, &data, None);
+    let d = diagnose(
+        &robot,
+        &data,
+        &CalibrateOptions::new(&robot),
+        &setup,
+        &DiagnoseOptions::default(),
+        |_| {},
+    )
+    .unwrap();
+    let names: Vec<&str> = d.found.iter().map(|f| f.name.as_str()).collect();
+    eprintln!("found {names:?}; want δ {:.2} ms", want * 1e3);
+    let f = d.found.first().expect("an effect is found");
+    assert_eq!(f.name, "sensor_delay", "found {names:?}: {:?}", f.scores);
+    let (_, _, v, s) = &f.parameters[0];
+    eprintln!("δ {:.2} ± {:.2} ms", v * 1e3, s * 1e3);
+    assert!(((v - want) / s).abs() < 4.0, "δ {v} ± {s} vs {want}");
+}

@@ -74,7 +74,7 @@ pub struct CalibrateCmd {
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
     /// Also fit these catalogue effects with the baseline (comma-separated:
-    /// g_sensitivity, size_effect, clock_drift, bias_drift,
+    /// g_sensitivity, size_effect, clock_drift, sensor_delay, bias_drift,
     /// joint_elasticity, encoder_scale, resonance); prints their estimates and writes
     /// effects.json (the augmented model's parameters) next to the result file.
     #[arg(long, value_delimiter = ',')]

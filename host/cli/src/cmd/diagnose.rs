@@ -25,7 +25,7 @@ use super::noise_spec::{noise_choice, NoiseFileArg};
 /// analyses the whitened residuals (prewhitened with a correlated noise
 /// model; RMS and χ² per channel, Ljung–Box whiteness, spectral peaks, where
 /// in time they concentrate, the regressor they follow), scores every catalogued effect
-/// (g_sensitivity, size_effect, clock_drift, bias_drift, joint_elasticity,
+/// (g_sensitivity, size_effect, clock_drift, sensor_delay, bias_drift, joint_elasticity,
 /// encoder_scale, resonance) with a Rao score test, adds the most significant one
 /// (Bonferroni at --alpha across the catalogue, confirmed by a refit's
 /// likelihood ratio), and repeats until none is significant; a narrow

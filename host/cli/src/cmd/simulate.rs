@@ -77,7 +77,7 @@ pub struct SimulateCmd {
     pub poses: usize,
     /// Inject a catalogue effect into the IMU samples, NAME=MAGNITUDE
     /// (repeatable), magnitudes in physical units: g_sensitivity (deg/s)/g,
-    /// size_effect mm, clock_drift ppm, bias_drift deg/s, joint_elasticity
+    /// size_effect mm, clock_drift ppm, sensor_delay ms, bias_drift deg/s, joint_elasticity
     /// deg/(kN*m), encoder_scale ppm, resonance mrad/(rad/s^2) (each a
     /// fixed pattern scaled by the magnitude; see `robimu_model::effects`).
     /// Recorded in session.toml's notes.

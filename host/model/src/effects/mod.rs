@@ -14,7 +14,7 @@
 //! derivatives), the baseline model and its analytic Jacobians (∂z/∂q,
 //! ∂z/∂q̇, ∂z/∂q̈ and ∂z/∂τ = dz/dt), and the IMU-frame ω, ω̇ and s. Effects
 //! that act through the joint angles (encoder scale, elasticity) or the
-//! clock (clock drift) use the chain rule through those analytic
+//! clock (clock drift, sensor delay) use the chain rule through those analytic
 //! Jacobians; the cross-derivatives ∂C_e/∂x are neglected (the refit
 //! minimises the exact cost; see the tests for the agreement with an
 //! exact-injection simulation).
@@ -38,6 +38,7 @@ pub mod g_sensitivity;
 pub mod joint_elasticity;
 pub mod mass;
 pub mod resonance;
+pub mod sensor_delay;
 pub mod size_effect;
 
 use std::cell::OnceCell;
@@ -277,6 +278,7 @@ pub fn catalogue(setup: &CatalogueSetup) -> Vec<Box<dyn Effect>> {
         Box::new(g_sensitivity::GSensitivity),
         Box::new(size_effect::SizeEffect),
         Box::new(clock_drift::ClockDrift::new(setup.span.clone())),
+        Box::new(sensor_delay::SensorDelay),
         Box::new(bias_drift::BiasDrift::new(setup.span.clone())),
         Box::new(joint_elasticity::JointElasticity::new(
             setup.mass.clone(),
@@ -296,10 +298,11 @@ pub fn catalogue(setup: &CatalogueSetup) -> Vec<Box<dyn Effect>> {
 }
 
 /// Names of the catalogue's effects, in order.
-pub const NAMES: [&str; 7] = [
+pub const NAMES: [&str; 8] = [
     "g_sensitivity",
     "size_effect",
     "clock_drift",
+    "sensor_delay",
     "bias_drift",
     "joint_elasticity",
     "encoder_scale",
