@@ -17,8 +17,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
 use robimu_session::{check_ar_order_for_data, NoiseShape, Session};
-use robimu_workflows::noise::NoiseFile;
 use robimu_workflows::calibrate::noise_choice::NoiseChoice;
+use robimu_workflows::noise::NoiseFile;
 
 /// What SPEC accepts, for error messages.
 const EXPECTED: &str =
