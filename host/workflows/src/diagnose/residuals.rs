@@ -1,0 +1,306 @@
+//! Residual statistics of a fit (step 2 of the diagnosis, see the module
+//! doc of [`super`]): whitened RMS and χ² per channel, Ljung–Box
+//! whiteness, the Welch spectrum and its largest peak, the worst time
+//! window and the regressor the residuals follow most.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use super::CHANNELS;
+use crate::calibrate::fit::Fit;
+use crate::stats::{chi2_sf, ljung_box, LJUNG_BOX_LAGS};
+use robimu_model::effects::CatalogueSetup;
+use robimu_model::observations::Measurements;
+use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
+
+/// Residual statistics of one fit (whitened residuals; see the module doc).
+#[derive(Debug, Clone, Serialize)]
+pub struct ResidualStats {
+    /// IMU samples.
+    pub samples: usize,
+    /// RMS per channel (1 = at the noise model).
+    pub rms: BTreeMap<String, f64>,
+    /// Σ r² per channel.
+    pub chi2: BTreeMap<String, f64>,
+    /// Σ r² over all channels, and its degrees of freedom (6 × samples).
+    pub chi2_total: (f64, usize),
+    /// Ljung–Box statistic (20 lags) and its p-value per channel.
+    pub ljung_box: BTreeMap<String, (f64, f64)>,
+    /// Largest Welch-periodogram peak per channel: (frequency Hz, power
+    /// relative to the channel's median).
+    pub spectral_peak: BTreeMap<String, (f64, f64)>,
+    /// P-value of that peak under a flat spectrum ([`peak_p_value`]).
+    pub spectral_peak_p: BTreeMap<String, f64>,
+    /// Per channel: the tenth of the session with the largest RMS (start s,
+    /// RMS relative to the channel's).
+    pub worst_window: BTreeMap<String, (f64, f64)>,
+    /// Per channel: the regressor with the largest |correlation| (name, r, z = r√N).
+    pub top_regressor: BTreeMap<String, (String, f64, f64)>,
+}
+
+/// Welch segment length (samples).
+const SEGMENT: usize = 512;
+
+/// Residual statistics of `fit` on `data` (`rate` the IMU rate, Hz, for
+/// the spectrum; τ from the fit).
+///
+/// The candidate regressors, evaluated at each IMU sample on the fitted
+/// trajectory (at t + τ) with the fitted x:
+///
+/// ```text
+/// time                    t, s
+/// q1.. qd1.. qdd1..       joint angles, rates, accelerations (rad, rad/s, rad/s²)
+/// wx wy wz, sx sy sz      angular rate ω and specific force s at the IMU (sensor frame)
+/// tg1..tgN                gravity torque per joint, N·m (setup's mass model and g0)
+/// temp                    sensor temperature, °C (only when the session recorded it)
+/// ```
+pub fn residual_stats(
+    robot: &Robot,
+    data: &Measurements,
+    setup: &CatalogueSetup,
+    fit: &Fit,
+) -> ResidualStats {
+    let layout = ParamLayout::new(robot);
+    let res = &fit.residuals;
+    let n = res.len().max(1);
+    let ts: Vec<f64> = res.iter().map(|(i, _)| data.imu_t[*i]).collect();
+    let rate = if ts.len() > 1 {
+        (ts.len() - 1) as f64 / (ts[ts.len() - 1] - ts[0]).max(1e-9)
+    } else {
+        1.0
+    };
+    let tau = fit.x[layout.offsets().tau];
+    let model = MeasurementModel::new(robot, &layout, &fit.x).ok();
+    // regressors at each sample
+    let dof = robot.dof();
+    let mut reg_names: Vec<String> = vec!["time".into()];
+    for j in 1..=dof {
+        for k in ["q", "qd", "qdd"] {
+            reg_names.push(format!("{k}{j}"));
+        }
+    }
+    for k in ["wx", "wy", "wz", "sx", "sy", "sz"] {
+        reg_names.push(k.into());
+    }
+    let gravity = setup.mass.dof() == dof;
+    if gravity {
+        reg_names.extend((1..=dof).map(|j| format!("tg{j}")));
+    }
+    let temp = data
+        .imu_temp
+        .as_deref()
+        .filter(|c| c.len() == data.imu_t.len());
+    if temp.is_some() {
+        reg_names.push("temp".into());
+    }
+    let regs: Vec<Vec<f64>> = res
+        .iter()
+        .map(|(i, _)| {
+            let mut js = JointState::default();
+            let t = data.imu_t[*i];
+            fit.trajectory.evaluate_clamped(t + tau, &mut js);
+            let mut v = vec![t];
+            for j in 0..dof {
+                v.extend([js.q[j], js.qd[j], js.qdd[j]]);
+            }
+            if let Some(m) = &model {
+                let (_, w, s) = m.inertial(&js);
+                v.extend(w);
+                v.extend(s);
+            } else {
+                v.extend([0.0; 6]);
+            }
+            if gravity {
+                v.extend(setup.mass.gravity_torques(&js.q[..dof], setup.g0));
+            }
+            if let Some(c) = temp {
+                v.push(c[*i]);
+            }
+            v
+        })
+        .collect();
+    let mut out = ResidualStats {
+        samples: res.len(),
+        rms: BTreeMap::new(),
+        chi2: BTreeMap::new(),
+        chi2_total: (0.0, 6 * res.len()),
+        ljung_box: BTreeMap::new(),
+        spectral_peak: BTreeMap::new(),
+        spectral_peak_p: BTreeMap::new(),
+        worst_window: BTreeMap::new(),
+        top_regressor: BTreeMap::new(),
+    };
+    for (c, name) in CHANNELS.iter().enumerate() {
+        let r: Vec<f64> = res.iter().map(|(_, v)| v[c]).collect();
+        let ss: f64 = r.iter().map(|v| v * v).sum();
+        out.chi2_total.0 += ss;
+        let rms = (ss / n as f64).sqrt();
+        out.rms.insert(name.to_string(), rms);
+        out.chi2.insert(name.to_string(), ss);
+        out.ljung_box
+            .insert(name.to_string(), ljung_box(&r, LJUNG_BOX_LAGS));
+        let spec = welch(&r, rate);
+        let mut powers: Vec<f64> = spec.iter().map(|p| p.1).collect();
+        powers.sort_by(f64::total_cmp);
+        let median = powers
+            .get(powers.len() / 2)
+            .copied()
+            .unwrap_or(1.0)
+            .max(1e-300);
+        if let Some(&(f, p)) = spec.iter().skip(1).max_by(|a, b| a.1.total_cmp(&b.1)) {
+            out.spectral_peak.insert(name.to_string(), (f, p / median));
+            out.spectral_peak_p.insert(
+                name.to_string(),
+                peak_p_value(p / median, welch_segments(r.len()), spec.len() - 1),
+            );
+        }
+        let w = (r.len() / 10).max(1);
+        let mut worst = (0.0, 0.0);
+        for (k, chunk) in r.chunks(w).enumerate() {
+            let wr = (chunk.iter().map(|v| v * v).sum::<f64>() / chunk.len() as f64).sqrt();
+            if wr > worst.1 {
+                worst = (ts[k * w], wr);
+            }
+        }
+        out.worst_window
+            .insert(name.to_string(), (worst.0, worst.1 / rms.max(1e-300)));
+        let mut best = (String::new(), 0.0f64);
+        for (g, gname) in reg_names.iter().enumerate() {
+            let x: Vec<f64> = regs.iter().map(|v| v[g]).collect();
+            let corr = correlation(&x, &r);
+            if corr.abs() > best.1.abs() {
+                best = (gname.clone(), corr);
+            }
+        }
+        out.top_regressor.insert(
+            name.to_string(),
+            (best.0, best.1, best.1 * (n as f64).sqrt()),
+        );
+    }
+    out
+}
+
+/// Pearson correlation (0 when either series is constant: tested exactly,
+/// since the rounded mean of a constant series such as a recorded 24.7 °C
+/// leaves deviations of one ulp that would otherwise give a spurious r).
+pub(super) fn correlation(x: &[f64], y: &[f64]) -> f64 {
+    let constant = |s: &[f64]| s.windows(2).all(|w| w[0] == w[1]);
+    if constant(x) || constant(y) {
+        return 0.0;
+    }
+    let n = x.len().max(1) as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for (a, b) in x.iter().zip(y) {
+        sxy += (a - mx) * (b - my);
+        sxx += (a - mx) * (a - mx);
+        syy += (b - my) * (b - my);
+    }
+    if sxx <= 0.0 || syy <= 0.0 {
+        0.0
+    } else {
+        sxy / (sxx * syy).sqrt()
+    }
+}
+
+/// RMS of `r` over consecutive windows of about `window` seconds (the
+/// residual plot of `robimu diagnose`): the span of `t` (non-decreasing, each
+/// sample's time) is cut into round(span / window) equal windows, so the
+/// last one is not a stub; one (mean sample time, RMS) per window that holds
+/// samples.
+pub fn windowed_rms(t: &[f64], r: &[f64], window: f64) -> Vec<(f64, f64)> {
+    let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
+        return Vec::new();
+    };
+    let span = t1 - t0;
+    let count = if window > 0.0 && span > 0.0 {
+        (span / window).round().max(1.0)
+    } else {
+        1.0
+    };
+    let width = if span > 0.0 { span / count } else { 1.0 };
+    let mut out = Vec::new();
+    let (mut key, mut st, mut ss, mut n) = (0.0, 0.0, 0.0, 0usize);
+    for (&ti, &ri) in t.iter().zip(r) {
+        let k = ((ti - t0) / width).floor().min(count - 1.0);
+        if k != key && n > 0 {
+            out.push((st / n as f64, (ss / n as f64).sqrt()));
+            (st, ss, n) = (0.0, 0.0, 0);
+        }
+        key = k;
+        st += ti;
+        ss += ri * ri;
+        n += 1;
+    }
+    if n > 0 {
+        out.push((st / n as f64, (ss / n as f64).sqrt()));
+    }
+    out
+}
+
+/// Segments of [`welch`] for `n` samples (0 when too short).
+pub fn welch_segments(n: usize) -> usize {
+    let seg = SEGMENT.min(n);
+    if seg < 8 {
+        return 0;
+    }
+    (n - seg) / (seg / 2) + 1
+}
+
+/// P-value of a Welch peak `ratio` times the channel's median power when
+/// the spectrum is flat (white residuals), Bonferroni over the `bins`
+/// searched: each bin of `segments` Hann segments at 50 % overlap is
+/// S·χ²_ν/ν with ν = 2K/1.056 (Welch 1967: adjacent segments correlate by
+/// 1/6 in amplitude), the median S·m_ν (Wilson–Hilferty), so the peak bin
+/// exceeds ν·ratio·m_ν in χ²_ν.
+pub fn peak_p_value(ratio: f64, segments: usize, bins: usize) -> f64 {
+    if segments == 0 || !ratio.is_finite() {
+        return 1.0;
+    }
+    let nu = 2.0 * segments as f64 / 1.056;
+    let median = (1.0 - 2.0 / (9.0 * nu)).powi(3);
+    (bins.max(1) as f64 * chi2_sf(nu * ratio * median, nu)).min(1.0)
+}
+
+/// Welch periodogram (Hann window, 50 % overlap, segments of 512): (frequency
+/// Hz, power density) for frequencies 0..rate/2.
+pub fn welch(r: &[f64], rate: f64) -> Vec<(f64, f64)> {
+    let seg = SEGMENT.min(r.len());
+    if seg < 8 {
+        return Vec::new();
+    }
+    let bins = seg / 2 + 1;
+    let win: Vec<f64> = (0..seg)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / seg as f64).cos())
+        .collect();
+    let wss: f64 = win.iter().map(|w| w * w).sum();
+    let mut p = vec![0.0; bins];
+    let mut count = 0;
+    let mut start = 0;
+    // twiddles
+    let (cs, sn): (Vec<f64>, Vec<f64>) = (0..seg)
+        .map(|i| {
+            let a = 2.0 * std::f64::consts::PI * i as f64 / seg as f64;
+            (a.cos(), a.sin())
+        })
+        .unzip();
+    while start + seg <= r.len() {
+        let x: Vec<f64> = (0..seg).map(|i| r[start + i] * win[i]).collect();
+        for (k, pk) in p.iter_mut().enumerate() {
+            let (mut re, mut im) = (0.0, 0.0);
+            for (i, xi) in x.iter().enumerate() {
+                let idx = (k * i) % seg;
+                re += xi * cs[idx];
+                im -= xi * sn[idx];
+            }
+            *pk += (re * re + im * im) / (wss * rate);
+        }
+        count += 1;
+        start += seg / 2;
+    }
+    p.iter()
+        .enumerate()
+        .map(|(k, v)| (k as f64 * rate / seg as f64, v / count.max(1) as f64))
+        .collect()
+}
