@@ -105,6 +105,21 @@ impl fmt::Display for DiagnosisSummary<'_> {
             f.lr_p_value,
             f.delta_bic
         )?;
+            if let Some(r) = &f.resolution {
+                let table: Vec<String> = r
+                    .candidates
+                    .iter()
+                    .map(|c| format!("M={} score {:.1} BIC {:.1}", c.resolution, c.statistic, c.bic))
+                    .collect();
+                writeln!(
+                    out,
+                    "   resolution {} segments by BIC (at most {}; refit with --effects {}): {}",
+                    r.chosen,
+                    r.max,
+                    r.spec,
+                    table.join(", ")
+                )?;
+            }
             let params = &d.final_fit.effect_params;
             for (name, _unit, v, s) in &f.parameters {
                 let display = params
@@ -151,7 +166,7 @@ impl fmt::Display for DiagnosisSummary<'_> {
         writeln!(
             out,
             "final model: baseline + [{}]",
-            d.final_fit.effects.join(", ")
+            d.final_specs().join(", ")
         )?;
         write_stats(out, &d.stats_after)?;
         // structure left that no candidate explains

@@ -176,6 +176,65 @@ pub fn simulate(
     Ok(data)
 }
 
+/// The bias drift the paper observed over [`PAPER_DRIFT_TIME`] (25 min),
+/// per channel: 0.017 m/s² on each accelerometer axis, 0.025 °/s on each
+/// gyroscope axis (docs/model.md §4.7).
+pub const PAPER_DRIFT: [f64; 6] = [
+    0.017,
+    0.017,
+    0.017,
+    0.025 * std::f64::consts::PI / 180.0,
+    0.025 * std::f64::consts::PI / 180.0,
+    0.025 * std::f64::consts::PI / 180.0,
+];
+
+/// The time over which the paper observed [`PAPER_DRIFT`], s.
+pub const PAPER_DRIFT_TIME: f64 = 1500.0;
+
+/// A seeded Brownian bias per IMU channel at the samples `t` (ascending):
+/// independent random walks whose standard deviation after
+/// [`PAPER_DRIFT_TIME`] is `scale` × [`PAPER_DRIFT`], i.e. increments
+/// N(0, (scale·D_c)² Δt / 1500 s), exact at any sample spacing; then
+/// centred on the session (its mean over the samples subtracted), so that
+/// the constant biases of the truth are the session-mean biases. Not the
+/// estimator's bias spline: any path, at the samples' own resolution.
+pub fn bias_walk(t: &[f64], scale: f64, seed: u64) -> Vec<[f64; 6]> {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0B1A_5DA1_C0DE);
+    let mut w = [0.0; 6];
+    let mut prev = t.first().copied().unwrap_or(0.0);
+    let mut out: Vec<[f64; 6]> = t
+        .iter()
+        .map(|&ti| {
+            let dt = (ti - prev).max(0.0);
+            prev = ti;
+            for c in 0..6 {
+                let e: f64 = StandardNormal.sample(&mut rng);
+                w[c] += scale * PAPER_DRIFT[c] * (dt / PAPER_DRIFT_TIME).sqrt() * e;
+            }
+            w
+        })
+        .collect();
+    let n = out.len().max(1) as f64;
+    let mean: [f64; 6] = std::array::from_fn(|c| out.iter().map(|v| v[c]).sum::<f64>() / n);
+    for v in &mut out {
+        for c in 0..6 {
+            v[c] -= mean[c];
+        }
+    }
+    out
+}
+
+/// Add [`bias_walk`] to the IMU samples of `data`; the walk added.
+pub fn add_bias_walk(data: &mut Measurements, scale: f64, seed: u64) -> Vec<[f64; 6]> {
+    let walk = bias_walk(&data.imu_t, scale, seed);
+    for (z, w) in data.imu_z.iter_mut().zip(&walk) {
+        for c in 0..6 {
+            z[c] += w[c];
+        }
+    }
+    walk
+}
+
 /// Where the simulated tracker sits: T_tb (robot base in the tracker frame,
 /// about 2 m in front of the robot, looking at it) and T_fm (the marker body
 /// on the flange). Fixed, so that every simulated session of one setup
@@ -386,6 +445,44 @@ mod tests {
             .map(|(a, b)| std::array::from_fn(|c| a[c] - b[c]))
             .collect();
         (r, qdd2)
+    }
+
+    /// The bias walk by Monte Carlo against the Brownian motion's own laws:
+    /// over 400 seeds, the change from the first to the last of 300 s of
+    /// 120 Hz samples has variance (scale·D)²·300/1500 and the changes over
+    /// the two halves are uncorrelated (independent increments); the walk
+    /// has zero mean over the session, and scale 0 adds nothing.
+    #[test]
+    fn the_bias_walk_has_brownian_statistics() {
+        let t: Vec<f64> = (0..=36_000).map(|i| i as f64 / 120.0).collect();
+        let (runs, scale) = (400, 20.0);
+        let (mut var, mut cross, mut var_half) = ([0.0; 6], [0.0; 6], [0.0; 6]);
+        for seed in 0..runs {
+            let w = bias_walk(&t, scale, seed);
+            let (a, m, b) = (w[0], w[18_000], w[36_000]);
+            for c in 0..6 {
+                var[c] += (b[c] - a[c]).powi(2) / runs as f64;
+                cross[c] += (m[c] - a[c]) * (b[c] - m[c]) / runs as f64;
+                var_half[c] += (m[c] - a[c]).powi(2) / runs as f64;
+                let mean = w.iter().map(|v| v[c]).sum::<f64>() / w.len() as f64;
+                assert!(mean.abs() < 1e-12 * PAPER_DRIFT[c] * scale);
+            }
+        }
+        for c in 0..6 {
+            let want = (scale * PAPER_DRIFT[c]).powi(2) * 300.0 / PAPER_DRIFT_TIME;
+            // the sample variance of 400 χ²₁ draws: relative se √(2/400) ≈ 0.07
+            assert!((var[c] / want - 1.0).abs() < 4.0 * 0.071, "channel {c}: {} vs {want}", var[c]);
+            assert!((var_half[c] / (want / 2.0) - 1.0).abs() < 4.0 * 0.071);
+            // the product of two independent halves: se (want/2)/√400
+            assert!(cross[c].abs() < 4.0 * want / 2.0 / 20.0, "channel {c}: {}", cross[c]);
+        }
+        let mut d = Measurements {
+            imu_t: t[..100].to_vec(),
+            imu_z: vec![[1.0; 6]; 100],
+            ..Measurements::default()
+        };
+        add_bias_walk(&mut d, 0.0, 3);
+        assert!(d.imu_z.iter().all(|z| z == &[1.0; 6]));
     }
 
     #[test]

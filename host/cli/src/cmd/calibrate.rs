@@ -77,6 +77,8 @@ pub struct CalibrateCmd {
     /// g_sensitivity, size_effect, clock_drift, sensor_delay, bias_drift,
     /// joint_elasticity, encoder_scale, resonance); prints their estimates and writes
     /// effects.json (the augmented model's parameters) next to the result file.
+    /// `bias_drift:M` sets its spline's M segments over the session (default
+    /// 1, a linear drift; `robimu diagnose` chooses M and prints the spec).
     #[arg(long, value_delimiter = ',')]
     pub effects: Vec<String>,
     #[command(flatten)]
@@ -276,16 +278,21 @@ impl CalibrateCmd {
     /// its resonance response to the joint trajectory, is never set up).
     fn effect_set(&self, robot: &Robot, data: &Measurements) -> anyhow::Result<Option<EffectSet>> {
         let mode = self.resonance.mode()?;
-        let names: Vec<String> = self
+        let specs: Vec<&str> = self
             .effects
             .iter()
-            .map(|s| s.trim().to_string())
+            .map(|s| s.trim())
             .filter(|s| !s.is_empty())
             .collect();
-        if names.is_empty() {
+        if specs.is_empty() {
             return Ok(None);
         }
-        let setup = setup_with(robot, data, None, mode);
+        let mut setup = setup_with(robot, data, None, mode);
+        let names = specs
+            .iter()
+            .map(|s| setup.apply_spec(s).map(str::to_string))
+            .collect::<Result<Vec<_>, _>>()
+            .context("--effects")?;
         Ok(Some(effect_set(&setup, &names).context("--effects")?))
     }
 }

@@ -83,6 +83,13 @@ pub struct SimulateCmd {
     /// Recorded in session.toml's notes.
     #[arg(long, value_name = "NAME=MAGNITUDE")]
     pub effect: Vec<String>,
+    /// Add a seeded random-walk (Brownian) bias to every IMU channel,
+    /// SCALE times the drift the paper observed: its standard deviation
+    /// after 25 min is SCALE × 0.017 m/s² (accelerometer) and SCALE ×
+    /// 0.025 °/s (gyroscope), centred on the session (truth.toml's biases
+    /// are the session means; docs/model.md §4.7). Recorded in the notes.
+    #[arg(long, value_name = "SCALE")]
+    pub bias_walk: Option<f64>,
     #[command(flatten)]
     pub resonance: super::input::ResonanceMode,
     /// IMU noise: `white` (default), `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]`
@@ -184,6 +191,12 @@ impl SimulateCmd {
         if !self.effect.is_empty() {
             self.inject_effects(&robot, &x_true, &trajectory, &mut data)?;
         }
+        if let Some(scale) = self.bias_walk {
+            if !(scale.is_finite() && scale >= 0.0) {
+                bail!("--bias-walk must be a non-negative number (got {scale})");
+            }
+            robimu_workflows::simulate::add_bias_walk(&mut data, scale, self.seed);
+        }
         let noise = noise_model
             .as_ref()
             .filter(|m| m.sigma_z() != robot.sigma_z() || !m.is_white());
@@ -284,6 +297,10 @@ impl SimulateCmd {
         if !self.effect.is_empty() {
             let notes = meta.notes.get_or_insert_with(String::new);
             notes.push_str(&format!("; effects injected: {}", self.effect.join(", ")));
+        }
+        if let Some(scale) = self.bias_walk {
+            let notes = meta.notes.get_or_insert_with(String::new);
+            notes.push_str(&format!("; bias random walk {scale}x the paper's drift"));
         }
         let n = robot.dof();
         let mut w = SessionWriter::create(&self.out, &meta, n)

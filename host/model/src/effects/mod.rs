@@ -227,6 +227,12 @@ pub trait Effect: Send + Sync {
         }
         z
     }
+    /// The time resolution of an effect that has one (the number of
+    /// segments of `bias_drift`'s spline), set through the catalogue
+    /// ([`CatalogueSetup::set_resolution`]); `None` for the others.
+    fn resolution(&self) -> Option<usize> {
+        None
+    }
     /// The unit of the scalar magnitude of `simulate --effect NAME=M`.
     fn magnitude_unit(&self) -> &'static str;
     /// θ_e injected by `simulate --effect NAME=M` (a documented fixed pattern
@@ -248,6 +254,10 @@ pub struct CatalogueSetup {
     /// The mode's response to the recorded joint trajectory (`None`: no
     /// trajectory could be fitted; `resonance` is then unavailable).
     pub mode_response: Option<Arc<resonance::ModeResponse>>,
+    /// Segments of `bias_drift`'s bias spline (its time resolution;
+    /// [`bias_drift::DEFAULT_SEGMENTS`] unless set, diagnose chooses it
+    /// from the data).
+    pub bias_drift_segments: usize,
 }
 
 impl CatalogueSetup {
@@ -261,6 +271,7 @@ impl CatalogueSetup {
             g0,
             mode,
             mode_response: None,
+            bias_drift_segments: bias_drift::DEFAULT_SEGMENTS,
         };
         s.set_joints(mode, joints);
         s
@@ -270,6 +281,79 @@ impl CatalogueSetup {
         self.mode = mode;
         self.mode_response = joints.map(|s| Arc::new(resonance::ModeResponse::of_spline(mode, s)));
     }
+    /// The resolution of effect `name` in this set-up (`None`: it has none).
+    pub fn resolution(&self, name: &str) -> Option<usize> {
+        (name == "bias_drift").then_some(self.bias_drift_segments)
+    }
+    /// Set the resolution of effect `name`.
+    pub fn set_resolution(&mut self, name: &str, m: usize) -> Result<(), EffectSpecError> {
+        if !NAMES.contains(&name) {
+            return Err(UnknownEffect(name.to_string()).into());
+        }
+        if self.resolution(name).is_none() {
+            return Err(EffectSpecError::NoResolution(name.to_string()));
+        }
+        if !(1..=bias_drift::MAX_SEGMENTS).contains(&m) {
+            return Err(EffectSpecError::Resolution {
+                name: name.to_string(),
+                got: m.to_string(),
+            });
+        }
+        self.bias_drift_segments = m;
+        Ok(())
+    }
+    /// Apply an effect spec `NAME` or `NAME:M` (M the resolution of an
+    /// effect that has one, e.g. `bias_drift:8`); the effect's name.
+    pub fn apply_spec(&mut self, spec: &str) -> Result<&'static str, EffectSpecError> {
+        let (name, m) = match spec.split_once(':') {
+            Some((n, m)) => (n.trim(), Some(m.trim())),
+            None => (spec.trim(), None),
+        };
+        let name = NAMES
+            .iter()
+            .copied()
+            .find(|n| *n == name)
+            .ok_or_else(|| UnknownEffect(name.to_string()))?;
+        if let Some(m) = m {
+            let bad = || EffectSpecError::Resolution {
+                name: name.to_string(),
+                got: m.to_string(),
+            };
+            let v: usize = m.parse().map_err(|_| bad())?;
+            self.set_resolution(name, v).map_err(|e| match e {
+                EffectSpecError::Resolution { .. } => bad(),
+                e => e,
+            })?;
+        }
+        Ok(name)
+    }
+    /// The spec of effect `name` in this set-up: `NAME:M` for an effect
+    /// with a resolution, else `NAME` ([`Self::apply_spec`] reads it back).
+    pub fn spec(&self, name: &str) -> String {
+        match self.resolution(name) {
+            Some(m) => format!("{name}:{m}"),
+            None => name.to_string(),
+        }
+    }
+}
+
+/// A bad effect spec (`NAME` or `NAME:M`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EffectSpecError {
+    /// The name is not in the catalogue.
+    #[error(transparent)]
+    Unknown(#[from] UnknownEffect),
+    /// `NAME:M` for an effect without a resolution.
+    #[error("effect `{0}` has no resolution to set (only bias_drift:M takes one)")]
+    NoResolution(String),
+    /// M is not a whole number in range.
+    #[error("effect `{name}`: resolution `{got}` is not a whole number of segments from 1 to {max}", max = bias_drift::MAX_SEGMENTS)]
+    Resolution {
+        /// The effect.
+        name: String,
+        /// What was given.
+        got: String,
+    },
 }
 
 /// The catalogue: every known effect (the one registration point).
@@ -279,7 +363,10 @@ pub fn catalogue(setup: &CatalogueSetup) -> Vec<Box<dyn Effect>> {
         Box::new(size_effect::SizeEffect),
         Box::new(clock_drift::ClockDrift::new(setup.span.clone())),
         Box::new(sensor_delay::SensorDelay),
-        Box::new(bias_drift::BiasDrift::new(setup.span.clone())),
+        Box::new(bias_drift::BiasDrift::new(
+            setup.span.clone(),
+            setup.bias_drift_segments,
+        )),
         Box::new(joint_elasticity::JointElasticity::new(
             setup.mass.clone(),
             setup.g0,

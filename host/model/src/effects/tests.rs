@@ -20,12 +20,16 @@ fn effect_jacobians_match_finite_differences_of_the_exact_form() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(5);
     let spline = random_walk(&robot, 20.0, 1.0, &mut rng).unwrap();
     let traj = trajectory_fn(&spline);
-    let setup = CatalogueSetup::new(
+    let mut setup = CatalogueSetup::new(
         SessionSpan { t0: 0.0, t1: 20.0 },
         MassModel::for_robot(&robot),
         robot.gravity(),
         Some(&spline),
     );
+    // bias_drift's spline with 4 segments of 5 s: the times below fall in
+    // segments 0, 1 and 3
+    setup.set_resolution("bias_drift", 4).unwrap();
+    assert_eq!(by_name(&setup, "bias_drift").unwrap().params().len(), 24);
     assert_eq!(catalogue(&setup).len(), NAMES.len());
     let mut jac = MeasurementJacobians::new(layout.len());
     let mut checked = 0;
@@ -106,4 +110,34 @@ fn gravity_torque_matches_finite_differences_of_potential_energy() {
         tau[1].abs() > 1.0,
         "shoulder carries a gravity torque: {tau:?}"
     );
+}
+
+/// Effect specs: `NAME` and `NAME:M`, M only for an effect with a
+/// resolution, in range, a whole number; `spec` reads back.
+#[test]
+fn effect_specs_set_the_resolution_or_say_why_not() {
+    let robot = Robot::aubo_i5();
+    let mut setup = CatalogueSetup::new(
+        SessionSpan { t0: 0.0, t1: 20.0 },
+        MassModel::for_robot(&robot),
+        robot.gravity(),
+        None,
+    );
+    assert_eq!(setup.spec("bias_drift"), "bias_drift:1");
+    assert_eq!(setup.apply_spec("clock_drift").unwrap(), "clock_drift");
+    assert_eq!(setup.apply_spec(" bias_drift:8 ").unwrap(), "bias_drift");
+    assert_eq!(setup.bias_drift_segments, 8);
+    assert_eq!(setup.spec("bias_drift"), "bias_drift:8");
+    assert_eq!(setup.spec("clock_drift"), "clock_drift");
+    for (bad, says) in [
+        ("bias_drift:0", "from 1 to"),
+        ("bias_drift:x", "not a whole number"),
+        ("bias_drift:1000", "from 1 to"),
+        ("clock_drift:4", "has no resolution"),
+        ("no_such:4", "unknown effect"),
+    ] {
+        let e = setup.apply_spec(bad).unwrap_err().to_string();
+        assert!(e.contains(says), "{bad}: {e}");
+    }
+    assert_eq!(setup.bias_drift_segments, 8, "a bad spec changes nothing");
 }

@@ -63,6 +63,7 @@
 
 pub use crate::stats::{chi2_sf, ljung_box, ln_gamma, LJUNG_BOX_LAGS};
 
+pub mod resolution;
 mod residuals;
 mod score;
 
@@ -100,6 +101,9 @@ pub enum DiagnoseError {
     /// The information matrix is singular (an effect is not determined by the data).
     #[error("the information about the effect parameters is singular: {0}")]
     Singular(String),
+    /// A bad effect resolution.
+    #[error(transparent)]
+    Spec(#[from] robimu_model::effects::EffectSpecError),
 }
 
 impl From<robimu_solver::problem::ProblemError> for DiagnoseError {
@@ -194,6 +198,10 @@ pub struct FoundEffect {
     pub baseline_moves: Vec<(String, f64, f64, f64)>,
     /// All scores of that round, best first.
     pub scores: Vec<Score>,
+    /// For an effect with a time resolution (`bias_drift`): the one chosen
+    /// from the data ([`resolution`]); its score is `statistic`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resolution: Option<resolution::ResolutionChoice>,
 }
 
 /// Largest AR order `Auto` identifies (see the module doc: an AR(1)
@@ -325,9 +333,16 @@ pub struct Diagnosis {
     /// The noise model (the baseline's in `baseline.noise`, the final one
     /// in `final_fit.noise`).
     pub noise: NoiseUse,
+    /// The catalogue set-up of the final fit (with the resolutions chosen).
+    pub setup: CatalogueSetup,
 }
 
 impl Diagnosis {
+    /// The final model's effects as specs (`bias_drift:8`), as
+    /// `calibrate --effects` takes them.
+    pub fn final_specs(&self) -> Vec<String> {
+        self.final_fit.effects.iter().map(|e| self.setup.spec(e)).collect()
+    }
     /// The `diagnosis.json` document (format `robimu-diagnosis/1`).
     pub fn to_json(&self, layout: &ParamLayout) -> serde_json::Value {
         let rms_map = |rms: [f64; 6]| -> serde_json::Value {
@@ -355,6 +370,7 @@ impl Diagnosis {
             "noise_reidentified_after": self.noise.reidentified_after,
             "noise_warnings": self.noise.warnings,
             "effects_found": self.found,
+            "final_effect_specs": self.final_specs(),
             "last_scores": self.last_scores,
             "residual_rms_before": rms_map(self.baseline.residual_rms()),
             "residual_rms_after": rms_map(self.final_fit.residual_rms()),
@@ -547,6 +563,9 @@ pub fn diagnose(
 ) -> Result<Diagnosis, DiagnoseError> {
     let layout = ParamLayout::new(robot);
     let threshold = dopts.alpha / dopts.candidates.len().max(1) as f64;
+    // resolutions chosen below are set in this copy
+    let mut setup = setup.clone();
+    let setup = &mut setup;
     progress("fitting the baseline model");
     let (baseline, mut noise) = baseline_fit(robot, data, opts, setup, dopts, &mut progress)?;
     let auto = matches!(dopts.noise, NoiseChoice::Auto);
@@ -567,10 +586,16 @@ pub fn diagnose(
         let ropts = with_noise_of(opts, &current);
         progress("scoring the candidate effects");
         let scores = score_all(robot, data, &ropts, setup, &current, &candidates)?;
-        let best = scores[0].clone();
+        let mut best = scores[0].clone();
         if best.p_value >= threshold {
             break scores;
         }
+        let resolution = resolution::choose(robot, data, &ropts, setup, &current, &best)?
+            .map(|(choice, score)| {
+                progress(&format!("{}: resolution {} chosen", best.name, choice.chosen));
+                best = score;
+                choice
+            });
         progress(&format!("refitting with {}", best.name));
         let mut names = current.effects.clone();
         names.push(best.name.clone());
@@ -644,6 +669,7 @@ pub fn diagnose(
             parameters,
             baseline_moves,
             scores,
+            resolution,
         });
         current = next;
     };
@@ -660,6 +686,7 @@ pub fn diagnose(
         stats_after,
         sigma_z: opts.sigma_z,
         noise,
+        setup: setup.clone(),
     })
 }
 
