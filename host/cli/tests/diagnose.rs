@@ -249,7 +249,16 @@ fn check_detected_in(
         "{name}: also added {:?}",
         d.found.iter().map(|f| &f.name).collect::<Vec<_>>()
     );
-    check_estimates(name, &f.parameters, &injected[0]);
+    // an effect with a resolution (bias_drift): its pattern, the same
+    // function at every resolution, in the basis diagnose chose
+    let injected = match &f.resolution {
+        Some(r) => {
+            println!("{name}: resolution {} of at most {}", r.chosen, r.max);
+            effects::by_name(&d.setup, name).unwrap().injection(magnitude)
+        }
+        None => injected[0].clone(),
+    };
+    check_estimates(name, &f.parameters, &injected);
     check_restored(name, &d.final_fit, &truth, &robot);
     (d, truth)
 }

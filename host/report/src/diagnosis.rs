@@ -109,11 +109,11 @@ impl fmt::Display for DiagnosisSummary<'_> {
                 let table: Vec<String> = r
                     .candidates
                     .iter()
-                    .map(|c| format!("M={} score {:.1} BIC {:.1}", c.resolution, c.statistic, c.bic))
+                    .map(|c| format!("M={} score {:.1} AIC {:.1}", c.resolution, c.statistic, c.aic))
                     .collect();
                 writeln!(
                     out,
-                    "   resolution {} segments by BIC (at most {}; refit with --effects {}): {}",
+                    "   resolution {} segments by AIC (at most {}; refit with --effects {}): {}",
                     r.chosen,
                     r.max,
                     r.spec,

@@ -7,14 +7,22 @@
 //! smallest
 //!
 //! ```text
-//! BIC_M = −S_M + k_M ln N        (N the whitened IMU residuals, 6 per sample)
+//! AIC_M = −S_M + 2 k_M
 //! ```
 //!
 //! is taken: the score approximates the likelihood-ratio statistic of the
-//! refit, so this is the refits' BIC comparison without the refits. The
+//! refit, so this is the refits' AIC comparison without the refits. The
 //! nested bases (a piecewise-linear spline on M segments is one on 2M) make
 //! S_M non-decreasing in M; the penalty keeps the finer bases out unless
-//! the drift has structure at their scale. M_max is the largest power of 2
+//! the drift has structure at their scale. AIC, not BIC (k ln N): a real
+//! drift (a random walk, a warm-up) has no finite resolution, and for a
+//! truth outside the candidates AIC picks the best predicting one
+//! (Shibata 1980) while BIC stops too coarse. Measured
+//! (`host/cli/tests/drift.rs`, 300 s, a random walk of 20× the paper's
+//! drift): BIC took 8 segments on two of three seeds, where 16 raised the
+//! score by 533 and 381 for 48 more parameters, and left an accelerometer
+//! scale factor 4.1σ and 4.5σ off the truth, in one after a cascade of
+//! encoder_scale and g_sensitivity. M_max is the largest power of 2
 //! whose segments are at least [`MIN_SEGMENT_S`] long and at least
 //! [`CORRELATION_SEGMENT`] noise correlation times (the integral time scale
 //! of the fit's noise model), at most [`MAX_CHOSEN`]: shorter segments would
@@ -30,10 +38,13 @@ use robimu_model::effects::CatalogueSetup;
 use robimu_model::observations::Measurements;
 use robimu_model::Robot;
 
-/// Shortest segment of a chosen resolution, s: ten trajectory knot spans
+/// Shortest segment of a chosen resolution, s: five trajectory knot spans
 /// of the default excitation (1 s), so that a bias change cannot mimic a
-/// motion-correlated error within a segment.
-pub const MIN_SEGMENT_S: f64 = 10.0;
+/// motion-correlated error within a segment. Measured
+/// (`host/cli/tests/drift.rs`): with 10 s (at most 16 segments in 300 s)
+/// a 20× random walk left enough slow structure for g_sensitivity to be
+/// added after it (score 29, 9 dof, p 6e-4); with 5 s (32) nothing was.
+pub const MIN_SEGMENT_S: f64 = 5.0;
 
 /// Shortest segment in noise correlation times.
 pub const CORRELATION_SEGMENT: f64 = 100.0;
@@ -50,8 +61,8 @@ pub struct ResolutionScore {
     pub statistic: f64,
     /// Parameters k_M.
     pub dof: usize,
-    /// BIC_M = −S_M + k_M ln N (smallest chosen).
-    pub bic: f64,
+    /// AIC_M = −S_M + 2 k_M (smallest chosen).
+    pub aic: f64,
 }
 
 /// The resolution chosen for an effect (its entry in `diagnosis.json`).
@@ -111,7 +122,6 @@ pub fn choose(
     }
     let span = setup.span.t1 - setup.span.t0;
     let max = max_resolution(span, correlation_time(data, at));
-    let ln_n = (6.0 * at.residuals.len().max(1) as f64).ln();
     let mut candidates = Vec::new();
     let mut scores = Vec::new();
     let mut m = 1;
@@ -124,13 +134,13 @@ pub fn choose(
             resolution: m,
             statistic: score.statistic,
             dof: score.dof,
-            bic: -score.statistic + score.dof as f64 * ln_n,
+            aic: -score.statistic + 2.0 * score.dof as f64,
         });
         scores.push(score);
         m *= 2;
     }
     let k = (0..candidates.len())
-        .min_by(|&a, &b| candidates[a].bic.total_cmp(&candidates[b].bic))
+        .min_by(|&a, &b| candidates[a].aic.total_cmp(&candidates[b].aic))
         .expect("M = 1 is always scored");
     let chosen = candidates[k].resolution;
     setup.set_resolution(&best.name, chosen)?;
@@ -151,10 +161,10 @@ mod tests {
 
     #[test]
     fn the_finest_resolution_follows_the_session_and_the_noise() {
-        // 300 s: 16 segments of 18.75 s (32 would be 9.4 s < 10 s)
-        assert_eq!(max_resolution(300.0, 1.0 / 240.0), 16);
-        assert_eq!(max_resolution(90.0, 1.0 / 240.0), 8);
-        assert_eq!(max_resolution(15.0, 1.0 / 240.0), 1);
+        // 300 s: 32 segments of 9.4 s (64 would be 4.7 s < 5 s)
+        assert_eq!(max_resolution(300.0, 1.0 / 240.0), 32);
+        assert_eq!(max_resolution(90.0, 1.0 / 240.0), 16);
+        assert_eq!(max_resolution(9.0, 1.0 / 240.0), 1);
         // a 0.5 s noise correlation: segments of at least 50 s
         assert_eq!(max_resolution(300.0, 0.5), 4);
         // capped
