@@ -8,6 +8,41 @@ use robimu_workflows::diagnose::{Diagnosis, ResidualStats, CHANNELS, UNEXPLAINED
 use crate::fit_summary::EffectValue;
 use crate::noise::NoiseChannels;
 
+/// The parameters of an effect with a resolution (`<effect>.<channel>_k<i>`)
+/// as one line per channel: its knot values in display units and the
+/// largest σ.
+fn write_knot_values(
+    out: &mut fmt::Formatter<'_>,
+    params: &[robimu_model::effects::EffectParam],
+    values: &[(String, String, f64, f64)],
+) -> fmt::Result {
+    let mut k = 0;
+    while k < values.len() {
+        let prefix = |n: &str| n.rsplit_once('_').map_or(n.to_string(), |(a, _)| a.to_string());
+        let head = prefix(&values[k].0);
+        let end = (k..values.len())
+            .find(|&e| prefix(&values[e].0) != head)
+            .unwrap_or(values.len());
+        let (unit, scale) = params
+            .iter()
+            .find(|p| p.name == values[k].0)
+            .map_or(("", 1.0), |p| p.display);
+        let knots: Vec<String> = values[k..end]
+            .iter()
+            .map(|(_, _, v, _)| format!("{:+.3}", v * scale))
+            .collect();
+        let sigma = values[k..end].iter().map(|p| p.3).fold(0.0, f64::max) * scale;
+        writeln!(
+            out,
+            "   {head} at knots 1..{} [{unit}]: {} (σ ≤ {sigma:.3})",
+            end - k,
+            knots.join(" ")
+        )?;
+        k = end;
+    }
+    Ok(())
+}
+
 /// Which noise model the diagnosis used and why.
 fn write_noise(out: &mut fmt::Formatter<'_>, d: &Diagnosis) -> fmt::Result {
     let n = &d.noise;
@@ -121,7 +156,11 @@ impl fmt::Display for DiagnosisSummary<'_> {
                 )?;
             }
             let params = &d.final_fit.effect_params;
-            for (name, _unit, v, s) in &f.parameters {
+            if f.resolution.is_some() {
+                // one line per channel: the knot values of its spline
+                write_knot_values(out, params, &f.parameters)?;
+            }
+            for (name, _unit, v, s) in f.parameters.iter().filter(|_| f.resolution.is_none()) {
                 let display = params
                     .iter()
                     .find(|p| &p.name == name)
