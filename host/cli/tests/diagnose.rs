@@ -254,7 +254,9 @@ fn check_detected_in(
     let injected = match &f.resolution {
         Some(r) => {
             println!("{name}: resolution {} of at most {}", r.chosen, r.max);
-            effects::by_name(&d.setup, name).unwrap().injection(magnitude)
+            effects::by_name(&d.setup, name)
+                .unwrap()
+                .injection(magnitude)
         }
         None => injected[0].clone(),
     };

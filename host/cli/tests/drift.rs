@@ -38,7 +38,10 @@ fn diagnosed_walk(seed: u64) -> String {
     .unwrap();
     let names: Vec<&str> = d.found.iter().map(|f| f.name.as_str()).collect();
     let f = d.found.first().expect("an effect is found");
-    let res = f.resolution.as_ref().expect("bias_drift's resolution is chosen");
+    let res = f
+        .resolution
+        .as_ref()
+        .expect("bias_drift's resolution is chosen");
     let mut worst: (f64, &str) = (0.0, "");
     for (k, spec) in layout.specs().iter().enumerate() {
         if d.final_fit.sigma_x[k] > 0.0 {
@@ -99,7 +102,15 @@ fn the_bias_walk_and_the_resolution_go_through_the_command_line() {
     let tmp = tempfile::tempdir().unwrap();
     let sim = |name: &str, extra: &[&str]| {
         let out = tmp.path().join(name);
-        let mut args = vec!["simulate", "--duration", "30", "--seed", "3", "--out", s(&out)];
+        let mut args = vec![
+            "simulate",
+            "--duration",
+            "30",
+            "--seed",
+            "3",
+            "--out",
+            s(&out),
+        ];
         args.extend_from_slice(extra);
         robimu_ok(&args);
         out
@@ -108,23 +119,45 @@ fn the_bias_walk_and_the_resolution_go_through_the_command_line() {
     let walked = sim("walked", &["--bias-walk", "20"]);
     let load = |d: &std::path::Path| robimu_session::Session::load(d).unwrap();
     let (a, b) = (load(&plain), load(&walked));
-    assert!(b.meta.notes.as_deref().unwrap_or("").contains("bias random walk 20x"));
+    assert!(b
+        .meta
+        .notes
+        .as_deref()
+        .unwrap_or("")
+        .contains("bias random walk 20x"));
     let (da, db) = (a.measurements(), b.measurements());
     assert_eq!(da.imu_t, db.imu_t);
     let walk = robimu_workflows::simulate::bias_walk(&da.imu_t, 20.0, 3);
     let mut largest: f64 = 0.0;
     for ((za, zb), w) in da.imu_z.iter().zip(&db.imu_z).zip(&walk) {
         for c in 0..6 {
-            assert!((zb[c] - za[c] - w[c]).abs() < 1e-9, "{} vs {}", zb[c] - za[c], w[c]);
+            assert!(
+                (zb[c] - za[c] - w[c]).abs() < 1e-9,
+                "{} vs {}",
+                zb[c] - za[c],
+                w[c]
+            );
             largest = largest.max(w[c].abs());
         }
     }
     assert!(largest > 1e-3, "the walk is there: {largest}");
-    robimu(&["simulate", "--bias-walk=-1", "--out", s(&tmp.path().join("x"))])
-        .assert_fails(&["--bias-walk", "non-negative"]);
+    robimu(&[
+        "simulate",
+        "--bias-walk=-1",
+        "--out",
+        s(&tmp.path().join("x")),
+    ])
+    .assert_fails(&["--bias-walk", "non-negative"]);
 
     let result = tmp.path().join("cal.json");
-    robimu_ok(&["calibrate", s(&walked), "--out", s(&result), "--effects", "bias_drift:4"]);
+    robimu_ok(&[
+        "calibrate",
+        s(&walked),
+        "--out",
+        s(&result),
+        "--effects",
+        "bias_drift:4",
+    ]);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(tmp.path().join("effects.json")).unwrap())
             .unwrap();
@@ -140,7 +173,14 @@ fn the_bias_walk_and_the_resolution_go_through_the_command_line() {
         ("bias_drift:0", "from 1 to 64"),
         ("clock_drift:2", "has no resolution"),
     ] {
-        robimu(&["calibrate", s(&walked), "--out", s(&result), "--effects", bad])
-            .assert_fails(&["--effects", says]);
+        robimu(&[
+            "calibrate",
+            s(&walked),
+            "--out",
+            s(&result),
+            "--effects",
+            bad,
+        ])
+        .assert_fails(&["--effects", says]);
     }
 }

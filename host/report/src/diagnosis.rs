@@ -18,7 +18,10 @@ fn write_knot_values(
 ) -> fmt::Result {
     let mut k = 0;
     while k < values.len() {
-        let prefix = |n: &str| n.rsplit_once('_').map_or(n.to_string(), |(a, _)| a.to_string());
+        let prefix = |n: &str| {
+            n.rsplit_once('_')
+                .map_or(n.to_string(), |(a, _)| a.to_string())
+        };
         let head = prefix(&values[k].0);
         let end = (k..values.len())
             .find(|&e| prefix(&values[e].0) != head)
@@ -144,7 +147,12 @@ impl fmt::Display for DiagnosisSummary<'_> {
                 let table: Vec<String> = r
                     .candidates
                     .iter()
-                    .map(|c| format!("M={} score {:.1} AIC {:.1}", c.resolution, c.statistic, c.aic))
+                    .map(|c| {
+                        format!(
+                            "M={} score {:.1} AIC {:.1}",
+                            c.resolution, c.statistic, c.aic
+                        )
+                    })
                     .collect();
                 writeln!(
                     out,

@@ -340,9 +340,8 @@ pub fn solve<P: LeastSquares>(
             let accepted = new_cost.is_finite() && new_cost <= cost && rho > 0.0;
             // Even the undamped model predicts no meaningful decrease: the
             // cost is at its minimum to rounding.
-            let first_try_flat = tries == 1
-                && predicted >= 0.0
-                && predicted < opts.function_tolerance * cost;
+            let first_try_flat =
+                tries == 1 && predicted >= 0.0 && predicted < opts.function_tolerance * cost;
             let at_rounding = !accepted
                 && step_ok
                 && (first_try_flat || at_rounding_floor(cost, new_cost, predicted, gnorm));
@@ -612,7 +611,12 @@ mod tests {
         let mut line = Line::new(10.0);
         let start = line.minimum().to_vec();
         let sol = solve(&mut line, start, &LmOptions::default(), |_| {}).unwrap();
-        assert_eq!(sol.summary.termination, Termination::NoProgress, "{}", sol.summary);
+        assert_eq!(
+            sol.summary.termination,
+            Termination::NoProgress,
+            "{}",
+            sol.summary
+        );
     }
 
     #[test]

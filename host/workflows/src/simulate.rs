@@ -471,10 +471,18 @@ mod tests {
         for c in 0..6 {
             let want = (scale * PAPER_DRIFT[c]).powi(2) * 300.0 / PAPER_DRIFT_TIME;
             // the sample variance of 400 χ²₁ draws: relative se √(2/400) ≈ 0.07
-            assert!((var[c] / want - 1.0).abs() < 4.0 * 0.071, "channel {c}: {} vs {want}", var[c]);
+            assert!(
+                (var[c] / want - 1.0).abs() < 4.0 * 0.071,
+                "channel {c}: {} vs {want}",
+                var[c]
+            );
             assert!((var_half[c] / (want / 2.0) - 1.0).abs() < 4.0 * 0.071);
             // the product of two independent halves: se (want/2)/√400
-            assert!(cross[c].abs() < 4.0 * want / 2.0 / 20.0, "channel {c}: {}", cross[c]);
+            assert!(
+                cross[c].abs() < 4.0 * want / 2.0 / 20.0,
+                "channel {c}: {}",
+                cross[c]
+            );
         }
         let mut d = Measurements {
             imu_t: t[..100].to_vec(),

@@ -172,7 +172,11 @@ mod tests {
                 }
             }
             for s in sums {
-                assert!((s / n as f64).abs() < 1e-4, "M {m}: column mean {}", s / n as f64);
+                assert!(
+                    (s / n as f64).abs() < 1e-4,
+                    "M {m}: column mean {}",
+                    s / n as f64
+                );
             }
         }
     }

@@ -63,8 +63,8 @@
 
 pub use crate::stats::{chi2_sf, ljung_box, ln_gamma, LJUNG_BOX_LAGS};
 
-pub mod resolution;
 mod residuals;
+pub mod resolution;
 mod score;
 
 pub use residuals::{
@@ -341,7 +341,11 @@ impl Diagnosis {
     /// The final model's effects as specs (`bias_drift:8`), as
     /// `calibrate --effects` takes them.
     pub fn final_specs(&self) -> Vec<String> {
-        self.final_fit.effects.iter().map(|e| self.setup.spec(e)).collect()
+        self.final_fit
+            .effects
+            .iter()
+            .map(|e| self.setup.spec(e))
+            .collect()
     }
     /// The `diagnosis.json` document (format `robimu-diagnosis/1`).
     pub fn to_json(&self, layout: &ParamLayout) -> serde_json::Value {
@@ -590,12 +594,16 @@ pub fn diagnose(
         if best.p_value >= threshold {
             break scores;
         }
-        let resolution = resolution::choose(robot, data, &ropts, setup, &current, &best)?
-            .map(|(choice, score)| {
-                progress(&format!("{}: resolution {} chosen", best.name, choice.chosen));
+        let resolution = resolution::choose(robot, data, &ropts, setup, &current, &best)?.map(
+            |(choice, score)| {
+                progress(&format!(
+                    "{}: resolution {} chosen",
+                    best.name, choice.chosen
+                ));
                 best = score;
                 choice
-            });
+            },
+        );
         progress(&format!("refitting with {}", best.name));
         let mut names = current.effects.clone();
         names.push(best.name.clone());

@@ -128,8 +128,8 @@ pub fn choose(
     while m <= max {
         let mut s = setup.clone();
         s.set_resolution(&best.name, m)?;
-        let score = score_all(robot, data, opts, &s, at, std::slice::from_ref(&best.name))?
-            .remove(0);
+        let score =
+            score_all(robot, data, opts, &s, at, std::slice::from_ref(&best.name))?.remove(0);
         candidates.push(ResolutionScore {
             resolution: m,
             statistic: score.statistic,
