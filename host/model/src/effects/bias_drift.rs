@@ -90,9 +90,6 @@ impl Effect for BiasDrift {
     fn description(&self) -> &'static str {
         "time-varying biases: a piecewise-linear bias spline per channel, M segments over the session"
     }
-    fn resolution(&self) -> Option<usize> {
-        Some(self.segments)
-    }
     fn params(&self) -> Vec<EffectParam> {
         let mut out = Vec::new();
         for (c, ch) in CHANNELS.iter().enumerate() {

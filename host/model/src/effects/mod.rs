@@ -227,12 +227,6 @@ pub trait Effect: Send + Sync {
         }
         z
     }
-    /// The time resolution of an effect that has one (the number of
-    /// segments of `bias_drift`'s spline), set through the catalogue
-    /// ([`CatalogueSetup::set_resolution`]); `None` for the others.
-    fn resolution(&self) -> Option<usize> {
-        None
-    }
     /// The unit of the scalar magnitude of `simulate --effect NAME=M`.
     fn magnitude_unit(&self) -> &'static str;
     /// θ_e injected by `simulate --effect NAME=M` (a documented fixed pattern
