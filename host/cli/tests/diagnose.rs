@@ -6,7 +6,7 @@
 //! the likelihood-ratio statistic of a refit for a small effect.
 
 use robimu_model::effects::{self, Effect};
-use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
+use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{JointState, ParamLayout, Robot};
 use robimu_workflows::calibrate::fit::{Fit, Start};
@@ -378,16 +378,7 @@ fn null_sessions_raise_at_most_one_false_alarm_in_twenty() {
 fn correlated_accel(tau_ms: f64) -> NoiseModel {
     let sz = Robot::aubo_i5().sigma_z();
     let phi = (-1.0 / (120.0 * tau_ms * 1e-3)).exp();
-    NoiseModel {
-        imu: std::array::from_fn(|c| {
-            let ar = if c < 3 {
-                ArNoise::new(vec![phi], sz[c]).unwrap()
-            } else {
-                ArNoise::white(sz[c]).unwrap()
-            };
-            ChannelNoise::new(ar, 0.0).unwrap()
-        }),
-    }
+    NoiseModel::ar1(sz, [Some(phi), None], [0.0; 2]).unwrap()
 }
 
 /// Correlation time of the null and detection sessions with correlated
