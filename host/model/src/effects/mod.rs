@@ -40,6 +40,7 @@ pub mod mass;
 pub mod resonance;
 pub mod sensor_delay;
 pub mod size_effect;
+pub mod temperature_bias;
 
 use std::cell::OnceCell;
 use std::sync::Arc;
@@ -248,6 +249,9 @@ pub struct CatalogueSetup {
     /// The mode's response to the recorded joint trajectory (`None`: no
     /// trajectory could be fitted; `resonance` is then unavailable).
     pub mode_response: Option<Arc<resonance::ModeResponse>>,
+    /// The smoothed IMU temperature (`None`: not recorded or constant;
+    /// `temperature_bias` is then unavailable).
+    pub temperature: Option<Arc<temperature_bias::TemperatureTrack>>,
 }
 
 impl CatalogueSetup {
@@ -261,9 +265,16 @@ impl CatalogueSetup {
             g0,
             mode,
             mode_response: None,
+            temperature: None,
         };
         s.set_joints(mode, joints);
         s
+    }
+    /// Smooth the IMU temperature readings `temp` (°C) at the IMU times `t`
+    /// into the track of `temperature_bias` (none when they do not vary,
+    /// [`temperature_bias::TemperatureTrack::from_samples`]).
+    pub fn set_temperature(&mut self, t: &[f64], temp: &[f64]) {
+        self.temperature = temperature_bias::TemperatureTrack::from_samples(t, temp).map(Arc::new);
     }
     /// Set the resonance mode and integrate its response to `joints`.
     pub fn set_joints(&mut self, mode: resonance::Mode, joints: Option<&Spline>) {
@@ -294,11 +305,16 @@ pub fn catalogue(setup: &CatalogueSetup) -> Vec<Box<dyn Effect>> {
             (setup.span.t0, setup.span.t1),
         )));
     }
+    if let Some(track) = &setup.temperature {
+        all.push(Box::new(temperature_bias::TemperatureBias::new(
+            track.clone(),
+        )));
+    }
     all
 }
 
 /// Names of the catalogue's effects, in order.
-pub const NAMES: [&str; 8] = [
+pub const NAMES: [&str; 9] = [
     "g_sensitivity",
     "size_effect",
     "clock_drift",
@@ -307,12 +323,35 @@ pub const NAMES: [&str; 8] = [
     "joint_elasticity",
     "encoder_scale",
     "resonance",
+    "temperature_bias",
 ];
 
-/// An unknown effect name.
+/// An effect name that is not in the catalogue of a session: unknown, or
+/// known but not available there (its message says what it needs).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("unknown effect `{0}` (known: {known})", known = NAMES.join(", "))]
+#[error("{}", unknown_message(.0))]
 pub struct UnknownEffect(pub String);
+
+/// What a known effect that a catalogue can lack needs from the session.
+fn requirement(name: &str) -> Option<&'static str> {
+    match name {
+        "resonance" => Some("a recorded joint trajectory that can be fitted"),
+        "temperature_bias" => Some(
+            "an IMU temperature column that varies by at least half a degree \
+             (temp_c in imu.csv; `simulate --temperature` writes one)",
+        ),
+        _ => None,
+    }
+}
+
+fn unknown_message(name: &str) -> String {
+    match requirement(name) {
+        Some(needs) => {
+            format!("effect `{name}` is not available for this session: it needs {needs}")
+        }
+        None => format!("unknown effect `{name}` (known: {})", NAMES.join(", ")),
+    }
+}
 
 /// The effect named `name` from the catalogue.
 pub fn by_name(setup: &CatalogueSetup, name: &str) -> Result<Box<dyn Effect>, UnknownEffect> {
