@@ -1,4 +1,4 @@
-//! Biases that follow the sensor temperature (docs/model.md §4.7): per
+//! Biases that follow the sensor temperature (docs/model.md §4.5): per
 //! channel a linear temperature coefficient,
 //!
 //! ```text
@@ -13,7 +13,7 @@
 //! typical zero-offset TCO (±1 mg/K, ±0.015 °/s/K). Linear only: the
 //! datasheet gives no curvature, and over a session's few-kelvin warm-up a
 //! quadratic term is nearly collinear with the linear one and with a
-//! drift in time (see docs/model.md §4.7).
+//! drift in time (see docs/model.md §4.5).
 //!
 //! Available only when the session has a temperature column that varies
 //! ([`TemperatureTrack::from_samples`]). `simulate --effect
