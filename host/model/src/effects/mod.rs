@@ -336,10 +336,7 @@ pub struct UnknownEffect(pub String);
 fn requirement(name: &str) -> Option<&'static str> {
     match name {
         "resonance" => Some("a recorded joint trajectory that can be fitted"),
-        "temperature_bias" => Some(
-            "an IMU temperature column that varies by at least half a degree \
-             (temp_c in imu.csv; `simulate --temperature` writes one)",
-        ),
+        "temperature_bias" => Some(temperature_bias::REQUIRES),
         _ => None,
     }
 }

@@ -26,6 +26,10 @@ use std::sync::Arc;
 use super::{Effect, EffectParam, SampleContext};
 use crate::{JointState, Knots, Spline};
 
+/// What a session needs for the effect (the message of an unavailable one).
+pub const REQUIRES: &str = "an IMU temperature column that varies by at least half a degree \
+     (temp_c in imu.csv; `simulate --temperature` writes one)";
+
 /// Smallest knot spacing of the smoothing spline, s.
 pub const MIN_KNOT_SPACING: f64 = 20.0;
 
