@@ -10,7 +10,7 @@
 
 use std::time::Instant;
 
-use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
+use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
 use robimu_workflows::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
@@ -66,15 +66,7 @@ fn main() {
     // AR(1) accelerometer noise with a 30 ms correlation time, the paper's σ.
     let sz = robot.sigma_z();
     let phi = (-1.0f64 / (120.0 * 0.030)).exp();
-    let ar1 = NoiseModel {
-        imu: std::array::from_fn(|c| {
-            if c < 3 {
-                ChannelNoise::new(ArNoise::new(vec![phi], sz[c]).expect("AR"), 0.0).expect("AR")
-            } else {
-                ChannelNoise::white(sz[c]).expect("white")
-            }
-        }),
-    };
+    let ar1 = NoiseModel::ar1(sz, [Some(phi), None], [0.0; 2]).expect("AR(1)");
     let (_, correlated) = session(Some(ar1.clone()));
     let given = NoiseChoice::Given(Box::new(ar1));
     let cases: [(&str, &Measurements, NoiseChoice); 4] = [

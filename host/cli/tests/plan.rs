@@ -5,7 +5,7 @@
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 use rand::SeedableRng;
-use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
+use robimu_model::noise::{ChannelNoise, NoiseModel};
 use robimu_model::trajectory::from_samples;
 use robimu_model::{JointState, MeasurementJacobians, MeasurementModel, ParamLayout, Robot};
 use robimu_workflows::calibrate::{calibrate, CalibrateOptions};
@@ -224,16 +224,9 @@ fn bad_options_are_refused_with_the_cause() {
 fn ar1_model(robot: &Robot, rate: f64, tau_ms: f64, motion: f64) -> NoiseModel {
     let sz = robot.sigma_z();
     let phi = (-1.0 / (rate * tau_ms * 1e-3)).exp();
-    NoiseModel {
-        imu: std::array::from_fn(|c| {
-            if c < 3 {
-                let m = if c == 0 { motion } else { 0.0 };
-                ChannelNoise::new(ArNoise::new(vec![phi], sz[c]).unwrap(), m).unwrap()
-            } else {
-                ChannelNoise::white(sz[c]).unwrap()
-            }
-        }),
-    }
+    let mut m = NoiseModel::ar1(sz, [Some(phi), None], [0.0; 2]).unwrap();
+    m.imu[0] = ChannelNoise::new(m.imu[0].ar.clone(), motion).unwrap();
+    m
 }
 
 /// Λ = prior + Σ_c J_cᵀ Σ_c⁻¹ J_c with the explicit AR(1) covariance

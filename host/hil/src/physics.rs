@@ -38,7 +38,7 @@ use robimu_hil_sim::aubo::{TrueMotion, TrueState};
 
 use super::arm_physics::ArmPhysics;
 
-use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError, NoiseSampler};
+use robimu_model::noise::{NoiseModel, NoiseModelError, NoiseSampler};
 use robimu_model::{JointState, MeasurementModel};
 
 /// m/s² per accelerometer count (`UNIT_SEL` m/s²: 100 LSB per m/s²).
@@ -89,11 +89,7 @@ pub fn vibration_noise(
     phi: f64,
     motion: f64,
 ) -> Result<NoiseModel, NoiseModelError> {
-    let mut model = NoiseModel::white(sigma_z)?;
-    for (channel, s) in model.imu.iter_mut().zip(sigma_z).take(3) {
-        *channel = ChannelNoise::new(ArNoise::new(vec![phi], s)?, motion)?;
-    }
-    Ok(model)
+    NoiseModel::ar1(sigma_z, [Some(phi), None], [motion, 0.0])
 }
 
 /// Die temperature without a warm-up, °C.

@@ -284,6 +284,26 @@ impl NoiseModel {
         })
     }
 
+    /// AR(1) per sensor at the marginal σ `sigma_z`: `phi[0]` the
+    /// accelerometer's coefficient (ax, ay, az), `phi[1]` the gyroscope's
+    /// (`None`: white), `motion[s]` each sensor's motion gain c (§4.6). The
+    /// vibration model of issue 14 is `ar1(σ, [Some(φ), None], [c, 0])`;
+    /// φ = e^{−dt/T} for a correlation time T at sample spacing dt.
+    pub fn ar1(
+        sigma_z: [f64; 6],
+        phi: [Option<f64>; 2],
+        motion: [f64; 2],
+    ) -> Result<Self, NoiseModelError> {
+        let mut imu = Vec::with_capacity(6);
+        for (c, s) in sigma_z.into_iter().enumerate() {
+            let ar = ArNoise::new(phi[c / 3].into_iter().collect(), s)?;
+            imu.push(ChannelNoise::new(ar, motion[c / 3])?);
+        }
+        Ok(Self {
+            imu: imu.try_into().expect("six channels"),
+        })
+    }
+
     /// Whether every channel is white of constant level.
     pub fn is_white(&self) -> bool {
         self.imu.iter().all(ChannelNoise::is_white)
@@ -457,6 +477,39 @@ mod tests {
         assert!((m.correlation_time(dt) - exact).abs() < 1e-12 * t);
         assert!((m.correlation_time(dt) - (t - dt / 2.0)).abs() < 0.01 * t);
         assert_eq!(ArNoise::white(1.0).unwrap().low_frequency_ratio(), 1.0);
+    }
+
+    /// The per-sensor AR(1) model: each accelerometer channel's
+    /// autocovariance is σ²φ^k at rest and its level follows the motion;
+    /// the gyroscope is white and constant unless given; bad values refused.
+    #[test]
+    fn ar1_per_sensor_has_the_given_correlation_and_levels() {
+        let sz = [0.02, 0.03, 0.04, 0.001, 0.002, 0.003];
+        let (phi, c) = (0.75, 4e-4);
+        let m = NoiseModel::ar1(sz, [Some(phi), None], [c, 0.0]).unwrap();
+        assert_eq!(m.sigma_z(), sz);
+        assert_eq!(m.max_order(), 1);
+        for (k, ch) in m.imu.iter().enumerate() {
+            let g = ch.ar.autocovariance(3);
+            if k < 3 {
+                for (lag, gl) in g.iter().enumerate() {
+                    let want = sz[k] * sz[k] * phi.powi(lag as i32);
+                    assert!((gl - want).abs() < 1e-15, "channel {k} lag {lag}");
+                }
+                // σ² + c‖q̈‖² at ‖q̈‖² = 2
+                let var = (sz[k] * ch.level(2.0)).powi(2);
+                assert!((var - (sz[k] * sz[k] + 2.0 * c)).abs() < 1e-15);
+            } else {
+                assert!(ch.is_white(), "channel {k}");
+                assert_eq!(g[1], 0.0);
+            }
+        }
+        let both = NoiseModel::ar1(sz, [None, Some(0.5)], [0.0, c]).unwrap();
+        assert!(both.imu[..3].iter().all(ChannelNoise::is_white));
+        assert_eq!(both.imu[4].ar.phi(), &[0.5]);
+        assert_eq!(both.imu[5].motion, c);
+        assert!(NoiseModel::ar1(sz, [Some(1.0), None], [0.0; 2]).is_err());
+        assert!(NoiseModel::ar1(sz, [Some(0.5), None], [-1.0, 0.0]).is_err());
     }
 
     #[test]

@@ -83,6 +83,62 @@ pub enum SimulateError {
     Trajectory(#[from] SplineError),
 }
 
+/// A sensor warm-up: T(t) = T_end + (T_start − T_end)·e^{−(t − t_0)/τ}, t_0
+/// the first IMU sample (the recording's `temp_c` column, and the curve the
+/// biases of `temperature_bias` follow in `simulate --temperature`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WarmUpTemperature {
+    /// T at t_0, °C.
+    pub start_c: f64,
+    /// T once warm, °C.
+    pub end_c: f64,
+    /// τ, s.
+    pub time_constant_s: f64,
+}
+
+/// The BNO055's temperature LSB, °C (`TEMP` register, datasheet §3.6.5.8).
+pub const TEMPERATURE_LSB: f64 = 1.0;
+
+impl WarmUpTemperature {
+    /// A warm-up, refused unless the temperatures are finite and τ > 0.
+    pub fn new(start_c: f64, end_c: f64, time_constant_s: f64) -> Result<Self, String> {
+        if !(start_c.is_finite() && end_c.is_finite()) {
+            return Err(format!(
+                "the temperatures must be finite numbers (got {start_c}, {end_c})"
+            ));
+        }
+        if !(time_constant_s.is_finite() && time_constant_s > 0.0) {
+            return Err(format!(
+                "the time constant must be a positive number of seconds (got {time_constant_s})"
+            ));
+        }
+        Ok(Self {
+            start_c,
+            end_c,
+            time_constant_s,
+        })
+    }
+
+    /// T at `dt` seconds after the first sample, °C.
+    pub fn at(&self, dt: f64) -> f64 {
+        self.end_c + (self.start_c - self.end_c) * (-dt.max(0.0) / self.time_constant_s).exp()
+    }
+
+    /// The true T at the IMU times `imu_t`.
+    pub fn values(&self, imu_t: &[f64]) -> Vec<f64> {
+        let t0 = imu_t.first().copied().unwrap_or(0.0);
+        imu_t.iter().map(|t| self.at(t - t0)).collect()
+    }
+
+    /// What the chip reports at `imu_t`: T rounded to [`TEMPERATURE_LSB`].
+    pub fn readings(&self, imu_t: &[f64]) -> Vec<f64> {
+        self.values(imu_t)
+            .into_iter()
+            .map(|v| (v / TEMPERATURE_LSB).round() * TEMPERATURE_LSB)
+            .collect()
+    }
+}
+
 /// Draw a [`RandomSession`] (see there) for `robot`.
 pub fn random_session(
     robot: &Robot,

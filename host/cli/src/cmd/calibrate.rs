@@ -75,7 +75,8 @@ pub struct CalibrateCmd {
     pub report: Option<PathBuf>,
     /// Also fit these catalogue effects with the baseline (comma-separated:
     /// g_sensitivity, size_effect, clock_drift, sensor_delay, bias_drift,
-    /// joint_elasticity, encoder_scale, resonance); prints their estimates and writes
+    /// joint_elasticity, encoder_scale, resonance, temperature_bias where imu.csv
+    /// has a varying temp_c); prints their estimates and writes
     /// effects.json (the augmented model's parameters) next to the result file.
     /// `bias_drift:M` sets its spline's M segments over the session (default
     /// 1, a linear drift; `robimu diagnose` chooses M and prints the spec).

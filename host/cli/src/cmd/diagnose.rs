@@ -26,7 +26,8 @@ use super::noise_spec::{noise_choice, NoiseFileArg};
 /// model; RMS and χ² per channel, Ljung–Box whiteness, spectral peaks, where
 /// in time they concentrate, the regressor they follow), scores every catalogued effect
 /// (g_sensitivity, size_effect, clock_drift, sensor_delay, bias_drift, joint_elasticity,
-/// encoder_scale, resonance) with a Rao score test, adds the most significant one
+/// encoder_scale, resonance, and temperature_bias where imu.csv has a varying
+/// temp_c) with a Rao score test, adds the most significant one
 /// (Bonferroni at --alpha across the catalogue, confirmed by a refit's
 /// likelihood ratio), and repeats until none is significant; a narrow
 /// spectral peak left in a channel is reported as unexplained structure.

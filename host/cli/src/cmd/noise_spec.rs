@@ -15,7 +15,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
+use robimu_model::noise::NoiseModel;
 use robimu_session::{check_ar_order_for_data, NoiseShape, Session};
 use robimu_workflows::calibrate::noise_choice::NoiseChoice;
 use robimu_workflows::noise::NoiseFile;
@@ -82,15 +82,7 @@ pub fn parse_noise_model(
         if accel.is_none() && gyro.is_none() {
             bail!("{}: give accel=TAU_MS and/or gyro=TAU_MS", what());
         }
-        let mut imu = Vec::with_capacity(6);
-        for (c, &sigma) in sigma_z.iter().enumerate() {
-            let phi = if c < 3 { accel } else { gyro };
-            let ar = ArNoise::new(phi.into_iter().collect(), sigma).with_context(what)?;
-            imu.push(ChannelNoise::new(ar, motion).with_context(what)?);
-        }
-        return Ok(NoiseModel {
-            imu: imu.try_into().expect("six channels"),
-        });
+        return NoiseModel::ar1(sigma_z, [accel, gyro], [motion; 2]).with_context(what);
     }
     let path = Path::new(spec);
     if !path.is_file() {

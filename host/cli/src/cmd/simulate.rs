@@ -10,8 +10,10 @@ use robimu_model::params::draw_truth;
 use robimu_model::trajectory::random_walk;
 use robimu_model::{ParamLayout, Robot};
 use robimu_session::poses::{write_pose_file, write_tracker_file};
-use robimu_session::{NoiseOverride, NoiseShape, SessionMeta, SessionWriter, Truth};
-use robimu_workflows::simulate::{simulate, tracker_recording, SimulateOptions};
+use robimu_session::{
+    NoiseOverride, NoiseShape, SessionMeta, SessionWriter, Truth, IMU_TEMP_COLUMN,
+};
+use robimu_workflows::simulate::{simulate, tracker_recording, SimulateOptions, WarmUpTemperature};
 
 use robimu_workflows::plan::files::read_plan;
 
@@ -78,9 +80,10 @@ pub struct SimulateCmd {
     /// Inject a catalogue effect into the IMU samples, NAME=MAGNITUDE
     /// (repeatable), magnitudes in physical units: g_sensitivity (deg/s)/g,
     /// size_effect mm, clock_drift ppm, sensor_delay ms, bias_drift deg/s, joint_elasticity
-    /// deg/(kN*m), encoder_scale ppm, resonance mrad/(rad/s^2) (each a
-    /// fixed pattern scaled by the magnitude; see `robimu_model::effects`).
-    /// Recorded in session.toml's notes.
+    /// deg/(kN*m), encoder_scale ppm, resonance mrad/(rad/s^2),
+    /// temperature_bias mg/K (needs --temperature; the gyroscope's 0.015 deg/s/K
+    /// per mg/K) (each a fixed pattern scaled by the magnitude; see
+    /// `robimu_model::effects`). Recorded in session.toml's notes.
     #[arg(long, value_name = "NAME=MAGNITUDE")]
     pub effect: Vec<String>,
     /// Add a seeded random-walk (Brownian) bias to every IMU channel,
@@ -90,6 +93,12 @@ pub struct SimulateCmd {
     /// are the session means; docs/model.md §4.7). Recorded in the notes.
     #[arg(long, value_name = "SCALE")]
     pub bias_walk: Option<f64>,
+    /// A sensor warm-up START,END,TAU (°C, °C, s): imu.csv gets a temp_c
+    /// column, T = END + (START − END)·exp(−t/TAU) from the first IMU
+    /// sample, read in whole °C as the BNO055 reports it; with
+    /// `--effect temperature_bias=M` the biases follow the unrounded curve.
+    #[arg(long, value_name = "START,END,TAU")]
+    pub temperature: Option<String>,
     #[command(flatten)]
     pub resonance: super::input::ResonanceMode,
     /// IMU noise: `white` (default), `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]`
@@ -188,6 +197,9 @@ impl SimulateCmd {
         }
         let mut data = simulate(&robot, &layout, &x_true, &trajectory, &opts, self.seed)
             .context("cannot simulate the measurements at these true parameters")?;
+        if let Some(w) = self.warm_up()? {
+            data.imu_temp = Some(w.readings(&data.imu_t));
+        }
         if !self.effect.is_empty() {
             self.inject_effects(&robot, &x_true, &trajectory, &mut data)?;
         }
@@ -215,8 +227,12 @@ impl SimulateCmd {
         trajectory: &robimu_model::Spline,
         data: &mut robimu_model::observations::Measurements,
     ) -> anyhow::Result<()> {
-        let setup =
+        let mut setup =
             robimu_workflows::diagnose::setup_with(robot, data, None, self.resonance.mode()?);
+        // the biases follow the true temperature, not the whole-degree readings
+        if let Some(w) = self.warm_up()? {
+            setup.set_temperature(&data.imu_t, &w.values(&data.imu_t));
+        }
         let mut injected = Vec::new();
         for item in &self.effect {
             let Some((name, m)) = item.split_once('=') else {
@@ -241,6 +257,25 @@ impl SimulateCmd {
         robimu_workflows::diagnose::inject_effects(robot, x_true, trajectory, data, &injected)
             .context("cannot inject the effects")?;
         Ok(())
+    }
+
+    /// The `--temperature` warm-up.
+    fn warm_up(&self) -> anyhow::Result<Option<WarmUpTemperature>> {
+        let Some(spec) = &self.temperature else {
+            return Ok(None);
+        };
+        let v: Vec<f64> = spec
+            .split(',')
+            .map(|x| x.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .ok()
+            .filter(|v: &Vec<f64>| v.len() == 3)
+            .with_context(|| {
+                format!("--temperature {spec}: expected START,END,TAU (°C, °C, s), e.g. 22,32,120")
+            })?;
+        WarmUpTemperature::new(v[0], v[1], v[2])
+            .map(Some)
+            .map_err(|e| anyhow::anyhow!("--temperature {spec}: {e}"))
     }
 
     /// tracker.csv (the motion) and poses.csv (static poses with q1..qn).
@@ -302,10 +337,28 @@ impl SimulateCmd {
             let notes = meta.notes.get_or_insert_with(String::new);
             notes.push_str(&format!("; bias random walk {scale}x the paper's drift"));
         }
+        if let Some(spec) = &self.temperature {
+            let notes = meta.notes.get_or_insert_with(String::new);
+            notes.push_str(&format!("; warm-up {spec} (°C, °C, s)"));
+        }
         let n = robot.dof();
-        let mut w = SessionWriter::create(&self.out, &meta, n)
+        let extra: &[&str] = match data.imu_temp {
+            Some(_) => &[IMU_TEMP_COLUMN],
+            None => &[],
+        };
+        let mut w = SessionWriter::create_with_imu_extra(&self.out, &meta, n, extra)
             .with_context(|| format!("cannot write the session {}", self.out.display()))?;
-        w.measurements(data)?;
+        match &data.imu_temp {
+            Some(temp) => {
+                for (t, q) in data.joint_t.iter().zip(data.joint_q.chunks_exact(n)) {
+                    w.joint(*t, q)?;
+                }
+                for ((t, z), c) in data.imu_t.iter().zip(&data.imu_z).zip(temp) {
+                    w.imu_extra(*t, z, &[*c])?;
+                }
+            }
+            None => w.measurements(data)?,
+        }
         w.truth(&Truth::of(layout, x_true))?;
         let dir = w.finish()?;
         Ok(Simulated {

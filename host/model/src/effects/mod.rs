@@ -40,6 +40,7 @@ pub mod mass;
 pub mod resonance;
 pub mod sensor_delay;
 pub mod size_effect;
+pub mod temperature_bias;
 
 use std::cell::OnceCell;
 use std::sync::Arc;
@@ -252,6 +253,9 @@ pub struct CatalogueSetup {
     /// [`bias_drift::DEFAULT_SEGMENTS`] unless set, diagnose chooses it
     /// from the data).
     pub bias_drift_segments: usize,
+    /// The smoothed IMU temperature (`None`: not recorded or constant;
+    /// `temperature_bias` is then unavailable).
+    pub temperature: Option<Arc<temperature_bias::TemperatureTrack>>,
 }
 
 impl CatalogueSetup {
@@ -266,9 +270,16 @@ impl CatalogueSetup {
             mode,
             mode_response: None,
             bias_drift_segments: bias_drift::DEFAULT_SEGMENTS,
+            temperature: None,
         };
         s.set_joints(mode, joints);
         s
+    }
+    /// Smooth the IMU temperature readings `temp` (°C) at the IMU times `t`
+    /// into the track of `temperature_bias` (none when they do not vary,
+    /// [`temperature_bias::TemperatureTrack::from_samples`]).
+    pub fn set_temperature(&mut self, t: &[f64], temp: &[f64]) {
+        self.temperature = temperature_bias::TemperatureTrack::from_samples(t, temp).map(Arc::new);
     }
     /// Set the resonance mode and integrate its response to `joints`.
     pub fn set_joints(&mut self, mode: resonance::Mode, joints: Option<&Spline>) {
@@ -375,11 +386,16 @@ pub fn catalogue(setup: &CatalogueSetup) -> Vec<Box<dyn Effect>> {
             (setup.span.t0, setup.span.t1),
         )));
     }
+    if let Some(track) = &setup.temperature {
+        all.push(Box::new(temperature_bias::TemperatureBias::new(
+            track.clone(),
+        )));
+    }
     all
 }
 
 /// Names of the catalogue's effects, in order.
-pub const NAMES: [&str; 8] = [
+pub const NAMES: [&str; 9] = [
     "g_sensitivity",
     "size_effect",
     "clock_drift",
@@ -388,12 +404,32 @@ pub const NAMES: [&str; 8] = [
     "joint_elasticity",
     "encoder_scale",
     "resonance",
+    "temperature_bias",
 ];
 
-/// An unknown effect name.
+/// An effect name that is not in the catalogue of a session: unknown, or
+/// known but not available there (its message says what it needs).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("unknown effect `{0}` (known: {known})", known = NAMES.join(", "))]
+#[error("{}", unknown_message(.0))]
 pub struct UnknownEffect(pub String);
+
+/// What a known effect that a catalogue can lack needs from the session.
+fn requirement(name: &str) -> Option<&'static str> {
+    match name {
+        "resonance" => Some("a recorded joint trajectory that can be fitted"),
+        "temperature_bias" => Some(temperature_bias::REQUIRES),
+        _ => None,
+    }
+}
+
+fn unknown_message(name: &str) -> String {
+    match requirement(name) {
+        Some(needs) => {
+            format!("effect `{name}` is not available for this session: it needs {needs}")
+        }
+        None => format!("unknown effect `{name}` (known: {})", NAMES.join(", ")),
+    }
+}
 
 /// The effect named `name` from the catalogue.
 pub fn by_name(setup: &CatalogueSetup, name: &str) -> Result<Box<dyn Effect>, UnknownEffect> {

@@ -30,7 +30,16 @@ fn effect_jacobians_match_finite_differences_of_the_exact_form() {
     // segments 0, 1 and 3
     setup.set_resolution("bias_drift", 4).unwrap();
     assert_eq!(by_name(&setup, "bias_drift").unwrap().params().len(), 24);
+    // a warm-up read in whole degrees at 100 Hz
+    let ts: Vec<f64> = (0..2001).map(|i| i as f64 * 0.01).collect();
+    let temp: Vec<f64> = ts
+        .iter()
+        .map(|t| (30.0 - 6.0 * (-t / 8.0).exp()).round())
+        .collect();
+    setup.set_temperature(&ts, &temp);
     assert_eq!(catalogue(&setup).len(), NAMES.len());
+    let names: Vec<_> = catalogue(&setup).iter().map(|e| e.name()).collect();
+    assert_eq!(names, NAMES);
     let mut jac = MeasurementJacobians::new(layout.len());
     let mut checked = 0;
     for effect in catalogue(&setup) {
@@ -140,4 +149,37 @@ fn effect_specs_set_the_resolution_or_say_why_not() {
         assert!(e.contains(says), "{bad}: {e}");
     }
     assert_eq!(setup.bias_drift_segments, 8, "a bad spec changes nothing");
+}
+
+/// An effect a session cannot have is refused with what it needs, not as
+/// unknown; a misspelt name lists the catalogue.
+#[test]
+fn unavailable_effects_say_what_they_need() {
+    let robot = Robot::aubo_i5();
+    let setup = CatalogueSetup::new(
+        SessionSpan { t0: 0.0, t1: 20.0 },
+        MassModel::for_robot(&robot),
+        robot.gravity(),
+        None,
+    );
+    let names: Vec<_> = catalogue(&setup).iter().map(|e| e.name()).collect();
+    assert!(!names.contains(&"temperature_bias") && !names.contains(&"resonance"));
+    let msg = by_name(&setup, "temperature_bias")
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        msg.contains("not available") && msg.contains("temperature column"),
+        "{msg}"
+    );
+    let msg = by_name(&setup, "resonance").err().unwrap().to_string();
+    assert!(msg.contains("joint trajectory"), "{msg}");
+    let msg = by_name(&setup, "temprature_bias")
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        msg.contains("unknown effect") && msg.contains("g_sensitivity"),
+        "{msg}"
+    );
 }

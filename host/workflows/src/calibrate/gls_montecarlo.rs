@@ -4,7 +4,7 @@
 
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
-use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
+use robimu_model::noise::{ArNoise, NoiseModel};
 use robimu_model::Robot;
 
 use super::fit::{fit, FitSpec};
@@ -34,15 +34,7 @@ fn run(runs: u64) -> (f64, f64, usize, [(f64, f64); 2]) {
     let sz = robot.sigma_z();
     let rate: f64 = 120.0;
     let phi = (-1.0 / (rate * 0.030)).exp();
-    let model = NoiseModel {
-        imu: std::array::from_fn(|c| {
-            if c < 3 {
-                ChannelNoise::new(ArNoise::new(vec![phi], sz[c]).unwrap(), 0.0).unwrap()
-            } else {
-                ChannelNoise::white(sz[c]).unwrap()
-            }
-        }),
-    };
+    let model = NoiseModel::ar1(sz, [Some(phi), None], [0.0; 2]).unwrap();
     let mut sim = SimulateOptions::paper(&robot);
     // the simulator's white accelerometer noise off (negligible), the AR
     // noise added below; gyroscope and joint noise as usual

@@ -5,7 +5,7 @@
 //! (the prewhitened estimate uses the information better); the white fit's
 //! own σ are too small.
 
-use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel};
+use robimu_model::noise::NoiseModel;
 use robimu_model::{ParamLayout, Robot};
 
 use super::fit::{fit, FitSpec};
@@ -33,15 +33,7 @@ fn run(runs: u64) -> Runs {
     let sz = robot.sigma_z();
     let rate = 120.0;
     let phi = (-1.0f64 / (rate * 0.050)).exp();
-    let model = NoiseModel {
-        imu: std::array::from_fn(|c| {
-            if c < 3 {
-                ChannelNoise::new(ArNoise::new(vec![phi], sz[c]).unwrap(), 0.0).unwrap()
-            } else {
-                ChannelNoise::white(sz[c]).unwrap()
-            }
-        }),
-    };
+    let model = NoiseModel::ar1(sz, [Some(phi), None], [0.0; 2]).unwrap();
     let sim = SimulateOptions {
         noise_model: Some(model),
         ..SimulateOptions::paper(&robot)

@@ -138,6 +138,9 @@ pub fn setup_with(
         None,
     );
     setup.set_joints(mode, joints.as_ref().map(|f| &f.spline));
+    if let Some(temp) = &data.imu_temp {
+        setup.set_temperature(&data.imu_t, temp);
+    }
     setup
 }
 
@@ -213,7 +216,9 @@ pub const NOISE_MAX_ORDER: usize = 1;
 pub struct DiagnoseOptions {
     /// Family-wise significance level α (Bonferroni over the catalogue).
     pub alpha: f64,
-    /// Candidates considered (default: the whole catalogue).
+    /// Candidates considered (default: the whole catalogue; names the
+    /// session's catalogue lacks, e.g. `temperature_bias` without a
+    /// recorded temperature, are left out, also from the Bonferroni count).
     pub candidates: Vec<String>,
     /// Most effects added.
     pub max_effects: usize,
@@ -566,7 +571,16 @@ pub fn diagnose(
     mut progress: impl FnMut(&str),
 ) -> Result<Diagnosis, DiagnoseError> {
     let layout = ParamLayout::new(robot);
-    let threshold = dopts.alpha / dopts.candidates.len().max(1) as f64;
+    // the candidates this session's catalogue has (temperature_bias needs a
+    // recorded temperature, resonance a trajectory); Bonferroni over them
+    let available: Vec<&str> = effects::catalogue(setup).iter().map(|e| e.name()).collect();
+    let offered: Vec<String> = dopts
+        .candidates
+        .iter()
+        .filter(|c| available.contains(&c.as_str()))
+        .cloned()
+        .collect();
+    let threshold = dopts.alpha / offered.len().max(1) as f64;
     // resolutions chosen below are set in this copy
     let mut setup = setup.clone();
     let setup = &mut setup;
@@ -577,8 +591,7 @@ pub fn diagnose(
     let mut found = Vec::new();
     let n_res = 6.0 * baseline.residuals.len() as f64;
     let last_scores = loop {
-        let candidates: Vec<String> = dopts
-            .candidates
+        let candidates: Vec<String> = offered
             .iter()
             .filter(|c| !current.effects.contains(c))
             .cloned()
