@@ -367,6 +367,70 @@ impl Drop for SimAubo {
     }
 }
 
+/// The simulated controller's motion model on a virtual clock: the same
+/// reference, tracking lag and encoder noise as [`SimAubo`], without the
+/// server or threads, for twins recorded in virtual time
+/// (`robimu_hil::twin`). Time is seconds from zero, set by the caller.
+#[derive(Debug)]
+pub struct VirtualAubo {
+    robot: Robot,
+}
+
+impl VirtualAubo {
+    /// The arm of `config` (its initial pose, limits, lag, encoder noise and
+    /// seed; `bind`, `epoch` and `faults` are not used) at time zero.
+    pub fn new(config: &SimAuboConfig) -> Self {
+        let mut robot = Robot::new(config);
+        robot.t = 0.0;
+        robot.front_start = 0.0;
+        robot.log.clear();
+        Self { robot }
+    }
+
+    /// Queues a path buffer of `points` `h` seconds apart, as
+    /// `robimu record`'s AUBO driver sends it (alloc, append, eval with
+    /// limits `a`, `v`, move) at time `t`; `Err` is the controller's
+    /// refusing status code.
+    pub fn play_path(
+        &mut self,
+        t: f64,
+        points: &[Joints],
+        h: f64,
+        a: Joints,
+        v: Joints,
+    ) -> Result<(), i64> {
+        let name = "virtual";
+        self.robot.advance_to(t);
+        let check = |code: i64| if code == status::OK { Ok(()) } else { Err(code) };
+        check(self.robot.path_alloc(name, 2.0, points.len() as f64))?;
+        check(self.robot.path_append(name, points.to_vec()))?;
+        check(self.robot.path_eval(name, a, v, h))?;
+        check(self.robot.move_path(name))?;
+        self.robot.buffers.clear();
+        Ok(())
+    }
+
+    /// The true state at `t` (not before the last query's time).
+    pub fn state_at(&mut self, t: f64) -> TrueState {
+        self.robot.state_at(t)
+    }
+
+    /// What `getJointPositions` answers at `t`: the true angles plus
+    /// encoder noise.
+    pub fn joint_positions(&mut self, t: f64) -> Joints {
+        self.robot.advance_to(t);
+        self.robot.measured()
+    }
+
+    /// Whether no motion runs at `t` (`getExecId` is −1).
+    pub fn idle_at(&mut self, t: f64) -> bool {
+        self.robot.advance_to(t);
+        let _ = self.robot.reference(t);
+        self.robot.exec_id() == -1
+    }
+}
+
+
 /// State shared by the simulator's threads.
 struct Shared {
     epoch: Instant,
