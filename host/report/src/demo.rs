@@ -1,5 +1,6 @@
 //! The text of `robimu demo` between its stages: what was planned, the
-//! simulated hardware, the equivalent `robimu record` command, the files.
+//! simulated hardware, the equivalent `robimu record` command, the truth
+//! check of diagnose's final model (docs/model.md §4.7), the files.
 
 use std::fmt;
 use std::path::Path;
@@ -114,13 +115,13 @@ impl fmt::Display for DemoFiles<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "\nfiles: {} (plan.csv), {} (session.toml, joints.csv, imu.csv, pings.csv, truth.toml = the hidden truth, result.json)",
+            "\nfiles: {} (plan.csv), {} (session.toml, joints.csv, imu.csv, pings.csv, truth.toml = the twin's truth for the baseline model, docs/model.md §4.7, result.json, diagnosis/)",
             self.plan_dir.display(),
             self.session.display()
         )?;
         writeln!(
             f,
-            "report: {} (open it in a browser; the figures are beside it as PNG and SVG)",
+            "report: {} (open it in a browser; the figures are beside it as PNG and SVG; truth_check.json: diagnose's final model against the truth)",
             self.report.join("report.html").display()
         )?;
         writeln!(
