@@ -176,14 +176,7 @@ pub const REALISTIC_WARM_UP: WarmUp = WarmUp {
     time_constant_s: 300.0,
     temp_start_c: 30.0,
     temp_end_c: 40.0,
-    bias_start_offset: [
-        0.017,
-        -0.012,
-        0.010,
-        0.025 * DEG,
-        -0.018 * DEG,
-        0.012 * DEG,
-    ],
+    bias_start_offset: [0.017, -0.012, 0.010, 0.025 * DEG, -0.018 * DEG, 0.012 * DEG],
 };
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
@@ -198,7 +191,13 @@ pub const REALISTIC_COMPLIANCE: f64 = 50.0 * DEG * 1e-3;
 /// structural mode of the IMU mount ([`StructuralMode::default`]).
 pub fn realistic_arm_effects(robot: &Robot) -> ArmEffects {
     let compliance = (0..robot.dof())
-        .map(|j| if j == 1 || j == 2 { REALISTIC_COMPLIANCE } else { 0.0 })
+        .map(|j| {
+            if j == 1 || j == 2 {
+                REALISTIC_COMPLIANCE
+            } else {
+                0.0
+            }
+        })
         .collect();
     ArmEffects {
         elasticity: Some(Elasticity {

@@ -93,14 +93,21 @@ pub fn twin_truth(
             *v = -delays[0];
         }
         if let Some(c) = BIAS_NAMES.iter().position(|b| b == name) {
-            *v += if drift_in_model { bias[c][0] } else { bias[c][3] };
+            *v += if drift_in_model {
+                bias[c][0]
+            } else {
+                bias[c][3]
+            };
         }
     }
     let mut not_comparable = Vec::new();
     for p in effect_params {
         let effect = p.split('.').next().unwrap_or_default();
         if let Some((e, why)) = NOT_COMPARABLE.iter().find(|(e, _)| *e == effect) {
-            if !not_comparable.iter().any(|(n, _): &(String, String)| n == e) {
+            if !not_comparable
+                .iter()
+                .any(|(n, _): &(String, String)| n == e)
+            {
                 not_comparable.push((e.to_string(), why.to_string()));
             }
             continue;
@@ -126,8 +133,13 @@ fn effect_truth(config: &SimRigConfig, name: &str, delays: [f64; 2], bias: &[[f6
     if let Some(rest) = name.strip_prefix("bias_drift.") {
         // `{ch}_p{k}`
         let mut parts = rest.split("_p");
-        let (ch, k) = (parts.next(), parts.next().and_then(|k| k.parse::<usize>().ok()));
-        if let (Some(c), Some(k @ 1..=2)) = (ch.and_then(|ch| CHANNELS.iter().position(|x| *x == ch)), k) {
+        let (ch, k) = (
+            parts.next(),
+            parts.next().and_then(|k| k.parse::<usize>().ok()),
+        );
+        if let (Some(c), Some(k @ 1..=2)) =
+            (ch.and_then(|ch| CHANNELS.iter().position(|x| *x == ch)), k)
+        {
             return bias[c][k];
         }
     }
@@ -228,7 +240,13 @@ mod tests {
             let mut integral = 0.0;
             for i in 0..=m {
                 let u = -1.0 + 2.0 * i as f64 / m as f64;
-                let weight = if i == 0 || i == m { 1.0 } else if i % 2 == 1 { 4.0 } else { 2.0 };
+                let weight = if i == 0 || i == m {
+                    1.0
+                } else if i % 2 == 1 {
+                    4.0
+                } else {
+                    2.0
+                };
                 let ti = 40.0 + 30.0 * u;
                 integral += weight * w.remaining(ti) * legendre(k, u);
             }

@@ -353,7 +353,13 @@ pub fn record_offline(
         offset_us: config.clock_offset_us,
         drift_ppm: config.clock_drift_ppm,
     };
-    let core = Acquisition::new(chip, VirtualDelay(time.clone()), end.clone(), clock, firmware);
+    let core = Acquisition::new(
+        chip,
+        VirtualDelay(time.clone()),
+        end.clone(),
+        clock,
+        firmware,
+    );
     let mut board = Board {
         core,
         reader: LinkReader::new(HostEnd(end.clone())),

@@ -49,18 +49,18 @@ pub struct DemoHardware<'a> {
 
 impl fmt::Display for DemoHardware<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let port = self.imu_port.map_or("a virtual link".to_string(), |p| p.to_string());
+        let port = self
+            .imu_port
+            .map_or("a virtual link".to_string(), |p| p.to_string());
         writeln!(
             f,
             "IMU board on {port} (the real firmware core over a register-level BNO055; clock {:+.1} ppm)",
             self.drift_ppm
         )?;
-        let addr = self
-            .robot_addr
-            .clone()
-            .map_or("a virtual clock (robimu_hil::twin, no real time)".into(), |a| {
-                format!("{a} (JSON-RPC)")
-            });
+        let addr = self.robot_addr.clone().map_or(
+            "a virtual clock (robimu_hil::twin, no real time)".into(),
+            |a| format!("{a} (JSON-RPC)"),
+        );
         writeln!(
             f,
             "AUBO i5 controller on {addr}, 20 ms tracking lag, encoder noise as the paper's"
@@ -220,7 +220,11 @@ impl fmt::Display for DemoTruthCheck {
         let mut rows: Vec<&TruthRow> = self.rows.iter().collect();
         rows.sort_by(|a, b| b.z().abs().total_cmp(&a.z().abs()));
         let shown = rows.len().min(6).max(self.failures().len());
-        writeln!(f, "  {:<28} {:>14} {:>12} {:>14} {:>8}", "parameter", "estimate", "σ", "truth", "z")?;
+        writeln!(
+            f,
+            "  {:<28} {:>14} {:>12} {:>14} {:>8}",
+            "parameter", "estimate", "σ", "truth", "z"
+        )?;
         for r in rows.iter().take(shown) {
             writeln!(
                 f,

@@ -18,16 +18,16 @@ use robimu_hil::rig::{SimRig, SimRigConfig};
 use robimu_hil::truth::twin_truth;
 use robimu_hil::twin::{record_offline, TwinOptions};
 use robimu_model::ParamLayout;
-use robimu_report::demo::{DemoTruthCheck, TruthRow};
-use robimu_session::{Session, Truth};
-use robimu_workflows::diagnose::Diagnosis;
 use robimu_model::Robot;
 use robimu_protocol::SensorConfig;
 use robimu_record::controller::RobotSpec;
 use robimu_record::motion::Plan;
 use robimu_record::RecordOptions;
 use robimu_report::demo::{DemoFiles, DemoHardware, DemoPlanned, DemoRecordCommand};
+use robimu_report::demo::{DemoTruthCheck, TruthRow};
 use robimu_session::files;
+use robimu_session::{Session, Truth};
+use robimu_workflows::diagnose::Diagnosis;
 use robimu_workflows::plan::PlanOptions;
 
 use super::calibrate::CalibrateCmd;
@@ -128,7 +128,11 @@ impl DemoCmd {
         } else {
             let powered = Instant::now();
             let rig = SimRig::spawn(&config).context("cannot start the simulated hardware")?;
-            self.show_hardware(&config, Some(rig.imu_port()), Some(rig.robot_addr().to_string()))?;
+            self.show_hardware(
+                &config,
+                Some(rig.imu_port()),
+                Some(rig.robot_addr().to_string()),
+            )?;
             let powered_for = powered.elapsed().as_secs_f64();
             self.record(&rig, robot.clone(), plan, plan_dir, session)?;
             drop(rig);
@@ -136,18 +140,35 @@ impl DemoCmd {
         };
         // truth.toml: the twin's truth for the baseline model (§4.7), which
         // calibrate's report compares with.
-        let hidden = Truth::read(&session.join(files::TRUTH))
-            .context("cannot read the hidden truth")?;
+        let hidden =
+            Truth::read(&session.join(files::TRUTH)).context("cannot read the hidden truth")?;
         let truth_for = |effects: &[String]| -> anyhow::Result<robimu_hil::truth::TwinTruth> {
             let s = Session::load(session)?;
             let timing = s.meta.imu_timing(&session.join(files::META))?;
-            let since: Vec<f64> = s.measurements().imu_t.iter().map(|t| t + powered_for).collect();
-            Ok(twin_truth(&config, &hidden, timing.as_ref(), &since, effects))
+            let since: Vec<f64> = s
+                .measurements()
+                .imu_t
+                .iter()
+                .map(|t| t + powered_for)
+                .collect();
+            Ok(twin_truth(
+                &config,
+                &hidden,
+                timing.as_ref(),
+                &since,
+                effects,
+            ))
         };
         let baseline = truth_for(&[])?;
         let path = session.join(files::TRUTH);
-        std::fs::write(&path, Truth { values: baseline.values.clone() }.to_toml())
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        std::fs::write(
+            &path,
+            Truth {
+                values: baseline.values.clone(),
+            }
+            .to_toml(),
+        )
+        .with_context(|| format!("cannot write {}", path.display()))?;
 
         writeln!(out, "\n== 4. calibrate ==")?;
         out.flush()?;
@@ -163,7 +184,12 @@ impl DemoCmd {
         writeln!(out, "diagnosis took {:.1} s", t0.elapsed().as_secs_f64())?;
 
         writeln!(out, "\n== 6. against the truth ==")?;
-        let names: Vec<String> = d.final_fit.effect_params.iter().map(|p| p.name.clone()).collect();
+        let names: Vec<String> = d
+            .final_fit
+            .effect_params
+            .iter()
+            .map(|p| p.name.clone())
+            .collect();
         let check = self.truth_check(&robot, &d, &truth_for(&names)?);
         write!(out, "{check}")?;
         std::fs::create_dir_all(&report)
