@@ -219,6 +219,8 @@ mod tests {
     /// Legendre projection c_k = (2k+1)/2 ∫ f P_k du (Simpson's rule, an
     /// independent formula): on a dense uniform grid they agree to O(1/N).
     #[test]
+    // k indexes the projection and the Legendre basis together
+    #[allow(clippy::needless_range_loop)]
     fn the_warm_up_projection_matches_the_legendre_integrals() {
         let mut config = SimRigConfig::drawn(Robot::aubo_i5(), 1);
         let w = crate::physics::WarmUp {

@@ -173,7 +173,7 @@ impl DemoTruthCheck {
     pub fn failures(&self) -> Vec<&TruthRow> {
         self.rows
             .iter()
-            .filter(|r| !(r.z().abs() <= self.limit))
+            .filter(|r| r.z().abs() > self.limit || r.z().is_nan())
             .collect()
     }
 
