@@ -123,9 +123,11 @@ impl JointLimits {
 }
 
 impl Default for JointLimits {
-    /// About an AUBO i5: ±175° joints, 180°/s, 1000°/s².
+    /// About an AUBO i5: ±175° joints (exactly: no less than its
+    /// description's, so that a plan at the limit is accepted), 180°/s,
+    /// 1000°/s².
     fn default() -> Self {
-        JointLimits::uniform(3.05, std::f64::consts::PI, 17.4)
+        JointLimits::uniform(175f64.to_radians(), std::f64::consts::PI, 17.4)
     }
 }
 

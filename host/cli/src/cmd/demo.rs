@@ -114,12 +114,14 @@ impl DemoCmd {
                 sensor: self.sensor(),
                 ..TwinOptions::default()
             };
+            let t0 = Instant::now();
             let s = record_offline(&config, &plan, session, &opts)
                 .context("cannot record the virtual-time twin")?;
             writeln!(
                 out,
-                "recorded {:.1} s in virtual time: {} IMU and {} joint samples into {}",
+                "recorded {:.1} s in virtual time in {:.1} s: {} IMU and {} joint samples into {}",
                 s.duration,
+                t0.elapsed().as_secs_f64(),
                 s.imu_samples,
                 s.joint_samples,
                 session.display()
