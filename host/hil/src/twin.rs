@@ -60,6 +60,9 @@ pub enum TwinError {
     /// Bad options.
     #[error("bad twin options: {0}")]
     Options(String),
+    /// The session writer refused a sample or an echo.
+    #[error("cannot write the session: {0}")]
+    Sink(String),
 }
 
 /// How to record, as `robimu record`'s options say it.
@@ -419,7 +422,7 @@ pub fn record_offline(
                 DeviceMessage::Sample(s) => {
                     imu_samples += 1;
                     let ev = sample_event(&info, 0, t_us.unwrap_or_default(), &s);
-                    sink.handle(ev).map_err(TwinError::Board)?;
+                    sink.handle(ev).map_err(TwinError::Sink)?;
                 }
                 DeviceMessage::Pong(p) => {
                     if let Some(sent) = pending.remove(&p.nonce) {
@@ -429,11 +432,11 @@ pub fn record_offline(
                             device: t_us.unwrap_or_default() as f64 * 1e-6,
                         };
                         sink.handle(ImuEvent::Echo { segment: 0, echo })
-                            .map_err(TwinError::Board)?;
+                            .map_err(TwinError::Sink)?;
                     }
                 }
                 DeviceMessage::Status(s) => {
-                    sink.handle(ImuEvent::Status(s)).map_err(TwinError::Board)?;
+                    sink.handle(ImuEvent::Status(s)).map_err(TwinError::Sink)?;
                 }
                 DeviceMessage::Info(_) | DeviceMessage::CommandResult(_) => {}
             }
