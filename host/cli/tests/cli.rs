@@ -244,7 +244,10 @@ fn frozen_lengths_are_left_out_of_the_covariance() {
 fn demo_records_from_the_simulated_hardware_and_calibrates() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("demo");
-    let run = robimu_ok(&["demo", "--duration", "10", "--out", s(&out)]);
+    // The ideal twin: on the realistic one a 10 s session's diagnosis
+    // stops NotConverged (LM NoProgress at the cost's rounding floor); the
+    // realistic demo is tested in virtual time (tests/twin.rs).
+    let run = robimu_ok(&["demo", "--ideal", "--duration", "10", "--out", s(&out)]);
     assert!(run.stdout.contains("chip id 0xa0"), "{}", run.stdout);
     assert!(run.stdout.contains("0 CRC errors"), "{}", run.stdout);
     let recorded = run
@@ -253,8 +256,9 @@ fn demo_records_from_the_simulated_hardware_and_calibrates() {
         .find(|l| l.starts_with("recorded"))
         .unwrap();
     let hz = printed_number(recorded, "IMU samples (");
-    // Rates and drift from 12 s on a possibly loaded machine: loose bounds.
-    assert!((hz - 120.0).abs() < 8.0, "IMU rate {hz}");
+    // Rates and drift from 12 s on a possibly loaded machine: loose bounds
+    // (the demo reads at 100 Hz, docs/model.md §4.8).
+    assert!((hz - 100.0).abs() < 8.0, "IMU rate {hz}");
     let clock = run
         .stdout
         .lines()
@@ -265,6 +269,11 @@ fn demo_records_from_the_simulated_hardware_and_calibrates() {
     assert!(out.join("plan/plan.csv").is_file());
     CalibrationResult::read(&out.join("session/result.json")).unwrap();
     assert!(run.stdout.contains("NEES"));
+    // diagnosed and checked against the truth
+    assert!(run.stdout.contains("twin: ideal"), "{}", run.stdout);
+    assert!(out.join("diagnosis/diagnosis.json").is_file());
+    assert!(out.join("report/truth_check.json").is_file());
+    assert!(run.stdout.contains("truth check"), "{}", run.stdout);
 }
 
 /// A fresh 30 s session to break.

@@ -9,6 +9,11 @@
 //!   mode the estimator's model does not have.
 //! * [`rig`]: a simulated AUBO controller and a simulated IMU board (the
 //!   real firmware core on a pseudo-terminal) sharing one true motion.
+//! * [`truth`]: the values a calibration of a twin session should find
+//!   for the parameters the twin's physics makes effective (τ, sensor
+//!   delay, biases under a warm-up).
+//! * [`twin`]: the same rig's session recorded on a virtual clock, as fast
+//!   as the computer goes (for tests and Monte Carlo).
 //!
 //! Main types: [`rig::SimRigConfig`] (the robot, its hidden truth, clock
 //! errors) and the running rigs [`rig::SimRig`] (AUBO) and [`rig::SimUrRig`]
@@ -33,3 +38,5 @@
 pub mod arm_physics;
 pub mod physics;
 pub mod rig;
+pub mod truth;
+pub mod twin;

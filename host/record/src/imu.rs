@@ -15,7 +15,8 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use robimu_protocol::{
-    CommandKind, DecoderStats, DeviceInfo, DeviceMessage, HostMessage, SensorConfig, Status,
+    CommandKind, DecoderStats, DeviceInfo, DeviceMessage, HostMessage, ImuSample, SensorConfig,
+    Status,
 };
 
 use super::clock_fit::Echo;
@@ -135,8 +136,32 @@ pub(crate) fn decimal(x: f32) -> f64 {
     x.to_string().parse().unwrap_or(f64::from(x))
 }
 
+/// A sample frame in SI units with the board's scales (`info`), at
+/// unwrapped device time `t_us`, as [`ImuEvent::Sample`].
+pub fn sample_event(info: &DeviceInfo, segment: u32, t_us: u64, s: &ImuSample) -> ImuEvent {
+    let (a, g) = (
+        decimal(info.accel_scale_mps2_per_lsb),
+        decimal(info.gyro_scale_rads_per_lsb),
+    );
+    let z = [
+        f64::from(s.accel_raw[0]) * a,
+        f64::from(s.accel_raw[1]) * a,
+        f64::from(s.accel_raw[2]) * a,
+        f64::from(s.gyro_raw[0]) * g,
+        f64::from(s.gyro_raw[1]) * g,
+        f64::from(s.gyro_raw[2]) * g,
+    ];
+    ImuEvent::Sample {
+        segment,
+        device: t_us as f64 * 1e-6,
+        seq: s.seq,
+        z,
+        temp: f64::from(s.temp_raw) * decimal(info.temp_scale_c_per_lsb),
+    }
+}
+
 /// Seconds between pings.
-const PING_PERIOD: Duration = Duration::from_millis(100);
+pub const PING_PERIOD: Duration = Duration::from_millis(100);
 
 fn stream<R: Read, W: Write>(
     mut link: ImuClient<R, W>,
@@ -179,27 +204,7 @@ fn stream<R: Read, W: Write>(
         let received = Instant::now();
         let t_us = clock.observe(&msg);
         let event = match msg {
-            DeviceMessage::Sample(s) => {
-                let (a, g) = (
-                    decimal(info.accel_scale_mps2_per_lsb),
-                    decimal(info.gyro_scale_rads_per_lsb),
-                );
-                let z = [
-                    f64::from(s.accel_raw[0]) * a,
-                    f64::from(s.accel_raw[1]) * a,
-                    f64::from(s.accel_raw[2]) * a,
-                    f64::from(s.gyro_raw[0]) * g,
-                    f64::from(s.gyro_raw[1]) * g,
-                    f64::from(s.gyro_raw[2]) * g,
-                ];
-                ImuEvent::Sample {
-                    segment,
-                    device: t_us.unwrap_or_default() as f64 * 1e-6,
-                    seq: s.seq,
-                    z,
-                    temp: f64::from(s.temp_raw) * decimal(info.temp_scale_c_per_lsb),
-                }
-            }
+            DeviceMessage::Sample(s) => sample_event(&info, segment, t_us.unwrap_or_default(), &s),
             DeviceMessage::Pong(p) => match pending.remove(&p.nonce) {
                 Some(sent) => ImuEvent::Echo {
                     segment,

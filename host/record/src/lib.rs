@@ -554,7 +554,7 @@ fn describe(spec: &RobotSpec) -> String {
 }
 
 /// The `[imu]` table of session.toml: who the board is and how it was set.
-fn device_table(info: &DeviceInfo, port: &str) -> toml::Table {
+pub fn device_table(info: &DeviceInfo, port: &str) -> toml::Table {
     let mut t = toml::Table::new();
     let v = info.firmware_version;
     t.insert("port".into(), port.into());
@@ -597,7 +597,7 @@ fn device_table(info: &DeviceInfo, port: &str) -> toml::Table {
 }
 
 /// Adds the clock fits to session.toml's `[imu]` table.
-fn write_clock_notes(dir: &Path, clock: &[(u32, ClockFit)]) -> Result<(), SessionError> {
+pub fn write_clock_notes(dir: &Path, clock: &[(u32, ClockFit)]) -> Result<(), SessionError> {
     let fits: Vec<toml::Value> = clock
         .iter()
         .map(|(segment, f)| {

@@ -121,13 +121,23 @@ pub fn execute(client: &mut AuboClient, robot: &Robot, plan: &Plan) -> Result<()
     for chunk in plan.q.chunks(APPEND_CHUNK) {
         client.path_buffer_append(name, chunk)?;
     }
-    // The controller checks finite differences of the waypoints: allow a
-    // little over the plan's limits for the differences' own error.
-    let v: Joints = std::array::from_fn(|j| robot.limits()[j].qd_max * 1.2);
-    let a: Joints = std::array::from_fn(|j| robot.limits()[j].qdd_max * 1.2);
+    let (a, v) = path_limits(robot);
     client.path_buffer_eval(name, &a, &v, plan.dt)?;
     client.path_buffer_move(name)?;
     client.wait_idle(Duration::from_secs_f64(plan.duration() + 60.0))
+}
+
+/// The acceleration and speed limits sent with a path buffer: the
+/// controller checks finite differences of the waypoints, so a little
+/// over the plan's limits (1.2×) for the differences' own error.
+pub fn path_limits(robot: &Robot) -> (Joints, Joints) {
+    let limit = |j: usize, f: fn(&robimu_model::robot::JointLimits) -> f64| {
+        robot.limits().get(j).map_or(0.0, |l| f(l) * 1.2)
+    };
+    (
+        std::array::from_fn(|j| limit(j, |l| l.qdd_max)),
+        std::array::from_fn(|j| limit(j, |l| l.qd_max)),
+    )
 }
 
 /// The smallest speed and acceleration limits over the joints.

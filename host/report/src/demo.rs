@@ -1,5 +1,6 @@
 //! The text of `robimu demo` between its stages: what was planned, the
-//! simulated hardware, the equivalent `robimu record` command, the files.
+//! simulated hardware, the equivalent `robimu record` command, the truth
+//! check of diagnose's final model (docs/model.md §4.8), the files.
 
 use std::fmt;
 use std::path::Path;
@@ -34,28 +35,37 @@ impl fmt::Display for DemoPlanned<'_> {
 
 /// The simulated hardware stage.
 pub struct DemoHardware<'a> {
-    /// The IMU board's pseudo-terminal.
-    pub imu_port: &'a str,
+    /// The IMU board's pseudo-terminal (`None`: recorded in virtual time).
+    pub imu_port: Option<&'a str>,
     /// The board's clock drift, ppm.
     pub drift_ppm: f64,
-    /// The AUBO controller's address.
-    pub robot_addr: String,
+    /// The AUBO controller's address (`None`: virtual time).
+    pub robot_addr: Option<String>,
     /// The seed of the hidden truth.
     pub seed: u64,
+    /// What the twin simulates (one line).
+    pub twin: &'a str,
 }
 
 impl fmt::Display for DemoHardware<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let port = self
+            .imu_port
+            .map_or("a virtual link".to_string(), |p| p.to_string());
         writeln!(
             f,
-            "IMU board on {} (the real firmware core over a register-level BNO055; clock {:+.1} ppm)",
-            self.imu_port, self.drift_ppm
+            "IMU board on {port} (the real firmware core over a register-level BNO055; clock {:+.1} ppm)",
+            self.drift_ppm
         )?;
+        let addr = self.robot_addr.clone().map_or(
+            "a virtual clock (robimu_hil::twin, no real time)".into(),
+            |a| format!("{a} (JSON-RPC)"),
+        );
         writeln!(
             f,
-            "AUBO i5 controller on {} (JSON-RPC, 20 ms tracking lag, encoder noise as the paper's)",
-            self.robot_addr
+            "AUBO i5 controller on {addr}, 20 ms tracking lag, encoder noise as the paper's"
         )?;
+        writeln!(f, "twin: {}", self.twin)?;
         writeln!(
             f,
             "hidden truth: robot errors and IMU parameters drawn from the priors (seed {})",
@@ -105,13 +115,13 @@ impl fmt::Display for DemoFiles<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "\nfiles: {} (plan.csv), {} (session.toml, joints.csv, imu.csv, pings.csv, truth.toml = the hidden truth, result.json)",
+            "\nfiles: {} (plan.csv), {} (session.toml, joints.csv, imu.csv, pings.csv, truth.toml = the twin's truth for the baseline model, docs/model.md §4.8, result.json, diagnosis/)",
             self.plan_dir.display(),
             self.session.display()
         )?;
         writeln!(
             f,
-            "report: {} (open it in a browser; the figures are beside it as PNG and SVG)",
+            "report: {} (open it in a browser; the figures are beside it as PNG and SVG; truth_check.json: diagnose's final model against the truth)",
             self.report.join("report.html").display()
         )?;
         writeln!(
@@ -120,5 +130,141 @@ impl fmt::Display for DemoFiles<'_> {
             self.seconds,
             self.session.display()
         )
+    }
+}
+
+/// One parameter of the truth check.
+#[derive(Clone, Debug)]
+pub struct TruthRow {
+    /// Parameter name.
+    pub name: String,
+    /// Estimate, SI.
+    pub estimate: f64,
+    /// Its posterior σ.
+    pub sigma: f64,
+    /// The twin's truth (docs/model.md §4.8).
+    pub truth: f64,
+}
+
+impl TruthRow {
+    /// (estimate − truth)/σ.
+    pub fn z(&self) -> f64 {
+        (self.estimate - self.truth) / self.sigma
+    }
+}
+
+/// The demo's last stage: diagnose's final model against the twin's truth.
+#[derive(Clone, Debug)]
+pub struct DemoTruthCheck {
+    /// Which twin (`realistic` or `ideal`).
+    pub twin: String,
+    /// The effects in the final model.
+    pub effects: Vec<String>,
+    /// Every estimated parameter with a truth.
+    pub rows: Vec<TruthRow>,
+    /// Effects of the final model without a truth, and why.
+    pub not_comparable: Vec<(String, String)>,
+    /// The bound, σ.
+    pub limit: f64,
+}
+
+impl DemoTruthCheck {
+    /// Rows beyond the bound.
+    pub fn failures(&self) -> Vec<&TruthRow> {
+        self.rows
+            .iter()
+            .filter(|r| r.z().abs() > self.limit || r.z().is_nan())
+            .collect()
+    }
+
+    /// The row farthest from its truth.
+    pub fn worst(&self) -> Option<&TruthRow> {
+        self.rows
+            .iter()
+            .max_by(|a, b| a.z().abs().total_cmp(&b.z().abs()))
+    }
+
+    /// `truth_check.json`: `{"twin", "effects", "limit_sigma", "all_within",
+    /// "worst", "parameters": [{"name", "estimate", "sigma", "truth", "z"}],
+    /// "not_comparable": [{"effect", "why"}]}`.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "twin": self.twin,
+            "effects": self.effects,
+            "limit_sigma": self.limit,
+            "all_within": self.failures().is_empty(),
+            "worst": self.worst().map(|r| serde_json::json!({"name": r.name, "z": r.z()})),
+            "parameters": self.rows.iter().map(|r| serde_json::json!({
+                "name": r.name, "estimate": r.estimate, "sigma": r.sigma,
+                "truth": r.truth, "z": r.z(),
+            })).collect::<Vec<_>>(),
+            "not_comparable": self.not_comparable.iter().map(|(e, why)| serde_json::json!({
+                "effect": e, "why": why,
+            })).collect::<Vec<_>>(),
+        })
+    }
+}
+
+impl fmt::Display for DemoTruthCheck {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let effects = if self.effects.is_empty() {
+            "none".to_string()
+        } else {
+            self.effects.join(", ")
+        };
+        writeln!(
+            f,
+            "diagnose's final model (effects: {effects}) against the {} twin's truth (docs/model.md §4.8):",
+            self.twin
+        )?;
+        let mut rows: Vec<&TruthRow> = self.rows.iter().collect();
+        rows.sort_by(|a, b| b.z().abs().total_cmp(&a.z().abs()));
+        let shown = rows.len().min(6).max(self.failures().len());
+        writeln!(
+            f,
+            "  {:<28} {:>14} {:>12} {:>14} {:>8}",
+            "parameter", "estimate", "σ", "truth", "z"
+        )?;
+        for r in rows.iter().take(shown) {
+            writeln!(
+                f,
+                "  {:<28} {:>14.6e} {:>12.3e} {:>14.6e} {:>+8.2}",
+                r.name,
+                r.estimate,
+                r.sigma,
+                r.truth,
+                r.z()
+            )?;
+        }
+        if rows.len() > shown {
+            writeln!(f, "  … {} more, all closer", rows.len() - shown)?;
+        }
+        for (e, why) in &self.not_comparable {
+            writeln!(f, "  {e}: not compared ({why})")?;
+        }
+        let failures = self.failures();
+        match (failures.is_empty(), self.worst()) {
+            (true, Some(w)) => writeln!(
+                f,
+                "truth check: every one of {} parameters within {}σ of the truth (worst {:.2}σ: {})",
+                self.rows.len(),
+                self.limit,
+                w.z().abs(),
+                w.name
+            ),
+            (true, None) => writeln!(f, "truth check: no parameter to compare"),
+            (false, _) => writeln!(
+                f,
+                "truth check FAILED: {} of {} parameters beyond {}σ of the truth: {}",
+                failures.len(),
+                self.rows.len(),
+                self.limit,
+                failures
+                    .iter()
+                    .map(|r| format!("{} ({:+.1}σ)", r.name, r.z()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        }
     }
 }

@@ -1,8 +1,13 @@
 //! `robimu demo`: the main job on simulated hardware. A plan, a simulated
 //! AUBO i5 on loopback TCP and a simulated IMU board on a pseudo-terminal
 //! (the real firmware core over a register-level BNO055 whose readings come
-//! from the model at a hidden truth), a recording through the same code as
-//! `robimu record`, and a calibration checked against the hidden truth.
+//! from the arm's physics at a hidden truth), a recording through the same
+//! code as `robimu record` (or the same hardware in virtual time with
+//! `--fast`), a calibration with the identified noise model, a diagnosis,
+//! and diagnose's final model checked against the twin's truth
+//! (docs/model.md §4.8). The twin is the realistic one (datasheet chip,
+//! vibration noise, warm-up, elastic joints, a structural mode) unless
+//! `--ideal`.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -10,13 +15,19 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use robimu_hil::rig::{SimRig, SimRigConfig};
+use robimu_hil::truth::twin_truth;
+use robimu_hil::twin::{record_offline, TwinOptions};
+use robimu_model::ParamLayout;
 use robimu_model::Robot;
 use robimu_protocol::SensorConfig;
 use robimu_record::controller::RobotSpec;
 use robimu_record::motion::Plan;
 use robimu_record::RecordOptions;
 use robimu_report::demo::{DemoFiles, DemoHardware, DemoPlanned, DemoRecordCommand};
+use robimu_report::demo::{DemoTruthCheck, TruthRow};
 use robimu_session::files;
+use robimu_session::{Session, Truth};
+use robimu_workflows::diagnose::Diagnosis;
 use robimu_workflows::plan::PlanOptions;
 
 use super::calibrate::CalibrateCmd;
@@ -24,8 +35,9 @@ use super::input::record_with_progress;
 use robimu_report::recording::RecordSummaryText;
 
 /// Run the main job on simulated hardware, no robot or IMU needed: plan,
-/// record from a simulated AUBO i5 and IMU board with a hidden truth,
-/// calibrate, and compare with the truth.
+/// record from a simulated AUBO i5 and IMU board with a hidden truth (the
+/// realistic twin unless --ideal), calibrate, diagnose, and compare
+/// diagnose's final model with the truth.
 #[derive(Debug, Clone, clap::Args)]
 pub struct DemoCmd {
     /// Directory for the plan, the session and the result [default: a new
@@ -41,7 +53,26 @@ pub struct DemoCmd {
     /// The simulated board's clock drift, ppm.
     #[arg(long, default_value_t = 48.7)]
     pub drift_ppm: f64,
+    /// The ideal twin instead of the realistic one: readings from the
+    /// estimator's own model at the firmware's read instants, white noise,
+    /// constant biases, no chip filters, no elasticity or structural mode.
+    #[arg(long)]
+    pub ideal: bool,
+    /// Record in virtual time (the same firmware core, chip, arm motion and
+    /// session writer, as fast as the computer goes) instead of in real
+    /// time over a pseudo-terminal and loopback TCP.
+    #[arg(long)]
+    pub fast: bool,
+    /// The board's sampling rate, Hz: 100 by default, where the datasheet
+    /// chip's 125 Hz accelerometer updates age in a 25 Hz cycle, above the
+    /// motion (at the firmware's 120 Hz the age beats at 5 Hz, inside it:
+    /// docs/model.md §4.8).
+    #[arg(long, default_value_t = 100)]
+    pub rate: u16,
 }
+
+/// Bound of the truth check, σ.
+const TRUTH_LIMIT: f64 = 4.0;
 
 impl DemoCmd {
     /// Plan, record, calibrate.
@@ -49,6 +80,9 @@ impl DemoCmd {
         let start = Instant::now();
         if !(self.duration.is_finite() && (5.0..=3600.0).contains(&self.duration)) {
             bail!("--duration must be in [5, 3600] s (got {})", self.duration);
+        }
+        if !(1..=1000).contains(&self.rate) {
+            bail!("--rate must be in [1, 1000] Hz (got {})", self.rate);
         }
         let dir = self.out.clone().unwrap_or_else(|| {
             std::env::temp_dir().join(format!("robimu-demo-{}", std::process::id()))
@@ -70,12 +104,73 @@ impl DemoCmd {
         let plan = self.plan(&robot, &plan_dir)?;
 
         writeln!(out, "\n== 2. simulated hardware ==")?;
-        let rig = self.hardware(&robot, &plan)?;
+        let config = self.twin_config(&robot, &plan)?;
 
         writeln!(out, "\n== 3. record ==")?;
         let (plan_dir, session) = (plan_dir.as_path(), session.as_path());
-        self.record(&rig, robot, plan, plan_dir, session)?;
-        drop(rig);
+        let powered_for = if self.fast {
+            self.show_hardware(&config, None, None)?;
+            let opts = TwinOptions {
+                sensor: self.sensor(),
+                ..TwinOptions::default()
+            };
+            let t0 = Instant::now();
+            let s = record_offline(&config, &plan, session, &opts)
+                .context("cannot record the virtual-time twin")?;
+            writeln!(
+                out,
+                "recorded {:.1} s in virtual time in {:.1} s: {} IMU and {} joint samples into {}",
+                s.duration,
+                t0.elapsed().as_secs_f64(),
+                s.imu_samples,
+                s.joint_samples,
+                session.display()
+            )?;
+            s.powered_for_s
+        } else {
+            let powered = Instant::now();
+            let rig = SimRig::spawn(&config).context("cannot start the simulated hardware")?;
+            self.show_hardware(
+                &config,
+                Some(rig.imu_port()),
+                Some(rig.robot_addr().to_string()),
+            )?;
+            let powered_for = powered.elapsed().as_secs_f64();
+            self.record(&rig, robot.clone(), plan, plan_dir, session)?;
+            drop(rig);
+            powered_for
+        };
+        // truth.toml: the twin's truth for the baseline model (§4.8), which
+        // calibrate's report compares with.
+        let hidden =
+            Truth::read(&session.join(files::TRUTH)).context("cannot read the hidden truth")?;
+        let truth_for = |effects: &[String]| -> anyhow::Result<robimu_hil::truth::TwinTruth> {
+            let s = Session::load(session)?;
+            let timing = s.meta.imu_timing(&session.join(files::META))?;
+            let since: Vec<f64> = s
+                .measurements()
+                .imu_t
+                .iter()
+                .map(|t| t + powered_for)
+                .collect();
+            Ok(twin_truth(
+                &config,
+                &hidden,
+                timing.as_ref(),
+                &since,
+                effects,
+            ))
+        };
+        let baseline = truth_for(&[])?;
+        let path = session.join(files::TRUTH);
+        std::fs::write(
+            &path,
+            Truth {
+                values: baseline.values.clone(),
+            }
+            .to_toml(),
+        )
+        .with_context(|| format!("cannot write {}", path.display()))?;
 
         writeln!(out, "\n== 4. calibrate ==")?;
         out.flush()?;
@@ -83,6 +178,31 @@ impl DemoCmd {
         let report = dir.join("report");
         self.calibrate(session, &report)?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;
+
+        writeln!(out, "\n== 5. diagnose ==")?;
+        out.flush()?;
+        let t0 = Instant::now();
+        let d = self.diagnose(session, &dir.join("diagnosis"))?;
+        writeln!(out, "diagnosis took {:.1} s", t0.elapsed().as_secs_f64())?;
+
+        writeln!(out, "\n== 6. against the truth ==")?;
+        let names: Vec<String> = d
+            .final_fit
+            .effect_params
+            .iter()
+            .map(|p| p.name.clone())
+            .collect();
+        let check = self.truth_check(&robot, &d, &truth_for(&names)?);
+        write!(out, "{check}")?;
+        std::fs::create_dir_all(&report)
+            .with_context(|| format!("cannot create {}", report.display()))?;
+        let path = report.join("truth_check.json");
+        std::fs::write(&path, serde_json::to_string_pretty(&check.to_json())?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        let text = report.join("truth_check.txt");
+        std::fs::write(&text, check.to_string())
+            .with_context(|| format!("cannot write {}", text.display()))?;
+        writeln!(out, "wrote {} and {}", path.display(), text.display())?;
         let seconds = start.elapsed().as_secs_f64();
         let report = report.as_path();
         write!(
@@ -127,23 +247,115 @@ impl DemoCmd {
         Ok(plan)
     }
 
-    /// Starts the simulated board and AUBO controller, the arm at the
-    /// plan's first pose, and says so.
-    fn hardware(&self, robot: &Robot, plan: &Plan) -> anyhow::Result<SimRig> {
-        let mut config = SimRigConfig::drawn(robot.clone(), self.seed);
+    /// The twin: realistic (docs/model.md §4.8) unless `--ideal`, the truth
+    /// drawn from the priors, the arm waiting at the plan's first pose (a
+    /// real one is moved there first: `record` does that at half the
+    /// slowest joint's limits).
+    fn twin_config(&self, robot: &Robot, plan: &Plan) -> anyhow::Result<SimRigConfig> {
+        let mut config = if self.ideal {
+            SimRigConfig::drawn(robot.clone(), self.seed)
+        } else {
+            SimRigConfig::realistic(robot.clone(), self.seed)?
+        };
         config.clock_drift_ppm = self.drift_ppm;
-        // The arm waits at the plan's first pose (a real one is moved there
-        // first: `record` does that at half the slowest joint's limits).
         config.initial = plan.q[0];
-        let rig = SimRig::spawn(&config).context("cannot start the simulated hardware")?;
+        Ok(config)
+    }
+
+    /// The board's settings: the defaults at `--rate`.
+    fn sensor(&self) -> SensorConfig {
+        SensorConfig {
+            sample_rate_hz: self.rate,
+            ..SensorConfig::default()
+        }
+    }
+
+    /// Says what simulated hardware runs.
+    fn show_hardware(
+        &self,
+        config: &SimRigConfig,
+        imu_port: Option<&str>,
+        robot_addr: Option<String>,
+    ) -> anyhow::Result<()> {
+        let twin = if self.ideal {
+            "ideal (readings from the estimator's model at each firmware read, white noise Σ_z)"
+                .to_string()
+        } else {
+            let (phi, c) = robimu_hil::rig::REALISTIC_VIBRATION;
+            format!(
+                "realistic ({:?} chip: own ODR clocks and filters; accelerometer vibration noise AR(1) φ = {phi}, σ² + {c}‖q̈‖²; warm-up over {} s; joints 2, 3 elastic; {} Hz structural mode)",
+                config.chip,
+                robimu_hil::rig::REALISTIC_WARM_UP.time_constant_s,
+                config
+                    .arm_physics
+                    .as_ref()
+                    .and_then(|a| a.mode)
+                    .map_or(0.0, |m| m.frequency_hz)
+            )
+        };
         let hardware = DemoHardware {
-            imu_port: rig.imu_port(),
+            imu_port,
             drift_ppm: self.drift_ppm,
-            robot_addr: rig.robot_addr().to_string(),
+            robot_addr,
             seed: self.seed,
+            twin: &twin,
         };
         write!(std::io::stdout(), "{hardware}")?;
-        Ok(rig)
+        Ok(())
+    }
+
+    /// `robimu diagnose SESSION --out DIR` (noise model auto).
+    fn diagnose(&self, session: &Path, out: &Path) -> anyhow::Result<Diagnosis> {
+        super::diagnose::DiagnoseCmd {
+            session: session.to_path_buf(),
+            calibration: None,
+            out: Some(out.to_path_buf()),
+            alpha: 0.01,
+            mass_model: None,
+            candidates: Vec::new(),
+            resonance: Default::default(),
+            noise_model: "auto".into(),
+        }
+        .run_diagnosis()
+    }
+
+    /// Every estimated parameter of diagnose's final model against `truth`.
+    fn truth_check(
+        &self,
+        robot: &Robot,
+        d: &Diagnosis,
+        truth: &robimu_hil::truth::TwinTruth,
+    ) -> DemoTruthCheck {
+        let fit = &d.final_fit;
+        let layout = ParamLayout::new(robot);
+        let mut rows = Vec::new();
+        for (k, spec) in layout.specs().iter().enumerate() {
+            if let (Some(t), true) = (truth.get(&spec.name), fit.sigma_x[k] > 0.0) {
+                rows.push(TruthRow {
+                    name: spec.name.clone(),
+                    estimate: fit.x[k],
+                    sigma: fit.sigma_x[k],
+                    truth: t,
+                });
+            }
+        }
+        for (i, p) in fit.effect_params.iter().enumerate() {
+            if let Some(t) = truth.get(&p.name) {
+                rows.push(TruthRow {
+                    name: p.name.clone(),
+                    estimate: fit.theta_e[i],
+                    sigma: fit.sigma_e[i],
+                    truth: t,
+                });
+            }
+        }
+        DemoTruthCheck {
+            twin: if self.ideal { "ideal" } else { "realistic" }.into(),
+            effects: fit.effects.clone(),
+            rows,
+            not_comparable: truth.not_comparable.clone(),
+            limit: TRUTH_LIMIT,
+        }
     }
 
     /// Records the plan from `rig` into `session` as `robimu record` does,
@@ -175,7 +387,7 @@ impl DemoCmd {
             out: session.to_path_buf(),
             joint_rate: 125.0,
             rest: 1.0,
-            sensor: SensorConfig::default(),
+            sensor: self.sensor(),
             interrupt: None,
         };
         let summary = record_with_progress(&opts)?;

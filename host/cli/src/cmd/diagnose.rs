@@ -70,6 +70,11 @@ pub struct DiagnoseCmd {
 impl DiagnoseCmd {
     /// Diagnose, print and write.
     pub fn run(self) -> anyhow::Result<()> {
+        self.run_diagnosis().map(|_| ())
+    }
+
+    /// [`Self::run`], returning the diagnosis (for `robimu demo`).
+    pub fn run_diagnosis(self) -> anyhow::Result<Diagnosis> {
         let dir = &self.session;
         let (session, robot) = load_session(dir)?;
         if !(self.alpha > 0.0 && self.alpha < 1.0) {
@@ -148,7 +153,7 @@ impl DiagnoseCmd {
         for p in spectra_plot(&out_dir, &data, &d)? {
             writeln!(out, "wrote {}", p.display())?;
         }
-        Ok(())
+        Ok(d)
     }
 }
 
