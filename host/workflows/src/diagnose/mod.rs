@@ -63,12 +63,17 @@
 
 pub use crate::stats::{chi2_sf, ljung_box, ln_gamma, LJUNG_BOX_LAGS};
 
+mod ranking;
 mod residuals;
 mod score;
 
+pub use ranking::{determination, Alternative, Determination, MAX_ALIASING};
+
 pub use residuals::{
-    peak_p_value, residual_stats, welch, welch_segments, windowed_rms, ResidualStats,
+    peak_p_value, regressor_p_value, residual_stats, welch, welch_segments, windowed_rms,
+    ResidualStats,
 };
+use score::scores_at;
 pub use score::{score_all, Score};
 
 use serde::Serialize;
@@ -194,6 +199,37 @@ pub struct FoundEffect {
     pub baseline_moves: Vec<(String, f64, f64, f64)>,
     /// All scores of that round, best first.
     pub scores: Vec<Score>,
+    /// The other candidates of that round significant alone, each against
+    /// this one ([`Alternative`], docs/model.md §4.7).
+    pub alternatives: Vec<Alternative>,
+    /// Those the data cannot tell from this one.
+    pub ambiguous_with: Vec<String>,
+    /// ρ²_max of its parameters against the effects added before it
+    /// ([`Determination`]; 0 for the first).
+    pub aliasing: f64,
+}
+
+/// A candidate significant against the current model whose refit was not
+/// accepted: its parameters are not determined apart from the effects
+/// already added ([`Determination`], docs/model.md §4.7).
+#[derive(Debug, Clone, Serialize)]
+pub struct Rejected {
+    /// Effect name.
+    pub name: String,
+    /// Its score statistic at the fit it was tested against.
+    pub statistic: f64,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Score p-value.
+    pub p_value: f64,
+    /// LR statistic of its refit.
+    pub lr_statistic: f64,
+    /// ρ²_max against the effects already added.
+    pub aliasing: f64,
+    /// The effect it is most aliased with, and that ρ²_max.
+    pub aliased_with: Option<(String, f64)>,
+    /// Why, in words.
+    pub reason: String,
 }
 
 /// Largest AR order `Auto` identifies (see the module doc: an AR(1)
@@ -253,49 +289,61 @@ pub struct NoiseUse {
     pub warnings: Vec<String>,
 }
 
-/// A channel whose final residuals keep a narrow spectral peak: its Welch
-/// peak's [`peak_p_value`] is below [`UNEXPLAINED_ALPHA`]/6 (Bonferroni over
-/// the bins and the six channels).
+/// A channel whose final (prewhitened) residuals keep structure: a narrow
+/// spectral peak (its [`peak_p_value`] below [`UNEXPLAINED_ALPHA`]/6,
+/// Bonferroni over the bins and the six channels), or a correlation with a
+/// regressor (its [`regressor_p_value`] below [`UNEXPLAINED_ALPHA`]/6,
+/// Bonferroni over the regressors and the channels), or both.
 #[derive(Debug, Clone, Serialize)]
 pub struct Unexplained {
     /// Channel (`ax`…`gz`).
     pub channel: String,
-    /// Frequency of the peak, Hz.
+    /// Frequency of the channel's largest peak, Hz.
     pub frequency_hz: f64,
     /// Peak power over the channel's median.
     pub peak_ratio: f64,
     /// Its p-value (flat spectrum, Bonferroni over the bins).
     pub p_value: f64,
+    /// Whether the peak is significant.
+    pub narrow_peak: bool,
     /// The regressor the channel's residuals follow most, with r and z = r√N.
     pub regressor: String,
     /// Correlation with it.
     pub r: f64,
     /// r√N.
     pub z: f64,
+    /// Its p-value (Bonferroni over the regressors).
+    pub regressor_p_value: f64,
+    /// Whether the correlation is significant.
+    pub follows_regressor: bool,
 }
 
-/// Family-wise level of the unexplained-structure test over the channels.
+/// Family-wise level of the unexplained-structure tests over the channels.
 pub const UNEXPLAINED_ALPHA: f64 = 0.01;
 
-/// The channels of `s` with a significant narrow spectral peak.
+/// The channels of `s` with a significant narrow spectral peak or
+/// regressor correlation.
 pub fn unexplained(s: &ResidualStats) -> Vec<Unexplained> {
+    let level = UNEXPLAINED_ALPHA / CHANNELS.len() as f64;
     CHANNELS
         .iter()
         .filter_map(|&c| {
-            let p = *s.spectral_peak_p.get(c)?;
-            if p >= UNEXPLAINED_ALPHA / CHANNELS.len() as f64 {
-                return None;
-            }
-            let (frequency_hz, peak_ratio) = s.spectral_peak[c];
+            let p = s.spectral_peak_p.get(c).copied().unwrap_or(1.0);
+            let (frequency_hz, peak_ratio) = s.spectral_peak.get(c).copied().unwrap_or_default();
             let (regressor, r, z) = s.top_regressor.get(c).cloned().unwrap_or_default();
-            Some(Unexplained {
+            let regressor_p = regressor_p_value(z, s.regressors);
+            let (narrow_peak, follows_regressor) = (p < level, regressor_p < level);
+            (narrow_peak || follows_regressor).then(|| Unexplained {
                 channel: c.to_string(),
                 frequency_hz,
                 peak_ratio,
                 p_value: p,
+                narrow_peak,
                 regressor,
                 r,
                 z,
+                regressor_p_value: regressor_p,
+                follows_regressor,
             })
         })
         .collect()
@@ -320,6 +368,9 @@ pub struct Diagnosis {
     pub stats_after: ResidualStats,
     /// Channels of the final fit with structure no candidate explains.
     pub unexplained: Vec<Unexplained>,
+    /// Significant candidates not added (not determined apart from the
+    /// effects already in the model), in the order they were tried.
+    pub rejected: Vec<Rejected>,
     /// σ_z used (to display residuals in physical units).
     pub sigma_z: [f64; 6],
     /// The noise model (the baseline's in `baseline.noise`, the final one
@@ -361,6 +412,7 @@ impl Diagnosis {
             "residual_stats_before": self.stats_before,
             "residual_stats_after": self.stats_after,
             "unexplained": self.unexplained,
+            "rejected": self.rejected,
             "final_model": fit_json(layout, &self.final_fit),
         })
     }
@@ -391,22 +443,11 @@ pub fn identify_at(
     id_opts: &IdOptions,
 ) -> Result<Identification, String> {
     let layout = ParamLayout::new(robot);
-    let set = effect_set(setup, &at.effects).map_err(|e| e.to_string())?;
     let white = with_noise(opts, None);
-    let mut problem = Problem::new(
-        robot,
-        &layout,
-        data,
-        at.trajectory.knots().clone(),
-        at.x.clone(),
-        &white.problem_options(),
-        &set,
-    )
+    let res = with_problem_at(robot, data, &white, setup, &at.effects, at, |p, theta| {
+        Ok(p.imu_residuals(theta)?)
+    })
     .map_err(|e| e.to_string())?;
-    let mut theta = problem.theta(&at.trajectory, &at.x);
-    theta[..at.theta.len()].copy_from_slice(&at.theta);
-    problem.begin_iteration(&theta).map_err(|e| e.to_string())?;
-    let res = problem.imu_residuals(&theta).map_err(|e| e.to_string())?;
     let tau = at.x[layout.offsets().tau];
     let n = robot.dof();
     let mut js = JointState::default();
@@ -418,6 +459,35 @@ pub fn identify_at(
         qdd2.push(js.qdd[..n].iter().map(|a| a * a).sum());
     }
     identify(&t, &r, Some(&qdd2), id_opts).map_err(|e| e.to_string())
+}
+
+/// The problem of the baseline plus the `names` effects (`at`'s effects
+/// first, in its order) at the fit `at`: its knots, x and θ, the further
+/// effects' parameters at 0, the iteration begun there; `f` gets it and θ.
+pub(crate) fn with_problem_at<T>(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &CatalogueSetup,
+    names: &[String],
+    at: &Fit,
+    f: impl FnOnce(&mut Problem<'_>, &[f64]) -> Result<T, DiagnoseError>,
+) -> Result<T, DiagnoseError> {
+    let layout = ParamLayout::new(robot);
+    let set = effect_set(setup, names)?;
+    let mut problem = Problem::new(
+        robot,
+        &layout,
+        data,
+        at.trajectory.knots().clone(),
+        at.x.clone(),
+        &opts.problem_options(),
+        &set,
+    )?;
+    let mut theta = problem.theta(&at.trajectory, &at.x);
+    theta[..at.theta.len()].copy_from_slice(&at.theta);
+    problem.begin_iteration(&theta)?;
+    f(&mut problem, &theta)
 }
 
 /// The model an identification asks for (calibrate's rule): `None` (white)
@@ -551,13 +621,14 @@ pub fn diagnose(
     let (baseline, mut noise) = baseline_fit(robot, data, opts, setup, dopts, &mut progress)?;
     let auto = matches!(dopts.noise, NoiseChoice::Auto);
     let mut current = baseline.clone();
-    let mut found = Vec::new();
+    let mut found: Vec<FoundEffect> = Vec::new();
+    let mut rejected: Vec<Rejected> = Vec::new();
     let n_res = 6.0 * baseline.residuals.len() as f64;
     let last_scores = loop {
         let candidates: Vec<String> = dopts
             .candidates
             .iter()
-            .filter(|c| !current.effects.contains(c))
+            .filter(|c| !current.effects.contains(c) && !rejected.iter().any(|r| &r.name == *c))
             .cloned()
             .collect();
         if candidates.is_empty() || found.len() >= dopts.max_effects {
@@ -566,7 +637,7 @@ pub fn diagnose(
         // scores, refit and LR under the current fit's noise model
         let ropts = with_noise_of(opts, &current);
         progress("scoring the candidate effects");
-        let scores = score_all(robot, data, &ropts, setup, &current, &candidates)?;
+        let (base_q, scores) = scores_at(robot, data, &ropts, setup, &current, &candidates)?;
         let best = scores[0].clone();
         if best.p_value >= threshold {
             break scores;
@@ -580,6 +651,39 @@ pub fn diagnose(
         if lr_p >= threshold {
             break scores;
         }
+        // a follow-up must be determined apart from the effects already added
+        let det = match found.is_empty() {
+            true => None,
+            false => Some(determination(setup, &next)?),
+        };
+        if let Some(det) = det.as_ref().filter(|d| !d.determined()) {
+            let with = det.most_with.as_ref().map_or(String::new(), |(n, a)| {
+                format!(" (most with {n}: ρ² {a:.3})")
+            });
+            rejected.push(Rejected {
+                name: best.name.clone(),
+                statistic: best.statistic,
+                dof: best.dof,
+                p_value: best.p_value,
+                lr_statistic: lr,
+                aliasing: det.aliasing,
+                aliased_with: det.most_with.clone(),
+                reason: format!(
+                    "not determined apart from the effects already added: ρ²_max {:.3} > {MAX_ALIASING}{with}",
+                    det.aliasing
+                ),
+            });
+            continue;
+        }
+        let alternatives = ranking::alternatives(
+            robot, data, &ropts, setup, &current, base_q, &scores, threshold,
+        )?;
+        let ambiguous_with = alternatives
+            .iter()
+            .filter(|a| a.ambiguous)
+            .map(|a| a.name.clone())
+            .collect();
+        let aliasing = det.map_or(0.0, |d| d.aliasing);
         if auto {
             // the effect's signal was in the residuals the noise was
             // identified from: identify again without it
@@ -644,6 +748,9 @@ pub fn diagnose(
             parameters,
             baseline_moves,
             scores,
+            alternatives,
+            ambiguous_with,
+            aliasing,
         });
         current = next;
     };
@@ -651,6 +758,7 @@ pub fn diagnose(
     let stats_after = residual_stats(robot, data, setup, &current);
     Ok(Diagnosis {
         unexplained: unexplained(&stats_after),
+        rejected,
         baseline,
         final_fit: current,
         found,
