@@ -551,8 +551,13 @@ fn a_narrow_peak_left_by_the_noise_model_is_unexplained_structure() {
 
 /// A term in az proportional to the rate of joint 5 (1σ RMS, standardised
 /// q̇₅ along the true trajectory; in no catalogue effect's form) is
-/// reported as unexplained structure following `qd5` — a correlation with
-/// a regressor, not a spectral line — and no other channel is.
+/// reported as unexplained structure following `qd5` (a correlation with
+/// a regressor; being slow it also shows as a low-frequency peak), and no
+/// other channel is. The default noise choice takes much of it up as AR(1)
+/// noise and adds small effects that soak up part of it (bias_drift,
+/// size_effect, sensor_delay: not aliased with each other, so the
+/// determination rule does not stop them); the regressor test still
+/// finds it in the prewhitened residuals.
 #[test]
 fn a_regressor_no_effect_explains_is_unexplained_structure() {
     let (robot, mut s) = simulated(81, 40.0);
@@ -573,6 +578,12 @@ fn a_regressor_no_effect_explains_is_unexplained_structure() {
         z[2] += k * gi;
     }
     let (_, d) = diagnose_all(&robot, &s.data);
+    for f in &d.found {
+        println!(
+            "found {} (score {:.1}, {} dof; ρ² against the earlier effects {:.3})",
+            f.name, f.statistic, f.dof, f.aliasing
+        );
+    }
     println!(
         "found {:?}, unexplained {:?}",
         d.found.iter().map(|f| &f.name).collect::<Vec<_>>(),
@@ -586,7 +597,6 @@ fn a_regressor_no_effect_explains_is_unexplained_structure() {
         "{u:?}"
     );
     assert!(u.follows_regressor && u.regressor_p_value < 1e-10, "{u:?}");
-    assert!(!u.narrow_peak, "{u:?}");
 }
 
 #[test]
@@ -727,6 +737,8 @@ fn cli_simulate_effect_then_diagnose() {
         assert!(json[key]["gx"].is_number(), "{key}");
     }
     assert_eq!(json["final_model"]["effects"][0], "clock_drift");
+    assert!(first["ambiguous_with"].is_array() && first["alternatives"].is_array());
+    assert!(json["rejected"].is_array());
     // white noise: the final fit's noise model is white whatever the
     // effect's signal did to the baseline's identification
     assert!(stdout.contains("noise model: "), "{stdout}");
@@ -939,6 +951,12 @@ fn encoder_scale_on_one_joint_is_named_or_reported_ambiguous() {
                 "{pair}: {:?}",
                 f.alternatives
             );
+            let summary = robimu_report::diagnosis::DiagnosisSummary(&d).to_string();
+            let said = format!(
+                "1. missing effect: {} (ambiguous with encoder_scale: S(encoder_scale|{0}) = ",
+                f.name
+            );
+            assert!(summary.contains(&said), "{summary}");
         }
         assert_eq!(d.found.len(), 1, "also added {:?}", d.found);
     }
