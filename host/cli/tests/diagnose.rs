@@ -350,6 +350,10 @@ fn two_hidden_effects_are_both_found() {
             .collect();
         check_estimates(name, &params, &injected[k]);
     }
+    // the follow-up is determined apart from the first (ρ² against it)
+    println!("aliasing of the second: {:.3}", d.found[1].aliasing);
+    assert!(d.found[1].aliasing <= robimu_workflows::diagnose::MAX_ALIASING);
+    assert!(d.rejected.is_empty(), "{:?}", d.rejected);
     check_restored("two effects", &d.final_fit, &truth, &robot);
 }
 
@@ -557,7 +561,8 @@ fn a_narrow_peak_left_by_the_noise_model_is_unexplained_structure() {
 /// noise and adds small effects that soak up part of it (bias_drift,
 /// size_effect, sensor_delay: not aliased with each other, so the
 /// determination rule does not stop them); the regressor test still
-/// finds it in the prewhitened residuals.
+/// finds it in the prewhitened residuals. With the aliasing limit lowered
+/// below their ρ², the same session exercises the rejection path.
 #[test]
 fn a_regressor_no_effect_explains_is_unexplained_structure() {
     let (robot, mut s) = simulated(81, 40.0);
@@ -597,6 +602,42 @@ fn a_regressor_no_effect_explains_is_unexplained_structure() {
         "{u:?}"
     );
     assert!(u.follows_regressor && u.regressor_p_value < 1e-10, "{u:?}");
+    // the rejection path, with the aliasing limit lowered below the ρ² of
+    // those follow-ups: each is tried, rejected with its ρ², not retried
+    let strict = DiagnoseOptions {
+        max_aliasing: 0.05,
+        ..DiagnoseOptions::default()
+    };
+    let (_, d2) = diagnose_with(&robot, &s.data, &strict);
+    println!(
+        "ρ² ≤ 0.05: found {:?}, rejected {:?}",
+        d2.found
+            .iter()
+            .map(|f| (&f.name, f.aliasing))
+            .collect::<Vec<_>>(),
+        d2.rejected
+            .iter()
+            .map(|r| (&r.name, &r.reason))
+            .collect::<Vec<_>>()
+    );
+    assert_eq!(d2.found[0].name, d.found[0].name);
+    assert!(!d2.rejected.is_empty());
+    assert!(d2.found.len() < d.found.len());
+    for f in &d2.found[1..] {
+        assert!(f.aliasing <= 0.05, "{} ρ² {}", f.name, f.aliasing);
+    }
+    for r in &d2.rejected {
+        assert!(
+            r.aliasing > 0.05 && r.reason.contains("not determined"),
+            "{r:?}"
+        );
+        assert!(d2.found.iter().all(|f| f.name != r.name), "{r:?}");
+        let (with, a) = r.aliased_with.clone().unwrap();
+        assert!(
+            d2.found.iter().any(|f| f.name == with) && a <= r.aliasing + 1e-12,
+            "{r:?}"
+        );
+    }
 }
 
 #[test]

@@ -253,6 +253,9 @@ pub struct DiagnoseOptions {
     /// How `Auto` identifies the noise (largest AR order
     /// [`NOISE_MAX_ORDER`], …).
     pub noise_id: IdOptions,
+    /// Largest ρ² of a follow-up effect against the effects already added
+    /// ([`Determination`]; default [`MAX_ALIASING`]).
+    pub max_aliasing: f64,
 }
 
 impl Default for DiagnoseOptions {
@@ -267,6 +270,7 @@ impl Default for DiagnoseOptions {
                 max_order: NOISE_MAX_ORDER,
                 ..IdOptions::default()
             },
+            max_aliasing: MAX_ALIASING,
         }
     }
 }
@@ -656,7 +660,7 @@ pub fn diagnose(
             true => None,
             false => Some(determination(setup, &next)?),
         };
-        if let Some(det) = det.as_ref().filter(|d| !d.determined()) {
+        if let Some(det) = det.as_ref().filter(|d| d.aliasing > dopts.max_aliasing) {
             let with = det.most_with.as_ref().map_or(String::new(), |(n, a)| {
                 format!(" (most with {n}: ρ² {a:.3})")
             });
@@ -669,8 +673,8 @@ pub fn diagnose(
                 aliasing: det.aliasing,
                 aliased_with: det.most_with.clone(),
                 reason: format!(
-                    "not determined apart from the effects already added: ρ²_max {:.3} > {MAX_ALIASING}{with}",
-                    det.aliasing
+                    "not determined apart from the effects already added: ρ²_max {:.3} > {}{with}",
+                    det.aliasing, dopts.max_aliasing
                 ),
             });
             continue;

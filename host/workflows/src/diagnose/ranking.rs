@@ -128,13 +128,6 @@ pub struct Determination {
     pub most_with: Option<(String, f64)>,
 }
 
-impl Determination {
-    /// Whether the effect is determined (ρ²_max ≤ [`MAX_ALIASING`]).
-    pub fn determined(&self) -> bool {
-        self.aliasing <= MAX_ALIASING
-    }
-}
-
 /// The [`Determination`] of `f`'s last effect.
 pub fn determination(setup: &CatalogueSetup, f: &Fit) -> Result<Determination, DiagnoseError> {
     let na = f.active.len();
