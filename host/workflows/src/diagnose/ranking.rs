@@ -17,8 +17,8 @@
 //! significantly to the other (both conditional p ≥ the Bonferroni
 //! threshold): the data cannot tell a from b, either one alone explains
 //! what they explain together. `shared` = 1 − S(b|a)/S(b) is the fraction
-//! of b's score that a explains (1 − ρ² for one parameter each, ρ the
-//! correlation of their efficient scores).
+//! of b's score that a explains (for one parameter each and a signal of
+//! b's form, ρ² of their efficient scores' correlation ρ).
 //!
 //! **Determination.** A follow-up effect b (after at least one effect was
 //! added) must also be determined apart from the effects E already added:
@@ -234,7 +234,7 @@ mod tests {
             .collect();
         let info = Mat::from_fn(4, 4, |i, j| x.iter().map(|r| r[i] * r[j]).sum());
         let cov = inverse(&info).unwrap();
-        let got = aliasing(&info, &cov, &[2..3], &(3..4)).unwrap();
+        let got = aliasing(&info, &cov, std::slice::from_ref(&(2..3)), &(3..4)).unwrap();
         // reference: residuals of e and b on span(x0, x1), then corr²
         let mut basis: Vec<Vec<f64>> = Vec::new();
         for k in 0..2 {
