@@ -32,8 +32,8 @@
 //! default) fits the white baseline, tests its raw residuals' whiteness and,
 //! when they fail, identifies the noise from them ([`identify_at`]: Burg AR,
 //! order by BIC, motion level; calibrate's rule) and refits until the model
-//! settles (calibrate's [`settled`], at most [`MAX_REFITS`] refits; else
-//! the white fit with a warning). Every score, refit, LR and residual
+//! settles (calibrate's loop [`noise_choice::settle_noise`], at most
+//! [`noise_choice::MAX_REFITS`] refits; else the white fit with a warning). Every score, refit, LR and residual
 //! statistic then uses the prewhitened (GLS) residuals, so correlated
 //! samples are not counted as independent. The signal of a missing effect
 //! is in the residuals the noise is identified from; after each effect is
@@ -79,7 +79,7 @@ pub use score::{score_all, Score};
 use serde::Serialize;
 
 use super::calibrate::fit::{fit, Fit, FitSpec, Start};
-use super::calibrate::noise_choice::{settled, NoiseChoice, Settle, MAX_REFITS};
+use super::calibrate::noise_choice::{self, NoiseChoice, Settle};
 use super::calibrate::{choose_knots, noise_model_record, CalibrateError, CalibrateOptions};
 use crate::noise_id::{identify, IdOptions, Identification};
 use robimu_model::effects::resonance::Mode;
@@ -494,16 +494,9 @@ pub(crate) fn with_problem_at<T>(
     f(&mut problem, &theta)
 }
 
-/// The model an identification asks for (calibrate's rule): `None` (white)
-/// when every channel passes the whiteness test or no AR order or motion
-/// level is supported.
-fn wanted(id: &Identification) -> Option<NoiseModel> {
-    (!id.white.iter().all(|&w| w) && !id.model.is_white()).then(|| id.model.clone())
-}
-
 /// Refit `start` (same effects) with the noise identified from its
-/// residuals (`id`), identify again, until the model settles
-/// ([`settled`]) or [`MAX_REFITS`] refits: the settled fit and the refits
+/// residuals (`id`), identify again, until the model settles (calibrate's
+/// loop, [`noise_choice::settle_noise`]): the settled fit and the refits
 /// made, or why not.
 #[allow(clippy::too_many_arguments)]
 fn settle_noise(
@@ -512,39 +505,29 @@ fn settle_noise(
     opts: &CalibrateOptions,
     setup: &CatalogueSetup,
     start: &Fit,
-    mut id: Identification,
+    id: Identification,
     id_opts: &IdOptions,
     progress: &mut impl FnMut(&str),
 ) -> Result<(Fit, usize), String> {
-    let mut current = start.clone();
-    for k in 0..=MAX_REFITS {
-        let want = wanted(&id);
-        let same = match &want {
-            None => current.noise.is_white(),
-            Some(m) => !current.noise.is_white() && settled(m, &current.noise, &Settle::default()),
-        };
-        if same {
-            return Ok((current, k));
-        }
-        if k == MAX_REFITS {
-            break;
-        }
-        progress("refitting with the identified noise model");
-        current = fit_effects(
-            robot,
-            data,
-            &with_noise(opts, want),
-            setup,
-            &current.effects,
-            Start::Refit(&current),
-        )
-        .map_err(|e| format!("the refit with the identified noise failed ({e})"))?;
-        id = identify_at(robot, data, opts, setup, &current, id_opts)
-            .map_err(|e| format!("noise identification failed after refit {} ({e})", k + 1))?;
-    }
-    Err(format!(
-        "the identified noise model did not settle in {MAX_REFITS} refits"
-    ))
+    let s = noise_choice::settle_noise(
+        start.clone(),
+        id,
+        &Settle::default(),
+        |current, want| {
+            progress("refitting with the identified noise model");
+            fit_effects(
+                robot,
+                data,
+                &with_noise(opts, want),
+                setup,
+                &current.effects,
+                Start::Refit(current),
+            )
+            .map_err(|e| e.to_string())
+        },
+        |f| identify_at(robot, data, opts, setup, f, id_opts),
+    )?;
+    Ok((s.fit, s.refits))
 }
 
 /// The baseline fit under `dopts.noise` (see the module doc).
