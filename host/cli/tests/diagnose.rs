@@ -361,17 +361,25 @@ fn two_hidden_effects_are_both_found() {
             .collect();
         check_estimates(name, &params, &injected[k]);
     }
+    // the follow-up is determined apart from the first (ρ² against it)
+    println!("aliasing of the second: {:.3}", d.found[1].aliasing);
+    assert!(d.found[1].aliasing <= robimu_workflows::diagnose::MAX_ALIASING);
+    assert!(d.rejected.is_empty(), "{:?}", d.rejected);
     check_restored("two effects", &d.final_fit, &truth, &robot);
 }
 
 /// Sessions without any effect: at most one false alarm over 20 seeds at
-/// the family-wise α = 0.01 (expected 0.2).
+/// the family-wise α = 0.01 (expected 0.2), and at most one with
+/// unexplained structure (spectral peak or regressor, also α = 0.01).
 #[test]
 fn null_sessions_raise_at_most_one_false_alarm_in_twenty() {
-    let mut alarms = Vec::new();
+    let (mut alarms, mut unexplained) = (Vec::new(), Vec::new());
     for seed in 100..120 {
         let (robot, data, truth, _) = session_with(seed, 40.0, &[]);
         let (setup, d) = diagnose_all(&robot, &data);
+        if !d.unexplained.is_empty() {
+            unexplained.push((seed, d.unexplained.clone()));
+        }
         if let Some(f) = d.found.first() {
             alarms.push((seed, f.name.clone(), f.p_value));
         } else {
@@ -381,8 +389,12 @@ fn null_sessions_raise_at_most_one_false_alarm_in_twenty() {
             check_restored(&format!("null seed {seed}"), &d.final_fit, &truth, &robot);
         }
     }
-    println!("false alarms: {alarms:?}");
+    println!("false alarms: {alarms:?}; unexplained structure: {unexplained:?}");
     assert!(alarms.len() <= 1, "false alarms: {alarms:?}");
+    assert!(
+        unexplained.len() <= 1,
+        "unexplained structure: {unexplained:?}"
+    );
 }
 
 /// AR(1) accelerometer noise of correlation time `tau_ms` at the robot's
@@ -544,6 +556,93 @@ fn a_narrow_peak_left_by_the_noise_model_is_unexplained_structure() {
     assert!((u.frequency_hz - 17.0).abs() < 0.5, "{u:?}");
 }
 
+/// A term in az proportional to the rate of joint 5 (1σ RMS, standardised
+/// q̇₅ along the true trajectory; in no catalogue effect's form) is
+/// reported as unexplained structure following `qd5` (a correlation with
+/// a regressor; being slow it also shows as a low-frequency peak), and no
+/// other channel is. The default noise choice takes much of it up as AR(1)
+/// noise and adds small effects that soak up part of it (bias_drift,
+/// size_effect, sensor_delay: not aliased with each other, so the
+/// determination rule does not stop them); the regressor test still
+/// finds it in the prewhitened residuals. With the aliasing limit lowered
+/// below their ρ², the same session exercises the rejection path.
+#[test]
+fn a_regressor_no_effect_explains_is_unexplained_structure() {
+    let (robot, mut s) = simulated(81, 40.0);
+    let tau = s.truth[ParamLayout::new(&robot).offsets().tau];
+    let qd5: Vec<f64> = s
+        .data
+        .imu_t
+        .iter()
+        .map(|t| {
+            let mut js = JointState::default();
+            s.trajectory.evaluate_clamped(t + tau, &mut js);
+            js.qd[4]
+        })
+        .collect();
+    let g = standardised(&qd5);
+    let k = robot.sigma_z()[2];
+    for (z, gi) in s.data.imu_z.iter_mut().zip(&g) {
+        z[2] += k * gi;
+    }
+    let (_, d) = diagnose_all(&robot, &s.data);
+    for f in &d.found {
+        println!(
+            "found {} (score {:.1}, {} dof; ρ² against the earlier effects {:.3})",
+            f.name, f.statistic, f.dof, f.aliasing
+        );
+    }
+    println!(
+        "found {:?}, unexplained {:?}",
+        d.found.iter().map(|f| &f.name).collect::<Vec<_>>(),
+        d.unexplained
+    );
+    assert_eq!(d.unexplained.len(), 1, "{:?}", d.unexplained);
+    let u = &d.unexplained[0];
+    assert_eq!(
+        (u.channel.as_str(), u.regressor.as_str()),
+        ("az", "qd5"),
+        "{u:?}"
+    );
+    assert!(u.follows_regressor && u.regressor_p_value < 1e-10, "{u:?}");
+    // the rejection path, with the aliasing limit lowered below the ρ² of
+    // those follow-ups: each is tried, rejected with its ρ², not retried
+    let strict = DiagnoseOptions {
+        max_aliasing: 0.05,
+        ..DiagnoseOptions::default()
+    };
+    let (_, d2) = diagnose_with(&robot, &s.data, &strict);
+    println!(
+        "ρ² ≤ 0.05: found {:?}, rejected {:?}",
+        d2.found
+            .iter()
+            .map(|f| (&f.name, f.aliasing))
+            .collect::<Vec<_>>(),
+        d2.rejected
+            .iter()
+            .map(|r| (&r.name, &r.reason))
+            .collect::<Vec<_>>()
+    );
+    assert_eq!(d2.found[0].name, d.found[0].name);
+    assert!(!d2.rejected.is_empty());
+    assert!(d2.found.len() < d.found.len());
+    for f in &d2.found[1..] {
+        assert!(f.aliasing <= 0.05, "{} ρ² {}", f.name, f.aliasing);
+    }
+    for r in &d2.rejected {
+        assert!(
+            r.aliasing > 0.05 && r.reason.contains("not determined"),
+            "{r:?}"
+        );
+        assert!(d2.found.iter().all(|f| f.name != r.name), "{r:?}");
+        let (with, a) = r.aliased_with.clone().unwrap();
+        assert!(
+            d2.found.iter().any(|f| f.name == with) && a <= r.aliasing + 1e-12,
+            "{r:?}"
+        );
+    }
+}
+
 #[test]
 fn score_statistic_agrees_with_likelihood_ratio_for_a_small_effect() {
     let (robot, data, _) = session(31, Some(("clock_drift", 250.0)));
@@ -682,6 +781,8 @@ fn cli_simulate_effect_then_diagnose() {
         assert!(json[key]["gx"].is_number(), "{key}");
     }
     assert_eq!(json["final_model"]["effects"][0], "clock_drift");
+    assert!(first["ambiguous_with"].is_array() && first["alternatives"].is_array());
+    assert!(json["rejected"].is_array());
     // white noise: the final fit's noise model is white whatever the
     // effect's signal did to the baseline's identification
     assert!(stdout.contains("noise model: "), "{stdout}");
@@ -788,4 +889,120 @@ fn cli_diagnose_identifies_correlated_noise() {
     let o = robimu(&["diagnose", s, "--noise-model", "pink"]);
     assert!(!o.success());
     assert!(o.stderr.contains("not `white`, `auto`"), "{}", o.stderr);
+}
+
+/// A session of `duration` s (truth from the priors, τ = 0.05 s, white
+/// noise): a random walk with joint `joint` (0-based) replaced by a sweep
+/// of ±`amp_deg` about its mid-range of period `period` s, and the encoder
+/// scale error κ of that joint alone injected in its exact form.
+fn encoder_session(
+    seed: u64,
+    duration: f64,
+    (joint, amp_deg, period): (usize, f64, f64),
+    kappa: f64,
+) -> (Robot, Measurements) {
+    let robot = Robot::aubo_i5();
+    let opts = SimulateOptions::paper(&robot);
+    let layout = ParamLayout::new(&robot);
+    let s = random_session(&robot, duration, 1.0, &opts, seed).unwrap();
+    let mut truth = s.truth;
+    truth[layout.offsets().tau] = 0.05;
+    let n = robot.dof();
+    let mut trajectory = s.trajectory;
+    let m = trajectory.coeffs().len() / n;
+    let lim = &robot.limits()[joint];
+    let mid = 0.5 * (lim.q_min + lim.q_max);
+    for i in 0..m {
+        // coefficient i sits near t = i − 1 s (cubic, knots every 1 s)
+        let t = (i as f64 - 1.0).clamp(0.0, (m - 3) as f64);
+        trajectory.coeffs_mut()[i * n + joint] =
+            mid + amp_deg.to_radians() * (2.0 * std::f64::consts::PI * t / period).sin();
+    }
+    let mut data =
+        robimu_workflows::simulate::simulate(&robot, &layout, &truth, &trajectory, &opts, seed)
+            .unwrap();
+    let setup = setup_for(&robot, &data, None);
+    let e = effects::by_name(&setup, "encoder_scale").unwrap();
+    let mut theta = vec![0.0; n];
+    theta[joint] = kappa;
+    inject_effects(&robot, &truth, &trajectory, &mut data, &[(e, theta)]).unwrap();
+    (robot, data)
+}
+
+/// Issue 15's must-show: a gear-ratio error of 0.2 % on one joint is named
+/// first (encoder_scale), or the effect named is reported as ambiguous
+/// with encoder_scale — never another effect alone. On joint 2 (shoulder,
+/// swept ±60°) the gravity torque is nearly linear in q₂ over the sweep,
+/// so joint elasticity's c₂τ₂(q) reproduces κ₂q₂ (and their rates) almost
+/// exactly: the two must be reported ambiguous (neither conditional score
+/// S(b|a), S(a|b) significant). On joint 4 (wrist, swept ±150°) the
+/// torque is far from linear: encoder_scale must be named, and joint
+/// elasticity, though significant alone, must not be ambiguous with it
+/// (S(encoder_scale | joint_elasticity) significant).
+#[test]
+fn encoder_scale_on_one_joint_is_named_or_reported_ambiguous() {
+    let started = std::time::Instant::now();
+    for (sweep, seed, separable) in [((1, 60.0, 40.0), 71, false), ((3, 150.0, 40.0), 73, true)] {
+        let (robot, data) = encoder_session(seed, 90.0, sweep, 2e-3);
+        let (_, d) = diagnose_all(&robot, &data);
+        let f = d
+            .found
+            .first()
+            .unwrap_or_else(|| panic!("joint {}: nothing found: {:?}", sweep.0 + 1, d.last_scores));
+        println!(
+            "joint {}: found {:?}; first {} (score {:.1}, {} dof), ambiguous with {:?}",
+            sweep.0 + 1,
+            d.found.iter().map(|f| &f.name).collect::<Vec<_>>(),
+            f.name,
+            f.statistic,
+            f.dof,
+            f.ambiguous_with
+        );
+        for a in &f.alternatives {
+            println!(
+                "  alternative {}: S {:.1} ({} dof), S(b|a) {:.1} (p {:.2e}), S(a|b) {:.1} (p {:.2e}), shared {:.3}",
+                a.name, a.statistic, a.dof, a.given_winner, a.given_winner_p, a.winner_given_it, a.winner_given_it_p, a.shared
+            );
+        }
+        assert!(
+            f.name == "encoder_scale" || f.ambiguous_with.iter().any(|n| n == "encoder_scale"),
+            "joint {}: {} named alone (alternatives {:?})",
+            sweep.0 + 1,
+            f.name,
+            f.alternatives
+        );
+        let pair = if f.name == "encoder_scale" {
+            "joint_elasticity"
+        } else {
+            &f.name
+        };
+        let other = if f.name == "encoder_scale" {
+            "joint_elasticity"
+        } else {
+            "encoder_scale"
+        };
+        let alt = f.alternatives.iter().find(|a| a.name == other);
+        if separable {
+            assert_eq!(f.name, "encoder_scale");
+            let alt = alt.expect("joint elasticity significant alone");
+            assert!(
+                !alt.ambiguous && alt.winner_given_it_p < d.threshold,
+                "{alt:?}"
+            );
+        } else {
+            assert!(
+                alt.is_some_and(|a| a.ambiguous),
+                "{pair}: {:?}",
+                f.alternatives
+            );
+            let summary = robimu_report::diagnosis::DiagnosisSummary(&d).to_string();
+            let said = format!(
+                "1. missing effect: {} (ambiguous with encoder_scale: S(encoder_scale|{0}) = ",
+                f.name
+            );
+            assert!(summary.contains(&said), "{summary}");
+        }
+        assert_eq!(d.found.len(), 1, "also added {:?}", d.found);
+    }
+    println!("{:.1} s", started.elapsed().as_secs_f64());
 }

@@ -131,11 +131,33 @@ impl fmt::Display for DiagnosisSummary<'_> {
             )?;
         }
         for (k, f) in d.found.iter().enumerate() {
+            let ambiguous: Vec<String> = f
+                .alternatives
+                .iter()
+                .filter(|a| a.ambiguous)
+                .map(|a| {
+                    format!(
+                        "{}: S({b}|{a}) = {:.1}, p = {:.2e}; S({a}|{b}) = {:.1}, p = {:.2e}",
+                        a.name,
+                        a.given_winner,
+                        a.given_winner_p,
+                        a.winner_given_it,
+                        a.winner_given_it_p,
+                        a = f.name,
+                        b = a.name,
+                    )
+                })
+                .collect();
+            let name = if ambiguous.is_empty() {
+                f.name.clone()
+            } else {
+                format!("{} (ambiguous with {})", f.name, ambiguous.join("; "))
+            };
             writeln!(
             out,
             "\n{}. missing effect: {}  (score {:.1}, {} dof, p = {:.2e}; refit LR {:.1}, p = {:.2e}, dBIC {:.1})",
             k + 1,
-            f.name,
+            name,
             f.statistic,
             f.dof,
             f.p_value,
@@ -202,6 +224,13 @@ impl fmt::Display for DiagnosisSummary<'_> {
                 )?;
             }
         }
+        for r in &d.rejected {
+            writeln!(
+                out,
+                "\nnot added: {} (score {:.1}, {} dof, p = {:.2e}; refit LR {:.1}): {}",
+                r.name, r.statistic, r.dof, r.p_value, r.lr_statistic, r.reason
+            )?;
+        }
         let sz = d.sigma_z;
         let pb = physical_rms(&d.baseline.residual_rms(), &sz);
         let pa = physical_rms(&d.final_fit.residual_rms(), &sz);
@@ -247,21 +276,34 @@ impl fmt::Display for DiagnosisSummary<'_> {
             )?;
         }
         if !d.unexplained.is_empty() {
-            let peaks: Vec<String> = d
+            let items: Vec<String> = d
                 .unexplained
                 .iter()
                 .map(|u| {
-                    format!(
-                        "{} at {:.2} Hz ({:.1}× median power, p = {:.1e}; follows {}, r = {:+.3})",
-                        u.channel, u.frequency_hz, u.peak_ratio, u.p_value, u.regressor, u.r
-                    )
+                    let mut parts = Vec::new();
+                    if u.narrow_peak {
+                        parts.push(format!(
+                            "narrow peak at {:.2} Hz ({:.1}× median power, p = {:.1e})",
+                            u.frequency_hz, u.peak_ratio, u.p_value
+                        ));
+                    }
+                    let p = if u.follows_regressor {
+                        format!(", p = {:.1e}", u.regressor_p_value)
+                    } else {
+                        String::new()
+                    };
+                    parts.push(format!(
+                        "follows {} (r = {:+.3}, z = {:.1}{p})",
+                        u.regressor, u.r, u.z
+                    ));
+                    format!("{} {}", u.channel, parts.join("; "))
                 })
                 .collect();
             writeln!(
                 out,
-                "unexplained structure (a narrow spectral peak the noise model does not capture, p < {:.1e} against a flat spectrum): {}",
+                "unexplained structure (a narrow spectral peak the noise model does not capture, or a correlation with a regressor no effect explains; p < {:.1e} each): {}",
                 UNEXPLAINED_ALPHA / CHANNELS.len() as f64,
-                peaks.join("; ")
+                items.join("; ")
             )?;
         }
         Ok(())

@@ -13,16 +13,18 @@
 //! settles (every channel's order unchanged, φ within
 //! [`SETTLE_PHI`] and σ within [`SETTLE_SIGMA`] relative) or
 //! [`MAX_REFITS`] refits ([`Settle`]); each refit starts from the
-//! previous fit. A model that does not settle, or a refit that
+//! previous fit, and one whose residuals pass the whiteness test asks for
+//! white noise again ([`wanted`]). A model that does not settle, or a refit that
 //! fails, leaves the white result, with a warning (never an error where the
-//! white fit succeeded).
+//! white fit succeeded). The loop ([`settle_noise`]) is the one diagnose
+//! runs after each effect it adds.
 
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
-use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
+use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot, Spline};
 use robimu_solver::IterationRecord;
 
-use super::fit::{fit, FitSpec, Start};
+use super::fit::{fit, Fit, FitSpec, Start};
 use super::{calibrate, calibration_of, CalibrateError, CalibrateOptions, Calibration};
 use crate::noise_id::{identify, IdOptions, Identification};
 
@@ -140,60 +142,108 @@ pub fn calibrate_with_noise_settle(
             return Ok((white, outcome));
         }
     };
-    let passes = first.white.iter().all(|&w| w);
-    // Failing the test but with no order or motion level that BIC or the
-    // level's t test supports, the white model is the identified one.
-    let nothing_to_model = first.model.is_white();
     outcome.white_test = Some(first.clone());
-    if passes || nothing_to_model {
-        return Ok((white, outcome));
-    }
-    let mut current = first;
-    let mut previous = white_fit;
-    for k in 1..=settle.max_refits {
-        let mut gls_opts = with(Some(current.model.clone()));
-        gls_opts.lm.gradient_tolerance = gls_opts.lm.gradient_tolerance.max(REFIT_GRADIENT);
-        let spec = FitSpec {
-            start: Start::Refit(&previous),
-            ..FitSpec::baseline(robot, data)
-        };
-        let refit = fit(&spec, &gls_opts, &mut report).and_then(|f| {
-            let mut cal = calibration_of(robot, &gls_opts, &f)?;
+    let gls = |m: Option<NoiseModel>| {
+        let mut o = with(m);
+        o.lm.gradient_tolerance = o.lm.gradient_tolerance.max(REFIT_GRADIENT);
+        o
+    };
+    let refits = std::cell::Cell::new(0);
+    let settledfit = settle_noise(
+        white_fit,
+        first,
+        settle,
+        |previous, m| {
+            refits.set(refits.get() + 1);
+            let spec = FitSpec {
+                start: Start::Refit(previous),
+                ..FitSpec::baseline(robot, data)
+            };
+            fit(&spec, &gls(m), &mut report).map_err(|e| e.to_string())
+        },
+        |f| identification_of(robot, data, &f.x, &f.trajectory, &id_opts),
+    );
+    outcome.refits = refits.get();
+    match settledfit {
+        Ok(s) if s.refits == 0 => Ok((white, outcome)),
+        Ok(s) => {
+            let model = (!s.fit.noise.is_white()).then(|| s.fit.noise.clone());
+            let mut cal = calibration_of(robot, &gls(model), &s.fit)?;
             cal.tau_initial = white.tau_initial;
-            Ok((f, cal))
-        });
-        let (f, cal) = match refit {
-            Ok(r) => r,
-            Err(e) => {
-                outcome.warning = Some(format!(
-                    "the refit with the identified noise failed ({e}); white noise kept"
-                ));
-                return Ok((white, outcome));
-            }
-        };
-        outcome.refits = k;
-        let next = match residual_identification(robot, data, &cal, &id_opts) {
-            Ok(id) => id,
-            Err(e) => {
-                outcome.warning = Some(format!(
-                    "noise identification failed after refit {k} ({e}); white noise kept"
-                ));
-                return Ok((white, outcome));
-            }
-        };
-        if settled(&current.model, &next.model, settle) {
-            outcome.identified = Some(current);
-            return Ok((cal, outcome));
+            outcome.identified = s.used;
+            Ok((cal, outcome))
         }
-        current = next;
-        previous = f;
+        Err(e) => {
+            let kept = if e.starts_with("the identified noise model did not settle") {
+                "the white-noise result is kept and its σ are too small where the residuals are correlated"
+            } else {
+                "white noise kept"
+            };
+            outcome.warning = Some(format!("{e}; {kept}"));
+            Ok((white, outcome))
+        }
     }
-    outcome.warning = Some(format!(
-        "the identified noise model did not settle in {} refits; the white-noise \
-         result is kept and its σ are too small where the residuals are correlated",
+}
+
+/// The model an identification asks for: `None` (white) when every
+/// channel passes the whiteness test or no AR order or motion level is
+/// supported.
+pub fn wanted(id: &Identification) -> Option<NoiseModel> {
+    (!id.white.iter().all(|&w| w) && !id.model.is_white()).then(|| id.model.clone())
+}
+
+/// The outcome of [`settle_noise`].
+#[derive(Debug, Clone)]
+pub struct Settled {
+    /// The settled fit (`start` itself when no refit was needed).
+    pub fit: Fit,
+    /// Refits made.
+    pub refits: usize,
+    /// The identification whose model the fit used (none without refit).
+    pub used: Option<Identification>,
+}
+
+/// The one settle loop of `Auto` (calibrate's, diagnose's after each
+/// effect): from the fit `start` and the identification `id` from its
+/// residuals, refit (`refit(previous, model)`, `None` for white) with the
+/// model [`wanted`] asks for and identify again (`identify`), until the
+/// wanted model is the one the fit used ([`settled`], or both white) or
+/// `settle.max_refits` refits; else why not.
+pub fn settle_noise(
+    start: Fit,
+    mut id: Identification,
+    settle: &Settle,
+    mut refit: impl FnMut(&Fit, Option<NoiseModel>) -> Result<Fit, String>,
+    mut identify: impl FnMut(&Fit) -> Result<Identification, String>,
+) -> Result<Settled, String> {
+    let mut current = start;
+    let mut used = None;
+    for k in 0..=settle.max_refits {
+        let want = wanted(&id);
+        let same = match &want {
+            None => current.noise.is_white(),
+            Some(m) => !current.noise.is_white() && settled(m, &current.noise, settle),
+        };
+        if same {
+            return Ok(Settled {
+                fit: current,
+                refits: k,
+                used,
+            });
+        }
+        if k == settle.max_refits {
+            break;
+        }
+        current = refit(&current, want)
+            .map_err(|e| format!("the refit with the identified noise failed ({e})"))?;
+        used = Some(id);
+        id = identify(&current)
+            .map_err(|e| format!("noise identification failed after refit {} ({e})", k + 1))?;
+    }
+    Err(format!(
+        "the identified noise model did not settle in {} refits",
         settle.max_refits
-    ));
-    Ok((white, outcome))
+    ))
 }
 
 /// Whether two identified models agree (same orders, φ within
@@ -216,14 +266,25 @@ pub fn residual_identification(
     cal: &Calibration,
     opts: &IdOptions,
 ) -> Result<Identification, String> {
+    identification_of(robot, data, &cal.x, &cal.trajectory, opts)
+}
+
+/// [`residual_identification`] at `x` and the joint trajectory `trajectory`.
+fn identification_of(
+    robot: &Robot,
+    data: &Measurements,
+    x: &[f64],
+    trajectory: &Spline,
+    opts: &IdOptions,
+) -> Result<Identification, String> {
     let layout = ParamLayout::new(robot);
-    let model = MeasurementModel::new(robot, &layout, &cal.x).map_err(|e| e.to_string())?;
-    let tau = cal.x[layout.offsets().tau];
+    let model = MeasurementModel::new(robot, &layout, x).map_err(|e| e.to_string())?;
+    let tau = x[layout.offsets().tau];
     let n = robot.dof();
     let (mut t, mut r, mut qdd2) = (Vec::new(), Vec::new(), Vec::new());
     let mut js = JointState::default();
     for (&ti, z) in data.imu_t.iter().zip(&data.imu_z) {
-        if cal.trajectory.evaluate(ti + tau, &mut js).is_err() {
+        if trajectory.evaluate(ti + tau, &mut js).is_err() {
             continue;
         }
         let pred = model.predict(&js);

@@ -32,8 +32,8 @@
 //! default) fits the white baseline, tests its raw residuals' whiteness and,
 //! when they fail, identifies the noise from them ([`identify_at`]: Burg AR,
 //! order by BIC, motion level; calibrate's rule) and refits until the model
-//! settles (calibrate's [`settled`], at most [`MAX_REFITS`] refits; else
-//! the white fit with a warning). Every score, refit, LR and residual
+//! settles (calibrate's loop [`noise_choice::settle_noise`], at most
+//! [`noise_choice::MAX_REFITS`] refits; else the white fit with a warning). Every score, refit, LR and residual
 //! statistic then uses the prewhitened (GLS) residuals, so correlated
 //! samples are not counted as independent. The signal of a missing effect
 //! is in the residuals the noise is identified from; after each effect is
@@ -63,19 +63,24 @@
 
 pub use crate::stats::{chi2_sf, ljung_box, ln_gamma, LJUNG_BOX_LAGS};
 
+mod ranking;
 mod residuals;
 pub mod resolution;
 mod score;
 
+pub use ranking::{determination, Alternative, Determination, MAX_ALIASING};
+
 pub use residuals::{
-    peak_p_value, residual_stats, welch, welch_segments, windowed_rms, ResidualStats,
+    peak_p_value, regressor_p_value, residual_stats, welch, welch_segments, windowed_rms,
+    ResidualStats,
 };
+use score::scores_at;
 pub use score::{score_all, Score};
 
 use serde::Serialize;
 
 use super::calibrate::fit::{fit, Fit, FitSpec, Start};
-use super::calibrate::noise_choice::{settled, NoiseChoice, Settle, MAX_REFITS};
+use super::calibrate::noise_choice::{self, NoiseChoice, Settle};
 use super::calibrate::{choose_knots, noise_model_record, CalibrateError, CalibrateOptions};
 use crate::noise_id::{identify, IdOptions, Identification};
 use robimu_model::effects::resonance::Mode;
@@ -205,6 +210,37 @@ pub struct FoundEffect {
     /// from the data ([`resolution`]); its score is `statistic`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub resolution: Option<resolution::ResolutionChoice>,
+    /// The other candidates of that round significant alone, each against
+    /// this one ([`Alternative`], docs/model.md §4.9).
+    pub alternatives: Vec<Alternative>,
+    /// Those the data cannot tell from this one.
+    pub ambiguous_with: Vec<String>,
+    /// ρ²_max of its parameters against the effects added before it
+    /// ([`Determination`]; 0 for the first).
+    pub aliasing: f64,
+}
+
+/// A candidate significant against the current model whose refit was not
+/// accepted: its parameters are not determined apart from the effects
+/// already added ([`Determination`], docs/model.md §4.9).
+#[derive(Debug, Clone, Serialize)]
+pub struct Rejected {
+    /// Effect name.
+    pub name: String,
+    /// Its score statistic at the fit it was tested against.
+    pub statistic: f64,
+    /// Degrees of freedom.
+    pub dof: usize,
+    /// Score p-value.
+    pub p_value: f64,
+    /// LR statistic of its refit.
+    pub lr_statistic: f64,
+    /// ρ²_max against the effects already added.
+    pub aliasing: f64,
+    /// The effect it is most aliased with, and that ρ²_max.
+    pub aliased_with: Option<(String, f64)>,
+    /// Why, in words.
+    pub reason: String,
 }
 
 /// Largest AR order `Auto` identifies (see the module doc: an AR(1)
@@ -230,6 +266,9 @@ pub struct DiagnoseOptions {
     /// How `Auto` identifies the noise (largest AR order
     /// [`NOISE_MAX_ORDER`], …).
     pub noise_id: IdOptions,
+    /// Largest ρ² of a follow-up effect against the effects already added
+    /// ([`Determination`]; default [`MAX_ALIASING`]).
+    pub max_aliasing: f64,
 }
 
 impl Default for DiagnoseOptions {
@@ -244,6 +283,7 @@ impl Default for DiagnoseOptions {
                 max_order: NOISE_MAX_ORDER,
                 ..IdOptions::default()
             },
+            max_aliasing: MAX_ALIASING,
         }
     }
 }
@@ -266,49 +306,61 @@ pub struct NoiseUse {
     pub warnings: Vec<String>,
 }
 
-/// A channel whose final residuals keep a narrow spectral peak: its Welch
-/// peak's [`peak_p_value`] is below [`UNEXPLAINED_ALPHA`]/6 (Bonferroni over
-/// the bins and the six channels).
+/// A channel whose final (prewhitened) residuals keep structure: a narrow
+/// spectral peak (its [`peak_p_value`] below [`UNEXPLAINED_ALPHA`]/6,
+/// Bonferroni over the bins and the six channels), or a correlation with a
+/// regressor (its [`regressor_p_value`] below [`UNEXPLAINED_ALPHA`]/6,
+/// Bonferroni over the regressors and the channels), or both.
 #[derive(Debug, Clone, Serialize)]
 pub struct Unexplained {
     /// Channel (`ax`…`gz`).
     pub channel: String,
-    /// Frequency of the peak, Hz.
+    /// Frequency of the channel's largest peak, Hz.
     pub frequency_hz: f64,
     /// Peak power over the channel's median.
     pub peak_ratio: f64,
     /// Its p-value (flat spectrum, Bonferroni over the bins).
     pub p_value: f64,
+    /// Whether the peak is significant.
+    pub narrow_peak: bool,
     /// The regressor the channel's residuals follow most, with r and z = r√N.
     pub regressor: String,
     /// Correlation with it.
     pub r: f64,
     /// r√N.
     pub z: f64,
+    /// Its p-value (Bonferroni over the regressors).
+    pub regressor_p_value: f64,
+    /// Whether the correlation is significant.
+    pub follows_regressor: bool,
 }
 
-/// Family-wise level of the unexplained-structure test over the channels.
+/// Family-wise level of the unexplained-structure tests over the channels.
 pub const UNEXPLAINED_ALPHA: f64 = 0.01;
 
-/// The channels of `s` with a significant narrow spectral peak.
+/// The channels of `s` with a significant narrow spectral peak or
+/// regressor correlation.
 pub fn unexplained(s: &ResidualStats) -> Vec<Unexplained> {
+    let level = UNEXPLAINED_ALPHA / CHANNELS.len() as f64;
     CHANNELS
         .iter()
         .filter_map(|&c| {
-            let p = *s.spectral_peak_p.get(c)?;
-            if p >= UNEXPLAINED_ALPHA / CHANNELS.len() as f64 {
-                return None;
-            }
-            let (frequency_hz, peak_ratio) = s.spectral_peak[c];
+            let p = s.spectral_peak_p.get(c).copied().unwrap_or(1.0);
+            let (frequency_hz, peak_ratio) = s.spectral_peak.get(c).copied().unwrap_or_default();
             let (regressor, r, z) = s.top_regressor.get(c).cloned().unwrap_or_default();
-            Some(Unexplained {
+            let regressor_p = regressor_p_value(z, s.regressors);
+            let (narrow_peak, follows_regressor) = (p < level, regressor_p < level);
+            (narrow_peak || follows_regressor).then(|| Unexplained {
                 channel: c.to_string(),
                 frequency_hz,
                 peak_ratio,
                 p_value: p,
+                narrow_peak,
                 regressor,
                 r,
                 z,
+                regressor_p_value: regressor_p,
+                follows_regressor,
             })
         })
         .collect()
@@ -333,6 +385,9 @@ pub struct Diagnosis {
     pub stats_after: ResidualStats,
     /// Channels of the final fit with structure no candidate explains.
     pub unexplained: Vec<Unexplained>,
+    /// Significant candidates not added (not determined apart from the
+    /// effects already in the model), in the order they were tried.
+    pub rejected: Vec<Rejected>,
     /// σ_z used (to display residuals in physical units).
     pub sigma_z: [f64; 6],
     /// The noise model (the baseline's in `baseline.noise`, the final one
@@ -386,6 +441,7 @@ impl Diagnosis {
             "residual_stats_before": self.stats_before,
             "residual_stats_after": self.stats_after,
             "unexplained": self.unexplained,
+            "rejected": self.rejected,
             "final_model": fit_json(layout, &self.final_fit),
         })
     }
@@ -416,22 +472,11 @@ pub fn identify_at(
     id_opts: &IdOptions,
 ) -> Result<Identification, String> {
     let layout = ParamLayout::new(robot);
-    let set = effect_set(setup, &at.effects).map_err(|e| e.to_string())?;
     let white = with_noise(opts, None);
-    let mut problem = Problem::new(
-        robot,
-        &layout,
-        data,
-        at.trajectory.knots().clone(),
-        at.x.clone(),
-        &white.problem_options(),
-        &set,
-    )
+    let res = with_problem_at(robot, data, &white, setup, &at.effects, at, |p, theta| {
+        Ok(p.imu_residuals(theta)?)
+    })
     .map_err(|e| e.to_string())?;
-    let mut theta = problem.theta(&at.trajectory, &at.x);
-    theta[..at.theta.len()].copy_from_slice(&at.theta);
-    problem.begin_iteration(&theta).map_err(|e| e.to_string())?;
-    let res = problem.imu_residuals(&theta).map_err(|e| e.to_string())?;
     let tau = at.x[layout.offsets().tau];
     let n = robot.dof();
     let mut js = JointState::default();
@@ -445,16 +490,38 @@ pub fn identify_at(
     identify(&t, &r, Some(&qdd2), id_opts).map_err(|e| e.to_string())
 }
 
-/// The model an identification asks for (calibrate's rule): `None` (white)
-/// when every channel passes the whiteness test or no AR order or motion
-/// level is supported.
-fn wanted(id: &Identification) -> Option<NoiseModel> {
-    (!id.white.iter().all(|&w| w) && !id.model.is_white()).then(|| id.model.clone())
+/// The problem of the baseline plus the `names` effects (`at`'s effects
+/// first, in its order) at the fit `at`: its knots, x and θ, the further
+/// effects' parameters at 0, the iteration begun there; `f` gets it and θ.
+pub(crate) fn with_problem_at<T>(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &CatalogueSetup,
+    names: &[String],
+    at: &Fit,
+    f: impl FnOnce(&mut Problem<'_>, &[f64]) -> Result<T, DiagnoseError>,
+) -> Result<T, DiagnoseError> {
+    let layout = ParamLayout::new(robot);
+    let set = effect_set(setup, names)?;
+    let mut problem = Problem::new(
+        robot,
+        &layout,
+        data,
+        at.trajectory.knots().clone(),
+        at.x.clone(),
+        &opts.problem_options(),
+        &set,
+    )?;
+    let mut theta = problem.theta(&at.trajectory, &at.x);
+    theta[..at.theta.len()].copy_from_slice(&at.theta);
+    problem.begin_iteration(&theta)?;
+    f(&mut problem, &theta)
 }
 
 /// Refit `start` (same effects) with the noise identified from its
-/// residuals (`id`), identify again, until the model settles
-/// ([`settled`]) or [`MAX_REFITS`] refits: the settled fit and the refits
+/// residuals (`id`), identify again, until the model settles (calibrate's
+/// loop, [`noise_choice::settle_noise`]): the settled fit and the refits
 /// made, or why not.
 #[allow(clippy::too_many_arguments)]
 fn settle_noise(
@@ -463,39 +530,29 @@ fn settle_noise(
     opts: &CalibrateOptions,
     setup: &CatalogueSetup,
     start: &Fit,
-    mut id: Identification,
+    id: Identification,
     id_opts: &IdOptions,
     progress: &mut impl FnMut(&str),
 ) -> Result<(Fit, usize), String> {
-    let mut current = start.clone();
-    for k in 0..=MAX_REFITS {
-        let want = wanted(&id);
-        let same = match &want {
-            None => current.noise.is_white(),
-            Some(m) => !current.noise.is_white() && settled(m, &current.noise, &Settle::default()),
-        };
-        if same {
-            return Ok((current, k));
-        }
-        if k == MAX_REFITS {
-            break;
-        }
-        progress("refitting with the identified noise model");
-        current = fit_effects(
-            robot,
-            data,
-            &with_noise(opts, want),
-            setup,
-            &current.effects,
-            Start::Refit(&current),
-        )
-        .map_err(|e| format!("the refit with the identified noise failed ({e})"))?;
-        id = identify_at(robot, data, opts, setup, &current, id_opts)
-            .map_err(|e| format!("noise identification failed after refit {} ({e})", k + 1))?;
-    }
-    Err(format!(
-        "the identified noise model did not settle in {MAX_REFITS} refits"
-    ))
+    let s = noise_choice::settle_noise(
+        start.clone(),
+        id,
+        &Settle::default(),
+        |current, want| {
+            progress("refitting with the identified noise model");
+            fit_effects(
+                robot,
+                data,
+                &with_noise(opts, want),
+                setup,
+                &current.effects,
+                Start::Refit(current),
+            )
+            .map_err(|e| e.to_string())
+        },
+        |f| identify_at(robot, data, opts, setup, f, id_opts),
+    )?;
+    Ok((s.fit, s.refits))
 }
 
 /// The baseline fit under `dopts.noise` (see the module doc).
@@ -588,12 +645,13 @@ pub fn diagnose(
     let (baseline, mut noise) = baseline_fit(robot, data, opts, setup, dopts, &mut progress)?;
     let auto = matches!(dopts.noise, NoiseChoice::Auto);
     let mut current = baseline.clone();
-    let mut found = Vec::new();
+    let mut found: Vec<FoundEffect> = Vec::new();
+    let mut rejected: Vec<Rejected> = Vec::new();
     let n_res = 6.0 * baseline.residuals.len() as f64;
     let last_scores = loop {
         let candidates: Vec<String> = offered
             .iter()
-            .filter(|c| !current.effects.contains(c))
+            .filter(|c| !current.effects.contains(c) && !rejected.iter().any(|r| &r.name == *c))
             .cloned()
             .collect();
         if candidates.is_empty() || found.len() >= dopts.max_effects {
@@ -602,7 +660,7 @@ pub fn diagnose(
         // scores, refit and LR under the current fit's noise model
         let ropts = with_noise_of(opts, &current);
         progress("scoring the candidate effects");
-        let scores = score_all(robot, data, &ropts, setup, &current, &candidates)?;
+        let (base_q, scores) = scores_at(robot, data, &ropts, setup, &current, &candidates)?;
         let mut best = scores[0].clone();
         if best.p_value >= threshold {
             break scores;
@@ -626,6 +684,42 @@ pub fn diagnose(
         if lr_p >= threshold {
             break scores;
         }
+        // a follow-up must be determined apart from the effects already added
+        let det = match found.is_empty() {
+            true => None,
+            false => Some(determination(setup, &next)?),
+        };
+        if let Some(det) = det.as_ref().filter(|d| d.aliasing > dopts.max_aliasing) {
+            let with = det.most_with.as_ref().map_or(String::new(), |(n, a)| {
+                format!(" (most with {n}: ρ² {a:.3})")
+            });
+            rejected.push(Rejected {
+                name: best.name.clone(),
+                statistic: best.statistic,
+                dof: best.dof,
+                p_value: best.p_value,
+                lr_statistic: lr,
+                aliasing: det.aliasing,
+                aliased_with: det.most_with.clone(),
+                reason: format!(
+                    "not determined apart from the effects already added: ρ²_max {:.3} > {}{with}",
+                    det.aliasing, dopts.max_aliasing
+                ),
+            });
+            continue;
+        }
+        // the winner at its chosen resolution (the setup has it now)
+        let mut ranked = scores.clone();
+        ranked[0] = best.clone();
+        let alternatives = ranking::alternatives(
+            robot, data, &ropts, setup, &current, base_q, &ranked, threshold,
+        )?;
+        let ambiguous_with = alternatives
+            .iter()
+            .filter(|a| a.ambiguous)
+            .map(|a| a.name.clone())
+            .collect();
+        let aliasing = det.map_or(0.0, |d| d.aliasing);
         if auto {
             // the effect's signal was in the residuals the noise was
             // identified from: identify again without it
@@ -691,6 +785,9 @@ pub fn diagnose(
             baseline_moves,
             scores,
             resolution,
+            alternatives,
+            ambiguous_with,
+            aliasing,
         });
         current = next;
     };
@@ -698,6 +795,7 @@ pub fn diagnose(
     let stats_after = residual_stats(robot, data, setup, &current);
     Ok(Diagnosis {
         unexplained: unexplained(&stats_after),
+        rejected,
         baseline,
         final_fit: current,
         found,

@@ -37,6 +37,19 @@ pub struct ResidualStats {
     pub worst_window: BTreeMap<String, (f64, f64)>,
     /// Per channel: the regressor with the largest |correlation| (name, r, z = r√N).
     pub top_regressor: BTreeMap<String, (String, f64, f64)>,
+    /// How many regressors were searched (the Bonferroni factor of
+    /// [`regressor_p_value`]).
+    pub regressors: usize,
+}
+
+/// P-value of the largest |z| = |r|√N among `regressors` correlations of
+/// white residuals with fixed series: each z ~ N(0, 1) under H0, so
+/// P(|z| > z₀) = P(χ²₁ > z₀²), Bonferroni over the regressors.
+pub fn regressor_p_value(z: f64, regressors: usize) -> f64 {
+    if !z.is_finite() {
+        return 1.0;
+    }
+    (regressors.max(1) as f64 * chi2_sf(z * z, 1.0)).min(1.0)
 }
 
 /// Welch segment length (samples).
@@ -130,6 +143,7 @@ pub fn residual_stats(
         spectral_peak_p: BTreeMap::new(),
         worst_window: BTreeMap::new(),
         top_regressor: BTreeMap::new(),
+        regressors: reg_names.len(),
     };
     for (c, name) in CHANNELS.iter().enumerate() {
         let r: Vec<f64> = res.iter().map(|(_, v)| v[c]).collect();

@@ -3,18 +3,16 @@
 
 use serde::Serialize;
 
-use super::{effect_set, DiagnoseError};
+use super::{with_problem_at, DiagnoseError};
 use crate::calibrate::fit::Fit;
 use crate::calibrate::CalibrateOptions;
 use crate::stats::chi2_sf;
 use robimu_model::effects::{self, CatalogueSetup};
 use robimu_model::observations::Measurements;
-use robimu_model::{ParamLayout, Robot};
-use robimu_solver::problem::Problem;
-use robimu_solver::LeastSquares;
+use robimu_model::Robot;
 
-/// gᵀ A⁻¹ g of the problem with `names` effects at θ.
-fn quadratic_score(
+/// gᵀ A⁻¹ g of the problem with `names` effects at the fit `at`.
+pub(super) fn quadratic_score(
     robot: &Robot,
     data: &Measurements,
     opts: &CalibrateOptions,
@@ -22,29 +20,17 @@ fn quadratic_score(
     names: &[String],
     at: &Fit,
 ) -> Result<f64, DiagnoseError> {
-    let layout = ParamLayout::new(robot);
-    let set = effect_set(setup, names)?;
-    let mut problem = Problem::new(
-        robot,
-        &layout,
-        data,
-        at.trajectory.knots().clone(),
-        at.x.clone(),
-        &opts.problem_options(),
-        &set,
-    )?;
-    let mut theta = problem.theta(&at.trajectory, &at.x);
-    theta[..at.theta.len()].copy_from_slice(&at.theta);
-    problem.begin_iteration(&theta)?;
-    let mut a = problem.new_matrix();
-    let mut g = vec![0.0; theta.len()];
-    problem.linearize(&theta, &mut a, &mut g)?;
-    let factor = a
-        .factor()
-        .map_err(|e| DiagnoseError::Singular(format!("{}: {e}", names.join("+"))))?;
-    let mut sol = g.clone();
-    factor.solve_in_place(&mut sol);
-    Ok(g.iter().zip(&sol).map(|(a, b)| a * b).sum())
+    with_problem_at(robot, data, opts, setup, names, at, |problem, theta| {
+        let mut a = problem.new_matrix();
+        let mut g = vec![0.0; theta.len()];
+        problem.linearize(theta, &mut a, &mut g)?;
+        let factor = a
+            .factor()
+            .map_err(|e| DiagnoseError::Singular(format!("{}: {e}", names.join("+"))))?;
+        let mut sol = g.clone();
+        factor.solve_in_place(&mut sol);
+        Ok(g.iter().zip(&sol).map(|(a, b)| a * b).sum())
+    })
 }
 
 /// The outcome of one score test.
@@ -69,6 +55,19 @@ pub fn score_all(
     at: &Fit,
     candidates: &[String],
 ) -> Result<Vec<Score>, DiagnoseError> {
+    Ok(scores_at(robot, data, opts, setup, at, candidates)?.1)
+}
+
+/// [`score_all`] and gᵀ A⁻¹ g of `at`'s own model (the base every score
+/// is taken against).
+pub(super) fn scores_at(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &CatalogueSetup,
+    at: &Fit,
+    candidates: &[String],
+) -> Result<(f64, Vec<Score>), DiagnoseError> {
     let base = quadratic_score(robot, data, opts, setup, &at.effects, at)?;
     let mut out = Vec::new();
     for c in candidates {
@@ -89,5 +88,5 @@ pub fn score_all(
             .total_cmp(&b.p_value)
             .then(b.statistic.total_cmp(&a.statistic))
     });
-    Ok(out)
+    Ok((base, out))
 }
