@@ -225,10 +225,15 @@ impl fmt::Display for DiagnosisSummary<'_> {
             }
         }
         for r in &d.rejected {
+            let lr = if r.lr_statistic.is_finite() {
+                format!("; refit LR {:.1}", r.lr_statistic)
+            } else {
+                String::new()
+            };
             writeln!(
                 out,
-                "\nnot added: {} (score {:.1}, {} dof, p = {:.2e}; refit LR {:.1}): {}",
-                r.name, r.statistic, r.dof, r.p_value, r.lr_statistic, r.reason
+                "\nnot added: {} (score {:.1}, {} dof, p = {:.2e}{lr}): {}",
+                r.name, r.statistic, r.dof, r.p_value, r.reason
             )?;
         }
         let sz = d.sigma_z;

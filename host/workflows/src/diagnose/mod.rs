@@ -222,7 +222,8 @@ pub struct FoundEffect {
 
 /// A candidate significant against the current model whose refit was not
 /// accepted: its parameters are not determined apart from the effects
-/// already added ([`Determination`], docs/model.md §4.9).
+/// already added ([`Determination`], docs/model.md §4.9), or its refit
+/// failed (`lr_statistic` and `aliasing` NaN, `null` in JSON).
 #[derive(Debug, Clone, Serialize)]
 pub struct Rejected {
     /// Effect name.
@@ -678,7 +679,28 @@ pub fn diagnose(
         progress(&format!("refitting with {}", best.name));
         let mut names = current.effects.clone();
         names.push(best.name.clone());
-        let mut next = fit_effects(robot, data, &ropts, setup, &names, Start::Refit(&current))?;
+        let mut next = match fit_effects(robot, data, &ropts, setup, &names, Start::Refit(&current))
+        {
+            Ok(f) => f,
+            // a candidate whose refit fails is not confirmed; the diagnosis goes on
+            Err(DiagnoseError::Calibrate(
+                e @ (CalibrateError::NotConverged { .. } | CalibrateError::Solver(_)),
+            )) => {
+                progress(&format!("{}: its refit failed ({e}); not added", best.name));
+                rejected.push(Rejected {
+                    name: best.name.clone(),
+                    statistic: best.statistic,
+                    dof: best.dof,
+                    p_value: best.p_value,
+                    lr_statistic: f64::NAN,
+                    aliasing: f64::NAN,
+                    aliased_with: None,
+                    reason: format!("its refit failed: {e}"),
+                });
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
         let lr = 2.0 * (current.cost - next.cost);
         let lr_p = chi2_sf(lr, best.dof as f64);
         if lr_p >= threshold {
