@@ -244,7 +244,7 @@ impl Problem<'_> {
         at: &mut SampleEval,
     ) -> Result<(), ProblemError> {
         let u = self.data.imu_t[i] + tau;
-        self.knots
+        self.spans
             .basis(u, &mut at.basis)
             .map_err(|_| ProblemError::SampleOutOfSpan)?;
         spline.evaluate_basis(&at.basis, &mut at.js);

@@ -74,7 +74,8 @@ use robimu_model::effects::EffectSet;
 use robimu_model::noise::NoiseModel;
 pub use robimu_model::observations::Measurements;
 use robimu_model::{
-    Basis, JointState, Knots, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
+    Basis, JointState, Knots, MeasurementModel, ModelError, ParamLayout, Robot, SpanPolynomials,
+    Spline, SplineError,
 };
 
 /// Why the problem cannot be evaluated at some θ.
@@ -119,6 +120,9 @@ pub struct Problem<'a> {
     layout: &'a ParamLayout,
     data: &'a Measurements,
     knots: Knots,
+    /// The basis of `knots` per span, for the IMU samples (evaluated at
+    /// every cost and linearisation as τ moves).
+    spans: SpanPolynomials,
     n: usize,
     inv_sigma_q: Vec<f64>,
     inv_sigma_z: [f64; 6],
@@ -220,6 +224,7 @@ impl<'a> Problem<'a> {
             robot,
             layout,
             data,
+            spans: SpanPolynomials::new(&knots),
             knots,
             n,
             inv_sigma_q: opts.sigma_q.iter().map(|s| 1.0 / s).collect(),
