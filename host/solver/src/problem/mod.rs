@@ -368,16 +368,8 @@ impl<'a> Problem<'a> {
 
     /// Choose the IMU samples whose t + τ lies in the joint span (less the margin).
     pub fn select_samples(&mut self, tau: f64) -> Result<(), ProblemError> {
-        let (a, b) = (
-            self.knots.start() + Self::MARGIN,
-            self.knots.end() - Self::MARGIN,
-        );
+        let Range { start: lo, end: hi } = self.samples_at(tau)?;
         let t = &self.data.imu_t;
-        let lo = t.partition_point(|&ti| ti + tau < a);
-        let hi = t.partition_point(|&ti| ti + tau <= b);
-        if hi <= lo {
-            return Err(ProblemError::NoOverlap { tau });
-        }
         self.imu_range = lo..hi;
         if !self.white {
             let gap = 1.5 * self.median_dt;
@@ -392,6 +384,21 @@ impl<'a> Problem<'a> {
             }
         }
         Ok(())
+    }
+
+    /// The IMU samples [`Self::select_samples`] chooses at τ.
+    fn samples_at(&self, tau: f64) -> Result<Range<usize>, ProblemError> {
+        let (a, b) = (
+            self.knots.start() + Self::MARGIN,
+            self.knots.end() - Self::MARGIN,
+        );
+        let t = &self.data.imu_t;
+        let lo = t.partition_point(|&ti| ti + tau < a);
+        let hi = t.partition_point(|&ti| ti + tau <= b);
+        if hi <= lo {
+            return Err(ProblemError::NoOverlap { tau });
+        }
+        Ok(lo..hi)
     }
 
     /// The measurement model at x.
@@ -462,6 +469,11 @@ impl crate::LeastSquares for Problem<'_> {
     }
     fn new_matrix(&self) -> crate::ArrowMatrix {
         Problem::new_matrix(self)
+    }
+    /// The same samples at θ's τ, and no motion levels (they follow θ).
+    fn keeps_setup(&self, theta: &[f64]) -> bool {
+        let tau = self.x_of(theta)[self.layout.offsets().tau];
+        self.inv_levels.is_empty() && self.samples_at(tau).ok() == Some(self.imu_range.clone())
     }
 }
 
