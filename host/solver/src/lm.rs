@@ -563,7 +563,10 @@ mod tests {
         assert_eq!(a.factor.covariance_x(), b.factor.covariance_x());
         let tried: usize = a.summary.iterations.iter().map(|r| r.tries).sum();
         let iters = a.summary.iterations.len();
-        assert!(tried > iters, "the run should reject some steps ({tried} tries)");
+        assert!(
+            tried > iters,
+            "the run should reject some steps ({tried} tries)"
+        );
         // a final linearisation unless the gradient test stopped right after one
         let last = usize::from(a.summary.termination != Termination::GradientTolerance);
         assert_eq!(plain.calls.get(), (tried, iters + last));

@@ -70,9 +70,11 @@ mod gls_tests;
 
 use std::ops::Range;
 
+use crate::ArrowMatrix;
 use robimu_model::effects::EffectSet;
 use robimu_model::noise::NoiseModel;
 pub use robimu_model::observations::Measurements;
+use robimu_model::spline::MAX_DEGREE;
 use robimu_model::{
     Basis, JointState, Knots, MeasurementModel, ModelError, ParamLayout, Robot, SpanPolynomials,
     Spline, SplineError,
@@ -114,6 +116,14 @@ pub struct ProblemOptions {
     pub frozen: Vec<usize>,
 }
 
+/// The non-zero basis functions' values at one joint sample (the joint
+/// residuals need no derivative).
+#[derive(Debug, Clone, Copy)]
+struct JointBasis {
+    first: usize,
+    n: [f64; MAX_DEGREE + 1],
+}
+
 /// The calibration problem for one session.
 pub struct Problem<'a> {
     robot: &'a Robot,
@@ -147,7 +157,10 @@ pub struct Problem<'a> {
     /// The full x; frozen entries keep their value, estimated ones are
     /// overwritten from θ.
     x_base: Vec<f64>,
-    joint_basis: Vec<Basis>,
+    joint_basis: Vec<JointBasis>,
+    /// The joint residuals' part of the Gauss–Newton matrix: constant, as
+    /// they are linear in c (built once).
+    joint_normal: ArrowMatrix,
     imu_range: Range<usize>,
     /// Per sensor (accelerometer, gyroscope): the estimated parameters its
     /// rows can depend on, as (x index, position in θ's x part); effect
@@ -188,10 +201,13 @@ impl<'a> Problem<'a> {
             .filter(|k| !opts.frozen.contains(k))
             .collect();
         let mut joint_basis = Vec::with_capacity(data.joint_t.len());
+        let mut b = Basis::default();
         for &t in &data.joint_t {
-            let mut b = Basis::default();
             knots.basis(t, &mut b)?;
-            joint_basis.push(b);
+            joint_basis.push(JointBasis {
+                first: b.first,
+                n: b.d[0],
+            });
         }
         let specs = layout.specs();
         let (nx, na) = (layout.len(), active.len());
@@ -241,10 +257,12 @@ impl<'a> Problem<'a> {
             active,
             x_base,
             joint_basis,
+            joint_normal: ArrowMatrix::zeros(0, 0, 0),
             imu_range: 0..0,
             sensor_columns,
             effects,
         };
+        p.joint_normal = p.joint_normal_matrix();
         let tau = p.x_base[layout.offsets().tau];
         p.select_samples(tau)?;
         Ok(p)
