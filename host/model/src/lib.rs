@@ -78,4 +78,4 @@ pub use measurement::{MeasurementJacobians, MeasurementModel, ModelError};
 pub use observations::Measurements;
 pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
 pub use robot::{ErrorIndex, Robot, RobotDescription, RobotError};
-pub use spline::{Basis, Knots, Spline, SplineError};
+pub use spline::{Basis, Knots, SpanPolynomials, Spline, SplineError};

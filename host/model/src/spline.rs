@@ -201,6 +201,97 @@ pub struct Basis {
     pub d: [[f64; MAX_DEGREE + 1]; MAX_DERIV + 1],
 }
 
+/// The non-zero basis functions of every knot span as polynomials, for
+/// evaluating many times on one knot vector (the calibration evaluates every
+/// IMU sample at every cost and linearisation, docs/model.md §5).
+///
+/// On span μ each N_{μ−p+a} is a polynomial of degree p in s = t − y_μ, so
+/// its k-th derivative is exactly Σ_{i=0}^{p−k} N_{μ−p+a}^{(k+i)}(y_μ) sⁱ/i!
+/// (Taylor at the span's left end, right-hand derivatives). The coefficients
+/// come once per knot vector from the Cox–de Boor recursion of
+/// [`Knots::basis`] (derivatives up to order p); a sample then costs the span
+/// search and a few Horner steps instead of the Cox–de Boor table and its
+/// divisions. Any clamped knot vector (uniform or not); the values equal
+/// [`Knots::basis`] to rounding.
+#[derive(Clone, Debug)]
+pub struct SpanPolynomials {
+    knots: Knots,
+    /// Per span μ − p: `[k][a][i]` = N_{μ−p+a}^{(k+i)}(y_μ)/i! (zero on empty spans).
+    coef: Vec<SpanCoeffs>,
+}
+
+type SpanCoeffs = [[[f64; MAX_DEGREE + 1]; MAX_DEGREE + 1]; MAX_DERIV + 1];
+
+impl SpanPolynomials {
+    /// The polynomials of every span of `knots`.
+    pub fn new(knots: &Knots) -> Self {
+        const W: usize = MAX_DEGREE + 1;
+        let (p, m, y) = (knots.degree(), knots.num_coeffs(), knots.knots());
+        let coef = (p..m)
+            .map(|mu| {
+                let mut c = [[[0.0; W]; W]; MAX_DERIV + 1];
+                // an empty span (repeated knot) is never a sample's span
+                if y[mu] < y[mu + 1] {
+                    let mut d = [[0.0; W]; W];
+                    ders_basis_funs_upto(y, p, mu, y[mu], &mut d);
+                    for (k, ck) in c.iter_mut().enumerate().take(MAX_DERIV.min(p) + 1) {
+                        for (a, cka) in ck.iter_mut().enumerate().take(p + 1) {
+                            let mut fact = 1.0;
+                            for i in 0..=p - k {
+                                fact *= i.max(1) as f64;
+                                cka[i] = d[k + i][a] / fact;
+                            }
+                        }
+                    }
+                }
+                c
+            })
+            .collect();
+        Self {
+            knots: knots.clone(),
+            coef,
+        }
+    }
+
+    /// The knots.
+    pub fn knots(&self) -> &Knots {
+        &self.knots
+    }
+
+    /// [`Knots::basis`] at t from the span polynomials.
+    pub fn basis(&self, t: f64, out: &mut Basis) -> Result<(), SplineError> {
+        let mu = self.knots.span(t)?;
+        let p = self.knots.degree;
+        let (s, c) = (t - self.knots.y[mu], &self.coef[mu - p]);
+        match p {
+            1 => horner::<1>(c, s, &mut out.d),
+            2 => horner::<2>(c, s, &mut out.d),
+            3 => horner::<3>(c, s, &mut out.d),
+            4 => horner::<4>(c, s, &mut out.d),
+            _ => horner::<5>(c, s, &mut out.d),
+        }
+        out.first = mu - p;
+        out.count = p + 1;
+        Ok(())
+    }
+}
+
+/// The rows of [`Basis::d`] at s from one span's coefficients (degree P).
+#[inline(always)]
+fn horner<const P: usize>(c: &SpanCoeffs, s: f64, d: &mut [[f64; MAX_DEGREE + 1]; MAX_DERIV + 1]) {
+    *d = [[0.0; MAX_DEGREE + 1]; MAX_DERIV + 1];
+    for k in 0..=MAX_DERIV.min(P) {
+        for a in 0..=P {
+            let ca = &c[k][a];
+            let mut v = ca[P - k];
+            for i in (0..P - k).rev() {
+                v = v * s + ca[i];
+            }
+            d[k][a] = v;
+        }
+    }
+}
+
 /// Non-zero basis functions of degree p on span μ and their derivatives.
 ///
 /// Cox–de Boor builds the triangular table `ndu[r][j]` = N_{μ−j+r, j}(u) for
@@ -210,6 +301,19 @@ pub struct Basis {
 /// N^{(m−1)}_{i+1,q−1}/(u_{i+q+1} − u_{i+1})]. Rows k > p stay zero.
 #[inline]
 fn ders_basis_funs(y: &[f64], p: usize, mu: usize, u: f64, ders: &mut [[f64; MAX_DEGREE + 1]; 4]) {
+    ders_basis_funs_upto(y, p, mu, u, ders);
+}
+
+/// [`ders_basis_funs`] into `ders.len()` rows: derivatives up to order
+/// min(rows − 1, p) (the same operations for the rows both compute).
+#[inline(always)]
+fn ders_basis_funs_upto<const R: usize>(
+    y: &[f64],
+    p: usize,
+    mu: usize,
+    u: f64,
+    ders: &mut [[f64; MAX_DEGREE + 1]; R],
+) {
     const W: usize = MAX_DEGREE + 1;
     let mut ndu = [[0.0f64; W]; W];
     // inv[j][r] = 1 / (y[μ+r+1] − y[μ+1−j+r]), r < j: always > 0 on a non-empty span.
@@ -230,11 +334,11 @@ fn ders_basis_funs(y: &[f64], p: usize, mu: usize, u: f64, ders: &mut [[f64; MAX
         }
         ndu[j][j] = saved;
     }
-    *ders = [[0.0; W]; 4];
+    *ders = [[0.0; W]; R];
     for r in 0..=p {
         ders[0][r] = ndu[r][p];
     }
-    for k in 1..=MAX_DERIV.min(p) {
+    for k in 1..=(R - 1).min(p) {
         let q0 = p - k;
         let mut v = [0.0f64; W];
         for r in 0..=q0 {
@@ -471,6 +575,59 @@ mod tests {
                     assert!(t >= y[i] && t <= y[i + knots.degree() + 1]);
                 }
             }
+        }
+    }
+
+    /// The span polynomials give Knots::basis to rounding everywhere: at
+    /// and between knots, at both ends, on irregular knots with a double
+    /// knot, for every degree.
+    #[test]
+    fn span_polynomials_equal_cox_de_boor() {
+        let double = Knots::new(
+            3,
+            vec![0.0, 0.0, 0.0, 0.0, 0.3, 1.1, 1.1, 1.2, 2.0, 2.0, 2.0, 2.0],
+        )
+        .unwrap();
+        let mut sets = vec![
+            irregular(),
+            double,
+            Knots::uniform(-3.0, 297.0, 1.0, 3).unwrap(),
+        ];
+        sets.extend((1..=5).map(|p| Knots::uniform(0.0, 3.0, 0.37, p).unwrap()));
+        for knots in sets {
+            let poly = SpanPolynomials::new(&knots);
+            let (t0, t1) = (knots.start(), knots.end());
+            let h_min = knots
+                .knots()
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .filter(|&h| h > 0.0)
+                .fold(f64::INFINITY, f64::min);
+            let mut ts: Vec<f64> = knots.knots().to_vec();
+            ts.extend((0..=4001).map(|i| t0 + (t1 - t0) * i as f64 / 4001.0));
+            ts.extend(knots.knots().iter().map(|&y| (y - 1e-9).max(t0)));
+            let (mut want, mut got) = (Basis::default(), Basis::default());
+            for t in ts {
+                knots.basis(t, &mut want).unwrap();
+                poly.basis(t, &mut got).unwrap();
+                assert_eq!((got.first, got.count), (want.first, want.count), "t = {t}");
+                for k in 0..=3 {
+                    // relative to the row's scale (the k-th derivative grows as h^-k)
+                    let row = want.d[k][..want.count]
+                        .iter()
+                        .fold(0.0f64, |m, v| m.max(v.abs()));
+                    let tol = 1e-14 * row.max(h_min.powi(-(k as i32)));
+                    for a in 0..want.count {
+                        let (g, w) = (got.d[k][a], want.d[k][a]);
+                        assert!(
+                            (g - w).abs() <= tol,
+                            "p {} t {t} k {k} a {a}: {g} vs {w}",
+                            knots.degree()
+                        );
+                    }
+                }
+            }
+            assert!(poly.basis(t1 + 1e-9, &mut got).is_err());
         }
     }
 

@@ -128,12 +128,20 @@ impl Session {
             ));
         }
         let meta = SessionMeta::read(&dir.join(files::META))?;
-        let joints = read_table(&dir.join(files::JOINTS), Columns::Joints)?;
-        let (imu, mut extra) = read_table_with(
-            &dir.join(files::IMU),
-            Columns::Fixed(&IMU_COLUMNS),
-            &[IMU_TEMP_COLUMN],
-        )?;
+        // the two streams are parsed on two threads (joints.csv's error first)
+        let (joints, imu) = std::thread::scope(|s| {
+            let imu = s.spawn(|| {
+                read_table_with(
+                    &dir.join(files::IMU),
+                    Columns::Fixed(&IMU_COLUMNS),
+                    &[IMU_TEMP_COLUMN],
+                )
+            });
+            let joints = read_table(&dir.join(files::JOINTS), Columns::Joints);
+            (joints, imu.join().expect("imu.csv reader panicked"))
+        });
+        let joints = joints?;
+        let (imu, mut extra) = imu?;
         let imu_temp = extra.pop().flatten();
         let tracker_path = dir.join(files::TRACKER);
         let tracker = if tracker_path.exists() {

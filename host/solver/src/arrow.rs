@@ -166,6 +166,31 @@ impl ArrowMatrix {
         self.corner += &other.corner;
     }
 
+    /// Add the band of `other` — same band size, half-bandwidth at most
+    /// this one's, any border — to this band.
+    ///
+    /// # Panics
+    /// If the band sizes differ or `other`'s band is wider.
+    #[track_caller]
+    pub fn add_band(&mut self, other: &ArrowMatrix) {
+        assert!(
+            other.nc == self.nc && other.w <= self.w,
+            "band of another shape"
+        );
+        let (w, wo) = (self.w, other.w);
+        for i in 0..self.nc {
+            let d = wo.min(i);
+            let dst = i * (w + 1) + w - d;
+            let src = i * (wo + 1) + wo - d;
+            for (a, b) in self.band[dst..=dst + d]
+                .iter_mut()
+                .zip(&other.band[src..=src + d])
+            {
+                *a += b;
+            }
+        }
+    }
+
     /// Add `v` to the corner entry (k, l) and, when k ≠ l, to (l, k).
     pub fn add_xx(&mut self, k: usize, l: usize, v: f64) {
         self.corner[(k, l)] += v;
@@ -478,6 +503,23 @@ mod tests {
         for (b, c) in before.iter().zip(&after) {
             assert!((c - b - 1.5).abs() < 1e-12);
         }
+    }
+
+    /// A narrower band added entry by entry: every entry of the sum is the
+    /// sum of the entries (the border and corner untouched).
+    #[test]
+    fn add_band_adds_a_narrower_band() {
+        let mut a = random_arrow(10, 4, 3, 5);
+        let before = a.clone();
+        let b = random_arrow(10, 2, 0, 6);
+        a.add_band(&b);
+        for i in 0..13 {
+            for j in 0..13 {
+                let want = before.get(i, j) + if i < 10 && j < 10 { b.get(i, j) } else { 0.0 };
+                assert_eq!(a.get(i, j), want, "({i}, {j})");
+            }
+        }
+        assert!(b.get(5, 2) == 0.0 && b.get(5, 3) != 0.0);
     }
 
     #[test]

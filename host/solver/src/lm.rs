@@ -15,6 +15,13 @@
 //! [`ROUNDING_GRADIENT`] (stationary to 0.1σ; `NoProgress` above it); the
 //! scaled step below `parameter_tolerance`, the scaled gradient below
 //! `gradient_tolerance`, or `max_iterations` is reached.
+//!
+//! A trial step is evaluated by its cost, or — when the problem says its
+//! set-up would not change there ([`LeastSquares::keeps_setup`]) — by
+//! linearising at it: an accepted step's linearisation is then the next
+//! iteration's (and the final one's), so no separate cost evaluation is
+//! needed, at the price of a linearisation per rejected step. The initial
+//! cost is the first linearisation's.
 
 use super::arrow::{ArrowFactor, ArrowMatrix, FactorError};
 
@@ -36,6 +43,13 @@ pub trait LeastSquares {
     ) -> Result<f64, Self::Error>;
     /// Storage for [`Self::linearize`].
     fn new_matrix(&self) -> ArrowMatrix;
+    /// Whether [`Self::begin_iteration`] at θ would leave the cost function
+    /// as it is now (e.g. the same samples selected, nothing re-weighted):
+    /// then the solver evaluates a trial step at θ by linearising (module
+    /// doc). Default: false (trial steps by [`Self::cost`]).
+    fn keeps_setup(&self, _theta: &[f64]) -> bool {
+        false
+    }
 }
 
 /// Solver settings.
@@ -251,10 +265,14 @@ pub fn solve<P: LeastSquares>(
     let n = theta.len();
     let mut a = problem.new_matrix();
     let mut g = vec![0.0; n];
+    // the linearisation at an accepted trial step (module doc), and its cost
+    // while it is the one at θ
+    let (mut a_next, mut g_next) = (problem.new_matrix(), vec![0.0; n]);
+    let mut ahead = None;
     let mut lambda = opts.initial_lambda;
     let mut nu = 2.0;
     problem.begin_iteration(&theta).map_err(LmError::Start)?;
-    let initial_cost = problem.cost(&theta).map_err(LmError::Start)?;
+    let mut initial_cost = None;
     let mut log = Vec::new();
     let mut termination = Termination::MaxIterations;
     let mut delta = vec![0.0; n];
@@ -269,9 +287,17 @@ pub fn solve<P: LeastSquares>(
             // the selected sample set may change with θ; the cost is re-evaluated below
             problem.begin_iteration(&theta).map_err(LmError::Start)?;
         }
-        let mut cost = problem
-            .linearize(&theta, &mut a, &mut g)
-            .map_err(LmError::Start)?;
+        let mut cost = match ahead.take() {
+            Some(cost) => {
+                std::mem::swap(&mut a, &mut a_next);
+                std::mem::swap(&mut g, &mut g_next);
+                cost
+            }
+            None => problem
+                .linearize(&theta, &mut a, &mut g)
+                .map_err(LmError::Start)?,
+        };
+        initial_cost.get_or_insert(cost);
         let diag = a.diagonal();
         let dmax = diag.iter().cloned().fold(0.0f64, f64::max);
         let d: Vec<f64> = diag
@@ -318,6 +344,7 @@ pub fn solve<P: LeastSquares>(
             let mut new_cost = f64::INFINITY;
             let mut predicted = 0.0;
             let mut step_norm = f64::INFINITY;
+            let mut linearized = false;
             let candidate: Vec<f64> = theta.iter().zip(&delta).map(|(t, dt)| t + dt).collect();
             if step_ok {
                 // predicted decrease of the quadratic model: −gᵀδ − ½δᵀAδ = ½δᵀ(λD)δ − ½gᵀδ
@@ -330,7 +357,13 @@ pub fn solve<P: LeastSquares>(
                     .map(|(x, dk)| dk * x * x)
                     .sum::<f64>()
                     .sqrt();
-                if let Ok(c) = problem.cost(&candidate) {
+                let trial = if problem.keeps_setup(&candidate) {
+                    linearized = true;
+                    problem.linearize(&candidate, &mut a_next, &mut g_next)
+                } else {
+                    problem.cost(&candidate)
+                };
+                if let Ok(c) = trial {
                     new_cost = c;
                 }
             }
@@ -355,6 +388,9 @@ pub fn solve<P: LeastSquares>(
                 });
                 theta = candidate;
                 cost = new_cost;
+                if linearized {
+                    ahead = Some(new_cost);
+                }
                 lambda = (lambda * f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-15);
                 nu = 2.0;
                 if rel < opts.function_tolerance {
@@ -400,21 +436,28 @@ pub fn solve<P: LeastSquares>(
         }
     }
     // the undamped matrix at the final θ, for the covariance (already in
-    // `a` when the gradient test stopped right after linearising there)
+    // `a` when the gradient test stopped right after linearising there, in
+    // `a_next` when the last accepted step was linearised)
     let final_cost = match current {
         Some(cost) => cost,
         None => {
             problem.begin_iteration(&theta).map_err(LmError::Start)?;
-            problem
-                .linearize(&theta, &mut a, &mut g)
-                .map_err(LmError::Start)?
+            match ahead.take() {
+                Some(cost) => {
+                    std::mem::swap(&mut a, &mut a_next);
+                    cost
+                }
+                None => problem
+                    .linearize(&theta, &mut a, &mut g)
+                    .map_err(LmError::Start)?,
+            }
         }
     };
     let factor = a.factor()?;
     Ok(LmSolution {
         theta,
         summary: LmSummary {
-            initial_cost,
+            initial_cost: initial_cost.expect("at least one iteration"),
             final_cost,
             iterations: log,
             termination,
@@ -431,6 +474,20 @@ mod tests {
     /// one border unknown x coupling all: r = x − 2.
     struct Toy {
         nc: usize,
+        /// What `keeps_setup` answers.
+        keeps: bool,
+        /// Calls of (cost, linearize).
+        calls: std::cell::Cell<(usize, usize)>,
+    }
+
+    impl Toy {
+        fn new(nc: usize) -> Self {
+            Self {
+                nc,
+                keeps: false,
+                calls: Default::default(),
+            }
+        }
     }
 
     #[derive(Debug, thiserror::Error)]
@@ -462,9 +519,16 @@ mod tests {
             Ok(())
         }
         fn cost(&self, th: &[f64]) -> Result<f64, Never> {
+            let (c, l) = self.calls.get();
+            self.calls.set((c + 1, l));
             Ok(0.5 * self.residuals(th).0.iter().map(|v| v * v).sum::<f64>())
         }
+        fn keeps_setup(&self, _: &[f64]) -> bool {
+            self.keeps
+        }
         fn linearize(&self, th: &[f64], a: &mut ArrowMatrix, g: &mut [f64]) -> Result<f64, Never> {
+            let (c, l) = self.calls.get();
+            self.calls.set((c, l + 1));
             a.clear();
             g.fill(0.0);
             let nc = self.nc;
@@ -491,7 +555,8 @@ mod tests {
                     }
                 }
             }
-            self.cost(th)
+            let cost = 0.5 * r.iter().map(|v| v * v).sum::<f64>();
+            Ok(cost)
         }
         fn new_matrix(&self) -> ArrowMatrix {
             ArrowMatrix::zeros(self.nc, 1, 1)
@@ -500,7 +565,7 @@ mod tests {
 
     #[test]
     fn converges_on_a_banded_rosenbrock_chain() {
-        let mut toy = Toy { nc: 12 };
+        let mut toy = Toy::new(12);
         let mut start = vec![-1.2; 12];
         start.push(0.0);
         let mut seen = 0;
@@ -659,6 +724,45 @@ mod tests {
         }
     }
 
+    /// Trial steps evaluated by linearising (keeps_setup) give the same run
+    /// — θ, log, covariance — with no cost evaluation and one linearisation
+    /// per step tried (and the first), instead of a cost per step tried plus
+    /// a linearisation per iteration and one at the end.
+    #[test]
+    fn linearised_trial_steps_give_the_same_solution() {
+        let start = || {
+            let mut s = vec![-1.2; 12];
+            s.push(0.0);
+            s
+        };
+        let mut plain = Toy::new(12);
+        let a = solve(&mut plain, start(), &LmOptions::default(), |_| {}).unwrap();
+        let mut ahead = Toy {
+            keeps: true,
+            ..Toy::new(12)
+        };
+        let b = solve(&mut ahead, start(), &LmOptions::default(), |_| {}).unwrap();
+        assert!(a.summary.termination.converged(), "{}", a.summary);
+        assert_eq!(a.theta, b.theta);
+        assert_eq!(a.summary.iterations, b.summary.iterations);
+        assert_eq!(a.summary.termination, b.summary.termination);
+        assert_eq!(
+            (a.summary.initial_cost, a.summary.final_cost),
+            (b.summary.initial_cost, b.summary.final_cost)
+        );
+        assert_eq!(a.factor.covariance_x(), b.factor.covariance_x());
+        let tried: usize = a.summary.iterations.iter().map(|r| r.tries).sum();
+        let iters = a.summary.iterations.len();
+        assert!(
+            tried > iters,
+            "the run should reject some steps ({tried} tries)"
+        );
+        // a final linearisation unless the gradient test stopped right after one
+        let last = usize::from(a.summary.termination != Termination::GradientTolerance);
+        assert_eq!(plain.calls.get(), (tried, iters + last));
+        assert_eq!(ahead.calls.get(), (0, 1 + tried));
+    }
+
     #[test]
     fn iteration_log_lines_match_the_header() {
         let old = format!(
@@ -687,7 +791,7 @@ mod tests {
             max_iterations: 0,
             ..LmOptions::default()
         };
-        let mut toy = Toy { nc: 3 };
+        let mut toy = Toy::new(3);
         let err = solve(&mut toy, vec![0.0; 4], &opts, |_| {}).err().unwrap();
         assert!(err.to_string().contains("max_iterations"));
     }

@@ -101,7 +101,8 @@ impl Problem<'_> {
         for (u, v) in out.g.iter_mut().zip(&g2) {
             *u += v;
         }
-        cost += self.joint_terms(&spline, Some(&mut out));
+        cost += self.joint_terms(&spline, Some(&mut *out.g));
+        out.a.add_band(&self.joint_normal);
         let nc = self.n_coeffs();
         cost += self.prior_terms(&x, Some(&mut out), nc);
         cost += self.effect_prior_terms(self.effect_params_of(theta), Some(&mut out), nc);
@@ -244,7 +245,7 @@ impl Problem<'_> {
         at: &mut SampleEval,
     ) -> Result<(), ProblemError> {
         let u = self.data.imu_t[i] + tau;
-        self.knots
+        self.spans
             .basis(u, &mut at.basis)
             .map_err(|_| ProblemError::SampleOutOfSpan)?;
         spline.evaluate_basis(&at.basis, &mut at.js);
@@ -259,35 +260,53 @@ impl Problem<'_> {
         [r.start..mid, mid..r.end]
     }
 
-    /// Joint residuals: cost, and (with `out`) their band and gradient terms.
-    fn joint_terms(&self, spline: &Spline, mut out: Option<&mut Linearization<'_>>) -> f64 {
+    /// Joint residuals: cost, and (with `g`) their gradient terms (their
+    /// Gauss–Newton block is the constant [`Self::joint_normal_matrix`]).
+    fn joint_terms(&self, spline: &Spline, mut g: Option<&mut [f64]>) -> f64 {
         let n = self.n;
+        let count = self.knots.degree() + 1;
         let c = spline.coeffs();
         let mut cost = 0.0;
         for (s, b) in self.joint_basis.iter().enumerate() {
             let qm = &self.data.joint_q[s * n..(s + 1) * n];
             for j in 0..n {
                 let mut q = 0.0;
-                for a in 0..b.count {
-                    q += b.d[0][a] * c[(b.first + a) * n + j];
+                for a in 0..count {
+                    q += b.n[a] * c[(b.first + a) * n + j];
                 }
                 let w = self.inv_sigma_q[j];
                 let r = (qm[j] - q) * w;
                 cost += 0.5 * r * r;
-                if let Some(out) = out.as_deref_mut() {
-                    for a in 0..b.count {
-                        let ia = (b.first + a) * n + j;
-                        let ja = -b.d[0][a] * w;
-                        out.g[ia] += ja * r;
-                        for bb in 0..=a {
-                            let ib = (b.first + bb) * n + j;
-                            out.a.add_cc(ia, ib, ja * (-b.d[0][bb] * w));
-                        }
+                if let Some(g) = g.as_deref_mut() {
+                    for a in 0..count {
+                        g[(b.first + a) * n + j] += -b.n[a] * w * r;
                     }
                 }
             }
         }
         cost
+    }
+
+    /// JᵀJ of the joint residuals r = (q_j − Σ_a N_a c_{a,j})/σ_q: a band of
+    /// half-bandwidth (p+1)·n − 1, no border.
+    pub(super) fn joint_normal_matrix(&self) -> ArrowMatrix {
+        let n = self.n;
+        let count = self.knots.degree() + 1;
+        let mut out = ArrowMatrix::zeros(self.n_coeffs(), count * n - 1, 0);
+        for b in &self.joint_basis {
+            for j in 0..n {
+                let w = self.inv_sigma_q[j];
+                for a in 0..count {
+                    let ia = (b.first + a) * n + j;
+                    let ja = -b.n[a] * w;
+                    for bb in 0..=a {
+                        let ib = (b.first + bb) * n + j;
+                        out.add_cc(ia, ib, ja * (-b.n[bb] * w));
+                    }
+                }
+            }
+        }
+        out
     }
 
     /// Prior residuals of the estimated parameters (θ's x part at `x0`).

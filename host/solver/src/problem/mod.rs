@@ -70,11 +70,14 @@ mod gls_tests;
 
 use std::ops::Range;
 
+use crate::ArrowMatrix;
 use robimu_model::effects::EffectSet;
 use robimu_model::noise::NoiseModel;
 pub use robimu_model::observations::Measurements;
+use robimu_model::spline::MAX_DEGREE;
 use robimu_model::{
-    Basis, JointState, Knots, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
+    Basis, JointState, Knots, MeasurementModel, ModelError, ParamLayout, Robot, SpanPolynomials,
+    Spline, SplineError,
 };
 
 /// Why the problem cannot be evaluated at some θ.
@@ -113,12 +116,23 @@ pub struct ProblemOptions {
     pub frozen: Vec<usize>,
 }
 
+/// The non-zero basis functions' values at one joint sample (the joint
+/// residuals need no derivative).
+#[derive(Debug, Clone, Copy)]
+struct JointBasis {
+    first: usize,
+    n: [f64; MAX_DEGREE + 1],
+}
+
 /// The calibration problem for one session.
 pub struct Problem<'a> {
     robot: &'a Robot,
     layout: &'a ParamLayout,
     data: &'a Measurements,
     knots: Knots,
+    /// The basis of `knots` per span, for the IMU samples (evaluated at
+    /// every cost and linearisation as τ moves).
+    spans: SpanPolynomials,
     n: usize,
     inv_sigma_q: Vec<f64>,
     inv_sigma_z: [f64; 6],
@@ -143,7 +157,10 @@ pub struct Problem<'a> {
     /// The full x; frozen entries keep their value, estimated ones are
     /// overwritten from θ.
     x_base: Vec<f64>,
-    joint_basis: Vec<Basis>,
+    joint_basis: Vec<JointBasis>,
+    /// The joint residuals' part of the Gauss–Newton matrix: constant, as
+    /// they are linear in c (built once).
+    joint_normal: ArrowMatrix,
     imu_range: Range<usize>,
     /// Per sensor (accelerometer, gyroscope): the estimated parameters its
     /// rows can depend on, as (x index, position in θ's x part); effect
@@ -184,10 +201,13 @@ impl<'a> Problem<'a> {
             .filter(|k| !opts.frozen.contains(k))
             .collect();
         let mut joint_basis = Vec::with_capacity(data.joint_t.len());
+        let mut b = Basis::default();
         for &t in &data.joint_t {
-            let mut b = Basis::default();
             knots.basis(t, &mut b)?;
-            joint_basis.push(b);
+            joint_basis.push(JointBasis {
+                first: b.first,
+                n: b.d[0],
+            });
         }
         let specs = layout.specs();
         let (nx, na) = (layout.len(), active.len());
@@ -220,6 +240,7 @@ impl<'a> Problem<'a> {
             robot,
             layout,
             data,
+            spans: SpanPolynomials::new(&knots),
             knots,
             n,
             inv_sigma_q: opts.sigma_q.iter().map(|s| 1.0 / s).collect(),
@@ -236,10 +257,12 @@ impl<'a> Problem<'a> {
             active,
             x_base,
             joint_basis,
+            joint_normal: ArrowMatrix::zeros(0, 0, 0),
             imu_range: 0..0,
             sensor_columns,
             effects,
         };
+        p.joint_normal = p.joint_normal_matrix();
         let tau = p.x_base[layout.offsets().tau];
         p.select_samples(tau)?;
         Ok(p)
@@ -363,16 +386,8 @@ impl<'a> Problem<'a> {
 
     /// Choose the IMU samples whose t + τ lies in the joint span (less the margin).
     pub fn select_samples(&mut self, tau: f64) -> Result<(), ProblemError> {
-        let (a, b) = (
-            self.knots.start() + Self::MARGIN,
-            self.knots.end() - Self::MARGIN,
-        );
+        let Range { start: lo, end: hi } = self.samples_at(tau)?;
         let t = &self.data.imu_t;
-        let lo = t.partition_point(|&ti| ti + tau < a);
-        let hi = t.partition_point(|&ti| ti + tau <= b);
-        if hi <= lo {
-            return Err(ProblemError::NoOverlap { tau });
-        }
         self.imu_range = lo..hi;
         if !self.white {
             let gap = 1.5 * self.median_dt;
@@ -387,6 +402,21 @@ impl<'a> Problem<'a> {
             }
         }
         Ok(())
+    }
+
+    /// The IMU samples [`Self::select_samples`] chooses at τ.
+    fn samples_at(&self, tau: f64) -> Result<Range<usize>, ProblemError> {
+        let (a, b) = (
+            self.knots.start() + Self::MARGIN,
+            self.knots.end() - Self::MARGIN,
+        );
+        let t = &self.data.imu_t;
+        let lo = t.partition_point(|&ti| ti + tau < a);
+        let hi = t.partition_point(|&ti| ti + tau <= b);
+        if hi <= lo {
+            return Err(ProblemError::NoOverlap { tau });
+        }
+        Ok(lo..hi)
     }
 
     /// The measurement model at x.
@@ -457,6 +487,11 @@ impl crate::LeastSquares for Problem<'_> {
     }
     fn new_matrix(&self) -> crate::ArrowMatrix {
         Problem::new_matrix(self)
+    }
+    /// The same samples at θ's τ, and no motion levels (they follow θ).
+    fn keeps_setup(&self, theta: &[f64]) -> bool {
+        let tau = self.x_of(theta)[self.layout.offsets().tau];
+        self.inv_levels.is_empty() && self.samples_at(tau).ok() == Some(self.imu_range.clone())
     }
 }
 

@@ -1,0 +1,152 @@
+//! Whole-process calibration speed, the way a user runs it: `robimu simulate`
+//! writes a session directory, then the `robimu calibrate DIR` binary runs on
+//! it several times (reading the CSVs, knot choice, τ search, the fit, the
+//! whiteness test of `--noise-model auto`, the covariance, writing the
+//! result). Prints per case the median and min wall time, the median user and
+//! system CPU time and the largest peak resident memory of the child (GNU
+//! `time`'s `%M`, i.e. wait4's maxrss; without /usr/bin/time only the wall
+//! time is measured), and the machine's load average.
+//!
+//! Cases: 300 s at 120 Hz (always); with `--long`, also 300 s at 1 kHz and
+//! 30 min at 120 Hz (slow). `--runs N` (default 7) and `--bin PATH` (time
+//! another build of robimu, e.g. a copy of an older one, on the same
+//! sessions) are optional.
+//!
+//! `cargo bench -p robimu --bench calibrate_process [-- --long --runs 7]`
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+/// One `robimu calibrate` run: wall, user and system time (s), peak RSS (MB).
+struct Run {
+    wall: f64,
+    cpu: Option<(f64, f64, f64)>,
+}
+
+fn gnu_time() -> Option<&'static Path> {
+    let p = Path::new("/usr/bin/time");
+    let ok = Command::new(p)
+        .args(["-f", "%e", "true"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    ok.then_some(p)
+}
+
+fn simulate(bin: &Path, dir: &Path, duration: f64, rate: f64) {
+    let status = Command::new(bin)
+        .args(["simulate", "--seed", "1", "--duration"])
+        .arg(duration.to_string())
+        .arg("--rate")
+        .arg(rate.to_string())
+        .arg("--out")
+        .arg(dir)
+        .stdout(Stdio::null())
+        .status()
+        .expect("run robimu simulate");
+    assert!(status.success(), "robimu simulate failed");
+}
+
+fn calibrate_once(bin: &Path, dir: &Path, time: Option<&Path>) -> Run {
+    let report = dir.join("time.txt");
+    let mut cmd = match time {
+        Some(t) => {
+            let mut c = Command::new(t);
+            c.arg("-o").arg(&report).args(["-f", "%U %S %M"]).arg(bin);
+            c
+        }
+        None => Command::new(bin),
+    };
+    cmd.arg("calibrate")
+        .arg(dir)
+        .arg("--out")
+        .arg(dir.join("bench-result.json"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null());
+    let start = Instant::now();
+    let status = cmd.status().expect("run robimu calibrate");
+    let wall = start.elapsed().as_secs_f64();
+    assert!(
+        status.success(),
+        "robimu calibrate failed on {}",
+        dir.display()
+    );
+    let cpu = time.and_then(|_| {
+        let s = std::fs::read_to_string(&report).ok()?;
+        let v: Vec<f64> = s
+            .lines()
+            .last()?
+            .split_whitespace()
+            .map(|w| w.parse().ok())
+            .collect::<Option<_>>()?;
+        (v.len() == 3).then(|| (v[0], v[1], v[2] / 1024.0))
+    });
+    Run { wall, cpu }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn load() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|_| "unknown".into())
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let long = args.iter().any(|a| a == "--long");
+    let value = |flag: &str| {
+        args.iter()
+            .position(|a| a == flag)
+            .and_then(|i| args.get(i + 1))
+    };
+    let runs: usize = value("--runs").map_or(7, |v| v.parse().expect("--runs N"));
+    assert!(runs > 0, "--runs must be at least 1");
+    let bin = value("--bin").map_or_else(
+        || PathBuf::from(env!("CARGO_BIN_EXE_robimu")),
+        PathBuf::from,
+    );
+    let time = gnu_time();
+    let work = tempfile::tempdir().expect("temporary directory");
+    let mut cases = vec![("300 s at 120 Hz", 300.0, 120.0)];
+    if long {
+        cases.push(("300 s at 1 kHz", 300.0, 1000.0));
+        cases.push(("30 min at 120 Hz", 1800.0, 120.0));
+    }
+    println!(
+        "{}: `robimu calibrate DIR` on sessions of `robimu simulate --seed 1`; {runs} runs per case; {} cores",
+        bin.display(),
+        std::thread::available_parallelism().map_or(0, |n| n.get())
+    );
+    for (label, duration, rate) in cases {
+        let dir = work.path().join(format!("s{duration}-{rate}"));
+        simulate(&bin, &dir, duration, rate);
+        let load_before = load();
+        let results: Vec<Run> = (0..runs)
+            .map(|_| calibrate_once(&bin, &dir, time))
+            .collect();
+        let walls: Vec<f64> = results.iter().map(|r| r.wall).collect();
+        let min = walls.iter().cloned().fold(f64::INFINITY, f64::min);
+        let mut line = format!(
+            "{label} (`robimu simulate --duration {duration} --rate {rate} --seed 1`): wall median {:.3} s, min {min:.3} s",
+            median(walls.clone())
+        );
+        let cpu: Vec<(f64, f64, f64)> = results.iter().filter_map(|r| r.cpu).collect();
+        if cpu.len() == results.len() {
+            let user = median(cpu.iter().map(|c| c.0).collect());
+            let sys = median(cpu.iter().map(|c| c.1).collect());
+            let peak = cpu.iter().map(|c| c.2).fold(0.0, f64::max);
+            line +=
+                &format!("; CPU median user {user:.2} s + sys {sys:.2} s; peak RSS {peak:.0} MB");
+        }
+        println!(
+            "{line}; load average before {load_before}, after {}",
+            load()
+        );
+    }
+}
