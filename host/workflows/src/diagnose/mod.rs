@@ -48,7 +48,8 @@
 //! over median 10, 7, 2.6 at 0.6, 1, 2σ), with the cap it stays (33, 93,
 //! 371); `bias_drift` (0.2 °/s, white noise) makes the white baseline's
 //! gyroscope residuals fail the whiteness test, and its score is 727 with
-//! the limit 8, 1438 with the cap (1796 diagnosed as white); the other
+//! the limit 8, 1438 with the cap (1796 diagnosed as white; measured with
+//! the former Legendre form of bias_drift, docs/model.md §4.6); the other
 //! effects at their test magnitudes (and resonance at 3×) are not absorbed
 //! either way (φ moves by < 0.002 when one is added). The
 //! re-identification makes the final fit's noise white again once such an
