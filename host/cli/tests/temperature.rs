@@ -198,6 +198,25 @@ fn cli_simulate_with_a_warm_up_then_calibrate_the_temperature_coefficients() {
         println!("{}: {v:.4e} ± {sigma:.1e} vs {w:.4e}", p["name"]);
         assert!(((v - w) / sigma).abs() < 4.0, "{p} vs {w}");
     }
+    // T_ref, the temperature the baseline biases refer to: the mean of the
+    // smoothed track, against the mean of the true warm-up curve
+    let t_ref = json["effect_constants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == "temperature_bias.t_ref")
+        .expect("effects.json names T_ref")["value"]
+        .as_f64()
+        .unwrap();
+    let true_mean = rows
+        .iter()
+        .map(|(t, _)| 34.0 - 10.0 * (-(t - rows[0].0) / 20.0).exp())
+        .sum::<f64>()
+        / rows.len() as f64;
+    assert!(
+        (t_ref - true_mean).abs() < 0.25,
+        "T_ref {t_ref} vs {true_mean}"
+    );
     // no temperature column: refused with what it needs
     let plain = dir.path().join("plain");
     robimu([

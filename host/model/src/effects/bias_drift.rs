@@ -21,7 +21,7 @@
 //! drift whose change over the session is A·(1, −0.7, 0.5) °/s on
 //! (gx, gy, gz), exact at every M.
 
-use super::{Effect, EffectParam, SampleContext, SessionSpan};
+use super::{Effect, EffectConstant, EffectParam, SampleContext, SessionSpan};
 
 /// Segments when none is given (a linear drift).
 pub const DEFAULT_SEGMENTS: usize = 1;
@@ -118,6 +118,14 @@ impl Effect for BiasDrift {
                 cols[m * c + k][c] = b[k];
             }
         }
+    }
+    fn constants(&self) -> Vec<EffectConstant> {
+        let c = |name: &str, value| EffectConstant {
+            name: format!("bias_drift.{name}"),
+            unit: "s",
+            value,
+        };
+        vec![c("t_start", self.span.t0), c("t_end", self.span.t1)]
     }
     fn magnitude_unit(&self) -> &'static str {
         "deg/s"

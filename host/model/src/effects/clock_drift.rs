@@ -10,7 +10,7 @@
 //! One parameter κ, dimensionless (displayed in ppm). The simulator uses the
 //! exact warped time. `simulate --effect clock_drift=M` injects κ = M ppm.
 
-use super::{Effect, EffectParam, ExactContext, SampleContext, SessionSpan};
+use super::{Effect, EffectConstant, EffectParam, ExactContext, SampleContext, SessionSpan};
 use crate::ParamLayout;
 
 /// See the module doc.
@@ -47,6 +47,13 @@ impl Effect for ClockDrift {
     fn exact(&self, ctx: &ExactContext<'_>, theta: &[f64], _: &ParamLayout) -> [f64; 6] {
         let t = ctx.t + ctx.tau + theta[0] * (ctx.t - self.span.mid());
         ctx.model.predict(&(ctx.trajectory)(t))
+    }
+    fn constants(&self) -> Vec<EffectConstant> {
+        vec![EffectConstant {
+            name: "clock_drift.t_ref".into(),
+            unit: "s",
+            value: self.span.mid(),
+        }]
     }
     fn magnitude_unit(&self) -> &'static str {
         "ppm"

@@ -63,6 +63,20 @@ pub struct EffectParam {
     pub prior_sigma: f64,
 }
 
+/// A fixed value an effect's parameters are relative to (T_ref of
+/// `temperature_bias`, the reference time of `clock_drift`, …): written
+/// beside θ_e (docs/model.md §8.4) so that a correction can be applied
+/// later without the session.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectConstant {
+    /// Name, `<effect>.<constant>` (e.g. `temperature_bias.t_ref`).
+    pub name: String,
+    /// Unit of the value.
+    pub unit: &'static str,
+    /// The value.
+    pub value: f64,
+}
+
 /// Everything an effect may need at one IMU sample.
 pub struct SampleContext<'a> {
     /// IMU sample time t_i on the session clock, s.
@@ -227,6 +241,10 @@ pub trait Effect: Send + Sync {
             }
         }
         z
+    }
+    /// The fixed values θ_e is relative to (default: none).
+    fn constants(&self) -> Vec<EffectConstant> {
+        Vec::new()
     }
     /// The unit of the scalar magnitude of `simulate --effect NAME=M`.
     fn magnitude_unit(&self) -> &'static str;
@@ -486,6 +504,10 @@ impl EffectSet {
             .iter()
             .copied()
             .zip(self.effects.iter().map(|e| e.as_ref()))
+    }
+    /// Every effect's [`Effect::constants`], in effect order.
+    pub fn constants(&self) -> Vec<EffectConstant> {
+        self.effects.iter().flat_map(|e| e.constants()).collect()
     }
     /// Names of the effects.
     pub fn names(&self) -> Vec<&'static str> {

@@ -23,7 +23,7 @@
 
 use std::sync::Arc;
 
-use super::{Effect, EffectParam, SampleContext};
+use super::{Effect, EffectConstant, EffectParam, SampleContext};
 use crate::{JointState, Knots, Spline};
 
 /// What a session needs for the effect (the message of an unavailable one).
@@ -179,6 +179,20 @@ impl Effect for TemperatureBias {
         for (c, col) in cols.iter_mut().enumerate().take(6) {
             col[c] = dt;
         }
+    }
+    fn constants(&self) -> Vec<EffectConstant> {
+        vec![
+            EffectConstant {
+                name: "temperature_bias.t_ref".into(),
+                unit: "degC",
+                value: self.track.reference(),
+            },
+            EffectConstant {
+                name: "temperature_bias.smoothing_knot_spacing".into(),
+                unit: "s",
+                value: self.track.knot_spacing(),
+            },
+        ]
     }
     fn magnitude_unit(&self) -> &'static str {
         "mg/K"

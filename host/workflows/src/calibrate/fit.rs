@@ -28,7 +28,7 @@ use faer::Mat;
 
 use super::{check_measurements, choose_knots, CalibrateError, CalibrateOptions};
 use crate::time_offset::{find_tau, TauEstimate};
-use robimu_model::effects::{EffectParam, EffectSet};
+use robimu_model::effects::{EffectConstant, EffectParam, EffectSet};
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{MeasurementModel, ParamLayout, Robot, Spline};
@@ -101,6 +101,8 @@ pub struct Fit {
     pub sigma_e: Vec<f64>,
     /// Names of θ_E.
     pub effect_params: Vec<EffectParam>,
+    /// The fixed values θ_E is relative to ([`EffectSet::constants`]).
+    pub effect_constants: Vec<EffectConstant>,
     /// Final cost ½‖r‖² (negative log-posterior up to a constant).
     pub cost: f64,
     /// The fitted trajectory.
@@ -243,6 +245,7 @@ pub fn fit(
         theta_e: problem.effect_params_of(&sol.theta).to_vec(),
         sigma_e,
         effect_params: effects.params().to_vec(),
+        effect_constants: effects.constants(),
         cost,
         trajectory: problem.spline_of(&sol.theta),
         residuals: problem.imu_residuals(&sol.theta)?,

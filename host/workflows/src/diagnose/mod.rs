@@ -884,7 +884,12 @@ pub fn fit_json(layout: &ParamLayout, f: &Fit) -> serde_json::Value {
             serde_json::json!({"name": p.name, "unit": p.unit, "value": f.theta_e[e], "sigma": f.sigma_e[e]})
         })
         .collect();
-    serde_json::json!({"effects": f.effects, "parameters": params, "effect_parameters": eff})
+    let constants: Vec<serde_json::Value> = f
+        .effect_constants
+        .iter()
+        .map(|c| serde_json::json!({"name": c.name, "unit": c.unit, "value": c.value}))
+        .collect();
+    serde_json::json!({"effects": f.effects, "parameters": params, "effect_parameters": eff, "effect_constants": constants})
 }
 
 #[cfg(test)]
