@@ -196,7 +196,6 @@ pub fn residual_figure(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::html::SessionSeries;
     use crate::plot::{histogram_grid, line_panels, loglog_panels, HistogramPanel, LogLogPanel};
     use ab_glyph::{Font, FontRef, GlyphId, PxScale, ScaleFont};
     use robimu_model::{ParamLayout, Robot};
@@ -466,48 +465,5 @@ mod tests {
         // and nothing beyond the title's ends
         assert_eq!(ink(0, x0 - 3), 0);
         assert_eq!(ink(x0 + width as i32 + 3, img.width() as i32), 0);
-    }
-
-    /// The band is the noise's ±1σ: on a simulated session whose
-    /// accelerometer noise grows with the joint acceleration (AR(1), motion
-    /// gain c), the true parameters' residuals fall inside it 68 % of the
-    /// time in every channel, where the band at rest holds far fewer.
-    #[test]
-    fn residual_band_holds_68_percent_of_simulated_noise() {
-        use robimu_model::noise::NoiseModel;
-        use robimu_workflows::calibrate::noise_model_record;
-        use robimu_workflows::simulate::{random_session, SimulateOptions};
-        let robot = Robot::aubo_i5();
-        let mut opts = SimulateOptions::paper(&robot);
-        let model = NoiseModel::ar1(opts.sigma_z, [Some(0.6), None], [0.3, 0.0]).unwrap();
-        opts.noise_model = Some(model.clone());
-        let s = random_session(&robot, 30.0, 1.0, &opts, 5).unwrap();
-        let inside = |band: &NoiseBand| {
-            let series =
-                SessionSeries::new(&robot, &s.data, &s.truth, &s.trajectory, band).unwrap();
-            (0..6)
-                .map(|c| {
-                    let (r, sd) = (&series.residuals[c], &series.sigma[c]);
-                    assert_eq!(r.len(), sd.len());
-                    let k = r.iter().zip(sd).filter(|(r, s)| r.1.abs() <= s.1).count();
-                    k as f64 / r.len() as f64
-                })
-                .collect::<Vec<f64>>()
-        };
-        let record = noise_model_record(&model);
-        let fit = inside(&NoiseBand::of_fit(Some(&record), &opts.sigma_z));
-        for (c, f) in fit.iter().enumerate() {
-            assert!(
-                (f - 0.6827).abs() < 0.05,
-                "channel {c}: {f:.3} inside ±1σ ({fit:?})"
-            );
-        }
-        let at_rest = inside(&NoiseBand::of_fit(None, &opts.sigma_z));
-        for c in 0..3 {
-            assert!(
-                at_rest[c] < fit[c] - 0.1,
-                "channel {c}: {at_rest:?} vs {fit:?}"
-            );
-        }
     }
 }
