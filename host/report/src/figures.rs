@@ -113,7 +113,7 @@ impl NoiseBand {
                 let mut band = Self {
                     sigma: [0.0; 6],
                     motion: [0.0; 6],
-                    source: "the fit's AR noise model (marginal σ, with its motion level)".into(),
+                    source: "the fit's AR noise model (marginal σ and its motion level)".into(),
                 };
                 for (c, ch) in channels.iter().enumerate() {
                     band.sigma[c] = ch.sigma;
@@ -124,7 +124,7 @@ impl NoiseBand {
             _ => Self {
                 sigma: *sigma_z,
                 motion: [0.0; 6],
-                source: "white noise of the session's sigma_z".into(),
+                source: "the fit's white noise (sigma_z)".into(),
             },
         }
     }
