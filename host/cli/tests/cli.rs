@@ -858,7 +858,7 @@ fn calibrate_windows_reports_the_repeatability() {
         ("robot angles", "deg"),
         ("IMU position", "mm"),
         ("gravity", "m/s^2"),
-        ("time offset", "s"),
+        ("time offset", "ms"),
         ("accelerometer", "deg"),
         ("accelerometer", "1"),
         ("accelerometer", "m/s^2"),

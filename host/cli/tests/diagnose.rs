@@ -19,7 +19,7 @@ use robimu_workflows::diagnose::{
 use robimu_workflows::simulate::{random_session, RandomSession, SimulateOptions};
 
 mod common;
-use common::robimu;
+use common::{assert_figure_glyphs, robimu};
 
 /// Session length of the detection tests, s.
 const DURATION: f64 = 90.0;
@@ -799,6 +799,7 @@ fn cli_simulate_effect_then_diagnose() {
     }
     let svg = std::fs::read_to_string(out.join("residuals.svg")).unwrap();
     assert!(svg.contains("gz residual") && svg.contains("noise model"));
+    assert_figure_glyphs(&out);
     let o = robimu(&["diagnose", s, "--candidates", "warp_drive"]);
     assert!(!o.success());
     assert!(o.stderr.contains("unknown effect `warp_drive`"));

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
-use common::{robimu, robimu_ok};
+use common::{assert_figure_glyphs, robimu, robimu_ok};
 
 /// Headless Chromium, or `None` when it is not installed. In CI (env `CI`
 /// set) a missing browser is a failure, not a skip.
@@ -30,6 +30,11 @@ fn chromium() -> Option<PathBuf> {
 
 /// Render `page` in headless Chromium: (DOM after load, browser log).
 fn render(browser: &Path, page: &Path, profile: &Path) -> (String, String) {
+    render_with(browser, page, profile, &[])
+}
+
+/// [`render`] with extra Chromium arguments.
+fn render_with(browser: &Path, page: &Path, profile: &Path, extra: &[&str]) -> (String, String) {
     let url = format!("file://{}", page.canonicalize().unwrap().display());
     let out = Command::new(browser)
         .args([
@@ -41,6 +46,7 @@ fn render(browser: &Path, page: &Path, profile: &Path) -> (String, String) {
             "--v=0",
         ])
         .arg(format!("--user-data-dir={}", profile.display()))
+        .args(extra)
         .args(["--dump-dom", &url])
         .output()
         .expect("run chromium");
@@ -94,6 +100,134 @@ fn assert_renders(browser: Option<&Path>, page: &Path, must_contain: &[&str]) {
         console_errors.is_empty(),
         "browser console: {console_errors:#?}"
     );
+}
+
+/// Written into a test copy of a page (the page itself has no scripts):
+/// records errors (script, console.error, resources that fail to load),
+/// and after the load event writes them, every `<img>`'s natural size and
+/// every inline `<svg>`'s rendered size into `<pre id="render-check">` as
+/// JSON, which `--dump-dom` returns.
+const RENDER_CHECK: &str = r#"<script>
+window.__errors = [];
+window.addEventListener('error', function (e) {
+  var t = e.target;
+  window.__errors.push(t && t.tagName ? 'cannot load ' + t.tagName + ' ' + (t.currentSrc || t.src) : String(e.message));
+}, true);
+var consoleError = console.error;
+console.error = function () { window.__errors.push(Array.from(arguments).join(' ')); consoleError.apply(console, arguments); };
+window.addEventListener('load', function () {
+  var images = Array.from(document.images).map(function (i) { return [i.getAttribute('src'), i.naturalWidth, i.naturalHeight]; });
+  var svgs = Array.from(document.querySelectorAll('body > figure > svg')).map(function (s) { var r = s.getBoundingClientRect(); return [r.width, r.height]; });
+  var out = document.createElement('pre');
+  out.id = 'render-check';
+  out.textContent = JSON.stringify({errors: window.__errors, images: images, svgs: svgs});
+  document.body.appendChild(out);
+});
+</script>"#;
+
+/// (width, height) from a PNG's IHDR chunk.
+fn png_size(path: &Path) -> (u64, u64) {
+    let b = std::fs::read(path).unwrap();
+    assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n", "{}", path.display());
+    let be = |o: usize| u32::from_be_bytes(b[o..o + 4].try_into().unwrap()) as u64;
+    (be(16), be(20))
+}
+
+/// The [`RENDER_CHECK`] result of `page` in Chromium: a test copy of it
+/// (next to it, so relative paths resolve) with the check and an `<img>`
+/// per name in `images` appended.
+fn render_check(browser: &Path, page: &Path, images: &[String]) -> serde_json::Value {
+    let dir = page.parent().unwrap();
+    let html = std::fs::read_to_string(page).unwrap();
+    let imgs: String = images
+        .iter()
+        .map(|p| format!("<img src=\"{p}\" alt=\"{p}\">"))
+        .collect();
+    let copy = html
+        .replacen("<head>", &format!("<head>{RENDER_CHECK}"), 1)
+        .replacen("</body>", &format!("{imgs}</body>"), 1);
+    let test_page = dir.join("render-check.html");
+    std::fs::write(&test_page, copy).unwrap();
+    let profile = tempfile::tempdir().unwrap();
+    let (dom, log) = render_with(
+        browser,
+        &test_page,
+        profile.path(),
+        &[
+            "--allow-file-access-from-files",
+            "--virtual-time-budget=10000",
+        ],
+    );
+    std::fs::remove_file(&test_page).unwrap();
+    let tag = "<pre id=\"render-check\">";
+    let start = dom
+        .find(tag)
+        .unwrap_or_else(|| panic!("the check did not run on {}: {log}", page.display()));
+    let body = &dom[start + tag.len()..];
+    let json = body[..body.find("</pre>").unwrap()]
+        .replace("&lt;", "<")
+        .replace("&gt;", ">")
+        .replace("&amp;", "&");
+    serde_json::from_str(&json).unwrap()
+}
+
+/// `page` in Chromium with every figure of its directory as an `<img>`
+/// ([`render_check`]): no errors; each image loads at the PNG's own size
+/// (naturalWidth > 0); each inline SVG figure (one per `*.svg` file) is
+/// laid out with a non-zero size.
+fn assert_figures_load(browser: &Path, page: &Path) {
+    let dir = page.parent().unwrap();
+    let files: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    let mut pngs: Vec<String> = files
+        .iter()
+        .filter(|n| n.ends_with(".png"))
+        .cloned()
+        .collect();
+    pngs.sort();
+    let svgs = files.iter().filter(|n| n.ends_with(".svg")).count();
+    assert!(!pngs.is_empty() && svgs > 0, "{}", dir.display());
+    let check = render_check(browser, page, &pngs);
+    eprintln!("{}: {check}", page.display());
+    assert_eq!(check["errors"], serde_json::json!([]), "{}", page.display());
+    let images = check["images"].as_array().unwrap();
+    assert_eq!(images.len(), pngs.len(), "{check}");
+    for (img, name) in images.iter().zip(&pngs) {
+        assert_eq!(img[0], name.as_str());
+        let (w, h) = png_size(&dir.join(name));
+        assert!(w > 0 && h > 0);
+        assert_eq!(
+            (img[1].as_u64(), img[2].as_u64()),
+            (Some(w), Some(h)),
+            "{name}"
+        );
+    }
+    let figures = check["svgs"].as_array().unwrap();
+    assert_eq!(
+        figures.len(),
+        svgs,
+        "one inline figure per SVG file: {check}"
+    );
+    for f in figures {
+        assert!(
+            f[0].as_f64().unwrap() > 100.0 && f[1].as_f64().unwrap() > 100.0,
+            "{check}"
+        );
+    }
+}
+
+/// The check sees a failure: an image that does not load is an error and
+/// has naturalWidth 0.
+fn assert_render_check_sees_a_missing_image(browser: &Path, page: &Path) {
+    let check = render_check(browser, page, &["missing.png".into()]);
+    let errors = check["errors"].as_array().unwrap();
+    assert!(
+        errors.len() == 1 && errors[0].as_str().unwrap().contains("missing.png"),
+        "{check}"
+    );
+    assert_eq!(check["images"][0][1], 0, "{check}");
 }
 
 #[test]
@@ -190,7 +324,35 @@ fn cli_reports_render_in_headless_chromium() {
         ),
     ] {
         assert_renders(b, &page, marks);
+        let strings = assert_figure_glyphs(page.parent().unwrap());
+        eprintln!("{}: {strings} figure strings have glyphs", page.display());
+        if let Some(b) = b {
+            assert_figures_load(b, &page);
+        }
     }
+    if let Some(b) = b {
+        assert_render_check_sees_a_missing_image(b, &rep.join("report.html"));
+    }
+    // the figures read at a glance: σ reduction by parameter name in
+    // groups, residuals with the noise band, τ in ms
+    let sigma = std::fs::read_to_string(rep.join("posterior_sigma.svg")).unwrap();
+    for name in [
+        "eps_2_4",
+        "gamma_a_yz",
+        "b_w_z",
+        "tau",
+        "accelerometer",
+        "frozen",
+    ] {
+        assert!(sigma.contains(&format!(">\n{name}\n<")), "{name}");
+    }
+    let residuals = std::fs::read_to_string(rep.join("residuals.svg")).unwrap();
+    assert!(residuals.contains("±1σ noise") && residuals.contains(" ms)"));
+    let page = std::fs::read_to_string(rep.join("report.html")).unwrap();
+    assert!(
+        page.contains("<td>tau</td><td>ms</td>"),
+        "τ in ms in the table"
+    );
     for f in [
         "robot_accuracy.png",
         "robot_accuracy.svg",

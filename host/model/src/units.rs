@@ -1,5 +1,5 @@
-//! Display units: files hold SI (docs/model.md §5), people read millimetres and
-//! degrees (the paper's Table II).
+//! Display units: files hold SI (docs/model.md §5), people read millimetres,
+//! degrees (the paper's Table II) and milliseconds (the time offset τ).
 
 use std::f64::consts::PI;
 
@@ -12,6 +12,8 @@ pub enum DisplayUnit {
     Degree,
     /// `rad/s` shown as °/s.
     DegreePerSecond,
+    /// `s` shown as ms (τ and the effects' delays are milliseconds).
+    Millisecond,
     /// Any other unit, shown as it is in the file.
     Si(String),
 }
@@ -23,6 +25,7 @@ impl DisplayUnit {
             "m" => Self::Millimetre,
             "rad" => Self::Degree,
             "rad/s" => Self::DegreePerSecond,
+            "s" => Self::Millisecond,
             other => Self::Si(other.to_string()),
         }
     }
@@ -30,7 +33,7 @@ impl DisplayUnit {
     /// Display value per SI value.
     pub fn scale(&self) -> f64 {
         match self {
-            Self::Millimetre => 1e3,
+            Self::Millimetre | Self::Millisecond => 1e3,
             Self::Degree | Self::DegreePerSecond => 180.0 / PI,
             Self::Si(_) => 1.0,
         }
@@ -47,6 +50,7 @@ impl DisplayUnit {
             Self::Millimetre => "mm",
             Self::Degree => "deg",
             Self::DegreePerSecond => "deg/s",
+            Self::Millisecond => "ms",
             Self::Si(s) => s,
         }
     }
@@ -68,6 +72,8 @@ mod tests {
         let dps = DisplayUnit::for_si("rad/s");
         assert!((dps.show(5.0 * PI / 180.0) - 5.0).abs() < 1e-12);
         assert_eq!(dps.symbol(), "deg/s");
+        let ms = DisplayUnit::for_si("s");
+        assert_eq!((ms.show(0.0125), ms.symbol()), (12.5, "ms"));
         let g = DisplayUnit::for_si("m/s^2");
         assert_eq!((g.show(9.81), g.symbol()), (9.81, "m/s^2"));
         assert!(DisplayUnit::for_si("rad").is_angle() && !dps.is_angle());

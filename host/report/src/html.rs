@@ -12,6 +12,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::{DisplayUnit, ParameterTable};
+use crate::figures::{residual_figure, sigma_reduction_figure, NoiseBand};
 use crate::plot::{histogram_grid, line_panels, HistogramPanel, LinePanel, PlotError};
 use robimu_model::observations::Measurements;
 use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot, Spline};
@@ -156,7 +157,7 @@ pub fn bar(fraction: f64) -> String {
 }
 
 /// Time series of a session under a calibration: the joint trajectory and
-/// the IMU residuals `z − ẑ(x)` (eq. (10)).
+/// the IMU residuals `z − ẑ(x)` (eq. (10)) with the noise model's σ.
 #[derive(Debug, Clone, Default)]
 pub struct SessionSeries {
     /// Joint angles: per joint, (t, q in degrees).
@@ -164,6 +165,12 @@ pub struct SessionSeries {
     /// IMU residuals per channel `[ax, ay, az, gx, gy, gz]`: (t, residual in
     /// m/s² or °/s).
     pub residuals: Vec<Vec<(f64, f64)>>,
+    /// The noise model's σ at the same samples (t, σ in m/s² or °/s).
+    pub sigma: Vec<Vec<(f64, f64)>>,
+    /// Where the σ come from (for the caption).
+    pub noise_source: String,
+    /// The time offset τ of `x`, s.
+    pub tau: f64,
 }
 
 /// Keep at most `max` evenly spaced points.
@@ -200,12 +207,13 @@ impl SessionSeries {
     /// The series of `data` under parameters `x`: the joint samples, and the
     /// IMU residuals along `trajectory` (the joint trajectory fitted to the
     /// samples, e.g. with the calibration's knot spacing; IMU samples outside
-    /// it are left out).
+    /// it are left out) with the σ of `noise` there.
     pub fn new(
         robot: &Robot,
         data: &Measurements,
         x: &[f64],
         trajectory: &Spline,
+        noise: &NoiseBand,
     ) -> Result<Self, ReportError> {
         Self::check(robot, data, x)?;
         let n = robot.dof();
@@ -221,6 +229,7 @@ impl SessionSeries {
         }
         let (a, b) = (trajectory.knots().start(), trajectory.knots().end());
         let mut residuals = vec![Vec::new(); 6];
+        let mut sigma = vec![Vec::new(); 6];
         let mut js = JointState::default();
         for (&t, z) in data.imu_t.iter().zip(&data.imu_z) {
             let tr = t + tau;
@@ -228,15 +237,70 @@ impl SessionSeries {
                 continue;
             }
             let pred = model.predict(&js);
+            let qdd2: f64 = js.qdd[..n].iter().map(|a| a * a).sum();
             for c in 0..6 {
-                let r = z[c] - pred[c];
-                residuals[c].push((t, if c < 3 { r } else { r.to_degrees() }));
+                let shown = |v: f64| if c < 3 { v } else { v.to_degrees() };
+                residuals[c].push((t, shown(z[c] - pred[c])));
+                sigma[c].push((t, shown(noise.sigma_at(c, qdd2))));
             }
         }
+        let thin = |v: Vec<Vec<(f64, f64)>>| v.into_iter().map(|s| decimate(s, 1500)).collect();
         Ok(Self {
-            joints: joints.into_iter().map(|s| decimate(s, 1500)).collect(),
-            residuals: residuals.into_iter().map(|s| decimate(s, 1500)).collect(),
+            joints: thin(joints),
+            residuals: thin(residuals),
+            sigma: thin(sigma),
+            noise_source: noise.source.clone(),
+            tau,
         })
+    }
+}
+
+#[cfg(test)]
+mod band_tests {
+    use super::*;
+    use crate::figures::NoiseBand;
+
+    /// The band is the noise's ±1σ: on a simulated session whose
+    /// accelerometer noise grows with the joint acceleration (AR(1), motion
+    /// gain c), the true parameters' residuals fall inside it 68 % of the
+    /// time in every channel, where the band at rest holds far fewer.
+    #[test]
+    fn residual_band_holds_68_percent_of_simulated_noise() {
+        use robimu_model::noise::NoiseModel;
+        use robimu_workflows::calibrate::noise_model_record;
+        use robimu_workflows::simulate::{random_session, SimulateOptions};
+        let robot = Robot::aubo_i5();
+        let mut opts = SimulateOptions::paper(&robot);
+        let model = NoiseModel::ar1(opts.sigma_z, [Some(0.6), None], [0.3, 0.0]).unwrap();
+        opts.noise_model = Some(model.clone());
+        let s = random_session(&robot, 30.0, 1.0, &opts, 5).unwrap();
+        let inside = |band: &NoiseBand| {
+            let series =
+                SessionSeries::new(&robot, &s.data, &s.truth, &s.trajectory, band).unwrap();
+            (0..6)
+                .map(|c| {
+                    let (r, sd) = (&series.residuals[c], &series.sigma[c]);
+                    assert_eq!(r.len(), sd.len());
+                    let k = r.iter().zip(sd).filter(|(r, s)| r.1.abs() <= s.1).count();
+                    k as f64 / r.len() as f64
+                })
+                .collect::<Vec<f64>>()
+        };
+        let record = noise_model_record(&model);
+        let fit = inside(&NoiseBand::of_fit(Some(&record), &opts.sigma_z));
+        for (c, f) in fit.iter().enumerate() {
+            assert!(
+                (f - 0.6827).abs() < 0.05,
+                "channel {c}: {f:.3} inside ±1σ ({fit:?})"
+            );
+        }
+        let at_rest = inside(&NoiseBand::of_fit(None, &opts.sigma_z));
+        for c in 0..3 {
+            assert!(
+                at_rest[c] < fit[c] - 0.1,
+                "channel {c}: {at_rest:?} vs {fit:?}"
+            );
+        }
     }
 }
 
@@ -344,29 +408,10 @@ pub fn calibration_report_with(
             ))
         ));
     }
-    // posterior σ figure
-    let sigma_points: Vec<(f64, f64)> = result
-        .parameters
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| !p.frozen && p.prior_sigma > 0.0 && p.sigma > 0.0)
-        .map(|(k, p)| (k as f64, (p.sigma / p.prior_sigma).log10()))
-        .collect();
-    let stem = dir.join("posterior_sigma");
-    let files = line_panels(
-        &stem,
-        "Posterior σ relative to the prior σ",
-        &[LinePanel {
-            title: "log10(σ / prior σ) by parameter index (x order)".into(),
-            x_label: "parameter index".into(),
-            y_label: "log10 ratio".into(),
-            series: vec![("sigma ratio".into(), sigma_points)],
-        }],
-        1,
-    )?;
+    let files = sigma_reduction_figure(&dir.join("posterior_sigma"), result)?;
     page.figure(
         &files[1],
-        "How much the data reduced each parameter's uncertainty (0 = not at all).",
+        "How much the data reduced each parameter's uncertainty: each bar runs from 1 (the prior σ, not reduced) to posterior σ / prior σ, on a log scale (one decade = ten times smaller).",
     )?;
 
     page.heading("Convergence");
@@ -437,27 +482,14 @@ pub fn calibration_report_with(
         let files = line_panels(&dir.join("trajectory"), "Joint trajectory", &panels, 3)?;
         page.figure(&files[1], "The joint samples of the session.")?;
         page.heading("Residuals");
-        let names = ["ax", "ay", "az", "gx", "gy", "gz"];
-        let panels: Vec<LinePanel> = s
-            .residuals
-            .iter()
-            .enumerate()
-            .map(|(c, pts)| LinePanel {
-                title: format!("{} residual", names[c]),
-                x_label: "t [s]".into(),
-                y_label: if c < 3 { "m/s^2" } else { "deg/s" }.into(),
-                series: vec![(names[c].into(), pts.clone())],
-            })
-            .collect();
-        let files = line_panels(
-            &dir.join("residuals"),
-            "IMU residuals z − ẑ(x) at the estimate",
-            &panels,
-            3,
-        )?;
+        let files = residual_figure(&dir.join("residuals"), &s.residuals, &s.sigma, s.tau)?;
         page.figure(
             &files[1],
-            "Measured minus predicted IMU output over time (the trajectory refitted to the joint samples).",
+            &format!(
+                "Measured minus predicted IMU output over time (the trajectory refitted to the joint samples, τ = {:.2} ms), with the ±1σ band of {}: residuals that fit the noise model stay mostly inside it.",
+                1e3 * s.tau,
+                s.noise_source
+            ),
         )?;
     }
     let path = dir.join("report.html");

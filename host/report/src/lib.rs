@@ -12,7 +12,8 @@
 //! * [`diagnosis`] — the text summary of a model-discrepancy diagnosis;
 //! * [`fit_summary`] — brief and full text reports of a fit, the
 //!   weak-direction warning, fitted effects, the repeatability table;
-//! * [`plot`] — line and histogram figures as PNG and SVG (embedded font);
+//! * [`plot`] — line, bar and histogram figures as PNG and SVG (embedded font);
+//! * [`figures`] — the calibration report's σ-reduction and residual figures;
 //! * [`allan`] — the Allan deviation table, allan.csv and its figure;
 //! * [`csvfile`] — CSV tables written beside the figures;
 //! * [`demo`] — the text of `robimu demo` between its stages;
@@ -48,6 +49,7 @@ pub mod convergence;
 pub mod csvfile;
 pub mod demo;
 pub mod diagnosis;
+pub mod figures;
 pub mod fit_summary;
 pub mod html;
 pub mod identifiability;

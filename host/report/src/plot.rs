@@ -1,16 +1,20 @@
 //! Figures, written as PNG and SVG side by side.
 //!
-//! Text uses an embedded subset of DejaVu Sans (`host/assets`) through
-//! plotters' `ab_glyph` backend, so plots render identically on machines
-//! with no system fonts.
+//! Text uses an embedded subset of DejaVu Sans (`host/report/assets`:
+//! Latin, Greek, punctuation, arrows, mathematical operators; no combining
+//! marks) through plotters' `ab_glyph` backend, so plots render identically
+//! on machines with no system fonts. A character outside the subset renders
+//! as a blank: figure text keeps to it (tested against the font's cmap).
 
 use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor;
 
-const FONT: &[u8] = include_bytes!("../assets/DejaVuSans-subset.ttf");
+/// The embedded font (DejaVu Sans subset), as registered for every figure.
+pub const FONT: &[u8] = include_bytes!("../assets/DejaVuSans-subset.ttf");
 const FAMILY: &str = "sans-serif";
 
 /// A figure could not be written.
@@ -313,6 +317,16 @@ pub struct LinePanel {
     pub series: Vec<(String, Vec<(f64, f64)>)>,
 }
 
+/// A shaded band around a panel's curves: (x, lower, upper) points, e.g.
+/// the ±1σ of a noise model around residuals.
+#[derive(Debug, Clone)]
+pub struct Band {
+    /// Legend text.
+    pub label: String,
+    /// (x, lower, upper), in x order; non-finite points are skipped.
+    pub points: Vec<(f64, f64, f64)>,
+}
+
 /// A grid of line-plot panels, written to `stem.png` and `stem.svg`.
 /// Returns the paths written.
 pub fn line_panels(
@@ -321,11 +335,28 @@ pub fn line_panels(
     panels: &[LinePanel],
     columns: usize,
 ) -> Result<Vec<PathBuf>, PlotError> {
+    let panels: Vec<(&LinePanel, Option<&Band>)> = panels.iter().map(|p| (p, None)).collect();
+    banded_line_panels(stem, title, &panels, columns)
+}
+
+/// [`line_panels`] with an optional shaded [`Band`] behind each panel's
+/// curves (in the legend).
+pub fn banded_line_panels(
+    stem: &Path,
+    title: &str,
+    panels: &[(&LinePanel, Option<&Band>)],
+    columns: usize,
+) -> Result<Vec<PathBuf>, PlotError> {
     register_font();
     let columns = columns.max(1);
     let rows = panels.len().div_ceil(columns).max(1);
     let size = (420 * columns as u32, 40 + 260 * rows as u32);
-    struct Lines<'a>(&'a str, &'a [LinePanel], usize, usize);
+    struct Lines<'a>(
+        &'a str,
+        &'a [(&'a LinePanel, Option<&'a Band>)],
+        usize,
+        usize,
+    );
     impl Figure for Lines<'_> {
         fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
         where
@@ -340,7 +371,7 @@ pub fn line_panels(
 fn draw_lines<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     title: &str,
-    panels: &[LinePanel],
+    panels: &[(&LinePanel, Option<&Band>)],
     rows: usize,
     columns: usize,
 ) -> DrawResult
@@ -350,18 +381,31 @@ where
     root.fill(&WHITE)?;
     let root = root.titled(title, (FAMILY, 22))?;
     let cells = root.split_evenly((rows, columns));
-    for (panel, area) in panels.iter().zip(cells.iter()) {
+    for (&(panel, band), area) in panels.iter().zip(cells.iter()) {
         let usable = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite();
+        let band_points: Vec<(f64, f64, f64)> = band
+            .map(|b| {
+                b.points
+                    .iter()
+                    .copied()
+                    .filter(|&(x, lo, hi)| x.is_finite() && lo.is_finite() && hi.is_finite())
+                    .collect()
+            })
+            .unwrap_or_default();
         let (mut x0, mut x1, mut y0, mut y1) = (
             f64::INFINITY,
             f64::NEG_INFINITY,
             f64::INFINITY,
             f64::NEG_INFINITY,
         );
-        for &(x, y) in panel
+        let band_ends = band_points
+            .iter()
+            .flat_map(|&(x, lo, hi)| [(x, lo), (x, hi)]);
+        for (x, y) in panel
             .series
             .iter()
-            .flat_map(|(_, s)| s.iter().filter(|p| usable(p)))
+            .flat_map(|(_, s)| s.iter().copied().filter(usable))
+            .chain(band_ends)
         {
             (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
         }
@@ -373,12 +417,14 @@ where
             (y0, y1) = (c - 1.0, c + 1.0);
         }
         let pad = 0.05 * (y1 - y0);
+        // room for the legend above the curves
+        let top = if band.is_some() { 0.35 } else { 0.05 } * (y1 - y0);
         let mut chart = ChartBuilder::on(area)
             .caption(&panel.title, (FAMILY, 15))
             .margin(8)
             .x_label_area_size(34)
             .y_label_area_size(54)
-            .build_cartesian_2d(x0..x1, y0 - pad..y1 + pad)?;
+            .build_cartesian_2d(x0..x1, y0 - pad..y1 + top)?;
         chart
             .configure_mesh()
             .x_desc(panel.x_label.as_str())
@@ -389,8 +435,22 @@ where
             .axis_desc_style((FAMILY, 11))
             .disable_mesh()
             .draw()?;
+        let edge = RGBColor(0, 110, 40);
+        if !band_points.is_empty() {
+            let outline: Vec<(f64, f64)> = band_points
+                .iter()
+                .map(|&(x, _, hi)| (x, hi))
+                .chain(band_points.iter().rev().map(|&(x, lo, _)| (x, lo)))
+                .collect();
+            chart.draw_series(std::iter::once(Polygon::new(
+                outline,
+                RGBColor(120, 200, 140).mix(0.35).filled(),
+            )))?;
+        }
         for (k, (name, s)) in panel.series.iter().enumerate() {
-            let color = Palette99::pick(k).to_rgba();
+            // behind the band's edges, lighter, when there is a band
+            let alpha = if band.is_some() { 0.55 } else { 1.0 };
+            let color = Palette99::pick(k).mix(alpha);
             chart
                 .draw_series(LineSeries::new(
                     s.iter().copied().filter(usable),
@@ -401,15 +461,218 @@ where
                     PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
                 });
         }
-        if panel.series.len() > 1 {
+        if let (Some(b), false) = (band, band_points.is_empty()) {
+            for side in [1usize, 2] {
+                let line = band_points
+                    .iter()
+                    .map(move |p| (p.0, if side == 1 { p.1 } else { p.2 }));
+                let series = chart.draw_series(LineSeries::new(line, edge.stroke_width(2)))?;
+                if side == 1 {
+                    series.label(b.label.as_str()).legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 16, y)], edge.stroke_width(2))
+                    });
+                }
+            }
+        }
+        if panel.series.len() + usize::from(band.is_some()) > 1 {
             chart
                 .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
                 .label_font((FAMILY, 10))
                 .background_style(WHITE.mix(0.8))
                 .border_style(BLACK)
                 .draw()?;
         }
     }
+    Ok(())
+}
+
+/// One bar of [`log_bars`].
+#[derive(Debug, Clone)]
+pub struct Bar {
+    /// The name on the axis.
+    pub label: String,
+    /// The bar's value (> 0); `None` (or not positive): no bar, `note` instead.
+    pub value: Option<f64>,
+    /// Text shown in place of a missing bar (e.g. "frozen").
+    pub note: String,
+}
+
+/// A group of bars under a heading.
+#[derive(Debug, Clone)]
+pub struct BarGroup {
+    /// The heading.
+    pub name: String,
+    /// Its bars, top to bottom.
+    pub bars: Vec<Bar>,
+}
+
+/// The bars' colour per group (dark enough on white).
+const GROUP_COLOURS: [RGBColor; 5] = [
+    RGBColor(200, 60, 50),
+    RGBColor(40, 140, 70),
+    RGBColor(220, 130, 20),
+    RGBColor(40, 100, 190),
+    RGBColor(130, 70, 170),
+];
+
+/// Height of one bar or heading row, px.
+const BAR_ROW: u32 = 17;
+
+/// Horizontal bars on a log axis, one row per bar with its label on the
+/// axis, in groups under a heading (coloured per group), each bar drawn from
+/// `reference` (e.g. 1 = the prior) to its value. Written to `stem.png` and
+/// `stem.svg`; returns the paths written.
+pub fn log_bars(
+    stem: &Path,
+    title: &str,
+    x_label: &str,
+    reference: f64,
+    groups: &[BarGroup],
+) -> Result<Vec<PathBuf>, PlotError> {
+    register_font();
+    let rows: u32 = groups.iter().map(|g| 1 + g.bars.len() as u32).sum();
+    let size = (900, 110 + BAR_ROW * rows.max(1));
+    struct Bars<'a>(&'a str, &'a str, f64, &'a [BarGroup]);
+    impl Figure for Bars<'_> {
+        fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+        where
+            DB::ErrorType: 'static,
+        {
+            draw_bars(root, self.0, self.1, self.2, self.3)
+        }
+    }
+    write_png_svg(stem, size, &Bars(title, x_label, reference, groups))
+}
+
+/// A log axis tick: plain decimals from 0.001 to 9999, else `1e-5`.
+fn log_tick(v: f64) -> String {
+    if (1e-3..1e4).contains(&v.abs()) {
+        let s = format!("{v:.3}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        format!("{v:.0e}")
+    }
+}
+
+/// A value to two significant digits: `0.42`, `0.0031`, `2.6e-5`.
+fn log_tick_2(v: f64) -> String {
+    if (1e-3..1e3).contains(&v.abs()) {
+        let digits = (1 - v.abs().log10().floor() as i32).max(0) as usize;
+        format!("{v:.digits$}")
+    } else {
+        format!("{v:.1e}")
+    }
+}
+
+fn draw_bars<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    x_label: &str,
+    reference: f64,
+    groups: &[BarGroup],
+) -> DrawResult
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE)?;
+    let titled = root.titled(title, (FAMILY, 20))?;
+    let value = |b: &Bar| b.value.filter(|v| v.is_finite() && *v > 0.0);
+    let (mut lo, mut hi) = (reference, reference);
+    for v in groups.iter().flat_map(|g| g.bars.iter().filter_map(value)) {
+        (lo, hi) = (lo.min(v), hi.max(v));
+    }
+    // from the decade below the smallest value, at least one decade
+    let lo = 10f64.powf(lo.log10().floor()).min(hi / 10.0);
+    let hi = hi * 1.6;
+    let n: usize = groups.iter().map(|g| 1 + g.bars.len()).sum();
+    let longest = groups
+        .iter()
+        .flat_map(|g| g.bars.iter().map(|b| b.label.chars().count()))
+        .max()
+        .unwrap_or(4);
+    let label_width = (14 + 8 * longest as u32).clamp(60, 320);
+    let mut chart = ChartBuilder::on(&titled)
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(label_width)
+        .build_cartesian_2d((lo..hi).log_scale(), 0f64..n.max(1) as f64)?;
+    chart
+        .configure_mesh()
+        .disable_y_mesh()
+        .y_labels(0)
+        .x_desc(x_label)
+        .x_label_formatter(&|v| log_tick(*v))
+        .label_style((FAMILY, 11))
+        .axis_desc_style((FAMILY, 12))
+        .light_line_style(WHITE.mix(0.0))
+        .draw()?;
+    let name_style = TextStyle::from((FAMILY, 12).into_font()).pos(text_anchor::Pos::new(
+        text_anchor::HPos::Right,
+        text_anchor::VPos::Center,
+    ));
+    let head_style = TextStyle::from((FAMILY, 13).into_font()).pos(text_anchor::Pos::new(
+        text_anchor::HPos::Left,
+        text_anchor::VPos::Center,
+    ));
+    let note_style =
+        TextStyle::from((FAMILY, 11).into_font())
+            .color(&BLACK)
+            .pos(text_anchor::Pos::new(
+                text_anchor::HPos::Right,
+                text_anchor::VPos::Center,
+            ));
+    // row k (0 = top) spans y ∈ [n − k − 1, n − k]
+    let mut k = 0usize;
+    for (g, group) in groups.iter().enumerate() {
+        let color = GROUP_COLOURS[g % GROUP_COLOURS.len()];
+        let y = (n - k - 1) as f64;
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(lo, y), (hi, y + 1.0)],
+            RGBColor(235, 235, 235).filled(),
+        )))?;
+        let (_, py) = chart.backend_coord(&(lo, y + 0.5));
+        let (px, _) = chart.backend_coord(&(lo, y));
+        root.draw(&Text::new(
+            group.name.clone(),
+            (px - label_width as i32 + 4, py),
+            head_style.clone(),
+        ))?;
+        k += 1;
+        for bar in &group.bars {
+            let y = (n - k - 1) as f64;
+            let (px, py) = chart.backend_coord(&(lo, y + 0.5));
+            root.draw(&Text::new(
+                bar.label.clone(),
+                (px - 6, py),
+                name_style.clone(),
+            ))?;
+            match value(bar) {
+                Some(v) => {
+                    chart.draw_series(std::iter::once(Rectangle::new(
+                        [(v, y + 0.15), (reference, y + 0.85)],
+                        color.filled(),
+                    )))?;
+                    // the value, at the bar's end away from the reference
+                    let (bx, _) = chart.backend_coord(&(v.min(reference), y));
+                    root.draw(&Text::new(log_tick_2(v), (bx - 3, py), note_style.clone()))?;
+                }
+                None => {
+                    let (rx, _) = chart.backend_coord(&(hi, y));
+                    root.draw(&Text::new(
+                        bar.note.clone(),
+                        (rx - 4, py),
+                        note_style.clone(),
+                    ))?;
+                }
+            }
+            k += 1;
+        }
+    }
+    chart.draw_series(std::iter::once(PathElement::new(
+        vec![(reference, 0.0), (reference, n as f64)],
+        BLACK.stroke_width(1),
+    )))?;
     Ok(())
 }
 

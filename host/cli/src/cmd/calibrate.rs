@@ -9,6 +9,7 @@ use robimu_model::effects::EffectSet;
 use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
 use robimu_report::convergence::{convergence_path, ConvergenceLog};
+use robimu_report::figures::NoiseBand;
 use robimu_report::fit_summary::{
     EffectEstimates, FitReport, RepeatabilityGroups, WeakDirectionsWarning,
 };
@@ -352,8 +353,15 @@ fn html_report(
     result: &CalibrationResult,
     session: &Session,
 ) -> anyhow::Result<PathBuf> {
-    let series =
-        super::report::session_series(robot, data, &cal.x, &opts.sigma_q, Some(cal.knot_spacing))?;
+    let noise = NoiseBand::of_fit(result.noise_model.as_ref(), &opts.sigma_z);
+    let series = super::report::session_series(
+        robot,
+        data,
+        &cal.x,
+        &opts.sigma_q,
+        Some(cal.knot_spacing),
+        &noise,
+    )?;
     let costs = ConvergenceLog::from_summary(&cal.summary).costs();
     let truth = session.truth.as_ref();
     Ok(calibration_report(

@@ -6,6 +6,7 @@ use anyhow::Context;
 use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
 use robimu_report::convergence::{convergence_path, ConvergenceLog};
+use robimu_report::figures::NoiseBand;
 use robimu_report::html::{calibration_report_with, Convergence, ReportError, SessionSeries};
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
@@ -38,18 +39,19 @@ pub struct ReportCmd {
 /// The series of `data` under parameters `x` for the report: the IMU
 /// residuals along the joint trajectory refitted to the samples with the
 /// calibration's knot spacing (`knot_spacing`; chosen from the data when
-/// the result does not give it).
+/// the result does not give it), with the σ of the fit's noise model.
 pub fn session_series(
     robot: &Robot,
     data: &Measurements,
     x: &[f64],
     sigma_q: &[f64],
     knot_spacing: Option<f64>,
+    noise: &NoiseBand,
 ) -> anyhow::Result<SessionSeries> {
     SessionSeries::check(robot, data, x)?;
     let fit = choose_knots(data, robot.dof(), sigma_q, 3, knot_spacing)
         .map_err(|e| ReportError::Session(format!("cannot fit the joint trajectory: {e}")))?;
-    Ok(SessionSeries::new(robot, data, x, &fit.spline)?)
+    Ok(SessionSeries::new(robot, data, x, &fit.spline, noise)?)
 }
 
 /// The session's trajectory and residual series under `result`.
@@ -57,13 +59,14 @@ pub fn series_for(session: &Session, result: &CalibrationResult) -> anyhow::Resu
     let robot = session_robot(session)?;
     let layout = ParamLayout::new(&robot);
     let x = result.values(&layout)?;
-    let (_, sigma_q) = session.noise(&robot)?;
+    let (sigma_z, sigma_q) = session.noise(&robot)?;
     session_series(
         &robot,
         &session.measurements(),
         &x,
         &sigma_q,
         result.knot_spacing,
+        &NoiseBand::of_fit(result.noise_model.as_ref(), &sigma_z),
     )
     .with_context(|| {
         format!(

@@ -126,3 +126,47 @@ where
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("temporary paths are UTF-8")
 }
+
+/// Checks every string the figures (`*.svg`) in `dir` draw against the
+/// embedded font's cmap (host/report/assets, ab_glyph: no character maps to
+/// glyph 0, which renders as a blank in the PNGs); returns how many strings
+/// were checked. plotters writes each string drawn as one `<text>` element.
+pub fn assert_figure_glyphs(dir: &Path) -> usize {
+    use ab_glyph::{Font, FontRef, GlyphId};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../report/assets/DejaVuSans-subset.ttf");
+    let bytes = std::fs::read(&path).unwrap();
+    let font = FontRef::try_from_slice(&bytes).unwrap();
+    let mut checked = 0;
+    let mut bad = Vec::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let file = entry.unwrap().path();
+        if file.extension().is_none_or(|e| e != "svg") {
+            continue;
+        }
+        let svg = std::fs::read_to_string(&file).unwrap();
+        for piece in svg.split("<text").skip(1) {
+            let body = &piece[piece.find('>').unwrap() + 1..piece.find("</text>").unwrap()];
+            let text = body
+                .trim_matches('\n')
+                .replace("&lt;", "<")
+                .replace("&gt;", ">")
+                .replace("&quot;", "\"")
+                .replace("&apos;", "'")
+                .replace("&amp;", "&");
+            let missing: String = text
+                .chars()
+                .filter(|&c| font.glyph_id(c) == GlyphId(0))
+                .collect();
+            if !missing.is_empty() {
+                bad.push(format!("{}: `{text}` lacks {missing:?}", file.display()));
+            }
+            checked += 1;
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "characters the embedded font lacks: {bad:#?}"
+    );
+    assert!(checked > 0, "no figure text in {}", dir.display());
+    checked
+}
