@@ -1,4 +1,4 @@
-//! The MCAP storage of ROS 2 recordings ([`super::ros2`]).
+//! The MCAP storage of ROS 2 recordings ([`super::ros2`], decoded by [`super::collect`]).
 //!
 //! A rosbag2 MCAP file (the `ros2` profile) has one channel per topic with
 //! message encoding `cdr` and a schema named by the message type
@@ -13,7 +13,7 @@ use std::path::Path;
 
 use ::mcap::{McapError, MessageStream};
 
-use super::ros2::{Collector, TopicDecl, COMPRESSION_FEATURE};
+use super::collect::{Collector, TopicDecl, COMPRESSION_FEATURE};
 use super::ImportError;
 
 /// Feeds every message of the MCAP file `bytes` (read from `path`) to `c`.

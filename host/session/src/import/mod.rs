@@ -15,6 +15,8 @@
 //! the IMU columns in the session's order `ax, ay, az, gx, gy, gz`.
 
 pub mod cdr;
+#[cfg(feature = "ros2")]
+mod collect;
 pub mod csv;
 #[cfg(feature = "ros2")]
 mod mcap;

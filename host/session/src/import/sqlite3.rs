@@ -11,7 +11,7 @@ use std::path::Path;
 
 use rusqlite::{Connection, OpenFlags};
 
-use super::ros2::{Collector, TopicDecl};
+use super::collect::{Collector, TopicDecl};
 use super::ImportError;
 
 /// Feeds every message of the database file `db` (shown as `shown` in
