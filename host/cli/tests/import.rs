@@ -362,3 +362,198 @@ fn bad_recordings_fail_naming_the_cause() {
     ])
     .assert_fails(&["joints.csv:", "3 fields"]);
 }
+
+// ---------------------------------------------------------------------------
+// rosbag2 bags written by an independent writer (the Python `rosbags`
+// package, scripts/make_ros2_bags.py) from the session in
+// fixtures/ros2/source.
+
+fn ros2_fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/ros2")
+        .join(name)
+}
+
+/// The imported session has the source's samples: values bit for bit, times
+/// to the 1 ns of the bag's stamps.
+fn assert_same_samples(imported: &Session, source: &Session, what: &str) {
+    for (a, b) in [
+        (&imported.joints, &source.joints),
+        (&imported.imu, &source.imu),
+    ] {
+        assert_eq!(a.values, b.values, "{what}");
+        assert_eq!(a.t.len(), b.t.len(), "{what}");
+        for (x, y) in a.t.iter().zip(&b.t) {
+            assert!((x - y).abs() <= 1e-9, "{what}: t {x} vs {y}");
+        }
+    }
+}
+
+#[test]
+fn rosbags_bags_import_and_calibrate_like_the_source() {
+    let robot = Robot::aubo_i5();
+    let source = Session::load(&ros2_fixture("source")).unwrap();
+    let opts = CalibrateOptions::new(&robot);
+    let cal_src = calibrate(&robot, &source.measurements(), &opts, |_| {}).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    // The directories (MCAP, sqlite3, split MCAP) and their single files;
+    // `mcap` is an alias of `ros2`.
+    let bags = [
+        ("ros2", "run_mcap"),
+        ("ros2", "run_db3"),
+        ("ros2", "run_split"),
+        ("mcap", "run_mcap/run_mcap.mcap"),
+        ("ros2", "run_db3/run_db3.db3"),
+    ];
+    for (k, (cmd, bag)) in bags.iter().enumerate() {
+        let out = dir.path().join(format!("s{k}"));
+        let text = robimu_ok(&["import", cmd, s(&ros2_fixture(bag)), "--out", s(&out)]).text();
+        assert!(
+            text.contains("81 joint samples (joints shoulder_pan_joint,")
+                && text.contains("161 IMU samples"),
+            "{bag}: {text}"
+        );
+        let imported = Session::load(&out).unwrap();
+        assert_same_samples(&imported, &source, bag);
+        let cal = calibrate(&robot, &imported.measurements(), &opts, |_| {}).unwrap();
+        let worst = (0..cal.x.len())
+            .map(|i| (cal.x[i] - cal_src.x[i]).abs() / cal_src.sigma[i])
+            .fold(0.0_f64, f64::max);
+        eprintln!("{bag}: worst |Δx|/σ against the source = {worst:.1e}");
+        assert!(worst <= 1e-6, "{bag}: calibration differs by {worst} σ");
+    }
+}
+
+#[test]
+fn split_bag_files_are_read_as_the_metadata_lists_them() {
+    let source = Session::load(&ros2_fixture("source")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("bag");
+    std::fs::create_dir(&bag).unwrap();
+    for f in ["run_split_0.mcap", "run_split_1.mcap"] {
+        std::fs::copy(ros2_fixture("run_split").join(f), bag.join(f)).unwrap();
+    }
+    let meta = std::fs::read_to_string(ros2_fixture("run_split/metadata.yaml")).unwrap();
+    let out = dir.path().join("out");
+    let import = || robimu(&["import", "ros2", s(&bag), "--out", s(&out)]);
+    // Only the first file listed: the first half of the session.
+    let first_only = meta.replace("  - run_split_1.mcap\n", "");
+    assert_ne!(first_only, meta);
+    std::fs::write(bag.join("metadata.yaml"), &first_only).unwrap();
+    assert!(import().success());
+    let half = Session::load(&out).unwrap();
+    let n = half.imu.t.len();
+    assert!(n > 60 && n < 100, "{n} of 161 IMU samples");
+    assert_eq!(
+        half.imu.values[..],
+        source.imu.values[..half.imu.values.len()]
+    );
+    // Both files: the whole session, in order.
+    std::fs::write(bag.join("metadata.yaml"), &meta).unwrap();
+    assert!(import().success());
+    assert_same_samples(&Session::load(&out).unwrap(), &source, "split");
+    // A listed file that is missing is named.
+    std::fs::remove_file(bag.join("run_split_1.mcap")).unwrap();
+    import().assert_fails(&["lists run_split_1.mcap, which is not in"]);
+    // Without metadata.yaml (a killed recording): the files by their index.
+    std::fs::copy(
+        ros2_fixture("run_split/run_split_1.mcap"),
+        bag.join("run_split_1.mcap"),
+    )
+    .unwrap();
+    std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
+    assert!(import().success());
+    assert_same_samples(&Session::load(&out).unwrap(), &source, "no metadata");
+}
+
+#[test]
+fn bad_bags_fail_naming_the_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let import = |bag: &Path, extra: &[&str]| {
+        let mut args = vec!["import", "ros2", s(bag), "--out", s(&out)];
+        args.extend_from_slice(extra);
+        robimu(&args)
+    };
+    // A topic the bag lacks: its topics with their types and counts, from
+    // metadata.yaml (directories) or the storage (files).
+    let listing = [
+        "/imu/data_raw [sensor_msgs/msg/Imu, 161 messages]",
+        "/joint_states [sensor_msgs/msg/JointState, 85 messages]",
+        "/status [std_msgs/msg/String, 5 messages]",
+    ];
+    for bag in ["run_mcap", "run_db3", "run_db3/run_db3.db3", "run_split"] {
+        let mut want = vec!["no topic /imu/missing (sensor_msgs/msg/Imu)"];
+        want.extend_from_slice(&listing);
+        import(&ros2_fixture(bag), &["--imu", "/imu/missing"]).assert_fails(&want);
+    }
+    import(&ros2_fixture("run_db3"), &["--joints", "/status"]).assert_fails(&[
+        "topic /status: carries std_msgs/msg/String, expected sensor_msgs/msg/JointState",
+    ]);
+    // Broken metadata.yaml, an unknown storage, a file that is no bag.
+    let bag = dir.path().join("bag");
+    std::fs::create_dir(&bag).unwrap();
+    std::fs::write(
+        bag.join("metadata.yaml"),
+        "rosbag2_bagfile_information: [1, 2]\n",
+    )
+    .unwrap();
+    import(&bag, &[]).assert_fails(&["metadata.yaml: not rosbag2 metadata"]);
+    let meta = std::fs::read_to_string(ros2_fixture("run_mcap/metadata.yaml")).unwrap();
+    std::fs::write(
+        bag.join("metadata.yaml"),
+        meta.replace("storage_identifier: mcap", "storage_identifier: cdr_json"),
+    )
+    .unwrap();
+    import(&bag, &[]).assert_fails(&[
+        "storage_identifier \"cdr_json\": robimu reads the storages mcap and sqlite3",
+    ]);
+    let junk = dir.path().join("junk.db3");
+    std::fs::write(&junk, b"not a database at all").unwrap();
+    import(&junk, &[]).assert_fails(&["neither MCAP nor sqlite3"]);
+    // A sqlite3 file cut short.
+    let db = std::fs::read(ros2_fixture("run_db3/run_db3.db3")).unwrap();
+    let cut = dir.path().join("cut.db3");
+    std::fs::write(&cut, &db[..db.len() / 3]).unwrap();
+    import(&cut, &[]).assert_fails(&["cut.db3: not a readable rosbag2 sqlite3 file"]);
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    import(&empty, &[]).assert_fails(&["no metadata.yaml and no .mcap or .db3 file"]);
+}
+
+/// Compressed bags (rosbags' per-file zstd of a sqlite3 bag and per-message
+/// zstd of an MCAP bag): refused naming the feature in a build without it.
+#[cfg(not(feature = "mcap-compression"))]
+#[test]
+fn compressed_bags_without_the_feature_name_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    for (bag, per) in [
+        ("run_zstd_file", "per file"),
+        ("run_zstd_message", "per message"),
+        ("run_zstd_file/run_zstd_file.db3.zstd", "per file"),
+    ] {
+        robimu(&["import", "ros2", s(&ros2_fixture(bag)), "--out", s(&out)]).assert_fails(&[
+            &format!("zstd-compressed ({per})"),
+            "built without the `mcap-compression` feature",
+            "--features mcap-compression",
+        ]);
+    }
+}
+
+/// With the feature, the compressed bags import to the source session.
+#[cfg(feature = "mcap-compression")]
+#[test]
+fn compressed_bags_import_like_the_source() {
+    let source = Session::load(&ros2_fixture("source")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    for bag in [
+        "run_zstd_file",
+        "run_zstd_message",
+        "run_zstd_file/run_zstd_file.db3.zstd",
+    ] {
+        robimu_ok(&["import", "ros2", s(&ros2_fixture(bag)), "--out", s(&out)]);
+        assert_same_samples(&Session::load(&out).unwrap(), &source, bag);
+    }
+}

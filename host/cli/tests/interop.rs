@@ -605,3 +605,113 @@ fn cli_export_and_correct() {
     assert!(!run.success());
     assert!(run.stderr.contains("needs a URDF robot"));
 }
+
+/// `export --format kalibr` of a result with g_sensitivity and size_effect
+/// fitted writes Kalibr's size-effect model with A = G·R_ωᵀ and the lever
+/// arms R_a·r; `--noise allan.csv` gives the noise densities N and random
+/// walks K of the Allan curve σ² = N²/τ + K²τ/3 instead of placeholders.
+#[test]
+fn cli_kalibr_export_takes_the_fitted_effects_and_the_allan_noise() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::new(&robot);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+    let x = random_x(&layout, &mut rng);
+    let result = write_result(dir.path(), "aubo_i5", &layout, &x);
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&result).unwrap()).unwrap();
+    let g: [[f64; 3]; 3] =
+        std::array::from_fn(|r| std::array::from_fn(|c| 1e-3 * (r as f64 - c as f64 + 0.3)));
+    let lever = [[8e-4, -5e-4, 3e-4], [-4e-4, 7e-4, 6e-4]];
+    let axes = ['x', 'y', 'z'];
+    let extra = json["parameters"].as_array_mut().unwrap();
+    let mut push = |name: String, v: f64| {
+        extra.push(
+            serde_json::json!({"name": name, "unit": "1", "value": v, "prior": 0.0,
+            "prior_sigma": 1.0, "sigma": 0.0, "frozen": true}),
+        )
+    };
+    for r in 0..3 {
+        for c in 0..3 {
+            push(format!("g_sensitivity.g{}_s{}", axes[r], axes[c]), g[r][c]);
+        }
+    }
+    for (a, arm) in ['y', 'z'].iter().zip(&lever) {
+        for c in 0..3 {
+            push(format!("size_effect.r{a}_{}", axes[c]), arm[c]);
+        }
+    }
+    std::fs::write(&result, json.to_string()).unwrap();
+    // An Allan curve with known N and K per sensor (accelerometer, gyro).
+    let (n, k) = ([2e-3, 1e-4], [4e-4, 2e-5]);
+    let mut csv = String::from("tau,ax,ay,az,gx,gy,gz\n");
+    for e in 0..18 {
+        let tau = 0.01 * 2f64.powi(e);
+        csv.push_str(&tau.to_string());
+        for c in 0..6 {
+            let (n, k) = (n[c / 3] * (1.0 - 0.1 * (c % 3) as f64), k[c / 3]);
+            csv.push_str(&format!(",{}", (n * n / tau + k * k * tau / 3.0).sqrt()));
+        }
+        csv.push('\n');
+    }
+    let allan = dir.path().join("allan.csv");
+    std::fs::write(&allan, csv).unwrap();
+    let out = dir.path().join("imu.yaml");
+    let run = robimu_ok(&[
+        "export",
+        "--calibration",
+        result.to_str().unwrap(),
+        "--format",
+        "kalibr",
+        "--rate",
+        "100",
+        "--noise",
+        allan.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.stderr.contains("placeholders"), "{}", run.stderr);
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(!text.contains("PLACEHOLDERS"), "{text}");
+    let y: serde_yaml::Value = serde_yaml::from_str(&text).unwrap();
+    let imu = &y["imu0"];
+    assert_eq!(
+        imu["model"].as_str(),
+        Some("scale-misalignment-size-effect")
+    );
+    let close = |key: &str, want: f64, tol: f64| {
+        let got = imu[key].as_f64().unwrap();
+        assert!((got / want - 1.0).abs() < tol, "{key}: {got} vs {want}");
+    };
+    close("accelerometer_noise_density", n[0], 0.03);
+    close("gyroscope_noise_density", n[1], 0.03);
+    close("accelerometer_random_walk", k[0], 0.05);
+    close("gyroscope_random_walk", k[1], 0.05);
+    let p = layout.unpack(&x).unwrap();
+    let m = |v: &serde_yaml::Value| -> nalgebra::Matrix3<f64> {
+        let rows: Vec<Vec<f64>> = serde_yaml::from_value(v.clone()).unwrap();
+        nalgebra::Matrix3::from_fn(|i, j| rows[i][j])
+    };
+    let (rw, ra) = (m3_from(&p.gyro.rotation()), m3_from(&p.accel.rotation()));
+    let a = m(&imu["gyroscopes"]["A"]);
+    assert!((a * rw - m3_from(&g)).abs().max() < 1e-15, "{a}");
+    let ry: Vec<f64> = serde_yaml::from_value(imu["accelerometers"]["ry_i"].clone()).unwrap();
+    let want = ra * Vector3::from(lever[0]);
+    assert!((Vector3::from_vec(ry) - want).abs().max() < 1e-15);
+    // Without --noise: placeholders, said on stderr and in the file.
+    let run = robimu_ok(&[
+        "export",
+        "--calibration",
+        result.to_str().unwrap(),
+        "--format",
+        "kalibr",
+        "--rate",
+        "100",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(run.stderr.contains("placeholders"), "{}", run.stderr);
+    assert!(std::fs::read_to_string(&out)
+        .unwrap()
+        .contains("PLACEHOLDERS"));
+}

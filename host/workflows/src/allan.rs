@@ -160,6 +160,100 @@ pub fn noise_terms(curve: &[AllanPoint]) -> NoiseTerms {
     }
 }
 
+/// The rate random walk K (the bias random walk Kalibr calls
+/// `…_random_walk`, unit/s·√s) from the rising part of a curve, where
+/// σ²(τ) = N²/τ + K²·τ/3 (IEEE Std 952, annex C; N the noise `density`):
+/// the points after the minimum whose segments keep a slope within ±0.2 of
+/// +½, K the mean of log √(3·(σ² − N²/τ)/τ) over them weighted by 1/m.
+/// `None` when the curve does not rise so (a recording too short to show
+/// the bias wander).
+pub fn rate_random_walk(curve: &[AllanPoint], density: f64) -> Option<f64> {
+    let start = curve
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.adev.total_cmp(&b.1.adev))?
+        .0;
+    let mut used: Vec<AllanPoint> = Vec::new();
+    for w in curve[start..].windows(2) {
+        let slope = (w[1].adev.ln() - w[0].adev.ln()) / (w[1].tau.ln() - w[0].tau.ln());
+        if (slope - 0.5).abs() <= SLOPE_TOLERANCE {
+            if used.is_empty() {
+                used.push(w[0]);
+            }
+            used.push(w[1]);
+        } else if !used.is_empty() {
+            break;
+        }
+    }
+    if used.is_empty() {
+        return None;
+    }
+    let (mut num, mut den) = (0.0, 0.0);
+    for p in &used {
+        let k2 = 3.0 * (p.adev * p.adev - density * density / p.tau) / p.tau;
+        if k2 > 0.0 {
+            let w = 1.0 / p.m as f64;
+            num += w * 0.5 * k2.ln();
+            den += w;
+        }
+    }
+    (den > 0.0).then(|| (num / den).exp())
+}
+
+/// The curves of an `allan.csv` (`tau,ax,ay,az,gx,gy,gz`, as `robimu allan`
+/// writes it), with their noise terms; m is τ over the first τ.
+pub fn curves_from_csv(text: &str) -> Result<Vec<ChannelAllan>, String> {
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    let header: Vec<&str> = lines
+        .next()
+        .ok_or("empty file")?
+        .split(',')
+        .map(str::trim)
+        .collect();
+    let want: Vec<&str> = std::iter::once("tau").chain(IMU_COLUMNS).collect();
+    if header != want {
+        return Err(format!("header {header:?}, expected {want:?}"));
+    }
+    let mut out: Vec<ChannelAllan> = IMU_COLUMNS
+        .iter()
+        .map(|n| ChannelAllan {
+            name: n.to_string(),
+            curve: Vec::new(),
+            terms: noise_terms(&[]),
+        })
+        .collect();
+    let mut tau0 = None;
+    for (k, line) in lines.enumerate() {
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|x| x.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("line {}: {e}", k + 2))?;
+        if v.len() != 7 || !v.iter().all(|x| x.is_finite() && *x > 0.0) {
+            return Err(format!(
+                "line {}: expected 7 positive numbers, got {line:?}",
+                k + 2
+            ));
+        }
+        let tau0 = *tau0.get_or_insert(v[0]);
+        let m = (v[0] / tau0).round().max(1.0) as usize;
+        for (c, ch) in out.iter_mut().enumerate() {
+            ch.curve.push(AllanPoint {
+                tau: v[0],
+                m,
+                adev: v[c + 1],
+            });
+        }
+    }
+    if out[0].curve.is_empty() {
+        return Err("no curve points".into());
+    }
+    for ch in &mut out {
+        ch.terms = noise_terms(&ch.curve);
+    }
+    Ok(out)
+}
+
 /// The sample period of `t`: the median interval.
 pub fn sample_period(t: &[f64]) -> Result<f64, AllanError> {
     let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
@@ -270,7 +364,26 @@ mod tests {
         let slope = (b.adev / a.adev).ln() / (b.tau / a.tau).ln();
         assert!((slope - 0.5).abs() < 0.12, "slope {slope}");
         let terms = noise_terms(&curve);
-        eprintln!("white + random walk: {terms:?}, true N {density}, slope {slope}");
+        let k_est = rate_random_walk(&curve, terms.density).expect("the curve rises");
+        eprintln!(
+            "white + random walk: {terms:?}, true N {density}, slope {slope}, K {k_est} (true {k})"
+        );
+        assert!((k_est / k - 1.0).abs() < 0.15, "K {k_est} vs {k}");
+        // White noise alone: no rising part, no K.
+        let white: Vec<f64> = w.iter().map(|w| density / tau0.sqrt() * w).collect();
+        let flat = allan_deviation(&white, tau0).unwrap();
+        assert_eq!(rate_random_walk(&flat, noise_terms(&flat).density), None);
+        // The CSV robimu allan writes reads back to the same curve and terms.
+        let mut csv = String::from("tau,ax,ay,az,gx,gy,gz\n");
+        for p in &curve {
+            csv.push_str(&format!("{}{}\n", p.tau, format!(",{}", p.adev).repeat(6)));
+        }
+        let back = curves_from_csv(&csv).unwrap();
+        assert_eq!(back[5].curve, curve);
+        assert_eq!(back[5].terms, terms);
+        assert!(curves_from_csv("tau,ax\n1,2\n")
+            .unwrap_err()
+            .contains("header"));
         assert!(
             (terms.density / density - 1.0).abs() < 0.03,
             "{terms:?} vs {density}"

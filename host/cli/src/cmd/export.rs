@@ -4,11 +4,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use robimu_model::urdf::UrdfOptions;
-use robimu_session::export::calibrated_params;
 use robimu_session::export::imu::{
     kalibr_imu_yaml, Correction, KalibrOptions, DEFAULT_RANDOM_WALK,
 };
 use robimu_session::export::robot::{corrected_toml, corrected_urdf};
+use robimu_session::export::{calibrated_params, imu_effects};
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
 
@@ -60,6 +60,12 @@ pub struct ExportCmd {
     /// order of consumer MEMS IMUs].
     #[arg(long, value_delimiter = ',', value_name = "ACCEL,GYRO")]
     pub random_walk: Vec<f64>,
+    /// Kalibr: the noise measured by `robimu allan` (its allan.csv: noise
+    /// densities N and, where the curve rises as √τ, the random walks K) or
+    /// by `robimu noise` (its noise.toml: σ per sample, densities σ/√rate)
+    /// [default: the σ of the result's session; random walks placeholders].
+    #[arg(long, value_name = "allan.csv|noise.toml")]
+    pub noise: Option<PathBuf>,
     /// File to write.
     #[arg(long)]
     pub out: PathBuf,
@@ -104,7 +110,9 @@ impl ExportCmd {
                 };
                 corrected_urdf(&urdf, &opts, &params)?
             }
-            ExportFormat::Kalibr => self.kalibr(&robot, &params, session_dir.as_deref())?,
+            ExportFormat::Kalibr => {
+                self.kalibr(&result, &robot, &params, session_dir.as_deref())?
+            }
         };
         std::fs::write(&out, text).with_context(|| format!("cannot write {}", out.display()))?;
         println!("wrote {}", out.display());
@@ -115,6 +123,7 @@ impl ExportCmd {
     /// --rate or the result's session.
     fn kalibr(
         &self,
+        result: &CalibrationResult,
         robot: &robimu_model::Robot,
         params: &robimu_model::ModelParams,
         session_dir: Option<&Path>,
@@ -133,24 +142,97 @@ impl ExportCmd {
         if !(rate.is_finite() && rate > 0.0) {
             bail!("--rate {rate}: must be a positive number of Hz");
         }
-        let sigma_z = match &session {
-            Some(s) => s.noise(robot)?.0,
-            None => robot.sigma_z(),
+        let (mut sigma_z, mut noise_source) = match &session {
+            Some(s) => (
+                s.noise(robot)?.0,
+                "largest per-sample σ of the session's noise / √rate".to_string(),
+            ),
+            None => (
+                robot.sigma_z(),
+                "largest per-sample σ of the robot's noise / √rate".to_string(),
+            ),
         };
-        let random_walk = match self.random_walk.as_slice() {
-            [] => DEFAULT_RANDOM_WALK,
-            &[a, g] if [a, g].iter().all(|v| v.is_finite() && *v > 0.0) => [a, g],
+        let mut noise_density = None;
+        let mut random_walk = DEFAULT_RANDOM_WALK;
+        let mut random_walk_source = None;
+        if let Some(path) = &self.noise {
+            let shown = path.display();
+            let is_csv = path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+            if is_csv {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("cannot read --noise {shown}"))?;
+                let curves = robimu_workflows::allan::curves_from_csv(&text).map_err(|e| {
+                    anyhow::anyhow!("--noise {shown}: not an allan.csv of `robimu allan`: {e}")
+                })?;
+                let largest = |r: std::ops::Range<usize>, f: &dyn Fn(usize) -> Option<f64>| {
+                    r.map(f).try_fold(0.0f64, |m, v| v.map(|v| m.max(v)))
+                };
+                let density = |c: usize| Some(curves[c].terms.density).filter(|d| d.is_finite());
+                let walk = |c: usize| {
+                    robimu_workflows::allan::rate_random_walk(
+                        &curves[c].curve,
+                        curves[c].terms.density,
+                    )
+                };
+                let (Some(na), Some(ng)) = (largest(0..3, &density), largest(3..6, &density))
+                else {
+                    bail!("--noise {shown}: no noise density on every channel");
+                };
+                noise_density = Some([na, ng]);
+                noise_source =
+                    format!("the Allan deviation's N (largest of each sensor's axes) in {shown}");
+                match (largest(0..3, &walk), largest(3..6, &walk)) {
+                    (Some(a), Some(g)) => {
+                        random_walk = [a, g];
+                        random_walk_source = Some(format!(
+                            "the Allan deviation's rate random walk K (σ = K·√(τ/3), largest of each sensor's axes) in {shown}"
+                        ));
+                    }
+                    _ => eprintln!(
+                        "note: {shown}: the Allan curves do not rise as √τ on every axis (record longer at rest): the random walks stay placeholders"
+                    ),
+                }
+            } else {
+                let file = robimu_workflows::noise::NoiseFile::read(path)
+                    .with_context(|| format!("--noise {shown}"))?;
+                let Some(s) = file.noise.sigma_z else {
+                    bail!("--noise {shown}: its [noise] table has no sigma_z");
+                };
+                sigma_z = s;
+                noise_source = format!("largest per-sample σ of {shown} / √rate");
+            }
+        }
+        match self.random_walk.as_slice() {
+            [] => {}
+            &[a, g] if [a, g].iter().all(|v| v.is_finite() && *v > 0.0) => {
+                random_walk = [a, g];
+                random_walk_source = Some("given with --random-walk".into());
+            }
             other => bail!(
                 "--random-walk {other:?}: give two positive numbers, ACCEL,GYRO (Kalibr divides by them)"
             ),
-        };
+        }
+        if random_walk_source.is_none() {
+            eprintln!(
+                "note: the random walks in the imu.yaml are placeholders ({}, {}): give --noise allan.csv of a long static recording, or --random-walk",
+                random_walk[0], random_walk[1]
+            );
+        }
+        let (g_sensitivity, size_effect) = imu_effects(result)?;
         Ok(kalibr_imu_yaml(
             params,
             &KalibrOptions {
                 rate,
                 sigma_z,
+                noise_density,
+                noise_source,
                 rostopic: self.rostopic.clone(),
                 random_walk,
+                random_walk_source,
+                g_sensitivity,
+                size_effect,
             },
         ))
     }

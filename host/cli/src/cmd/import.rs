@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use robimu_session::import::csv::read_csv_pair;
-use robimu_session::import::mcap::{read_mcap, McapOptions, TimeSource};
+use robimu_session::import::ros2::{read_ros2, Ros2Options, TimeSource};
 use robimu_session::import::{Imported, Streams};
 use robimu_session::SessionMeta;
 
@@ -13,7 +13,9 @@ use super::input::resolve_robot;
 
 /// Import a recording made with other tools as a session directory.
 ///
-/// `mcap`: a ROS 2 bag (MCAP) with sensor_msgs/msg/JointState and
+/// `ros2` (alias `mcap`): a ROS 2 bag — the rosbag2 directory `ros2 bag
+/// record` writes (metadata.yaml, MCAP or sqlite3 storage, split files), or
+/// one .mcap or .db3 file — with sensor_msgs/msg/JointState and
 /// sensor_msgs/msg/Imu topics. `csv`: an EuRoC/Kalibr IMU CSV
 /// (timestamp [ns], gyroscope [rad/s], accelerometer [m/s²]) and a joints
 /// CSV (timestamp [ns], one column per joint [rad]) on the same clock.
@@ -27,7 +29,8 @@ pub struct ImportCmd {
 /// The source format.
 #[derive(Debug, Clone, clap::Subcommand)]
 pub enum ImportFormat {
-    Mcap(McapCmd),
+    #[command(alias = "mcap")]
+    Ros2(Ros2Cmd),
     Csv(CsvCmd),
 }
 
@@ -43,10 +46,12 @@ pub struct SessionArgs {
     pub robot: String,
 }
 
-/// Import a ROS 2 recording (MCAP, CDR messages).
+/// Import a ROS 2 recording: a rosbag2 directory, or one .mcap or .db3 file
+/// (CDR messages; zstd-compressed files and messages need the
+/// `mcap-compression` feature).
 #[derive(Debug, Clone, clap::Args)]
-pub struct McapCmd {
-    /// The .mcap file.
+pub struct Ros2Cmd {
+    /// The bag: a rosbag2 directory (with metadata.yaml), a .mcap or a .db3 file.
     pub file: PathBuf,
     /// Topic of sensor_msgs/msg/JointState.
     #[arg(long, default_value = "/joint_states")]
@@ -101,8 +106,8 @@ impl ImportCmd {
     /// Import; what was written.
     pub fn write(&self) -> anyhow::Result<Imported> {
         let (streams, session, source) = match &self.format {
-            ImportFormat::Mcap(c) => {
-                let opts = McapOptions {
+            ImportFormat::Ros2(c) => {
+                let opts = Ros2Options {
                     joints_topic: c.joints.clone(),
                     imu_topic: c.imu.clone(),
                     time: if c.time == "log" {
@@ -112,7 +117,7 @@ impl ImportCmd {
                     },
                     joint_names: c.joint_names.clone(),
                 };
-                let s = read_mcap(&c.file, &opts)
+                let s = read_ros2(&c.file, &opts)
                     .with_context(|| format!("cannot import {}", c.file.display()))?;
                 (s, &c.session, c.file.display().to_string())
             }
@@ -140,7 +145,7 @@ fn write(streams: Streams, args: &SessionArgs, source: &str) -> anyhow::Result<I
     let width = streams.joints.first().map_or(0, |(_, q)| q.len());
     if width != robot.dof() {
         bail!(
-            "{source}: {width} joints imported ({}), but robot `{}` has {} (mcap: choose them with --joint-names)",
+            "{source}: {width} joints imported ({}), but robot `{}` has {} (ros2: choose them with --joint-names)",
             streams.joint_names.join(", "),
             robot.name(),
             robot.dof()

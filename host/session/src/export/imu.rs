@@ -15,8 +15,10 @@
 //! Kalibr's `scale-misalignment` IMU model takes the accelerometer axes as
 //! the IMU frame `i`: `a_m = M_a·a_i + b_a`, `ω_m = M_g·C_gyro_i·ω_i + A·a_i + b_g`
 //! (M lower triangular). In those terms `M_a = K_a·Γ_a`, `M_g = K_ω·Γ_ω`,
-//! `C_gyro_i = R_ω·R_aᵀ`, `A = 0`, and `T_i_b` (body = robimu's IMU frame) has
-//! the rotation `R_a` ([`kalibr_imu_yaml`]).
+//! `C_gyro_i = R_ω·R_aᵀ`, `A = G·R_ωᵀ` (G of `g_sensitivity`, else 0), and
+//! `T_i_b` (body = robimu's IMU frame) has the rotation `R_a`; the
+//! `scale-misalignment-size-effect` lever arms are `R_a·r_y`, `R_a·r_z`
+//! ([`KalibrIntrinsics`], [`kalibr_imu_yaml`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -161,13 +163,26 @@ pub struct KalibrOptions {
     /// Per-sample σ of `[ax, ay, az, gx, gy, gz]` (m/s², rad/s); the largest
     /// of each sensor's three is written (Kalibr has one per sensor).
     pub sigma_z: [f64; 6],
+    /// Noise densities (accelerometer m/s²/√Hz, gyroscope rad/s/√Hz) that
+    /// replace σ_z/√rate, e.g. the Allan deviation's N.
+    pub noise_density: Option<[f64; 2]>,
+    /// Where the noise densities come from (a comment in the file).
+    pub noise_source: String,
     /// `rostopic`.
     pub rostopic: String,
     /// `accelerometer_random_walk` (m/s³/√Hz) and `gyroscope_random_walk`
     /// (rad/s²/√Hz). robimu's biases are constant, so these are not
-    /// estimated; Kalibr divides by them (its bias-motion weight is 1/σ²),
-    /// so they must be positive.
+    /// estimated by the calibration; Kalibr divides by them (its
+    /// bias-motion weight is 1/σ²), so they must be positive.
     pub random_walk: [f64; 2],
+    /// Where the random walks come from; `None`: they are placeholders.
+    pub random_walk_source: Option<String>,
+    /// The fitted `g_sensitivity` G (rows: gyroscope sensor axes; columns:
+    /// specific force in robimu's IMU frame), docs/model.md §4.5.
+    pub g_sensitivity: Option<M3>,
+    /// The fitted `size_effect` lever arms r_y, r_z (m, robimu's IMU frame,
+    /// relative to the x axis), docs/model.md §4.5.
+    pub size_effect: Option<[[f64; 3]; 2]>,
 }
 
 /// Default random walks for [`KalibrOptions::random_walk`]: placeholders of
@@ -181,66 +196,145 @@ fn yaml_matrix(indent: &str, m: &M3) -> String {
         .collect()
 }
 
-/// Kalibr's `imu.yaml` (input keys, and the calibrated `scale-misalignment`
-/// intrinsics of its result file; see the module doc). The random walks are
-/// the given placeholders: robimu's model has constant biases. The estimated biases are written
-/// as the extra keys `accelerometers.b` / `gyroscopes.b` (Kalibr estimates
-/// biases as time series and has no key for them).
+fn yaml_vector(v: &[f64; 3]) -> String {
+    format!("[{:?}, {:?}, {:?}]", v[0], v[1], v[2])
+}
+
+/// The Kalibr IMU intrinsics of robimu's model (module doc; Kalibr's
+/// `IccScaledMisalignedImu` / `…SizeEffectImu` measurement equations):
+///
+/// ```text
+/// accelerometers.M = K_a·Γ_a         T_i_b rotation C_i_b = R_a
+/// gyroscopes.M     = K_ω·Γ_ω         gyroscopes.C_gyro_i = R_ω·R_aᵀ
+/// gyroscopes.A     = G·R_ωᵀ          (ω_m = M·C_gyro_b·ω + A·C_gyro_b·s, C_gyro_b = R_ω)
+/// accelerometers.rx_i = 0, ry_i = R_a·r_y, rz_i = R_a·r_z
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct KalibrIntrinsics {
+    /// `T_i_b`'s rotation C_i_b.
+    pub c_i_b: M3,
+    /// `accelerometers.M`.
+    pub m_accel: M3,
+    /// `gyroscopes.M`.
+    pub m_gyro: M3,
+    /// `gyroscopes.A`, rad/s per m/s².
+    pub a_gyro: M3,
+    /// `gyroscopes.C_gyro_i`.
+    pub c_gyro_i: M3,
+    /// `accelerometers.rx_i`, `ry_i`, `rz_i` (m), when the size effect was fitted.
+    pub levers: Option<[[f64; 3]; 3]>,
+}
+
+impl KalibrIntrinsics {
+    /// From robimu's intrinsics and the fitted effects.
+    pub fn new(params: &ModelParams, g: Option<&M3>, size: Option<&[[f64; 3]; 2]>) -> Self {
+        let kg = |s: &ImuIntrinsics| {
+            let mut m = s.gamma_matrix();
+            for (row, k) in m.iter_mut().zip(s.k) {
+                for e in row.iter_mut() {
+                    *e *= k;
+                }
+            }
+            m
+        };
+        let (ra, rw) = (params.accel.rotation(), params.gyro.rotation());
+        Self {
+            c_i_b: ra,
+            m_accel: kg(&params.accel),
+            m_gyro: kg(&params.gyro),
+            a_gyro: g.map_or([[0.0; 3]; 3], |g| geom::mul_mm(g, &geom::transpose(&rw))),
+            c_gyro_i: geom::mul_mm(&rw, &geom::transpose(&ra)),
+            levers: size.map(|[ry, rz]| [[0.0; 3], geom::mul_mv(&ra, *ry), geom::mul_mv(&ra, *rz)]),
+        }
+    }
+}
+
+/// Kalibr's `imu.yaml` (its input keys, and the calibrated intrinsics in the
+/// keys of its result file: model `scale-misalignment`, or
+/// `scale-misalignment-size-effect` when the size effect was fitted; see
+/// [`KalibrIntrinsics`]). `gyroscopes.A` is G from `g_sensitivity` when
+/// fitted, else zero. The random walks are placeholders unless
+/// [`KalibrOptions::random_walk_source`] names their source (robimu's model
+/// has constant biases). The estimated biases are written as the extra keys
+/// `accelerometers.b` / `gyroscopes.b` (Kalibr estimates biases as time
+/// series and has no key for them).
+///
+/// Kalibr's size-effect equation adds axis k's lever acceleration to
+/// component k of the specific force *before* M_a; robimu's (§4.5) adds
+/// axis i's to the whole row i. They agree exactly when Γ_a = I and
+/// otherwise differ by Σ_j (M_a)_ij·(C_i_b·(λ(r_i) − λ(r_j)))_j, a product
+/// of a misalignment and a lever acceleration difference.
 pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
     let (a, g) = (&params.accel, &params.gyro);
-    let kg = |s: &ImuIntrinsics| {
-        let mut m = s.gamma_matrix();
-        for (row, k) in m.iter_mut().zip(s.k) {
-            for e in row.iter_mut() {
-                *e *= k;
-            }
-        }
-        m
-    };
-    let ra = a.rotation();
-    let c_gyro_i = geom::mul_mm(&g.rotation(), &geom::transpose(&ra));
-    let acc_nd = opts.sigma_z[..3].iter().fold(0.0f64, |x, v| x.max(*v)) / opts.rate.sqrt();
-    let gyr_nd = opts.sigma_z[3..].iter().fold(0.0f64, |x, v| x.max(*v)) / opts.rate.sqrt();
+    let k = KalibrIntrinsics::new(
+        params,
+        opts.g_sensitivity.as_ref(),
+        opts.size_effect.as_ref(),
+    );
+    let largest = |v: &[f64]| v.iter().fold(0.0f64, |x, v| x.max(*v));
+    let [acc_nd, gyr_nd] = opts.noise_density.unwrap_or([
+        largest(&opts.sigma_z[..3]) / opts.rate.sqrt(),
+        largest(&opts.sigma_z[3..]) / opts.rate.sqrt(),
+    ]);
     let mut t_i_b = String::new();
     for r in 0..3 {
-        t_i_b.push_str(&format!(
-            "  - [{:?}, {:?}, {:?}, 0.0]\n",
-            ra[r][0], ra[r][1], ra[r][2]
-        ));
+        let c = k.c_i_b[r];
+        t_i_b.push_str(&format!("  - [{:?}, {:?}, {:?}, 0.0]\n", c[0], c[1], c[2]));
     }
     t_i_b.push_str("  - [0.0, 0.0, 0.0, 1.0]\n");
+    let walk_note = match &opts.random_walk_source {
+        Some(src) => format!("# Random walks: {src}.\n"),
+        None => "# Random walks are not estimated by the calibration (constant biases):\n\
+                 # the values below are PLACEHOLDERS (robimu export --noise allan.csv, or\n\
+                 # --random-walk A,G).\n"
+            .to_string(),
+    };
+    let model = if k.levers.is_some() {
+        "scale-misalignment-size-effect"
+    } else {
+        "scale-misalignment"
+    };
+    let levers = k.levers.map_or(String::new(), |[rx, ry, rz]| {
+        format!(
+            "    rx_i: {}  # m\n    ry_i: {}  # m\n    rz_i: {}  # m\n",
+            yaml_vector(&rx),
+            yaml_vector(&ry),
+            yaml_vector(&rz)
+        )
+    });
+    let a_note = if opts.g_sensitivity.is_some() {
+        "from g_sensitivity"
+    } else {
+        "g_sensitivity not fitted: zero"
+    };
     format!(
-        "# Kalibr imu.yaml written by robimu: noise densities from the per-sample\n\
-         # noise σ and the rate; scale-misalignment intrinsics from the calibration\n\
-         # (IMU frame i = accelerometer axes; body b = robimu's IMU frame, axes of the\n\
-         # robot flange). Random walks are not estimated by robimu (constant biases):\n\
-         # the values below are placeholders (robimu export --random-walk A,G).\n\
+        "# Kalibr imu.yaml written by robimu. Noise densities: {noise}.\n\
+         # Intrinsics from the calibration (IMU frame i = accelerometer axes; body b =\n\
+         # robimu's IMU frame, axes of the robot flange, origin at the accelerometer x axis).\n\
+         {walk_note}\
          imu0:\n  \
          T_i_b:\n{t_i_b}  \
          accelerometer_noise_density: {acc_nd:?}  # [ m / s^2 / sqrt(Hz) ]\n  \
          accelerometer_random_walk: {arw:?}  # [ m / s^3 / sqrt(Hz) ]\n  \
          gyroscope_noise_density: {gyr_nd:?}  # [ rad / s / sqrt(Hz) ]\n  \
          gyroscope_random_walk: {grw:?}  # [ rad / s^2 / sqrt(Hz) ]\n  \
-         model: scale-misalignment\n  \
+         model: {model}\n  \
          rostopic: {topic}\n  \
          time_offset: 0.0\n  \
          update_rate: {rate:?}\n  \
-         accelerometers:\n    M:\n{ma}    b: [{ab0:?}, {ab1:?}, {ab2:?}]  # m/s^2 (robimu extra)\n  \
-         gyroscopes:\n    A:\n{za}    C_gyro_i:\n{cg}    M:\n{mg}    b: [{gb0:?}, {gb1:?}, {gb2:?}]  # rad/s (robimu extra)\n",
+         accelerometers:\n    M:\n{ma}{levers}    b: {ab}  # m/s^2 (robimu extra)\n  \
+         gyroscopes:\n    A:  # (rad/s)/(m/s^2), {a_note}\n{za}    C_gyro_i:\n{cg}    M:\n{mg}    b: {gb}  # rad/s (robimu extra)\n",
+        noise = opts.noise_source,
         topic = opts.rostopic,
         rate = opts.rate,
         arw = opts.random_walk[0],
         grw = opts.random_walk[1],
-        ma = yaml_matrix("    ", &kg(a)),
-        za = yaml_matrix("    ", &[[0.0; 3]; 3]),
-        cg = yaml_matrix("    ", &c_gyro_i),
-        mg = yaml_matrix("    ", &kg(g)),
-        ab0 = a.b[0],
-        ab1 = a.b[1],
-        ab2 = a.b[2],
-        gb0 = g.b[0],
-        gb1 = g.b[1],
-        gb2 = g.b[2],
+        ma = yaml_matrix("    ", &k.m_accel),
+        za = yaml_matrix("    ", &k.a_gyro),
+        cg = yaml_matrix("    ", &k.c_gyro_i),
+        mg = yaml_matrix("    ", &k.m_gyro),
+        ab = yaml_vector(&a.b),
+        gb = yaml_vector(&g.b),
     )
 }
 
@@ -275,4 +369,201 @@ pub fn write_imu_csv(
         w.write_record(&rec).map_err(fail)?;
     }
     w.flush().map_err(|e| fail(e.into()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robimu_model::geom::{add, cross, mul_mm, mul_mv, transpose};
+    use robimu_model::{ParamLayout, Robot};
+
+    type Yaml = serde_yaml::Value;
+
+    fn params(gamma_a: [f64; 3]) -> ModelParams {
+        let layout = ParamLayout::new(&Robot::aubo_i5());
+        let mut p = layout.unpack(&layout.nominal()).unwrap();
+        p.accel = ImuIntrinsics {
+            gamma: gamma_a,
+            r: [0.03, -0.02, 1.2],
+            k: [1.01, 0.98, 1.003],
+            b: [0.1, -0.2, 0.05],
+        };
+        p.gyro = ImuIntrinsics {
+            gamma: [-0.004, 0.006, 0.002],
+            r: [0.035, -0.015, 1.21],
+            k: [0.99, 1.02, 1.007],
+            b: [0.01, 0.003, -0.02],
+        };
+        p
+    }
+
+    fn options(g: Option<M3>, size: Option<[[f64; 3]; 2]>) -> KalibrOptions {
+        KalibrOptions {
+            rate: 200.0,
+            sigma_z: [0.02, 0.03, 0.01, 0.002, 0.001, 0.003],
+            noise_density: None,
+            noise_source: "test".into(),
+            rostopic: "/imu0".into(),
+            random_walk: DEFAULT_RANDOM_WALK,
+            random_walk_source: None,
+            g_sensitivity: g,
+            size_effect: size,
+        }
+    }
+
+    fn matrix(v: &Yaml) -> M3 {
+        let rows: Vec<Vec<f64>> = serde_yaml::from_value(v.clone()).unwrap();
+        assert_eq!(rows.len(), 3);
+        std::array::from_fn(|r| std::array::from_fn(|c| rows[r][c]))
+    }
+
+    fn vector(v: &Yaml) -> [f64; 3] {
+        let x: Vec<f64> = serde_yaml::from_value(v.clone()).unwrap();
+        [x[0], x[1], x[2]]
+    }
+
+    /// The lever acceleration ω̇ × r + ω × (ω × r).
+    fn lever(w: [f64; 3], wd: [f64; 3], r: [f64; 3]) -> [f64; 3] {
+        add(cross(wd, r), cross(w, cross(w, r)))
+    }
+
+    /// Kalibr's measurement equations (IccSensors.py, IccScaledMisalignedImu
+    /// and IccScaledMisalignedSizeEffectImu, body point r_b = 0) with the
+    /// matrices read from the YAML: (a_m, ω_m) for specific force s at the
+    /// body origin, ω and ω̇ in the body frame.
+    fn kalibr_model(y: &Yaml, s: [f64; 3], w: [f64; 3], wd: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+        let imu = &y["imu0"];
+        let t: Vec<Vec<f64>> = serde_yaml::from_value(imu["T_i_b"].clone()).unwrap();
+        let c_i_b: M3 = std::array::from_fn(|r| std::array::from_fn(|c| t[r][c]));
+        let acc = &imu["accelerometers"];
+        let gyr = &imu["gyroscopes"];
+        let ma = matrix(&acc["M"]);
+        let mut u = mul_mv(&c_i_b, s);
+        if imu["model"].as_str() == Some("scale-misalignment-size-effect") {
+            for (k, key) in ["rx_i", "ry_i", "rz_i"].iter().enumerate() {
+                let r_b = mul_mv(&transpose(&c_i_b), vector(&acc[*key]));
+                u[k] += mul_mv(&c_i_b, lever(w, wd, r_b))[k];
+            }
+        }
+        let a = add(mul_mv(&ma, u), vector(&acc["b"]));
+        let c_gyro_b = mul_mm(&matrix(&gyr["C_gyro_i"]), &c_i_b);
+        let g = add(
+            add(
+                mul_mv(&matrix(&gyr["M"]), mul_mv(&c_gyro_b, w)),
+                mul_mv(&matrix(&gyr["A"]), mul_mv(&c_gyro_b, s)),
+            ),
+            vector(&gyr["b"]),
+        );
+        (a, g)
+    }
+
+    /// robimu's model (docs/model.md §3 eq. (6), §4.5 g_sensitivity and
+    /// size_effect): z_a,i = (M_a)_i·(s + λ(r_i)) + b_a (r_x = 0),
+    /// z_ω = M_ω·ω + G·s + b_ω.
+    fn robimu_model(
+        p: &ModelParams,
+        g: &M3,
+        size: &[[f64; 3]; 2],
+        s: [f64; 3],
+        w: [f64; 3],
+        wd: [f64; 3],
+    ) -> ([f64; 3], [f64; 3]) {
+        let ma = p.accel.matrix();
+        let r = [[0.0; 3], size[0], size[1]];
+        let a = std::array::from_fn(|i| {
+            let f = add(s, lever(w, wd, r[i]));
+            (0..3).map(|j| ma[i][j] * f[j]).sum::<f64>() + p.accel.b[i]
+        });
+        let gw = add(p.gyro.apply(w), mul_mv(g, s));
+        (a, gw)
+    }
+
+    const G: M3 = [
+        [1e-3, -4e-4, 2e-4],
+        [3e-4, 8e-4, -6e-4],
+        [-2e-4, 5e-4, 1.2e-3],
+    ];
+    const SIZE: [[f64; 3]; 2] = [[8e-4, -5e-4, 3e-4], [-4e-4, 7e-4, 6e-4]];
+
+    #[test]
+    fn kalibr_equations_with_the_exported_matrices_reproduce_robimus_model() {
+        let vectors = [
+            ([1.2, -9.6, 2.3], [0.7, -1.9, 2.6], [15.0, -8.0, 22.0]),
+            ([-4.0, 3.0, 8.5], [-2.2, 0.4, -1.1], [-30.0, 12.0, 5.0]),
+        ];
+        // Without misalignment of the accelerometer the two size-effect
+        // equations are the same: equal to rounding.
+        for gamma_a in [[0.0; 3], [0.003, -0.005, 0.004]] {
+            let p = params(gamma_a);
+            let y: Yaml =
+                serde_yaml::from_str(&kalibr_imu_yaml(&p, &options(Some(G), Some(SIZE)))).unwrap();
+            let imu = &y["imu0"];
+            assert_eq!(
+                imu["model"].as_str(),
+                Some("scale-misalignment-size-effect")
+            );
+            assert_eq!(vector(&imu["accelerometers"]["rx_i"]), [0.0; 3]);
+            let ma = matrix(&imu["accelerometers"]["M"]);
+            assert!(ma[0][1] == 0.0 && ma[0][2] == 0.0 && ma[1][2] == 0.0);
+            for (s, w, wd) in vectors {
+                let (ka, kg) = kalibr_model(&y, s, w, wd);
+                let (ra, rg) = robimu_model(&p, &G, &SIZE, s, w, wd);
+                for i in 0..3 {
+                    assert!((kg[i] - rg[i]).abs() < 1e-12, "gyro {i}: {kg:?} vs {rg:?}");
+                }
+                // robimu − Kalibr = Σ_j (M_a)_ij (C_i_b (λ(r_i) − λ(r_j)))_j
+                let c = p.accel.rotation();
+                let r = [[0.0; 3], SIZE[0], SIZE[1]];
+                let mk = matrix(&imu["accelerometers"]["M"]);
+                for i in 0..3 {
+                    let expected: f64 = (0..3)
+                        .map(|j| {
+                            let d = mul_mv(&c, geom::sub(lever(w, wd, r[i]), lever(w, wd, r[j])));
+                            mk[i][j] * d[j]
+                        })
+                        .sum();
+                    let diff = ra[i] - ka[i];
+                    assert!(
+                        (diff - expected).abs() < 1e-12,
+                        "accel {i}: {diff} vs {expected}"
+                    );
+                    if gamma_a == [0.0; 3] {
+                        assert!(diff.abs() < 1e-12, "accel {i}: {ka:?} vs {ra:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn kalibr_yaml_without_effects_has_zero_a_and_no_levers_and_says_placeholders() {
+        let p = params([0.003, -0.005, 0.004]);
+        let text = kalibr_imu_yaml(&p, &options(None, None));
+        assert!(text.contains("PLACEHOLDERS"), "{text}");
+        let y: Yaml = serde_yaml::from_str(&text).unwrap();
+        let imu = &y["imu0"];
+        assert_eq!(imu["model"].as_str(), Some("scale-misalignment"));
+        assert!(imu["accelerometers"]["ry_i"].is_null());
+        assert_eq!(matrix(&imu["gyroscopes"]["A"]), [[0.0; 3]; 3]);
+        // No effects: Kalibr's equations are robimu's K·Γ·R v + b.
+        let (s, w) = ([1.0, -9.0, 3.0], [0.5, -0.7, 1.3]);
+        let (ka, kg) = kalibr_model(&y, s, w, [0.0; 3]);
+        let (ra, rg) = (p.accel.apply(s), p.gyro.apply(w));
+        for i in 0..3 {
+            assert!((ka[i] - ra[i]).abs() < 1e-12 && (kg[i] - rg[i]).abs() < 1e-12);
+        }
+        // σ_az is not the largest: the densities are the largest σ / √rate.
+        let nd = imu["accelerometer_noise_density"].as_f64().unwrap();
+        assert_eq!(nd, 0.03 / 200f64.sqrt());
+        let mut given = options(None, None);
+        given.noise_density = Some([1e-3, 2e-4]);
+        given.random_walk = [3e-3, 4e-5];
+        given.random_walk_source = Some("allan.csv".into());
+        let text = kalibr_imu_yaml(&p, &given);
+        assert!(!text.contains("PLACEHOLDERS") && text.contains("Random walks: allan.csv"));
+        let y: Yaml = serde_yaml::from_str(&text).unwrap();
+        let imu = &y["imu0"];
+        assert_eq!(imu["gyroscope_noise_density"].as_f64(), Some(2e-4));
+        assert_eq!(imu["accelerometer_random_walk"].as_f64(), Some(3e-3));
+    }
 }

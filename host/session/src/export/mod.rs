@@ -117,3 +117,42 @@ pub fn calibrated_intrinsics(
     };
     Ok((sensor("a")?, sensor("w")?))
 }
+
+/// The fitted `g_sensitivity` G and `size_effect` lever arms r_y, r_z of a
+/// calibration result (docs/model.md §4.5), `None` for an effect it did not
+/// fit; an effect with only some of its parameters is an error.
+#[allow(clippy::type_complexity)]
+pub fn imu_effects(
+    result: &CalibrationResult,
+) -> Result<(Option<[[f64; 3]; 3]>, Option<[[f64; 3]; 2]>), ExportError> {
+    let axes = ['x', 'y', 'z'];
+    let effect = |names: Vec<String>| -> Result<Option<Vec<f64>>, ExportError> {
+        let values: Vec<Option<f64>> = names
+            .iter()
+            .map(|n| result.parameter(n).map(|p| p.value))
+            .collect();
+        if values.iter().all(Option::is_none) {
+            return Ok(None);
+        }
+        values
+            .iter()
+            .zip(&names)
+            .map(|(v, n)| v.ok_or_else(|| ExportError::MissingParameter(n.clone())))
+            .collect::<Result<Vec<f64>, _>>()
+            .map(Some)
+    };
+    let g = effect(
+        axes.iter()
+            .flat_map(|r| axes.iter().map(move |c| format!("g_sensitivity.g{r}_s{c}")))
+            .collect(),
+    )?
+    .map(|v| std::array::from_fn(|r| std::array::from_fn(|c| v[3 * r + c])));
+    let size = effect(
+        ['y', 'z']
+            .iter()
+            .flat_map(|a| axes.iter().map(move |c| format!("size_effect.r{a}_{c}")))
+            .collect(),
+    )?
+    .map(|v| std::array::from_fn(|a| std::array::from_fn(|c| v[3 * a + c])));
+    Ok((g, size))
+}

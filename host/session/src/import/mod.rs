@@ -1,8 +1,10 @@
 //! Importing recordings made by other tools as session directories
 //! (docs/model.md §7).
 //!
-//! * `mcap` (feature `ros2`): ROS 2 recordings (`sensor_msgs/msg/JointState`
-//!   and `sensor_msgs/msg/Imu` in CDR, decoded by [`cdr`]).
+//! * `ros2` (feature `ros2`): ROS 2 recordings (`sensor_msgs/msg/JointState`
+//!   and `sensor_msgs/msg/Imu` in CDR, decoded by [`cdr`]): a rosbag2
+//!   directory or one storage file, MCAP (`mcap`) or sqlite3 (`sqlite3`,
+//!   feature `sqlite3`).
 //! * [`csv`]: an EuRoC/Kalibr IMU CSV (`#timestamp [ns],w_RS_S_x [rad s^-1],…,
 //!   a_RS_S_x [m s^-2],…`) with a joints CSV on the same clock.
 //!
@@ -13,9 +15,15 @@
 //! the IMU columns in the session's order `ax, ay, az, gx, gy, gz`.
 
 pub mod cdr;
+#[cfg(feature = "ros2")]
+mod collect;
 pub mod csv;
 #[cfg(feature = "ros2")]
-pub mod mcap;
+mod mcap;
+#[cfg(feature = "ros2")]
+pub mod ros2;
+#[cfg(feature = "sqlite3")]
+mod sqlite3;
 
 use std::path::{Path, PathBuf};
 
@@ -46,8 +54,25 @@ pub enum ImportError {
         /// What to do about it, when known.
         hint: String,
     },
-    /// A requested topic has no channel in the file.
-    #[error("{}: no topic {topic} (topics in the file: {available})", path.display())]
+    /// A rosbag2 bag or storage file that cannot be read (metadata.yaml,
+    /// a sqlite3 database, a storage this build does not read, …).
+    #[error("{}: {detail}", path.display())]
+    Bag {
+        /// The file or directory.
+        path: PathBuf,
+        /// What is wrong, and what to do.
+        detail: String,
+    },
+    /// Compressed data this build cannot (or could not) decompress.
+    #[error("{}: {detail}", path.display())]
+    Compressed {
+        /// The file or bag.
+        path: PathBuf,
+        /// What is wrong, and what to do.
+        detail: String,
+    },
+    /// A requested topic is not in the recording.
+    #[error("{}: no topic {topic} (topics in the bag: {available})", path.display())]
     MissingTopic {
         /// The file.
         path: PathBuf,

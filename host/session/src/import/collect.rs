@@ -1,0 +1,405 @@
+//! The one decoding path of ROS 2 recordings ([`super::ros2`]): every
+//! storage (MCAP, sqlite3) hands each message — (topic, type, log time, CDR
+//! bytes) — to a [`Collector`], which decodes the two topics asked for
+//! ([`super::cdr`]) into [`Streams`] (docs/model.md §7).
+
+use std::borrow::Cow;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use super::cdr::{ImuMsg, JointStateMsg};
+use super::{imu_row, ImportError, Streams};
+
+/// Type name of joint states.
+pub const JOINT_STATE: &str = "sensor_msgs/msg/JointState";
+/// Type name of IMU samples.
+pub const IMU: &str = "sensor_msgs/msg/Imu";
+/// The cargo feature that reads compressed recordings.
+pub const COMPRESSION_FEATURE: &str = "mcap-compression";
+
+/// Which timestamp a sample gets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TimeSource {
+    /// The message's `header.stamp`.
+    #[default]
+    Header,
+    /// The log time (when the recorder received it).
+    Log,
+}
+
+/// What to read from a ROS 2 recording.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Ros2Options {
+    /// Topic of `sensor_msgs/msg/JointState`.
+    pub joints_topic: String,
+    /// Topic of `sensor_msgs/msg/Imu`.
+    pub imu_topic: String,
+    /// Which timestamp to use.
+    pub time: TimeSource,
+    /// The joints to import, in this order (default: the names of the first
+    /// joint message, in its order).
+    pub joint_names: Option<Vec<String>>,
+}
+
+/// A topic as a storage declares it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TopicDecl<'a> {
+    /// Topic name.
+    pub name: &'a str,
+    /// Message type (`None`: the storage has no schema for it).
+    pub type_name: Option<&'a str>,
+    /// Message serialisation (`cdr`).
+    pub serialization: &'a str,
+    /// MCAP's schema encoding (`ros2msg`, `ros2idl`); `None` elsewhere.
+    pub schema_encoding: Option<&'a str>,
+}
+
+/// A topic seen in the recording.
+#[derive(Debug, Default)]
+struct TopicInfo {
+    type_name: String,
+    /// Messages read.
+    messages: usize,
+    /// The count metadata.yaml gives, when there is one.
+    declared: Option<u64>,
+    /// Whether its declaration was checked against the wanted type.
+    checked: bool,
+}
+
+/// Turns (topic, log time, CDR bytes) into [`Streams`]: the one decoding
+/// path of every ROS 2 storage.
+pub(crate) struct Collector<'o> {
+    opts: &'o Ros2Options,
+    /// The file being read (for messages' errors).
+    file: PathBuf,
+    /// Whether each message's bytes are zstd-compressed.
+    pub(crate) message_zstd: bool,
+    topics: BTreeMap<String, TopicInfo>,
+    joints: JointPicker,
+    out: Streams,
+    /// Per stream (joints, IMU): the first time and whether any differs.
+    stamps: [(Option<i64>, bool); 2],
+}
+
+impl<'o> Collector<'o> {
+    pub(crate) fn new(file: &Path, opts: &'o Ros2Options) -> Self {
+        Self {
+            opts,
+            file: file.to_path_buf(),
+            message_zstd: false,
+            topics: BTreeMap::new(),
+            joints: JointPicker::new(opts.joint_names.clone()),
+            out: Streams::default(),
+            stamps: [(None, false); 2],
+        }
+    }
+
+    /// The file whose messages follow.
+    pub(crate) fn set_file(&mut self, file: &Path) {
+        self.file = file.to_path_buf();
+    }
+
+    /// Registers a topic (with its count, when a metadata file gives it), so
+    /// that it is listed even without messages.
+    pub(crate) fn declare(&mut self, name: &str, type_name: &str, count: Option<u64>) {
+        let info = self.topics.entry(name.to_string()).or_default();
+        if info.type_name.is_empty() {
+            info.type_name = type_name.to_string();
+        }
+        if count.is_some() {
+            info.declared = count;
+        }
+    }
+
+    /// Which stream a topic feeds, if any.
+    pub(crate) fn wanted(&self, topic: &str) -> Option<&'static str> {
+        if topic == self.opts.joints_topic {
+            Some(JOINT_STATE)
+        } else if topic == self.opts.imu_topic {
+            Some(IMU)
+        } else {
+            None
+        }
+    }
+
+    /// One message: decoded when its topic is one of the two asked for.
+    pub(crate) fn message(
+        &mut self,
+        topic: &TopicDecl<'_>,
+        log_time: u64,
+        data: &[u8],
+    ) -> Result<(), ImportError> {
+        let wanted = self.wanted(topic.name);
+        let info = self.topics.entry(topic.name.to_string()).or_default();
+        if info.type_name.is_empty() {
+            info.type_name = topic.type_name.unwrap_or("(no schema)").to_string();
+        }
+        info.messages += 1;
+        let index = info.messages - 1;
+        let Some(wanted) = wanted else {
+            return Ok(());
+        };
+        if !info.checked {
+            check_topic(&self.file, topic, wanted)?;
+            info.checked = true;
+        }
+        let file = &self.file;
+        let data: Cow<[u8]> = if self.message_zstd {
+            Cow::Owned(unzstd(data, file, "message")?)
+        } else {
+            Cow::Borrowed(data)
+        };
+        let decode_error = |source| ImportError::Message {
+            path: file.clone(),
+            topic: topic.name.to_string(),
+            index,
+            log_time,
+            source,
+        };
+        let log_time = i64::try_from(log_time).unwrap_or(i64::MAX);
+        let pick_time = |stamp: i64| match self.opts.time {
+            TimeSource::Header => stamp,
+            TimeSource::Log => log_time,
+        };
+        if wanted == JOINT_STATE {
+            let m = JointStateMsg::decode(&data).map_err(decode_error)?;
+            let t = pick_time(m.stamp.0);
+            advance(&mut self.stamps[0], t);
+            let q = self
+                .joints
+                .pick(&m, index)
+                .map_err(|detail| ImportError::Joints {
+                    path: file.clone(),
+                    detail,
+                })?;
+            if let Some(q) = q {
+                self.out.joints.push((t, q));
+            }
+        } else {
+            let m = ImuMsg::decode(&data).map_err(decode_error)?;
+            let t = pick_time(m.stamp.0);
+            advance(&mut self.stamps[1], t);
+            self.out
+                .imu
+                .push((t, imu_row(m.angular_velocity, m.linear_acceleration)));
+        }
+        Ok(())
+    }
+
+    /// The topics as "name [type, N messages]".
+    fn listing(&self) -> String {
+        if self.topics.is_empty() {
+            return "none".into();
+        }
+        self.topics
+            .iter()
+            .map(|(t, i)| {
+                let n = match (i.messages, i.declared) {
+                    (0, Some(d)) => d as usize,
+                    (n, _) => n,
+                };
+                format!("{t} [{}, {n} messages]", i.type_name)
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// The error for a topic asked for that the recording lacks, if any.
+    pub(crate) fn missing_topic(&self, source: &Path) -> Option<ImportError> {
+        let opts = self.opts;
+        for (topic, wanted) in [(&opts.joints_topic, JOINT_STATE), (&opts.imu_topic, IMU)] {
+            if !self.topics.contains_key(topic) {
+                return Some(ImportError::MissingTopic {
+                    path: source.to_path_buf(),
+                    topic: format!("{topic} ({wanted})"),
+                    available: self.listing(),
+                });
+            }
+        }
+        None
+    }
+
+    /// The streams, after every file: errors for topics absent, stamps
+    /// that never change, or no joint message with the chosen joints.
+    pub(crate) fn finish(self, source: &Path) -> Result<Streams, ImportError> {
+        if let Some(e) = self.missing_topic(source) {
+            return Err(e);
+        }
+        let opts = self.opts;
+        let counts = [self.out.joints.len(), self.out.imu.len()];
+        for (k, topic) in [&opts.joints_topic, &opts.imu_topic]
+            .into_iter()
+            .enumerate()
+        {
+            let (first, moved) = self.stamps[k];
+            if opts.time == TimeSource::Header && counts[k] > 1 && !moved {
+                return Err(ImportError::WrongType {
+                    path: source.to_path_buf(),
+                    topic: topic.clone(),
+                    detail: format!(
+                        "every header.stamp is {} ns: the driver does not stamp its messages (use --time log)",
+                        first.unwrap_or(0)
+                    ),
+                });
+            }
+        }
+        let mut out = self.out;
+        if out.joints.is_empty() {
+            let seen = self
+                .topics
+                .get(&opts.joints_topic)
+                .map_or(0, |i| i.messages);
+            return Err(if seen == 0 {
+                ImportError::Empty {
+                    what: format!("{}: topic {}", source.display(), opts.joints_topic),
+                }
+            } else {
+                ImportError::Joints {
+                    path: source.to_path_buf(),
+                    detail: format!(
+                        "no message on {} has all of the joints {:?} ({} skipped)",
+                        opts.joints_topic,
+                        self.joints.names.clone().unwrap_or_default(),
+                        self.joints.skipped
+                    ),
+                }
+            });
+        }
+        out.joint_names = self.joints.names.unwrap_or_default();
+        Ok(out)
+    }
+}
+
+/// Tracks whether a stream's times ever change.
+fn advance(state: &mut (Option<i64>, bool), t: i64) {
+    match state.0 {
+        None => state.0 = Some(t),
+        Some(f) if f != t => state.1 = true,
+        _ => {}
+    }
+}
+
+pub(crate) fn check_topic(
+    file: &Path,
+    topic: &TopicDecl<'_>,
+    wanted: &str,
+) -> Result<(), ImportError> {
+    let wrong = |detail: String| ImportError::WrongType {
+        path: file.to_path_buf(),
+        topic: topic.name.to_string(),
+        detail,
+    };
+    let Some(type_name) = topic.type_name else {
+        return Err(wrong(format!("has no schema, expected {wanted}")));
+    };
+    if type_name != wanted {
+        return Err(wrong(format!("carries {type_name}, expected {wanted}")));
+    }
+    if let Some(enc) = topic.schema_encoding {
+        if !matches!(enc, "ros2msg" | "ros2idl") {
+            return Err(wrong(format!(
+                "schema encoding is {enc:?}, expected \"ros2msg\" (a ROS 2 recording)"
+            )));
+        }
+    }
+    if topic.serialization != "cdr" {
+        return Err(wrong(format!(
+            "message encoding is {:?}, expected \"cdr\"",
+            topic.serialization
+        )));
+    }
+    Ok(())
+}
+
+/// Chooses the joints from each `JointState`.
+struct JointPicker {
+    /// The joints to import (`None` until the first message when not given).
+    names: Option<Vec<String>>,
+    /// Width of positional (unnamed) messages.
+    width: Option<usize>,
+    skipped: usize,
+}
+
+impl JointPicker {
+    fn new(names: Option<Vec<String>>) -> Self {
+        Self {
+            names,
+            width: None,
+            skipped: 0,
+        }
+    }
+
+    /// The positions of the chosen joints, `None` when the message lacks
+    /// one of them (a message of another joint group on the same topic).
+    fn pick(&mut self, m: &JointStateMsg, index: usize) -> Result<Option<Vec<f64>>, String> {
+        if !m.name.is_empty() && m.name.len() != m.position.len() {
+            return Err(format!(
+                "joint message {index} has {} names but {} positions",
+                m.name.len(),
+                m.position.len()
+            ));
+        }
+        if m.name.is_empty() {
+            // Positional: every message must have the same width.
+            if let Some(names) = &self.names {
+                return Err(format!(
+                    "joint message {index} has no joint names, so joints {names:?} cannot be picked"
+                ));
+            }
+            let width = *self.width.get_or_insert(m.position.len());
+            if m.position.len() != width || width == 0 {
+                self.skipped += 1;
+                return Ok(None);
+            }
+            return Ok(Some(m.position.clone()));
+        }
+        let names = self.names.get_or_insert_with(|| m.name.clone());
+        let mut q = Vec::with_capacity(names.len());
+        for n in names.iter() {
+            match m.name.iter().position(|x| x == n) {
+                Some(i) => q.push(m.position[i]),
+                None => {
+                    self.skipped += 1;
+                    return Ok(None);
+                }
+            }
+        }
+        Ok(Some(q))
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Compression
+
+pub(crate) const ZSTD_MAGIC: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
+pub(crate) const MCAP_MAGIC: &[u8] = b"\x89MCAP";
+pub(crate) const SQLITE_MAGIC: &[u8] = b"SQLite format 3\0";
+
+/// The zstd-compressed `data` of `what` (a file or a message) in `path`,
+/// decompressed; refused naming the feature when this build lacks it.
+pub(crate) fn unzstd(data: &[u8], path: &Path, what: &str) -> Result<Vec<u8>, ImportError> {
+    #[cfg(feature = "mcap-compression")]
+    {
+        zstd::decode_all(data).map_err(|e| ImportError::Compressed {
+            path: path.to_path_buf(),
+            detail: format!("the {what} is not valid zstd data: {e}"),
+        })
+    }
+    #[cfg(not(feature = "mcap-compression"))]
+    {
+        let _ = data;
+        Err(compression_refused(path, what))
+    }
+}
+
+#[cfg(not(feature = "mcap-compression"))]
+pub(crate) fn compression_refused(path: &Path, what: &str) -> ImportError {
+    ImportError::Compressed {
+        path: path.to_path_buf(),
+        detail: format!(
+            "zstd-compressed (per {what}), and this robimu was built without the \
+             `{COMPRESSION_FEATURE}` feature: build it with `cargo build --release --features \
+             {COMPRESSION_FEATURE}`, or decompress the bag (`ros2 bag convert`)"
+        ),
+    }
+}

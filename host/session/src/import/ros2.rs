@@ -1,0 +1,320 @@
+//! ROS 2 recordings: a rosbag2 bag (the directory `ros2 bag record` writes:
+//! `metadata.yaml` and one or more storage files), or one storage file,
+//! MCAP (`.mcap`) or sqlite3 (`.db3`, feature `sqlite3`), with
+//! `sensor_msgs/msg/JointState` and `sensor_msgs/msg/Imu` on two topics
+//! (docs/model.md §7).
+//!
+//! Every storage feeds its messages — (topic, type, log time, CDR bytes) —
+//! to one collector (`collect.rs`), which decodes the two topics ([`super::cdr`]) into
+//! [`Streams`]. Sample times are the messages' `header.stamp`
+//! ([`TimeSource::Header`], the time the driver gave the measurement) or
+//! the recorder's log time ([`TimeSource::Log`], for drivers that leave the
+//! stamp zero).
+//!
+//! `metadata.yaml` (`rosbag2_bagfile_information`) gives the storage
+//! (`storage_identifier`: `mcap` or `sqlite3`), the files in order
+//! (`relative_file_paths`: a split bag's files are read one after the other),
+//! the topics with their types and message counts, and the compression:
+//! `compression_mode` `file` (each file zstd-compressed, `….mcap.zstd`) or
+//! `message` (each message's bytes). Compressed bags need the
+//! `mcap-compression` feature; without it they are refused naming it. A
+//! storage file is recognised by its first bytes (MCAP, SQLite or zstd
+//! magic), not by its name.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+#[cfg(not(feature = "mcap-compression"))]
+use super::collect::compression_refused;
+use super::collect::{
+    check_topic, unzstd, Collector, TopicDecl, MCAP_MAGIC, SQLITE_MAGIC, ZSTD_MAGIC,
+};
+pub use super::collect::{Ros2Options, TimeSource, COMPRESSION_FEATURE, IMU, JOINT_STATE};
+use super::ImportError;
+use super::Streams;
+
+/// Reads the joint and IMU streams of the recording at `path`: a rosbag2
+/// directory, or one MCAP or sqlite3 file (zstd-compressed or not).
+pub fn read_ros2(path: &Path, opts: &Ros2Options) -> Result<Streams, ImportError> {
+    let mut c = Collector::new(path, opts);
+    if path.is_dir() {
+        read_bag_dir(path, &mut c)?;
+    } else {
+        read_storage_file(path, &mut c)?;
+    }
+    c.finish(path)
+}
+
+/// One storage file: MCAP or sqlite3, possibly zstd-compressed as a whole.
+fn read_storage_file(path: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
+    c.set_file(path);
+    let io = |source| ImportError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut head = [0u8; 16];
+    let n = {
+        let mut f = std::fs::File::open(path).map_err(io)?;
+        let mut n = 0;
+        while n < head.len() {
+            match f.read(&mut head[n..]).map_err(io)? {
+                0 => break,
+                k => n += k,
+            }
+        }
+        n
+    };
+    let head = &head[..n];
+    if head.starts_with(&ZSTD_MAGIC) {
+        let bytes = std::fs::read(path).map_err(io)?;
+        let bytes = unzstd(&bytes, path, "file")?;
+        return read_storage_bytes(path, &bytes, c);
+    }
+    if head.starts_with(SQLITE_MAGIC) {
+        return read_db3(path, path, c);
+    }
+    let bytes = std::fs::read(path).map_err(io)?;
+    read_storage_bytes(path, &bytes, c)
+}
+
+/// A storage file's (decompressed) bytes.
+fn read_storage_bytes(path: &Path, bytes: &[u8], c: &mut Collector<'_>) -> Result<(), ImportError> {
+    if bytes.starts_with(SQLITE_MAGIC) {
+        // rusqlite reads files: the decompressed database goes to a
+        // temporary file, removed afterwards.
+        let tmp = TempFile::write(bytes).map_err(|source| ImportError::Io {
+            path: std::env::temp_dir(),
+            source,
+        })?;
+        return read_db3(&tmp.0, path, c);
+    }
+    let looks_mcap = bytes.starts_with(MCAP_MAGIC)
+        || path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("mcap"));
+    if looks_mcap {
+        return super::mcap::feed(path, bytes, c);
+    }
+    Err(ImportError::Bag {
+        path: path.to_path_buf(),
+        detail: "neither MCAP nor sqlite3 (rosbag2's storage formats) nor zstd".into(),
+    })
+}
+
+#[cfg(feature = "sqlite3")]
+fn read_db3(db: &Path, shown: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
+    super::sqlite3::feed(db, shown, c)
+}
+
+#[cfg(not(feature = "sqlite3"))]
+fn read_db3(_db: &Path, shown: &Path, _c: &mut Collector<'_>) -> Result<(), ImportError> {
+    Err(ImportError::Bag {
+        path: shown.to_path_buf(),
+        detail: "a sqlite3 bag, and this robimu was built without the `sqlite3` feature \
+                 (build it with `--features sqlite3`, or convert the bag to MCAP: \
+                 `ros2 bag convert`)"
+            .into(),
+    })
+}
+
+/// A temporary file removed when dropped.
+struct TempFile(PathBuf);
+
+impl TempFile {
+    fn write(bytes: &[u8]) -> std::io::Result<Self> {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        static N: AtomicUsize = AtomicUsize::new(0);
+        let name = format!(
+            "robimu-import-{}-{}.db3",
+            std::process::id(),
+            N.fetch_add(1, Ordering::Relaxed)
+        );
+        let path = std::env::temp_dir().join(name);
+        std::fs::write(&path, bytes)?;
+        Ok(Self(path))
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// `metadata.yaml` of a rosbag2 bag (the fields robimu reads).
+#[derive(Debug, Deserialize)]
+struct MetadataFile {
+    rosbag2_bagfile_information: BagInfo,
+}
+
+#[derive(Debug, Deserialize)]
+struct BagInfo {
+    storage_identifier: String,
+    #[serde(default)]
+    relative_file_paths: Vec<String>,
+    #[serde(default)]
+    topics_with_message_count: Vec<TopicCount>,
+    #[serde(default)]
+    compression_format: Option<String>,
+    #[serde(default)]
+    compression_mode: Option<String>,
+}
+
+#[derive(Debug, Deserialize)]
+struct TopicCount {
+    topic_metadata: TopicMeta,
+    #[serde(default)]
+    message_count: u64,
+}
+
+#[derive(Debug, Deserialize)]
+struct TopicMeta {
+    name: String,
+    #[serde(rename = "type")]
+    type_name: String,
+    #[serde(default)]
+    serialization_format: String,
+}
+
+/// A bag directory: its metadata, then each file in order.
+fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
+    let meta_path = dir.join("metadata.yaml");
+    if !meta_path.exists() {
+        return read_dir_without_metadata(dir, c);
+    }
+    let bag_error = |detail: String| ImportError::Bag {
+        path: meta_path.clone(),
+        detail,
+    };
+    let text = std::fs::read_to_string(&meta_path).map_err(|source| ImportError::Io {
+        path: meta_path.clone(),
+        source,
+    })?;
+    let meta: MetadataFile =
+        serde_yaml::from_str(&text).map_err(|e| bag_error(format!("not rosbag2 metadata: {e}")))?;
+    let info = meta.rosbag2_bagfile_information;
+    let storage = info.storage_identifier.to_ascii_lowercase();
+    if !matches!(storage.as_str(), "mcap" | "sqlite3") {
+        return Err(bag_error(format!(
+            "storage_identifier {:?}: robimu reads the storages mcap and sqlite3",
+            info.storage_identifier
+        )));
+    }
+    let mode = info
+        .compression_mode
+        .unwrap_or_default()
+        .to_ascii_lowercase();
+    let format = info
+        .compression_format
+        .unwrap_or_default()
+        .to_ascii_lowercase();
+    let (file_zstd, message_zstd) = match mode.as_str() {
+        "" | "none" => (false, false),
+        "file" => (true, false),
+        "message" => (false, true),
+        other => {
+            return Err(bag_error(format!(
+                "compression_mode {other:?}: robimu reads none, file and message"
+            )))
+        }
+    };
+    if (file_zstd || message_zstd) && format != "zstd" {
+        return Err(bag_error(format!(
+            "compression_format {format:?}: robimu reads zstd"
+        )));
+    }
+    #[cfg(not(feature = "mcap-compression"))]
+    if file_zstd || message_zstd {
+        return Err(compression_refused(
+            dir,
+            if file_zstd { "file" } else { "message" },
+        ));
+    }
+    c.message_zstd = message_zstd;
+    for t in &info.topics_with_message_count {
+        let m = &t.topic_metadata;
+        c.declare(&m.name, &m.type_name, Some(t.message_count));
+    }
+    // A topic asked for that the metadata lacks: say so before reading.
+    if !info.topics_with_message_count.is_empty() {
+        if let Some(e) = c.missing_topic(dir) {
+            return Err(e);
+        }
+        for t in &info.topics_with_message_count {
+            let m = &t.topic_metadata;
+            if let Some(wanted) = c.wanted(&m.name) {
+                let decl = TopicDecl {
+                    name: &m.name,
+                    type_name: Some(&m.type_name),
+                    serialization: if m.serialization_format.is_empty() {
+                        "cdr"
+                    } else {
+                        &m.serialization_format
+                    },
+                    schema_encoding: None,
+                };
+                check_topic(&meta_path, &decl, wanted)?;
+            }
+        }
+    }
+    if info.relative_file_paths.is_empty() {
+        return Err(bag_error("relative_file_paths lists no file".into()));
+    }
+    for rel in &info.relative_file_paths {
+        let mut file = dir.join(rel);
+        // Older rosbag2 versions wrote paths relative to the bag's parent.
+        if !file.exists() {
+            if let Some(name) = Path::new(rel).file_name() {
+                file = dir.join(name);
+            }
+        }
+        if !file.exists() {
+            return Err(bag_error(format!(
+                "lists {rel}, which is not in {}",
+                dir.display()
+            )));
+        }
+        read_storage_file(&file, c)?;
+    }
+    Ok(())
+}
+
+/// A directory without metadata.yaml (a recording that was killed): its
+/// storage files in the order of their `_N` index.
+fn read_dir_without_metadata(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
+    let entries = std::fs::read_dir(dir).map_err(|source| ImportError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let mut files: Vec<(u64, PathBuf)> = Vec::new();
+    for e in entries.flatten() {
+        let p = e.path();
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        let stem = name.strip_suffix(".zstd").unwrap_or(name);
+        let Some(base) = stem
+            .strip_suffix(".mcap")
+            .or_else(|| stem.strip_suffix(".db3"))
+        else {
+            continue;
+        };
+        let index = base
+            .rsplit('_')
+            .next()
+            .and_then(|s| s.parse::<u64>().ok())
+            .unwrap_or(0);
+        files.push((index, p));
+    }
+    if files.is_empty() {
+        return Err(ImportError::Bag {
+            path: dir.to_path_buf(),
+            detail: "no metadata.yaml and no .mcap or .db3 file: not a rosbag2 bag".into(),
+        });
+    }
+    files.sort();
+    for (_, f) in &files {
+        read_storage_file(f, c)?;
+    }
+    Ok(())
+}
