@@ -6,6 +6,7 @@
 //! * [`table`] — the paper's Table II as text ([`ParameterTable`]): prior,
 //!   estimate and posterior σ of every parameter, and, against a known truth,
 //!   the errors and the normalised estimation error squared (NEES);
+//! * [`check`] — the table of the pre-flight check of a recording;
 //! * [`html`] — self-contained HTML reports (calibration, validation);
 //! * [`montecarlo`] — the files, table and histograms of a Monte Carlo study;
 //! * [`convergence`] — the solver's iteration history next to a result file;
@@ -44,6 +45,7 @@
 #![deny(missing_docs)]
 
 pub mod allan;
+pub mod check;
 pub mod convergence;
 pub mod csvfile;
 pub mod demo;

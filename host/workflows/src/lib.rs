@@ -3,6 +3,7 @@
 //!
 //! * [`allan`] — Allan deviation of a static IMU recording;
 //! * [`baseline`] — the classical tracker-based robot and IMU calibrations;
+//! * [`check`] — the pre-flight check of a recording (units, rates, gaps, excitation);
 //! * [`calibrate`] — the MAP calibration of one session, on [`calibrate::fit`],
 //!   the one fit pipeline behind every estimate of x (calibration, diagnosis
 //!   refits, repeatability windows, Monte Carlo runs);
@@ -55,6 +56,7 @@
 pub mod allan;
 pub mod baseline;
 pub mod calibrate;
+pub mod check;
 pub mod diagnose;
 pub mod identifiability;
 pub mod montecarlo;
