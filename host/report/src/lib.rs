@@ -21,6 +21,7 @@
 //! * [`noise`] — the table of `robimu noise`;
 //! * [`plan`] — the plan directory and the summary of `robimu plan`;
 //! * [`recording`] — the summaries of a recording and of a repair;
+//! * [`verdict`] — the verdict on a calibration, as text (the HTML block is [`html`]'s);
 //! * [`validation`] — the accuracy tables `robimu validate` prints and validation.json.
 //!
 //! # Example
@@ -60,6 +61,7 @@ pub mod plot;
 pub mod recording;
 pub mod table;
 pub mod validation;
+pub mod verdict;
 
 pub use robimu_model::units::DisplayUnit;
 pub use table::{ParameterTable, TableRow, TruthSummary};

@@ -20,6 +20,7 @@
 //! * [`time_offset`] — finding τ before linearising;
 //! * [`tracker_offset`] — the tracker/robot time offset δ (paper §9);
 //! * [`tracker`] — tracker poses and their registration to the robot (paper §9);
+//! * [`verdict`] — whether a calibration can be trusted (`trust: good / doubtful / bad`);
 //! * [`validate`] — robot and IMU accuracy against an external tracker.
 //!
 //! Main entry points: [`calibrate::calibrate`] (with [`calibrate::CalibrateOptions`];
@@ -71,3 +72,4 @@ pub mod time_offset;
 pub mod tracker;
 pub mod tracker_offset;
 pub mod validate;
+pub mod verdict;
