@@ -149,7 +149,7 @@ impl CalibrateCmd {
         progress.finish();
         let (cal, noise) =
             cal.with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-        let whiteness = (choice == NoiseChoice::White)
+        let whiteness = (choice != NoiseChoice::Auto)
             .then(|| residual_identification(&robot, &data, &cal, &IdOptions::default()).ok())
             .flatten();
         let verdict = verdict::verdict(&VerdictInput {
