@@ -320,3 +320,39 @@ pub fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
     let r = r2.max(0.0).sqrt();
     (r > 0.0 && spread > 0.1 * square.sqrt()).then_some(r)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robimu_session::Table;
+
+    fn table(rows: &[[f64; 3]]) -> Table {
+        Table {
+            columns: robimu_session::IMU_COLUMNS.iter().map(|c| c.to_string()).collect(),
+            t: (0..rows.len()).map(|i| i as f64).collect(),
+            values: rows.iter().flat_map(|a| [a[0], a[1], a[2], 0.0, 0.0, 0.0]).collect(),
+        }
+    }
+
+    /// Points on a sphere of radius 7 about (1, −2, 3): the radius back to
+    /// rounding; points on one circle (a turn about one axis): no radius.
+    #[test]
+    fn sphere_radius_of_points_on_a_sphere() {
+        let c = [1.0, -2.0, 3.0];
+        let mut rows = Vec::new();
+        for i in 0..40 {
+            let (th, ph) = (0.37 * i as f64, 0.11 + 0.23 * i as f64);
+            let u = [th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()];
+            rows.push(std::array::from_fn(|k| c[k] + 7.0 * u[k]));
+        }
+        let r = sphere_radius(&table(&rows)).unwrap();
+        assert!((r - 7.0).abs() < 1e-9, "{r}");
+        let circle: Vec<[f64; 3]> = (0..40)
+            .map(|i| {
+                let a = 0.3 * i as f64;
+                [c[0] + 7.0 * a.cos(), c[1] + 7.0 * a.sin(), c[2]]
+            })
+            .collect();
+        assert_eq!(sphere_radius(&table(&circle)), None);
+    }
+}
