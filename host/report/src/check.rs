@@ -32,7 +32,7 @@ impl fmt::Display for CheckTable<'_> {
         if rows.is_empty() {
             return Ok(());
         }
-        rows.sort_by(|a, b| b.severity.cmp(&a.severity));
+        rows.sort_by_key(|x| std::cmp::Reverse(x.severity));
         writeln!(f, "{:<8} {:<16} finding", "severity", "kind")?;
         for x in rows {
             writeln!(f, "{:<8} {:<16} {}", x.severity, x.kind, x.message)?;

@@ -46,7 +46,7 @@ fn stream(name: &str, table: &Table, nominal: Option<f64>) -> Vec<Finding> {
     let repeated = dt.iter().filter(|d| **d <= 0.0).count();
     let mut positive: Vec<f64> = dt.iter().copied().filter(|d| *d > 0.0).collect();
     let period = median_of(&mut positive);
-    if !(period > 0.0) {
+    if period.is_nan() || period <= 0.0 {
         out.push(Finding::new(
             "rate",
             Severity::Fatal,

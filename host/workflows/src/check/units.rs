@@ -238,7 +238,7 @@ fn gyro_scale(
         measured += (0..3).map(|c| (r[3 + c] - bias[c]).powi(2)).sum::<f64>();
         count += 1;
     }
-    if count == 0 || !(predicted > MOVING) {
+    if count == 0 || predicted.is_nan() || predicted <= MOVING {
         return None;
     }
     let measured = (measured / count as f64).sqrt();
