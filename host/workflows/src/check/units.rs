@@ -328,9 +328,15 @@ mod tests {
 
     fn table(rows: &[[f64; 3]]) -> Table {
         Table {
-            columns: robimu_session::IMU_COLUMNS.iter().map(|c| c.to_string()).collect(),
+            columns: robimu_session::IMU_COLUMNS
+                .iter()
+                .map(|c| c.to_string())
+                .collect(),
             t: (0..rows.len()).map(|i| i as f64).collect(),
-            values: rows.iter().flat_map(|a| [a[0], a[1], a[2], 0.0, 0.0, 0.0]).collect(),
+            values: rows
+                .iter()
+                .flat_map(|a| [a[0], a[1], a[2], 0.0, 0.0, 0.0])
+                .collect(),
         }
     }
 
