@@ -355,6 +355,7 @@ pub fn calibration_report_with(
         result.parameters.len()
     ));
     page.paragraph(&facts.join("; "));
+    verdict_block(&mut page, result);
 
     page.heading("Parameters");
     let table = ParameterTable::new(result, truth);
@@ -684,6 +685,31 @@ pub fn tracker_alignment_text(a: &TrackerAlignment) -> String {
             1e3 * a.delta
         ),
     }
+}
+
+/// The verdict of result.json (when it has one): the trust line, then
+/// one row per check (`robimu_workflows::verdict`).
+fn verdict_block(page: &mut HtmlPage, result: &CalibrationResult) {
+    let Some(v) = &result.verdict else { return };
+    page.heading("Verdict");
+    let _ = writeln!(
+        page.body,
+        "<p id=\"trust\" class=\"trust-{}\"><b>{}</b></p>",
+        v.trust,
+        escape(&crate::verdict::trust_line(v))
+    );
+    let rows: Vec<Vec<String>> = v
+        .checks
+        .iter()
+        .map(|c| {
+            vec![
+                c.topic.clone(),
+                if c.ok { "ok" } else { "FAIL" }.to_string(),
+                c.text.clone(),
+            ]
+        })
+        .collect();
+    page.table("verdict", &["check", "", "finding"], &rows);
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@
 //! * [`table`] — the paper's Table II as text ([`ParameterTable`]): prior,
 //!   estimate and posterior σ of every parameter, and, against a known truth,
 //!   the errors and the normalised estimation error squared (NEES);
+//! * [`check`] — the table of the pre-flight check of a recording;
 //! * [`html`] — self-contained HTML reports (calibration, validation);
 //! * [`montecarlo`] — the files, table and histograms of a Monte Carlo study;
 //! * [`convergence`] — the solver's iteration history next to a result file;
@@ -21,6 +22,7 @@
 //! * [`noise`] — the table of `robimu noise`;
 //! * [`plan`] — the plan directory and the summary of `robimu plan`;
 //! * [`recording`] — the summaries of a recording and of a repair;
+//! * [`verdict`] — the verdict on a calibration, as text (the HTML block is [`html`]'s);
 //! * [`validation`] — the accuracy tables `robimu validate` prints and validation.json.
 //!
 //! # Example
@@ -45,6 +47,7 @@
 #![deny(missing_docs)]
 
 pub mod allan;
+pub mod check;
 pub mod convergence;
 pub mod csvfile;
 pub mod demo;
@@ -60,6 +63,7 @@ pub mod plot;
 pub mod recording;
 pub mod table;
 pub mod validation;
+pub mod verdict;
 
 pub use robimu_model::units::DisplayUnit;
 pub use table::{ParameterTable, TableRow, TruthSummary};

@@ -301,6 +301,7 @@ mod tests {
             weak_directions: Vec::new(),
             noise_model: None,
             noise_warning: None,
+            verdict: None,
         };
         r.validate().unwrap();
         r

@@ -68,8 +68,8 @@ pub use meta::{
     check_ar_order_for_data, ImuTiming, NoiseOverride, NoiseShape, SessionMeta, SESSION_FORMAT,
 };
 pub use result::{
-    CalibrationResult, CovarianceMatrix, MissingParameter, ParameterResult, ResultError,
-    RESULT_FORMAT,
+    CalibrationResult, CovarianceMatrix, MissingParameter, ParameterResult, ResultError, Trust,
+    VerdictCheck, VerdictRecord, RESULT_FORMAT,
 };
 pub use table::{
     parse_table, parse_table_with, read_table, read_table_with, Columns, OptionalColumns, Table,

@@ -127,6 +127,55 @@ pub struct CalibrationResult {
     /// (e.g. an identified model that did not settle; robimu extension).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_warning: Option<String>,
+    /// Whether to trust the result: the verdict `calibrate` prints first
+    /// (robimu extension, docs/model.md §8.2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub verdict: Option<VerdictRecord>,
+}
+
+/// How far a calibration can be trusted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Trust {
+    /// Every check passed.
+    Good,
+    /// A check failed that makes the estimates or their σ questionable.
+    Doubtful,
+    /// The fit did not converge.
+    Bad,
+}
+
+impl std::fmt::Display for Trust {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(match self {
+            Trust::Good => "good",
+            Trust::Doubtful => "doubtful",
+            Trust::Bad => "bad",
+        })
+    }
+}
+
+/// The verdict on a calibration: one line per check, the trust and the
+/// failed checks' reasons.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VerdictRecord {
+    /// The overall trust.
+    pub trust: Trust,
+    /// Why not good (empty when good).
+    pub reasons: Vec<String>,
+    /// Every check, in order.
+    pub checks: Vec<VerdictCheck>,
+}
+
+/// One check of a [`VerdictRecord`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VerdictCheck {
+    /// What was checked (`converged`, `residuals`, `undetermined`, `plausible`, `repeatability`).
+    pub topic: String,
+    /// Whether it passed.
+    pub ok: bool,
+    /// What was found, with the numbers.
+    pub text: String,
 }
 
 /// The IMU noise model of a fit, as written to result.json:
@@ -444,6 +493,7 @@ mod tests {
                 ],
             }),
             noise_warning: Some("kept".into()),
+            verdict: None,
             weak_directions: vec![WeakDirectionRecord {
                 relative_information: 1e-3,
                 parameters: vec![DirectionShare {

@@ -461,6 +461,7 @@ impl Calibration {
             imu_samples_used: Some(calibration.imu_samples_used),
             noise_model: Some(noise_model_record(&calibration.noise_model)),
             noise_warning: None,
+            verdict: None,
             weak_directions: calibration
                 .weak_directions
                 .iter()

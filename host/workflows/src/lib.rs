@@ -3,6 +3,7 @@
 //!
 //! * [`allan`] — Allan deviation of a static IMU recording;
 //! * [`baseline`] — the classical tracker-based robot and IMU calibrations;
+//! * [`check`] — the pre-flight check of a recording (units, rates, gaps, excitation);
 //! * [`calibrate`] — the MAP calibration of one session, on [`calibrate::fit`],
 //!   the one fit pipeline behind every estimate of x (calibration, diagnosis
 //!   refits, repeatability windows, Monte Carlo runs);
@@ -19,6 +20,7 @@
 //! * [`time_offset`] — finding τ before linearising;
 //! * [`tracker_offset`] — the tracker/robot time offset δ (paper §9);
 //! * [`tracker`] — tracker poses and their registration to the robot (paper §9);
+//! * [`verdict`] — whether a calibration can be trusted (`trust: good / doubtful / bad`);
 //! * [`validate`] — robot and IMU accuracy against an external tracker.
 //!
 //! Main entry points: [`calibrate::calibrate`] (with [`calibrate::CalibrateOptions`];
@@ -55,6 +57,7 @@
 pub mod allan;
 pub mod baseline;
 pub mod calibrate;
+pub mod check;
 pub mod diagnose;
 pub mod identifiability;
 pub mod montecarlo;
@@ -69,3 +72,4 @@ pub mod time_offset;
 pub mod tracker;
 pub mod tracker_offset;
 pub mod validate;
+pub mod verdict;

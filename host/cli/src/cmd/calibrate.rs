@@ -15,17 +15,22 @@ use robimu_report::fit_summary::{
 };
 use robimu_report::html::calibration_report;
 use robimu_report::noise::NoiseSummary;
+use robimu_report::verdict::{trust_line, VerdictText};
 use robimu_report::ParameterTable;
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
 use robimu_solver::IterationRecord;
 use robimu_workflows::calibrate::fit::{fit, FitSpec, Start};
+use robimu_workflows::calibrate::noise_choice::residual_identification;
 use robimu_workflows::calibrate::noise_choice::{
     calibrate_with_noise_settle, NoiseChoice, Settle, MAX_REFITS,
 };
 use robimu_workflows::calibrate::{check_measurements, CalibrateOptions, Calibration};
+use robimu_workflows::check::{check_session, CheckOptions, Severity};
 use robimu_workflows::diagnose::{effect_set, fit_json, setup_with};
+use robimu_workflows::noise_id::IdOptions;
 use robimu_workflows::repeatability::{self, check_windows, Repeatability, Window};
+use robimu_workflows::verdict::{self, VerdictInput};
 
 use super::input::{load_session, output_path, Progress};
 use super::noise_spec::{noise_choice, NoiseFileArg};
@@ -112,6 +117,7 @@ impl CalibrateCmd {
     pub fn run(self) -> anyhow::Result<()> {
         let dir = &self.session;
         let (session, robot) = load_session(dir)?;
+        preflight(&session, &robot)?;
         let layout = ParamLayout::new(&robot);
         let file = self.noise_file()?;
         let opts = self.options(&session, &robot, &layout, file.as_ref())?;
@@ -144,6 +150,17 @@ impl CalibrateCmd {
         progress.finish();
         let (cal, noise) =
             cal.with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+        let whiteness = (choice != NoiseChoice::Auto)
+            .then(|| residual_identification(&robot, &data, &cal, &IdOptions::default()).ok())
+            .flatten();
+        let verdict = verdict::verdict(&VerdictInput {
+            robot: &robot,
+            calibration: &cal,
+            noise: Some(&noise),
+            whiteness: whiteness.as_ref(),
+            repeatability: None,
+        });
+        write!(out, "{}", VerdictText(&verdict))?;
         write!(
             out,
             "{}",
@@ -159,6 +176,7 @@ impl CalibrateCmd {
         }
         let mut result = result_file(&cal, &layout, &session, dir, opts.use_prior);
         result.noise_warning = noise.warning.clone();
+        result.verdict = Some(verdict);
         writeln!(out)?;
         write!(
             out,
@@ -191,6 +209,29 @@ impl CalibrateCmd {
             write_windows_csv(&csv, &layout, &study)
                 .with_context(|| format!("cannot write {}", csv.display()))?;
             writeln!(out, "wrote {}", csv.display())?;
+            let verdict = verdict::verdict(&VerdictInput {
+                robot: &robot,
+                calibration: &study.full,
+                noise: Some(&noise),
+                whiteness: whiteness.as_ref(),
+                repeatability: Some(&study),
+            });
+            if let Some(c) = verdict.checks.iter().find(|c| c.topic == "repeatability") {
+                let mark = if c.ok { "ok" } else { "FAIL" };
+                writeln!(
+                    out,
+                    "verdict with the windows:\n  {mark:<4} {:<13} {}",
+                    c.topic, c.text
+                )?;
+            }
+            writeln!(out, "{}", trust_line(&verdict))?;
+            result.verdict = Some(verdict);
+            result.write(&path)?;
+            writeln!(
+                out,
+                "wrote {} (its verdict with the windows)",
+                path.display()
+            )?;
         }
         Ok(())
     }
@@ -297,6 +338,22 @@ impl CalibrateCmd {
             .context("--effects")?;
         Ok(Some(effect_set(&setup, &names).context("--effects")?))
     }
+}
+
+/// The check of the recording before the fit (`robimu check` without the
+/// excitation measure, which the calibration's own σ replace): warnings on
+/// stderr, a fatal finding stops the calibration with its message.
+fn preflight(session: &Session, robot: &Robot) -> anyhow::Result<()> {
+    let report = check_session(session, robot, &CheckOptions { excitation: false });
+    for f in report.of(Severity::Warning) {
+        eprintln!("warning: {} ({})", f.message, f.action);
+    }
+    super::check::fatal(&report, &session.dir).map_err(|e| {
+        anyhow::anyhow!(
+            "{e}; `robimu check {}` lists every finding",
+            session.dir.display()
+        )
+    })
 }
 
 /// The first line: the session, its samples and what is estimated.

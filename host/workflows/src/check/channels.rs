@@ -1,0 +1,169 @@
+//! Stuck channels and saturation: an IMU channel that never changes (all
+//! zero: not connected or not enabled; another constant: frozen), a
+//! channel that repeats one value for a long run of rows, and samples at
+//! the device's range (session.toml `[imu]` `accel_range` `G2…G16`,
+//! `gyro_range` `Dps125…Dps2000`, as `robimu record` writes them).
+
+use super::{Finding, Severity};
+use robimu_session::{files, Session, Table, IMU_COLUMNS};
+
+/// A run of identical values over at least this share of the rows is a
+/// stuck channel (fatal); over [`STUCK_RUN_S`] a warning.
+pub const STUCK_SHARE: f64 = 0.5;
+/// Seconds of identical consecutive values that make a warning.
+pub const STUCK_RUN_S: f64 = 1.0;
+/// A sample within this fraction of the range is saturated.
+pub const SATURATION: f64 = 0.98;
+/// Standard gravity, m/s² (the BNO055's g).
+pub const G_STANDARD: f64 = 9.80665;
+
+/// The channel findings of `session`.
+pub fn check(session: &Session) -> Vec<Finding> {
+    let mut out = Vec::new();
+    let all_zero = (0..6).all(|c| column(&session.imu, c).all(|v| v == 0.0));
+    if all_zero {
+        out.push(Finding::new(
+            "stuck",
+            Severity::Fatal,
+            files::IMU,
+            session.imu.len() as f64,
+            format!(
+                "imu.csv: all six channels are 0 in all {} rows",
+                session.imu.len()
+            ),
+            "the sensor was not read (not connected, not enabled, or the topic held no data): record again",
+        ));
+    } else {
+        for (c, name) in IMU_COLUMNS.iter().enumerate() {
+            out.extend(stuck(&session.imu, c, name, true));
+        }
+    }
+    for (j, name) in session.joints.columns.iter().enumerate() {
+        out.extend(stuck(&session.joints, j, name, false));
+    }
+    out.extend(saturation(session));
+    out
+}
+
+fn column(t: &Table, c: usize) -> impl Iterator<Item = f64> + '_ {
+    t.values.iter().skip(c).step_by(t.width()).copied()
+}
+
+/// The longest run of identical values of column `c`: constant, or stuck.
+/// A joint that does not move is a warning (its parameters stay at the
+/// prior: the excitation finding names them), an IMU channel fatal.
+fn stuck(t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
+    let v: Vec<f64> = column(t, c).collect();
+    let (mut best, mut start, mut run_start) = (1usize, 0usize, 0usize);
+    for i in 1..v.len() {
+        if v[i] != v[i - 1] {
+            run_start = i;
+        } else if i + 1 - run_start > best {
+            best = i + 1 - run_start;
+            start = run_start;
+        }
+    }
+    let end = start + best - 1;
+    let seconds = t.t[end] - t.t[start];
+    let file = if imu { files::IMU } else { files::JOINTS };
+    if best == v.len() && v.len() > 1 {
+        let severity = if imu {
+            Severity::Fatal
+        } else {
+            Severity::Warning
+        };
+        return Some(Finding::new(
+            "stuck",
+            severity,
+            name,
+            v[0],
+            format!(
+                "{file}: {name} is constant ({} in all {} rows)",
+                v[0],
+                v.len()
+            ),
+            if imu {
+                "a stuck or disconnected channel: check the sensor and record again"
+            } else {
+                "this joint never moves: its parameters stay at the prior (move it, or accept that)"
+            },
+        ));
+    }
+    let share = best as f64 / v.len() as f64;
+    if best > 2 && (share >= STUCK_SHARE || seconds >= STUCK_RUN_S) {
+        let severity = if imu && share >= STUCK_SHARE {
+            Severity::Fatal
+        } else {
+            Severity::Warning
+        };
+        return Some(Finding::new(
+            "stuck",
+            severity,
+            name,
+            seconds,
+            format!(
+                "{file}: {name} repeats {} for {seconds:.2} s ({best} rows from t = {:.3} s, {:.1} % of the rows)",
+                v[start],
+                t.t[start],
+                100.0 * share
+            ),
+            "a frozen channel or a stalled recorder: check that stretch, cut it out or record again",
+        ));
+    }
+    None
+}
+
+/// The range of a sensor from `[imu]`: (accelerometer m/s², gyroscope rad/s).
+pub fn ranges(session: &Session) -> (Option<f64>, Option<f64>) {
+    let Some(imu) = session.meta.imu.as_ref() else {
+        return (None, None);
+    };
+    let text = |k: &str| imu.get(k).and_then(|v| v.as_str()).map(str::to_string);
+    let accel = text("accel_range")
+        .and_then(|s| s.strip_prefix('G').and_then(|g| g.parse::<f64>().ok()))
+        .map(|g| g * G_STANDARD);
+    let gyro = text("gyro_range")
+        .and_then(|s| s.strip_prefix("Dps").and_then(|d| d.parse::<f64>().ok()))
+        .map(f64::to_radians);
+    (accel, gyro)
+}
+
+/// Samples at the device's range, per sensor.
+fn saturation(session: &Session) -> Vec<Finding> {
+    let (accel, gyro) = ranges(session);
+    let mut out = Vec::new();
+    for (range, cols, sensor, unit) in [
+        (accel, 0..3, "accelerometer", "m/s²"),
+        (gyro, 3..6, "gyroscope", "rad/s"),
+    ] {
+        let Some(range) = range else { continue };
+        let n = session.imu.len();
+        let count = (0..n)
+            .filter(|&i| {
+                let row = session.imu.row(i);
+                cols.clone().any(|c| row[c].abs() >= SATURATION * range)
+            })
+            .count();
+        if count == 0 {
+            continue;
+        }
+        let share = count as f64 / n as f64;
+        let severity = if share > 0.01 {
+            Severity::Fatal
+        } else {
+            Severity::Warning
+        };
+        out.push(Finding::new(
+            "saturation",
+            severity,
+            sensor,
+            count as f64,
+            format!(
+                "{sensor}: {count} rows ({:.2} %) at its range ±{range:.3} {unit}",
+                100.0 * share
+            ),
+            "choose a larger range, or a slower motion (robimu plan's limits)",
+        ));
+    }
+    out
+}

@@ -1,0 +1,321 @@
+//! The verdict on a calibration: can its result be trusted? One check per
+//! line, then `trust: good / doubtful / bad` with the reasons:
+//!
+//! * **converged** — the solver's termination ([`robimu_solver::Termination::converged`]);
+//!   not converged is *bad*;
+//! * **residuals** — white or not (Ljung–Box, Bonferroni over the six
+//!   channels, [`crate::noise_id::WHITENESS_ALPHA`]; the test `calibrate
+//!   --noise-model auto` runs on the white fit, docs/model.md §4.6), with
+//!   the noise model used; residuals that are not white and were not
+//!   modelled (white kept), or a whitened RMS far from 1, are *doubtful*:
+//!   something the model lacks (`robimu diagnose`) or wrong σ_z
+//!   (`robimu noise`). Correlated noise the fit identified and modelled
+//!   (GLS) passes, named;
+//! * **undetermined** — parameters whose posterior σ is above
+//!   [`UNDETERMINED`] of the prior σ: their estimate is the prior's, with
+//!   the prior's σ — listed (the robot lengths apart: they need speed,
+//!   paper §8.4), not a reason for doubt: the result says what it does not
+//!   know (`robimu check` names them before the fit);
+//! * **plausible** — estimates more than [`IMPLAUSIBLE`] prior σ from the
+//!   prior mean (the gains' 1 ± 0.1, the IMU position's mount nominal
+//!   ± 10 mm, τ's 0 ± 1 s, …: the priors are the plausible ranges, Table II),
+//!   and g₀ against 9.81 ± [`G0_TOLERANCE`]: *doubtful*;
+//! * **repeatability** (`calibrate --windows N`) — a window's estimate more
+//!   than [`WINDOW_LIMIT`] of its σ from the full calibration: *doubtful*.
+
+use robimu_model::{ParamLayout, Robot};
+use robimu_session::result::{Trust, VerdictCheck, VerdictRecord};
+
+use crate::calibrate::noise_choice::NoiseOutcome;
+use crate::calibrate::Calibration;
+use crate::noise_id::{IdOptions, Identification, WHITENESS_ALPHA};
+use crate::plan::information::robot_lengths;
+use crate::repeatability::Repeatability;
+
+/// σ / prior σ above which a parameter is undetermined.
+pub const UNDETERMINED: f64 = 0.9;
+/// Prior σ from the prior mean beyond which an estimate is implausible.
+pub const IMPLAUSIBLE: f64 = 4.0;
+/// Standard gravity and the tolerance of g₀ (m/s²).
+pub const G0: f64 = 9.81;
+/// See [`G0`].
+pub const G0_TOLERANCE: f64 = 0.05;
+/// Whitened residual RMS outside this range: the σ_z do not fit.
+pub const RMS_RANGE: (f64, f64) = (0.67, 1.5);
+/// |window − full| / σ_window beyond which the windows disagree.
+pub const WINDOW_LIMIT: f64 = 4.0;
+
+/// What the verdict looks at besides the calibration.
+pub struct VerdictInput<'a> {
+    /// The robot (its g₀ and parameter layout).
+    pub robot: &'a Robot,
+    /// The calibration.
+    pub calibration: &'a Calibration,
+    /// What the noise choice did (its `white_test` is the white fit's).
+    pub noise: Option<&'a NoiseOutcome>,
+    /// The identification from the final fit's raw residuals when the noise
+    /// choice ran none (`--noise-model white` or a given model:
+    /// [`crate::calibrate::noise_choice::residual_identification`]).
+    pub whiteness: Option<&'a Identification>,
+    /// The repeatability study, when asked for.
+    pub repeatability: Option<&'a Repeatability>,
+}
+
+/// The verdict (module doc).
+pub fn verdict(input: &VerdictInput<'_>) -> VerdictRecord {
+    let cal = input.calibration;
+    let layout = ParamLayout::new(input.robot);
+    let mut checks = Vec::new();
+    let mut bad = false;
+    // converged
+    let t = cal.summary.termination;
+    bad |= !t.converged();
+    checks.push(VerdictCheck {
+        topic: "converged".into(),
+        ok: t.converged(),
+        text: format!("{t} after {} iterations", cal.summary.iterations.len()),
+    });
+    checks.push(residuals(input));
+    checks.push(undetermined(&layout, cal));
+    checks.push(plausible(input.robot, &layout, cal));
+    if let Some(study) = input.repeatability {
+        checks.push(repeatability(&layout, study));
+    }
+    let reasons: Vec<String> = checks
+        .iter()
+        .filter(|c| !c.ok)
+        .map(|c| format!("{}: {}", c.topic, c.text))
+        .collect();
+    let trust = if bad {
+        Trust::Bad
+    } else if reasons.is_empty() {
+        Trust::Good
+    } else {
+        Trust::Doubtful
+    };
+    VerdictRecord {
+        trust,
+        reasons,
+        checks,
+    }
+}
+
+fn p_values(id: &Identification) -> String {
+    let names = robimu_session::IMU_COLUMNS;
+    id.channels
+        .iter()
+        .zip(names)
+        .zip(id.white)
+        .filter(|(_, w)| !w)
+        .map(|((c, n), _)| format!("{n} p = {:.1e}", c.ljung_box_p))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The channels whose identified AR model is at the largest order tried,
+/// or whose whitened residuals still fail the whiteness test: correlation
+/// longer than a sensor's filter makes (docs/model.md §4.6).
+fn beyond_ar(id: &Identification) -> Option<String> {
+    let max = IdOptions::default().max_order;
+    let alpha = WHITENESS_ALPHA / 6.0;
+    let bad: Vec<String> = id
+        .channels
+        .iter()
+        .zip(robimu_session::IMU_COLUMNS)
+        .filter_map(|(c, n)| {
+            let order = c.noise.ar.order();
+            if order >= max {
+                Some(format!("{n}: AR({order}), the largest order tried"))
+            } else if c.ljung_box_whitened_p < alpha {
+                Some(format!("{n}: whitened p = {:.1e}", c.ljung_box_whitened_p))
+            } else {
+                None
+            }
+        })
+        .collect();
+    (!bad.is_empty()).then(|| bad.join(", "))
+}
+
+fn min_p(id: &Identification) -> f64 {
+    id.channels
+        .iter()
+        .map(|c| c.ljung_box_p)
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// White or not, the model used, the whitened RMS.
+fn residuals(input: &VerdictInput<'_>) -> VerdictCheck {
+    let cal = input.calibration;
+    let identified = input.noise.and_then(|n| n.identified.as_ref());
+    let model = if cal.noise_model.is_white() {
+        "white".to_string()
+    } else {
+        let p = cal.noise_model.max_order();
+        let source = if identified.is_some() {
+            "identified from the residuals"
+        } else {
+            "given"
+        };
+        format!("AR(≤{p}) {source}, generalised least squares")
+    };
+    let rms = cal.residual_rms;
+    let off: Vec<String> = robimu_session::IMU_COLUMNS
+        .iter()
+        .zip(rms)
+        .filter(|(_, r)| !(RMS_RANGE.0..=RMS_RANGE.1).contains(r))
+        .map(|(n, r)| format!("{n} {r:.2}"))
+        .collect();
+    let rms_text = if off.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; whitened residual RMS {} (1 = as modelled): the σ_z do not fit the data (robimu noise)",
+            off.join(", ")
+        )
+    };
+    let test = input
+        .noise
+        .and_then(|n| n.white_test.as_ref())
+        .or(input.whiteness);
+    let warning = input.noise.and_then(|n| n.warning.as_ref());
+    let (ok, text) = match (test, warning) {
+        (_, Some(w)) => (false, format!("not white, not modelled ({w}); noise model {model}")),
+        (Some(id), None) if id.white.iter().all(|&w| w) => (
+            true,
+            format!("white (Ljung-Box, smallest p = {:.2}); noise model {model}", min_p(id)),
+        ),
+        (Some(id), None) if !cal.noise_model.is_white() => {
+            let used = identified.unwrap_or(id);
+            match beyond_ar(used) {
+                None => (
+                    true,
+                    format!("correlated ({}), modelled: noise model {model}", p_values(id)),
+                ),
+                Some(why) => (
+                    false,
+                    format!(
+                        "correlated beyond what the AR noise model captures ({why}): a slow discrepancy — bias drift or an effect the model lacks? (robimu diagnose); noise model {model}"
+                    ),
+                ),
+            }
+        }
+        (Some(id), None) => (
+            false,
+            format!(
+                "not white ({}) and no AR order or motion level explains it: an effect the model lacks? (robimu diagnose); noise model {model}",
+                p_values(id)
+            ),
+        ),
+        (None, None) => (true, format!("not tested; noise model {model}")),
+    };
+    VerdictCheck {
+        topic: "residuals".into(),
+        ok: ok && off.is_empty(),
+        text: text + &rms_text,
+    }
+}
+
+/// Parameters whose σ stayed at the prior's.
+fn undetermined(layout: &ParamLayout, cal: &Calibration) -> VerdictCheck {
+    let lengths = robot_lengths(layout);
+    let specs = layout.specs();
+    let (mut len, mut other) = (Vec::new(), Vec::new());
+    for &k in &cal.active {
+        if cal.sigma[k] > UNDETERMINED * specs[k].sigma {
+            let name = specs[k].name.clone();
+            if lengths.contains(&k) {
+                len.push(name);
+            } else {
+                other.push(name);
+            }
+        }
+    }
+    let mut text = if other.is_empty() {
+        "none beyond the robot lengths".to_string()
+    } else {
+        format!(
+            "{} (σ > {UNDETERMINED} prior σ: the estimates are the prior's)",
+            other.join(", ")
+        )
+    };
+    if !len.is_empty() {
+        text.push_str(&format!(
+            "; {} robot length(s) at the prior ({}): expected below high speeds",
+            len.len(),
+            len.join(", ")
+        ));
+    }
+    VerdictCheck {
+        topic: "undetermined".into(),
+        ok: true,
+        text,
+    }
+}
+
+/// Estimates far outside their prior, and g₀.
+fn plausible(robot: &Robot, layout: &ParamLayout, cal: &Calibration) -> VerdictCheck {
+    let specs = layout.specs();
+    let mut far = Vec::new();
+    for &k in &cal.active {
+        let s = &specs[k];
+        let z = (cal.x[k] - s.nominal) / s.sigma;
+        if z.abs() > IMPLAUSIBLE {
+            let unit = robimu_model::units::DisplayUnit::for_si(s.unit);
+            far.push(format!(
+                "{} = {:.4} {} (prior {:.4} ± {:.4}, {z:+.1} σ)",
+                s.name,
+                unit.show(cal.x[k]),
+                unit.symbol(),
+                unit.show(s.nominal),
+                unit.show(s.sigma)
+            ));
+        }
+    }
+    let g0 = robot.gravity();
+    let g_ok = (g0 - G0).abs() <= G0_TOLERANCE;
+    let mut text = if far.is_empty() {
+        format!("every estimate within {IMPLAUSIBLE} prior σ of its prior mean")
+    } else {
+        far.join("; ")
+    };
+    text.push_str(&format!(
+        "; g0 = {g0:.3} m/s²{}",
+        if g_ok {
+            ""
+        } else {
+            " (not 9.81 ± 0.05: check session.toml `gravity`)"
+        }
+    ));
+    VerdictCheck {
+        topic: "plausible".into(),
+        ok: far.is_empty() && g_ok,
+        text,
+    }
+}
+
+/// The windows against the full calibration.
+fn repeatability(layout: &ParamLayout, study: &Repeatability) -> VerdictCheck {
+    let worst = study
+        .parameters
+        .iter()
+        .max_by(|a, b| a.relative_to_window.total_cmp(&b.relative_to_window));
+    let Some(w) = worst else {
+        return VerdictCheck {
+            topic: "repeatability".into(),
+            ok: true,
+            text: "no windows".into(),
+        };
+    };
+    let name = &layout.specs()[w.index].name;
+    let ok = w.relative_to_window <= WINDOW_LIMIT;
+    VerdictCheck {
+        topic: "repeatability".into(),
+        ok,
+        text: format!(
+            "{} windows: largest difference from the full calibration {name} in window {}, {:.1} × its σ (limit {WINDOW_LIMIT})",
+            study.windows.len(),
+            w.window + 1,
+            w.relative_to_window
+        ),
+    }
+}
