@@ -3,6 +3,7 @@
 
 pub mod allan;
 pub mod calibrate;
+pub mod calibrate_batch;
 pub mod correct;
 pub mod demo;
 pub mod diagnose;
@@ -30,6 +31,7 @@ pub enum Command {
     Import(import::ImportCmd),
     Simulate(simulate::SimulateCmd),
     Calibrate(calibrate::CalibrateCmd),
+    CalibrateBatch(calibrate_batch::CalibrateBatchCmd),
     Diagnose(diagnose::DiagnoseCmd),
     Validate(validate::ValidateCmd),
     Report(report::ReportCmd),
@@ -49,6 +51,7 @@ impl Command {
             Command::Demo(c) => c.run(),
             Command::Simulate(c) => c.run(),
             Command::Calibrate(c) => c.run(),
+            Command::CalibrateBatch(c) => c.run(),
             Command::MonteCarlo(c) => c.run(),
             Command::Noise(c) => c.run(),
             Command::Allan(c) => c.run(),
