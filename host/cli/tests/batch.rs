@@ -58,19 +58,18 @@ fn batch_reports_every_session_and_matches_single_calibrations() {
     let broken = lot.join("broken");
     simulate(&broken, 4, &[]);
     let imu = std::fs::read(broken.join("imu.csv")).unwrap();
-    let cut = imu.len() / 2 + imu[imu.len() / 2..].iter().position(|&c| c == b'\n').unwrap();
+    let cut = imu.len() / 2
+        + imu[imu.len() / 2..]
+            .iter()
+            .position(|&c| c == b'\n')
+            .unwrap();
     std::fs::write(broken.join("imu.csv"), &imu[..cut + 8]).unwrap();
     let empty = tmp.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
 
     // the single calibration of s2, written outside the session directory
     let single = tmp.path().join("single.json");
-    robimu_ok([
-        "calibrate",
-        s(&lot.join("s2")),
-        "--out",
-        s(&single),
-    ]);
+    robimu_ok(["calibrate", s(&lot.join("s2")), "--out", s(&single)]);
 
     let out = tmp.path().join("summary.csv");
     let run = robimu([
@@ -116,8 +115,14 @@ fn batch_reports_every_session_and_matches_single_calibrations() {
         // the CSV prints every digit: equal up to serde_json's parsing of
         // result.json (not round-trip exact: within an ulp or two)
         let same = |a: f64, b: f64| (a - b).abs() <= 4.0 * f64::EPSILON * b.abs();
-        assert!(same(value, p["value"].as_f64().unwrap()), "{name}: {value} vs {p}");
-        assert!(same(sigma, p["sigma"].as_f64().unwrap()), "{name} σ: {sigma} vs {p}");
+        assert!(
+            same(value, p["value"].as_f64().unwrap()),
+            "{name}: {value} vs {p}"
+        );
+        assert!(
+            same(sigma, p["sigma"].as_f64().unwrap()),
+            "{name} σ: {sigma} vs {p}"
+        );
         compared += 1;
     }
     // the IMU's position, τ and 24 intrinsics; no robot error or gravity

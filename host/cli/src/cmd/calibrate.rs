@@ -140,7 +140,8 @@ impl CalibrateCmd {
         let file = self.fit.noise_file()?;
         let path = output_path(self.out.as_deref(), dir.join("result.json"))?;
         let p = self.fit.prepare(dir, session, robot, file.as_ref())?;
-        let (session, robot, layout, opts, data) = (&p.session, &p.robot, &p.layout, &p.opts, &p.data);
+        let (session, robot, layout, opts, data) =
+            (&p.session, &p.robot, &p.layout, &p.opts, &p.data);
         let windows = match self.windows {
             Some(k) => Some(
                 check_windows(data, k)
@@ -161,11 +162,7 @@ impl CalibrateCmd {
             ));
         });
         progress.finish();
-        let Fitted {
-            cal,
-            noise,
-            result,
-        } = fitted?;
+        let Fitted { cal, noise, result } = fitted?;
         let choice = &p.choice;
         let effects = &p.effects;
         write!(
@@ -213,7 +210,6 @@ impl CalibrateCmd {
         }
         Ok(())
     }
-
 }
 
 impl CalibrateFlags {

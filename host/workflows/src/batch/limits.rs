@@ -122,11 +122,23 @@ impl Limits {
             ("max_abs_bias_accel", t.max_abs_bias_accel, glob("b_a_*")),
             ("max_abs_bias_gyro", t.max_abs_bias_gyro, glob("b_w_*")),
             ("max_gain_error", t.max_gain_error, glob("k_*")),
-            ("max_gain_error_accel", t.max_gain_error_accel, glob("k_a_*")),
+            (
+                "max_gain_error_accel",
+                t.max_gain_error_accel,
+                glob("k_a_*"),
+            ),
             ("max_gain_error_gyro", t.max_gain_error_gyro, glob("k_w_*")),
             ("max_misalignment", t.max_misalignment, glob("gamma_*")),
-            ("max_residual_rms_accel", t.max_residual_rms_accel, Bound::Rms(0)),
-            ("max_residual_rms_gyro", t.max_residual_rms_gyro, Bound::Rms(1)),
+            (
+                "max_residual_rms_accel",
+                t.max_residual_rms_accel,
+                Bound::Rms(0),
+            ),
+            (
+                "max_residual_rms_gyro",
+                t.max_residual_rms_gyro,
+                Bound::Rms(1),
+            ),
         ];
         for (key, max, bound) in named {
             if let Some(max) = max {
@@ -137,7 +149,10 @@ impl Limits {
                 });
             }
         }
-        for (table, map) in [("max_deviation", &t.max_deviation), ("max_sigma", &t.max_sigma)] {
+        for (table, map) in [
+            ("max_deviation", &t.max_deviation),
+            ("max_sigma", &t.max_sigma),
+        ] {
             for (g, &max) in map {
                 let key = format!("{table}.\"{g}\"");
                 if g.is_empty()
@@ -187,7 +202,7 @@ impl Limits {
                         continue;
                     };
                     let v = sensor_rms(&rms)[*sensor];
-                    if v > l.max {
+                    if v > l.max || v.is_nan() {
                         vec![format!("rms {}", sig(v))]
                     } else {
                         Vec::new()
@@ -213,7 +228,7 @@ impl Limits {
                                 (p.value - p.prior).abs()
                             };
                             // NaN fails
-                            (!(v <= l.max)).then(|| {
+                            (v > l.max || v.is_nan()).then(|| {
                                 if sigma {
                                     format!("{} σ {}", p.name, sig(v))
                                 } else {
@@ -378,6 +393,8 @@ mod tests {
         assert!(e.contains("max_sigma.\"b a\""), "{e}");
         let e = err("[limits]\nmax_gain_error = \"x\"\n");
         assert!(e.contains("max_gain_error"), "{e}");
-        assert!(Limits::from_toml("[limits]\n", "l.toml").unwrap().is_empty());
+        assert!(Limits::from_toml("[limits]\n", "l.toml")
+            .unwrap()
+            .is_empty());
     }
 }
