@@ -64,6 +64,21 @@ fn batch_reports_every_session_and_matches_single_calibrations() {
             .position(|&c| c == b'\n')
             .unwrap();
     std::fs::write(broken.join("imu.csv"), &imu[..cut + 8]).unwrap();
+    // a session recorded in degrees: read, but refused by the calibration
+    let degrees = lot.join("degrees");
+    simulate(&degrees, 5, &[]);
+    let joints = std::fs::read_to_string(degrees.join("joints.csv")).unwrap();
+    let mut lines = joints.lines();
+    let mut text = format!("{}\n", lines.next().unwrap());
+    for l in lines {
+        let mut f = l.split(',');
+        text.push_str(f.next().unwrap());
+        for q in f {
+            text.push_str(&format!(",{}", q.parse::<f64>().unwrap().to_degrees()));
+        }
+        text.push('\n');
+    }
+    std::fs::write(degrees.join("joints.csv"), text).unwrap();
     let empty = tmp.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
 
@@ -81,9 +96,15 @@ fn batch_reports_every_session_and_matches_single_calibrations() {
         "--jobs",
         "2",
     ]);
-    run.assert_fails(&["2 of 5 units did not pass"]);
+    run.assert_fails(&["3 of 6 units did not pass"]);
     let rows = summary(&out);
-    assert_eq!(rows.len(), 5);
+    assert_eq!(rows.len(), 6);
+    let d = row(&rows, &degrees);
+    assert_eq!(
+        (d["status"].as_str(), d["limits"].as_str()),
+        ("failed", "fail")
+    );
+    assert!(d["error"].contains("are the joints in radians?"), "{d:?}");
     let b = row(&rows, &broken);
     assert_eq!(b["status"], "unreadable");
     assert!(
