@@ -20,14 +20,14 @@ use robimu_report::ParameterTable;
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
 use robimu_solver::IterationRecord;
-use robimu_workflows::calibrate::fit::{fit, FitSpec, Start};
+use robimu_workflows::calibrate::fit::{fit, Fit, FitSpec, Start};
 use robimu_workflows::calibrate::noise_choice::residual_identification;
 use robimu_workflows::calibrate::noise_choice::{
-    calibrate_with_noise_settle, NoiseChoice, Settle, MAX_REFITS,
+    calibrate_with_noise_settle, NoiseChoice, NoiseOutcome, Settle, MAX_REFITS,
 };
 use robimu_workflows::calibrate::{check_measurements, CalibrateOptions, Calibration};
-use robimu_workflows::check::{check_session, CheckOptions, Severity};
 use robimu_workflows::diagnose::{effect_set, fit_json, setup_with};
+use robimu_workflows::check::{check_session, CheckOptions, Severity};
 use robimu_workflows::noise_id::IdOptions;
 use robimu_workflows::repeatability::{self, check_windows, Repeatability, Window};
 use robimu_workflows::verdict::{self, VerdictInput};
@@ -48,6 +48,25 @@ pub struct CalibrateCmd {
     /// Result file to write [default: result.json in the session directory].
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Repeatability: also calibrate each of N equal time windows (N >= 2;
+    /// the paper used five 1-minute windows), print each parameter group's
+    /// largest difference from the full calibration and write
+    /// repeatability.csv next to the result file.
+    #[arg(long, value_name = "N")]
+    pub windows: Option<usize>,
+    /// Also write a self-contained HTML report (report.html and its figures)
+    /// into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+    /// The calibration's settings (shared with `robimu calibrate-batch`).
+    #[command(flatten)]
+    pub fit: CalibrateFlags,
+}
+
+/// The flags that set how a session is calibrated (`robimu calibrate`,
+/// `robimu calibrate-batch`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct CalibrateFlags {
     /// Parameters to hold at their prior mean, comma-separated: `lengths`
     /// (the robot's length errors eps_i_1..3 of links i < n, not the IMU
     /// position) and/or parameter names (eps_2_4, tau, b_w_z, …).
@@ -69,16 +88,6 @@ pub struct CalibrateCmd {
     /// `--noise-model auto` then fits as given (docs/model.md §4.6, §7.2).
     #[arg(long, value_name = "FILE")]
     pub noise: Option<PathBuf>,
-    /// Repeatability: also calibrate each of N equal time windows (N >= 2;
-    /// the paper used five 1-minute windows), print each parameter group's
-    /// largest difference from the full calibration and write
-    /// repeatability.csv next to the result file.
-    #[arg(long, value_name = "N")]
-    pub windows: Option<usize>,
-    /// Also write a self-contained HTML report (report.html and its figures)
-    /// into this directory.
-    #[arg(long, value_name = "DIR")]
-    pub report: Option<PathBuf>,
     /// Also fit these catalogue effects with the baseline (comma-separated:
     /// g_sensitivity, size_effect, clock_drift, sensor_delay, bias_drift,
     /// joint_elasticity, encoder_scale, resonance, temperature_bias where imu.csv
@@ -112,35 +121,46 @@ pub struct CalibrateCmd {
     pub noise_settle: Option<f64>,
 }
 
+impl Default for CalibrateFlags {
+    /// `robimu calibrate`'s defaults.
+    fn default() -> Self {
+        Self {
+            freeze: Vec::new(),
+            no_prior: false,
+            knot_spacing: None,
+            noise: None,
+            effects: Vec::new(),
+            resonance: Default::default(),
+            noise_model: "auto".into(),
+            noise_refits: MAX_REFITS,
+            noise_settle: None,
+        }
+    }
+}
+
 impl CalibrateCmd {
     /// Calibrate, print the table and write the result file.
     pub fn run(self) -> anyhow::Result<()> {
         let dir = &self.session;
         let (session, robot) = load_session(dir)?;
-        preflight(&session, &robot)?;
-        let layout = ParamLayout::new(&robot);
-        let file = self.noise_file()?;
-        let opts = self.options(&session, &robot, &layout, file.as_ref())?;
+        let file = self.fit.noise_file()?;
         let path = output_path(self.out.as_deref(), dir.join("result.json"))?;
-        let data = session.measurements();
-        check_measurements(&robot, &data)
-            .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-        let effects = self.effect_set(&robot, &data)?;
+        let p = self.fit.prepare(dir, session, robot, file.as_ref())?;
+        let (session, robot, layout, opts, data) =
+            (&p.session, &p.robot, &p.layout, &p.opts, &p.data);
         let windows = match self.windows {
             Some(k) => Some(
-                check_windows(&data, k)
+                check_windows(data, k)
                     .with_context(|| format!("--windows {k}: cannot split {}", dir.display()))?,
             ),
             None => None,
         };
         let mut out = std::io::stdout().lock();
-        write_header(&mut out, dir, &session, &layout, &opts)?;
+        write_header(&mut out, dir, session, layout, opts)?;
 
         let progress = Progress::start("fitting the trajectory and finding the time offset tau");
         progress.println(IterationRecord::HEADER);
-        let choice = self.noise_choice(&session, &opts, data.imu_t.len(), file.as_ref())?;
-        let settle = self.settle()?;
-        let cal = calibrate_with_noise_settle(&robot, &data, &opts, &choice, &settle, |r| {
+        let fitted = self.fit.fit_prepared(&p, dir, |r| {
             progress.println(r.to_string());
             progress.set_message(format!(
                 "iteration {}: cost {:.6e}, lambda {:.1e}",
@@ -148,35 +168,30 @@ impl CalibrateCmd {
             ));
         });
         progress.finish();
-        let (cal, noise) =
-            cal.with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-        let whiteness = (choice != NoiseChoice::Auto)
-            .then(|| residual_identification(&robot, &data, &cal, &IdOptions::default()).ok())
-            .flatten();
-        let verdict = verdict::verdict(&VerdictInput {
-            robot: &robot,
-            calibration: &cal,
-            noise: Some(&noise),
-            whiteness: whiteness.as_ref(),
-            repeatability: None,
-        });
-        write!(out, "{}", VerdictText(&verdict))?;
+        let Fitted {
+            cal,
+            noise,
+            mut result,
+            whiteness,
+        } = fitted?;
+        let choice = &p.choice;
+        let effects = &p.effects;
+        if let Some(v) = &result.verdict {
+            write!(out, "{}", VerdictText(v))?;
+        }
         write!(
             out,
             "{}",
-            FitReport::brief(&cal, self.knot_spacing.is_none())
+            FitReport::brief(&cal, self.fit.knot_spacing.is_none())
         )?;
         write!(
             out,
             "{}",
-            NoiseSummary::new(&choice, &noise, &cal.noise_model)
+            NoiseSummary::new(choice, &noise, &cal.noise_model)
         )?;
         if let Some(w) = &noise.warning {
             eprintln!("warning: {w}");
         }
-        let mut result = result_file(&cal, &layout, &session, dir, opts.use_prior);
-        result.noise_warning = noise.warning.clone();
-        result.verdict = Some(verdict);
         writeln!(out)?;
         write!(
             out,
@@ -186,31 +201,28 @@ impl CalibrateCmd {
         out.flush()?;
         eprint!(
             "{}",
-            WeakDirectionsWarning::new(&cal.weak_directions, &layout)
+            WeakDirectionsWarning::new(&cal.weak_directions, layout)
         );
-        result.write(&path)?;
+        let hpath = write_result(&result, &cal, &path)?;
         writeln!(out, "wrote {}", path.display())?;
-        let history = ConvergenceLog::from_summary(&cal.summary);
-        let hpath = convergence_path(&path);
-        history.write(&hpath)?;
         writeln!(out, "wrote {}", hpath.display())?;
         if let Some(report_dir) = &self.report {
-            let html = html_report(report_dir, &robot, &data, &opts, &cal, &result, &session)?;
+            let html = html_report(report_dir, robot, data, opts, &cal, &result, session)?;
             writeln!(out, "wrote {}", html.display())?;
         }
-        if let Some(set) = &effects {
-            fit_effects(&mut out, &robot, &data, &opts, set, &cal, &path)?;
+        if let Some(set) = effects {
+            fit_effects(&mut out, robot, data, opts, set, &cal, &path)?;
         }
         if let Some(windows) = windows {
-            let study = calibrate_windows(&robot, &opts, windows, cal, dir)?;
+            let study = calibrate_windows(robot, opts, windows, cal, dir)?;
             writeln!(out)?;
             write!(out, "{}", RepeatabilityGroups(&study))?;
             let csv = path.with_file_name("repeatability.csv");
-            write_windows_csv(&csv, &layout, &study)
+            write_windows_csv(&csv, layout, &study)
                 .with_context(|| format!("cannot write {}", csv.display()))?;
             writeln!(out, "wrote {}", csv.display())?;
             let verdict = verdict::verdict(&VerdictInput {
-                robot: &robot,
+                robot,
                 calibration: &study.full,
                 noise: Some(&noise),
                 whiteness: whiteness.as_ref(),
@@ -235,10 +247,75 @@ impl CalibrateCmd {
         }
         Ok(())
     }
+}
+
+impl CalibrateFlags {
+    /// A loaded session made ready to calibrate with these flags: the
+    /// settings, the checked measurements, the `--effects` set and the
+    /// noise choice (`file`: [`Self::noise_file`], read once by the caller).
+    pub(crate) fn prepare(
+        &self,
+        dir: &Path,
+        session: Session,
+        robot: Robot,
+        file: Option<&NoiseFileArg>,
+    ) -> anyhow::Result<Prepared> {
+        preflight(&session, &robot)?;
+        let layout = ParamLayout::new(&robot);
+        let opts = self.options(&session, &robot, &layout, file)?;
+        let data = session.measurements();
+        check_measurements(&robot, &data)
+            .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+        let effects = self.effect_set(&robot, &data)?;
+        let choice = self.noise_choice(&session, &opts, data.imu_t.len(), file)?;
+        let settle = self.settle()?;
+        Ok(Prepared {
+            session,
+            robot,
+            layout,
+            opts,
+            data,
+            effects,
+            choice,
+            settle,
+        })
+    }
+
+    /// The calibration of a prepared session with the noise choice
+    /// (docs/model.md §4.6) and its result file's contents (not written).
+    pub(crate) fn fit_prepared(
+        &self,
+        p: &Prepared,
+        dir: &Path,
+        report: impl FnMut(&IterationRecord),
+    ) -> anyhow::Result<Fitted> {
+        let (cal, noise) =
+            calibrate_with_noise_settle(&p.robot, &p.data, &p.opts, &p.choice, &p.settle, report)
+                .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+        let whiteness = (p.choice != NoiseChoice::Auto)
+            .then(|| residual_identification(&p.robot, &p.data, &cal, &IdOptions::default()).ok())
+            .flatten();
+        let verdict = verdict::verdict(&VerdictInput {
+            robot: &p.robot,
+            calibration: &cal,
+            noise: Some(&noise),
+            whiteness: whiteness.as_ref(),
+            repeatability: None,
+        });
+        let mut result = result_file(&cal, &p.layout, &p.session, dir, p.opts.use_prior);
+        result.noise_warning = noise.warning.clone();
+        result.verdict = Some(verdict);
+        Ok(Fitted {
+            cal,
+            noise,
+            result,
+            whiteness,
+        })
+    }
 
     /// The noise file of `--noise FILE` or `--noise-model FILE`, read once:
     /// its flag, path, σ and model keys. Two different files are refused.
-    fn noise_file(&self) -> anyhow::Result<Option<NoiseFileArg>> {
+    pub(crate) fn noise_file(&self) -> anyhow::Result<Option<NoiseFileArg>> {
         NoiseFileArg::from_flags(self.noise.as_deref(), &self.noise_model)
     }
 
@@ -285,7 +362,7 @@ impl CalibrateCmd {
     }
 
     /// `--noise-refits` and `--noise-settle`.
-    fn settle(&self) -> anyhow::Result<Settle> {
+    pub(crate) fn settle(&self) -> anyhow::Result<Settle> {
         if self.noise_refits == 0 {
             bail!("--noise-refits must be at least 1");
         }
@@ -338,6 +415,43 @@ impl CalibrateCmd {
             .context("--effects")?;
         Ok(Some(effect_set(&setup, &names).context("--effects")?))
     }
+}
+
+/// A session ready to calibrate ([`CalibrateFlags::prepare`]).
+pub(crate) struct Prepared {
+    pub session: Session,
+    pub robot: Robot,
+    pub layout: ParamLayout,
+    pub opts: CalibrateOptions,
+    pub data: Measurements,
+    /// The `--effects` set, when given.
+    pub effects: Option<EffectSet>,
+    pub choice: NoiseChoice,
+    pub settle: Settle,
+}
+
+/// A finished calibration ([`CalibrateFlags::fit_prepared`]).
+pub(crate) struct Fitted {
+    pub cal: Calibration,
+    pub noise: NoiseOutcome,
+    /// The result file's contents (with the verdict, docs/model.md §8.5).
+    pub result: CalibrationResult,
+    /// The whiteness test of the final residuals when the noise choice is
+    /// not `auto` (which has its own), for the verdict.
+    pub whiteness: Option<robimu_workflows::noise_id::Identification>,
+}
+
+/// Write the result file at `path` and the solver's iteration history next
+/// to it; returns the history's path.
+pub(crate) fn write_result(
+    result: &CalibrationResult,
+    cal: &Calibration,
+    path: &Path,
+) -> anyhow::Result<PathBuf> {
+    result.write(path)?;
+    let hpath = convergence_path(path);
+    ConvergenceLog::from_summary(&cal.summary).write(&hpath)?;
+    Ok(hpath)
 }
 
 /// The check of the recording before the fit (`robimu check` without the
@@ -441,25 +555,39 @@ fn fit_effects(
     cal: &Calibration,
     path: &Path,
 ) -> anyhow::Result<()> {
-    let names = set.names().join(", ");
-    let progress = Progress::start(format!("fitting with {names}"));
+    let progress = Progress::start(format!("fitting with {}", set.names().join(", ")));
+    let f = effects_fit(robot, data, opts, set, cal, path);
+    progress.finish();
+    let (f, epath) = f?;
+    writeln!(out)?;
+    write!(out, "{}", EffectEstimates(&f))?;
+    writeln!(out, "wrote {}", epath.display())?;
+    Ok(())
+}
+
+/// The fit of `--effects` from the calibration's x, written to effects.json
+/// next to the result file `path`; returns the fit and effects.json's path.
+pub(crate) fn effects_fit(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    set: &EffectSet,
+    cal: &Calibration,
+    path: &Path,
+) -> anyhow::Result<(Fit, PathBuf)> {
     let spec = FitSpec {
         robot,
         data,
         effects: set,
         start: Start::At(&cal.x),
     };
-    let f = fit(&spec, opts, |_| {});
-    progress.finish();
-    let f = f.with_context(|| format!("--effects: cannot fit {names}"))?;
-    writeln!(out)?;
-    write!(out, "{}", EffectEstimates(&f))?;
+    let f = fit(&spec, opts, |_| {})
+        .with_context(|| format!("--effects: cannot fit {}", set.names().join(", ")))?;
     let epath = path.with_file_name("effects.json");
     let json = fit_json(&ParamLayout::new(robot), &f);
     std::fs::write(&epath, serde_json::to_string_pretty(&json)?)
         .with_context(|| format!("cannot write {}", epath.display()))?;
-    writeln!(out, "wrote {}", epath.display())?;
-    Ok(())
+    Ok((f, epath))
 }
 
 /// `--windows`: calibrate each window and compare with the full calibration.

@@ -402,17 +402,9 @@ impl DemoCmd {
         CalibrateCmd {
             session: session.to_path_buf(),
             out: None,
-            freeze: Vec::new(),
-            no_prior: false,
-            knot_spacing: None,
-            noise: None,
             windows: None,
             report: Some(report.to_path_buf()),
-            effects: Vec::new(),
-            resonance: Default::default(),
-            noise_model: "auto".into(),
-            noise_refits: robimu_workflows::calibrate::noise_choice::MAX_REFITS,
-            noise_settle: None,
+            fit: Default::default(),
         }
         .run()
     }

@@ -4,6 +4,7 @@
 pub mod allan;
 pub mod calibrate;
 pub mod check;
+pub mod calibrate_batch;
 pub mod correct;
 pub mod demo;
 pub mod diagnose;
@@ -32,6 +33,7 @@ pub enum Command {
     Simulate(simulate::SimulateCmd),
     Calibrate(calibrate::CalibrateCmd),
     Check(check::CheckCmd),
+    CalibrateBatch(calibrate_batch::CalibrateBatchCmd),
     Diagnose(diagnose::DiagnoseCmd),
     Validate(validate::ValidateCmd),
     Report(report::ReportCmd),
@@ -52,6 +54,7 @@ impl Command {
             Command::Simulate(c) => c.run(),
             Command::Calibrate(c) => c.run(),
             Command::Check(c) => c.run(),
+            Command::CalibrateBatch(c) => c.run(),
             Command::MonteCarlo(c) => c.run(),
             Command::Noise(c) => c.run(),
             Command::Allan(c) => c.run(),
