@@ -11,7 +11,8 @@
 //!
 //! Realism switches, all off by default (the ideal twin): the chip model
 //! ([`SimRigConfig::chip`]: the register-level BNO055 in datasheet mode
-//! filters and holds at its internal rates), IMU noise correlated in time
+//! filters and holds at its internal rates, on a clock
+//! [`SimRigConfig::chip_clock_error_ppm`] off the arm's), IMU noise correlated in time
 //! and stronger with motion ([`SimRigConfig::imu_noise`], docs/model.md
 //! §4.6; [`SimRigConfig::with_vibration_noise`] builds issue 14's
 //! accelerometer model), and a bias and temperature warm-up

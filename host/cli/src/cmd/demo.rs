@@ -287,8 +287,10 @@ impl DemoCmd {
         } else {
             let (phi, c) = robimu_hil::rig::REALISTIC_VIBRATION;
             format!(
-                "realistic ({:?} chip: own ODR clocks and filters; accelerometer vibration noise AR(1) φ = {phi}, σ² + {c}‖q̈‖²; warm-up over {} s; joints 2, 3 elastic; {} Hz structural mode)",
+                "realistic ({:?} chip: own ODR clocks ({:+.1} % against the arm's time) and filters, read at {} Hz; accelerometer vibration noise AR(1) φ = {phi}, σ² + {c}‖q̈‖²; warm-up over {} s; joints 2, 3 elastic; {} Hz structural mode)",
                 config.chip,
+                config.chip_clock_error_ppm * 1e-4,
+                self.rate,
                 robimu_hil::rig::REALISTIC_WARM_UP.time_constant_s,
                 config
                     .arm_physics
