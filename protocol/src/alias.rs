@@ -36,7 +36,7 @@
 //! for the default bandwidths 150 Hz ([`DEFAULT_SAMPLE_RATE_HZ`]: the
 //! accelerometer's fundamental at 25 Hz, 22.5 Hz at a 2 % clock error).
 
-use crate::messages::SensorTiming;
+use crate::messages::{SensorTiming, DEFAULT_SAMPLE_RATE_HZ};
 
 /// Assumed relative tolerance δ of the chip's internal clock.
 pub const ALIAS_CLOCK_TOLERANCE: f64 = 0.02;
@@ -47,10 +47,6 @@ pub const ALIAS_MARGIN_HZ: f64 = 20.0;
 /// The rates [`SensorTiming::alias_free_rate`] chooses from, Hz: (lowest,
 /// highest, step). The highest is the firmware's highest.
 pub const RATE_CHOICES_HZ: (u16, u16, u16) = (100, 1000, 10);
-/// The firmware's default read rate: the rule's choice for the default
-/// bandwidths (62.5 Hz accelerometer, ODR 125 Hz; 116 Hz gyroscope, ODR
-/// 1000 Hz); a test checks it against [`SensorTiming::alias_free_rate`].
-pub const DEFAULT_SAMPLE_RATE_HZ: u16 = 150;
 /// Harmonics examined per sensor at most (an ODR below about 8 Hz would
 /// count more).
 const MAX_HARMONICS: u32 = 64;

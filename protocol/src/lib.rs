@@ -33,7 +33,7 @@ pub mod messages;
 
 pub use alias::{
     AliasLine, AliasSensor, RateChoice, ALIAS_CLOCK_TOLERANCE, ALIAS_MARGIN_HZ,
-    ALIAS_MIN_AMPLITUDE_S, DEFAULT_SAMPLE_RATE_HZ, RATE_CHOICES_HZ,
+    ALIAS_MIN_AMPLITUDE_S, RATE_CHOICES_HZ,
 };
 pub use decoder::{Decoder, DecoderStats, DeviceDecoder, Frames, HostDecoder};
 pub use error::WireError;
