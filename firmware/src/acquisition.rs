@@ -25,14 +25,25 @@
 //! internal output data rate (ODR: 2 × bandwidth for the accelerometer,
 //! 100–2000 Hz by bandwidth for the gyroscope; datasheet tables 3-8 and
 //! 3-9), on clocks the board cannot see (the chip has no data-ready signal
-//! in AMG mode). The core therefore reads **asynchronously** at its own
-//! `sample_rate_hz` on the board's clock, and reports the bandwidths and
-//! ODRs in `DeviceInfo::timing`. A reading is the last internal update:
-//! each sensor's value is delayed by its filter's group delay plus an age
-//! spread over [0, 1/ODR) (mean 1/(2·ODR)). While `sample_rate_hz` is at
-//! most both ODRs (the default: 120 Hz against 125 Hz and 1000 Hz), reads
-//! a full sample period apart never return the same update (read jitter
-//! aside); above an ODR some reads repeat the previous update. The host records both rates (session.toml `[imu]`).
+//! in AMG mode). Of the two ways to keep reads from aliasing the internal
+//! updates — read at the chip's own rate from its timing, or read
+//! asynchronously at a rate chosen so that they do not alias — the core
+//! takes the second: without a data-ready signal the first would have to
+//! track a clock it cannot observe, and a board rate locked to a nominal ODR
+//! drifts against the chip's by the oscillator's tolerance. It reads
+//! **asynchronously** at its own `sample_rate_hz` on the board's clock, and
+//! reports the bandwidths and ODRs in `DeviceInfo::timing`. A reading is the
+//! last internal update: each sensor's value is delayed by its filter's
+//! group delay plus an age spread over [0, 1/ODR) (mean 1/(2·ODR)), a
+//! sawtooth whose harmonics alias to f·‖kF/f‖. The default rate is the
+//! protocol's rule ([`robimu_protocol::alias`],
+//! [`SensorTiming::alias_free_rate`]): 150 Hz for the default 125 Hz /
+//! 1000 Hz ODRs, where the slowest line is at 25 Hz (22.5 Hz for a chip
+//! clock 2 % off), above the motion's band; at the paper's 120 Hz the age
+//! beats at 5 Hz. A `Configure` with any rate of 1..=1000 Hz is applied as
+//! asked (the host warns when its margin is short); above an ODR some reads
+//! repeat the previous update. The host records both rates (session.toml
+//! `[imu]`).
 //!
 //! # Sequence numbers and drops
 //!

@@ -14,7 +14,7 @@ pub const MAX_SAMPLE_RATE_HZ: u16 = 1000;
 ///
 /// ```
 /// let config = robimu_firmware::Config { i2c_address: 0x29, ..Default::default() };
-/// assert_eq!(config.sensor.sample_rate_hz, 120);
+/// assert_eq!(config.sensor.sample_rate_hz, robimu_protocol::DEFAULT_SAMPLE_RATE_HZ);
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Config {

@@ -548,7 +548,8 @@ fn a_chip_that_reset_itself_is_detected_and_reinitialised() {
 
 #[test]
 fn a_backed_up_link_drops_samples_without_blocking() {
-    let (mut rig, _) = streaming_rig(rig_config()); // 120 Hz
+    let rate = u32::from(rig_config().sensor.sample_rate_hz);
+    let (mut rig, _) = streaming_rig(rig_config());
     rig.run(1_000_000, 100);
     rig.link.set_writable(false); // the double panics on any write now
     rig.run(500_000, 100);
@@ -556,9 +557,9 @@ fn a_backed_up_link_drops_samples_without_blocking() {
     rig.run(1_500_000, 100);
     let blocked = rig.core.status();
     assert!(rig.core.tx_queued() <= TX_QUEUE_LEN);
-    // Two blocked seconds at 120 Hz; only a few frames fit the queue.
+    // Two blocked seconds at the default rate; only a few frames fit the queue.
     let fitted = (TX_QUEUE_LEN - TX_RESERVE) / 30; // sample frames are 30..37 bytes
-    assert!(blocked.samples_dropped >= 240 - fitted as u32 - 2);
+    assert!(blocked.samples_dropped >= 2 * rate - fitted as u32 - 2);
     assert_eq!(
         rig.core.control_frames_dropped(),
         0,
@@ -571,7 +572,7 @@ fn a_backed_up_link_drops_samples_without_blocking() {
     let samples = rig.host.samples();
     assert_eq!(seq_gaps(&samples), status.samples_dropped);
     assert_eq!(samples.len() as u32, status.samples_sent);
-    assert_eq!(samples.last().unwrap().seq + 1, 4 * 120);
+    assert_eq!(samples.last().unwrap().seq + 1, 4 * rate);
     assert!(rig
         .host
         .messages
@@ -625,7 +626,10 @@ fn autostart_streams_without_a_command_and_bad_settings_are_refused() {
     let mut rig = Rig::new(config, 0, 0);
     rig.core.start().unwrap();
     rig.run(1_000_000, 100);
-    assert_eq!(rig.host.samples().len(), 120);
+    assert_eq!(
+        rig.host.samples().len(),
+        usize::from(rig_config().sensor.sample_rate_hz)
+    );
 
     let mut rig = Rig::new(
         Config {

@@ -107,12 +107,12 @@ fn boot_and_two_samples_use_exactly_these_transactions() {
     core.start().unwrap();
     assert_eq!(core.next_deadline_us(), Some(10));
     core.poll(); // sample 0 at t = 10
-    assert_eq!(core.next_deadline_us(), Some(10 + 8_333));
-    time.advance(8_333); // floor(10⁶ / 120)
+    assert_eq!(core.next_deadline_us(), Some(10 + 6_666));
+    time.advance(6_666); // floor(10⁶ / 150), the default rate
     core.poll();
     time.advance(1);
     core.poll(); // not due: nothing on the bus
-    time.advance(8_333);
+    time.advance(6_666);
     core.poll();
     let (_, _, _, _) = core.release();
     i2c.done();
@@ -131,11 +131,11 @@ fn boot_and_two_samples_use_exactly_these_transactions() {
             temp_raw: -7,
         }
     );
-    assert_eq!(samples[1].t_us, 10 + 8_333);
+    assert_eq!(samples[1].t_us, 10 + 6_666);
     assert_eq!(samples[1].accel_raw, [4, -2, 3]);
     assert_eq!(samples[1].temp_raw, -7, "the last temperature is repeated");
     assert_eq!(samples[2].seq, 2);
-    assert_eq!(samples[2].t_us, 10 + 16_667);
+    assert_eq!(samples[2].t_us, 10 + 13_333); // floor(2·10⁶ / 150)
     assert_eq!(samples[2].accel_raw, [5, -2, 3]);
     assert_eq!(samples.len(), 3);
 }

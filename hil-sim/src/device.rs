@@ -53,6 +53,9 @@ pub struct SimDeviceConfig {
     /// [`ChipModel::Datasheet`] the device thread runs the chip's clocks
     /// before every poll of the core (every `poll_interval`).
     pub chip_model: ChipModel,
+    /// The chip's internal clock rate error against the source's time, ppm
+    /// ([`Bno055Sim::with_clock_error_ppm`]; datasheet mode).
+    pub chip_clock_error_ppm: f64,
     /// Device clock at spawn time, µs.
     pub clock_offset_us: u64,
     /// Device clock rate error, ppm (positive: the device clock runs fast).
@@ -74,6 +77,7 @@ impl SimDeviceConfig {
             source,
             config: Config::default(),
             chip_model: ChipModel::Ideal,
+            chip_clock_error_ppm: 0.0,
             clock_offset_us: 0,
             clock_drift_ppm: 0.0,
             boot_busy_transactions: 0,
@@ -391,6 +395,7 @@ impl Drop for SimDevice {
 fn run(config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Status {
     let sim = Bno055Sim::new(config.config.i2c_address, config.source)
         .with_model(config.chip_model)
+        .with_clock_error_ppm(config.chip_clock_error_ppm)
         .booting_for(config.boot_busy_transactions);
     let clock = DriftingClock::new(config.clock_offset_us, config.clock_drift_ppm);
     let mut core: SimCore = Acquisition::new(sim, SleepDelay, serial, clock, config.config);
@@ -406,6 +411,7 @@ fn run(config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Status 
             let (sim, delay, serial, _) = core.release();
             let sim = Bno055Sim::new(config.config.i2c_address, sim.into_source())
                 .with_model(config.chip_model)
+                .with_clock_error_ppm(config.chip_clock_error_ppm)
                 .booting_for(config.boot_busy_transactions);
             let clock = DriftingClock::new(0, config.clock_drift_ppm);
             core = Acquisition::new(sim, delay, serial, clock, config.config);

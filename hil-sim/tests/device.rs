@@ -89,12 +89,13 @@ fn samples(messages: &[(Instant, DeviceMessage)]) -> Vec<ImuSample> {
 
 #[test]
 fn a_host_streams_samples_at_the_configured_rate_over_the_pty() {
-    let device = SimDevice::spawn(SimDeviceConfig {
+    let mut config = SimDeviceConfig {
         clock_offset_us: (1 << 32) - 1_500_000, // the device clock wraps during the test
         boot_busy_transactions: 20,
         ..SimDeviceConfig::new(Box::new(SineSource::new(120)))
-    })
-    .unwrap();
+    };
+    config.config.sensor.sample_rate_hz = 120; // the paper's rig
+    let device = SimDevice::spawn(config).unwrap();
     assert!(device.port_path().starts_with("/dev/"));
     let mut host = Host::open(device.port_path());
 

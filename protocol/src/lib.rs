@@ -3,6 +3,8 @@
 //! * [`messages`]: the message table ([`DeviceMessage`], [`HostMessage`]).
 //! * [`frame`]: framing — `COBS(version ++ postcard(message) ++ CRC-32C) ++ 0x00`
 //!   — and [`encode`] into a caller's buffer, with the worst-case frame sizes.
+//! * [`alias`]: the read rate against the chip's internal updates
+//!   ([`SensorTiming::alias_free_rate`], the default [`DEFAULT_SAMPLE_RATE_HZ`]).
 //! * [`decoder`]: the streaming [`Decoder`] (fixed buffer, resynchronising,
 //!   with [`DecoderStats`]).
 //! * [`error`]: [`WireError`], every way a frame can fail.
@@ -22,12 +24,17 @@
     )
 )]
 
+pub mod alias;
 pub mod decoder;
 pub mod error;
 pub mod frame;
 pub mod layout;
 pub mod messages;
 
+pub use alias::{
+    AliasLine, AliasSensor, RateChoice, ALIAS_CLOCK_TOLERANCE, ALIAS_MARGIN_HZ,
+    ALIAS_MIN_AMPLITUDE_S, RATE_CHOICES_HZ,
+};
 pub use decoder::{Decoder, DecoderStats, DeviceDecoder, Frames, HostDecoder};
 pub use error::WireError;
 #[cfg(feature = "use-std")]

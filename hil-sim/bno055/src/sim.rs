@@ -41,6 +41,8 @@ pub struct Bno055Sim<Src> {
     address: u8,
     source: Src,
     model: ChipModel,
+    /// The internal clocks' rate error, ppm.
+    clock_error_ppm: f64,
     accel: Option<Pipeline>,
     gyro: Option<Pipeline>,
     pages: [[u8; PAGE_LEN]; 2],
@@ -63,6 +65,7 @@ impl<Src: SampleSource> Bno055Sim<Src> {
             address,
             source,
             model: ChipModel::Ideal,
+            clock_error_ppm: 0.0,
             accel: None,
             gyro: None,
             pages: [[0; PAGE_LEN]; 2],
@@ -89,6 +92,24 @@ impl<Src: SampleSource> Bno055Sim<Src> {
     /// The chip model.
     pub fn model(&self) -> ChipModel {
         self.model
+    }
+
+    /// Datasheet mode: the chip's internal clock runs `ppm`·10⁻⁶ fast
+    /// against the source's (default 0): each sensor updates at
+    /// ODR·(1 + ε) ([`crate::timing`]). A value that is not finite or not
+    /// above −10⁶ ppm is taken as 0.
+    pub fn with_clock_error_ppm(mut self, ppm: f64) -> Self {
+        self.clock_error_ppm = if ppm.is_finite() && ppm > -1e6 {
+            ppm
+        } else {
+            0.0
+        };
+        self
+    }
+
+    /// The internal clocks' rate error, ppm.
+    pub fn clock_error_ppm(&self) -> f64 {
+        self.clock_error_ppm
     }
 
     /// Runs the internal clocks (datasheet mode) up to the source's next
@@ -268,6 +289,7 @@ impl<Src: SampleSource> Bno055Sim<Src> {
         let (acc_per_unit, gyr_per_unit) = timing::counts_per_unit(unit_sel);
         let acc_config = self.pages[1][usize::from(ACC_CONFIG)];
         let gyr_config = self.pages[1][usize::from(GYR_CONFIG_0)];
+        let clock_error = self.clock_error_ppm * 1e-6;
         let channels = [
             (
                 Sensor::Accel,
@@ -309,7 +331,7 @@ impl<Src: SampleSource> Bno055Sim<Src> {
                     // A sensor starting has its first value ready at once
                     // (the mode switch takes 7 ms, datasheet table 3-6).
                     write(x);
-                    *slot = Some(Pipeline::start(configured, st.t_s, x));
+                    *slot = Some(Pipeline::start(configured, clock_error, st.t_s, x));
                 }
             }
         }

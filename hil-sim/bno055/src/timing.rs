@@ -32,8 +32,11 @@
 //! bandwidth: each section's time constant is T = √(√2 − 1) / (2π f_bw), so
 //! the group delay at low frequency is exactly [`Timing::group_delay_s`] =
 //! 2T ≈ 1.287 / (2π f_bw) (3.28 ms at 62.5 Hz, 6.40 ms at 32 Hz, 1.77 ms
-//! at 116 Hz). The internal clocks tick at multiples of 1/ODR from the
-//! source's time zero (no drift relative to the source's clock); the input
+//! at 116 Hz). The internal clocks tick at multiples of 1/(ODR·(1 + ε))
+//! from the source's time zero, ε the chip clock's error
+//! ([`crate::Bno055Sim::with_clock_error_ppm`], default 0: no drift
+//! relative to the source's clock; the filter, taken as continuous, does
+//! not scale with it); the input
 //! between two stimuli is linear in time (the filter is solved exactly for
 //! it); saturation and
 //! quantisation apply to the filtered value (plus the source's output noise)
@@ -205,8 +208,10 @@ impl AxisFilter {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Pipeline {
     timing: Timing,
+    /// The internal update rate on the source's clock, ODR·(1 + ε), Hz.
+    rate_hz: f64,
     axes: [AxisFilter; 3],
-    /// Index k of the next internal update, at k / ODR.
+    /// Index k of the next internal update, at k / `rate_hz`.
     next_update: u64,
     /// Time and input the filters have reached.
     t: f64,
@@ -215,12 +220,15 @@ pub(crate) struct Pipeline {
 }
 
 impl Pipeline {
-    /// A pipeline starting at time `t` with input `x`, its filters settled there.
-    pub(crate) fn start(timing: Timing, t: f64, x: [f64; 3]) -> Self {
+    /// A pipeline starting at time `t` with input `x`, its filters settled
+    /// there, its clock running (1 + `clock_error`) fast.
+    pub(crate) fn start(timing: Timing, clock_error: f64, t: f64, x: [f64; 3]) -> Self {
+        let rate_hz = timing.odr_hz * (1.0 + clock_error);
         Self {
             timing,
+            rate_hz,
             axes: x.map(AxisFilter::settled),
-            next_update: libm::floor(t * timing.odr_hz) as u64 + 1,
+            next_update: libm::floor(t * rate_hz) as u64 + 1,
             t,
             x,
             updates: 0,
@@ -246,7 +254,7 @@ impl Pipeline {
         let tc = self.timing.section_time_constant_s();
         let (t0, x0) = (self.t, self.x);
         loop {
-            let tick = self.next_update as f64 / self.timing.odr_hz;
+            let tick = self.next_update as f64 / self.rate_hz;
             if tick > t {
                 break;
             }

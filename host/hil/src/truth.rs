@@ -4,6 +4,7 @@
 //!
 //! * τ: the datasheet chip's gyroscope reading is its filter's group delay
 //!   plus on average half an update period old, d_g = gd_g + 1/(2·ODR_g),
+//!   the ODR the chip's clock makes it (ODR·(1 + ε), ε its clock error),
 //!   so the sample stamped t saw the arm at t − d_g: τ = −d_g (the ideal
 //!   chip: 0).
 //! * `sensor_delay.delta` = d_a − d_g, the same for the accelerometer.
@@ -79,10 +80,11 @@ pub fn twin_truth(
     since_power_on: &[f64],
     effect_params: &[String],
 ) -> TwinTruth {
+    let clock = 1.0 + config.chip_clock_error_ppm * 1e-6;
     let delays = match (config.chip, timing) {
         (ChipModel::Datasheet, Some(t)) => [
-            signal_delay(t.gyro_bandwidth_hz, t.gyro_odr_hz),
-            signal_delay(t.accel_bandwidth_hz, t.accel_odr_hz),
+            signal_delay(t.gyro_bandwidth_hz, t.gyro_odr_hz * clock),
+            signal_delay(t.accel_bandwidth_hz, t.accel_odr_hz * clock),
         ],
         _ => [0.0, 0.0],
     };

@@ -349,7 +349,9 @@ pub fn record_offline(
     };
     let (source, truth) = imu_source(config, Box::new(motion))?;
     let firmware = Config::default();
-    let chip = Bno055Sim::new(firmware.i2c_address, source).with_model(config.chip);
+    let chip = Bno055Sim::new(firmware.i2c_address, source)
+        .with_model(config.chip)
+        .with_clock_error_ppm(config.chip_clock_error_ppm);
     let end = End::default();
     let clock = VirtualClock {
         time: time.clone(),

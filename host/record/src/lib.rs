@@ -593,7 +593,53 @@ pub fn device_table(info: &DeviceInfo, port: &str) -> toml::Table {
         gyro_odr_hz: decimal(timing.gyro_odr_hz),
     }
     .insert_into(&mut t);
+    let margin = timing.alias_margin_hz(f64::from(info.config.sample_rate_hz));
+    if margin.is_finite() {
+        t.insert(
+            "alias_margin_hz".into(),
+            ((margin * 100.0).round() / 100.0).into(),
+        );
+    }
     t
+}
+
+/// The warning `robimu record` prints for `config`'s read rate when its
+/// alias margin is below [`robimu_protocol::ALIAS_MARGIN_HZ`]
+/// ([`robimu_protocol::alias`]): which sensor's updates beat at which
+/// frequency, the margin, and the nearest alias-free rate. `None` when the
+/// rate is alias-free.
+pub fn alias_warning(config: &SensorConfig) -> Option<String> {
+    use robimu_protocol::{AliasSensor, SensorTiming, ALIAS_CLOCK_TOLERANCE, ALIAS_MARGIN_HZ};
+    let timing = SensorTiming::of(config);
+    let rate = config.sample_rate_hz;
+    let line = timing.worst_alias(f64::from(rate))?;
+    if line.margin_hz >= ALIAS_MARGIN_HZ {
+        return None;
+    }
+    let sensor = match line.sensor {
+        AliasSensor::Accel => "accelerometer",
+        AliasSensor::Gyro => "gyroscope",
+    };
+    let harmonic = match line.harmonic {
+        1 => String::new(),
+        k => format!(" (harmonic {k} of the data age)"),
+    };
+    let spread = f64::from(line.harmonic) * line.odr_hz * ALIAS_CLOCK_TOLERANCE;
+    let nearest = match timing.nearest_alias_free_rate(rate) {
+        Some(r) => format!("the nearest alias-free rate is {r} Hz (--rate {r})"),
+        None => "no rate of 100–1000 Hz is alias-free for these bandwidths".to_string(),
+    };
+    Some(format!(
+        "reading at {rate} Hz, the {sensor}'s {} Hz updates beat at {:.1} Hz{harmonic}, \
+         ±{spread:.1} Hz for a chip clock within ±{:.0} %: alias margin {:.1} Hz, below {:.0} Hz, \
+         so the data age varies slowly, like a changing delay no model effect has \
+         (docs/model.md §4.8); {nearest}",
+        line.odr_hz,
+        line.frequency_hz,
+        100.0 * ALIAS_CLOCK_TOLERANCE,
+        line.margin_hz,
+        ALIAS_MARGIN_HZ,
+    ))
 }
 
 /// Adds the clock fits to session.toml's `[imu]` table.
@@ -617,4 +663,69 @@ pub fn write_clock_notes(dir: &Path, clock: &[(u32, ClockFit)]) -> Result<(), Se
             .get_or_insert_with(toml::Table::new)
             .insert("clock".into(), fits.into());
     })
+}
+
+#[cfg(test)]
+mod alias_tests {
+    use super::*;
+    use robimu_protocol::{SensorTiming, PROTOCOL_VERSION};
+
+    fn config(rate: u16) -> SensorConfig {
+        SensorConfig {
+            sample_rate_hz: rate,
+            ..SensorConfig::default()
+        }
+    }
+
+    /// 120 Hz against the default 125 Hz accelerometer: its updates beat
+    /// at 125 − 120 = 5 Hz (±2.5 Hz), margin 2.5 Hz; 100 Hz: the 4th
+    /// harmonic at 500 − 5·100 = 0 Hz; both name 150 Hz as the nearest
+    /// alias-free rate; the default rate has no warning.
+    #[test]
+    fn aliasing_rates_are_warned_about_with_the_beat_and_the_nearest_rate() {
+        let w = alias_warning(&config(120)).unwrap();
+        for part in [
+            "120 Hz",
+            "accelerometer's 125 Hz",
+            "beat at 5.0 Hz",
+            "±2.5 Hz",
+            "margin 2.5 Hz",
+            "--rate 150",
+        ] {
+            assert!(w.contains(part), "{part}: {w}");
+        }
+        let w = alias_warning(&config(100)).unwrap();
+        for part in [
+            "beat at 0.0 Hz (harmonic 4",
+            "margin -10.0 Hz",
+            "--rate 150",
+        ] {
+            assert!(w.contains(part), "{part}: {w}");
+        }
+        assert_eq!(alias_warning(&SensorConfig::default()), None);
+    }
+
+    /// session.toml's `[imu]` gets the rate's margin, rounded to 0.01 Hz.
+    #[test]
+    fn the_device_table_has_the_alias_margin() {
+        let cfg = config(120);
+        let info = DeviceInfo {
+            firmware_version: [0, 1, 0],
+            protocol_version: PROTOCOL_VERSION,
+            chip_id: 0xA0,
+            accel_id: 0xFB,
+            mag_id: 0x32,
+            gyro_id: 0x0F,
+            sw_revision: 0x0311,
+            bootloader_revision: 0x15,
+            config: cfg,
+            accel_scale_mps2_per_lsb: 0.01,
+            gyro_scale_rads_per_lsb: 1.0 / 900.0,
+            temp_scale_c_per_lsb: 1.0,
+            timing: SensorTiming::of(&cfg),
+        };
+        let t = device_table(&info, "virtual");
+        assert_eq!(t["alias_margin_hz"].as_float(), Some(2.5));
+        assert_eq!(t["sample_rate_hz"].as_integer(), Some(120));
+    }
 }

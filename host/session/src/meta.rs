@@ -15,6 +15,7 @@
 //! accel_odr_hz = 125.0       #   internal output data rates (optional keys,
 //! gyro_bandwidth_hz = 116.0  #   [`ImuTiming`])
 //! gyro_odr_hz = 1000.0
+//! alias_margin_hz = 22.5     #   optional: the read rate's alias margin (robimu_protocol::alias)
 //! [controller]               # optional, free-form description of the robot controller
 //! ```
 //! Unknown keys are kept out of the way (ignored), as the contract allows.

@@ -161,6 +161,59 @@ fn each_bandwidth_setting_updates_at_its_datasheet_rate_and_holds_between() {
     }
 }
 
+/// A chip clock off by ε: the registers change exactly when an update
+/// instant k/(ODR·(1 + ε)) passed since the last read (independent of the
+/// pipeline's bookkeeping), so over 2 s a sensor updates 2·ODR·(1 + ε)
+/// times (±1): +0.8 % and −1.5 % at the defaults (125 Hz: 252 and 246;
+/// 1000 Hz: 2016 and 1970, against 250 and 2000 without the error).
+#[test]
+fn a_chip_clock_error_scales_the_update_instants() {
+    for ppm in [8_000.0, -15_000.0] {
+        let eps: f64 = ppm * 1e-6;
+        let mut sim = chip(5e-5, ramps).with_clock_error_ppm(ppm);
+        assert_eq!(sim.clock_error_ppm(), ppm);
+        // ±16 g, 62.5 Hz; 116 Hz gyroscope; m/s² and rad/s units
+        configure(&mut sim, (3 << 2) | 0x03, 2 << 3, 0x02);
+        let (acc_odr, gyr_odr) = (
+            ACCEL_TABLE[3].1 * (1.0 + eps),
+            GYRO_TABLE[2].1 * (1.0 + eps),
+        );
+        let (mut t_prev, mut acc_prev, mut gyr_prev) = read(&mut sim);
+        let (mut acc_changes, mut gyr_changes) = (0u32, 0u32);
+        while sim.source_mut().t < 2.0 {
+            let (t, acc, gyr) = read(&mut sim);
+            assert_eq!(
+                acc != acc_prev,
+                tick_between(t_prev, t, acc_odr),
+                "accel ε {eps} t={t}"
+            );
+            assert_eq!(
+                gyr != gyr_prev,
+                tick_between(t_prev, t, gyr_odr),
+                "gyro ε {eps} t={t}"
+            );
+            acc_changes += u32::from(acc != acc_prev);
+            gyr_changes += u32::from(gyr != gyr_prev);
+            (t_prev, acc_prev, gyr_prev) = (t, acc, gyr);
+        }
+        assert!(
+            (f64::from(acc_changes) - 2.0 * acc_odr).abs() <= 1.0,
+            "ε {eps}: {acc_changes}"
+        );
+        assert!(
+            (f64::from(gyr_changes) - 2.0 * gyr_odr).abs() <= 1.0,
+            "ε {eps}: {gyr_changes}"
+        );
+    }
+    // bad values are no clock error
+    assert_eq!(
+        chip(1e-3, ramps)
+            .with_clock_error_ppm(f64::NAN)
+            .clock_error_ppm(),
+        0.0
+    );
+}
+
 #[test]
 fn a_ramp_lags_by_the_filters_analytic_group_delay() {
     // Two first-order sections of time constant T = √(√2−1)/(2π f_bw):

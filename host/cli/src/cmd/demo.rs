@@ -63,11 +63,12 @@ pub struct DemoCmd {
     /// time over a pseudo-terminal and loopback TCP.
     #[arg(long)]
     pub fast: bool,
-    /// The board's sampling rate, Hz: 100 by default, where the datasheet
-    /// chip's 125 Hz accelerometer updates age in a 25 Hz cycle, above the
-    /// motion (at the firmware's 120 Hz the age beats at 5 Hz, inside it:
+    /// The board's sampling rate, Hz: by default the firmware's, which its
+    /// rule chooses so that reads do not alias the chip's internal updates
+    /// (150 Hz: the 125 Hz accelerometer's data age cycles at 25 Hz, above
+    /// the motion; at the paper's 120 Hz it beats at 5 Hz, inside it:
     /// docs/model.md §4.8).
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = robimu_protocol::DEFAULT_SAMPLE_RATE_HZ)]
     pub rate: u16,
 }
 
@@ -83,6 +84,9 @@ impl DemoCmd {
         }
         if !(1..=1000).contains(&self.rate) {
             bail!("--rate must be in [1, 1000] Hz (got {})", self.rate);
+        }
+        if let Some(warning) = robimu_record::alias_warning(&self.sensor()) {
+            eprintln!("warning: {warning}");
         }
         let dir = self.out.clone().unwrap_or_else(|| {
             std::env::temp_dir().join(format!("robimu-demo-{}", std::process::id()))
@@ -283,8 +287,10 @@ impl DemoCmd {
         } else {
             let (phi, c) = robimu_hil::rig::REALISTIC_VIBRATION;
             format!(
-                "realistic ({:?} chip: own ODR clocks and filters; accelerometer vibration noise AR(1) φ = {phi}, σ² + {c}‖q̈‖²; warm-up over {} s; joints 2, 3 elastic; {} Hz structural mode)",
+                "realistic ({:?} chip: own ODR clocks ({:+.1} % against the arm's time) and filters, read at {} Hz; accelerometer vibration noise AR(1) φ = {phi}, σ² + {c}‖q̈‖²; warm-up over {} s; joints 2, 3 elastic; {} Hz structural mode)",
                 config.chip,
+                config.chip_clock_error_ppm * 1e-4,
+                self.rate,
                 robimu_hil::rig::REALISTIC_WARM_UP.time_constant_s,
                 config
                     .arm_physics

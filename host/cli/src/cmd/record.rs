@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use robimu_protocol::SensorConfig;
+use robimu_protocol::{SensorConfig, SensorTiming};
 use robimu_record::controller::RobotSpec;
 use robimu_record::motion::Plan;
 use robimu_record::RecordOptions;
@@ -47,9 +47,12 @@ pub struct RecordCmd {
     /// Joint polling rate, Hz.
     #[arg(long, default_value_t = 125.0)]
     pub joint_rate: f64,
-    /// IMU sample rate, Hz.
-    #[arg(long, default_value_t = 120)]
-    pub rate: u16,
+    /// IMU sample rate, Hz [default: the rate the firmware's rule chooses
+    /// for the bandwidths, so that reads do not alias the chip's internal
+    /// updates: 150 Hz for the defaults; docs/model.md §4.8]. A rate
+    /// whose alias margin is short is used, with a warning.
+    #[arg(long)]
+    pub rate: Option<u16>,
     /// Rest recorded before and after the motion, s.
     #[arg(long, default_value_t = 1.0)]
     pub rest: f64,
@@ -82,9 +85,14 @@ impl RecordCmd {
                 self.joint_rate
             );
         }
-        if !(1..=1000).contains(&self.rate) {
-            bail!("--rate must be in [1, 1000] Hz (got {})", self.rate);
-        }
+        let defaults = SensorConfig::default();
+        let rate = match self.rate {
+            Some(rate) if !(1..=1000).contains(&rate) => {
+                bail!("--rate must be in [1, 1000] Hz (got {rate})")
+            }
+            Some(rate) => rate,
+            None => SensorTiming::of(&defaults).alias_free_rate().rate_hz,
+        };
         if !(self.rest.is_finite() && self.rest >= 0.0) {
             bail!(
                 "--rest must be a non-negative number of seconds (got {})",
@@ -109,8 +117,8 @@ impl RecordCmd {
             joint_rate: self.joint_rate,
             rest: self.rest,
             sensor: SensorConfig {
-                sample_rate_hz: self.rate,
-                ..SensorConfig::default()
+                sample_rate_hz: rate,
+                ..defaults
             },
             interrupt: None,
         })
@@ -119,6 +127,9 @@ impl RecordCmd {
     /// Record, showing progress.
     pub fn run(self) -> anyhow::Result<()> {
         let opts = self.options()?;
+        if let Some(warning) = robimu_record::alias_warning(&opts.sensor) {
+            eprintln!("warning: {warning}");
+        }
         let summary = record_with_progress(&opts)?;
         print!("{}", RecordSummaryText(&summary));
         Ok(())
