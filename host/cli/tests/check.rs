@@ -136,6 +136,23 @@ fn each_alteration_is_named_with_its_number() {
         .unwrap()
         .contains(&format!("ratio {want:.2}")));
 
+    // joints in degrees: named as such (not blamed on the gyroscope), the
+    // value the first sample beyond the robot's limits
+    let dir = tmp.path().join("joints_deg");
+    altered(&good, &dir, "joints.csv", |mut r| {
+        r[1..].iter_mut().for_each(|v| *v = v.to_degrees());
+        Some(r)
+    });
+    let (run, f) = check(&dir);
+    let j = only_fatal(&run, &f, "joint_units", "are the joints in radians?");
+    let robot = Robot::aubo_i5();
+    let lim = robot.limits();
+    let v = value(j);
+    assert!(
+        lim.iter().any(|l| v < l.q_min - 0.2 || v > l.q_max + 0.2),
+        "{v} is within every joint's limits"
+    );
+
     // accelerometer in g: the sphere's radius scales by 1/g
     let dir = tmp.path().join("g");
     altered(&good, &dir, "imu.csv", |mut r| {

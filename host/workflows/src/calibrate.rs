@@ -201,26 +201,59 @@ pub fn check_measurements(robot: &Robot, data: &Measurements) -> Result<(), Cali
             "the IMU samples ({c:.3}..{d:.3} s) do not overlap the joint samples ({a:.3}..{b:.3} s): are both files on the same session clock?"
         ));
     }
-    for (j, lim) in robot.limits().iter().enumerate() {
-        let slack = 0.2; // rad: recorded positions may overshoot a planning limit a little
-        if let Some((s, q)) = data
-            .joint_q
+    if let Some(v) = joint_outside_limits(robot, &data.joint_q) {
+        return bad(v.to_string());
+    }
+    Ok(())
+}
+
+/// A joint sample far outside the robot's limits (docs/model.md §7.8): the
+/// sign of joints recorded in degrees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointLimitViolation {
+    /// Joint index (0-based).
+    pub joint: usize,
+    /// Sample index (0-based).
+    pub sample: usize,
+    /// The sample's value, rad.
+    pub q: f64,
+    /// The joint's limits, rad.
+    pub limits: (f64, f64),
+}
+
+impl std::fmt::Display for JointLimitViolation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "joint {} sample {} is {:.3} rad, far outside the robot's limits [{:.3}, {:.3}]: are the joints in radians?",
+            self.joint + 1,
+            self.sample + 1,
+            self.q,
+            self.limits.0,
+            self.limits.1
+        )
+    }
+}
+
+/// The first joint sample of `joint_q` (rows of the robot's joints) beyond
+/// the robot's limits by more than 0.2 rad (recorded positions may overshoot
+/// a planning limit a little).
+pub fn joint_outside_limits(robot: &Robot, joint_q: &[f64]) -> Option<JointLimitViolation> {
+    const SLACK: f64 = 0.2;
+    let n = robot.dof();
+    robot.limits().iter().enumerate().find_map(|(j, lim)| {
+        joint_q
             .chunks(n)
             .map(|row| row[j])
             .enumerate()
-            .find(|(_, q)| *q < lim.q_min - slack || *q > lim.q_max + slack)
-        {
-            return bad(format!(
-                "joint {} sample {} is {:.3} rad, far outside the robot's limits [{:.3}, {:.3}]: are the joints in radians?",
-                j + 1,
-                s + 1,
+            .find(|(_, q)| *q < lim.q_min - SLACK || *q > lim.q_max + SLACK)
+            .map(|(sample, q)| JointLimitViolation {
+                joint: j,
+                sample,
                 q,
-                lim.q_min,
-                lim.q_max
-            ));
-        }
-    }
-    Ok(())
+                limits: (lim.q_min, lim.q_max),
+            })
+    })
 }
 
 /// Calibrate `robot` from `data`: the [`fit`](fn@fit::fit) of the baseline

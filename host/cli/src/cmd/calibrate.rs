@@ -26,8 +26,8 @@ use robimu_workflows::calibrate::noise_choice::{
     calibrate_with_noise_settle, NoiseChoice, NoiseOutcome, Settle, MAX_REFITS,
 };
 use robimu_workflows::calibrate::{check_measurements, CalibrateOptions, Calibration};
-use robimu_workflows::diagnose::{effect_set, fit_json, setup_with};
 use robimu_workflows::check::{check_session, CheckOptions, Severity};
+use robimu_workflows::diagnose::{effect_set, fit_json, setup_with};
 use robimu_workflows::noise_id::IdOptions;
 use robimu_workflows::repeatability::{self, check_windows, Repeatability, Window};
 use robimu_workflows::verdict::{self, VerdictInput};

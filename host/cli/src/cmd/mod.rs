@@ -3,8 +3,8 @@
 
 pub mod allan;
 pub mod calibrate;
-pub mod check;
 pub mod calibrate_batch;
+pub mod check;
 pub mod correct;
 pub mod demo;
 pub mod diagnose;

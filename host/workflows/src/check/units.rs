@@ -18,6 +18,7 @@ use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
 use robimu_session::{files, Session};
 
 use super::{median_of, Finding, Severity};
+use crate::calibrate::joint_outside_limits;
 
 /// A joint row is static when every |q̇| is below this, rad/s.
 pub const STATIC_SPEED: f64 = 0.01;
@@ -85,6 +86,21 @@ pub fn static_stretches(session: &Session, qd: &[f64]) -> Vec<(f64, f64)> {
 /// gyroscope's scale then cannot be checked).
 pub fn check(session: &Session, robot: &Robot, motionless: bool) -> Vec<Finding> {
     let mut out = Vec::new();
+    // joints in degrees: the gyroscope's comparison with the joint speeds
+    // would then blame the gyroscope
+    if session.joint_count() == robot.dof() {
+        if let Some(v) = joint_outside_limits(robot, &session.joints.values) {
+            out.push(Finding::new(
+                "joint_units",
+                Severity::Fatal,
+                files::JOINTS,
+                v.q,
+                v.to_string(),
+                "give joints.csv's q1..qn in rad: multiply degrees by π/180 = 0.017453",
+            ));
+            return out;
+        }
+    }
     let layout = ParamLayout::new(robot);
     let qd = joint_speeds(session);
     let stretches = static_stretches(session, &qd);
