@@ -120,7 +120,9 @@ window.addEventListener('load', function () {
   var svgs = Array.from(document.querySelectorAll('body > figure > svg')).map(function (s) { var r = s.getBoundingClientRect(); return [r.width, r.height]; });
   var out = document.createElement('pre');
   out.id = 'render-check';
-  out.textContent = JSON.stringify({errors: window.__errors, images: images, svgs: svgs});
+  var t = document.getElementById('trust');
+  var trust = t ? [t.textContent, t.getBoundingClientRect().height] : null;
+  out.textContent = JSON.stringify({errors: window.__errors, images: images, svgs: svgs, trust: trust});
   document.body.appendChild(out);
 });
 </script>"#;
@@ -202,6 +204,14 @@ fn assert_figures_load(browser: &Path, page: &Path) {
             (img[1].as_u64(), img[2].as_u64()),
             (Some(w), Some(h)),
             "{name}"
+        );
+    }
+    // the verdict's trust line, where the page has one, is laid out
+    if std::fs::read_to_string(page).unwrap().contains("<p id=\"trust\"") {
+        let trust = &check["trust"];
+        assert!(
+            trust[0].as_str().unwrap().starts_with("trust: ") && trust[1].as_f64().unwrap() > 5.0,
+            "{check}"
         );
     }
     let figures = check["svgs"].as_array().unwrap();
@@ -299,6 +309,8 @@ fn cli_reports_render_in_headless_chromium() {
         (
             rep.join("report.html"),
             &[
+                "<p id=\"trust\"",
+                "<table id=\"verdict\"",
                 "<table id=\"parameters\"",
                 "eps_2_4",
                 "Convergence",
@@ -308,6 +320,7 @@ fn cli_reports_render_in_headless_chromium() {
         (
             out2.join("report.html"),
             &[
+                "<p id=\"trust\"",
                 "<table id=\"parameters\"",
                 "eps_2_4",
                 "Trajectory",
