@@ -117,23 +117,32 @@ impl Problem<'_> {
         let spline = self.spline_of(theta);
         let tau = x[self.layout.offsets().tau];
         let theta_e = self.effect_params_of(theta);
-        let mut at = self.sample_eval();
-        if !self.white {
-            let mut out = Vec::with_capacity(self.imu_range.len());
-            self.gls_residuals(&model, &spline, tau, theta_e, self.imu_range(), |i, w| {
-                out.push((i, w))
-            })?;
-            return Ok(out);
-        }
-        self.imu_range
-            .clone()
-            .map(|i| {
-                Ok((
+        // the two halves of the samples on two threads, joined in order
+        let part = |range: Range<usize>| -> Result<Vec<(usize, [f64; 6])>, ProblemError> {
+            let mut out = Vec::with_capacity(range.len());
+            if !self.white {
+                self.gls_residuals(&model, &spline, tau, theta_e, range, |i, w| {
+                    out.push((i, w))
+                })?;
+                return Ok(out);
+            }
+            let mut at = self.sample_eval();
+            for i in range {
+                out.push((
                     i,
                     self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
-                ))
-            })
-            .collect()
+                ));
+            }
+            Ok(out)
+        };
+        let [first, second] = self.imu_parts();
+        let (a, b) = std::thread::scope(|s| {
+            let h = s.spawn(|| part(second));
+            (part(first), h.join().expect("residual thread panicked"))
+        });
+        let mut out = a?;
+        out.extend(b?);
+        Ok(out)
     }
 
     /// Storage for one sample (the effect part empty without effects).
