@@ -1051,7 +1051,10 @@ fn scores_from_one_linearisation_equal_each_candidates_own() {
     assert_eq!(scores.len(), names.len());
     for s in &scores {
         let direct = (own(std::slice::from_ref(&s.name)) - b0).max(0.0);
-        println!("{}: {} (one linearisation) vs {direct}", s.name, s.statistic);
+        println!(
+            "{}: {} (one linearisation) vs {direct}",
+            s.name, s.statistic
+        );
         assert!(
             (s.statistic - direct).abs() <= 1e-6 * direct.max(1.0),
             "{}: {} vs {direct}",

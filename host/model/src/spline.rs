@@ -542,7 +542,8 @@ impl Spline {
         let (t0, t1) = (self.knots.start(), self.knots.end());
         let k = spans.knots();
         assert!(
-            (k.degree, k.y.len(), k.start(), k.end()) == (self.knots.degree, self.knots.y.len(), t0, t1),
+            (k.degree, k.y.len(), k.start(), k.end())
+                == (self.knots.degree, self.knots.y.len(), t0, t1),
             "span polynomials of other knots"
         );
         let mut b = Basis::default();

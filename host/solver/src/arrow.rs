@@ -200,7 +200,10 @@ impl ArrowMatrix {
     /// If an index of `keep` is not a border unknown.
     #[track_caller]
     pub fn restrict_border(&self, keep: &[usize]) -> ArrowMatrix {
-        assert!(keep.iter().all(|&k| k < self.nx), "border index out of range");
+        assert!(
+            keep.iter().all(|&k| k < self.nx),
+            "border index out of range"
+        );
         let nk = keep.len();
         let mut border = vec![0.0; self.nc * nk];
         for (dst, src) in border

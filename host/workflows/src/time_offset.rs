@@ -175,7 +175,7 @@ pub fn find_tau(
         ks.map(|k| exact((t0 + k as f64 * h).min(t1), &mut js).unwrap_or([0.0; 3]))
             .collect()
     };
-    let mid = (steps + 1) / 2;
+    let mid = steps.div_ceil(2);
     let grid: Vec<[f64; 3]> = std::thread::scope(|s| {
         let second = s.spawn(|| nodes(mid..steps + 1));
         let mut g = nodes(0..mid);

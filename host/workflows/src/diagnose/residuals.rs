@@ -339,10 +339,12 @@ impl Dft {
         if !n.is_power_of_two() {
             let y: Vec<(f64, f64)> = (0..n)
                 .map(|k| {
-                    x.iter().enumerate().fold((0.0, 0.0), |(re, im), (i, &(a, b))| {
-                        let (c, s) = w(k * i);
-                        (re + a * c + b * s, im + b * c - a * s)
-                    })
+                    x.iter()
+                        .enumerate()
+                        .fold((0.0, 0.0), |(re, im), (i, &(a, b))| {
+                            let (c, s) = w(k * i);
+                            (re + a * c + b * s, im + b * c - a * s)
+                        })
                 })
                 .collect();
             x.copy_from_slice(&y);
@@ -398,7 +400,10 @@ mod tests {
                     im += a * ang.sin() + b * ang.cos();
                 }
                 let err = (yk.0 - re).hypot(yk.1 - im);
-                assert!(err < 1e-11, "len {len}, bin {k}: {yk:?} against ({re}, {im})");
+                assert!(
+                    err < 1e-11,
+                    "len {len}, bin {k}: {yk:?} against ({re}, {im})"
+                );
             }
         }
     }
