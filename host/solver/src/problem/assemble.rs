@@ -117,31 +117,37 @@ impl Problem<'_> {
         let spline = self.spline_of(theta);
         let tau = x[self.layout.offsets().tau];
         let theta_e = self.effect_params_of(theta);
-        // the two halves of the samples on two threads, joined in order
-        let part = |range: Range<usize>| -> Result<Vec<(usize, [f64; 6])>, ProblemError> {
-            let mut out = Vec::with_capacity(range.len());
-            if !self.white {
-                self.gls_residuals(&model, &spline, tau, theta_e, range, |i, w| {
-                    out.push((i, w))
-                })?;
-                return Ok(out);
-            }
-            let mut at = self.sample_eval();
-            for i in range {
-                out.push((
-                    i,
-                    self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
-                ));
-            }
-            Ok(out)
-        };
+        // the two halves of the samples on two threads, each filling its
+        // part of the output (one residual per sample, in order)
+        let part =
+            |range: Range<usize>, out: &mut [(usize, [f64; 6])]| -> Result<(), ProblemError> {
+                let mut slots = out.iter_mut();
+                let mut put = |i: usize, w: [f64; 6]| {
+                    if let Some(slot) = slots.next() {
+                        *slot = (i, w);
+                    }
+                };
+                if !self.white {
+                    return self.gls_residuals(&model, &spline, tau, theta_e, range, put);
+                }
+                let mut at = self.sample_eval();
+                for i in range {
+                    put(
+                        i,
+                        self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
+                    );
+                }
+                Ok(())
+            };
         let [first, second] = self.imu_parts();
+        let mut out = vec![(0, [0.0; 6]); self.imu_range.len()];
+        let (lo, hi) = out.split_at_mut(first.len());
         let (a, b) = std::thread::scope(|s| {
-            let h = s.spawn(|| part(second));
-            (part(first), h.join().expect("residual thread panicked"))
+            let h = s.spawn(|| part(second, hi));
+            (part(first, lo), h.join().expect("residual thread panicked"))
         });
-        let mut out = a?;
-        out.extend(b?);
+        a?;
+        b?;
         Ok(out)
     }
 

@@ -282,8 +282,12 @@ fn identification_of(
     let tau = x[layout.offsets().tau];
     let n = robot.dof();
     // the samples in two halves, one per thread, joined in order
-    let part = |ts: &[f64], zs: &[[f64; 6]]| {
-        let (mut t, mut r, mut qdd2) = (Vec::new(), Vec::<[f64; 6]>::new(), Vec::new());
+    let part = |ts: &[f64], zs: &[[f64; 6]], cap: usize| {
+        let (mut t, mut r, mut qdd2) = (
+            Vec::with_capacity(cap),
+            Vec::<[f64; 6]>::with_capacity(cap),
+            Vec::with_capacity(cap),
+        );
         let mut js = JointState::default();
         for (&ti, z) in ts.iter().zip(zs) {
             if trajectory.evaluate(ti + tau, &mut js).is_err() {
@@ -298,8 +302,9 @@ fn identification_of(
     };
     let mid = data.imu_t.len().min(data.imu_z.len()) / 2;
     let ((mut t, mut r, mut qdd2), (t2, r2, q2)) = std::thread::scope(|s| {
-        let h = s.spawn(|| part(&data.imu_t[mid..], &data.imu_z[mid..]));
-        let first = part(&data.imu_t[..mid], &data.imu_z[..mid]);
+        let h = s.spawn(|| part(&data.imu_t[mid..], &data.imu_z[mid..], 0));
+        // the first half's storage holds the whole (no copy when joined)
+        let first = part(&data.imu_t[..mid], &data.imu_z[..mid], data.imu_t.len());
         (first, h.join().expect("residual thread panicked"))
     });
     t.extend(t2);
