@@ -7,8 +7,11 @@
 //! `time`'s `%M`, i.e. wait4's maxrss; without /usr/bin/time only the wall
 //! time is measured), and the machine's load average.
 //!
-//! Cases: 300 s at 120 Hz (always); with `--long`, also 300 s at 1 kHz and
-//! 30 min at 120 Hz (slow). `--runs N` (default 7) and `--bin PATH` (time
+//! Cases: 300 s at 120 Hz (always), and on the same session the whole
+//! `robimu diagnose DIR` (baseline fit, noise identification, every
+//! candidate's score, residual statistics, spectra, plots), with its ratio
+//! to calibrate; with `--long`, also calibrate on 300 s at 1 kHz and 30 min
+//! at 120 Hz (slow). `--runs N` (default 7) and `--bin PATH` (time
 //! another build of robimu, e.g. a copy of an older one, on the same
 //! sessions) are optional.
 //!
@@ -49,7 +52,8 @@ fn simulate(bin: &Path, dir: &Path, duration: f64, rate: f64) {
     assert!(status.success(), "robimu simulate failed");
 }
 
-fn calibrate_once(bin: &Path, dir: &Path, time: Option<&Path>) -> Run {
+/// `robimu calibrate DIR` or `robimu diagnose DIR` (`what`), output in DIR.
+fn run_once(what: &str, bin: &Path, dir: &Path, time: Option<&Path>) -> Run {
     let report = dir.join("time.txt");
     let mut cmd = match time {
         Some(t) => {
@@ -59,18 +63,22 @@ fn calibrate_once(bin: &Path, dir: &Path, time: Option<&Path>) -> Run {
         }
         None => Command::new(bin),
     };
-    cmd.arg("calibrate")
+    let out = match what {
+        "calibrate" => dir.join("bench-result.json"),
+        _ => dir.join("bench-diagnosis"),
+    };
+    cmd.arg(what)
         .arg(dir)
         .arg("--out")
-        .arg(dir.join("bench-result.json"))
+        .arg(out)
         .stdout(Stdio::null())
         .stderr(Stdio::null());
     let start = Instant::now();
-    let status = cmd.status().expect("run robimu calibrate");
+    let status = cmd.status().expect("run robimu");
     let wall = start.elapsed().as_secs_f64();
     assert!(
         status.success(),
-        "robimu calibrate failed on {}",
+        "robimu {what} failed on {}",
         dir.display()
     );
     let cpu = time.and_then(|_| {
@@ -123,30 +131,50 @@ fn main() {
         bin.display(),
         std::thread::available_parallelism().map_or(0, |n| n.get())
     );
-    for (label, duration, rate) in cases {
+    for (k, (label, duration, rate)) in cases.into_iter().enumerate() {
         let dir = work.path().join(format!("s{duration}-{rate}"));
         simulate(&bin, &dir, duration, rate);
-        let load_before = load();
-        let results: Vec<Run> = (0..runs)
-            .map(|_| calibrate_once(&bin, &dir, time))
-            .collect();
-        let walls: Vec<f64> = results.iter().map(|r| r.wall).collect();
-        let min = walls.iter().cloned().fold(f64::INFINITY, f64::min);
-        let mut line = format!(
-            "{label} (`robimu simulate --duration {duration} --rate {rate} --seed 1`): wall median {:.3} s, min {min:.3} s",
-            median(walls.clone())
-        );
-        let cpu: Vec<(f64, f64, f64)> = results.iter().filter_map(|r| r.cpu).collect();
-        if cpu.len() == results.len() {
-            let user = median(cpu.iter().map(|c| c.0).collect());
-            let sys = median(cpu.iter().map(|c| c.1).collect());
-            let peak = cpu.iter().map(|c| c.2).fold(0.0, f64::max);
-            line +=
-                &format!("; CPU median user {user:.2} s + sys {sys:.2} s; peak RSS {peak:.0} MB");
+        let whats: &[&str] = if k == 0 {
+            &["calibrate", "diagnose"]
+        } else {
+            &["calibrate"]
+        };
+        let mut calibrate_median = None;
+        for &what in whats {
+            let load_before = load();
+            let results: Vec<Run> = (0..runs)
+                .map(|_| run_once(what, &bin, &dir, time))
+                .collect();
+            let walls: Vec<f64> = results.iter().map(|r| r.wall).collect();
+            let min = walls.iter().cloned().fold(f64::INFINITY, f64::min);
+            let med = median(walls.clone());
+            let mut line = format!(
+                "{what}, {label} (`robimu simulate --duration {duration} --rate {rate} --seed 1`): wall median {med:.3} s, min {min:.3} s",
+            );
+            let cpu: Vec<(f64, f64, f64)> = results.iter().filter_map(|r| r.cpu).collect();
+            let mut cpu_total = None;
+            if cpu.len() == results.len() {
+                let user = median(cpu.iter().map(|c| c.0).collect());
+                let sys = median(cpu.iter().map(|c| c.1).collect());
+                let peak = cpu.iter().map(|c| c.2).fold(0.0, f64::max);
+                cpu_total = Some(user + sys);
+                line += &format!(
+                    "; CPU median user {user:.2} s + sys {sys:.2} s; peak RSS {peak:.0} MB"
+                );
+            }
+            match calibrate_median {
+                None => calibrate_median = Some((med, cpu_total)),
+                Some((c, c_cpu)) => {
+                    line += &format!("; {:.2}x calibrate's wall", med / c);
+                    if let (Some(a), Some(b)) = (cpu_total, c_cpu) {
+                        line += &format!(", {:.2}x its CPU", a / b);
+                    }
+                }
+            }
+            println!(
+                "{line}; load average before {load_before}, after {}",
+                load()
+            );
         }
-        println!(
-            "{line}; load average before {load_before}, after {}",
-            load()
-        );
     }
 }

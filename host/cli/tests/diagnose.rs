@@ -1007,3 +1007,61 @@ fn encoder_scale_on_one_joint_is_named_or_reported_ambiguous() {
     }
     println!("{:.1} s", started.elapsed().as_secs_f64());
 }
+
+/// The scores of every candidate, taken from one linearisation with all of
+/// them, equal each candidate's score from its own problem (baseline plus
+/// that effect alone: linearised, factored, gᵀA⁻¹g against the baseline's).
+#[test]
+fn scores_from_one_linearisation_equal_each_candidates_own() {
+    use robimu_solver::problem::Problem;
+    use robimu_solver::LeastSquares;
+    use robimu_workflows::diagnose::effect_set;
+    let (robot, data, _) = session(31, Some(("clock_drift", 250.0)));
+    let setup = setup_for(&robot, &data, None);
+    let opts = CalibrateOptions::new(&robot);
+    let base = fit_effects(&robot, &data, &opts, &setup, &[], Start::Nominal).unwrap();
+    let names: Vec<String> = effects::catalogue(&setup)
+        .iter()
+        .map(|e| e.name().to_string())
+        .collect();
+    let scores = score_all(&robot, &data, &opts, &setup, &base, &names).unwrap();
+    let layout = ParamLayout::new(&robot);
+    let own = |effect: &[String]| {
+        let set = effect_set(&setup, effect).unwrap();
+        let mut p = Problem::new(
+            &robot,
+            &layout,
+            &data,
+            base.trajectory.knots().clone(),
+            base.x.clone(),
+            &opts.problem_options(),
+            &set,
+        )
+        .unwrap();
+        let mut theta = p.theta(&base.trajectory, &base.x);
+        theta[..base.theta.len()].copy_from_slice(&base.theta);
+        p.begin_iteration(&theta).unwrap();
+        let mut a = p.new_matrix();
+        let mut g = vec![0.0; theta.len()];
+        p.linearize(&theta, &mut a, &mut g).unwrap();
+        let mut sol = g.clone();
+        a.factor().unwrap().solve_in_place(&mut sol);
+        g.iter().zip(&sol).map(|(a, b)| a * b).sum::<f64>()
+    };
+    let b0 = own(&[]);
+    assert_eq!(scores.len(), names.len());
+    for s in &scores {
+        let direct = (own(std::slice::from_ref(&s.name)) - b0).max(0.0);
+        println!(
+            "{}: {} (one linearisation) vs {direct}",
+            s.name, s.statistic
+        );
+        assert!(
+            (s.statistic - direct).abs() <= 1e-6 * direct.max(1.0),
+            "{}: {} vs {direct}",
+            s.name,
+            s.statistic
+        );
+    }
+    assert!(scores[0].name == "clock_drift" && scores[0].statistic > 5.0);
+}

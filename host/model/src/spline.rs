@@ -529,6 +529,32 @@ impl Spline {
     /// effects).
     pub fn state_at(&self, t: f64, out: &mut JointState) {
         self.evaluate_clamped(t, out);
+        self.rest_outside(t, out);
+    }
+
+    /// [`Self::state_at`] with the basis from `spans`, the span polynomials
+    /// of this spline's knots (equal to rounding; for many evaluations).
+    ///
+    /// # Panics
+    /// If `spans` was built for other knots.
+    #[track_caller]
+    pub fn state_at_spans(&self, spans: &SpanPolynomials, t: f64, out: &mut JointState) {
+        let (t0, t1) = (self.knots.start(), self.knots.end());
+        let k = spans.knots();
+        assert!(
+            (k.degree, k.y.len(), k.start(), k.end())
+                == (self.knots.degree, self.knots.y.len(), t0, t1),
+            "span polynomials of other knots"
+        );
+        let mut b = Basis::default();
+        if spans.basis(t.clamp(t0, t1), &mut b).is_ok() {
+            self.evaluate_basis(&b, out);
+        }
+        self.rest_outside(t, out);
+    }
+
+    /// Zero q̇, q̈, q⃛ outside the span (at rest at the end poses).
+    fn rest_outside(&self, t: f64, out: &mut JointState) {
         if t < self.knots.start() || t > self.knots.end() {
             out.qd = Default::default();
             out.qdd = Default::default();

@@ -191,6 +191,39 @@ impl ArrowMatrix {
         }
     }
 
+    /// The matrix of the band unknowns and the border unknowns `keep` only
+    /// (in that order): the normal matrix of the problem without the other
+    /// border unknowns (they held fixed), e.g. one candidate's block of a
+    /// linearisation with several.
+    ///
+    /// # Panics
+    /// If an index of `keep` is not a border unknown.
+    #[track_caller]
+    pub fn restrict_border(&self, keep: &[usize]) -> ArrowMatrix {
+        assert!(
+            keep.iter().all(|&k| k < self.nx),
+            "border index out of range"
+        );
+        let nk = keep.len();
+        let mut border = vec![0.0; self.nc * nk];
+        for (dst, src) in border
+            .chunks_exact_mut(nk.max(1))
+            .zip(self.border.chunks_exact(self.nx.max(1)))
+        {
+            for (d, &k) in dst.iter_mut().zip(keep) {
+                *d = src[k];
+            }
+        }
+        ArrowMatrix {
+            nc: self.nc,
+            w: self.w,
+            nx: nk,
+            band: self.band.clone(),
+            border,
+            corner: Mat::from_fn(nk, nk, |i, j| self.corner[(keep[i], keep[j])]),
+        }
+    }
+
     /// Add `v` to the corner entry (k, l) and, when k ≠ l, to (l, k).
     pub fn add_xx(&mut self, k: usize, l: usize, v: f64) {
         self.corner[(k, l)] += v;
@@ -385,6 +418,31 @@ impl ArrowFactor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every entry of a restricted matrix is the original's at the kept
+    /// border unknowns (read through `get`, the full-matrix view).
+    #[test]
+    fn restrict_border_keeps_the_chosen_unknowns() {
+        let (nc, w, nx) = (7, 2, 4);
+        let mut a = ArrowMatrix::zeros(nc, w, nx);
+        let v = |i: usize, j: usize| 1.0 + (3 * i + 7 * j) as f64 * 0.01;
+        for i in 0..nc {
+            for j in i.saturating_sub(w)..=i {
+                a.add_cc(i, j, v(i, j));
+            }
+        }
+        let local = Mat::from_fn(1 + nx, 1 + nx, |i, j| v(i + 20, j + 20) + v(j + 20, i + 20));
+        a.add_local(3, 1, &[0, 1, 2, 3], local.as_ref());
+        let keep = [3, 1];
+        let r = a.restrict_border(&keep);
+        assert_eq!(r.dims(), (nc, w, 2));
+        let full = |i: usize| if i < nc { i } else { nc + keep[i - nc] };
+        for i in 0..nc + 2 {
+            for j in 0..nc + 2 {
+                assert_eq!(r.get(i, j), a.get(full(i), full(j)), "({i}, {j})");
+            }
+        }
+    }
 
     /// A random SPD arrowhead built from random local blocks, as assembly does.
     fn random_arrow(nc: usize, w: usize, nx: usize, seed: u64) -> ArrowMatrix {

@@ -582,11 +582,24 @@ pub fn identify(
     qdd2: Option<&[f64]>,
     opts: &IdOptions,
 ) -> Result<Identification, NoiseIdError> {
-    let mut channels = Vec::with_capacity(6);
-    for (c, name) in IMU_COLUMNS.iter().enumerate() {
-        let rc: Vec<f64> = r.iter().map(|v| v[c]).collect();
-        channels.push(identify_channel(name, t, &rc, qdd2, opts)?);
-    }
+    // the accelerometer's channels on a second thread (the first error in
+    // channel order is reported)
+    let run = |cs: std::ops::Range<usize>| -> Vec<Result<ChannelIdentification, NoiseIdError>> {
+        cs.map(|c| {
+            let rc: Vec<f64> = r.iter().map(|v| v[c]).collect();
+            identify_channel(IMU_COLUMNS[c], t, &rc, qdd2, opts)
+        })
+        .collect()
+    };
+    let (accel, gyro) = std::thread::scope(|s| {
+        let h = s.spawn(|| run(0..3));
+        let gyro = run(3..6);
+        (h.join().expect("identification thread panicked"), gyro)
+    });
+    let channels = accel
+        .into_iter()
+        .chain(gyro)
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(Identification::from_channels(channels))
 }
 

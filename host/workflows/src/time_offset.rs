@@ -160,20 +160,28 @@ pub fn find_tau(
     let stride = imu_t.len().div_ceil(search.max_samples.max(1)).max(1);
     let ts: Vec<f64> = imu_t.iter().step_by(stride).copied().collect();
     let gs: Vec<[f64; 3]> = imu_gyro.iter().step_by(stride).copied().collect();
-    let mut js = JointState::default();
-    let mut exact = |u: f64| -> Option<[f64; 3]> {
+    let exact = |u: f64, js: &mut JointState| -> Option<[f64; 3]> {
         if u < t0 || u > t1 {
             return None;
         }
-        trajectory.evaluate(u, &mut js).ok()?;
-        Some(model.inertial(&js).1)
+        trajectory.evaluate(u, js).ok()?;
+        Some(model.inertial(js).1)
     };
-    // body-rate grid
+    // body-rate grid, its two halves on two threads
     let h = (search.coarse_step / 2.0).min(0.01);
     let steps = ((t1 - t0) / h).ceil() as usize;
-    let grid: Vec<[f64; 3]> = (0..=steps)
-        .map(|k| exact((t0 + k as f64 * h).min(t1)).unwrap_or([0.0; 3]))
-        .collect();
+    let nodes = |ks: std::ops::Range<usize>| -> Vec<[f64; 3]> {
+        let mut js = JointState::default();
+        ks.map(|k| exact((t0 + k as f64 * h).min(t1), &mut js).unwrap_or([0.0; 3]))
+            .collect()
+    };
+    let mid = steps.div_ceil(2);
+    let grid: Vec<[f64; 3]> = std::thread::scope(|s| {
+        let second = s.spawn(|| nodes(mid..steps + 1));
+        let mut g = nodes(0..mid);
+        g.extend(second.join().expect("grid thread panicked"));
+        g
+    });
     let interp = |u: f64| -> Option<[f64; 3]> {
         if u < t0 || u > t1 {
             return None;

@@ -27,7 +27,7 @@
 use std::sync::{Arc, OnceLock};
 
 use super::{Effect, EffectParam, ExactContext, SampleContext};
-use crate::{JointState, ParamLayout, Spline, MAX_JOINTS};
+use crate::{JointState, ParamLayout, SpanPolynomials, Spline, MAX_JOINTS};
 
 /// The mode's natural frequency and damping.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,10 +101,18 @@ impl ModeResponse {
             }
         };
         push(&mut nodes, t0, &y, &yd);
+        // sub-step s of step k starts at t0 + k·dt + s·h (the step's end is
+        // the next step's start), so each sub-step's end value is the next
+        // one's start value
+        let at = |k: usize, s: usize| {
+            let (k, s) = if s == sub { (k + 1, 0) } else { (k, s) };
+            t0 + k as f64 * dt + s as f64 * h
+        };
+        let mut a0 = qdd(t0).qdd;
         for k in 0..steps {
             for s in 0..sub {
-                let t = t0 + k as f64 * dt + s as f64 * h;
-                let (a0, am, a1) = (qdd(t).qdd, qdd(t + 0.5 * h).qdd, qdd(t + h).qdd);
+                let t = at(k, s);
+                let (am, a1) = (qdd(t + 0.5 * h).qdd, qdd(at(k, s + 1)).qdd);
                 for j in 0..n {
                     // RK4 on (y, ẏ)
                     let f = |a: f64, y: f64, v: f64| (v, mode.accel(a, y, v));
@@ -115,6 +123,7 @@ impl ModeResponse {
                     y[j] += h / 6.0 * (k1y + 2.0 * k2y + 2.0 * k3y + k4y);
                     yd[j] += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
                 }
+                a0 = a1;
             }
             push(&mut nodes, t0 + (k + 1) as f64 * dt, &y, &yd);
         }
@@ -130,7 +139,12 @@ impl ModeResponse {
     /// The response to a joint spline (at rest outside its span), over the
     /// spline's span widened by 2 s.
     pub fn of_spline(mode: Mode, spline: &Spline) -> Self {
-        let traj = super::trajectory_fn(spline);
+        let spans = SpanPolynomials::new(spline.knots());
+        let traj = |t| {
+            let mut js = JointState::default();
+            spline.state_at_spans(&spans, t, &mut js);
+            js
+        };
         let k = spline.knots();
         Self::integrate(
             mode,

@@ -117,23 +117,38 @@ impl Problem<'_> {
         let spline = self.spline_of(theta);
         let tau = x[self.layout.offsets().tau];
         let theta_e = self.effect_params_of(theta);
-        let mut at = self.sample_eval();
-        if !self.white {
-            let mut out = Vec::with_capacity(self.imu_range.len());
-            self.gls_residuals(&model, &spline, tau, theta_e, self.imu_range(), |i, w| {
-                out.push((i, w))
-            })?;
-            return Ok(out);
-        }
-        self.imu_range
-            .clone()
-            .map(|i| {
-                Ok((
-                    i,
-                    self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
-                ))
-            })
-            .collect()
+        // the two halves of the samples on two threads, each filling its
+        // part of the output (one residual per sample, in order)
+        let part =
+            |range: Range<usize>, out: &mut [(usize, [f64; 6])]| -> Result<(), ProblemError> {
+                let mut slots = out.iter_mut();
+                let mut put = |i: usize, w: [f64; 6]| {
+                    if let Some(slot) = slots.next() {
+                        *slot = (i, w);
+                    }
+                };
+                if !self.white {
+                    return self.gls_residuals(&model, &spline, tau, theta_e, range, put);
+                }
+                let mut at = self.sample_eval();
+                for i in range {
+                    put(
+                        i,
+                        self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
+                    );
+                }
+                Ok(())
+            };
+        let [first, second] = self.imu_parts();
+        let mut out = vec![(0, [0.0; 6]); self.imu_range.len()];
+        let (lo, hi) = out.split_at_mut(first.len());
+        let (a, b) = std::thread::scope(|s| {
+            let h = s.spawn(|| part(second, hi));
+            (part(first, lo), h.join().expect("residual thread panicked"))
+        });
+        a?;
+        b?;
+        Ok(out)
     }
 
     /// Storage for one sample (the effect part empty without effects).

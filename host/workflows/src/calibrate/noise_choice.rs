@@ -281,16 +281,34 @@ fn identification_of(
     let model = MeasurementModel::new(robot, &layout, x).map_err(|e| e.to_string())?;
     let tau = x[layout.offsets().tau];
     let n = robot.dof();
-    let (mut t, mut r, mut qdd2) = (Vec::new(), Vec::new(), Vec::new());
-    let mut js = JointState::default();
-    for (&ti, z) in data.imu_t.iter().zip(&data.imu_z) {
-        if trajectory.evaluate(ti + tau, &mut js).is_err() {
-            continue;
+    // the samples in two halves, one per thread, joined in order
+    let part = |ts: &[f64], zs: &[[f64; 6]], cap: usize| {
+        let (mut t, mut r, mut qdd2) = (
+            Vec::with_capacity(cap),
+            Vec::<[f64; 6]>::with_capacity(cap),
+            Vec::with_capacity(cap),
+        );
+        let mut js = JointState::default();
+        for (&ti, z) in ts.iter().zip(zs) {
+            if trajectory.evaluate(ti + tau, &mut js).is_err() {
+                continue;
+            }
+            let pred = model.predict(&js);
+            t.push(ti);
+            r.push(std::array::from_fn(|c| z[c] - pred[c]));
+            qdd2.push(js.qdd[..n].iter().map(|a| a * a).sum::<f64>());
         }
-        let pred = model.predict(&js);
-        t.push(ti);
-        r.push(std::array::from_fn(|c| z[c] - pred[c]));
-        qdd2.push(js.qdd[..n].iter().map(|a| a * a).sum());
-    }
+        (t, r, qdd2)
+    };
+    let mid = data.imu_t.len().min(data.imu_z.len()) / 2;
+    let ((mut t, mut r, mut qdd2), (t2, r2, q2)) = std::thread::scope(|s| {
+        let h = s.spawn(|| part(&data.imu_t[mid..], &data.imu_z[mid..], 0));
+        // the first half's storage holds the whole (no copy when joined)
+        let first = part(&data.imu_t[..mid], &data.imu_z[..mid], data.imu_t.len());
+        (first, h.join().expect("residual thread panicked"))
+    });
+    t.extend(t2);
+    r.extend(r2);
+    qdd2.extend(q2);
     identify(&t, &r, Some(&qdd2), opts).map_err(|e| e.to_string())
 }

@@ -815,7 +815,12 @@ pub fn diagnose(
         current = next;
     };
     let stats_before = residual_stats(robot, data, setup, &baseline);
-    let stats_after = residual_stats(robot, data, setup, &current);
+    // with no effect added the final fit is the baseline itself
+    let stats_after = if found.is_empty() {
+        stats_before.clone()
+    } else {
+        residual_stats(robot, data, setup, &current)
+    };
     Ok(Diagnosis {
         unexplained: unexplained(&stats_after),
         rejected,

@@ -10,6 +10,7 @@ use crate::stats::chi2_sf;
 use robimu_model::effects::{self, CatalogueSetup};
 use robimu_model::observations::Measurements;
 use robimu_model::Robot;
+use robimu_solver::ArrowMatrix;
 
 /// gᵀ A⁻¹ g of the problem with `names` effects at the fit `at`.
 pub(super) fn quadratic_score(
@@ -60,6 +61,13 @@ pub fn score_all(
 
 /// [`score_all`] and gᵀ A⁻¹ g of `at`'s own model (the base every score
 /// is taken against).
+///
+/// One linearisation at `at` of the model with every candidate added (θ
+/// of the candidates at 0, so the residuals are `at`'s): the normal matrix
+/// and gradient of `at`'s model plus one candidate are the rows and
+/// columns of [c, x_a, θ_at, θ_e] of it (the effects' columns and priors
+/// do not depend on which others are present), so each score restricts the
+/// border to them ([`ArrowMatrix::restrict_border`]) and factors that.
 pub(super) fn scores_at(
     robot: &Robot,
     data: &Measurements,
@@ -68,25 +76,72 @@ pub(super) fn scores_at(
     at: &Fit,
     candidates: &[String],
 ) -> Result<(f64, Vec<Score>), DiagnoseError> {
-    let base = quadratic_score(robot, data, opts, setup, &at.effects, at)?;
-    let mut out = Vec::new();
-    for c in candidates {
-        let mut names = at.effects.clone();
-        names.push(c.clone());
-        let dof = effects::by_name(setup, c)?.params().len();
-        let s = quadratic_score(robot, data, opts, setup, &names, at)?;
-        let statistic = (s - base).max(0.0);
-        out.push(Score {
-            name: c.clone(),
-            statistic,
-            dof,
-            p_value: chi2_sf(statistic, dof as f64),
-        });
-    }
+    let mut all = at.effects.clone();
+    all.extend(candidates.iter().cloned());
+    let dofs = candidates
+        .iter()
+        .map(|c| Ok(effects::by_name(setup, c)?.params().len()))
+        .collect::<Result<Vec<usize>, DiagnoseError>>()?;
+    let (base, stats) = with_problem_at(robot, data, opts, setup, &all, at, |problem, theta| {
+        let mut a = problem.new_matrix();
+        let mut g = vec![0.0; theta.len()];
+        problem.linearize(theta, &mut a, &mut g)?;
+        // border unknowns: x_a and θ_at, then the candidates' θ in order
+        let own = problem.active().len() + (problem.n_effect_params() - dofs.iter().sum::<usize>());
+        let base_keep: Vec<usize> = (0..own).collect();
+        let base = restricted_score(&a, &g, &base_keep, &at.effects)?;
+        let mut first = own;
+        let mut stats = Vec::with_capacity(candidates.len());
+        for (c, &dof) in candidates.iter().zip(&dofs) {
+            let keep: Vec<usize> = (0..own).chain(first..first + dof).collect();
+            first += dof;
+            let mut names = at.effects.clone();
+            names.push(c.clone());
+            stats.push(restricted_score(&a, &g, &keep, &names)?);
+        }
+        Ok((base, stats))
+    })?;
+    let mut out: Vec<Score> = candidates
+        .iter()
+        .zip(&dofs)
+        .zip(stats)
+        .map(|((c, &dof), s)| {
+            let statistic = (s - base).max(0.0);
+            Score {
+                name: c.clone(),
+                statistic,
+                dof,
+                p_value: chi2_sf(statistic, dof as f64),
+            }
+        })
+        .collect();
     out.sort_by(|a, b| {
         a.p_value
             .total_cmp(&b.p_value)
             .then(b.statistic.total_cmp(&a.statistic))
     });
     Ok((base, out))
+}
+
+/// gᵀ A⁻¹ g over the band unknowns and the border unknowns `keep` of the
+/// linearisation (a, g) (the model of the effects `names`, for the error).
+fn restricted_score(
+    a: &ArrowMatrix,
+    g: &[f64],
+    keep: &[usize],
+    names: &[String],
+) -> Result<f64, DiagnoseError> {
+    let nc = a.dims().0;
+    let factor = a
+        .restrict_border(keep)
+        .factor()
+        .map_err(|e| DiagnoseError::Singular(format!("{}: {e}", names.join("+"))))?;
+    let gk: Vec<f64> = g[..nc]
+        .iter()
+        .copied()
+        .chain(keep.iter().map(|&k| g[nc + k]))
+        .collect();
+    let mut sol = gk.clone();
+    factor.solve_in_place(&mut sol);
+    Ok(gk.iter().zip(&sol).map(|(a, b)| a * b).sum())
 }
