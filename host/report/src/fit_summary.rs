@@ -82,8 +82,8 @@ impl fmt::Display for FitReport<'_> {
         if let Some(t) = &cal.tau_initial {
             writeln!(
                 f,
-                "time offset found from the data before the fit: tau = {:.4} s",
-                t.tau
+                "time offset found from the data before the fit: tau = {:.1} ms",
+                t.tau * 1e3
             )?;
         }
         writeln!(
@@ -326,7 +326,7 @@ mod tests {
             brief,
             "converged (cost change below tolerance) after 2 iterations: cost 2.000000e5 -> 1.500000e4\n\
              trajectory spline: knots every 0.5 s (chosen from the joint samples)\n\
-             time offset found from the data before the fit: tau = 0.0500 s\n\
+             time offset found from the data before the fit: tau = 50.0 ms\n\
              1200 IMU samples used; whitened residual rms (1 = as modelled): ax 1.00 ay 1.00 az 1.00 gx 1.00 gy 1.00 gz 1.00\n"
         );
         let given = FitReport::brief(&cal, false).to_string();
