@@ -207,7 +207,10 @@ fn assert_figures_load(browser: &Path, page: &Path) {
         );
     }
     // the verdict's trust line, where the page has one, is laid out
-    if std::fs::read_to_string(page).unwrap().contains("<p id=\"trust\"") {
+    if std::fs::read_to_string(page)
+        .unwrap()
+        .contains("<p id=\"trust\"")
+    {
         let trust = &check["trust"];
         assert!(
             trust[0].as_str().unwrap().starts_with("trust: ") && trust[1].as_f64().unwrap() > 5.0,
