@@ -13,13 +13,12 @@ use robimu_workflows::calibrate::fit::{Fit, Start};
 use robimu_workflows::calibrate::noise_choice::NoiseChoice;
 use robimu_workflows::calibrate::CalibrateOptions;
 use robimu_workflows::diagnose::{
-    diagnose, fit_effects, inject_effects, residual_stats, score_all, setup_for, DiagnoseOptions,
-    Diagnosis,
+    fit_effects, inject_effects, residual_stats, score_all, setup_for, DiagnoseOptions, Diagnosis,
 };
 use robimu_workflows::simulate::{random_session, RandomSession, SimulateOptions};
 
 mod common;
-use common::{assert_figure_glyphs, robimu};
+use common::{assert_figure_glyphs, diagnose_all, diagnose_with, robimu};
 
 /// Session length of the detection tests, s.
 const DURATION: f64 = 90.0;
@@ -187,27 +186,6 @@ fn check_restored(what: &str, f: &Fit, truth: &[f64], robot: &Robot) {
         "{what}: residual RMS {rms:.3?}, worst baseline parameter {} at {:.2} σ",
         worst.1, worst.0
     );
-}
-
-/// The whole diagnosis with the default settings: the catalogue set-up and
-/// the outcome.
-fn diagnose_all(
-    robot: &Robot,
-    data: &Measurements,
-) -> (robimu_model::effects::CatalogueSetup, Diagnosis) {
-    diagnose_with(robot, data, &DiagnoseOptions::default())
-}
-
-/// The whole diagnosis with `dopts`.
-fn diagnose_with(
-    robot: &Robot,
-    data: &Measurements,
-    dopts: &DiagnoseOptions,
-) -> (robimu_model::effects::CatalogueSetup, Diagnosis) {
-    let setup = setup_for(robot, data, None);
-    let opts = CalibrateOptions::new(robot);
-    let d = diagnose(robot, data, &opts, &setup, dopts, |_| {}).unwrap();
-    (setup, d)
 }
 
 /// One effect hidden at `magnitude` (its `simulate --effect` unit): the

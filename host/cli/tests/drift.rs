@@ -4,8 +4,6 @@
 //! parameters are back at the truth (issue 15's must-show).
 
 use robimu_model::{ParamLayout, Robot};
-use robimu_workflows::calibrate::CalibrateOptions;
-use robimu_workflows::diagnose::{diagnose, setup_for, DiagnoseOptions};
 use robimu_workflows::simulate::{add_bias_walk, random_session, simulate, SimulateOptions};
 
 /// Session length, s.
@@ -26,16 +24,7 @@ fn diagnosed_walk(seed: u64) -> String {
     s.truth[layout.offsets().tau] = 0.05;
     let mut data = simulate(&robot, &layout, &s.truth, &s.trajectory, &opts, seed).unwrap();
     add_bias_walk(&mut data, SCALE, seed);
-    let setup = setup_for(&robot, &data, None);
-    let d = diagnose(
-        &robot,
-        &data,
-        &CalibrateOptions::new(&robot),
-        &setup,
-        &DiagnoseOptions::default(),
-        |_| {},
-    )
-    .unwrap();
+    let (_, d) = common::diagnose_all(&robot, &data);
     let names: Vec<&str> = d.found.iter().map(|f| f.name.as_str()).collect();
     let f = d.found.first().expect("an effect is found");
     let res = f

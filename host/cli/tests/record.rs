@@ -912,7 +912,6 @@ fn the_rig_with_a_datasheet_chip_reads_the_truth_at_rest() {
 #[test]
 #[ignore = "110 s of real-time recording, whose data differ run to run (a loaded machine drops samples); with the LM stationary stop it passed (sensor_delay first, 4.17 ± 0.81 ms vs 5.01; resonance second); the virtual-time twin tests in tests/twin.rs cover the datasheet chip in CI"]
 fn a_datasheet_chip_is_diagnosed_with_its_sensor_delay() {
-    use robimu_workflows::diagnose::{diagnose, setup_for, DiagnoseOptions};
     let robot = Robot::aubo_i5();
     let mut rng = rand::rngs::StdRng::seed_from_u64(33);
     let traj = random_walk(&robot, 90.0, 1.0, &mut rng).unwrap();
@@ -940,16 +939,7 @@ fn a_datasheet_chip_is_diagnosed_with_its_sensor_delay() {
     let want = delay(timing.accel_bandwidth_hz, timing.accel_odr_hz)
         - delay(timing.gyro_bandwidth_hz, timing.gyro_odr_hz);
     let data = session.measurements();
-    let setup = setup_for(&robot, &data, None);
-    let d = diagnose(
-        &robot,
-        &data,
-        &CalibrateOptions::new(&robot),
-        &setup,
-        &DiagnoseOptions::default(),
-        |_| {},
-    )
-    .unwrap();
+    let (_, d) = common::diagnose_all(&robot, &data);
     let names: Vec<&str> = d.found.iter().map(|f| f.name.as_str()).collect();
     eprintln!("found {names:?}; want δ {:.2} ms", want * 1e3);
     let f = d.found.first().expect("an effect is found");

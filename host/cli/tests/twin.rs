@@ -22,7 +22,7 @@ use robimu_session::Session;
 use robimu_workflows::calibrate::fit::Start;
 use robimu_workflows::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
 use robimu_workflows::calibrate::CalibrateOptions;
-use robimu_workflows::diagnose::{diagnose, fit_effects, setup_for, DiagnoseOptions};
+use robimu_workflows::diagnose::{fit_effects, setup_for};
 
 mod common;
 use common::robimu_ok;
@@ -248,16 +248,7 @@ fn null_false_alarms(seed: u64, duration: f64, rate_hz: u16) -> Vec<String> {
     opts.sensor.sample_rate_hz = rate_hz;
     record_offline(&config, &p, dir.path(), &opts).unwrap();
     let data = Session::load(dir.path()).unwrap().measurements();
-    let setup = setup_for(&robot, &data, None);
-    let d = diagnose(
-        &robot,
-        &data,
-        &CalibrateOptions::new(&robot),
-        &setup,
-        &DiagnoseOptions::default(),
-        |_| {},
-    )
-    .unwrap();
+    let (_, d) = common::diagnose_all(&robot, &data);
     let found: Vec<String> = d.found.iter().map(|f| f.name.clone()).collect();
     eprintln!("seed {seed} at {rate_hz} Hz: found {found:?}");
     found.into_iter().filter(|n| n != "sensor_delay").collect()

@@ -170,3 +170,31 @@ pub fn assert_figure_glyphs(dir: &Path) -> usize {
     assert!(checked > 0, "no figure text in {}", dir.display());
     checked
 }
+
+/// The whole diagnosis of `data` with the default catalogue set-up and
+/// calibration options, and `dopts` (docs/model.md §4.5).
+pub fn diagnose_with(
+    robot: &robimu_model::Robot,
+    data: &robimu_model::observations::Measurements,
+    dopts: &robimu_workflows::diagnose::DiagnoseOptions,
+) -> (
+    robimu_model::effects::CatalogueSetup,
+    robimu_workflows::diagnose::Diagnosis,
+) {
+    let setup = robimu_workflows::diagnose::setup_for(robot, data, None);
+    let opts = robimu_workflows::calibrate::CalibrateOptions::new(robot);
+    let d =
+        robimu_workflows::diagnose::diagnose(robot, data, &opts, &setup, dopts, |_| {}).unwrap();
+    (setup, d)
+}
+
+/// [`diagnose_with`] the default options.
+pub fn diagnose_all(
+    robot: &robimu_model::Robot,
+    data: &robimu_model::observations::Measurements,
+) -> (
+    robimu_model::effects::CatalogueSetup,
+    robimu_workflows::diagnose::Diagnosis,
+) {
+    diagnose_with(robot, data, &Default::default())
+}
