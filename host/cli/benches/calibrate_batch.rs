@@ -14,22 +14,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
-fn gnu_time() -> Option<&'static Path> {
-    let p = Path::new("/usr/bin/time");
-    let ok = Command::new(p)
-        .args(["-f", "%e", "true"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    ok.then_some(p)
-}
-
-fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_else(|_| "unknown".into())
-}
+mod process;
+use process::{gnu_time, load};
 
 /// `bin ARGS` under GNU time when there is one: wall time and user + sys
 /// CPU time (s), and whether it exited with 0.

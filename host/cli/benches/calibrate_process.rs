@@ -21,21 +21,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
+mod process;
+use process::{gnu_time, load};
+
 /// One `robimu calibrate` run: wall, user and system time (s), peak RSS (MB).
 struct Run {
     wall: f64,
     cpu: Option<(f64, f64, f64)>,
-}
-
-fn gnu_time() -> Option<&'static Path> {
-    let p = Path::new("/usr/bin/time");
-    let ok = Command::new(p)
-        .args(["-f", "%e", "true"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    ok.then_some(p)
 }
 
 fn simulate(bin: &Path, dir: &Path, duration: f64, rate: f64) {
@@ -97,12 +89,6 @@ fn run_once(what: &str, bin: &Path, dir: &Path, time: Option<&Path>) -> Run {
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
-}
-
-fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_else(|_| "unknown".into())
 }
 
 fn main() {
