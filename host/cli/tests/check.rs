@@ -320,6 +320,7 @@ fn session_of(robot: &Robot, seed: u64, duration: f64) -> robimu_session::Sessio
             values: d.imu_z.iter().flatten().copied().collect(),
         },
         imu_temp: None,
+        extra_imus: Vec::new(),
         tracker: None,
         truth: None,
     }

@@ -59,7 +59,7 @@ mod writer;
 
 use std::path::{Path, PathBuf};
 
-use robimu_model::observations::Measurements;
+use robimu_model::observations::{ImuSamples, Measurements};
 use robimu_model::Robot;
 
 pub use error::SessionError;
@@ -97,6 +97,40 @@ pub mod files {
     pub const TRACKER: &str = "tracker.csv";
     /// True parameters (simulations only).
     pub const TRUTH: &str = "truth.toml";
+
+    /// IMU `j`'s samples (docs/model.md §9): [`IMU`] for j = 0, else
+    /// `imu<j>.csv`.
+    pub fn imu_csv(j: usize) -> String {
+        if j == 0 {
+            IMU.to_string()
+        } else {
+            format!("imu{j}.csv")
+        }
+    }
+
+    /// The `imu<j>.csv` files in a listing of names, by j ≥ 1 (ascending):
+    /// `imu1.csv`, `imu2.csv`, … (`imu01.csv` or `imu0.csv` are not IMU files).
+    pub fn extra_imu_indices<'a>(names: impl IntoIterator<Item = &'a str>) -> Vec<usize> {
+        let mut js: Vec<usize> = names
+            .into_iter()
+            .filter_map(|n| n.strip_prefix("imu")?.strip_suffix(".csv"))
+            .filter(|d| {
+                !d.is_empty() && !d.starts_with('0') && d.bytes().all(|b| b.is_ascii_digit())
+            })
+            .filter_map(|d| d.parse().ok())
+            .collect();
+        js.sort_unstable();
+        js
+    }
+}
+
+/// One IMU's file of a session: `imu.csv` or `imu<j>.csv` (docs/model.md §9).
+#[derive(Debug, Clone)]
+pub struct ImuTable {
+    /// Columns [`IMU_COLUMNS`].
+    pub samples: Table,
+    /// The [`IMU_TEMP_COLUMN`] (°C), when the file has one.
+    pub temp: Option<Vec<f64>>,
 }
 
 /// A session loaded into memory.
@@ -112,6 +146,9 @@ pub struct Session {
     pub imu: Table,
     /// `imu.csv`'s [`IMU_TEMP_COLUMN`] (°C, one per IMU row), when it has one.
     pub imu_temp: Option<Vec<f64>>,
+    /// `imu1.csv`, `imu2.csv`, … of a multi-IMU session (docs/model.md §9):
+    /// `extra_imus[j - 1]` is IMU j; empty for one IMU.
+    pub extra_imus: Vec<ImuTable>,
     /// `tracker.csv`, when present.
     pub tracker: Option<Table>,
     /// `truth.toml`, when present.
@@ -143,6 +180,7 @@ impl Session {
         let joints = joints?;
         let (imu, mut extra) = imu?;
         let imu_temp = extra.pop().flatten();
+        let extra_imus = read_extra_imus(dir)?;
         let tracker_path = dir.join(files::TRACKER);
         let tracker = if tracker_path.exists() {
             Some(read_table(&tracker_path, Columns::Fixed(&TRACKER_COLUMNS))?)
@@ -175,9 +213,15 @@ impl Session {
             joints,
             imu,
             imu_temp,
+            extra_imus,
             tracker,
             truth,
         })
+    }
+
+    /// Number of IMUs K (docs/model.md §9).
+    pub fn n_imus(&self) -> usize {
+        1 + self.extra_imus.len()
     }
 
     /// Number of joints in `joints.csv`.
@@ -198,6 +242,19 @@ impl Session {
                 .map(|z| [z[0], z[1], z[2], z[3], z[4], z[5]])
                 .collect(),
             imu_temp: self.imu_temp.clone(),
+            extra_imus: self
+                .extra_imus
+                .iter()
+                .map(|f| ImuSamples {
+                    t: f.samples.t.clone(),
+                    z: f.samples
+                        .values
+                        .chunks_exact(6)
+                        .map(|z| [z[0], z[1], z[2], z[3], z[4], z[5]])
+                        .collect(),
+                    temp: f.temp.clone(),
+                })
+                .collect(),
         }
     }
 
@@ -232,6 +289,39 @@ impl Session {
             .noise_model(sigma_z)
             .map_err(|e| SessionError::file(self.dir.join(files::META), format!("[noise]: {e}")))
     }
+}
+
+/// Read `imu1.csv`, `imu2.csv`, … of `dir` (docs/model.md §9): they must be
+/// consecutive from 1; a gap names the missing file.
+fn read_extra_imus(dir: &Path) -> Result<Vec<ImuTable>, SessionError> {
+    let listing = std::fs::read_dir(dir).map_err(|e| SessionError::io(dir, e))?;
+    let names: Vec<String> = listing
+        .filter_map(|e| e.ok())
+        .filter_map(|e| e.file_name().into_string().ok())
+        .collect();
+    let js = files::extra_imu_indices(names.iter().map(String::as_str));
+    let mut out = Vec::with_capacity(js.len());
+    for (i, &j) in js.iter().enumerate() {
+        if j != i + 1 {
+            return Err(SessionError::file(
+                dir.join(files::imu_csv(j)),
+                format!(
+                    "{} is missing: IMU files must be consecutive from imu1.csv (docs/model.md §9)",
+                    files::imu_csv(i + 1)
+                ),
+            ));
+        }
+        let (samples, mut extra) = read_table_with(
+            &dir.join(files::imu_csv(j)),
+            Columns::Fixed(&IMU_COLUMNS),
+            &[IMU_TEMP_COLUMN],
+        )?;
+        out.push(ImuTable {
+            samples,
+            temp: extra.pop().flatten(),
+        });
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -275,5 +365,58 @@ mod tests {
         );
         let e = Session::load(&d.join("nope")).unwrap_err();
         assert!(e.to_string().contains("not a session directory"), "{e}");
+    }
+
+    #[test]
+    fn extra_imu_files_load_in_order_and_a_gap_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        write(
+            d,
+            "session.toml",
+            "format = \"robimu-session/1\"\nrobot = \"aubo_i5\"\n",
+        );
+        write(d, "joints.csv", "t,q1\n0,0\n1,0.1\n");
+        write(d, "imu.csv", "t,ax,ay,az,gx,gy,gz\n0.5,0,0,9.81,0,0,0\n");
+        write(d, "imu2.csv", "t,ax,ay,az,gx,gy,gz\n0.5,2,0,9.81,0,0,0\n");
+        let e = Session::load(d).unwrap_err();
+        assert!(
+            e.to_string().contains("imu2.csv") && e.to_string().contains("imu1.csv is missing"),
+            "{e}"
+        );
+        write(
+            d,
+            "imu1.csv",
+            "t,ax,ay,az,gx,gy,gz,temp_c\n0.25,1,0,9.81,0,0,0,30\n0.75,1,0,9.81,0,0,0,31\n",
+        );
+        // not IMU files: ignored
+        write(d, "imu01.csv", "junk");
+        write(d, "imux.csv", "junk");
+        let s = Session::load(d).unwrap();
+        assert_eq!(s.n_imus(), 3);
+        let m = s.measurements();
+        assert_eq!(m.n_imus(), 3);
+        assert_eq!(m.imu(1).t, &[0.25, 0.75]);
+        assert_eq!(m.imu(1).temp, Some(&[30.0, 31.0][..]));
+        assert_eq!(m.imu(2).z[0][0], 2.0);
+        write(d, "imu1.csv", "t,ax,ay,az,gx,gy,gz\n0.25,1,0,x,0,0,0\n");
+        let e = Session::load(d).unwrap_err();
+        assert!(e.to_string().contains("imu1.csv:2"), "{e}");
+    }
+
+    #[test]
+    fn imu_file_names() {
+        assert_eq!(files::imu_csv(0), "imu.csv");
+        assert_eq!(files::imu_csv(3), "imu3.csv");
+        let names = [
+            "imu.csv",
+            "imu10.csv",
+            "imu2.csv",
+            "imu0.csv",
+            "imu02.csv",
+            "imu1.csv",
+            "x.csv",
+        ];
+        assert_eq!(files::extra_imu_indices(names), vec![1, 2, 10]);
     }
 }

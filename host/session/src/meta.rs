@@ -60,6 +60,10 @@ pub struct SessionMeta {
     /// beside [`Self::noise`]'s standard deviations.
     #[serde(skip)]
     pub noise_shape: Option<NoiseShape>,
+    /// The `[imu<j>]` tables of a multi-IMU session (docs/model.md §9): the
+    /// free-form description of IMU j ≥ 1, as [`Self::imu`] is IMU 0's.
+    #[serde(skip)]
+    pub imu_tables: std::collections::BTreeMap<usize, toml::Table>,
 }
 
 /// The `[noise]` table's optional keys for IMU noise correlated in time and
@@ -349,6 +353,7 @@ impl SessionMeta {
             controller: None,
             notes: None,
             noise_shape: None,
+            imu_tables: Default::default(),
         }
     }
 
@@ -392,6 +397,27 @@ impl SessionMeta {
             noise.validate(path)?;
         }
         meta.noise_shape = NoiseShape::parse(text, path)?;
+        let doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
+        for (key, value) in doc {
+            let Some(j) = key
+                .strip_prefix("imu")
+                .filter(|d| !d.is_empty() && !d.starts_with('0'))
+                .and_then(|d| d.parse::<usize>().ok())
+            else {
+                continue;
+            };
+            match value {
+                toml::Value::Table(t) => {
+                    meta.imu_tables.insert(j, t);
+                }
+                _ => {
+                    return Err(SessionError::file(
+                        path,
+                        format!("`{key}` must be a table ([{key}]) describing IMU {j}"),
+                    ))
+                }
+            }
+        }
         Ok(meta)
     }
 
@@ -406,6 +432,9 @@ impl SessionMeta {
             if let toml::Value::Table(t) = table {
                 t.extend(keys);
             }
+        }
+        for (j, t) in &self.imu_tables {
+            doc.insert(format!("imu{j}"), toml::Value::Table(t.clone()));
         }
         toml::to_string(&doc).expect("session metadata always serialises")
     }
@@ -655,5 +684,22 @@ mod tests {
         let e = check_ar_order_for_data(2, 20).unwrap_err();
         assert!(e.contains("AR order 2 is too high for 20 samples"), "{e}");
         assert!(check_ar_order_for_data(1, 5).is_err());
+    }
+
+    #[test]
+    fn imu_j_tables_round_trip_and_a_non_table_is_refused() {
+        let text = "format = \"robimu-session/1\"\nrobot = \"aubo_i5\"\n[imu]\nchip = \"BNO055\"\n\
+                    [imu1]\nchip = \"BNO055\"\naddress = 41\n[imu2]\nport = \"/dev/ttyUSB1\"\n";
+        let meta = SessionMeta::parse(text, Path::new("session.toml")).unwrap();
+        assert_eq!(meta.imu_tables.len(), 2);
+        assert_eq!(meta.imu_tables[&1]["address"].as_integer(), Some(41));
+        let back = SessionMeta::parse(&meta.to_toml(), Path::new("session.toml")).unwrap();
+        assert_eq!(back, meta);
+        let e = SessionMeta::parse(
+            "format = \"robimu-session/1\"\nrobot = \"aubo_i5\"\nimu1 = 3\n",
+            Path::new("session.toml"),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("`imu1` must be a table"), "{e}");
     }
 }

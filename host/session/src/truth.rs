@@ -100,7 +100,14 @@ impl Truth {
     pub fn to_toml(&self) -> String {
         let mut s = String::from("# true parameter values (SI units), docs/model.md §5 names\n");
         for (n, v) in &self.values {
-            s.push_str(&format!("{n} = {v:?}\n"));
+            // bare keys as before; IMU j's names (`imu1/k_a_x`, §9) quoted
+            if n.bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+            {
+                s.push_str(&format!("{n} = {v:?}\n"));
+            } else {
+                s.push_str(&format!("{n:?} = {v:?}\n"));
+            }
         }
         s
     }

@@ -20,6 +20,9 @@ pub struct SessionWriter {
     dir: PathBuf,
     joints: CsvOut,
     imu: CsvOut,
+    /// `imu<j>.csv` for j ≥ 1 (docs/model.md §9), created on first use.
+    extra_imus: Vec<Option<CsvOut>>,
+    imu_header: String,
     tracker: Option<CsvOut>,
     joint_count: usize,
 }
@@ -107,6 +110,8 @@ impl SessionWriter {
             dir: dir.to_path_buf(),
             joints,
             imu,
+            extra_imus: Vec::new(),
+            imu_header,
             tracker: None,
             joint_count,
         })
@@ -155,6 +160,43 @@ impl SessionWriter {
         self.imu.row(t, &values)
     }
 
+    /// Append a sample of IMU `j` (docs/model.md §9): to `imu.csv` for
+    /// j = 0, else to `imu<j>.csv`, created with `imu.csv`'s header (extra
+    /// columns included) on its first sample.
+    pub fn imu_of(&mut self, j: usize, t: f64, z: &[f64; 6]) -> Result<(), SessionError> {
+        self.imu_out(j)?.row(t, z)
+    }
+
+    /// [`Self::imu_of`] with the values of the extra columns.
+    pub fn imu_extra_of(
+        &mut self,
+        j: usize,
+        t: f64,
+        z: &[f64; 6],
+        extra: &[f64],
+    ) -> Result<(), SessionError> {
+        let mut values = Vec::with_capacity(6 + extra.len());
+        values.extend_from_slice(z);
+        values.extend_from_slice(extra);
+        self.imu_out(j)?.row(t, &values)
+    }
+
+    fn imu_out(&mut self, j: usize) -> Result<&mut CsvOut, SessionError> {
+        if j == 0 {
+            return Ok(&mut self.imu);
+        }
+        if self.extra_imus.len() < j {
+            self.extra_imus.resize_with(j, || None);
+        }
+        if self.extra_imus[j - 1].is_none() {
+            self.extra_imus[j - 1] = Some(CsvOut::create(
+                self.dir.join(files::imu_csv(j)),
+                &self.imu_header,
+            )?);
+        }
+        Ok(self.extra_imus[j - 1].as_mut().expect("created above"))
+    }
+
     /// Append a tracker pose: t in s, `[px, py, pz, qw, qx, qy, qz]` (m, unit quaternion).
     pub fn tracker(&mut self, t: f64, pose: &[f64; 7]) -> Result<(), SessionError> {
         if self.tracker.is_none() {
@@ -166,7 +208,7 @@ impl SessionWriter {
         self.tracker.as_mut().expect("created above").row(t, pose)
     }
 
-    /// Append every joint and IMU sample of `data`.
+    /// Append every joint and IMU sample of `data` (every IMU's, docs/model.md §9).
     ///
     /// # Panics
     /// If `data`'s joint rows are not the joint count given to [`Self::create`].
@@ -182,6 +224,13 @@ impl SessionWriter {
         for (t, z) in data.imu_t.iter().zip(&data.imu_z) {
             self.imu(*t, z)?;
         }
+        for (j, s) in data.extra_imus.iter().enumerate() {
+            // an IMU without samples still gets its file (with the header)
+            self.imu_out(j + 1)?;
+            for (t, z) in s.t.iter().zip(&s.z) {
+                self.imu_of(j + 1, *t, z)?;
+            }
+        }
         Ok(())
     }
 
@@ -195,6 +244,9 @@ impl SessionWriter {
     pub fn flush(&mut self) -> Result<(), SessionError> {
         self.joints.flush()?;
         self.imu.flush()?;
+        for out in self.extra_imus.iter_mut().flatten() {
+            out.flush()?;
+        }
         if let Some(t) = &mut self.tracker {
             t.flush()?;
         }
@@ -241,6 +293,51 @@ mod tests {
         assert_eq!(s.tracker.unwrap().len(), 1);
         assert_eq!(s.truth.unwrap().get("tau"), Some(0.1));
         assert_eq!(s.imu_temp, None, "no temperature column, none read");
+    }
+
+    /// A multi-IMU session (docs/model.md §9): `imu<j>.csv` written through
+    /// [`SessionWriter::imu_of`] and [`SessionWriter::measurements`], and a
+    /// truth with quoted `imu<j>/` names, read back exactly.
+    #[test]
+    fn several_imus_and_their_truth_read_back() {
+        use robimu_model::observations::ImuSamples;
+        let dir = tempfile::tempdir().unwrap();
+        let mut w = SessionWriter::create(dir.path(), &SessionMeta::new("aubo_i5"), 1).unwrap();
+        let data = Measurements {
+            joint_t: vec![0.0, 1.0],
+            joint_q: vec![0.5, 0.25],
+            imu_t: vec![0.5],
+            imu_z: vec![[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]],
+            imu_temp: None,
+            extra_imus: vec![
+                ImuSamples {
+                    t: vec![0.25, 0.75],
+                    z: vec![[0.1; 6], [1.0 / 3.0; 6]],
+                    temp: None,
+                },
+                ImuSamples {
+                    t: vec![0.5],
+                    z: vec![[2.0; 6]],
+                    temp: None,
+                },
+            ],
+        };
+        w.measurements(&data).unwrap();
+        w.imu_of(3, 0.5, &[7.0; 6]).unwrap();
+        w.truth(&Truth {
+            values: vec![("tau".into(), 0.1), ("imu1/k_a_x".into(), 1.02)],
+        })
+        .unwrap();
+        w.finish().unwrap();
+        let s = Session::load(dir.path()).unwrap();
+        assert_eq!(s.n_imus(), 4);
+        let m = s.measurements();
+        assert_eq!(m.extra_imus[0], data.extra_imus[0]);
+        assert_eq!(m.imu(2).z, &[[2.0; 6]]);
+        assert_eq!(m.imu(3).z, &[[7.0; 6]]);
+        let truth = s.truth.unwrap();
+        assert_eq!(truth.get("imu1/k_a_x"), Some(1.02));
+        assert_eq!(truth.get("tau"), Some(0.1));
     }
 
     /// The temperature column (as the recorder writes it, after other extra

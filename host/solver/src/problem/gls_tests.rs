@@ -47,6 +47,7 @@ fn session(robot: &Robot, layout: &ParamLayout, x: &[f64], spline: &Spline) -> M
         imu_t,
         imu_z,
         imu_temp: None,
+        extra_imus: Vec::new(),
     }
 }
 
