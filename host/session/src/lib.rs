@@ -113,14 +113,22 @@ pub mod files {
     pub fn extra_imu_indices<'a>(names: impl IntoIterator<Item = &'a str>) -> Vec<usize> {
         let mut js: Vec<usize> = names
             .into_iter()
-            .filter_map(|n| n.strip_prefix("imu")?.strip_suffix(".csv"))
-            .filter(|d| {
-                !d.is_empty() && !d.starts_with('0') && d.bytes().all(|b| b.is_ascii_digit())
-            })
-            .filter_map(|d| d.parse().ok())
+            .filter_map(|n| imu_number(n.strip_suffix(".csv")?))
             .collect();
         js.sort_unstable();
         js
+    }
+
+    /// j of a name `imu<j>` with j ≥ 1 written without sign or leading zero
+    /// (the `imu<j>.csv` file stems and `[imu<j>]` tables of §9); None for
+    /// anything else (`imu`, `imu0`, `imu01`, `imu+1`, `imux`).
+    pub fn imu_number(name: &str) -> Option<usize> {
+        let d = name.strip_prefix("imu")?;
+        let digits = !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit());
+        if !digits || d.starts_with('0') {
+            return None;
+        }
+        d.parse().ok()
     }
 }
 
@@ -131,6 +139,27 @@ pub struct ImuTable {
     pub samples: Table,
     /// The [`IMU_TEMP_COLUMN`] (°C), when the file has one.
     pub temp: Option<Vec<f64>>,
+}
+
+impl ImuTable {
+    /// Read an IMU file: [`IMU_COLUMNS`] and the optional [`IMU_TEMP_COLUMN`].
+    fn read(path: &Path) -> Result<Self, SessionError> {
+        let (samples, mut extra) =
+            read_table_with(path, Columns::Fixed(&IMU_COLUMNS), &[IMU_TEMP_COLUMN])?;
+        Ok(Self {
+            samples,
+            temp: extra.pop().flatten(),
+        })
+    }
+}
+
+/// The rows of an IMU table as `[ax, ay, az, gx, gy, gz]` samples.
+fn imu_rows(table: &Table) -> Vec<[f64; 6]> {
+    table
+        .values
+        .chunks_exact(6)
+        .map(|z| [z[0], z[1], z[2], z[3], z[4], z[5]])
+        .collect()
 }
 
 /// A session loaded into memory.
@@ -167,19 +196,15 @@ impl Session {
         let meta = SessionMeta::read(&dir.join(files::META))?;
         // the two streams are parsed on two threads (joints.csv's error first)
         let (joints, imu) = std::thread::scope(|s| {
-            let imu = s.spawn(|| {
-                read_table_with(
-                    &dir.join(files::IMU),
-                    Columns::Fixed(&IMU_COLUMNS),
-                    &[IMU_TEMP_COLUMN],
-                )
-            });
+            let imu = s.spawn(|| ImuTable::read(&dir.join(files::IMU)));
             let joints = read_table(&dir.join(files::JOINTS), Columns::Joints);
             (joints, imu.join().expect("imu.csv reader panicked"))
         });
         let joints = joints?;
-        let (imu, mut extra) = imu?;
-        let imu_temp = extra.pop().flatten();
+        let ImuTable {
+            samples: imu,
+            temp: imu_temp,
+        } = imu?;
         let extra_imus = read_extra_imus(dir)?;
         let tracker_path = dir.join(files::TRACKER);
         let tracker = if tracker_path.exists() {
@@ -235,23 +260,14 @@ impl Session {
             joint_t: self.joints.t.clone(),
             joint_q: self.joints.values.clone(),
             imu_t: self.imu.t.clone(),
-            imu_z: self
-                .imu
-                .values
-                .chunks_exact(6)
-                .map(|z| [z[0], z[1], z[2], z[3], z[4], z[5]])
-                .collect(),
+            imu_z: imu_rows(&self.imu),
             imu_temp: self.imu_temp.clone(),
             extra_imus: self
                 .extra_imus
                 .iter()
                 .map(|f| ImuSamples {
                     t: f.samples.t.clone(),
-                    z: f.samples
-                        .values
-                        .chunks_exact(6)
-                        .map(|z| [z[0], z[1], z[2], z[3], z[4], z[5]])
-                        .collect(),
+                    z: imu_rows(&f.samples),
                     temp: f.temp.clone(),
                 })
                 .collect(),
@@ -311,15 +327,7 @@ fn read_extra_imus(dir: &Path) -> Result<Vec<ImuTable>, SessionError> {
                 ),
             ));
         }
-        let (samples, mut extra) = read_table_with(
-            &dir.join(files::imu_csv(j)),
-            Columns::Fixed(&IMU_COLUMNS),
-            &[IMU_TEMP_COLUMN],
-        )?;
-        out.push(ImuTable {
-            samples,
-            temp: extra.pop().flatten(),
-        });
+        out.push(ImuTable::read(&dir.join(files::imu_csv(j)))?);
     }
     Ok(out)
 }
@@ -414,9 +422,14 @@ mod tests {
             "imu2.csv",
             "imu0.csv",
             "imu02.csv",
+            "imu+3.csv",
             "imu1.csv",
             "x.csv",
         ];
         assert_eq!(files::extra_imu_indices(names), vec![1, 2, 10]);
+        assert_eq!(files::imu_number("imu7"), Some(7));
+        for not_imu in ["imu", "imu0", "imu01", "imu+1", "imux", "imu1.csv"] {
+            assert_eq!(files::imu_number(not_imu), None, "{not_imu}");
+        }
     }
 }

@@ -399,11 +399,7 @@ impl SessionMeta {
         meta.noise_shape = NoiseShape::parse(text, path)?;
         let doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         for (key, value) in doc {
-            let Some(j) = key
-                .strip_prefix("imu")
-                .filter(|d| !d.is_empty() && !d.starts_with('0'))
-                .and_then(|d| d.parse::<usize>().ok())
-            else {
+            let Some(j) = crate::files::imu_number(&key) else {
                 continue;
             };
             match value {

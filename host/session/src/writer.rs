@@ -148,16 +148,13 @@ impl SessionWriter {
 
     /// Append an IMU sample: t in s, `z = [ax, ay, az, gx, gy, gz]` (m/s², rad/s).
     pub fn imu(&mut self, t: f64, z: &[f64; 6]) -> Result<(), SessionError> {
-        self.imu.row(t, z)
+        self.imu_of(0, t, z)
     }
 
     /// Append an IMU sample with the values of the extra columns given to
     /// [`Self::create_with_imu_extra`].
     pub fn imu_extra(&mut self, t: f64, z: &[f64; 6], extra: &[f64]) -> Result<(), SessionError> {
-        let mut values = Vec::with_capacity(6 + extra.len());
-        values.extend_from_slice(z);
-        values.extend_from_slice(extra);
-        self.imu.row(t, &values)
+        self.imu_extra_of(0, t, z, extra)
     }
 
     /// Append a sample of IMU `j` (docs/model.md §9): to `imu.csv` for
@@ -221,14 +218,12 @@ impl SessionWriter {
         {
             self.joint(*t, q)?;
         }
-        for (t, z) in data.imu_t.iter().zip(&data.imu_z) {
-            self.imu(*t, z)?;
-        }
-        for (j, s) in data.extra_imus.iter().enumerate() {
+        for j in 0..data.n_imus() {
             // an IMU without samples still gets its file (with the header)
-            self.imu_out(j + 1)?;
-            for (t, z) in s.t.iter().zip(&s.z) {
-                self.imu_of(j + 1, *t, z)?;
+            self.imu_out(j)?;
+            let imu = data.imu(j);
+            for (t, z) in imu.t.iter().zip(imu.z) {
+                self.imu_of(j, *t, z)?;
             }
         }
         Ok(())
