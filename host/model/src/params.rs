@@ -257,6 +257,15 @@ impl ParamLayout {
         }
     }
 
+    /// The number of IMUs K whose layout for `robot` has `len` entries (None
+    /// when no K ≥ 1 has).
+    pub fn imus_for_len(robot: &Robot, len: usize) -> Option<usize> {
+        let one = Self::new(robot);
+        let own = (0..one.len()).filter(|&k| one.is_per_imu(k)).count();
+        let extra = len.checked_sub(one.len())?;
+        (extra % own == 0).then_some(1 + extra / own)
+    }
+
     /// Whether entry `k` of the one-IMU vector belongs to one IMU (its
     /// position ε_n1..3, τ, the sensor parameters) rather than being shared
     /// (the other robot errors, g_x, g_y; docs/model.md §9).
@@ -568,6 +577,9 @@ mod tests {
         assert_eq!(one.imu_map(0), (0..48).collect::<Vec<_>>());
         let l = ParamLayout::with_imus(&robot, 3);
         assert_eq!(l.len(), 20 + 28 * 3);
+        assert_eq!(ParamLayout::imus_for_len(&robot, 104), Some(3));
+        assert_eq!(ParamLayout::imus_for_len(&robot, 48), Some(1));
+        assert_eq!(ParamLayout::imus_for_len(&robot, 50), None);
         assert_eq!(l.n_imus(), 3);
         assert_eq!(l.imu_layout(), &one);
         // IMU 0 is the §5 vector, in its order, as the prefix
