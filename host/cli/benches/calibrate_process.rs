@@ -11,11 +11,13 @@
 //! `robimu diagnose DIR` (baseline fit, noise identification, every
 //! candidate's score, residual statistics, spectra, plots), with its ratio
 //! to calibrate; with `--long`, also calibrate on 300 s at 1 kHz and 30 min
-//! at 120 Hz (slow). `--runs N` (default 7) and `--bin PATH` (time
+//! at 120 Hz (slow); with `--imus K` (K > 1), also calibrate on a 300 s
+//! 120 Hz session of K IMUs (`simulate --imus K`, the joint fit of
+//! docs/model.md §9), with its ratio to the one-IMU calibrate. `--runs N` (default 7) and `--bin PATH` (time
 //! another build of robimu, e.g. a copy of an older one, on the same
 //! sessions) are optional.
 //!
-//! `cargo bench -p robimu --bench calibrate_process [-- --long --runs 7]`
+//! `cargo bench -p robimu --bench calibrate_process [-- --long --runs 7 --imus 3]`
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -30,9 +32,11 @@ struct Run {
     cpu: Option<(f64, f64, f64)>,
 }
 
-fn simulate(bin: &Path, dir: &Path, duration: f64, rate: f64) {
+fn simulate(bin: &Path, dir: &Path, duration: f64, rate: f64, imus: usize) {
     let status = Command::new(bin)
-        .args(["simulate", "--seed", "1", "--duration"])
+        .args(["simulate", "--seed", "1", "--imus"])
+        .arg(imus.to_string())
+        .arg("--duration")
         .arg(duration.to_string())
         .arg("--rate")
         .arg(rate.to_string())
@@ -101,25 +105,32 @@ fn main() {
     };
     let runs: usize = value("--runs").map_or(7, |v| v.parse().expect("--runs N"));
     assert!(runs > 0, "--runs must be at least 1");
+    let imus: usize = value("--imus").map_or(1, |v| v.parse().expect("--imus K"));
+    assert!(imus > 0, "--imus must be at least 1");
     let bin = value("--bin").map_or_else(
         || PathBuf::from(env!("CARGO_BIN_EXE_robimu")),
         PathBuf::from,
     );
     let time = gnu_time();
     let work = tempfile::tempdir().expect("temporary directory");
-    let mut cases = vec![("300 s at 120 Hz", 300.0, 120.0)];
-    if long {
-        cases.push(("300 s at 1 kHz", 300.0, 1000.0));
-        cases.push(("30 min at 120 Hz", 1800.0, 120.0));
+    let mut cases = vec![("300 s at 120 Hz", 300.0, 120.0, 1)];
+    if imus > 1 {
+        cases.push(("300 s at 120 Hz", 300.0, 120.0, imus));
     }
+    if long {
+        cases.push(("300 s at 1 kHz", 300.0, 1000.0, 1));
+        cases.push(("30 min at 120 Hz", 1800.0, 120.0, 1));
+    }
+    // calibrate's wall and CPU on the first (one-IMU) case
+    let mut one_imu: Option<(f64, Option<f64>)> = None;
     println!(
         "{}: `robimu calibrate DIR` on sessions of `robimu simulate --seed 1`; {runs} runs per case; {} cores",
         bin.display(),
         std::thread::available_parallelism().map_or(0, |n| n.get())
     );
-    for (k, (label, duration, rate)) in cases.into_iter().enumerate() {
-        let dir = work.path().join(format!("s{duration}-{rate}"));
-        simulate(&bin, &dir, duration, rate);
+    for (k, (label, duration, rate, imus)) in cases.into_iter().enumerate() {
+        let dir = work.path().join(format!("s{duration}-{rate}-{imus}"));
+        simulate(&bin, &dir, duration, rate, imus);
         let whats: &[&str] = if k == 0 {
             &["calibrate", "diagnose"]
         } else {
@@ -135,7 +146,7 @@ fn main() {
             let min = walls.iter().cloned().fold(f64::INFINITY, f64::min);
             let med = median(walls.clone());
             let mut line = format!(
-                "{what}, {label} (`robimu simulate --duration {duration} --rate {rate} --seed 1`): wall median {med:.3} s, min {min:.3} s",
+                "{what}, {label} (`robimu simulate --duration {duration} --rate {rate} --seed 1 --imus {imus}`): wall median {med:.3} s, min {min:.3} s",
             );
             let cpu: Vec<(f64, f64, f64)> = results.iter().filter_map(|r| r.cpu).collect();
             let mut cpu_total = None;
@@ -147,6 +158,17 @@ fn main() {
                 line += &format!(
                     "; CPU median user {user:.2} s + sys {sys:.2} s; peak RSS {peak:.0} MB"
                 );
+            }
+            if k == 0 && what == "calibrate" {
+                one_imu = Some((med, cpu_total));
+            }
+            if imus > 1 {
+                if let Some((c, c_cpu)) = one_imu {
+                    line += &format!("; {:.2}x the one-IMU calibrate's wall", med / c);
+                    if let (Some(a), Some(b)) = (cpu_total, c_cpu) {
+                        line += &format!(", {:.2}x its CPU", a / b);
+                    }
+                }
             }
             match calibrate_median {
                 None => calibrate_median = Some((med, cpu_total)),

@@ -95,6 +95,8 @@ fn monte_carlo_is_consistent() {
         simulate: SimulateOptions::paper(&robot),
         calibrate: CalibrateOptions::new(&robot),
         noise: robimu_workflows::calibrate::noise_choice::NoiseChoice::Auto,
+        n_imus: 1,
+        compare_imu0: false,
     };
     let res = monte_carlo(&robot, &opts, |_, _| {}).unwrap();
     let se = 1.0 / (runs as f64).sqrt();

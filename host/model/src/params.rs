@@ -112,13 +112,26 @@ pub struct ModelParams<S = f64> {
     pub gyro: ImuIntrinsics<S>,
 }
 
-/// The layout of x for one robot.
+/// The layout of x for one robot and K ≥ 1 IMUs (docs/model.md §5, §9).
+///
+/// With K = 1 x is the 48-vector of §5. With K > 1 IMU 0's parameters keep
+/// the §5 names in the §5 order (the first [`Self::imu_layout`]`.len()`
+/// entries), then each IMU j ≥ 1 appends its own ones — its position
+/// ε_n1..3 (where estimated), τ and 24 sensor parameters, named
+/// `imu<j>/<name>` — with the same priors. Every IMU's own vector (the
+/// one-IMU layout, which [`crate::MeasurementModel`] takes) maps into x by
+/// [`Self::imu_map`]; for K = 1 that map is the identity. [`Self::offsets`],
+/// [`Self::unpack`] and [`Self::eps_index`] describe IMU 0 (the prefix).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParamLayout {
     specs: Vec<ParamSpec>,
     estimated: Vec<ErrorIndex>,
     fixed_eps: Vec<[f64; 6]>,
     offsets: Offsets,
+    /// `imu_maps[j][k]`: index in x of entry k of IMU j's one-IMU vector.
+    imu_maps: Vec<Vec<usize>>,
+    /// The one-IMU layout when K > 1 (None: this layout is it).
+    single: Option<Box<ParamLayout>>,
 }
 
 const XYZ: [&str; 3] = ["x", "y", "z"];
@@ -194,11 +207,105 @@ impl ParamLayout {
         let offsets = Offsets::new(estimated.len());
         debug_assert_eq!(specs.len(), offsets.len);
         Self {
+            imu_maps: vec![(0..specs.len()).collect()],
             specs,
             estimated,
             fixed_eps,
             offsets,
+            single: None,
         }
+    }
+
+    /// The layout for `robot` with `n_imus` IMUs (docs/model.md §9; see the
+    /// type's doc): 20 + 28K entries for a 6R arm; `n_imus = 1` is
+    /// [`Self::new`].
+    ///
+    /// # Panics
+    /// If `n_imus` is 0.
+    pub fn with_imus(robot: &Robot, n_imus: usize) -> Self {
+        assert!(n_imus >= 1, "a layout needs at least one IMU");
+        let one = Self::new(robot);
+        if n_imus == 1 {
+            return one;
+        }
+        let mut specs = one.specs.clone();
+        let mut imu_maps = vec![(0..one.len()).collect::<Vec<_>>()];
+        for j in 1..n_imus {
+            let map = (0..one.len())
+                .map(|k| {
+                    if one.is_per_imu(k) {
+                        let s = &one.specs[k];
+                        specs.push(ParamSpec {
+                            name: format!("imu{j}/{}", s.name),
+                            ..s.clone()
+                        });
+                        specs.len() - 1
+                    } else {
+                        k
+                    }
+                })
+                .collect();
+            imu_maps.push(map);
+        }
+        Self {
+            specs,
+            estimated: one.estimated.clone(),
+            fixed_eps: one.fixed_eps.clone(),
+            offsets: one.offsets,
+            imu_maps,
+            single: Some(Box::new(one)),
+        }
+    }
+
+    /// The number of IMUs K whose layout for `robot` has `len` entries (None
+    /// when no K ≥ 1 has).
+    pub fn imus_for_len(robot: &Robot, len: usize) -> Option<usize> {
+        let one = Self::new(robot);
+        let own = (0..one.len()).filter(|&k| one.is_per_imu(k)).count();
+        let extra = len.checked_sub(one.len())?;
+        (extra % own == 0).then_some(1 + extra / own)
+    }
+
+    /// Whether entry `k` of the one-IMU vector belongs to one IMU (its
+    /// position ε_n1..3, τ, the sensor parameters) rather than being shared
+    /// (the other robot errors, g_x, g_y; docs/model.md §9).
+    pub fn is_per_imu(&self, k: usize) -> bool {
+        let n = self.n_links();
+        match self.estimated.get(k) {
+            Some(e) => e.link == n && e.is_translation(),
+            None => k >= self.offsets.tau && k < self.offsets.len,
+        }
+    }
+
+    /// Number of IMUs K.
+    pub fn n_imus(&self) -> usize {
+        self.imu_maps.len()
+    }
+
+    /// The layout of one IMU's own vector (the §5 one-IMU layout; `self`
+    /// when K = 1).
+    pub fn imu_layout(&self) -> &ParamLayout {
+        self.single.as_deref().unwrap_or(self)
+    }
+
+    /// Index in x of each entry of IMU `j`'s own vector ([`Self::imu_layout`]
+    /// order).
+    ///
+    /// # Panics
+    /// If `j ≥ self.n_imus()`.
+    pub fn imu_map(&self, j: usize) -> &[usize] {
+        &self.imu_maps[j]
+    }
+
+    /// IMU `j`'s own vector taken from the full `x`.
+    pub fn imu_x(&self, j: usize, x: &[f64]) -> Vec<f64> {
+        self.imu_maps[j].iter().map(|&k| x[k]).collect()
+    }
+
+    /// Index in x of IMU `j`'s parameter named `name` in §5 (`tau`, `k_a_x`, …).
+    pub fn imu_index(&self, j: usize, name: &str) -> Option<usize> {
+        let k = self.imu_layout().index_of(name)?;
+        self.imu_maps.get(j).map(|m| m[k])
     }
 
     /// Number of parameters.
@@ -296,7 +403,7 @@ impl ParamLayout {
         self.specs.iter().map(|s| s.sigma).collect()
     }
 
-    /// Typed view of `x`.
+    /// Typed view of `x` (IMU 0's parameters when K > 1).
     pub fn unpack<S: Scalar>(&self, x: &[S]) -> Result<ModelParams<S>, ParamLengthError> {
         if x.len() != self.len() {
             return Err(ParamLengthError {
@@ -329,7 +436,8 @@ impl ParamLayout {
         })
     }
 
-    /// x from a typed view (ε outside the estimated set are dropped).
+    /// The one-IMU x from a typed view (ε outside the estimated set are
+    /// dropped; [`Self::imu_layout`] order).
     pub fn pack(&self, p: &ModelParams) -> Vec<f64> {
         let mut x = Vec::with_capacity(self.len());
         for e in &self.estimated {
@@ -458,6 +566,61 @@ mod tests {
                 expected: 28,
                 found: 3
             }
+        );
+    }
+
+    #[test]
+    fn several_imus_share_the_robot_and_gravity() {
+        let robot = Robot::aubo_i5();
+        let one = ParamLayout::new(&robot);
+        assert_eq!(ParamLayout::with_imus(&robot, 1), one);
+        assert_eq!(one.imu_map(0), (0..48).collect::<Vec<_>>());
+        let l = ParamLayout::with_imus(&robot, 3);
+        assert_eq!(l.len(), 20 + 28 * 3);
+        assert_eq!(ParamLayout::imus_for_len(&robot, 104), Some(3));
+        assert_eq!(ParamLayout::imus_for_len(&robot, 48), Some(1));
+        assert_eq!(ParamLayout::imus_for_len(&robot, 50), None);
+        assert_eq!(l.n_imus(), 3);
+        assert_eq!(l.imu_layout(), &one);
+        // IMU 0 is the §5 vector, in its order, as the prefix
+        assert_eq!(&l.specs()[..48], one.specs());
+        let names: Vec<&str> = l.specs()[48..51].iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["imu1/eps_6_1", "imu1/eps_6_2", "imu1/eps_6_3"]);
+        assert_eq!(l.specs()[51].name, "imu1/tau");
+        assert_eq!(l.specs()[76].name, "imu2/eps_6_1");
+        assert_eq!(l.specs().last().unwrap().name, "imu2/b_w_z");
+        // each IMU's map: the shared entries at IMU 0's index, its own ones
+        // at its names, with the §5 priors
+        for j in 0..3 {
+            let map = l.imu_map(j);
+            for (k, s) in one.specs().iter().enumerate() {
+                let full = &l.specs()[map[k]];
+                let want = if j == 0 || !one.is_per_imu(k) {
+                    s.name.clone()
+                } else {
+                    format!("imu{j}/{}", s.name)
+                };
+                assert_eq!(full.name, want);
+                assert_eq!(
+                    (full.unit, full.nominal, full.sigma),
+                    (s.unit, s.nominal, s.sigma)
+                );
+            }
+        }
+        let shared: Vec<&str> = (0..48)
+            .filter(|&k| !one.is_per_imu(k))
+            .map(|k| one.specs()[k].name.as_str())
+            .collect();
+        assert_eq!(shared.len(), 20);
+        assert!(shared.contains(&"g_y") && shared.contains(&"eps_5_6"));
+        assert!(!shared.contains(&"eps_6_1") && !shared.contains(&"tau"));
+        assert_eq!(l.imu_index(2, "tau"), l.index_of("imu2/tau"));
+        assert_eq!(l.imu_index(1, "g_x"), l.index_of("g_x"));
+        let x: Vec<f64> = (0..l.len()).map(|i| i as f64).collect();
+        assert_eq!(l.imu_x(1, &x)[23], 51.0);
+        assert_eq!(
+            l.select(&["imu1/k_a_x"]).unwrap(),
+            vec![l.index_of("imu1/k_a_x").unwrap()]
         );
     }
 }

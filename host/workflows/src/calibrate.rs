@@ -195,11 +195,17 @@ pub fn check_measurements(robot: &Robot, data: &Measurements) -> Result<(), Cali
     if b <= a {
         return bad("the joint samples span no time (all at one instant)".into());
     }
-    let (c, d) = (data.imu_t[0], *data.imu_t.last().expect("non-empty"));
-    if d < a - 10.0 || c > b + 10.0 {
-        return bad(format!(
-            "the IMU samples ({c:.3}..{d:.3} s) do not overlap the joint samples ({a:.3}..{b:.3} s): are both files on the same session clock?"
-        ));
+    for j in 0..data.n_imus() {
+        let file = robimu_session::files::imu_csv(j);
+        let t = data.imu(j).t;
+        let (Some(&c), Some(&d)) = (t.first(), t.last()) else {
+            return bad(format!("{file} has no samples"));
+        };
+        if d < a - 10.0 || c > b + 10.0 {
+            return bad(format!(
+                "the IMU samples of {file} ({c:.3}..{d:.3} s) do not overlap the joint samples ({a:.3}..{b:.3} s): are both files on the same session clock?"
+            ));
+        }
     }
     if let Some(v) = joint_outside_limits(robot, &data.joint_q) {
         return bad(v.to_string());
@@ -276,7 +282,7 @@ pub fn calibration_of(
     opts: &CalibrateOptions,
     f: &fit::Fit,
 ) -> Result<Calibration, CalibrateError> {
-    let layout = ParamLayout::new(robot);
+    let layout = ParamLayout::with_imus(robot, f.n_imus);
     let active = &f.active;
     let na = active.len();
     let specs = layout.specs();
@@ -313,7 +319,7 @@ pub fn calibration_of(
     Ok(Calibration {
         residual_rms: f.residual_rms(),
         noise_model: f.noise.clone(),
-        imu_samples_used: f.residuals.len(),
+        imu_samples_used: f.imu_samples_used(),
         x: f.x.clone(),
         sigma: f.sigma_x.clone(),
         active: f.active.clone(),
@@ -445,6 +451,17 @@ fn weak_directions(
 }
 
 impl Calibration {
+    /// The parameter layout of this calibration's x for `robot`: one IMU
+    /// or, for a multi-IMU session, [`ParamLayout::with_imus`] (docs/model.md §9).
+    ///
+    /// # Panics
+    /// If x fits no layout of `robot`.
+    pub fn layout(&self, robot: &Robot) -> ParamLayout {
+        let k = ParamLayout::imus_for_len(robot, self.x.len())
+            .expect("a calibration's x has the length of a layout of its robot");
+        ParamLayout::with_imus(robot, k)
+    }
+
     /// The result file (docs/model.md §8) of this calibration, for the
     /// parameter layout it was computed with.
     ///

@@ -7,10 +7,15 @@
 //! standard deviation 1, and a normalised estimation error squared
 //! NEES = eᵀ Σ⁻¹ e whose average over N runs of d parameters lies in the 95 %
 //! interval of χ²(N·d)/N.
+//!
+//! With K IMUs (docs/model.md §9) every session has K IMUs on one motion,
+//! each with its own 28 truths, fitted jointly; optionally IMU 0 alone is
+//! fitted too, for the gain in the shared parameters' σ
+//! ([`MonteCarloResult::shared_sigma_gain`]).
 
 use super::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
 use super::calibrate::{CalibrateError, CalibrateOptions};
-use super::simulate::{random_session, RandomSession, SimulateError, SimulateOptions};
+use super::simulate::{random_session_imus, RandomSession, SimulateError, SimulateOptions};
 use faer::linalg::solvers::DenseSolveCore;
 use faer::Side;
 use robimu_model::{ParamLayout, Robot};
@@ -30,6 +35,10 @@ pub struct MonteCarloOptions {
     pub calibrate: CalibrateOptions,
     /// The noise model of the fits (`Auto` is `robimu calibrate`'s default).
     pub noise: NoiseChoice,
+    /// IMUs per session K (1: the one-IMU study).
+    pub n_imus: usize,
+    /// Also fit IMU 0 alone in every run (K > 1): [`RunOutcome::sigma_imu0`].
+    pub compare_imu0: bool,
 }
 
 /// One run.
@@ -51,6 +60,9 @@ pub struct RunOutcome {
     pub refits: usize,
     /// Why `Auto` kept the white fit although the residuals are correlated.
     pub warning: Option<String>,
+    /// Posterior σ of the one-IMU x from IMU 0 alone
+    /// ([`MonteCarloOptions::compare_imu0`]).
+    pub sigma_imu0: Option<Vec<f64>>,
 }
 
 /// Per-parameter statistics of error/σ over the runs.
@@ -161,15 +173,26 @@ pub fn monte_carlo(
     opts: &MonteCarloOptions,
     mut progress: impl FnMut(usize, &RunOutcome),
 ) -> Result<MonteCarloResult, MonteCarloError> {
-    let layout = ParamLayout::new(robot);
+    let layout = ParamLayout::with_imus(robot, opts.n_imus);
     let mut runs = Vec::with_capacity(opts.runs);
     let mut dof = 0;
     for run in 0..opts.runs {
         let seed = opts.seed.wrapping_add(run as u64);
         let RandomSession { truth, data, .. } =
-            random_session(robot, opts.duration, 1.0, &opts.simulate, seed)?;
+            random_session_imus(robot, opts.n_imus, opts.duration, 1.0, &opts.simulate, seed)?;
         let (cal, noise) = calibrate_with_noise(robot, &data, &opts.calibrate, &opts.noise, |_| {})
             .map_err(|source| MonteCarloError::Run { run, seed, source })?;
+        let sigma_imu0 = if opts.compare_imu0 {
+            let mut one = opts.calibrate.clone();
+            // the frozen entries of IMU 0 and the shared ones are the same indices
+            one.frozen.retain(|&k| k < layout.imu_layout().len());
+            let alone = data.only_imu(0);
+            let (c0, _) = calibrate_with_noise(robot, &alone, &one, &opts.noise, |_| {})
+                .map_err(|source| MonteCarloError::Run { run, seed, source })?;
+            Some(c0.sigma)
+        } else {
+            None
+        };
         let na = cal.active.len();
         dof = na;
         let cov = faer::Mat::from_fn(na, na, |i, j| cal.covariance[i * na + j]);
@@ -193,6 +216,7 @@ pub fn monte_carlo(
             iterations: cal.summary.iterations.len(),
             refits: noise.refits,
             warning: noise.warning,
+            sigma_imu0,
         };
         progress(run, &outcome);
         runs.push(outcome);
@@ -227,6 +251,34 @@ pub fn monte_carlo(
         nees_interval,
         dof,
     })
+}
+
+impl MonteCarloResult {
+    /// Per shared parameter (docs/model.md §9: robot errors other than the
+    /// IMU position, g_x, g_y) estimated in both fits, the mean over the runs
+    /// of σ(IMU 0 alone) / σ(all IMUs): the gain of the joint fit (√K when
+    /// every IMU carries the same information). Empty without
+    /// [`MonteCarloOptions::compare_imu0`].
+    pub fn shared_sigma_gain(&self, layout: &ParamLayout) -> Vec<(String, f64)> {
+        let one = layout.imu_layout();
+        (0..one.len())
+            .filter(|&k| !one.is_per_imu(k))
+            .filter_map(|k| {
+                let ratios: Vec<f64> = self
+                    .runs
+                    .iter()
+                    .filter_map(|r| {
+                        let s0 = r.sigma_imu0.as_ref()?[k];
+                        (s0 > 0.0 && r.sigma[k] > 0.0).then(|| s0 / r.sigma[k])
+                    })
+                    .collect();
+                (!ratios.is_empty()).then(|| {
+                    let m = ratios.iter().sum::<f64>() / ratios.len() as f64;
+                    (one.specs()[k].name.clone(), m)
+                })
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]

@@ -13,7 +13,7 @@ use rand_distr::{Distribution, StandardNormal};
 use robimu_model::params::draw_truth;
 
 use robimu_model::noise::{NoiseModel, NoiseSampler};
-use robimu_model::observations::Measurements;
+use robimu_model::observations::{ImuSamples, Measurements};
 use robimu_model::{
     JointState, MeasurementModel, ModelError, ParamLayout, Robot, Spline, SplineError,
 };
@@ -147,7 +147,22 @@ pub fn random_session(
     opts: &SimulateOptions,
     seed: u64,
 ) -> Result<RandomSession, SimulateError> {
-    let layout = ParamLayout::new(robot);
+    random_session_imus(robot, 1, duration, knot_spacing, opts, seed)
+}
+
+/// [`random_session`] with `n_imus` IMUs on the flange (docs/model.md §9):
+/// the truth of [`ParamLayout::with_imus`] drawn from its priors (each
+/// IMU's 28 its own draws), one robot motion seen by every IMU. One IMU
+/// gives exactly [`random_session`].
+pub fn random_session_imus(
+    robot: &Robot,
+    n_imus: usize,
+    duration: f64,
+    knot_spacing: f64,
+    opts: &SimulateOptions,
+    seed: u64,
+) -> Result<RandomSession, SimulateError> {
+    let layout = ParamLayout::with_imus(robot, n_imus);
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let truth = draw_truth(&layout, &mut rng);
     let trajectory =
@@ -162,7 +177,9 @@ pub fn random_session(
 
 /// Sample a session: joint samples over the trajectory's span, IMU samples
 /// over the same span of the session clock, each IMU sample showing the robot
-/// at t + τ (docs/model.md §4).
+/// at t + τ (docs/model.md §4). A layout of K IMUs ([`ParamLayout::with_imus`])
+/// samples each IMU at its own parameters (its τ, position, intrinsics), on
+/// its own sample times and noise, into `imu_*` and `extra_imus` (§9).
 pub fn simulate(
     robot: &Robot,
     layout: &ParamLayout,
@@ -172,8 +189,6 @@ pub fn simulate(
     seed: u64,
 ) -> Result<Measurements, ModelError> {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x005E_ED0F_5A3F);
-    let model = MeasurementModel::new(robot, layout, truth)?;
-    let tau = truth[layout.offsets().tau];
     let n = robot.dof();
     let (t0, t1) = (trajectory.knots().start(), trajectory.knots().end());
     let noise = |s: f64, rng: &mut rand::rngs::StdRng| -> f64 {
@@ -211,22 +226,37 @@ pub fn simulate(
                 .push(js.q[j] + noise(opts.sigma_q[j], &mut rng));
         }
     }
-    data.imu_t = times(opts.imu_start.max(t0), opts.imu_rate, &mut rng);
-    // The IMU stream is one segment: the correlated noise runs along it.
-    let mut sampler = opts.noise_model.clone().map(NoiseSampler::new);
-    for &t in &data.imu_t {
-        trajectory.state_at(t + tau, &mut js);
-        let z = model.predict(&js);
-        match sampler.as_mut().filter(|_| opts.noise) {
-            None => data.imu_z.push(std::array::from_fn(|c| {
-                z[c] + noise(opts.sigma_z[c], &mut rng)
-            })),
-            Some(sampler) => {
-                let e: [f64; 6] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
-                let qdd2: f64 = js.qdd[..n].iter().map(|a| a * a).sum();
-                let w = sampler.next(e, qdd2);
-                data.imu_z.push(std::array::from_fn(|c| z[c] + w[c]));
+    for j in 0..layout.n_imus() {
+        let own = layout.imu_x(j, truth);
+        let model = MeasurementModel::new(robot, layout.imu_layout(), &own)?;
+        let tau = own[layout.imu_layout().offsets().tau];
+        let imu_t = times(opts.imu_start.max(t0), opts.imu_rate, &mut rng);
+        let mut imu_z = Vec::with_capacity(imu_t.len());
+        // The IMU stream is one segment: the correlated noise runs along it.
+        let mut sampler = opts.noise_model.clone().map(NoiseSampler::new);
+        for &t in &imu_t {
+            trajectory.state_at(t + tau, &mut js);
+            let z = model.predict(&js);
+            match sampler.as_mut().filter(|_| opts.noise) {
+                None => imu_z.push(std::array::from_fn(|c| {
+                    z[c] + noise(opts.sigma_z[c], &mut rng)
+                })),
+                Some(sampler) => {
+                    let e: [f64; 6] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
+                    let qdd2: f64 = js.qdd[..n].iter().map(|a| a * a).sum();
+                    let w = sampler.next(e, qdd2);
+                    imu_z.push(std::array::from_fn(|c| z[c] + w[c]));
+                }
             }
+        }
+        if j == 0 {
+            (data.imu_t, data.imu_z) = (imu_t, imu_z);
+        } else {
+            data.extra_imus.push(ImuSamples {
+                t: imu_t,
+                z: imu_z,
+                temp: None,
+            });
         }
     }
     Ok(data)

@@ -64,7 +64,7 @@ pub struct VerdictInput<'a> {
 /// The verdict (module doc).
 pub fn verdict(input: &VerdictInput<'_>) -> VerdictRecord {
     let cal = input.calibration;
-    let layout = ParamLayout::new(input.robot);
+    let layout = cal.layout(input.robot);
     let mut checks = Vec::new();
     let mut bad = false;
     // converged

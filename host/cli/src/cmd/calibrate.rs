@@ -18,7 +18,7 @@ use robimu_report::noise::NoiseSummary;
 use robimu_report::verdict::{trust_line, VerdictText};
 use robimu_report::ParameterTable;
 use robimu_session::result::CalibrationResult;
-use robimu_session::Session;
+use robimu_session::{Session, Truth};
 use robimu_solver::IterationRecord;
 use robimu_workflows::calibrate::fit::{fit, Fit, FitSpec, Start};
 use robimu_workflows::calibrate::noise_choice::residual_identification;
@@ -119,6 +119,13 @@ pub struct CalibrateFlags {
     /// kept with a warning) [default: 0.02].
     #[arg(long, value_name = "TOL")]
     pub noise_settle: Option<f64>,
+    /// Calibrate IMU J of a multi-IMU session alone (docs/model.md §9; 0 is
+    /// imu.csv, J ≥ 1 imu<J>.csv) as a one-IMU session: the result uses the
+    /// one-IMU names (`tau`, `k_a_x`, … for IMU J's own parameters, without
+    /// the `imu<J>/` prefix) and the truth is compared by those names.
+    /// Without it every IMU of the session is calibrated jointly.
+    #[arg(long, value_name = "J")]
+    pub imu: Option<usize>,
 }
 
 impl Default for CalibrateFlags {
@@ -134,6 +141,7 @@ impl Default for CalibrateFlags {
             noise_model: "auto".into(),
             noise_refits: MAX_REFITS,
             noise_settle: None,
+            imu: None,
         }
     }
 }
@@ -256,16 +264,35 @@ impl CalibrateFlags {
     pub(crate) fn prepare(
         &self,
         dir: &Path,
-        session: Session,
+        mut session: Session,
         robot: Robot,
         file: Option<&NoiseFileArg>,
     ) -> anyhow::Result<Prepared> {
         preflight(&session, &robot)?;
-        let layout = ParamLayout::new(&robot);
+        let mut data = session.measurements();
+        if let Some(j) = self.imu {
+            let k = data.n_imus();
+            if j >= k {
+                bail!(
+                    "--imu {j}: the session {} has {k} IMU{} (0..{})",
+                    dir.display(),
+                    if k == 1 { "" } else { "s" },
+                    k - 1
+                );
+            }
+            data = data.only_imu(j);
+            session.truth = session.truth.take().map(|t| imu_truth(&robot, k, j, &t));
+        }
+        let layout = ParamLayout::with_imus(&robot, data.n_imus());
         let opts = self.options(&session, &robot, &layout, file)?;
-        let data = session.measurements();
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
+        if data.n_imus() > 1 && self.effects.iter().any(|e| !e.trim().is_empty()) {
+            bail!(
+                "--effects are modelled for one IMU only; this session has {} IMUs: calibrate one with --imu J",
+                data.n_imus()
+            );
+        }
         let effects = self.effect_set(&robot, &data)?;
         let choice = self.noise_choice(&session, &opts, data.imu_t.len(), file)?;
         let settle = self.settle()?;
@@ -417,6 +444,22 @@ impl CalibrateFlags {
     }
 }
 
+/// The truth of IMU `j` of a `k`-IMU session under the one-IMU names
+/// (`--imu j`): the shared parameters and IMU j's own ones (`imu<j>/tau` as
+/// `tau`).
+fn imu_truth(robot: &Robot, k: usize, j: usize, truth: &Truth) -> Truth {
+    let full = ParamLayout::with_imus(robot, k);
+    let one = full.imu_layout();
+    Truth {
+        values: one
+            .specs()
+            .iter()
+            .zip(full.imu_map(j))
+            .filter_map(|(s, &at)| Some((s.name.clone(), truth.get(&full.specs()[at].name)?)))
+            .collect(),
+    }
+}
+
 /// A session ready to calibrate ([`CalibrateFlags::prepare`]).
 pub(crate) struct Prepared {
     pub session: Session,
@@ -481,11 +524,15 @@ fn write_header(
     let (ta, tb) = session.joints.span().unwrap_or_default();
     writeln!(
         out,
-        "session {}: robot {}, {} joint samples, {} IMU samples, {:.1} s; estimating {} of {} parameters{}",
+        "session {}: robot {}, {} joint samples, {} IMU samples{}, {:.1} s; estimating {} of {} parameters{}",
         dir.display(),
         session.meta.robot,
         session.joints.len(),
         session.imu.len(),
+        match layout.n_imus() {
+            1 => String::new(),
+            k => format!(" (IMU 0; {k} IMUs fitted jointly)"),
+        },
         tb - ta,
         layout.len() - opts.frozen.len(),
         layout.len(),
@@ -525,10 +572,12 @@ fn html_report(
     session: &Session,
 ) -> anyhow::Result<PathBuf> {
     let noise = NoiseBand::of_fit(result.noise_model.as_ref(), &opts.sigma_z);
+    // IMU 0's series (docs/model.md §9)
+    let x0 = cal.layout(robot).imu_x(0, &cal.x);
     let series = super::report::session_series(
         robot,
         data,
-        &cal.x,
+        &x0,
         &opts.sigma_q,
         Some(cal.knot_spacing),
         &noise,

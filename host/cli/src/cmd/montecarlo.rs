@@ -55,6 +55,12 @@ pub struct MonteCarloCmd {
     /// `true` (the simulated sessions' model, given).
     #[arg(long, value_name = "auto|white|true", default_value = "auto")]
     pub fit_noise: String,
+    /// IMUs per session K (docs/model.md §9): one motion, each IMU its own
+    /// 28 truths, fitted jointly. With K > 1 each run also fits IMU 0 alone
+    /// and the mean σ(IMU 0 alone)/σ(joint) of every shared parameter is
+    /// printed (√K ideal).
+    #[arg(long, default_value_t = 1, value_name = "K")]
+    pub imus: usize,
 }
 
 impl MonteCarloCmd {
@@ -65,8 +71,12 @@ impl MonteCarloCmd {
             self.duration.is_finite() && self.duration >= 10.0,
             "--duration must be at least 10 s"
         );
+        anyhow::ensure!(
+            (1..=64).contains(&self.imus),
+            "--imus must be between 1 and 64"
+        );
         let (robot, _) = resolve_robot_with(&self.robot, None, &self.links)?;
-        let layout = ParamLayout::new(&robot);
+        let layout = ParamLayout::with_imus(&robot, self.imus);
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("cannot create {}", self.out.display()))?;
         let mut simulate = SimulateOptions::paper(&robot);
@@ -91,6 +101,8 @@ impl MonteCarloCmd {
             simulate,
             calibrate,
             noise,
+            n_imus: self.imus,
+            compare_imu0: self.imus > 1,
         };
         let bar = indicatif::ProgressBar::new(self.runs as u64);
         bar.set_style(
@@ -125,6 +137,17 @@ impl MonteCarloCmd {
                 "fit noise auto: identified and refitted by GLS in {refitted} of {} runs; white kept with a warning in {warned}",
                 result.runs.len()
             );
+        }
+        let gain = result.shared_sigma_gain(&layout);
+        if !gain.is_empty() {
+            println!(
+                "shared parameters, mean sigma(IMU 0 alone) / sigma({} IMUs jointly) (sqrt(K) = {:.3}):",
+                self.imus,
+                (self.imus as f64).sqrt()
+            );
+            for (name, g) in &gain {
+                println!("  {name:<10} {g:.3}");
+            }
         }
         let files = error_histograms(&self.out.join("histograms"), &layout, &result)?;
         println!(

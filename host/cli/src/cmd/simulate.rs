@@ -108,6 +108,12 @@ pub struct SimulateCmd {
     /// session.toml's [noise] table.
     #[arg(long, value_name = "SPEC", conflicts_with = "noise_free")]
     pub noise_model: Option<String>,
+    /// Number of IMUs K on the flange (docs/model.md §9): one robot motion,
+    /// each IMU j its own 28 truths (position, tau, intrinsics) drawn from
+    /// the priors, written to imu.csv, imu1.csv, … and truth.toml
+    /// (`imu1/tau`, …).
+    #[arg(long, default_value_t = 1, value_name = "K")]
+    pub imus: usize,
 }
 
 /// What [`SimulateCmd::write`] produced.
@@ -117,8 +123,10 @@ pub struct Simulated {
     pub dir: PathBuf,
     /// Joint samples written.
     pub joint_samples: usize,
-    /// IMU samples written.
+    /// IMU samples written (of IMU 0).
     pub imu_samples: usize,
+    /// Number of IMUs.
+    pub imus: usize,
     /// The true time offset τ, s.
     pub tau: f64,
     /// Length of the trajectory, s.
@@ -143,10 +151,15 @@ impl SimulateCmd {
         let mut out = std::io::stdout().lock();
         writeln!(
             out,
-            "wrote {}: {} joint samples, {} IMU samples over {:.1} s (true tau = {:.4} s; truth in truth.toml)",
+            "wrote {}: {} joint samples, {} IMU samples{} over {:.1} s (true tau = {:.4} s; truth in truth.toml)",
             s.dir.display(),
             s.joint_samples,
             s.imu_samples,
+            if s.imus > 1 {
+                format!(" per IMU from {} IMUs", s.imus)
+            } else {
+                String::new()
+            },
             s.duration,
             s.tau
         )?;
@@ -161,7 +174,24 @@ impl SimulateCmd {
         in_range("--joint-rate", joint_rate, 10_000.0)?;
         let (robot, source) = resolve_robot_with(&self.robot, None, &self.links)?;
         let robot_field = source.session_field(&self.robot);
-        let layout = ParamLayout::new(&robot);
+        if !(1..=64).contains(&self.imus) {
+            bail!("--imus must be between 1 and 64 (got {})", self.imus);
+        }
+        if self.imus > 1 {
+            for (given, flag) in [
+                (!self.effect.is_empty(), "--effect"),
+                (self.temperature.is_some(), "--temperature"),
+                (self.bias_walk.is_some(), "--bias-walk"),
+            ] {
+                if given {
+                    bail!(
+                        "{flag} is simulated for one IMU only (drop --imus {})",
+                        self.imus
+                    );
+                }
+            }
+        }
+        let layout = ParamLayout::with_imus(&robot, self.imus);
         let mut rng = rand::rngs::StdRng::seed_from_u64(self.seed);
         let mut drawn = draw_truth(&layout, &mut rng);
         let nominal = layout.nominal();
@@ -365,6 +395,7 @@ impl SimulateCmd {
             dir,
             joint_samples: data.joint_t.len(),
             imu_samples: data.imu_t.len(),
+            imus: data.n_imus(),
             tau: x_true[layout.offsets().tau],
             duration: data.joint_t.last().copied().unwrap_or(0.0)
                 - data.joint_t.first().copied().unwrap_or(0.0),

@@ -6,7 +6,7 @@ use std::ops::Range;
 use faer::linalg::matmul::triangular::BlockStructure;
 use faer::{Accum, Mat, MatRef, Par};
 
-use super::{Problem, ProblemError};
+use super::{Problem, ProblemError, Stream};
 use crate::ArrowMatrix;
 use robimu_model::effects::SampleContext;
 use robimu_model::{Basis, JointState, MeasurementJacobians, MeasurementModel, Spline};
@@ -40,12 +40,20 @@ impl Problem<'_> {
     /// The cost ½‖r‖² at θ over the selected IMU samples.
     pub fn cost(&self, theta: &[f64]) -> Result<f64, ProblemError> {
         let x = self.x_of(theta);
-        let model = self.model(&x)?;
+        let models = self.models(&x)?;
         let spline = self.spline_of(theta);
-        let [first, second] = self.imu_parts();
+        // each IMU's samples in two halves, one per thread
+        let half = |h: usize| -> Result<f64, ProblemError> {
+            let mut c = 0.0;
+            for (st, model) in self.streams.iter().zip(&models) {
+                let range = self.imu_parts(st)[h].clone();
+                c += self.imu_terms(st, model, &spline, &x, theta, range, None)?;
+            }
+            Ok(c)
+        };
         let (c1, c2) = std::thread::scope(|s| {
-            let h = s.spawn(|| self.imu_terms(&model, &spline, &x, theta, second, None));
-            let c1 = self.imu_terms(&model, &spline, &x, theta, first, None);
+            let h = s.spawn(|| half(1));
+            let c1 = half(0);
             (c1, h.join().expect("cost thread panicked"))
         });
         Ok(c1?
@@ -78,11 +86,10 @@ impl Problem<'_> {
     ) -> Result<f64, ProblemError> {
         assert_eq!(a.dims(), self.new_matrix().dims());
         let x = self.x_of(theta);
-        let model = self.model(&x)?;
+        let models = self.models(&x)?;
         let spline = self.spline_of(theta);
         a.clear();
         g.fill(0.0);
-        let [first, second] = self.imu_parts();
         let mut a2 = self.new_matrix();
         let mut g2 = vec![0.0; g.len()];
         let mut out = Linearization { a, g };
@@ -90,10 +97,19 @@ impl Problem<'_> {
             a: &mut a2,
             g: &mut g2,
         };
+        // each IMU's samples in two halves, one per thread, each IMU's rows
+        // scattered to its own columns
+        let half = |h: usize, lin: &mut Linearization<'_>| -> Result<f64, ProblemError> {
+            let mut c = 0.0;
+            for (st, model) in self.streams.iter().zip(&models) {
+                let range = self.imu_parts(st)[h].clone();
+                c += self.imu_terms(st, model, &spline, &x, theta, range, Some(&mut *lin))?;
+            }
+            Ok(c)
+        };
         let (r1, r2) = std::thread::scope(|s| {
-            let h =
-                s.spawn(|| self.imu_terms(&model, &spline, &x, theta, second, Some(&mut other)));
-            let r1 = self.imu_terms(&model, &spline, &x, theta, first, Some(&mut out));
+            let h = s.spawn(|| half(1, &mut other));
+            let r1 = half(0, &mut out);
             (r1, h.join().expect("assembly thread panicked"))
         });
         let mut cost = r1? + r2?;
@@ -109,13 +125,35 @@ impl Problem<'_> {
         Ok(cost)
     }
 
-    /// Whitened IMU residuals r = (z − h)/σ_z at θ for every selected sample,
-    /// with the index of the sample.
+    /// One-IMU models of every stream at the full x.
+    fn models(&self, x: &[f64]) -> Result<Vec<MeasurementModel>, ProblemError> {
+        (0..self.streams.len())
+            .map(|j| self.model_of(j, x))
+            .collect()
+    }
+
+    /// τ of stream `st` in the full x.
+    fn tau_of(&self, st: &Stream<'_>, x: &[f64]) -> f64 {
+        x[st.map[self.imu_layout.offsets().tau]]
+    }
+
+    /// Whitened IMU residuals r = (z − h)/σ_z at θ for every selected sample
+    /// of IMU 0, with the index of the sample.
     pub fn imu_residuals(&self, theta: &[f64]) -> Result<Vec<(usize, [f64; 6])>, ProblemError> {
+        self.imu_residuals_of(theta, 0)
+    }
+
+    /// [`Self::imu_residuals`] of IMU `j`.
+    pub fn imu_residuals_of(
+        &self,
+        theta: &[f64],
+        j: usize,
+    ) -> Result<Vec<(usize, [f64; 6])>, ProblemError> {
+        let st = &self.streams[j];
         let x = self.x_of(theta);
-        let model = self.model(&x)?;
+        let model = self.model_of(j, &x)?;
         let spline = self.spline_of(theta);
-        let tau = x[self.layout.offsets().tau];
+        let tau = self.tau_of(st, &x);
         let theta_e = self.effect_params_of(theta);
         // the two halves of the samples on two threads, each filling its
         // part of the output (one residual per sample, in order)
@@ -128,19 +166,19 @@ impl Problem<'_> {
                     }
                 };
                 if !self.white {
-                    return self.gls_residuals(&model, &spline, tau, theta_e, range, put);
+                    return self.gls_residuals(st, &model, &spline, tau, theta_e, range, put);
                 }
                 let mut at = self.sample_eval();
                 for i in range {
                     put(
                         i,
-                        self.whitened_residual(&model, &spline, tau, theta_e, i, &mut at)?,
+                        self.whitened_residual(st, &model, &spline, tau, theta_e, i, &mut at)?,
                     );
                 }
                 Ok(())
             };
-        let [first, second] = self.imu_parts();
-        let mut out = vec![(0, [0.0; 6]); self.imu_range.len()];
+        let [first, second] = self.imu_parts(st);
+        let mut out = vec![(0, [0.0; 6]); st.imu_range.len()];
         let (lo, hi) = out.split_at_mut(first.len());
         let (a, b) = std::thread::scope(|s| {
             let h = s.spawn(|| part(second, hi));
@@ -156,7 +194,7 @@ impl Problem<'_> {
         let nx = if self.effects.is_empty() {
             0
         } else {
-            self.layout.len()
+            self.imu_layout.len()
         };
         SampleEval {
             basis: Basis::default(),
@@ -172,8 +210,10 @@ impl Problem<'_> {
     /// basis and joint state in `at`. Without effects z is the baseline
     /// prediction alone; with them, the effect columns need the baseline
     /// Jacobians (computed into `at.effect`).
+    #[allow(clippy::too_many_arguments)]
     fn whitened_residual(
         &self,
+        st: &Stream<'_>,
         model: &MeasurementModel,
         spline: &Spline,
         tau: f64,
@@ -181,13 +221,15 @@ impl Problem<'_> {
         i: usize,
         at: &mut SampleEval,
     ) -> Result<[f64; 6], ProblemError> {
-        let r = self.raw_residual(model, spline, tau, theta_e, i, at)?;
+        let r = self.raw_residual(st, model, spline, tau, theta_e, i, at)?;
         Ok(std::array::from_fn(|c| r[c] * self.inv_sigma_z[c]))
     }
 
     /// Raw residual z_i − h of IMU sample i (see [`Self::whitened_residual`]).
+    #[allow(clippy::too_many_arguments)]
     fn raw_residual(
         &self,
+        st: &Stream<'_>,
         model: &MeasurementModel,
         spline: &Spline,
         tau: f64,
@@ -195,23 +237,25 @@ impl Problem<'_> {
         i: usize,
         at: &mut SampleEval,
     ) -> Result<[f64; 6], ProblemError> {
-        self.locate(spline, tau, i, at)?;
+        self.locate(st, spline, tau, i, at)?;
         let z = if self.effects.is_empty() {
             model.predict(&at.js)
         } else {
             let e = &mut at.effect;
             model.jacobians(&at.js, &mut e.jac);
-            self.with_effect_terms(model, i, &at.js, &e.jac, theta_e, &mut e.cols)
+            self.with_effect_terms(st, model, i, &at.js, &e.jac, theta_e, &mut e.cols)
         };
-        let zm = &self.data.imu_z[i];
+        let zm = &st.z[i];
         Ok(std::array::from_fn(|c| zm[c] - z[c]))
     }
 
     /// z of sample i with the effect terms: the baseline `jac.z` (already
     /// evaluated) plus Σ ∂z/∂θ_E θ_E; leaves the columns in `cols`. With no
     /// effects this is `jac.z` (no column is built).
+    #[allow(clippy::too_many_arguments)]
     fn with_effect_terms(
         &self,
+        st: &Stream<'_>,
         model: &MeasurementModel,
         i: usize,
         js: &JointState,
@@ -220,7 +264,7 @@ impl Problem<'_> {
         cols: &mut [[f64; 6]],
     ) -> [f64; 6] {
         let mut z = jac.z;
-        let ctx = SampleContext::new(self.data.imu_t[i], js, model, jac, self.layout);
+        let ctx = SampleContext::new(st.t[i], js, model, jac, self.imu_layout);
         self.effects.columns(&ctx, cols);
         for (col, th) in cols.iter().zip(theta_e) {
             for c in 0..6 {
@@ -254,12 +298,13 @@ impl Problem<'_> {
     /// Basis functions and joint state q(t_i + τ) of IMU sample i.
     fn locate(
         &self,
+        st: &Stream<'_>,
         spline: &Spline,
         tau: f64,
         i: usize,
         at: &mut SampleEval,
     ) -> Result<(), ProblemError> {
-        let u = self.data.imu_t[i] + tau;
+        let u = st.t[i] + tau;
         self.spans
             .basis(u, &mut at.basis)
             .map_err(|_| ProblemError::SampleOutOfSpan)?;
@@ -269,8 +314,8 @@ impl Problem<'_> {
 
     /// The selected IMU range split in two halves (one per thread; a knot span
     /// cut in two is simply flushed twice, the sums are the same).
-    fn imu_parts(&self) -> [Range<usize>; 2] {
-        let r = self.imu_range.clone();
+    fn imu_parts(&self, st: &Stream<'_>) -> [Range<usize>; 2] {
+        let r = st.imu_range.clone();
         let mid = r.start + r.len() / 2;
         [r.start..mid, mid..r.end]
     }
@@ -347,8 +392,10 @@ impl Problem<'_> {
     /// Gauss–Newton blocks, flushed per knot span. Accelerometer and gyroscope
     /// rows are stacked separately, each with only the x columns it depends
     /// on ([`Problem::sensor_columns`]).
+    #[allow(clippy::too_many_arguments)]
     fn imu_terms(
         &self,
+        st: &Stream<'_>,
         model: &MeasurementModel,
         spline: &Spline,
         x: &[f64],
@@ -357,30 +404,30 @@ impl Problem<'_> {
         out: Option<&mut Linearization<'_>>,
     ) -> Result<f64, ProblemError> {
         if !self.white {
-            return self.imu_terms_gls(model, spline, x, theta, range, out);
+            return self.imu_terms_gls(st, model, spline, x, theta, range, out);
         }
         let theta_e = self.effect_params_of(theta);
-        let nx = self.layout.len();
+        let nx = self.imu_layout.len();
         let n = self.n;
         let nl = (self.knots.degree() + 1) * n;
-        let tau = x[self.layout.offsets().tau];
+        let tau = self.tau_of(st, x);
         let mut at = self.sample_eval();
         let mut cost = 0.0;
         let Some(out) = out else {
             for i in range {
-                let r = self.whitened_residual(model, spline, tau, theta_e, i, &mut at)?;
+                let r = self.whitened_residual(st, model, spline, tau, theta_e, i, &mut at)?;
                 cost += 0.5 * r.iter().map(|v| v * v).sum::<f64>();
             }
             return Ok(cost);
         };
-        let mut jac = MeasurementJacobians::new(self.layout.len());
+        let mut jac = MeasurementJacobians::new(nx);
         let mut blocks = [
-            Stack::new(nl, 0, &self.sensor_columns[0]),
-            Stack::new(nl, 0, &self.sensor_columns[1]),
+            Stack::new(nl, 0, &st.sensor_columns[0]),
+            Stack::new(nl, 0, &st.sensor_columns[1]),
         ];
         let mut group_first = usize::MAX;
         for i in range {
-            self.locate(spline, tau, i, &mut at)?;
+            self.locate(st, spline, tau, i, &mut at)?;
             let (basis, js) = (&at.basis, &at.js);
             if (basis.first != group_first && blocks[0].rows > 0) || blocks[0].full() {
                 for b in &mut blocks {
@@ -395,8 +442,8 @@ impl Problem<'_> {
             group_first = basis.first;
             model.jacobians(js, &mut jac);
             let cols = &mut at.effect.cols;
-            let z = self.with_effect_terms(model, i, js, &jac, theta_e, cols);
-            let zm = &self.data.imu_z[i];
+            let z = self.with_effect_terms(st, model, i, js, &jac, theta_e, cols);
+            let zm = &st.z[i];
             for (sensor, block) in blocks.iter_mut().enumerate() {
                 for ch in 3 * sensor..3 * sensor + 3 {
                     let w = self.inv_sigma_z[ch];
@@ -455,21 +502,21 @@ struct RawSample {
 
 impl Problem<'_> {
     /// 1/s_i of sample i (1 without motion levels).
-    fn inv_level(&self, i: usize) -> [f64; 6] {
-        self.inv_levels.get(i).copied().unwrap_or([1.0; 6])
+    fn inv_level(&self, st: &Stream<'_>, i: usize) -> [f64; 6] {
+        st.inv_levels.get(i).copied().unwrap_or([1.0; 6])
     }
 
     /// The first sample whose raw terms the whitening of `range` needs.
-    fn warm_start(&self, range: &Range<usize>) -> usize {
+    fn warm_start(&self, st: &Stream<'_>, range: &Range<usize>) -> usize {
         range
             .start
             .saturating_sub(self.noise.max_order())
-            .max(self.imu_range.start)
+            .max(st.imu_range.start)
     }
 
     /// Whitened residual of channel `ch` of sample `i`, from the ring.
-    fn whiten(&self, ring: &[RawSample], i: usize, ch: usize) -> f64 {
-        let pos = self.seg_pos[i - self.imu_range.start] as usize;
+    fn whiten(&self, st: &Stream<'_>, ring: &[RawSample], i: usize, ch: usize) -> f64 {
+        let pos = st.seg_pos[i - st.imu_range.start] as usize;
         let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
         let len = ring.len();
         let s = &ring[i % len];
@@ -483,8 +530,10 @@ impl Problem<'_> {
 
     /// GLS-whitened residuals of the samples `range` (module doc), passed to
     /// `emit` in order.
+    #[allow(clippy::too_many_arguments)]
     fn gls_residuals(
         &self,
+        st: &Stream<'_>,
         model: &MeasurementModel,
         spline: &Spline,
         tau: f64,
@@ -502,13 +551,13 @@ impl Problem<'_> {
             })
             .collect();
         let len = ring.len();
-        for i in self.warm_start(&range)..range.end {
-            let r = self.raw_residual(model, spline, tau, theta_e, i, &mut at)?;
+        for i in self.warm_start(st, &range)..range.end {
+            let r = self.raw_residual(st, model, spline, tau, theta_e, i, &mut at)?;
             let slot = &mut ring[i % len];
             slot.r = r;
-            slot.inv_level = self.inv_level(i);
+            slot.inv_level = self.inv_level(st, i);
             if i >= range.start {
-                emit(i, std::array::from_fn(|ch| self.whiten(&ring, i, ch)));
+                emit(i, std::array::from_fn(|ch| self.whiten(st, &ring, i, ch)));
             }
         }
         Ok(())
@@ -517,8 +566,10 @@ impl Problem<'_> {
     /// [`Self::imu_terms`] for noise that is not white: rows whitened along
     /// time, each combining the raw rows of up to P samples before it, which
     /// may lie in earlier knot spans (module doc).
+    #[allow(clippy::too_many_arguments)]
     fn imu_terms_gls(
         &self,
+        st: &Stream<'_>,
         model: &MeasurementModel,
         spline: &Spline,
         x: &[f64],
@@ -527,20 +578,20 @@ impl Problem<'_> {
         out: Option<&mut Linearization<'_>>,
     ) -> Result<f64, ProblemError> {
         let theta_e = self.effect_params_of(theta);
-        let tau = x[self.layout.offsets().tau];
+        let tau = self.tau_of(st, x);
         let mut cost = 0.0;
         let Some(out) = out else {
-            self.gls_residuals(model, spline, tau, theta_e, range, |_, w| {
+            self.gls_residuals(st, model, spline, tau, theta_e, range, |_, w| {
                 cost += 0.5 * w.iter().map(|v| v * v).sum::<f64>();
             })?;
             return Ok(cost);
         };
-        let nx = self.layout.len();
+        let nx = self.imu_layout.len();
         let n = self.n;
         let deg = self.knots.degree();
         let nl = (deg + 1) * n;
         let extra = self.extra_spans;
-        let widths = [0, 1].map(|s| nl + self.sensor_columns[s].len());
+        let widths = [0, 1].map(|s| nl + st.sensor_columns[s].len());
         let mut ring: Vec<RawSample> = (0..=self.noise.max_order())
             .map(|_| RawSample {
                 first: 0,
@@ -553,21 +604,21 @@ impl Problem<'_> {
         let mut at = self.sample_eval();
         let mut jac = MeasurementJacobians::new(nx);
         let mut blocks = [
-            Stack::new(nl, extra * n, &self.sensor_columns[0]),
-            Stack::new(nl, extra * n, &self.sensor_columns[1]),
+            Stack::new(nl, extra * n, &st.sensor_columns[0]),
+            Stack::new(nl, extra * n, &st.sensor_columns[1]),
         ];
         let mut group_first = usize::MAX;
-        for i in self.warm_start(&range)..range.end {
-            self.locate(spline, tau, i, &mut at)?;
+        for i in self.warm_start(st, &range)..range.end {
+            self.locate(st, spline, tau, i, &mut at)?;
             let (basis, js) = (&at.basis, &at.js);
             model.jacobians(js, &mut jac);
             let cols = &mut at.effect.cols;
-            let z = self.with_effect_terms(model, i, js, &jac, theta_e, cols);
-            let zm = &self.data.imu_z[i];
+            let z = self.with_effect_terms(st, model, i, js, &jac, theta_e, cols);
+            let zm = &st.z[i];
             let slot = &mut ring[i % len];
             slot.first = basis.first;
             slot.r = std::array::from_fn(|c| zm[c] - z[c]);
-            slot.inv_level = self.inv_level(i);
+            slot.inv_level = self.inv_level(st, i);
             for (sensor, rows) in slot.rows.iter_mut().enumerate() {
                 let w = widths[sensor];
                 for (c, row) in rows.chunks_exact_mut(w).enumerate() {
@@ -584,7 +635,7 @@ impl Problem<'_> {
                             };
                         }
                     }
-                    for (a, &(k, _)) in self.sensor_columns[sensor].iter().enumerate() {
+                    for (a, &(k, _)) in st.sensor_columns[sensor].iter().enumerate() {
                         row[nl + a] = -if k < nx {
                             jac.dz_dx[k][ch]
                         } else {
@@ -608,7 +659,7 @@ impl Problem<'_> {
                 }
                 group_first = g;
             }
-            let pos = self.seg_pos[i - self.imu_range.start] as usize;
+            let pos = st.seg_pos[i - st.imu_range.start] as usize;
             for (sensor, block) in blocks.iter_mut().enumerate() {
                 let w = widths[sensor];
                 for c in 0..3 {

@@ -13,7 +13,12 @@ use super::{Measurements, Problem, ProblemOptions};
 use crate::LeastSquares;
 
 /// A tiny session: 1 s, knots every 0.25 s, IMU at 50 Hz with a gap.
-fn session(robot: &Robot, layout: &ParamLayout, x: &[f64], spline: &Spline) -> Measurements {
+pub(super) fn session(
+    robot: &Robot,
+    layout: &ParamLayout,
+    x: &[f64],
+    spline: &Spline,
+) -> Measurements {
     let n = robot.dof();
     let model = MeasurementModel::new(robot, layout, x).unwrap();
     let mut js = JointState::default();
@@ -51,7 +56,7 @@ fn session(robot: &Robot, layout: &ParamLayout, x: &[f64], spline: &Spline) -> M
     }
 }
 
-fn noise_model() -> NoiseModel {
+pub(super) fn noise_model() -> NoiseModel {
     let white = |s| ChannelNoise::white(s).unwrap();
     NoiseModel {
         imu: [
@@ -65,16 +70,16 @@ fn noise_model() -> NoiseModel {
     }
 }
 
-struct Setup {
-    robot: Robot,
-    layout: ParamLayout,
-    data: Measurements,
-    knots: Knots,
-    x: Vec<f64>,
-    spline: Spline,
+pub(super) struct Setup {
+    pub(super) robot: Robot,
+    pub(super) layout: ParamLayout,
+    pub(super) data: Measurements,
+    pub(super) knots: Knots,
+    pub(super) x: Vec<f64>,
+    pub(super) spline: Spline,
 }
 
-fn setup() -> Setup {
+pub(super) fn setup() -> Setup {
     let robot = Robot::aubo_i5();
     let layout = ParamLayout::new(&robot);
     let mut x = layout.nominal();
@@ -99,7 +104,7 @@ fn setup() -> Setup {
     }
 }
 
-fn options(s: &Setup, noise: Option<NoiseModel>, sigma_z: [f64; 6]) -> ProblemOptions {
+pub(super) fn options(s: &Setup, noise: Option<NoiseModel>, sigma_z: [f64; 6]) -> ProblemOptions {
     ProblemOptions {
         sigma_q: vec![1e-3; s.robot.dof()],
         sigma_z,
@@ -109,7 +114,7 @@ fn options(s: &Setup, noise: Option<NoiseModel>, sigma_z: [f64; 6]) -> ProblemOp
     }
 }
 
-fn linearized(p: &Problem<'_>, theta: &[f64]) -> (crate::ArrowMatrix, Vec<f64>, f64) {
+pub(super) fn linearized(p: &Problem<'_>, theta: &[f64]) -> (crate::ArrowMatrix, Vec<f64>, f64) {
     let mut a = p.new_matrix();
     let mut g = vec![0.0; theta.len()];
     let cost = p.linearize(theta, &mut a, &mut g).unwrap();

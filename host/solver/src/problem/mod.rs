@@ -58,6 +58,16 @@
 //! with P = 0 gives the same matrix (`gls_tests`) but copies every row once
 //! more, which cost the white fit 4–9 % more CPU in `--bench calibrate`.
 //!
+//! **Several IMUs** (docs/model.md §9). With a [`ParamLayout::with_imus`]
+//! layout of K IMUs the problem holds K streams: IMU j's samples, its own
+//! sample selection from its own τ, its levels, and the map of its own
+//! one-IMU vector into x ([`ParamLayout::imu_map`]). Each sample is
+//! evaluated by the one-IMU [`MeasurementModel`] at its IMU's vector and its
+//! rows carry only that IMU's ≤ 48 columns, scattered into the border through
+//! the map: the data pass costs the same per sample for any K, the band and
+//! the shared columns are common. K = 1 is the one-IMU problem (identity map).
+//! Catalogue effects need K = 1.
+//!
 //! Only the IMU samples whose u lies inside the joint-sample span (with a
 //! small margin, [`Problem::margin`]) are used; the set is chosen by
 //! [`Problem::select_samples`] from the current τ at the start of each
@@ -67,6 +77,8 @@
 mod assemble;
 #[cfg(test)]
 mod gls_tests;
+#[cfg(test)]
+mod multi_tests;
 
 use std::ops::Range;
 
@@ -98,6 +110,17 @@ pub enum ProblemError {
         /// The time offset tried.
         tau: f64,
     },
+    /// The layout and the observations do not have the same IMUs.
+    #[error("the parameter layout has {layout} IMUs but the session has {data}")]
+    ImuCount {
+        /// IMUs of the layout.
+        layout: usize,
+        /// IMUs of the observations.
+        data: usize,
+    },
+    /// Catalogue effects are for one IMU only.
+    #[error("effects are modelled for one IMU only; this problem has {0} (calibrate one IMU with --imu)")]
+    EffectsNeedOneImu(usize),
 }
 
 /// How the problem is set up.
@@ -124,10 +147,35 @@ struct JointBasis {
     n: [f64; MAX_DEGREE + 1],
 }
 
+/// One IMU's samples in the problem (module doc, *Several IMUs*).
+struct Stream<'a> {
+    /// Sample times.
+    t: &'a [f64],
+    /// Samples `[ax, ay, az, gx, gy, gz]`.
+    z: &'a [[f64; 6]],
+    /// x index of each entry of the IMU's own vector.
+    map: &'a [usize],
+    /// Median step of the stream (segments break at > 1.5× it).
+    median_dt: f64,
+    /// Position of each selected sample in its segment (index i − imu_range.start).
+    seg_pos: Vec<u32>,
+    /// 1/s_i per channel for every sample (empty when no channel has a
+    /// motion level; set for the selected samples by `begin_iteration`).
+    inv_levels: Vec<[f64; 6]>,
+    /// Samples currently used.
+    imu_range: Range<usize>,
+    /// Per sensor (accelerometer, gyroscope): the estimated parameters its
+    /// rows can depend on, as (index in the IMU's own vector, position in
+    /// θ's x part); effect parameter e follows as (n_own + e, n_active + e).
+    sensor_columns: [Vec<(usize, usize)>; 2],
+}
+
 /// The calibration problem for one session.
 pub struct Problem<'a> {
     robot: &'a Robot,
     layout: &'a ParamLayout,
+    /// The one-IMU layout each stream's model uses.
+    imu_layout: &'a ParamLayout,
     data: &'a Measurements,
     knots: Knots,
     /// The basis of `knots` per span, for the IMU samples (evaluated at
@@ -142,13 +190,8 @@ pub struct Problem<'a> {
     white: bool,
     /// Extra knot spans E a whitened row reaches back (0 when white).
     extra_spans: usize,
-    /// Median step of the IMU stream (segments break at > 1.5× it).
-    median_dt: f64,
-    /// Position of each selected sample in its segment (index i − imu_range.start).
-    seg_pos: Vec<u32>,
-    /// 1/s_i per channel for every IMU sample (empty when no channel has a
-    /// motion level; set for the selected samples by `begin_iteration`).
-    inv_levels: Vec<[f64; 6]>,
+    /// The IMUs' samples (IMU j is `streams[j]`).
+    streams: Vec<Stream<'a>>,
     prior_mean: Vec<f64>,
     prior_inv_sigma: Vec<f64>,
     use_prior: bool,
@@ -161,11 +204,6 @@ pub struct Problem<'a> {
     /// The joint residuals' part of the Gauss–Newton matrix: constant, as
     /// they are linear in c (built once).
     joint_normal: ArrowMatrix,
-    imu_range: Range<usize>,
-    /// Per sensor (accelerometer, gyroscope): the estimated parameters its
-    /// rows can depend on, as (x index, position in θ's x part); effect
-    /// parameter e follows as (nx + e, n_active + e).
-    sensor_columns: [Vec<(usize, usize)>; 2],
     /// Catalogue effects appended to the model (empty: the baseline model).
     effects: &'a EffectSet,
 }
@@ -177,7 +215,9 @@ impl<'a> Problem<'a> {
     pub const MARGIN: f64 = 0.05;
 
     /// Set up the problem. `x_base` is x with the values of the frozen
-    /// entries (the others are overwritten by θ). The catalogue `effects`
+    /// entries (the others are overwritten by θ). The layout's IMUs are the
+    /// first [`ParamLayout::n_imus`] of `data` (a one-IMU layout uses IMU 0
+    /// of any session). The catalogue `effects`
     /// extend the model ([`EffectSet::none`] for the baseline alone): their
     /// parameters θ_E follow x_a in θ (θ = [c, x_a, θ_E]), enter every IMU
     /// row through ∂z/∂θ_E ([`robimu_model::effects`]) and carry their
@@ -210,35 +250,63 @@ impl<'a> Problem<'a> {
             });
         }
         let specs = layout.specs();
-        let (nx, na) = (layout.len(), active.len());
-        let sensor_columns = [0, 1].map(|sensor| {
-            active
-                .iter()
-                .enumerate()
-                .filter(|&(_, &k)| sensor_depends_on(layout, sensor, k))
-                .map(|(a, &k)| (k, a))
-                .chain((0..effects.len()).map(|e| (nx + e, na + e)))
-                .collect()
-        });
+        let k_imus = layout.n_imus();
+        if k_imus > data.n_imus() {
+            return Err(ProblemError::ImuCount {
+                layout: k_imus,
+                data: data.n_imus(),
+            });
+        }
+        if k_imus > 1 && !effects.is_empty() {
+            return Err(ProblemError::EffectsNeedOneImu(k_imus));
+        }
+        let imu_layout = layout.imu_layout();
         let noise = match &opts.noise {
             Some(m) => m.clone(),
             None => NoiseModel::white(opts.sigma_z).expect("positive sigma_z"),
         };
         let white = noise.is_white();
-        let median_dt = median_step(&data.imu_t);
+        let motion = noise.imu.iter().any(|c| c.motion > 0.0);
+        let (n_own, na) = (imu_layout.len(), active.len());
+        let streams: Vec<Stream> = (0..k_imus)
+            .map(|j| {
+                let view = data.imu(j);
+                let map = layout.imu_map(j);
+                let sensor_columns = [0, 1].map(|sensor| {
+                    let mut cols: Vec<(usize, usize)> = (0..n_own)
+                        .filter(|&k| sensor_depends_on(imu_layout, sensor, k))
+                        .filter_map(|k| active.binary_search(&map[k]).ok().map(|a| (k, a)))
+                        .collect();
+                    cols.sort_by_key(|&(_, a)| a);
+                    cols.extend((0..effects.len()).map(|e| (n_own + e, na + e)));
+                    cols
+                });
+                Stream {
+                    t: view.t,
+                    z: view.z,
+                    map,
+                    median_dt: median_step(view.t),
+                    seg_pos: Vec::new(),
+                    inv_levels: if motion {
+                        vec![[1.0; 6]; view.t.len()]
+                    } else {
+                        Vec::new()
+                    },
+                    imu_range: 0..0,
+                    sensor_columns,
+                }
+            })
+            .collect();
         let extra_spans = if white {
             0
         } else {
-            extra_spans(&knots, noise.max_order(), 1.5 * median_dt)
-        };
-        let inv_levels = if noise.imu.iter().any(|c| c.motion > 0.0) {
-            vec![[1.0; 6]; data.imu_t.len()]
-        } else {
-            Vec::new()
+            let dt = streams.iter().map(|s| s.median_dt).fold(0.0, f64::max);
+            extra_spans(&knots, noise.max_order(), 1.5 * dt)
         };
         let mut p = Self {
             robot,
             layout,
+            imu_layout,
             data,
             spans: SpanPolynomials::new(&knots),
             knots,
@@ -248,9 +316,7 @@ impl<'a> Problem<'a> {
             noise,
             white,
             extra_spans,
-            median_dt,
-            seg_pos: Vec::new(),
-            inv_levels,
+            streams,
             prior_mean: specs.iter().map(|s| s.nominal).collect(),
             prior_inv_sigma: specs.iter().map(|s| 1.0 / s.sigma).collect(),
             use_prior: opts.use_prior,
@@ -258,13 +324,11 @@ impl<'a> Problem<'a> {
             x_base,
             joint_basis,
             joint_normal: ArrowMatrix::zeros(0, 0, 0),
-            imu_range: 0..0,
-            sensor_columns,
             effects,
         };
         p.joint_normal = p.joint_normal_matrix();
-        let tau = p.x_base[layout.offsets().tau];
-        p.select_samples(tau)?;
+        let x = p.x_base.clone();
+        p.select_all(&x)?;
         Ok(p)
     }
 
@@ -298,20 +362,29 @@ impl<'a> Problem<'a> {
     /// of θ (held fixed until the next call; see the module doc). Nothing to
     /// do when no channel has a motion level.
     pub fn update_levels(&mut self, theta: &[f64]) -> Result<(), ProblemError> {
-        if self.inv_levels.is_empty() {
+        if self.streams[0].inv_levels.is_empty() {
             return Ok(());
         }
         let spline = self.spline_of(theta);
-        let tau = self.x_of(theta)[self.layout.offsets().tau];
+        let x = self.x_of(theta);
+        let tau_at = self.imu_layout.offsets().tau;
         let mut js = JointState::default();
-        for i in self.imu_range.clone() {
-            spline
-                .evaluate(self.data.imu_t[i] + tau, &mut js)
-                .map_err(|_| ProblemError::SampleOutOfSpan)?;
-            let qdd2: f64 = js.qdd[..self.n].iter().map(|v| v * v).sum();
-            self.inv_levels[i] = std::array::from_fn(|c| 1.0 / self.noise.imu[c].level(qdd2));
+        for s in &mut self.streams {
+            let tau = x[s.map[tau_at]];
+            for i in s.imu_range.clone() {
+                spline
+                    .evaluate(s.t[i] + tau, &mut js)
+                    .map_err(|_| ProblemError::SampleOutOfSpan)?;
+                let qdd2: f64 = js.qdd[..self.n].iter().map(|v| v * v).sum();
+                s.inv_levels[i] = std::array::from_fn(|c| 1.0 / self.noise.imu[c].level(qdd2));
+            }
         }
         Ok(())
+    }
+
+    /// Number of IMUs K of the problem.
+    pub fn n_imus(&self) -> usize {
+        self.streams.len()
     }
 
     /// x indices of the estimated parameters (θ's x part, in order).
@@ -339,9 +412,14 @@ impl<'a> Problem<'a> {
         self.data
     }
 
-    /// IMU samples currently used.
+    /// IMU 0's samples currently used.
     pub fn imu_range(&self) -> Range<usize> {
-        self.imu_range.clone()
+        self.streams[0].imu_range.clone()
+    }
+
+    /// IMU `j`'s samples currently used.
+    pub fn imu_range_of(&self, j: usize) -> Range<usize> {
+        self.streams[j].imu_range.clone()
     }
 
     /// θ from a spline and a full x (effect parameters, if any, at 0).
@@ -384,33 +462,49 @@ impl<'a> Problem<'a> {
             .expect("coefficient count matches the knots")
     }
 
-    /// Choose the IMU samples whose t + τ lies in the joint span (less the margin).
+    /// Choose IMU 0's samples whose t + τ lies in the joint span (less the margin).
     pub fn select_samples(&mut self, tau: f64) -> Result<(), ProblemError> {
-        let Range { start: lo, end: hi } = self.samples_at(tau)?;
-        let t = &self.data.imu_t;
-        self.imu_range = lo..hi;
-        if !self.white {
-            let gap = 1.5 * self.median_dt;
-            self.seg_pos.clear();
+        self.select_stream(0, tau)
+    }
+
+    /// Choose every IMU's samples at its τ in `x`.
+    fn select_all(&mut self, x: &[f64]) -> Result<(), ProblemError> {
+        let tau_at = self.imu_layout.offsets().tau;
+        for j in 0..self.streams.len() {
+            let tau = x[self.streams[j].map[tau_at]];
+            self.select_stream(j, tau)?;
+        }
+        Ok(())
+    }
+
+    /// Choose IMU `j`'s samples whose t + τ lies in the joint span (less the margin).
+    fn select_stream(&mut self, j: usize, tau: f64) -> Result<(), ProblemError> {
+        let Range { start: lo, end: hi } = self.samples_at(j, tau)?;
+        let white = self.white;
+        let s = &mut self.streams[j];
+        s.imu_range = lo..hi;
+        if !white {
+            let gap = 1.5 * s.median_dt;
+            s.seg_pos.clear();
             let mut pos = 0u32;
             for i in lo..hi {
-                if i > lo && t[i] - t[i - 1] > gap {
+                if i > lo && s.t[i] - s.t[i - 1] > gap {
                     pos = 0;
                 }
-                self.seg_pos.push(pos);
+                s.seg_pos.push(pos);
                 pos = pos.saturating_add(1);
             }
         }
         Ok(())
     }
 
-    /// The IMU samples [`Self::select_samples`] chooses at τ.
-    fn samples_at(&self, tau: f64) -> Result<Range<usize>, ProblemError> {
+    /// The samples of IMU `j` [`Self::select_stream`] chooses at τ.
+    fn samples_at(&self, j: usize, tau: f64) -> Result<Range<usize>, ProblemError> {
         let (a, b) = (
             self.knots.start() + Self::MARGIN,
             self.knots.end() - Self::MARGIN,
         );
-        let t = &self.data.imu_t;
+        let t = self.streams[j].t;
         let lo = t.partition_point(|&ti| ti + tau < a);
         let hi = t.partition_point(|&ti| ti + tau <= b);
         if hi <= lo {
@@ -419,9 +513,15 @@ impl<'a> Problem<'a> {
         Ok(lo..hi)
     }
 
-    /// The measurement model at x.
+    /// IMU 0's measurement model at x.
     pub fn model(&self, x: &[f64]) -> Result<MeasurementModel, ProblemError> {
-        Ok(MeasurementModel::new(self.robot, self.layout, x)?)
+        self.model_of(0, x)
+    }
+
+    /// IMU `j`'s measurement model at the full x (its own vector through its map).
+    pub fn model_of(&self, j: usize, x: &[f64]) -> Result<MeasurementModel, ProblemError> {
+        let own: Vec<f64> = self.streams[j].map.iter().map(|&k| x[k]).collect();
+        Ok(MeasurementModel::new(self.robot, self.imu_layout, &own)?)
     }
 }
 
@@ -470,8 +570,8 @@ pub fn sensor_depends_on(layout: &ParamLayout, sensor: usize, k: usize) -> bool 
 impl crate::LeastSquares for Problem<'_> {
     type Error = ProblemError;
     fn begin_iteration(&mut self, theta: &[f64]) -> Result<(), ProblemError> {
-        let tau = self.x_of(theta)[self.layout.offsets().tau];
-        self.select_samples(tau)?;
+        let x = self.x_of(theta);
+        self.select_all(&x)?;
         self.update_levels(theta)
     }
     fn cost(&self, theta: &[f64]) -> Result<f64, ProblemError> {
@@ -490,8 +590,12 @@ impl crate::LeastSquares for Problem<'_> {
     }
     /// The same samples at θ's τ, and no motion levels (they follow θ).
     fn keeps_setup(&self, theta: &[f64]) -> bool {
-        let tau = self.x_of(theta)[self.layout.offsets().tau];
-        self.inv_levels.is_empty() && self.samples_at(tau).ok() == Some(self.imu_range.clone())
+        let x = self.x_of(theta);
+        let tau_at = self.imu_layout.offsets().tau;
+        self.streams.iter().enumerate().all(|(j, s)| {
+            s.inv_levels.is_empty()
+                && self.samples_at(j, x[s.map[tau_at]]).ok() == Some(s.imu_range.clone())
+        })
     }
 }
 

@@ -17,6 +17,11 @@
 //!    inverse of the Schur complement S of the normal matrix at the optimum
 //!    (eq. (24) restricted to x), and the whitened IMU residuals.
 //!
+//! **Several IMUs** (docs/model.md §9): a session with K IMUs is fitted
+//! jointly, x of [`ParamLayout::with_imus`] (shared robot errors and
+//! gravity, each IMU's position, τ and intrinsics); each IMU's τ is found
+//! from its own gyroscope before the fit. One noise model serves all IMUs.
+//!
 //! The IMU noise is white of σ_z (the paper's model) unless
 //! [`CalibrateOptions::noise`] gives a [`NoiseModel`]: then every step's
 //! cost is the generalised least squares ½ rᵀΣ⁻¹r of that model (AR
@@ -107,12 +112,19 @@ pub struct Fit {
     pub cost: f64,
     /// The fitted trajectory.
     pub trajectory: Spline,
-    /// Whitened IMU residuals at the optimum (sample index, r).
+    /// Whitened IMU residuals at the optimum (sample index, r), IMU 0.
     pub residuals: Vec<(usize, [f64; 6])>,
+    /// The same for IMU j ≥ 1 (`extra_residuals[j - 1]`; empty for one IMU).
+    pub extra_residuals: Vec<Vec<(usize, [f64; 6])>>,
+    /// Number of IMUs K (x has the layout [`ParamLayout::with_imus`]`(robot, K)`).
+    pub n_imus: usize,
     /// The solver run.
     pub summary: LmSummary,
-    /// The τ found before the fit (none when started from a given x or a fit).
+    /// The τ found before the fit (none when started from a given x or a
+    /// fit), IMU 0.
     pub tau_initial: Option<TauEstimate>,
+    /// The τ of IMU j ≥ 1 found before the fit (`extra_tau_initial[j - 1]`).
+    pub extra_tau_initial: Vec<Option<TauEstimate>>,
     /// Knot spacing of the trajectory spline, s.
     pub knot_spacing: f64,
     /// Whitened residual RMS per joint of the initial spline fit.
@@ -123,13 +135,22 @@ pub struct Fit {
 }
 
 impl Fit {
-    /// RMS per IMU channel of the whitened residuals (GLS-whitened with a
-    /// noise model that is not white: about 1 when the model fits).
+    /// RMS per IMU channel of the whitened residuals of every IMU
+    /// (GLS-whitened with a noise model that is not white: about 1 when the
+    /// model fits).
     pub fn residual_rms(&self) -> [f64; 6] {
-        let n = self.residuals.len().max(1) as f64;
-        std::array::from_fn(|c| {
-            (self.residuals.iter().map(|(_, r)| r[c] * r[c]).sum::<f64>() / n).sqrt()
-        })
+        let all = || {
+            self.residuals
+                .iter()
+                .chain(self.extra_residuals.iter().flatten())
+        };
+        let n = all().count().max(1) as f64;
+        std::array::from_fn(|c| (all().map(|(_, r)| r[c] * r[c]).sum::<f64>() / n).sqrt())
+    }
+
+    /// IMU samples used over all IMUs.
+    pub fn imu_samples_used(&self) -> usize {
+        self.residuals.len() + self.extra_residuals.iter().map(Vec::len).sum::<usize>()
     }
 }
 
@@ -152,7 +173,8 @@ pub fn fit(
         start,
     } = *spec;
     check_measurements(robot, data)?;
-    let layout = ParamLayout::new(robot);
+    let n_imus = data.n_imus();
+    let layout = ParamLayout::with_imus(robot, n_imus);
     let initial = match start {
         Start::Refit(f) => {
             let names = effects.names();
@@ -165,7 +187,7 @@ pub fn fit(
                 spline: f.trajectory.clone(),
                 x: f.x.clone(),
                 theta: Some(&f.theta),
-                tau_initial: None,
+                tau_initial: vec![None; n_imus],
                 knot_spacing: f.knot_spacing,
                 joint_fit_rms: f.joint_fit_rms.clone(),
             }
@@ -182,18 +204,24 @@ pub fn fit(
                 Start::At(x) => x.to_vec(),
                 _ => layout.nominal(),
             };
-            let tau_at = layout.offsets().tau;
-            let tau_initial = match (&opts.tau_search, start) {
-                (Some(search), Start::Nominal) if !opts.frozen.contains(&tau_at) => {
-                    let model = MeasurementModel::new(robot, &layout, &x)?;
-                    let gyro: Vec<[f64; 3]> =
-                        data.imu_z.iter().map(|z| [z[3], z[4], z[5]]).collect();
-                    let est = find_tau(&model, &tf.spline, &data.imu_t, &gyro, search)?;
-                    x[tau_at] = est.tau;
-                    Some(est)
-                }
-                _ => None,
-            };
+            let tau_own = layout.imu_layout().offsets().tau;
+            let mut tau_initial = vec![None; n_imus];
+            for (j, found) in tau_initial.iter_mut().enumerate() {
+                let tau_at = layout.imu_map(j)[tau_own];
+                *found = match (&opts.tau_search, start) {
+                    (Some(search), Start::Nominal) if !opts.frozen.contains(&tau_at) => {
+                        let own = layout.imu_x(j, &x);
+                        let model = MeasurementModel::new(robot, layout.imu_layout(), &own)?;
+                        let imu = data.imu(j);
+                        let gyro: Vec<[f64; 3]> =
+                            imu.z.iter().map(|z| [z[3], z[4], z[5]]).collect();
+                        let est = find_tau(&model, &tf.spline, imu.t, &gyro, search)?;
+                        x[tau_at] = est.tau;
+                        Some(est)
+                    }
+                    _ => None,
+                };
+            }
             Initial {
                 spline: tf.spline,
                 x,
@@ -249,10 +277,15 @@ pub fn fit(
         cost,
         trajectory: problem.spline_of(&sol.theta),
         residuals: problem.imu_residuals(&sol.theta)?,
+        extra_residuals: (1..n_imus)
+            .map(|j| problem.imu_residuals_of(&sol.theta, j))
+            .collect::<Result<_, _>>()?,
+        n_imus,
         active,
         theta: sol.theta,
         summary: sol.summary,
-        tau_initial: initial.tau_initial,
+        tau_initial: initial.tau_initial[0],
+        extra_tau_initial: initial.tau_initial[1..].to_vec(),
         knot_spacing: initial.knot_spacing,
         joint_fit_rms: initial.joint_fit_rms,
         noise: problem.noise().clone(),
@@ -265,7 +298,8 @@ struct Initial<'f> {
     x: Vec<f64>,
     /// θ of a previous fit (a prefix of the new θ).
     theta: Option<&'f [f64]>,
-    tau_initial: Option<TauEstimate>,
+    /// Per IMU.
+    tau_initial: Vec<Option<TauEstimate>>,
     knot_spacing: f64,
     joint_fit_rms: Vec<f64>,
 }

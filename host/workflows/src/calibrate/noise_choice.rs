@@ -277,7 +277,9 @@ fn identification_of(
     trajectory: &Spline,
     opts: &IdOptions,
 ) -> Result<Identification, String> {
+    // IMU 0 (the prefix of x; docs/model.md §9)
     let layout = ParamLayout::new(robot);
+    let x = &x[..layout.len()];
     let model = MeasurementModel::new(robot, &layout, x).map_err(|e| e.to_string())?;
     let tau = x[layout.offsets().tau];
     let n = robot.dof();

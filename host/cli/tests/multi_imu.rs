@@ -1,0 +1,164 @@
+//! Several IMUs in one session (docs/model.md §9): the joint fit is
+//! consistent (a small Monte Carlo whose bounds fail on a wrong σ), the
+//! shared parameters gain from every IMU, and `robimu simulate --imus`,
+//! `calibrate` (joint) and `calibrate --imu J` work end to end.
+
+use robimu_model::{ParamLayout, Robot};
+use robimu_session::result::CalibrationResult;
+use robimu_session::Truth;
+use robimu_workflows::calibrate::noise_choice::NoiseChoice;
+use robimu_workflows::calibrate::CalibrateOptions;
+use robimu_workflows::montecarlo::{monte_carlo, MonteCarloOptions};
+use robimu_workflows::simulate::SimulateOptions;
+
+mod common;
+use common::{robimu, robimu_ok, s};
+
+/// error/σ pooled over a group of parameters and the runs: mean and std.
+fn pooled(z: &[f64]) -> (f64, f64) {
+    let n = z.len() as f64;
+    let mean = z.iter().sum::<f64>() / n;
+    let var = z.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0);
+    (mean, var.sqrt())
+}
+
+/// 12 runs of 40 s with two IMUs, truths from the priors. Pooled over the
+/// runs, error/σ of IMU 0's own, IMU 1's own and the shared parameters each
+/// has std within 0.15 of 1 (≥ 240 values each: a σ 20 % off fails), and
+/// the shared angles' σ shrink by more than 1.2 against IMU 0 alone (√2 ideal).
+#[test]
+fn two_imu_monte_carlo_is_consistent_and_the_shared_sigma_shrink() {
+    let robot = Robot::aubo_i5();
+    let runs = 12;
+    let opts = MonteCarloOptions {
+        runs,
+        duration: 40.0,
+        seed: 3000,
+        simulate: SimulateOptions::paper(&robot),
+        calibrate: CalibrateOptions::new(&robot),
+        noise: NoiseChoice::White,
+        n_imus: 2,
+        compare_imu0: true,
+    };
+    let res = monte_carlo(&robot, &opts, |_, _| {}).unwrap();
+    let layout = ParamLayout::with_imus(&robot, 2);
+    assert_eq!(res.dof, 76);
+    let one = layout.imu_layout();
+    let groups: [(&str, Vec<usize>); 3] = [
+        ("shared", (0..48).filter(|&k| !one.is_per_imu(k)).collect()),
+        ("IMU 0", (0..48).filter(|&k| one.is_per_imu(k)).collect()),
+        ("IMU 1", (48..76).collect()),
+    ];
+    for (name, members) in &groups {
+        let z: Vec<f64> = res
+            .runs
+            .iter()
+            .flat_map(|r| {
+                members
+                    .iter()
+                    .map(|&k| (r.estimate[k] - r.truth[k]) / r.sigma[k])
+            })
+            .collect();
+        let (mean, std) = pooled(&z);
+        eprintln!("{name}: {} values, mean {mean:+.3}, std {std:.3}", z.len());
+        assert!(z.len() >= 240);
+        assert!(mean.abs() < 0.15, "{name}: mean(error/σ) {mean:.3}");
+        assert!((std - 1.0).abs() < 0.15, "{name}: std(error/σ) {std:.3}");
+    }
+    let gain = res.shared_sigma_gain(&layout);
+    for (name, g) in &gain {
+        eprintln!("{name}: σ(IMU 0 alone)/σ(both) {g:.3}");
+    }
+    let angles: Vec<&(String, f64)> = gain
+        .iter()
+        .filter(|(n, _)| {
+            let k = one.index_of(n).unwrap();
+            one.estimated_errors()
+                .get(k)
+                .is_some_and(|e| !e.is_translation())
+        })
+        .collect();
+    assert_eq!(angles.len(), 10);
+    for (name, g) in angles {
+        assert!(*g > 1.2 && *g < 1.6, "{name}: gain {g:.3}");
+    }
+}
+
+#[test]
+fn simulate_and_calibrate_several_imus_and_one_alone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("three");
+    let run = robimu_ok([
+        "simulate",
+        "--imus",
+        "3",
+        "--duration",
+        "40",
+        "--seed",
+        "8",
+        "--out",
+        s(&dir),
+    ]);
+    assert!(run.stdout.contains("from 3 IMUs"), "{}", run.stdout);
+    for f in ["imu.csv", "imu1.csv", "imu2.csv", "truth.toml"] {
+        assert!(dir.join(f).exists(), "{f}");
+    }
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::with_imus(&robot, 3);
+    let truth = Truth::read(&dir.join("truth.toml")).unwrap();
+    let x_true = truth.vector(&layout).unwrap();
+
+    // the joint fit: every one of the 104 parameters, covariance over all
+    let out = tmp.path().join("joint.json");
+    let run = robimu_ok(["calibrate", s(&dir), "--out", s(&out)]);
+    assert!(
+        run.stdout.contains("3 IMUs fitted jointly"),
+        "{}",
+        run.stdout
+    );
+    let joint = CalibrationResult::read(&out).unwrap();
+    joint.validate().unwrap();
+    assert_eq!(joint.parameters.len(), 104);
+    assert_eq!(joint.covariance.names.len(), 104);
+    for (p, t) in joint.parameters.iter().zip(&x_true) {
+        let z = (p.value - t) / p.sigma;
+        assert!(z.abs() < 4.5, "{}: error {z:.2} σ", p.name);
+    }
+
+    // IMU 2 alone: one-IMU names, its own truth
+    let out2 = tmp.path().join("imu2.json");
+    let run = robimu_ok(["calibrate", s(&dir), "--imu", "2", "--out", s(&out2)]);
+    assert!(!run.stdout.contains("fitted jointly"), "{}", run.stdout);
+    let alone = CalibrationResult::read(&out2).unwrap();
+    assert_eq!(alone.parameters.len(), 48);
+    let map = layout.imu_map(2);
+    for (k, p) in alone.parameters.iter().enumerate() {
+        assert_eq!(p.name, layout.imu_layout().specs()[k].name);
+        let z = (p.value - x_true[map[k]]) / p.sigma;
+        assert!(z.abs() < 4.5, "{}: error {z:.2} σ", p.name);
+        // the joint fit knows the shared parameters better, IMU 2's own about as well
+        let jp = joint.parameter(&layout.specs()[map[k]].name).unwrap();
+        if !layout.imu_layout().is_per_imu(k) && p.sigma < 0.5 * p.prior_sigma {
+            assert!(
+                jp.sigma < p.sigma,
+                "{}: {} vs {}",
+                p.name,
+                jp.sigma,
+                p.sigma
+            );
+        }
+    }
+    // and the table compared IMU 2's estimates with IMU 2's truth
+    assert!(run.stdout.contains("against the truth"), "{}", run.stdout);
+
+    let run = robimu(["calibrate", s(&dir), "--imu", "3"]);
+    assert!(!run.status.success());
+    assert!(
+        run.stderr.contains("--imu 3") && run.stderr.contains("has 3 IMUs"),
+        "{}",
+        run.stderr
+    );
+    let run = robimu(["calibrate", s(&dir), "--effects", "clock_drift"]);
+    assert!(!run.status.success());
+    assert!(run.stderr.contains("one IMU only"), "{}", run.stderr);
+}
