@@ -322,11 +322,17 @@ pub struct KalibrImu<'a> {
 
 /// The comment above the entries of a multi-IMU file.
 fn list_header(imus: &[KalibrImu<'_>]) -> String {
-    let sources: Vec<String> = imus
+    let same = imus
         .iter()
-        .enumerate()
-        .map(|(j, m)| format!("imu{j}: {}", m.opts.noise_source))
-        .collect();
+        .all(|m| m.opts.noise_source == imus[0].opts.noise_source);
+    let sources: Vec<String> = if same {
+        vec![format!("every IMU: {}", imus[0].opts.noise_source)]
+    } else {
+        imus.iter()
+            .enumerate()
+            .map(|(j, m)| format!("imu{j}: {}", m.opts.noise_source))
+            .collect()
+    };
     let mut walks: Vec<String> = Vec::new();
     for m in imus {
         let w = walk_note(m.opts);
