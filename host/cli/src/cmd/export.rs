@@ -131,10 +131,9 @@ impl ExportCmd {
         let text = match self.format {
             ExportFormat::Kalibr if k > 1 => {
                 let mut views = Vec::new();
-                for j in 0..k {
+                for (j, topic) in rostopics.iter().enumerate() {
                     let (view, params) = imu_params(j)?;
-                    let opts =
-                        self.kalibr_options(&view, &robot, session.as_ref(), j, &rostopics[j])?;
+                    let opts = self.kalibr_options(&view, &robot, session.as_ref(), j, topic)?;
                     views.push((params, opts));
                 }
                 let imus: Vec<KalibrImu<'_>> = views
