@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::plot::{banded_line_panels, log_bars, Band, Bar, BarGroup, LinePanel, PlotError};
-use robimu_session::result::{CalibrationResult, NoiseModelRecord};
+use robimu_session::result::{CalibrationResult, NoiseModelRecord, ParameterResult};
 
 /// The groups of the σ-reduction figure, in x order (docs/model.md §5).
 pub const GROUPS: [&str; 5] = [
@@ -40,6 +40,24 @@ pub fn parameter_group(name: &str, imu_link: usize) -> usize {
     }
 }
 
+/// A parameter's bar: posterior σ / prior σ by its name; frozen parameters
+/// and those without a σ without a bar.
+fn sigma_bar(p: &ParameterResult) -> Bar {
+    let ratio = p.sigma / p.prior_sigma;
+    let (value, note) = if p.frozen {
+        (None, "frozen")
+    } else if ratio.is_finite() && ratio > 0.0 {
+        (Some(ratio), "")
+    } else {
+        (None, "no σ")
+    };
+    Bar {
+        label: p.name.clone(),
+        value,
+        note: note.into(),
+    }
+}
+
 /// The bars of the σ-reduction figure: every parameter of `result` by name
 /// with its posterior σ / prior σ, grouped as [`GROUPS`] (empty groups left
 /// out); frozen parameters and those without a σ are listed without a bar.
@@ -58,22 +76,71 @@ pub fn sigma_reduction_groups(result: &CalibrationResult) -> Vec<BarGroup> {
         })
         .collect();
     for p in &result.parameters {
-        let ratio = p.sigma / p.prior_sigma;
-        let (value, note) = if p.frozen {
-            (None, "frozen")
-        } else if ratio.is_finite() && ratio > 0.0 {
-            (Some(ratio), "")
-        } else {
-            (None, "no σ")
-        };
-        groups[parameter_group(&p.name, imu_link)].bars.push(Bar {
-            label: p.name.clone(),
-            value,
-            note: note.into(),
-        });
+        groups[parameter_group(&p.name, imu_link)]
+            .bars
+            .push(sigma_bar(p));
     }
     groups.retain(|g| !g.bars.is_empty());
     groups
+}
+
+/// [`sigma_reduction_groups`] for a result of several IMUs (docs/model.md
+/// §9): the shared robot errors, gravity and shared effects, then per IMU
+/// j its position and time offset, accelerometer, gyroscope and effects
+/// (`IMU j: …`), empty groups left out. `None` for a one-IMU result.
+pub fn sigma_reduction_groups_by_imu(result: &CalibrationResult) -> Option<Vec<BarGroup>> {
+    let sets = result.imu_sets().ok().filter(|s| s.len() > 1)?;
+    let bar = |i: usize| sigma_bar(&result.parameters[i]);
+    let base = |i: usize| {
+        let n = &result.parameters[i].name;
+        robimu_session::result::split_imu_name(n).map_or(n.as_str(), |(_, b)| b)
+    };
+    let mut groups = Vec::new();
+    let mut shared = [
+        ("robot", Vec::new()),
+        ("gravity", Vec::new()),
+        ("effects", Vec::new()),
+    ];
+    for &i in &sets.shared {
+        let g = match parameter_group(base(i), sets.imu_link) {
+            0 => 0,
+            1 => 1,
+            _ => 2,
+        };
+        shared[g].1.push(bar(i));
+    }
+    for (name, bars) in shared {
+        groups.push(BarGroup {
+            name: name.into(),
+            bars,
+        });
+    }
+    for (j, set) in sets.imus.iter().enumerate() {
+        let mut own: Vec<BarGroup> = [
+            "position, time offset",
+            "accelerometer",
+            "gyroscope",
+            "effects",
+        ]
+        .iter()
+        .map(|g| BarGroup {
+            name: format!("IMU {j}: {g}"),
+            bars: Vec::new(),
+        })
+        .collect();
+        for &i in set {
+            let g = match parameter_group(base(i), sets.imu_link) {
+                0 | 1 => 0,
+                2 => 1,
+                3 => 2,
+                _ => 3,
+            };
+            own[g].bars.push(bar(i));
+        }
+        groups.extend(own);
+    }
+    groups.retain(|g| !g.bars.is_empty());
+    Some(groups)
 }
 
 /// `stem.{png,svg}`: the σ-reduction figure of `result`.
@@ -86,7 +153,7 @@ pub fn sigma_reduction_figure(
         "Posterior σ relative to the prior σ, by parameter",
         "posterior σ / prior σ (log scale; 1 = not reduced)",
         1.0,
-        &sigma_reduction_groups(result),
+        &sigma_reduction_groups_by_imu(result).unwrap_or_else(|| sigma_reduction_groups(result)),
     )
 }
 
@@ -305,6 +372,62 @@ mod tests {
         assert_eq!(bars[24].label, "gamma_a_yz");
         // the robot lengths ε_i{1,2,3} of the links before the last
         assert_eq!(bars.iter().filter(|b| b.value.is_none()).count(), 9);
+    }
+
+    /// Two and three IMUs: the shared groups, then each IMU's (position
+    /// and τ 4, accelerometer 12, gyroscope 12 bars), every parameter
+    /// once; a one-IMU result keeps the one-IMU groups.
+    #[test]
+    fn sigma_bars_of_several_imus_are_grouped_by_imu() {
+        let dir = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../cli/tests/fixtures/multi_imu"
+        ));
+        let one = CalibrationResult::read(&dir.join("result1.json")).unwrap();
+        assert!(sigma_reduction_groups_by_imu(&one).is_none());
+        for k in [2usize, 3] {
+            let r = CalibrationResult::read(&dir.join(format!("result{k}.json"))).unwrap();
+            let groups = sigma_reduction_groups_by_imu(&r).unwrap();
+            let mut want = vec![("robot".to_string(), 18), ("gravity".to_string(), 2)];
+            for j in 0..k {
+                want.push((format!("IMU {j}: position, time offset"), 4));
+                want.push((format!("IMU {j}: accelerometer"), 12));
+                want.push((format!("IMU {j}: gyroscope"), 12));
+            }
+            let sizes: Vec<(String, usize)> = groups
+                .iter()
+                .map(|g| (g.name.clone(), g.bars.len()))
+                .collect();
+            assert_eq!(sizes, want);
+            for g in &groups[2..] {
+                let j: usize = g.name[4..5].parse().unwrap();
+                for b in &g.bars {
+                    assert_eq!(
+                        b.label.starts_with(&format!("imu{j}/")),
+                        j > 0,
+                        "{}",
+                        b.label
+                    );
+                    let p = r.parameter(&b.label).unwrap();
+                    assert_eq!(b.value.is_none(), p.frozen);
+                    if let Some(v) = b.value {
+                        assert!((v - p.sigma / p.prior_sigma).abs() < 1e-12 * v);
+                    }
+                }
+            }
+            let tmp = tempfile::tempdir().unwrap();
+            let files = sigma_reduction_figure(&tmp.path().join("s"), &r).unwrap();
+            let svg = std::fs::read_to_string(&files[1]).unwrap();
+            let texts = svg_texts(&svg);
+            for must in ["IMU 2: gyroscope", "imu1/k_a_x", "g_y"] {
+                if must.contains('2') && k < 3 {
+                    continue;
+                }
+                assert!(texts.iter().any(|t| t == must), "no `{must}`");
+            }
+            let font = font();
+            assert!(texts.iter().all(|t| missing_glyphs(&font, t).is_empty()));
+        }
     }
 
     #[test]

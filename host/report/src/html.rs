@@ -121,6 +121,41 @@ impl HtmlPage {
         self.body.push_str("</tbody></table>\n");
     }
 
+    /// A table whose rows come in groups, each under a full-width heading
+    /// row (`<tr class="group">`); cells as in [`Self::table`].
+    pub fn grouped_table(
+        &mut self,
+        id: &str,
+        headers: &[&str],
+        groups: &[(String, Vec<Vec<String>>)],
+    ) {
+        let _ = write!(self.body, "<table id=\"{}\"><thead><tr>", escape(id));
+        for h in headers {
+            let _ = write!(self.body, "<th>{}</th>", escape(h));
+        }
+        self.body.push_str("</tr></thead><tbody>\n");
+        for (title, rows) in groups {
+            let _ = writeln!(
+                self.body,
+                "<tr class=\"group\"><th colspan=\"{}\" style=\"text-align:left\">{}</th></tr>",
+                headers.len(),
+                escape(title)
+            );
+            for row in rows {
+                self.body.push_str("<tr>");
+                for cell in row {
+                    if cell.starts_with("<span class=\"bar\"") {
+                        let _ = write!(self.body, "<td>{cell}</td>");
+                    } else {
+                        let _ = write!(self.body, "<td>{}</td>", escape(cell));
+                    }
+                }
+                self.body.push_str("</tr>\n");
+            }
+        }
+        self.body.push_str("</tbody></table>\n");
+    }
+
     /// A figure: the SVG file inlined, with a caption.
     pub fn figure(&mut self, svg: &Path, caption: &str) -> Result<(), ReportError> {
         let text = std::fs::read_to_string(svg).map_err(io(svg))?;
@@ -340,6 +375,22 @@ pub fn calibration_report_with(
     convergence: Convergence<'_>,
     series: Option<&SessionSeries>,
 ) -> Result<PathBuf, ReportError> {
+    let series = series.map_or(&[][..], std::slice::from_ref);
+    calibration_report_imus(dir, result, truth, convergence, series)
+}
+
+/// [`calibration_report_with`] for a result of several IMUs (docs/model.md
+/// §9): `series[j]` is IMU j's (each under its own parameters,
+/// [`CalibrationResult::imu`]), the trajectory drawn from the first; the
+/// parameter table and the σ figure grouped by IMU. One series (or none)
+/// gives the one-IMU page.
+pub fn calibration_report_imus(
+    dir: &Path,
+    result: &CalibrationResult,
+    truth: Option<&Truth>,
+    convergence: Convergence<'_>,
+    series: &[SessionSeries],
+) -> Result<PathBuf, ReportError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut page = HtmlPage::new("robimu calibration report");
     let mut facts = Vec::new();
@@ -354,6 +405,10 @@ pub fn calibration_report_with(
         "{active} of {} parameters estimated",
         result.parameters.len()
     ));
+    let k = result.imu_count();
+    if k > 1 {
+        facts.push(format!("{k} IMUs (docs/model.md §9)"));
+    }
     page.paragraph(&facts.join("; "));
     verdict_block(&mut page, result);
 
@@ -397,7 +452,21 @@ pub fn calibration_report_with(
             row
         })
         .collect();
-    page.table("parameters", &headers, &rows);
+    if table.sections.is_empty() {
+        page.table("parameters", &headers, &rows);
+    } else {
+        let groups: Vec<(String, Vec<Vec<String>>)> = table
+            .sections
+            .iter()
+            .map(|s| {
+                (
+                    s.title.clone(),
+                    s.rows.iter().map(|&i| rows[i].clone()).collect(),
+                )
+            })
+            .collect();
+        page.grouped_table("parameters", &headers, &groups);
+    }
     if let Some(t) = &table.truth {
         page.paragraph(&format!(
             "Against the truth: largest |error|/σ = {:.2} ({}){}.",
@@ -408,6 +477,17 @@ pub fn calibration_report_with(
                 t.dof
             ))
         ));
+        let per = table.worst_per_section();
+        if !per.is_empty() {
+            let parts: Vec<String> = per
+                .iter()
+                .map(|(title, z, name)| format!("{title} {z:.2} ({name})"))
+                .collect();
+            page.paragraph(&format!(
+                "Largest |error|/σ by section: {}.",
+                parts.join("; ")
+            ));
+        }
     }
     let files = sigma_reduction_figure(&dir.join("posterior_sigma"), result)?;
     page.figure(
@@ -467,7 +547,7 @@ pub fn calibration_report_with(
         page.figure(&files[1], "The solver's cost at each iteration.")?;
     }
 
-    if let Some(s) = series {
+    if let Some(s) = series.first() {
         page.heading("Trajectory");
         let panels: Vec<LinePanel> = s
             .joints
@@ -483,15 +563,22 @@ pub fn calibration_report_with(
         let files = line_panels(&dir.join("trajectory"), "Joint trajectory", &panels, 3)?;
         page.figure(&files[1], "The joint samples of the session.")?;
         page.heading("Residuals");
-        let files = residual_figure(&dir.join("residuals"), &s.residuals, &s.sigma, s.tau)?;
-        page.figure(
-            &files[1],
-            &format!(
-                "Measured minus predicted IMU output over time (the trajectory refitted to the joint samples, τ = {:.2} ms), with the ±1σ band of {}: residuals that fit the noise model stay mostly inside it.",
-                1e3 * s.tau,
-                s.noise_source
-            ),
-        )?;
+        for (j, s) in series.iter().enumerate() {
+            let (stem, who) = if series.len() == 1 {
+                ("residuals".to_string(), String::new())
+            } else {
+                (format!("residuals_imu{j}"), format!("IMU {j}: "))
+            };
+            let files = residual_figure(&dir.join(stem), &s.residuals, &s.sigma, s.tau)?;
+            page.figure(
+                &files[1],
+                &format!(
+                    "{who}Measured minus predicted IMU output over time (the trajectory refitted to the joint samples, τ = {:.2} ms), with the ±1σ band of {}: residuals that fit the noise model stay mostly inside it.",
+                    1e3 * s.tau,
+                    s.noise_source
+                ),
+            )?;
+        }
     }
     let path = dir.join("report.html");
     page.write(&path)?;

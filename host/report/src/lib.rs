@@ -66,4 +66,4 @@ pub mod validation;
 pub mod verdict;
 
 pub use robimu_model::units::DisplayUnit;
-pub use table::{ParameterTable, TableRow, TruthSummary};
+pub use table::{ParameterTable, TableRow, TableSection, TruthSummary};

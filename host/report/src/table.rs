@@ -82,6 +82,47 @@ pub struct ParameterTable {
     pub rows: Vec<TableRow>,
     /// The comparison with the truth, when one was given.
     pub truth: Option<TruthSummary>,
+    /// A result of several IMUs (docs/model.md §9): the shared parameters,
+    /// then each IMU's, under a heading; empty for one IMU (a plain table).
+    pub sections: Vec<TableSection>,
+}
+
+/// A heading of a [`ParameterTable`] and the rows under it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TableSection {
+    /// `shared: robot errors and gravity`, `IMU 1 (imu1.csv)`, …
+    pub title: String,
+    /// Indices into [`ParameterTable::rows`], in file order.
+    pub rows: Vec<usize>,
+}
+
+impl TableSection {
+    /// The sections of `result`: empty for one IMU, else the shared
+    /// parameters, then IMU 0, 1, … ([`CalibrationResult::imu_sets`]).
+    pub fn of(result: &CalibrationResult) -> Vec<Self> {
+        let Ok(sets) = result.imu_sets() else {
+            return Vec::new();
+        };
+        if sets.len() < 2 {
+            return Vec::new();
+        }
+        let mut out = vec![Self {
+            title: "shared: robot errors and gravity".into(),
+            rows: sets.shared.clone(),
+        }];
+        for (j, rows) in sets.imus.iter().enumerate() {
+            let file = if j == 0 {
+                "imu.csv".to_string()
+            } else {
+                format!("imu{j}.csv")
+            };
+            out.push(Self {
+                title: format!("IMU {j} ({file})"),
+                rows: rows.clone(),
+            });
+        }
+        out
+    }
 }
 
 /// `a − b`, wrapped into (−π, π] for angles.
@@ -144,7 +185,29 @@ impl ParameterTable {
             dof: errors.len(),
             missing,
         });
-        Self { rows, truth }
+        Self {
+            rows,
+            truth,
+            sections: TableSection::of(result),
+        }
+    }
+
+    /// Per section with a known truth: its title, the largest |error/σ| and
+    /// where it occurs (empty for one IMU).
+    pub fn worst_per_section(&self) -> Vec<(String, f64, String)> {
+        self.sections
+            .iter()
+            .filter_map(|s| {
+                s.rows
+                    .iter()
+                    .filter_map(|&i| {
+                        let r = &self.rows[i];
+                        r.normalized_error.map(|z| (z.abs(), r.name.clone()))
+                    })
+                    .max_by(|a, b| a.0.total_cmp(&b.0))
+                    .map(|(z, name)| (s.title.clone(), z, name))
+            })
+            .collect()
     }
 }
 
@@ -177,7 +240,26 @@ impl fmt::Display for ParameterTable {
             header.extend(["error", "error/σ"]);
         }
         let mut cells: Vec<Vec<String>> = vec![header.iter().map(|s| s.to_string()).collect()];
-        for r in &self.rows {
+        // one IMU: the rows in order; several: each section's under its title
+        let order: Vec<(Option<&str>, usize)> = if self.sections.is_empty() {
+            (0..self.rows.len()).map(|i| (None, i)).collect()
+        } else {
+            self.sections
+                .iter()
+                .flat_map(|s| {
+                    s.rows
+                        .iter()
+                        .enumerate()
+                        .map(move |(k, &i)| ((k == 0).then_some(s.title.as_str()), i))
+                })
+                .collect()
+        };
+        let mut titles: Vec<(usize, &str)> = Vec::new();
+        for (title, i) in order {
+            let r = &self.rows[i];
+            if let Some(t) = title {
+                titles.push((cells.len(), t));
+            }
             let dp = decimals(r.prior_sigma);
             let d = decimals(r.sigma.unwrap_or(r.prior_sigma));
             let mut line = vec![
@@ -212,7 +294,12 @@ impl fmt::Display for ParameterTable {
             f,
             "values in display units: m as mm, rad as deg, rad/s as deg/s (result files hold SI)"
         )?;
+        let total = width.iter().sum::<usize>() + 2 * (columns - 1);
         for (i, line) in cells.iter().enumerate() {
+            if let Some((_, t)) = titles.iter().find(|(at, _)| *at == i) {
+                let rule = total.saturating_sub(t.chars().count() + 4).max(2);
+                writeln!(f, "-- {t} {}", "-".repeat(rule))?;
+            }
             let mut text = String::new();
             for (c, cell) in line.iter().enumerate() {
                 let pad = width[c] - cell.chars().count();
@@ -230,7 +317,6 @@ impl fmt::Display for ParameterTable {
             }
             writeln!(f, "{}", text.trim_end())?;
             if i == 0 {
-                let total = width.iter().sum::<usize>() + 2 * (columns - 1);
                 writeln!(f, "{}", "-".repeat(total))?;
             }
         }
@@ -252,6 +338,14 @@ impl fmt::Display for ParameterTable {
                 None => write!(f, "; NEES unavailable (covariance not positive definite)")?,
             }
             writeln!(f)?;
+            let per = self.worst_per_section();
+            if !per.is_empty() {
+                let parts: Vec<String> = per
+                    .iter()
+                    .map(|(title, z, name)| format!("{title} {z:.2} ({name})"))
+                    .collect();
+                writeln!(f, "max |error/σ| by section: {}", parts.join("; "))?;
+            }
             if !t.missing.is_empty() {
                 writeln!(f, "the truth does not list: {}", t.missing.join(", "))?;
             }
@@ -398,5 +492,119 @@ mod tests {
             text.contains("0.57296") && text.contains("0.00573"),
             "{text}"
         );
+    }
+
+    const FIXTURES: &str = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../cli/tests/fixtures/multi_imu"
+    );
+
+    fn fixture(k: usize) -> (CalibrationResult, Truth) {
+        let dir = std::path::Path::new(FIXTURES);
+        (
+            CalibrationResult::read(&dir.join(format!("result{k}.json"))).unwrap(),
+            Truth::read(&dir.join(format!("truth{k}.toml"))).unwrap(),
+        )
+    }
+
+    fn golden(name: &str) -> String {
+        std::fs::read_to_string(
+            std::path::Path::new(FIXTURES)
+                .join("one_imu_golden")
+                .join(name),
+        )
+        .unwrap()
+    }
+
+    /// The one-IMU table is the one of d3fc17f (before several IMUs),
+    /// byte for byte, with and without a truth.
+    #[test]
+    fn one_imu_table_is_unchanged() {
+        let (r, t) = fixture(1);
+        let table = ParameterTable::new(&r, None);
+        assert!(table.sections.is_empty());
+        assert_eq!(table.to_string(), golden("table.txt"));
+        assert_eq!(
+            ParameterTable::new(&r, Some(&t)).to_string(),
+            golden("table_truth.txt")
+        );
+    }
+
+    /// Two and three IMUs: the shared parameters first, then each IMU's 28
+    /// under its heading; each IMU's rows are those of its one-IMU view
+    /// (`CalibrationResult::imu`), and the NEES spans every estimated
+    /// parameter.
+    #[test]
+    fn multi_imu_tables_are_grouped_by_imu() {
+        for k in [2, 3] {
+            let (r, t) = fixture(k);
+            let table = ParameterTable::new(&r, Some(&t));
+            let titles: Vec<&str> = table.sections.iter().map(|s| s.title.as_str()).collect();
+            let mut want = vec!["shared: robot errors and gravity".to_string()];
+            want.extend((0..k).map(|j| {
+                if j == 0 {
+                    "IMU 0 (imu.csv)".to_string()
+                } else {
+                    format!("IMU {j} (imu{j}.csv)")
+                }
+            }));
+            assert_eq!(titles, want);
+            assert_eq!(table.sections[0].rows.len(), 20);
+            for j in 0..k {
+                let section = &table.sections[1 + j];
+                assert_eq!(section.rows.len(), 28);
+                let view = ParameterTable::new(&r.imu(j).unwrap(), Some(&view_truth(&t, j)));
+                for &i in &section.rows {
+                    let row = &table.rows[i];
+                    let base = row
+                        .name
+                        .strip_prefix(&format!("imu{j}/"))
+                        .unwrap_or(&row.name);
+                    let v = view.rows.iter().find(|v| v.name == base).unwrap();
+                    assert_eq!(
+                        TableRow {
+                            name: base.to_string(),
+                            ..row.clone()
+                        },
+                        *v
+                    );
+                }
+            }
+            let s = table.truth.as_ref().unwrap();
+            assert_eq!(s.dof, r.covariance.names.len());
+            assert!(s.missing.is_empty());
+            let text = table.to_string();
+            let lines: Vec<&str> = text.lines().collect();
+            // every parameter once, each heading before its first row
+            assert_eq!(lines.len(), 3 + (k + 1) + r.parameters.len() + 2);
+            let at = |needle: &str| lines.iter().position(|l| l.starts_with(needle)).unwrap();
+            assert!(at("-- shared") < at("eps_1_1 ") && at("eps_5_6 ") < at("-- IMU 0"));
+            assert!(at("-- IMU 0") < at("eps_6_1 ") && at("b_w_z ") < at("-- IMU 1"));
+            assert!(at("-- IMU 1") < at("imu1/eps_6_1 "));
+            assert!(lines[at("max |error/σ| by section")].contains(&format!(
+                "IMU {} (imu{}.csv)",
+                k - 1,
+                k - 1
+            )));
+        }
+    }
+
+    /// IMU j's truth under the one-IMU names (the view's).
+    fn view_truth(t: &Truth, j: usize) -> Truth {
+        let prefix = format!("imu{j}/");
+        let mut values: Vec<(String, f64)> = t
+            .values
+            .iter()
+            .filter(|(n, _)| !n.starts_with("imu"))
+            .cloned()
+            .collect();
+        if j > 0 {
+            for (n, v) in &t.values {
+                if let Some(base) = n.strip_prefix(&prefix) {
+                    values.iter_mut().find(|(m, _)| m == base).unwrap().1 = *v;
+                }
+            }
+        }
+        Truth { values }
     }
 }

@@ -15,7 +15,9 @@ use super::input::output_path;
 /// (m/s²) and angular rate (rad/s) in the IMU frame (axes of the flange).
 ///
 /// Input and output are imu.csv files (header `t,ax,ay,az,gx,gy,gz`, SI;
-/// docs/model.md §7); extra input columns are dropped.
+/// docs/model.md §7); extra input columns are dropped. With a result of
+/// several IMUs (docs/model.md §9) the correction is IMU J's (`--imu J`;
+/// without it, J from the input's name `imu.csv` / `imu<J>.csv`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct CorrectCmd {
     /// The calibration result (result.json from `robimu calibrate`).
@@ -23,6 +25,10 @@ pub struct CorrectCmd {
     pub calibration: PathBuf,
     /// The raw IMU CSV.
     pub imu: PathBuf,
+    /// A result of several IMUs: correct with IMU J's parameters [default:
+    /// J of an input named imu<J>.csv, 0 for imu.csv].
+    #[arg(long = "imu", value_name = "J")]
+    pub which_imu: Option<usize>,
     /// File to write [default: <IMU>_corrected.csv beside the input].
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -44,6 +50,21 @@ impl CorrectCmd {
             bail!("--out {}: would overwrite the input", out.display());
         }
         let result = CalibrationResult::read(&self.calibration)?;
+        let k = result.imu_count();
+        let j = match (self.which_imu, imu_of_file(&self.imu)) {
+            (Some(j), _) => j,
+            (None, _) if k == 1 => 0,
+            (None, Some(j)) => j,
+            (None, None) => bail!(
+                "{} has {k} IMUs and {} is not named imu.csv or imu<J>.csv: give --imu J (0 to {})",
+                self.calibration.display(),
+                self.imu.display(),
+                k - 1
+            ),
+        };
+        let result = result
+            .imu(j)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", self.calibration.display()))?;
         let (accel, gyro) = calibrated_intrinsics(&result)
             .with_context(|| format!("{}: no IMU parameters", self.calibration.display()))?;
         let table = read_table(&self.imu, Columns::Fixed(&IMU_COLUMNS))?;
@@ -58,4 +79,17 @@ impl CorrectCmd {
         println!("wrote {} ({} samples)", out.display(), corrected.len());
         Ok(())
     }
+}
+
+/// J of an IMU file named `imu.csv` (0) or `imu<J>.csv` (docs/model.md §9).
+fn imu_of_file(path: &std::path::Path) -> Option<usize> {
+    let name = path.file_name()?.to_str()?;
+    let digits = name.strip_prefix("imu")?.strip_suffix(".csv")?;
+    if digits.is_empty() {
+        return Some(0);
+    }
+    if digits.starts_with('0') {
+        return None;
+    }
+    digits.parse().ok()
 }

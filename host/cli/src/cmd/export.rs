@@ -4,8 +4,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use robimu_model::urdf::UrdfOptions;
+use robimu_model::{ModelParams, Robot};
 use robimu_session::export::imu::{
-    kalibr_imu_yaml, Correction, KalibrOptions, DEFAULT_RANDOM_WALK,
+    kalibr_imu_input_yaml, kalibr_imu_list_yaml, kalibr_imu_yaml, Correction, KalibrImu,
+    KalibrOptions, KalibrPlacement, DEFAULT_RANDOM_WALK,
 };
 use robimu_session::export::robot::{corrected_toml, corrected_urdf};
 use robimu_session::export::{calibrated_params, imu_effects};
@@ -35,6 +37,15 @@ pub enum ExportFormat {
 /// The robot is the one the result names (relative to its session
 /// directory) unless --robot is given; it must be the robot the calibration
 /// was computed for.
+///
+/// A result of several IMUs (docs/model.md §9): `--format kalibr` writes
+/// Kalibr's IMU list (`imu0:`, `imu1:`, … each with its T_i_b relative to
+/// IMU 0 and its time offset) to --out and, beside it, one file per IMU in
+/// the form Kalibr's `--imu` reads (`imu.yaml` → `imu0.yaml`, `imu1.yaml`,
+/// …: OUT's name with the IMU's number after its stem); `--format
+/// correction` one file per IMU named so. `--imu J` writes IMU J's file
+/// alone to --out; the robot formats take IMU 0's position unless --imu
+/// is given.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ExportCmd {
     /// The calibration result (result.json from `robimu calibrate`).
@@ -51,9 +62,14 @@ pub struct ExportCmd {
     /// Kalibr: IMU sample rate, Hz [default: from the result's session imu.csv].
     #[arg(long)]
     pub rate: Option<f64>,
-    /// Kalibr: the `rostopic` key.
-    #[arg(long, default_value = "/imu0")]
-    pub rostopic: String,
+    /// Kalibr: the `rostopic` key, one per IMU (comma-separated) [default:
+    /// /imu0, /imu1, …].
+    #[arg(long, value_delimiter = ',', value_name = "TOPIC")]
+    pub rostopic: Vec<String>,
+    /// A result of several IMUs: export IMU J alone (0 is `imu.csv`'s,
+    /// J ≥ 1 `imu<J>.csv`'s; docs/model.md §9).
+    #[arg(long, value_name = "J")]
+    pub imu: Option<usize>,
     /// Kalibr: accelerometer and gyroscope random walks, m/s^3/sqrt(Hz) and
     /// rad/s^2/sqrt(Hz) (robimu's biases are constant, so these are not
     /// estimated; Kalibr needs them positive) [default: 1e-3,1e-4, of the
@@ -76,6 +92,7 @@ impl ExportCmd {
     pub fn run(self) -> anyhow::Result<()> {
         let out = output_path(Some(&self.out), self.out.clone())?;
         let result = CalibrationResult::read(&self.calibration)?;
+        let k = result.imu_count();
         let session_dir = result.session.as_ref().map(PathBuf::from);
         let result_dir = self.calibration.parent().map(Path::to_path_buf);
         let (spec, spec_base) = match (&self.robot, &result.robot) {
@@ -87,16 +104,122 @@ impl ExportCmd {
             ),
         };
         let (robot, _) = resolve_robot_with(&spec, spec_base.as_deref(), &self.links)?;
-        let params = calibrated_params(&robot, &result).with_context(|| {
-            format!("{} does not fit robot `{spec}`", self.calibration.display())
-        })?;
+        // IMU j's parameters (docs/model.md §9), each as a one-IMU result
+        let imu_params = |j: usize| -> anyhow::Result<(CalibrationResult, ModelParams)> {
+            let view = result
+                .imu(j)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", self.calibration.display()))?;
+            let params = calibrated_params(&robot, &view).with_context(|| {
+                format!("{} does not fit robot `{spec}`", self.calibration.display())
+            })?;
+            Ok((view, params))
+        };
+        if let Some(j) = self.imu {
+            result
+                .imu(j)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", self.calibration.display()))?;
+        }
+        let chosen: Vec<usize> = match self.imu {
+            Some(j) => vec![j],
+            None => (0..k).collect(),
+        };
+        let rostopics = self.rostopics(k)?;
+        let session = match self.format {
+            ExportFormat::Kalibr => session_dir.as_deref().and_then(|d| Session::load(d).ok()),
+            _ => None,
+        };
         let text = match self.format {
-            ExportFormat::Toml => corrected_toml(&robot, &params)?,
-            ExportFormat::Correction => Correction::new(&params)?.to_toml()?,
+            ExportFormat::Kalibr if k > 1 => {
+                let mut views = Vec::new();
+                for (j, topic) in rostopics.iter().enumerate() {
+                    let (view, params) = imu_params(j)?;
+                    let opts = self.kalibr_options(&view, &robot, session.as_ref(), j, topic)?;
+                    views.push((params, opts));
+                }
+                let imus: Vec<KalibrImu<'_>> = views
+                    .iter()
+                    .map(|(p, o)| KalibrImu {
+                        params: p,
+                        opts: o,
+                        placement: KalibrPlacement::relative(&views[0].0, p),
+                    })
+                    .collect();
+                if let Some(j) = self.imu {
+                    kalibr_imu_input_yaml(j, &imus)
+                } else {
+                    for j in 0..k {
+                        write_file(&per_imu_path(&out, j), &kalibr_imu_input_yaml(j, &imus))?;
+                    }
+                    kalibr_imu_list_yaml(&imus)
+                }
+            }
+            ExportFormat::Correction if chosen.len() > 1 => {
+                for &j in &chosen {
+                    let (_, params) = imu_params(j)?;
+                    let text = Correction::new(&params)
+                        .with_context(|| format!("IMU {j}"))?
+                        .to_toml()?;
+                    write_file(&per_imu_path(&out, j), &text)?;
+                }
+                return Ok(());
+            }
+            format => {
+                let j = self.imu.unwrap_or(0);
+                if k > 1 && self.imu.is_none() {
+                    eprintln!(
+                        "note: the result has {k} IMUs: the robot carries IMU 0's position (--imu J for another)"
+                    );
+                }
+                let (view, params) = imu_params(j)?;
+                self.one(
+                    format,
+                    &view,
+                    &robot,
+                    &spec,
+                    spec_base.as_deref(),
+                    &params,
+                    session.as_ref(),
+                    &rostopics[j],
+                )?
+            }
+        };
+        write_file(&out, &text)
+    }
+
+    /// The `rostopic` of each of `k` IMUs: --rostopic (one per IMU), else
+    /// `/imu<j>`.
+    fn rostopics(&self, k: usize) -> anyhow::Result<Vec<String>> {
+        match self.rostopic.len() {
+            0 => Ok((0..k).map(|j| format!("/imu{j}")).collect()),
+            n if n == k => Ok(self.rostopic.clone()),
+            1 if self.imu.is_some() => Ok(vec![self.rostopic[0].clone(); k]),
+            n => bail!(
+                "--rostopic: {n} topics for {k} IMUs (give one per IMU, comma-separated{})",
+                if k > 1 { ", or one with --imu J" } else { "" }
+            ),
+        }
+    }
+
+    /// The export of one IMU's parameters (`view`, `params`).
+    #[allow(clippy::too_many_arguments)]
+    fn one(
+        &self,
+        format: ExportFormat,
+        view: &CalibrationResult,
+        robot: &Robot,
+        spec: &str,
+        spec_base: Option<&Path>,
+        params: &ModelParams,
+        session: Option<&Session>,
+        rostopic: &str,
+    ) -> anyhow::Result<String> {
+        Ok(match format {
+            ExportFormat::Toml => corrected_toml(robot, params)?,
+            ExportFormat::Correction => Correction::new(params)?.to_toml()?,
             ExportFormat::Urdf => {
-                let path = match &spec_base {
-                    Some(b) if Path::new(&spec).is_relative() => b.join(&spec),
-                    _ => PathBuf::from(&spec),
+                let path = match spec_base {
+                    Some(b) if Path::new(spec).is_relative() => b.join(spec),
+                    _ => PathBuf::from(spec),
                 };
                 if !is_urdf(&path) {
                     bail!("--format urdf needs a URDF robot; the robot is `{spec}` (use --format toml, or --robot FILE.urdf)");
@@ -108,33 +231,49 @@ impl ExportCmd {
                     tip: self.links.tip.clone(),
                     ..UrdfOptions::default()
                 };
-                corrected_urdf(&urdf, &opts, &params)?
+                corrected_urdf(&urdf, &opts, params)?
             }
             ExportFormat::Kalibr => {
-                self.kalibr(&result, &robot, &params, session_dir.as_deref())?
+                let j = self.imu.unwrap_or(0);
+                kalibr_imu_yaml(
+                    params,
+                    &self.kalibr_options(view, robot, session, j, rostopic)?,
+                )
             }
-        };
-        std::fs::write(&out, text).with_context(|| format!("cannot write {}", out.display()))?;
-        println!("wrote {}", out.display());
-        Ok(())
+        })
     }
 
-    /// The Kalibr imu.yaml of `params`, the sample rate and noise from
-    /// --rate or the result's session.
-    fn kalibr(
+    /// The Kalibr options of IMU `j` (its one-IMU view `result`): the
+    /// sample rate from --rate or the session's `imu.csv` / `imu<j>.csv`,
+    /// the noise from --noise or the session, the fitted effects.
+    fn kalibr_options(
         &self,
         result: &CalibrationResult,
-        robot: &robimu_model::Robot,
-        params: &robimu_model::ModelParams,
-        session_dir: Option<&Path>,
-    ) -> anyhow::Result<String> {
-        let session = session_dir.and_then(|d| Session::load(d).ok());
-        let rate = match (self.rate, &session) {
+        robot: &Robot,
+        session: Option<&Session>,
+        j: usize,
+        rostopic: &str,
+    ) -> anyhow::Result<KalibrOptions> {
+        let file = if j == 0 {
+            "imu.csv".to_string()
+        } else {
+            format!("imu{j}.csv")
+        };
+        let imu_table = session.and_then(|s| {
+            if j == 0 {
+                Some(&s.imu)
+            } else {
+                s.extra_imus.get(j - 1).map(|t| &t.samples)
+            }
+        });
+        let rate = match (self.rate, imu_table) {
             (Some(r), _) => r,
-            (None, Some(s)) => s
-                .imu
-                .median_rate()
-                .context("the session's imu.csv has no sample interval: give --rate")?,
+            (None, Some(t)) => t.median_rate().with_context(|| {
+                format!("the session's {file} has no sample interval: give --rate")
+            })?,
+            (None, None) if session.is_some() => {
+                bail!("the result's session has no {file}: give --rate")
+            }
             (None, None) => bail!(
                 "the IMU sample rate is unknown (the result's session is not readable): give --rate"
             ),
@@ -142,7 +281,7 @@ impl ExportCmd {
         if !(rate.is_finite() && rate > 0.0) {
             bail!("--rate {rate}: must be a positive number of Hz");
         }
-        let (mut sigma_z, mut noise_source) = match &session {
+        let (mut sigma_z, mut noise_source) = match session {
             Some(s) => (
                 s.noise(robot)?.0,
                 "largest per-sample σ of the session's noise / √rate".to_string(),
@@ -221,19 +360,42 @@ impl ExportCmd {
             );
         }
         let (g_sensitivity, size_effect) = imu_effects(result)?;
-        Ok(kalibr_imu_yaml(
-            params,
-            &KalibrOptions {
-                rate,
-                sigma_z,
-                noise_density,
-                noise_source,
-                rostopic: self.rostopic.clone(),
-                random_walk,
-                random_walk_source,
-                g_sensitivity,
-                size_effect,
-            },
-        ))
+        Ok(KalibrOptions {
+            rate,
+            sigma_z,
+            noise_density,
+            noise_source,
+            rostopic: rostopic.to_string(),
+            random_walk,
+            random_walk_source,
+            g_sensitivity,
+            size_effect,
+        })
     }
+}
+
+/// IMU `j`'s file beside `out`: its stem followed by j (`imu.yaml` →
+/// `imu1.yaml`; `_` between a stem ending in a digit and j).
+pub fn per_imu_path(out: &Path, j: usize) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let sep = if stem.ends_with(|c: char| c.is_ascii_digit()) {
+        "_"
+    } else {
+        ""
+    };
+    let name = match out.extension() {
+        Some(e) => format!("{stem}{sep}{j}.{}", e.to_string_lossy()),
+        None => format!("{stem}{sep}{j}"),
+    };
+    out.with_file_name(name)
+}
+
+/// Write `text` to `path` and say so.
+fn write_file(path: &Path, text: &str) -> anyhow::Result<()> {
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
 }

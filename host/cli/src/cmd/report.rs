@@ -7,7 +7,7 @@ use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
 use robimu_report::convergence::{convergence_path, ConvergenceLog};
 use robimu_report::figures::NoiseBand;
-use robimu_report::html::{calibration_report_with, Convergence, ReportError, SessionSeries};
+use robimu_report::html::{calibration_report_imus, Convergence, ReportError, SessionSeries};
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
 use robimu_workflows::calibrate::choose_knots;
@@ -21,7 +21,9 @@ use super::input::session_robot;
 /// σ, convergence (from NAME.convergence.csv next to NAME.json, written by
 /// `robimu calibrate`; the page says so when it is missing) and, when the
 /// session is found, the joint trajectory and the IMU residuals over time.
-/// The figures are also written as PNG and SVG.
+/// The figures are also written as PNG and SVG. A result of several IMUs
+/// (docs/model.md §9) has its table and σ bars grouped by IMU and one
+/// residual figure per IMU.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ReportCmd {
     /// Result file (result.json, docs/model.md §8).
@@ -54,26 +56,58 @@ pub fn session_series(
     Ok(SessionSeries::new(robot, data, x, &fit.spline, noise)?)
 }
 
-/// The session's trajectory and residual series under `result`.
-pub fn series_for(session: &Session, result: &CalibrationResult) -> anyhow::Result<SessionSeries> {
+/// The session's trajectory and residual series under `result`: one per
+/// IMU of the result (docs/model.md §9), IMU j's residuals of `imu<j>.csv`
+/// under its own parameters ([`CalibrationResult::imu`]).
+pub fn series_for(
+    session: &Session,
+    result: &CalibrationResult,
+) -> anyhow::Result<Vec<SessionSeries>> {
     let robot = session_robot(session)?;
     let layout = ParamLayout::new(&robot);
-    let x = result.values(&layout)?;
     let (sigma_z, sigma_q) = session.noise(&robot)?;
-    session_series(
-        &robot,
-        &session.measurements(),
-        &x,
-        &sigma_q,
-        result.knot_spacing,
-        &NoiseBand::of_fit(result.noise_model.as_ref(), &sigma_z),
-    )
-    .with_context(|| {
-        format!(
-            "cannot plot the session {} under this result",
-            session.dir.display()
-        )
-    })
+    let k = result.imu_count();
+    if k > session.n_imus() {
+        anyhow::bail!(
+            "the result has {k} IMUs but the session {} has {} (imu.csv{})",
+            session.dir.display(),
+            session.n_imus(),
+            (1..session.n_imus())
+                .map(|j| format!(", imu{j}.csv"))
+                .collect::<String>()
+        );
+    }
+    let data = session.measurements();
+    (0..k)
+        .map(|j| {
+            let view = result.imu(j).map_err(anyhow::Error::msg)?;
+            let x = view.values(&layout)?;
+            let data = if k == 1 {
+                data.clone()
+            } else {
+                data.only_imu(j)
+            };
+            session_series(
+                &robot,
+                &data,
+                &x,
+                &sigma_q,
+                result.knot_spacing,
+                &NoiseBand::of_fit(result.noise_model.as_ref(), &sigma_z),
+            )
+            .with_context(|| {
+                format!(
+                    "cannot plot the session {} under this result{}",
+                    session.dir.display(),
+                    if k == 1 {
+                        String::new()
+                    } else {
+                        format!(" (IMU {j})")
+                    }
+                )
+            })
+        })
+        .collect()
 }
 
 /// The costs of the solver's iteration history written next to `result`
@@ -114,8 +148,8 @@ impl ReportCmd {
             None => None,
         };
         let series = match &session {
-            Some(s) => Some(series_for(s, &result)?),
-            None => None,
+            Some(s) => series_for(s, &result)?,
+            None => Vec::new(),
         };
         let truth = session.as_ref().and_then(|s| s.truth.as_ref());
         let history = convergence_history(&self.result)?;
@@ -123,7 +157,7 @@ impl ReportCmd {
             Ok(costs) => Convergence::Costs(costs),
             Err(why) => Convergence::Unavailable(why),
         };
-        let path = calibration_report_with(&dir, &result, truth, convergence, series.as_ref())?;
+        let path = calibration_report_imus(&dir, &result, truth, convergence, &series)?;
         println!("wrote {}", path.display());
         Ok(())
     }

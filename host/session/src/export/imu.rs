@@ -265,6 +265,140 @@ impl KalibrIntrinsics {
 /// otherwise differ by Σ_j (M_a)_ij·(C_i_b·(λ(r_i) − λ(r_j)))_j, a product
 /// of a misalignment and a lever acceleration difference.
 pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
+    let entry = kalibr_entry(params, opts, &KalibrPlacement::default());
+    format!(
+        "# Kalibr imu.yaml written by robimu. Noise densities: {noise}.\n\
+         # Intrinsics from the calibration (IMU frame i = accelerometer axes; body b =\n\
+         # robimu's IMU frame, axes of the robot flange, origin at the accelerometer x axis).\n\
+         {walk}imu0:\n{body}",
+        noise = opts.noise_source,
+        walk = walk_note(opts),
+        body = indent(&entry),
+    )
+}
+
+/// Where one IMU of several sits in Kalibr's multi-IMU terms (docs/model.md
+/// §9): body b is IMU 0's robimu frame (axes of the robot flange, origin at
+/// IMU 0's position p_0 = ε_n1..3), IMU j at p_j with time offset τ_j.
+///
+/// ```text
+/// T_i_b = [C_i_b | C_i_b·(p_0 − p_j)]   (a point x_b of b is x_b + p_0 − p_j from IMU j)
+/// time_offset = τ_j − τ_0                (Kalibr: t_imu0 = t_imuj + time_offset)
+/// ```
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct KalibrPlacement {
+    /// p_0 − p_j, m, in the flange axes.
+    pub offset: [f64; 3],
+    /// τ_j − τ_0, s.
+    pub time_offset: f64,
+}
+
+impl KalibrPlacement {
+    /// IMU `imu`'s placement relative to IMU `reference` (IMU 0), from
+    /// their calibrated parameters (ε_n1..3 of the last link, τ).
+    pub fn relative(reference: &ModelParams, imu: &ModelParams) -> Self {
+        let p = |m: &ModelParams| {
+            let last = m.eps.last().copied().unwrap_or([0.0; 6]);
+            [last[0], last[1], last[2]]
+        };
+        Self {
+            offset: geom::sub(p(reference), p(imu)),
+            time_offset: imu.tau - reference.tau,
+        }
+    }
+}
+
+/// One IMU for [`kalibr_imu_list_yaml`] and [`kalibr_imu_input_yaml`].
+#[derive(Clone, Debug)]
+pub struct KalibrImu<'a> {
+    /// Its calibrated parameters ([`crate::export::calibrated_params`] of
+    /// `CalibrationResult::imu(j)`).
+    pub params: &'a ModelParams,
+    /// Its noise, rate, topic and effects.
+    pub opts: &'a KalibrOptions,
+    /// Where it is relative to IMU 0.
+    pub placement: KalibrPlacement,
+}
+
+/// The comment above the entries of a multi-IMU file.
+fn list_header(imus: &[KalibrImu<'_>]) -> String {
+    let same = imus
+        .iter()
+        .all(|m| m.opts.noise_source == imus[0].opts.noise_source);
+    let sources: Vec<String> = if same {
+        vec![format!("every IMU: {}", imus[0].opts.noise_source)]
+    } else {
+        imus.iter()
+            .enumerate()
+            .map(|(j, m)| format!("imu{j}: {}", m.opts.noise_source))
+            .collect()
+    };
+    let mut walks: Vec<String> = Vec::new();
+    for m in imus {
+        let w = walk_note(m.opts);
+        if !walks.contains(&w) {
+            walks.push(w);
+        }
+    }
+    format!(
+        "# Kalibr IMU file written by robimu from a calibration of {k} IMUs (docs/model.md §9).\n\
+         # Noise densities: {sources}.\n\
+         # Intrinsics from the calibration (IMU frame i = accelerometer axes). Body b = IMU 0's\n\
+         # robimu frame (axes of the robot flange, origin at IMU 0); T_i_b's translation is\n\
+         # C_i_b·(p_0 − p_j) from the IMU positions, time_offset = tau_j − tau_0 (on IMU 0's clock).\n\
+         {walks}",
+        k = imus.len(),
+        sources = sources.join("; "),
+        walks = walks.concat(),
+    )
+}
+
+/// Kalibr's IMU list: `imu0:`, `imu1:`, … one entry per IMU, each as in
+/// [`kalibr_imu_yaml`] with its own T_i_b and time_offset
+/// ([`KalibrPlacement`]) — the form of the IMU file Kalibr writes after a
+/// multi-IMU calibration (its `ImuSetParameters`).
+pub fn kalibr_imu_list_yaml(imus: &[KalibrImu<'_>]) -> String {
+    let mut out = list_header(imus);
+    for (j, m) in imus.iter().enumerate() {
+        out.push_str(&format!(
+            "imu{j}:\n{}",
+            indent(&kalibr_entry(m.params, m.opts, &m.placement))
+        ));
+    }
+    out
+}
+
+/// One IMU as Kalibr's `--imu` input reads it (`kalibr_calibrate_imu_camera
+/// --imu imu0.yaml imu1.yaml …`: the keys at the top level, its
+/// `ImuParameters`), with the calibrated T_i_b, time_offset and intrinsics
+/// of [`kalibr_imu_list_yaml`]'s entry as further keys. `j` names it.
+pub fn kalibr_imu_input_yaml(j: usize, imus: &[KalibrImu<'_>]) -> String {
+    let m = &imus[j];
+    format!(
+        "{}# IMU {j} alone, as kalibr_calibrate_imu_camera --imu reads it (IMU 0 first: the reference).\n{}",
+        list_header(imus),
+        kalibr_entry(m.params, m.opts, &m.placement)
+    )
+}
+
+/// Every line of `text` indented by two spaces.
+fn indent(text: &str) -> String {
+    text.lines().map(|l| format!("  {l}\n")).collect()
+}
+
+/// The note on the random walks.
+fn walk_note(opts: &KalibrOptions) -> String {
+    match &opts.random_walk_source {
+        Some(src) => format!("# Random walks: {src}.\n"),
+        None => "# Random walks are not estimated by the calibration (constant biases):\n\
+                 # the values below are PLACEHOLDERS (robimu export --noise allan.csv, or\n\
+                 # --random-walk A,G).\n"
+            .to_string(),
+    }
+}
+
+/// One IMU's keys, at the top level (see [`kalibr_imu_yaml`]).
+fn kalibr_entry(params: &ModelParams, opts: &KalibrOptions, place: &KalibrPlacement) -> String {
     let (a, g) = (&params.accel, &params.gyro);
     let k = KalibrIntrinsics::new(
         params,
@@ -276,19 +410,19 @@ pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
         largest(&opts.sigma_z[..3]) / opts.rate.sqrt(),
         largest(&opts.sigma_z[3..]) / opts.rate.sqrt(),
     ]);
+    let t = geom::mul_mv(&k.c_i_b, place.offset);
     let mut t_i_b = String::new();
     for r in 0..3 {
         let c = k.c_i_b[r];
-        t_i_b.push_str(&format!("  - [{:?}, {:?}, {:?}, 0.0]\n", c[0], c[1], c[2]));
+        t_i_b.push_str(&format!(
+            "- [{:?}, {:?}, {:?}, {:?}]\n",
+            c[0],
+            c[1],
+            c[2],
+            t[r] + 0.0
+        ));
     }
-    t_i_b.push_str("  - [0.0, 0.0, 0.0, 1.0]\n");
-    let walk_note = match &opts.random_walk_source {
-        Some(src) => format!("# Random walks: {src}.\n"),
-        None => "# Random walks are not estimated by the calibration (constant biases):\n\
-                 # the values below are PLACEHOLDERS (robimu export --noise allan.csv, or\n\
-                 # --random-walk A,G).\n"
-            .to_string(),
-    };
+    t_i_b.push_str("- [0.0, 0.0, 0.0, 1.0]\n");
     let model = if k.levers.is_some() {
         "scale-misalignment-size-effect"
     } else {
@@ -296,7 +430,7 @@ pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
     };
     let levers = k.levers.map_or(String::new(), |[rx, ry, rz]| {
         format!(
-            "    rx_i: {}  # m\n    ry_i: {}  # m\n    rz_i: {}  # m\n",
+            "  rx_i: {}  # m\n  ry_i: {}  # m\n  rz_i: {}  # m\n",
             yaml_vector(&rx),
             yaml_vector(&ry),
             yaml_vector(&rz)
@@ -308,31 +442,26 @@ pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
         "g_sensitivity not fitted: zero"
     };
     format!(
-        "# Kalibr imu.yaml written by robimu. Noise densities: {noise}.\n\
-         # Intrinsics from the calibration (IMU frame i = accelerometer axes; body b =\n\
-         # robimu's IMU frame, axes of the robot flange, origin at the accelerometer x axis).\n\
-         {walk_note}\
-         imu0:\n  \
-         T_i_b:\n{t_i_b}  \
-         accelerometer_noise_density: {acc_nd:?}  # [ m / s^2 / sqrt(Hz) ]\n  \
-         accelerometer_random_walk: {arw:?}  # [ m / s^3 / sqrt(Hz) ]\n  \
-         gyroscope_noise_density: {gyr_nd:?}  # [ rad / s / sqrt(Hz) ]\n  \
-         gyroscope_random_walk: {grw:?}  # [ rad / s^2 / sqrt(Hz) ]\n  \
-         model: {model}\n  \
-         rostopic: {topic}\n  \
-         time_offset: 0.0\n  \
-         update_rate: {rate:?}\n  \
-         accelerometers:\n    M:\n{ma}{levers}    b: {ab}  # m/s^2 (robimu extra)\n  \
-         gyroscopes:\n    A:  # (rad/s)/(m/s^2), {a_note}\n{za}    C_gyro_i:\n{cg}    M:\n{mg}    b: {gb}  # rad/s (robimu extra)\n",
-        noise = opts.noise_source,
+        "T_i_b:\n{t_i_b}\
+         accelerometer_noise_density: {acc_nd:?}  # [ m / s^2 / sqrt(Hz) ]\n\
+         accelerometer_random_walk: {arw:?}  # [ m / s^3 / sqrt(Hz) ]\n\
+         gyroscope_noise_density: {gyr_nd:?}  # [ rad / s / sqrt(Hz) ]\n\
+         gyroscope_random_walk: {grw:?}  # [ rad / s^2 / sqrt(Hz) ]\n\
+         model: {model}\n\
+         rostopic: {topic}\n\
+         time_offset: {dt:?}\n\
+         update_rate: {rate:?}\n\
+         accelerometers:\n  M:\n{ma}{levers}  b: {ab}  # m/s^2 (robimu extra)\n\
+         gyroscopes:\n  A:  # (rad/s)/(m/s^2), {a_note}\n{za}  C_gyro_i:\n{cg}  M:\n{mg}  b: {gb}  # rad/s (robimu extra)\n",
         topic = opts.rostopic,
         rate = opts.rate,
+        dt = place.time_offset + 0.0,
         arw = opts.random_walk[0],
         grw = opts.random_walk[1],
-        ma = yaml_matrix("    ", &k.m_accel),
-        za = yaml_matrix("    ", &k.a_gyro),
-        cg = yaml_matrix("    ", &k.c_gyro_i),
-        mg = yaml_matrix("    ", &k.m_gyro),
+        ma = yaml_matrix("  ", &k.m_accel),
+        za = yaml_matrix("  ", &k.a_gyro),
+        cg = yaml_matrix("  ", &k.c_gyro_i),
+        mg = yaml_matrix("  ", &k.m_gyro),
         ab = yaml_vector(&a.b),
         gb = yaml_vector(&g.b),
     )
@@ -432,7 +561,16 @@ mod tests {
     /// matrices read from the YAML: (a_m, ω_m) for specific force s at the
     /// body origin, ω and ω̇ in the body frame.
     fn kalibr_model(y: &Yaml, s: [f64; 3], w: [f64; 3], wd: [f64; 3]) -> ([f64; 3], [f64; 3]) {
-        let imu = &y["imu0"];
+        kalibr_entry_model(&y["imu0"], s, w, wd)
+    }
+
+    /// [`kalibr_model`] of one entry (the keys of one IMU).
+    fn kalibr_entry_model(
+        imu: &Yaml,
+        s: [f64; 3],
+        w: [f64; 3],
+        wd: [f64; 3],
+    ) -> ([f64; 3], [f64; 3]) {
         let t: Vec<Vec<f64>> = serde_yaml::from_value(imu["T_i_b"].clone()).unwrap();
         let c_i_b: M3 = std::array::from_fn(|r| std::array::from_fn(|c| t[r][c]));
         let acc = &imu["accelerometers"];
@@ -565,5 +703,93 @@ mod tests {
         let imu = &y["imu0"];
         assert_eq!(imu["gyroscope_noise_density"].as_f64(), Some(2e-4));
         assert_eq!(imu["accelerometer_random_walk"].as_f64(), Some(3e-3));
+    }
+
+    /// IMU j of two: its own intrinsics, r_a, position and τ.
+    fn second_imu() -> ModelParams {
+        let mut p = params([0.002, 0.001, -0.003]);
+        p.accel.r = [-0.04, 0.03, 1.9];
+        p.gyro.r = [-0.03, 0.035, 1.88];
+        p.accel.k = [0.97, 1.04, 1.0];
+        p.gyro.b = [-0.02, 0.01, 0.004];
+        p.eps[5][0] += 0.031;
+        p.eps[5][1] -= 0.012;
+        p.eps[5][2] += 0.007;
+        p.tau = 0.0123;
+        p
+    }
+
+    fn two_imus<'a>(
+        p0: &'a ModelParams,
+        p1: &'a ModelParams,
+        o0: &'a KalibrOptions,
+        o1: &'a KalibrOptions,
+    ) -> Vec<KalibrImu<'a>> {
+        vec![
+            KalibrImu {
+                params: p0,
+                opts: o0,
+                placement: KalibrPlacement::relative(p0, p0),
+            },
+            KalibrImu {
+                params: p1,
+                opts: o1,
+                placement: KalibrPlacement::relative(p0, p1),
+            },
+        ]
+    }
+
+    /// Kalibr's multi-IMU terms: T_i_b of IMU 1 maps a point's coordinates
+    /// in IMU 0's frame (flange axes, origin p_0) to IMU 1's accelerometer
+    /// frame, R_a1·(x_f − p_1); an event at robot time T (stamped T − τ_j
+    /// by IMU j, docs/model.md §4.2) is at t_1 + time_offset on IMU 0's
+    /// clock; each entry's equations are that IMU's model; the flat
+    /// `--imu` file has the list entry's keys at the top level.
+    #[test]
+    fn kalibr_list_places_each_imu_relative_to_imu_0() {
+        let mut p0 = params([0.003, -0.005, 0.004]);
+        p0.tau = -0.0042;
+        let p1 = second_imu();
+        let o0 = options(None, None);
+        let mut o1 = options(Some(G), None);
+        o1.rostopic = "/imu1".into();
+        let imus = two_imus(&p0, &p1, &o0, &o1);
+        let list: Yaml = serde_yaml::from_str(&kalibr_imu_list_yaml(&imus)).unwrap();
+        let pos = |p: &ModelParams| [p.eps[5][0], p.eps[5][1], p.eps[5][2]];
+        let x_f = [0.3, -0.2, 0.45];
+        for (j, p) in [(0, &p0), (1, &p1)] {
+            let e = &list[format!("imu{j}").as_str()];
+            let t: Vec<Vec<f64>> = serde_yaml::from_value(e["T_i_b"].clone()).unwrap();
+            let x_b = geom::sub(x_f, pos(&p0));
+            let got: [f64; 3] =
+                std::array::from_fn(|r| (0..3).map(|c| t[r][c] * x_b[c]).sum::<f64>() + t[r][3]);
+            let want = mul_mv(&p.accel.rotation(), geom::sub(x_f, pos(p)));
+            for r in 0..3 {
+                assert!(
+                    (got[r] - want[r]).abs() < 1e-15,
+                    "imu{j}: {got:?} vs {want:?}"
+                );
+            }
+            let big_t = 100.0;
+            let (t0, tj) = (big_t - p0.tau, big_t - p.tau);
+            let dt = e["time_offset"].as_f64().unwrap();
+            assert!((tj + dt - t0).abs() < 1e-12, "imu{j}: {dt}");
+            assert_eq!(e["rostopic"].as_str(), Some(["/imu0", "/imu1"][j]));
+            let (s, w) = ([1.0, -9.0, 3.0], [0.5, -0.7, 1.3]);
+            let (ka, kg) = kalibr_entry_model(e, s, w, [0.0; 3]);
+            let g = if j == 1 { G } else { [[0.0; 3]; 3] };
+            let (ra, rg) = (p.accel.apply(s), add(p.gyro.apply(w), mul_mv(&g, s)));
+            for i in 0..3 {
+                assert!((ka[i] - ra[i]).abs() < 1e-12 && (kg[i] - rg[i]).abs() < 1e-12);
+            }
+            // the flat --imu file: the same keys and values at the top level
+            let flat: Yaml = serde_yaml::from_str(&kalibr_imu_input_yaml(j, &imus)).unwrap();
+            assert_eq!(&flat, e, "imu{j}");
+        }
+        assert!(list["imu2"].is_null());
+        // IMU 0's entry of the list is the one-IMU file's
+        let one: Yaml = serde_yaml::from_str(&kalibr_imu_yaml(&p0, &o0)).unwrap();
+        assert_eq!(one["imu0"], list["imu0"]);
+        assert_eq!(list["imu0"]["time_offset"].as_f64(), Some(0.0));
     }
 }
