@@ -95,7 +95,10 @@ fn both_sensors_are_read_on_every_tick_and_announced_and_reported_apart() {
     for pair in st.chunks(2) {
         assert_eq!(pair[0].sensor, 0);
         assert_eq!(pair[1].sensor, 1);
-        assert_eq!(pair[0].frames_sent, pair[1].frames_sent, "the board's count");
+        assert_eq!(
+            pair[0].frames_sent, pair[1].frames_sent,
+            "the board's count"
+        );
     }
     for k in 0..2 {
         let s = rig.core.status_of(k);
@@ -146,9 +149,10 @@ fn one_sensor_failing_is_reinitialised_alone_and_the_other_keeps_streaming() {
 #[test]
 fn a_missing_second_sensor_is_reported_and_start_refused() {
     let mut rig = TwoRig::new(config_100hz(), 5_000);
-    *rig.bus.borrow_mut() = robimu_bno055_sim::Bno055Bus::one(
-        robimu_bno055_sim::Bno055Sim::new(0x28, support::TimeSource(rig.time.clone())),
-    );
+    *rig.bus.borrow_mut() = robimu_bno055_sim::Bno055Bus::one(robimu_bno055_sim::Bno055Sim::new(
+        0x28,
+        support::TimeSource(rig.time.clone()),
+    ));
     assert!(rig.core.start().is_err());
     assert!(rig.core.sensor_ready_of(0));
     assert!(!rig.core.sensor_ready_of(1));

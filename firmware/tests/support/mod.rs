@@ -216,7 +216,13 @@ impl TwoRig {
             second_address: Some(0x29),
             ..config
         };
-        let core = Acquisition::new(SharedBus(bus.clone()), delay, link.clone(), time.clone(), config);
+        let core = Acquisition::new(
+            SharedBus(bus.clone()),
+            delay,
+            link.clone(),
+            time.clone(),
+            config,
+        );
         Self {
             core,
             time,

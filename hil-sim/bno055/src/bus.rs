@@ -93,7 +93,8 @@ mod tests {
         assert_eq!(bus.chip(0).unwrap().page(), 0);
         assert_eq!(bus.chip(1).unwrap().page(), 1);
         let mut id = [0u8];
-        bus.write_read(0x28, &[crate::regs::CHIP_ID], &mut id).unwrap();
+        bus.write_read(0x28, &[crate::regs::CHIP_ID], &mut id)
+            .unwrap();
         assert_eq!(id, [0xA0]);
         assert_eq!(
             bus.write_read(0x30, &[crate::regs::CHIP_ID], &mut id),
