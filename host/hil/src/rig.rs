@@ -409,7 +409,7 @@ fn second_imu_source(
     }
     let imu1 = SimRigConfig {
         truth: x,
-        seed: config.seed ^ 0x5EC0_0D1,
+        seed: config.seed ^ 0x05EC_00D1,
         chip_clock_error_ppm: second.chip_clock_error_ppm,
         second_imu: None,
         ..config.clone()

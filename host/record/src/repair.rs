@@ -183,12 +183,14 @@ pub fn remap_imu_times(dir: &Path) -> Result<(Vec<(u32, ClockFit)>, usize), Sess
     Ok((first.unwrap_or_default(), unmapped))
 }
 
+/// What [`remap_all_imu_times`] did to one IMU's file: `(j, the clock
+/// fits of its board by segment, rows left as they were)`.
+pub type ImuRemap = (usize, Vec<(u32, ClockFit)>, usize);
+
 /// [`remap_imu_times`] for each IMU of the session (docs/model.md §9),
 /// each from its board's ping log: `(j, fits, rows left as they were)`,
 /// IMU 0 first.
-pub fn remap_all_imu_times(
-    dir: &Path,
-) -> Result<Vec<(usize, Vec<(u32, ClockFit)>, usize)>, SessionError> {
+pub fn remap_all_imu_times(dir: &Path) -> Result<Vec<ImuRemap>, SessionError> {
     let meta_path = dir.join(files::META);
     let meta = if meta_path.is_file() {
         Some(SessionMeta::read(&meta_path)?)
