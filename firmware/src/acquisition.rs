@@ -14,6 +14,16 @@
 //! 4. when due, checks that the chip is still in AMG mode and queues a `Status`;
 //! 5. writes queued bytes only while the port reports `WriteReady`.
 //!
+//! # Two sensors on one bus
+//!
+//! With [`Config::second_address`] the core reads a second BNO055 on the
+//! same bus (protocol 3: every frame names its sensor). Both are read on
+//! the same tick, sensor 0 first, each timestamped just before its own
+//! burst, and share the slot's `seq`; each has its own identity,
+//! temperature, I²C error and re-initialisation counters, and its own
+//! `DeviceInfo` and `Status` frames. A sensor that fails is re-initialised
+//! on its own while the other keeps streaming.
+//!
 //! Nothing waits on the link or the bus beyond one transaction; the exceptions
 //! are configuration (`Configure`, about 40 ms of mode-switch delays) and
 //! re-initialisation (the chip's 650 ms reset time).
@@ -50,8 +60,8 @@
 //! `seq` numbers sample *slots* (deadlines): it advances by one per deadline,
 //! whether the reading was sent, dropped for lack of queue space, missed
 //! because the loop was late, or lost to a failed read. Each of those
-//! failures adds one to `samples_dropped`, so on a lossless link the gaps in
-//! `seq` add up to exactly `samples_dropped`.
+//! failures adds one to that sensor's `samples_dropped`, so on a lossless
+//! link the gaps in each sensor's `seq` add up to exactly its `samples_dropped`.
 //!
 //! # I²C errors
 //!
@@ -71,7 +81,7 @@ use embedded_io::{Read, ReadReady, Write, WriteReady};
 use robimu_protocol::{
     encode_device, CommandError, CommandKind, CommandResult, DeviceInfo, DeviceMessage,
     HostDecoder, HostMessage, ImuSample, Pong, SensorConfig, SensorTiming, Status, DELIMITER,
-    DEVICE_MAX_FRAME_LEN, PROTOCOL_VERSION,
+    DEVICE_MAX_FRAME_LEN, MAX_SENSORS, PROTOCOL_VERSION,
 };
 
 use crate::config::sensor_config_valid;
@@ -98,26 +108,38 @@ fn reached(now: u32, t: u32) -> bool {
     now.wrapping_sub(t) <= i32::MAX as u32
 }
 
-/// The acquisition core over a BNO055 bus `I2C`, a delay `D`, a serial port
-/// `S` and a microsecond clock `C`.
-pub struct Acquisition<I2C, D, S, C> {
-    sensor: Sensor<I2C>,
-    delay: D,
-    serial: S,
-    clock: C,
-    config: Config,
+/// One BNO055 on the bus and its own state.
+#[derive(Debug, Clone, Copy, Default)]
+struct Slot {
+    address: u8,
     identity: Identity,
-    sensor_ready: bool,
-    streaming: bool,
-    schedule: Schedule,
-    next_seq: u32,
+    ready: bool,
     temperature: i8,
     /// Samples until the next temperature read (0: read with the next sample).
     temp_countdown: u16,
     /// Consecutive samples lost to read failures.
     failed_samples: u32,
     next_reinit_us: u32,
+    /// Its sample and I²C counters (the board's in [`Acquisition::counters`]).
+    counters: Status,
+}
+
+/// The acquisition core over a BNO055 bus `I2C`, a delay `D`, a serial port
+/// `S` and a microsecond clock `C`.
+pub struct Acquisition<I2C, D, S, C> {
+    i2c: I2C,
+    slots: [Slot; MAX_SENSORS as usize],
+    /// How many of `slots` are in use (1 or 2).
+    sensors: usize,
+    delay: D,
+    serial: S,
+    clock: C,
+    config: Config,
+    streaming: bool,
+    schedule: Schedule,
+    next_seq: u32,
     next_status_us: u32,
+    /// The board's counters (`t_us`, `frames_sent`, `rx_errors`).
     counters: Status,
     control_dropped: u32,
     /// Lone delimiters queued for resynchronisation, not counted as frames.
@@ -136,21 +158,24 @@ where
     /// A core that has not touched the bus or the port yet; call
     /// [`start`](Self::start) next.
     pub fn new(i2c: I2C, delay: D, serial: S, clock: C, config: Config) -> Self {
+        let mut slots = [Slot::default(); MAX_SENSORS as usize];
+        let mut sensors = 0;
+        for (slot, address) in slots.iter_mut().zip(config.addresses()) {
+            slot.address = address;
+            slot.counters.sensor = sensors as u8;
+            sensors += 1;
+        }
         Self {
-            sensor: Sensor::new(i2c, config.i2c_address),
+            i2c,
+            slots,
+            sensors,
             delay,
             serial,
             clock,
             config,
-            identity: Identity::default(),
-            sensor_ready: false,
             streaming: false,
             schedule: Schedule::new(config.sensor.sample_rate_hz, 0),
             next_seq: 0,
-            temperature: 0,
-            temp_countdown: 0,
-            failed_samples: 0,
-            next_reinit_us: 0,
             next_status_us: 0,
             counters: Status::default(),
             control_dropped: 0,
@@ -160,7 +185,7 @@ where
         }
     }
 
-    /// Boots the sensor and announces the device.
+    /// Boots the sensors and announces the device (one `DeviceInfo` per sensor).
     ///
     /// Retries for up to `boot_timeout_ms` while the chip does not answer (or
     /// answers with a wrong `CHIP_ID`) after power-up, then soft-resets it
@@ -171,14 +196,18 @@ where
     ///
     /// # Errors
     ///
-    /// Why the sensor is not ready. The core stays usable either way: it
+    /// Why a sensor is not ready (the first one's). The core stays usable either way: it
     /// answers the host, and retries the sensor every `reinit_backoff_ms`
     /// and on `Start`. [`Error::InvalidSampleRate`] if the configured rate is
     /// outside 1..=1000 Hz (the sensor is up, but streaming waits for a valid
     /// `Configure`).
     pub fn start(&mut self) -> Result<(), Error> {
         self.queue_delimiter();
-        let result = self.boot();
+        let mut result = Ok(());
+        for k in 0..self.sensors {
+            let booted = self.boot(k);
+            result = result.and(booted);
+        }
         self.queue_info();
         let rate_valid = sensor_config_valid(&self.config.sensor);
         if self.config.autostart && rate_valid {
@@ -198,8 +227,10 @@ where
         self.receive();
         let now = self.clock.now_us();
         self.counters.t_us = now;
-        if !self.sensor_ready && reached(now, self.next_reinit_us) {
-            self.reinitialise();
+        for k in 0..self.sensors {
+            if !self.slot(k).ready && reached(now, self.slot(k).next_reinit_us) {
+                self.reinitialise(k);
+            }
         }
         if self.streaming {
             self.sample_if_due();
@@ -208,12 +239,29 @@ where
         self.flush();
     }
 
-    /// The health counters (`t_us` is the time of the last poll).
+    /// The health counters of sensor 0 (`t_us` is the time of the last poll).
     pub fn status(&self) -> Status {
+        self.status_of(0)
+    }
+
+    /// The health counters of sensor `k` (the board's `t_us`,
+    /// `frames_sent` and `rx_errors`; sensor 0's for a `k` out of range).
+    pub fn status_of(&self, k: usize) -> Status {
+        let own = self.slot(k).counters;
         Status {
             streaming: self.streaming,
+            samples_sent: own.samples_sent,
+            samples_dropped: own.samples_dropped,
+            i2c_errors: own.i2c_errors,
+            sensor_reinits: own.sensor_reinits,
+            sensor: own.sensor,
             ..self.counters
         }
+    }
+
+    /// How many sensors the board reads (1, or 2 with [`Config::second_address`]).
+    pub fn sensors(&self) -> usize {
+        self.sensors
     }
 
     /// Replies and status frames that did not fit the transmit queue (not
@@ -227,9 +275,14 @@ where
         self.streaming
     }
 
-    /// Whether the sensor is initialised and configured.
+    /// Whether every sensor is initialised and configured.
     pub fn sensor_ready(&self) -> bool {
-        self.sensor_ready
+        (0..self.sensors).all(|k| self.slot(k).ready)
+    }
+
+    /// Whether sensor `k` is initialised and configured.
+    pub fn sensor_ready_of(&self, k: usize) -> bool {
+        k < self.sensors && self.slot(k).ready
     }
 
     /// The settings in force.
@@ -237,9 +290,14 @@ where
         &self.config
     }
 
-    /// The identity read at the last (re-)initialisation (zeros before one succeeded).
+    /// Sensor 0's identity read at the last (re-)initialisation (zeros before one succeeded).
     pub fn identity(&self) -> Identity {
-        self.identity
+        self.slot(0).identity
+    }
+
+    /// Sensor `k`'s identity (sensor 0's for a `k` out of range).
+    pub fn identity_of(&self, k: usize) -> Identity {
+        self.slot(k).identity
     }
 
     /// The next sample deadline on the device clock, µs (wrapping), while
@@ -253,45 +311,82 @@ where
         self.tx.len()
     }
 
-    /// The `DeviceInfo` the core sends: identity, settings and the scales of
+    /// The `DeviceInfo` the core sends for sensor 0: identity, settings and the scales of
     /// the raw counts (0.01 m/s², 1/900 rad/s and 1 °C per count, from
     /// `UNIT_SEL`; the BNO055 scales its output registers independently of
     /// the range).
     pub fn device_info(&self) -> DeviceInfo {
+        self.device_info_of(0)
+    }
+
+    /// The `DeviceInfo` of sensor `k` (sensor 0's for a `k` out of range).
+    pub fn device_info_of(&self, k: usize) -> DeviceInfo {
+        let slot = self.slot(k);
+        let identity = slot.identity;
         DeviceInfo {
             firmware_version: FIRMWARE_VERSION,
             protocol_version: PROTOCOL_VERSION,
-            chip_id: self.identity.chip_id,
-            accel_id: self.identity.accel_id,
-            mag_id: self.identity.mag_id,
-            gyro_id: self.identity.gyro_id,
-            sw_revision: self.identity.sw_revision,
-            bootloader_revision: self.identity.bootloader_revision,
+            chip_id: identity.chip_id,
+            accel_id: identity.accel_id,
+            mag_id: identity.mag_id,
+            gyro_id: identity.gyro_id,
+            sw_revision: identity.sw_revision,
+            bootloader_revision: identity.bootloader_revision,
             config: self.config.sensor,
             accel_scale_mps2_per_lsb: regs::ACCEL_SCALE_MPS2_PER_LSB,
             gyro_scale_rads_per_lsb: regs::GYRO_SCALE_RADS_PER_LSB,
             temp_scale_c_per_lsb: regs::TEMP_SCALE_C_PER_LSB,
             timing: SensorTiming::of(&self.config.sensor),
+            sensor: slot.counters.sensor,
+            sensors: self.sensors as u8,
         }
     }
 
-    /// The bus (a simulator runs the simulated chip's clocks through it).
+    /// The bus (a simulator runs the simulated chips' clocks through it).
     pub fn bus_mut(&mut self) -> &mut I2C {
-        self.sensor.bus_mut()
+        &mut self.i2c
     }
 
     /// Gives back the bus, delay, port and clock.
     pub fn release(self) -> (I2C, D, S, C) {
-        (self.sensor.release(), self.delay, self.serial, self.clock)
+        (self.i2c, self.delay, self.serial, self.clock)
     }
 
     // ----- sensor -------------------------------------------------------
 
+    /// Sensor `k`'s state (sensor 0's for a `k` out of range).
+    fn slot(&self, k: usize) -> &Slot {
+        let [first, ..] = &self.slots;
+        if k < self.sensors {
+            self.slots.get(k).unwrap_or(first)
+        } else {
+            first
+        }
+    }
+
+    fn slot_mut(&mut self, k: usize) -> &mut Slot {
+        let k = if k < self.sensors { k } else { 0 };
+        let [first, rest @ ..] = &mut self.slots;
+        match k.checked_sub(1) {
+            None => first,
+            Some(i) => match rest.get_mut(i) {
+                Some(slot) => slot,
+                None => first,
+            },
+        }
+    }
+
+    /// The driver of sensor `k` over the shared bus.
+    fn sensor(&mut self, k: usize) -> Sensor<&mut I2C> {
+        let address = self.slot(k).address;
+        Sensor::new(&mut self.i2c, address)
+    }
+
     /// Retries [`bring_up`](Self::bring_up) while the chip boots.
-    fn boot(&mut self) -> Result<(), Error> {
+    fn boot(&mut self, k: usize) -> Result<(), Error> {
         let mut waited_ms = 0u32;
         loop {
-            match self.bring_up() {
+            match self.bring_up(k) {
                 Ok(()) => return Ok(()),
                 Err(Error::Bus(_) | Error::WrongChipId(_))
                     if waited_ms < self.config.boot_timeout_ms =>
@@ -300,57 +395,68 @@ where
                     waited_ms = waited_ms.saturating_add(BOOT_RETRY_MS);
                 }
                 Err(e) => {
-                    self.sensor_down();
+                    self.sensor_down(k);
                     return Err(e);
                 }
             }
         }
     }
 
-    /// One attempt at initialising and configuring the sensor.
-    fn bring_up(&mut self) -> Result<(), Error> {
-        self.sensor_ready = false;
-        let identity = self.sensor.init(&mut self.delay)?;
-        self.identity = identity;
-        self.sensor
-            .configure(&self.config.sensor, false, &mut self.delay)?;
-        self.sensor_ready = true;
-        self.failed_samples = 0;
+    /// One attempt at initialising and configuring sensor `k`.
+    fn bring_up(&mut self, k: usize) -> Result<(), Error> {
+        self.slot_mut(k).ready = false;
+        let address = self.slot(k).address;
+        if k > 0 && address == self.slot(0).address {
+            return Err(Error::InvalidAddress(address));
+        }
+        let config = self.config.sensor;
+        let mut sensor = Sensor::new(&mut self.i2c, address);
+        let identity = sensor.init(&mut self.delay)?;
+        self.slot_mut(k).identity = identity;
+        let mut sensor = Sensor::new(&mut self.i2c, address);
+        sensor.configure(&config, false, &mut self.delay)?;
+        let slot = self.slot_mut(k);
+        slot.ready = true;
+        slot.failed_samples = 0;
         Ok(())
     }
 
-    /// Re-initialises after failures; counts it and announces the device.
-    fn reinitialise(&mut self) {
-        match self.bring_up() {
+    /// Re-initialises sensor `k` after failures; counts it and announces it.
+    fn reinitialise(&mut self, k: usize) {
+        match self.bring_up(k) {
             Ok(()) => {
-                self.counters.sensor_reinits = self.counters.sensor_reinits.wrapping_add(1);
-                self.queue_info();
+                let c = &mut self.slot_mut(k).counters;
+                c.sensor_reinits = c.sensor_reinits.wrapping_add(1);
+                self.queue_info_of(k);
             }
             Err(e) => {
-                self.count_error(&e);
-                self.sensor_down();
+                self.count_error(k, &e);
+                self.sensor_down(k);
             }
         }
     }
 
-    fn sensor_down(&mut self) {
-        self.sensor_ready = false;
+    fn sensor_down(&mut self, k: usize) {
         let backoff_us = self
             .config
             .reinit_backoff_ms
             .min(MAX_STATUS_PERIOD_MS)
             .saturating_mul(1000);
-        self.next_reinit_us = self.clock.now_us().wrapping_add(backoff_us);
+        let next = self.clock.now_us().wrapping_add(backoff_us);
+        let slot = self.slot_mut(k);
+        slot.ready = false;
+        slot.next_reinit_us = next;
     }
 
-    fn count_error(&mut self, e: &Error) {
+    fn count_error(&mut self, k: usize, e: &Error) {
         if e.is_bus() {
-            self.count_i2c_error();
+            self.count_i2c_error(k);
         }
     }
 
-    fn count_i2c_error(&mut self) {
-        self.counters.i2c_errors = self.counters.i2c_errors.wrapping_add(1);
+    fn count_i2c_error(&mut self, k: usize) {
+        let c = &mut self.slot_mut(k).counters;
+        c.i2c_errors = c.i2c_errors.wrapping_add(1);
     }
 
     // ----- sampling -----------------------------------------------------
@@ -359,8 +465,10 @@ where
         let now = self.clock.now_us();
         self.streaming = true;
         self.schedule = Schedule::new(self.config.sensor.sample_rate_hz, now);
-        self.temp_countdown = 0;
-        self.failed_samples = 0;
+        for slot in self.slots.iter_mut() {
+            slot.temp_countdown = 0;
+            slot.failed_samples = 0;
+        }
         self.next_status_us = now.wrapping_add(self.status_period_us());
     }
 
@@ -369,72 +477,87 @@ where
         let Some(missed) = self.schedule.poll(now) else {
             return;
         };
-        self.drop_slots(missed);
-        if !self.sensor_ready {
-            self.drop_slots(1);
+        self.next_seq = self.next_seq.wrapping_add(missed);
+        for k in 0..self.sensors {
+            self.count_dropped(k, missed);
+            self.sample_sensor(k);
+        }
+        self.next_seq = self.next_seq.wrapping_add(1);
+    }
+
+    /// Reads sensor `k` for the current slot and queues its sample.
+    fn sample_sensor(&mut self, k: usize) {
+        if !self.slot(k).ready {
+            self.count_dropped(k, 1);
             return;
         }
-        let Some((t_us, reading)) = self.read_with_retries() else {
-            self.drop_slots(1);
-            self.failed_samples = self.failed_samples.saturating_add(1);
-            if self.failed_samples >= u32::from(self.config.reinit_after_failures.max(1)) {
-                self.reinitialise();
+        let Some((t_us, reading)) = self.read_with_retries(k) else {
+            self.count_dropped(k, 1);
+            let limit = u32::from(self.config.reinit_after_failures.max(1));
+            let slot = self.slot_mut(k);
+            slot.failed_samples = slot.failed_samples.saturating_add(1);
+            if slot.failed_samples >= limit {
+                self.reinitialise(k);
             }
             return;
         };
-        self.failed_samples = 0;
-        self.read_temperature_if_due();
+        self.slot_mut(k).failed_samples = 0;
+        self.read_temperature_if_due(k);
+        let slot = self.slot(k);
         let sample = ImuSample {
+            sensor: slot.counters.sensor,
             seq: self.next_seq,
             t_us,
             accel_raw: reading.accel,
             gyro_raw: reading.gyro,
-            temp_raw: self.temperature,
+            temp_raw: slot.temperature,
         };
-        self.next_seq = self.next_seq.wrapping_add(1);
         let mut buf = [0u8; DEVICE_MAX_FRAME_LEN];
         let queued = match encode_device(&DeviceMessage::Sample(sample), &mut buf) {
             Ok(frame) => self.tx.push_with_reserve(frame, TX_RESERVE),
             Err(_) => false,
         };
+        let c = &mut self.slot_mut(k).counters;
         if queued {
-            self.counters.samples_sent = self.counters.samples_sent.wrapping_add(1);
+            c.samples_sent = c.samples_sent.wrapping_add(1);
         } else {
-            self.counters.samples_dropped = self.counters.samples_dropped.wrapping_add(1);
+            c.samples_dropped = c.samples_dropped.wrapping_add(1);
         }
     }
 
-    /// Skips `n` slots: their sequence numbers are used up and they count as dropped.
-    fn drop_slots(&mut self, n: u32) {
-        self.next_seq = self.next_seq.wrapping_add(n);
-        self.counters.samples_dropped = self.counters.samples_dropped.wrapping_add(n);
+    /// Counts `n` of sensor `k`'s slots as dropped (their sequence numbers are used up).
+    fn count_dropped(&mut self, k: usize, n: u32) {
+        let c = &mut self.slot_mut(k).counters;
+        c.samples_dropped = c.samples_dropped.wrapping_add(n);
     }
 
-    /// The burst read, retried; returns the clock just before the successful burst.
-    fn read_with_retries(&mut self) -> Option<(u32, AmgReading)> {
+    /// Sensor `k`'s burst read, retried; returns the clock just before the successful burst.
+    fn read_with_retries(&mut self, k: usize) -> Option<(u32, AmgReading)> {
         for _ in 0..self.config.read_attempts.max(1) {
             let t_us = self.clock.now_us();
-            match self.sensor.read() {
+            match self.sensor(k).read() {
                 Ok(reading) => return Some((t_us, reading)),
-                Err(_) => self.count_i2c_error(),
+                Err(_) => self.count_i2c_error(k),
             }
         }
         None
     }
 
-    /// Reads `TEMP` about once a second (the BNO055 updates it at 1 Hz);
+    /// Reads sensor `k`'s `TEMP` about once a second (the BNO055 updates it at 1 Hz);
     /// on failure keeps the last value and tries again with the next sample.
-    fn read_temperature_if_due(&mut self) {
-        if self.temp_countdown > 0 {
-            self.temp_countdown -= 1;
+    fn read_temperature_if_due(&mut self, k: usize) {
+        if self.slot(k).temp_countdown > 0 {
+            self.slot_mut(k).temp_countdown -= 1;
             return;
         }
-        match self.sensor.read_temperature() {
+        let countdown = self.config.sensor.sample_rate_hz.saturating_sub(1);
+        match self.sensor(k).read_temperature() {
             Ok(t) => {
-                self.temperature = t;
-                self.temp_countdown = self.config.sensor.sample_rate_hz.saturating_sub(1);
+                let slot = self.slot_mut(k);
+                slot.temperature = t;
+                slot.temp_countdown = countdown;
             }
-            Err(_) => self.count_i2c_error(),
+            Err(_) => self.count_i2c_error(k),
         }
     }
 
@@ -458,12 +581,14 @@ where
             // More than a period late: restart the cadence from now.
             self.next_status_us = now.wrapping_add(period);
         }
-        if self.sensor_ready {
-            match self.sensor.check_amg() {
-                Ok(()) => {}
-                Err(e @ Error::Bus(_)) => self.count_error(&e),
-                // Out of AMG mode: the chip reset itself.
-                Err(_) => self.reinitialise(),
+        for k in 0..self.sensors {
+            if self.slot(k).ready {
+                match self.sensor(k).check_amg() {
+                    Ok(()) => {}
+                    Err(e @ Error::Bus(_)) => self.count_error(k, &e),
+                    // Out of AMG mode: the chip reset itself.
+                    Err(_) => self.reinitialise(k),
+                }
             }
         }
         self.queue_status();
@@ -534,19 +659,38 @@ where
         }
         let previous = self.config.sensor;
         self.config.sensor = sensor;
-        let result = if self.sensor_ready {
-            self.sensor.configure(&sensor, true, &mut self.delay)
-        } else {
-            self.bring_up()
-        };
-        match result {
-            Ok(()) => Ok(()),
-            Err(e) => {
-                self.count_error(&e);
-                self.config.sensor = previous;
-                self.sensor_down();
-                Err(CommandError::SensorFault)
+        let mut failed = false;
+        for k in 0..self.sensors {
+            if let Err(e) = self.apply(k, &sensor) {
+                self.count_error(k, &e);
+                self.sensor_down(k);
+                failed = true;
             }
+        }
+        if !failed {
+            return Ok(());
+        }
+        // Back to the settings in force: a sensor that took the new ones
+        // is set back (one that fails that is re-initialised later).
+        self.config.sensor = previous;
+        for k in 0..self.sensors {
+            if self.slot(k).ready {
+                if let Err(e) = self.apply(k, &previous) {
+                    self.count_error(k, &e);
+                    self.sensor_down(k);
+                }
+            }
+        }
+        Err(CommandError::SensorFault)
+    }
+
+    /// Configures sensor `k` with `sensor` (brings it up if it is down).
+    fn apply(&mut self, k: usize, sensor: &SensorConfig) -> Result<(), Error> {
+        if self.slot(k).ready {
+            let address = self.slot(k).address;
+            Sensor::new(&mut self.i2c, address).configure(sensor, true, &mut self.delay)
+        } else {
+            self.bring_up(k)
         }
     }
 
@@ -557,10 +701,12 @@ where
         if !sensor_config_valid(&self.config.sensor) {
             return Err(CommandError::InvalidConfig);
         }
-        if !self.sensor_ready {
-            self.reinitialise();
-            if !self.sensor_ready {
-                return Err(CommandError::SensorFault);
+        for k in 0..self.sensors {
+            if !self.slot(k).ready {
+                self.reinitialise(k);
+                if !self.slot(k).ready {
+                    return Err(CommandError::SensorFault);
+                }
             }
         }
         self.begin_streaming();
@@ -575,12 +721,22 @@ where
         }
     }
 
+    /// Queues every sensor's `DeviceInfo`.
     fn queue_info(&mut self) {
-        self.queue_control(&DeviceMessage::Info(self.device_info()));
+        for k in 0..self.sensors {
+            self.queue_info_of(k);
+        }
     }
 
+    fn queue_info_of(&mut self, k: usize) {
+        self.queue_control(&DeviceMessage::Info(self.device_info_of(k)));
+    }
+
+    /// Queues every sensor's `Status`.
     fn queue_status(&mut self) {
-        self.queue_control(&DeviceMessage::Status(self.status()));
+        for k in 0..self.sensors {
+            self.queue_control(&DeviceMessage::Status(self.status_of(k)));
+        }
     }
 
     fn queue_result(&mut self, command: CommandKind, result: Result<(), CommandError>) {

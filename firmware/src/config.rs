@@ -18,8 +18,12 @@ pub const MAX_SAMPLE_RATE_HZ: u16 = 1000;
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Config {
-    /// BNO055 7-bit address, 0x28 or 0x29 ([`BNO055_ADDRESSES`]).
+    /// BNO055 7-bit address, 0x28 or 0x29 ([`BNO055_ADDRESSES`]): sensor 0.
     pub i2c_address: u8,
+    /// The address of a second BNO055 on the same bus (sensor 1; the other
+    /// of [`BNO055_ADDRESSES`]), or `None` for a one-sensor board. Both are
+    /// read on the same tick, each with its own counters and re-initialisation.
+    pub second_address: Option<u8>,
     /// Ranges, bandwidths and the sample rate (1..=1000 Hz).
     pub sensor: SensorConfig,
     /// Period of the `Status` frames sent while streaming, ms; 0 disables
@@ -43,6 +47,7 @@ impl Default for Config {
     fn default() -> Self {
         Self {
             i2c_address: 0x28,
+            second_address: None,
             sensor: SensorConfig::default(),
             status_period_ms: 1000,
             autostart: false,
@@ -51,6 +56,13 @@ impl Default for Config {
             reinit_after_failures: 3,
             reinit_backoff_ms: 1000,
         }
+    }
+}
+
+impl Config {
+    /// The sensors' addresses, sensor 0 first.
+    pub fn addresses(&self) -> impl Iterator<Item = u8> {
+        core::iter::once(self.i2c_address).chain(self.second_address)
     }
 }
 

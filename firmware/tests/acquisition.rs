@@ -96,7 +96,7 @@ fn boot_waits_for_a_booting_chip_and_announces_the_device() {
         info,
         DeviceInfo {
             firmware_version: [0, 1, 0],
-            protocol_version: 2,
+            protocol_version: 3,
             chip_id: 0xA0,
             accel_id: 0xFB,
             mag_id: 0x32,
@@ -114,6 +114,8 @@ fn boot_waits_for_a_booting_chip_and_announces_the_device() {
                 gyro_bandwidth_hz: 116.0,
                 gyro_odr_hz: 1000.0,
             },
+            sensor: 0,
+            sensors: 1,
         }
     );
     let status = rig.core.status();

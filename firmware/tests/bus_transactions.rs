@@ -124,6 +124,7 @@ fn boot_and_two_samples_use_exactly_these_transactions() {
     assert_eq!(
         samples[0],
         ImuSample {
+            sensor: 0,
             seq: 0,
             t_us: 10,
             accel_raw: [1, -2, 3],

@@ -1,7 +1,9 @@
 //! A simulated IMU board on a pseudo-terminal.
 //!
 //! [`SimDevice::spawn`] runs the firmware's acquisition core in a thread:
-//! its bus is a [`Bno055Sim`] fed by a [`SampleSource`], its delay is
+//! its bus is a [`Bno055Bus`] with one [`Bno055Sim`] fed by a
+//! [`SampleSource`], or two (0x28 and 0x29, [`SimDeviceConfig::second`],
+//! each with its own source and chip clock), its delay is
 //! `thread::sleep`, its clock is [`DriftingClock`] (host monotonic time with
 //! an offset and a rate error), and its serial port is the master side of a
 //! pseudo-terminal pair. The slave side's path ([`SimDevice::port_path`]) is
@@ -21,7 +23,7 @@ use embedded_hal::delay::DelayNs;
 use nix::errno::Errno;
 use nix::fcntl::{fcntl, FcntlArg, OFlag};
 use nix::poll::{poll, PollFd, PollFlags};
-use robimu_bno055_sim::{Bno055Sim, ChipModel, SampleSource, SineSource};
+use robimu_bno055_sim::{Bno055Bus, Bno055Sim, ChipModel, SampleSource, SineSource};
 use robimu_firmware::{Acquisition, Clock, Config};
 use robimu_protocol::Status;
 use serialport::{SerialPort, TTYPort};
@@ -67,6 +69,18 @@ pub struct SimDeviceConfig {
     pub poll_interval: Duration,
     /// Seed of the injected serial faults ([`SimDevice::set_serial_faults`]).
     pub fault_seed: u64,
+    /// A second BNO055 on the bus (sensor 1, at `config.second_address`,
+    /// or the other address than `config.i2c_address` when that is `None`).
+    pub second: Option<SecondSensor>,
+}
+
+/// The second simulated BNO055 of a two-sensor board: its own readings
+/// (its own mounting, noise and biases) and its own chip clock.
+pub struct SecondSensor {
+    /// The readings it serves.
+    pub source: Box<dyn SampleSource + Send>,
+    /// Its internal clock rate error, ppm (datasheet mode).
+    pub chip_clock_error_ppm: f64,
 }
 
 impl SimDeviceConfig {
@@ -83,6 +97,7 @@ impl SimDeviceConfig {
             boot_busy_transactions: 0,
             poll_interval: Duration::from_micros(200),
             fault_seed: 1,
+            second: None,
         }
     }
 }
@@ -288,9 +303,11 @@ impl embedded_io::Write for PtySerial {
     }
 }
 
+/// The simulated chips' bus.
+pub type SimBus = Bno055Bus<Box<dyn SampleSource + Send>>;
+
 /// The acquisition core as the simulated device runs it.
-pub type SimCore =
-    Acquisition<Bno055Sim<Box<dyn SampleSource + Send>>, SleepDelay, PtySerial, DriftingClock>;
+pub type SimCore = Acquisition<SimBus, SleepDelay, PtySerial, DriftingClock>;
 
 /// A running simulated device; stopped on [`stop`](Self::stop) or drop.
 pub struct SimDevice {
@@ -392,13 +409,58 @@ impl Drop for SimDevice {
     }
 }
 
-fn run(config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Status {
-    let sim = Bno055Sim::new(config.config.i2c_address, config.source)
-        .with_model(config.chip_model)
-        .with_clock_error_ppm(config.chip_clock_error_ppm)
-        .booting_for(config.boot_busy_transactions);
+/// The chips, powered up with their sources (`[first, second]`).
+fn chips(
+    config: &SimDeviceConfig,
+    firmware: &Config,
+    sources: [Option<Box<dyn SampleSource + Send>>; 2],
+    clock_error_ppm: [f64; 2],
+) -> SimBus {
+    let addresses = [firmware.i2c_address, firmware.second_address.unwrap_or(0)];
+    let mut made =
+        sources
+            .into_iter()
+            .zip(addresses)
+            .zip(clock_error_ppm)
+            .map(|((source, address), ppm)| {
+                source.map(|s| {
+                    Bno055Sim::new(address, s)
+                        .with_model(config.chip_model)
+                        .with_clock_error_ppm(ppm)
+                        .booting_for(config.boot_busy_transactions)
+                })
+            });
+    match (made.next().flatten(), made.next().flatten()) {
+        (Some(first), Some(second)) => Bno055Bus::two(first, second),
+        (Some(first), None) => Bno055Bus::one(first),
+        // unreachable: the first source is always given
+        (None, _) => Bno055Bus::one(Bno055Sim::new(
+            firmware.i2c_address,
+            Box::new(SineSource::default()),
+        )),
+    }
+}
+
+fn run(mut config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Status {
+    let mut firmware = config.config;
+    let second = config.second.take();
+    if second.is_some() && firmware.second_address.is_none() {
+        let [a, b] = robimu_firmware::config::BNO055_ADDRESSES;
+        firmware.second_address = Some(if firmware.i2c_address == a { b } else { a });
+    }
+    let ppm = [
+        config.chip_clock_error_ppm,
+        second.as_ref().map_or(0.0, |s| s.chip_clock_error_ppm),
+    ];
+    let source = std::mem::replace(&mut config.source, Box::new(SineSource::default()));
+    let bus = chips(
+        &config,
+        &firmware,
+        [Some(source), second.map(|s| s.source)],
+        ppm,
+    );
     let clock = DriftingClock::new(config.clock_offset_us, config.clock_drift_ppm);
-    let mut core: SimCore = Acquisition::new(sim, SleepDelay, serial, clock, config.config);
+    let mut core: SimCore = Acquisition::new(bus, SleepDelay, serial, clock, firmware);
     // A boot failure leaves the core answering the host and retrying.
     let _ = core.start();
     while !control.stop.load(Ordering::Relaxed) {
@@ -408,13 +470,11 @@ fn run(config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Status 
         }
         if control.resets.load(Ordering::SeqCst) > 0 {
             control.resets.fetch_sub(1, Ordering::SeqCst);
-            let (sim, delay, serial, _) = core.release();
-            let sim = Bno055Sim::new(config.config.i2c_address, sim.into_source())
-                .with_model(config.chip_model)
-                .with_clock_error_ppm(config.chip_clock_error_ppm)
-                .booting_for(config.boot_busy_transactions);
+            let (bus, delay, serial, _) = core.release();
+            let sources = bus.into_chips().map(|c| c.map(Bno055Sim::into_source));
+            let bus = chips(&config, &firmware, sources, ppm);
             let clock = DriftingClock::new(0, config.clock_drift_ppm);
-            core = Acquisition::new(sim, delay, serial, clock, config.config);
+            core = Acquisition::new(bus, delay, serial, clock, firmware);
             let _ = core.start();
         }
         core.bus_mut().advance();

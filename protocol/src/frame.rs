@@ -30,19 +30,19 @@
 //!
 //! | message                         | max payload | max frame |
 //! |---------------------------------|------------:|----------:|
-//! | `DeviceMessage::Info`           | 48          | **55**    |
-//! | `DeviceMessage::Sample`         | 30          | 37        |
-//! | `DeviceMessage::Status`         | 37          | 44        |
+//! | `DeviceMessage::Info`           | 50          | **57**    |
+//! | `DeviceMessage::Sample`         | 31          | 38        |
+//! | `DeviceMessage::Status`         | 38          | 45        |
 //! | `DeviceMessage::Pong`           | 11          | 18        |
 //! | `DeviceMessage::CommandResult`  | 4           | 11        |
 //! | `HostMessage::Configure`        | 8           | **15**    |
 //! | `HostMessage::Ping`             | 6           | 13        |
 //! | `HostMessage::{Start, Stop, GetInfo, GetStatus}` | 1 | 8   |
 //!
-//! A typical BNO055 sample frame is 24 bytes at rest and up to 29 bytes
+//! A typical BNO055 sample frame is 25 bytes at rest and up to 30 bytes
 //! while moving (seq < 2²¹, `t_us` ≥ 2²⁸ after 4.5 minutes, two-byte readings);
 //! at 921600 baud (92 160 bytes/s with 8N1) the link carries over 3 000
-//! samples per second, so even 1 kHz sampling uses at most 40 % of it.
+//! samples per second, so even two sensors at 1 kHz use at most 65 % of it.
 
 use postcard::ser_flavors::{Cobs, Flavor, Slice};
 use serde::Serialize;
@@ -52,7 +52,7 @@ use crate::{DeviceMessage, HostMessage, WireError, PROTOCOL_VERSION};
 
 /// Largest postcard payload of a [`DeviceMessage`] (`Info` with a
 /// three-byte software revision and sample rate), bytes.
-pub const DEVICE_MAX_PAYLOAD_LEN: usize = 48;
+pub const DEVICE_MAX_PAYLOAD_LEN: usize = 50;
 
 /// Largest postcard payload of a [`HostMessage`] (`Configure` with a
 /// three-byte sample rate), bytes.

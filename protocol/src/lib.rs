@@ -53,5 +53,11 @@ pub use messages::*;
 ///
 /// History: 1, the first; 2, [`DeviceInfo::timing`] (the sensors'
 /// bandwidths and internal output data rates) — every other message's
-/// payload is as in version 1.
-pub const PROTOCOL_VERSION: u8 = 2;
+/// payload is as in version 1; 3, several sensors per board:
+/// [`ImuSample::sensor`] (first field), [`Status::sensor`] and
+/// [`DeviceInfo::sensor`] / [`DeviceInfo::sensors`] (last fields) — one
+/// `Info` and one `Status` per sensor; `Pong`, `CommandResult` and every
+/// host message are as in version 2. Not backward compatible: a version-2
+/// host refuses version-3 frames by their version byte, and this host
+/// refuses version-2 boards the same way.
+pub const PROTOCOL_VERSION: u8 = 3;

@@ -226,7 +226,16 @@ pub struct DeviceInfo {
     pub temp_scale_c_per_lsb: f32,
     /// The sensors' bandwidths and internal output data rates (protocol 2).
     pub timing: SensorTiming,
+    /// Which of the board's sensors this is, `0..sensors` (protocol 3).
+    pub sensor: u8,
+    /// How many sensors the board reads (protocol 3; 1 or 2 BNO055 on one
+    /// I²C bus). A board sends one `Info` per sensor.
+    pub sensors: u8,
 }
+
+/// The most sensors one board reads: the BNO055 has two I²C addresses
+/// (0x28, 0x29), so two share a bus.
+pub const MAX_SENSORS: u8 = 2;
 
 /// One accelerometer + gyroscope reading.
 ///
@@ -236,8 +245,14 @@ pub struct DeviceInfo {
 /// exact while consecutive samples are less than 2³¹ µs (35 minutes) apart.
 /// `seq` also wraps modulo 2³² and increments by one per *sampled* reading, so
 /// a gap in `seq` counts samples lost on the device or on the link.
+///
+/// `sensor` (protocol 3) tells which of the board's sensors read it; every
+/// sensor of a board is read on the same tick and numbered by the same
+/// `seq`, so each sensor's own gaps count its own losses.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct ImuSample {
+    /// Which of the board's sensors ([`DeviceInfo::sensor`]).
+    pub sensor: u8,
     /// Sample sequence number (wrapping).
     pub seq: u32,
     /// Device time of the reading, µs (wrapping, see above).
@@ -251,7 +266,9 @@ pub struct ImuSample {
 }
 
 /// Health counters, sent periodically (about once a second) while streaming
-/// and on [`HostMessage::GetStatus`]. All counters wrap.
+/// and on [`HostMessage::GetStatus`], one per sensor of the board (protocol
+/// 3): the sample and I²C counters are that sensor's, `frames_sent` and
+/// `rx_errors` the board's (the same in every sensor's report). All counters wrap.
 #[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub struct Status {
     /// Device time of the report, µs (wrapping).
@@ -270,6 +287,8 @@ pub struct Status {
     pub frames_sent: u32,
     /// Host frames the device could not decode.
     pub rx_errors: u32,
+    /// Which of the board's sensors the sample and I²C counters are (protocol 3).
+    pub sensor: u8,
 }
 
 /// Answer to [`HostMessage::Ping`]: the nonce back, with the device clock

@@ -25,6 +25,7 @@ fn decode_all<M: serde::de::DeserializeOwned, const N: usize>(
 
 fn sample() -> DeviceMessage {
     DeviceMessage::Sample(ImuSample {
+        sensor: 1,
         seq: 41,
         t_us: 1_000_000,
         accel_raw: [10, -20, 981],
@@ -90,21 +91,21 @@ fn single_bit_flips_in_a_frame_never_decode() {
 #[test]
 fn wrong_version_carries_the_version_seen() {
     let mut dec = HostDecoder::new();
-    // 1: the previous version (its frames are refused, not misread)
-    for version in [0u8, 1, 3, 0xFF] {
+    // 1, 2: the previous versions (their frames are refused, not misread)
+    for version in [0u8, 1, 2, 4, 0xFF] {
         assert_eq!(
             decode_all(&mut dec, &ref_frame(version, &[1])),
             vec![Err(WireError::WrongVersion { found: version })]
         );
     }
-    assert_eq!(dec.stats().version_errors, 4);
+    assert_eq!(dec.stats().version_errors, 5);
     assert_eq!(dec.stats().foreign_version, Some(0xFF));
 }
 
 #[test]
 fn corrupted_version_byte_is_a_crc_error_not_a_version_error() {
     let mut f = frame_of(&HostMessage::Stop);
-    f[1] ^= 0x01; // version 2 -> 3; the CRC covers it
+    f[1] ^= 0x01; // version 3 -> 2; the CRC covers it
     let mut dec = HostDecoder::new();
     assert!(matches!(
         decode_all(&mut dec, &f)[..],
@@ -161,7 +162,7 @@ fn too_long_frame_ending_in_the_same_chunk() {
 
 #[test]
 fn buffer_size_boundary_is_exact() {
-    // status_max: 43 encoded bytes + delimiter.
+    // status_max: 44 encoded bytes + delimiter.
     let status = DeviceMessage::Status(Status {
         t_us: u32::MAX,
         streaming: true,
@@ -171,17 +172,18 @@ fn buffer_size_boundary_is_exact() {
         sensor_reinits: u32::MAX,
         frames_sent: u32::MAX,
         rx_errors: u32::MAX,
+        sensor: u8::MAX,
     });
     let f = frame_of(&status);
-    assert_eq!(f.len(), 44);
-    let mut fits = Decoder::<DeviceMessage, 43>::new();
+    assert_eq!(f.len(), 45);
+    let mut fits = Decoder::<DeviceMessage, 44>::new();
     assert_eq!(decode_all(&mut fits, &f), vec![Ok(status)]);
-    let mut short = Decoder::<DeviceMessage, 42>::new();
+    let mut short = Decoder::<DeviceMessage, 43>::new();
     let mut bytes = f.clone();
     bytes.extend(frame_of(&sample()));
     assert_eq!(
         decode_all(&mut short, &bytes),
-        vec![Err(WireError::FrameTooLong { limit: 42 }), Ok(sample())]
+        vec![Err(WireError::FrameTooLong { limit: 43 }), Ok(sample())]
     );
 }
 

@@ -1,5 +1,6 @@
-//! Golden byte vectors: the exact frames of protocol version 2, checked in
-//! at `tests/golden/frames.txt`, and pinned against independent references
+//! Golden byte vectors: the exact frames of protocol version 3, checked in
+//! at `tests/golden/frames.txt` (version 2's, kept to test the refusal, in
+//! `tests/golden/frames_v2.txt`), and pinned against independent references
 //! (bitwise CRC-32C, textbook COBS, hand-built postcard payloads).
 //!
 //! Regenerate the file ONLY for a deliberate wire change (which also bumps
@@ -39,12 +40,25 @@ fn realistic_info() -> DeviceInfo {
         gyro_scale_rads_per_lsb: 1.0 / 900.0,
         temp_scale_c_per_lsb: 1.0,
         timing: SensorTiming::of(&SensorConfig::default()),
+        sensor: 0,
+        sensors: 1,
+    }
+}
+
+/// The second BNO055 (0x29) of a two-sensor board.
+fn second_sensor_info() -> DeviceInfo {
+    DeviceInfo {
+        sensor: 1,
+        sensors: 2,
+        sw_revision: 0x0308,
+        ..realistic_info()
     }
 }
 
 fn realistic_sample() -> ImuSample {
     // About 50 minutes after boot, lying flat: gravity on z (9.81 m/s²).
     ImuSample {
+        sensor: 0,
         seq: 360_123,
         t_us: 3_001_025_000,
         accel_raw: [12, -35, 981],
@@ -63,6 +77,7 @@ fn realistic_status() -> Status {
         sensor_reinits: 0,
         frames_sent: 363_130,
         rx_errors: 0,
+        sensor: 0,
     }
 }
 
@@ -82,6 +97,31 @@ fn golden_messages() -> Vec<(&'static str, Golden)> {
         ("device/info", Device(D::Info(realistic_info()))),
         ("device/sample", Device(D::Sample(realistic_sample()))),
         ("device/status", Device(D::Status(realistic_status()))),
+        // protocol 3: the second sensor of a two-BNO055 board, read on
+        // the same tick (same seq, 1.2 ms later) and upside down
+        ("device/info_sensor1", Device(D::Info(second_sensor_info()))),
+        (
+            "device/sample_sensor1",
+            Device(D::Sample(ImuSample {
+                sensor: 1,
+                t_us: 3_001_026_200,
+                accel_raw: [-20, 41, -979],
+                gyro_raw: [-1, 4, 0],
+                temp_raw: 29,
+                ..realistic_sample()
+            })),
+        ),
+        (
+            "device/status_sensor1",
+            Device(D::Status(Status {
+                sensor: 1,
+                samples_sent: 360_120,
+                samples_dropped: 5,
+                i2c_errors: 7,
+                sensor_reinits: 1,
+                ..realistic_status()
+            })),
+        ),
         (
             "device/pong",
             Device(D::Pong(Pong {
@@ -123,12 +163,15 @@ fn golden_messages() -> Vec<(&'static str, Golden)> {
             Device(D::Info(DeviceInfo {
                 sw_revision: u16::MAX,
                 config: max_config(),
+                sensor: u8::MAX,
+                sensors: u8::MAX,
                 ..realistic_info()
             })),
         ),
         (
             "device/sample_max",
             Device(D::Sample(ImuSample {
+                sensor: u8::MAX,
                 seq: u32::MAX,
                 t_us: u32::MAX,
                 accel_raw: [i16::MIN; 3],
@@ -147,6 +190,7 @@ fn golden_messages() -> Vec<(&'static str, Golden)> {
                 sensor_reinits: u32::MAX,
                 frames_sent: u32::MAX,
                 rx_errors: u32::MAX,
+                sensor: u8::MAX,
             })),
         ),
         (
@@ -191,15 +235,23 @@ fn golden_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden/frames.txt")
 }
 
+fn golden_v2_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden/frames_v2.txt")
+}
+
 const HEADER: &str = "\
-# robimu wire protocol v2: golden frames, `<name> <hex of the whole frame, 0x00 delimiter included>`.
+# robimu wire protocol v3: golden frames, `<name> <hex of the whole frame, 0x00 delimiter included>`.
 # frame = COBS(version ++ postcard(message) ++ crc32c_le(version ++ payload)) ++ 00
 # Checked by protocol/tests/golden.rs. Regenerate ONLY for a deliberate wire change (and bump
 # PROTOCOL_VERSION): ROBIMU_BLESS=1 cargo test -p robimu-protocol --test golden
 ";
 
 fn read_golden_file() -> Vec<(String, Vec<u8>)> {
-    let text = std::fs::read_to_string(golden_path()).expect("golden file present");
+    read_golden(&golden_path())
+}
+
+fn read_golden(path: &std::path::Path) -> Vec<(String, Vec<u8>)> {
+    let text = std::fs::read_to_string(path).expect("golden file present");
     text.lines()
         .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
         .map(|l| {
@@ -318,7 +370,7 @@ fn every_golden_frame_equals_the_reference_encoder() {
 #[test]
 fn payloads_match_hand_built_wire_format() {
     let s = realistic_sample();
-    let mut sample = vec![1u8]; // DeviceMessage::Sample
+    let mut sample = vec![1u8, s.sensor]; // DeviceMessage::Sample, sensor (protocol 3)
     sample.extend(leb(s.seq.into()));
     sample.extend(leb(s.t_us.into()));
     for v in s.accel_raw.iter().chain(&s.gyro_raw) {
@@ -326,7 +378,7 @@ fn payloads_match_hand_built_wire_format() {
     }
     sample.push(s.temp_raw as u8);
     // 360123 = 0x57EBB: 3 bytes; 3001025000 needs 5; accel 24/69/1962: 1+2+2.
-    assert_eq!(sample.len(), 1 + 3 + 5 + (1 + 1 + 2) + 3 + 1);
+    assert_eq!(sample.len(), 1 + 1 + 3 + 5 + (1 + 1 + 2) + 3 + 1);
     assert_eq!(
         frame_of(&DeviceMessage::Sample(s)),
         ref_frame(PROTOCOL_VERSION, &sample)
@@ -346,6 +398,7 @@ fn payloads_match_hand_built_wire_format() {
     ] {
         status.extend(leb(c.into()));
     }
+    status.push(st.sensor); // protocol 3
     assert_eq!(
         frame_of(&DeviceMessage::Status(st)),
         ref_frame(PROTOCOL_VERSION, &status)
@@ -363,9 +416,21 @@ fn payloads_match_hand_built_wire_format() {
     for f in [0.01f32, 1.0 / 900.0, 1.0, 62.5, 125.0, 116.0, 1000.0] {
         inf.extend(f.to_le_bytes());
     }
+    inf.extend([0, 1]); // protocol 3: sensor 0 of 1
     assert_eq!(
         frame_of(&DeviceMessage::Info(info)),
         ref_frame(PROTOCOL_VERSION, &inf)
+    );
+    // the second sensor of two: software revision 0x0308, sensor 1 of 2
+    let mut inf1 = inf.clone();
+    let n = inf1.len();
+    inf1[n - 2..].copy_from_slice(&[1, 2]);
+    assert_eq!(leb(0x0311), [0x91, 0x06]);
+    assert_eq!(&inf1[9..11], &[0x91, 0x06]);
+    inf1[9..11].copy_from_slice(&leb(0x0308));
+    assert_eq!(
+        frame_of(&DeviceMessage::Info(second_sensor_info())),
+        ref_frame(PROTOCOL_VERSION, &inf1)
     );
 
     // Ping 0xDEADBEEF: [3] ++ LEB128 = ef fd b6 f5 0d.
@@ -376,11 +441,11 @@ fn payloads_match_hand_built_wire_format() {
         ref_frame(PROTOCOL_VERSION, &[3, 0xEF, 0xFD, 0xB6, 0xF5, 0x0D])
     );
 
-    // Start: the smallest frame, version 02, variant 01, CRC; no zero byte
+    // Start: the smallest frame, version 03, variant 01, CRC; no zero byte
     // anywhere, so COBS is a single block: header 07, the 6 bytes, delimiter.
-    let crc = ref_crc32c(&[2, 1]).to_le_bytes();
+    let crc = ref_crc32c(&[3, 1]).to_le_bytes();
     assert!(!crc.contains(&0));
-    let mut start = vec![7, 2, 1];
+    let mut start = vec![7, 3, 1];
     start.extend(crc);
     start.push(0);
     assert_eq!(frame_of(&HostMessage::Start), start);
@@ -395,9 +460,9 @@ fn worst_case_sizes_match_the_documented_table() {
             .expect("named golden message");
         encode_golden(&g).len()
     };
-    assert_eq!(len("device/info_max"), 55);
-    assert_eq!(len("device/sample_max"), 37);
-    assert_eq!(len("device/status_max"), 44);
+    assert_eq!(len("device/info_max"), 57);
+    assert_eq!(len("device/sample_max"), 38);
+    assert_eq!(len("device/status_max"), 45);
     assert_eq!(len("device/pong_max"), 18);
     assert_eq!(len("device/command_result_max"), 11);
     assert_eq!(len("host/configure_max"), 15);
@@ -405,10 +470,10 @@ fn worst_case_sizes_match_the_documented_table() {
     assert_eq!(len("host/start"), 8);
     assert_eq!(DEVICE_MAX_FRAME_LEN, len("device/info_max"));
     assert_eq!(HOST_MAX_FRAME_LEN, len("host/configure_max"));
-    assert_eq!(MAX_FRAME_LEN, 55);
+    assert_eq!(MAX_FRAME_LEN, 57);
     assert_eq!(max_frame_len(DEVICE_MAX_PAYLOAD_LEN), DEVICE_MAX_FRAME_LEN);
     // The sample at rest quoted in the docs.
-    assert_eq!(len("device/sample"), 24);
+    assert_eq!(len("device/sample"), 25);
 }
 
 #[cfg(feature = "use-std")]
@@ -441,7 +506,76 @@ fn a_version_1_frame_is_refused_by_its_version() {
     let mut v1 = realistic_info();
     v1.protocol_version = 1;
     let payload = postcard::to_slice(&DeviceMessage::Info(v1), &mut buf).unwrap();
-    // a v1 payload is the v2 one without the 16 bytes of `timing`
-    let v1_payload = &payload[..payload.len() - 16];
+    // a v1 payload is the v3 one without the 16 bytes of `timing` and
+    // (protocol 3) the 2 of `sensor`, `sensors`
+    let v1_payload = &payload[..payload.len() - 18];
     assert_eq!(ref_frame(1, v1_payload), v1_info);
+}
+
+/// The version-2 payload of a version-3 message: the protocol-3 fields
+/// taken out (a sample's `sensor`, right after the variant tag; a status's
+/// `sensor` and an info's `sensor`, `sensors`, at the end); every other
+/// message is unchanged.
+fn v2_payload(g: &Golden) -> Vec<u8> {
+    let mut buf = [0u8; 64];
+    let mut p = match g {
+        Golden::Device(m) => postcard::to_slice(m, &mut buf),
+        Golden::Host(m) => postcard::to_slice(m, &mut buf),
+    }
+    .expect("postcard")
+    .to_vec();
+    match g {
+        Golden::Device(DeviceMessage::Sample(_)) => {
+            p.remove(1);
+        }
+        Golden::Device(DeviceMessage::Status(_)) => {
+            p.pop();
+        }
+        Golden::Device(DeviceMessage::Info(_)) => {
+            p.truncate(p.len() - 2);
+            p[4] = 2; // the protocol_version field
+        }
+        _ => {}
+    }
+    p
+}
+
+/// Mixed versions: the golden frames of protocol 2 (checked in before the
+/// step to 3) are refused by this decoder by their version byte, which it
+/// keeps, so the host names the mismatch (robimu-record's
+/// `ClientError::ProtocolVersion`); and they are exactly the version-3
+/// messages without the protocol-3 fields, framed as version 2, which pins
+/// what the step changed. (The other direction, a version-2 host meeting a
+/// version-3 board, is the version-2 decoder's own test
+/// `wrong_version_carries_the_version_seen`, which refuses version 3 by
+/// its version.)
+#[test]
+fn version_2_frames_are_refused_by_their_version_and_differ_only_by_the_sensor_fields() {
+    let v2 = read_golden(&golden_v2_path());
+    assert_eq!(v2.len(), 19, "the version-2 file as checked in");
+    let v3: std::collections::BTreeMap<_, _> = golden_messages().into_iter().collect();
+    let mut device = DeviceDecoder::new();
+    let mut host = HostDecoder::new();
+    for (name, bytes) in &v2 {
+        let out: Vec<Result<Golden, WireError>> = if name.starts_with("device/") {
+            device.feed(bytes).map(|r| r.map(Golden::Device)).collect()
+        } else {
+            host.feed(bytes).map(|r| r.map(Golden::Host)).collect()
+        };
+        assert_eq!(
+            out,
+            vec![Err(WireError::WrongVersion { found: 2 })],
+            "{name}"
+        );
+        let g = v3
+            .get(name.as_str())
+            .expect("every v2 frame has a v3 successor");
+        assert_eq!(&ref_frame(2, &v2_payload(g)), bytes, "{name}");
+    }
+    assert_eq!(device.stats().foreign_version, Some(2));
+    assert_eq!(
+        device.stats().version_errors + host.stats().version_errors,
+        19
+    );
+    assert_eq!(device.stats().frames_ok + host.stats().frames_ok, 0);
 }

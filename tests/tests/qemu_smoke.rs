@@ -173,20 +173,28 @@ fn qemu_image_boots_and_streams_gapless_samples() {
         decoder.pending_len()
     );
 
-    // A DeviceInfo first, from the simulated BNO055.
-    let info: DeviceInfo = match messages.first() {
-        Some(DeviceMessage::Info(info)) => *info,
-        other => panic!("first frame is not DeviceInfo: {other:?}"),
-    };
-    assert_eq!(info.chip_id, 0xA0, "BNO055 CHIP_ID");
-    assert_eq!(info.accel_id, 0xFB, "ACC_ID");
-    assert_eq!(info.mag_id, 0x32, "MAG_ID");
-    assert_eq!(info.gyro_id, 0x0F, "GYR_ID");
-    assert_eq!(info.protocol_version, robimu_protocol::PROTOCOL_VERSION);
+    // A DeviceInfo per sensor first, from the two simulated BNO055 (protocol 3).
+    let infos: Vec<DeviceInfo> = messages
+        .iter()
+        .take(2)
+        .map(|m| match m {
+            DeviceMessage::Info(info) => *info,
+            other => panic!("the first two frames are not DeviceInfo: {other:?}"),
+        })
+        .collect();
+    for (k, info) in infos.iter().enumerate() {
+        assert_eq!((info.sensor as usize, info.sensors), (k, 2), "{info:?}");
+        assert_eq!(info.chip_id, 0xA0, "BNO055 CHIP_ID");
+        assert_eq!(info.accel_id, 0xFB, "ACC_ID");
+        assert_eq!(info.mag_id, 0x32, "MAG_ID");
+        assert_eq!(info.gyro_id, 0x0F, "GYR_ID");
+        assert_eq!(info.protocol_version, robimu_protocol::PROTOCOL_VERSION);
+    }
+    let info = infos[0];
     let rate_hz = f64::from(info.config.sample_rate_hz);
     assert!(rate_hz > 0.0, "configured rate {rate_hz}");
 
-    let samples: Vec<ImuSample> = messages
+    let all: Vec<ImuSample> = messages
         .iter()
         .filter_map(|m| match m {
             DeviceMessage::Sample(s) => Some(*s),
@@ -200,61 +208,73 @@ fn qemu_image_boots_and_streams_gapless_samples() {
             _ => None,
         })
         .collect();
-    let others = messages.len() - 1 - samples.len() - statuses.len();
+    let others = messages.len() - 2 - all.len() - statuses.len();
     assert_eq!(others, 0, "unexpected frames: {messages:?}");
-    assert!(
-        samples.len() >= MIN_SAMPLES,
-        "{} samples, want at least {MIN_SAMPLES}",
-        samples.len()
-    );
-
-    // No sequence gap, strictly increasing device time at the configured rate.
     let period_us = 1e6 / rate_hz;
-    for pair in samples.windows(2) {
-        let (a, b) = (pair[0], pair[1]);
-        assert_eq!(b.seq, a.seq.wrapping_add(1), "seq gap: {a:?} then {b:?}");
-        let dt = b.t_us.wrapping_sub(a.t_us);
+    let mut summary = Vec::new();
+    // Each sensor's stream: the image's SineSource (period 200 for sensor 0,
+    // SECOND_SINE_PERIOD = 150 for sensor 1).
+    for (k, sine_period) in [(0u8, 200u32), (1, 150)] {
+        let samples: Vec<ImuSample> = all.iter().filter(|s| s.sensor == k).copied().collect();
         assert!(
-            dt > 0 && f64::from(dt) > 0.5 * period_us && f64::from(dt) < 1.5 * period_us,
-            "sample interval {dt} µs, configured period {period_us:.1} µs: {a:?} then {b:?}"
+            samples.len() >= MIN_SAMPLES,
+            "sensor {k}: {} samples, want at least {MIN_SAMPLES}",
+            samples.len()
         );
-    }
-    let (first, last) = (samples[0], samples[samples.len() - 1]);
-    let span = f64::from(last.t_us.wrapping_sub(first.t_us));
-    let mean = span / (samples.len() - 1) as f64;
-    assert!(
-        (mean - period_us).abs() < 0.01 * period_us,
-        "mean sample interval {mean:.1} µs, configured {period_us:.1} µs"
-    );
-    // The simulated sensor lies flat: gravity (981 counts = 9.81 m/s²) on +z.
-    for s in &samples {
-        let z = f64::from(s.accel_raw[2]) * f64::from(info.accel_scale_mps2_per_lsb);
-        assert!((z - 9.81).abs() < 1.0, "accel z {z} m/s² in {s:?}");
-    }
-    // Bit-exact payloads: each sample is the image's `SineSource::default()`
-    // reading number n, recomputed here, with n increasing. The sensor latches
-    // a new reading per burst read of its data registers, and the core also
-    // reads the temperature register now and then, so n may skip a few.
-    let reference = SineSource::default();
-    let mut next_n = 0u64;
-    for (i, s) in samples.iter().enumerate() {
-        let n = (next_n..next_n + MAX_LATCHES_PER_SAMPLE)
-            .find(|&n| {
-                let r = reference.reading(n);
-                r.accel == s.accel_raw && r.gyro == s.gyro_raw
-            })
-            .unwrap_or_else(|| {
-                panic!(
-                    "sample {i} {s:?} is none of the simulated readings {next_n}..{}",
-                    next_n + MAX_LATCHES_PER_SAMPLE
-                )
-            });
-        assert_eq!(
-            s.temp_raw,
-            reference.reading(n).temp,
-            "temperature of sample {i}"
+
+        // No sequence gap, strictly increasing device time at the configured rate.
+        for pair in samples.windows(2) {
+            let (a, b) = (pair[0], pair[1]);
+            assert_eq!(b.seq, a.seq.wrapping_add(1), "seq gap: {a:?} then {b:?}");
+            let dt = b.t_us.wrapping_sub(a.t_us);
+            assert!(
+                dt > 0 && f64::from(dt) > 0.5 * period_us && f64::from(dt) < 1.5 * period_us,
+                "sample interval {dt} µs, configured period {period_us:.1} µs: {a:?} then {b:?}"
+            );
+        }
+        let (first, last) = (samples[0], samples[samples.len() - 1]);
+        let span = f64::from(last.t_us.wrapping_sub(first.t_us));
+        let mean = span / (samples.len() - 1) as f64;
+        assert!(
+            (mean - period_us).abs() < 0.01 * period_us,
+            "mean sample interval {mean:.1} µs, configured {period_us:.1} µs"
         );
-        next_n = n + 1;
+        // The simulated sensor lies flat: gravity (981 counts = 9.81 m/s²) on +z.
+        for s in &samples {
+            let z = f64::from(s.accel_raw[2]) * f64::from(info.accel_scale_mps2_per_lsb);
+            assert!((z - 9.81).abs() < 1.0, "accel z {z} m/s² in {s:?}");
+        }
+        // Bit-exact payloads: each sample is the image's sine source's
+        // reading number n, recomputed here, with n increasing. The sensor latches
+        // a new reading per burst read of its data registers, and the core also
+        // reads the temperature register now and then, so n may skip a few.
+        let reference = SineSource::new(sine_period);
+        let mut next_n = 0u64;
+        for (i, s) in samples.iter().enumerate() {
+            let n = (next_n..next_n + MAX_LATCHES_PER_SAMPLE)
+                .find(|&n| {
+                    let r = reference.reading(n);
+                    r.accel == s.accel_raw && r.gyro == s.gyro_raw
+                })
+                .unwrap_or_else(|| {
+                    panic!(
+                        "sensor {k} sample {i} {s:?} is none of the simulated readings {next_n}..{}",
+                        next_n + MAX_LATCHES_PER_SAMPLE
+                    )
+                });
+            assert_eq!(
+                s.temp_raw,
+                reference.reading(n).temp,
+                "temperature of sample {i}"
+            );
+            next_n = n + 1;
+        }
+        summary.push(format!(
+            "sensor {k}: {} samples (seq {}..={}), mean interval {mean:.1} µs, {next_n} readings latched",
+            samples.len(),
+            first.seq,
+            last.seq
+        ));
     }
     // Health reports, if any, saw nothing lost.
     for st in &statuses {
@@ -262,12 +282,9 @@ fn qemu_image_boots_and_streams_gapless_samples() {
         assert_eq!(st.i2c_errors, 0, "{st:?}");
     }
     eprintln!(
-        "qemu smoke: DeviceInfo + {} samples (seq {}..={}) + {} status frames, {} bytes, \
-         mean interval {mean:.1} µs at {rate_hz} Hz, {next_n} sensor readings latched",
-        samples.len(),
-        first.seq,
-        last.seq,
+        "qemu smoke: 2 DeviceInfo + {} status frames, {} bytes at {rate_hz} Hz; {}",
         statuses.len(),
-        bytes.len()
+        bytes.len(),
+        summary.join("; ")
     );
 }

@@ -10,7 +10,7 @@ use std::rc::Rc;
 
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::{ErrorType, I2c, Operation};
-use robimu_bno055_sim::{Bno055Sim, RawReading, SampleSource};
+use robimu_bno055_sim::{Bno055Bus, Bno055Sim, RawReading, SampleSource};
 use robimu_firmware::{Acquisition, Clock, Config};
 use robimu_protocol::{
     encode_host, DeviceDecoder, DeviceMessage, HostMessage, ImuSample, MAX_FRAME_LEN,
@@ -81,14 +81,23 @@ impl SampleSource for TimeSource {
 /// The simulated BNO055, shared between the core and the test.
 pub type Sim = Bno055Sim<TimeSource>;
 
-#[derive(Clone)]
-pub struct SharedBus(pub Rc<RefCell<Sim>>);
+/// Two simulated BNO055 on one bus (0x28 and 0x29).
+pub type TwoSims = Bno055Bus<TimeSource>;
 
-impl ErrorType for SharedBus {
+/// A bus (one chip, or a [`Bno055Bus`]) shared between the core and the test.
+pub struct SharedBus<B = Sim>(pub Rc<RefCell<B>>);
+
+impl<B> Clone for SharedBus<B> {
+    fn clone(&self) -> Self {
+        Self(self.0.clone())
+    }
+}
+
+impl<B> ErrorType for SharedBus<B> {
     type Error = robimu_bno055_sim::SimError;
 }
 
-impl I2c for SharedBus {
+impl<B: I2c<Error = robimu_bno055_sim::SimError>> I2c for SharedBus<B> {
     fn transaction(
         &mut self,
         address: u8,
@@ -180,6 +189,59 @@ impl embedded_io::WriteReady for Link {
 }
 
 pub type Core = Acquisition<SharedBus, SimDelay, Link, SimTime>;
+
+/// A core over two simulated BNO055 (0x28, 0x29) on one bus.
+pub struct TwoRig {
+    pub core: Acquisition<SharedBus<TwoSims>, SimDelay, Link, SimTime>,
+    pub time: SimTime,
+    pub bus: Rc<RefCell<TwoSims>>,
+    pub link: Link,
+    pub host: Host,
+}
+
+impl TwoRig {
+    /// `config` with the second sensor at 0x29.
+    pub fn new(config: Config, t0_us: u64) -> Self {
+        let time = SimTime::starting_at(t0_us);
+        let bus = Rc::new(RefCell::new(Bno055Bus::two(
+            Bno055Sim::new(0x28, TimeSource(time.clone())),
+            Bno055Sim::new(0x29, TimeSource(time.clone())),
+        )));
+        let link = Link::new();
+        let delay = SimDelay {
+            time: time.clone(),
+            total_ns: Rc::new(Cell::new(0)),
+        };
+        let config = Config {
+            second_address: Some(0x29),
+            ..config
+        };
+        let core = Acquisition::new(
+            SharedBus(bus.clone()),
+            delay,
+            link.clone(),
+            time.clone(),
+            config,
+        );
+        Self {
+            core,
+            time,
+            bus,
+            link,
+            host: Host::default(),
+        }
+    }
+
+    /// As [`Rig::run`].
+    pub fn run(&mut self, duration_us: u64, step_us: u64) {
+        let end = self.time.now() + duration_us;
+        while self.time.now() < end {
+            self.core.poll();
+            self.host.receive(&self.link.take_sent());
+            self.time.advance(step_us);
+        }
+    }
+}
 
 /// A core over a simulated BNO055 at 0x28, with its handles.
 pub struct Rig {

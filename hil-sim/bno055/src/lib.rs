@@ -1,6 +1,7 @@
 //! Register-level simulated Bosch BNO055, as an `embedded_hal::i2c::I2c` device.
 //!
-//! [`Bno055Sim`] answers on one 7-bit address with the BNO055 register map
+//! [`Bno055Sim`] answers on one 7-bit address (a [`Bno055Bus`] holds two,
+//! at 0x28 and 0x29, on one bus) with the BNO055 register map
 //! (datasheet BST-BNO055-DS000, section 4): two pages selected by `PAGE_ID`
 //! (0x07), identity registers, `OPR_MODE` rules (configuration registers only
 //! writable in CONFIG mode), `SYS_TRIGGER` reset, auto-incrementing bursts, and
@@ -26,12 +27,14 @@ extern crate alloc;
 #[cfg(test)]
 extern crate std;
 
+mod bus;
 mod error;
 pub mod regs;
 mod sim;
 mod source;
 pub mod timing;
 
+pub use bus::Bno055Bus;
 pub use error::SimError;
 pub use sim::{Bno055Sim, ChipModel};
 pub use source::{ConstantSource, RawReading, SampleSource, SineSource, Stimulus};

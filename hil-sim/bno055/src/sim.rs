@@ -180,6 +180,11 @@ impl<Src: SampleSource> Bno055Sim<Src> {
         self.pages[0][usize::from(OPR_MODE)] & 0x0F
     }
 
+    /// The chip's 7-bit address.
+    pub fn address(&self) -> u8 {
+        self.address
+    }
+
     /// Transactions addressed to the chip so far (including failed ones).
     pub fn transaction_count(&self) -> u32 {
         self.transactions

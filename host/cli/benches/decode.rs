@@ -31,6 +31,7 @@ fn stream() -> Vec<u8> {
     let mut buf = [0u8; MAX_FRAME_LEN];
     for seq in 0..FRAMES {
         let msg = DeviceMessage::Sample(ImuSample {
+            sensor: 0,
             seq,
             t_us: 4_000_000_000u32.wrapping_add(seq.wrapping_mul(1_000)),
             accel_raw: [

@@ -28,6 +28,7 @@ fn main() {
     let mut buf = [0u8; MAX_FRAME_LEN];
     for seq in 0..FRAMES {
         let msg = DeviceMessage::Sample(ImuSample {
+            sensor: 0,
             seq,
             t_us: 4_000_000_000u32.wrapping_add(seq.wrapping_mul(8_333)),
             accel_raw: [(seq % 2000) as i16, -((seq % 1500) as i16), 981],
@@ -101,6 +102,7 @@ fn main() {
             f64::from(s.gyro_raw[2]) / 900.0,
         ];
         sink.handle(ImuEvent::Sample {
+            sensor: 0,
             segment: 0,
             device,
             seq: s.seq,

@@ -33,6 +33,7 @@ fn record_arm(seed: u64, seconds: f64, effects: ArmEffects, dir: &Path) -> Truth
     let rig = SimRig::spawn(&config).unwrap();
     let opts = RecordOptions {
         imu_port: rig.imu_port().to_string(),
+        extra_imu_ports: Vec::new(),
         baud: 921_600,
         robot_spec: RobotSpec::parse(&rig.robot_spec()).unwrap(),
         robot: robot.clone(),

@@ -42,6 +42,7 @@ fn options_for(
 ) -> RecordOptions {
     RecordOptions {
         imu_port: imu_port.to_string(),
+        extra_imu_ports: Vec::new(),
         baud: 921_600,
         robot_spec: RobotSpec::parse(robot_spec).unwrap(),
         robot: Robot::aubo_i5(),

@@ -281,6 +281,7 @@ fn a_rig_recording_of_a_warm_up_is_diagnosed() {
     let dir = tempfile::tempdir().unwrap();
     let opts = RecordOptions {
         imu_port: rig.imu_port().to_string(),
+        extra_imu_ports: Vec::new(),
         baud: 921_600,
         robot_spec: RobotSpec::parse(&rig.robot_spec()).unwrap(),
         robot: robot.clone(),

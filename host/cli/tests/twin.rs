@@ -128,6 +128,7 @@ fn the_virtual_time_twin_records_what_the_real_time_rig_records() {
     let rig = SimRig::spawn(&config).unwrap();
     let opts = RecordOptions {
         imu_port: rig.imu_port().to_string(),
+        extra_imu_ports: Vec::new(),
         baud: 921_600,
         robot_spec: RobotSpec::parse(&rig.robot_spec()).unwrap(),
         robot: robot.clone(),

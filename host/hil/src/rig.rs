@@ -24,7 +24,7 @@ use std::net::SocketAddr;
 
 use rand::SeedableRng;
 use robimu_hil_sim::aubo::{JointLimits, SimAubo, SimAuboConfig, SimAuboError, TrueMotion, JOINTS};
-use robimu_hil_sim::device::{SimDevice, SimDeviceConfig, SimDeviceError};
+use robimu_hil_sim::device::{SecondSensor, SimDevice, SimDeviceConfig, SimDeviceError};
 use robimu_hil_sim::ur::{SimUr, SimUrConfig, SimUrError};
 
 pub use robimu_bno055_sim::ChipModel;
@@ -104,6 +104,37 @@ pub struct SimRigConfig {
     /// hidden effects ([`crate::arm_physics`]) instead of the measurement
     /// model (default `None`).
     pub arm_physics: Option<ArmEffects>,
+    /// A second BNO055 on the board's bus (docs/model.md §9: IMU 1), with
+    /// its own hidden IMU parameters (default `None`).
+    pub second_imu: Option<SecondImu>,
+}
+
+/// The second IMU of a two-sensor board: its own flange position
+/// (ε_n1..3, so it sees another lever arm), τ (forced to 0 like IMU 0's)
+/// and 24 sensor parameters, its own noise and chip clock; the robot
+/// errors and gravity are IMU 0's (shared, docs/model.md §9).
+#[derive(Clone, Debug)]
+pub struct SecondImu {
+    /// A full x ([`ParamLayout::new`] order) of which only IMU 1's own
+    /// entries ([`per_imu_indices`]) are used.
+    pub truth: Vec<f64>,
+    /// Its chip's internal clock rate error, ppm (datasheet mode).
+    pub chip_clock_error_ppm: f64,
+}
+
+/// The indices in x of one IMU's own parameters (docs/model.md §9): its
+/// flange position ε_n1..3, τ and the 24 sensor parameters.
+pub fn per_imu_indices(robot: &Robot, layout: &ParamLayout) -> Vec<usize> {
+    let n = robot.dof();
+    let mount: Vec<String> = (1..=3).map(|k| format!("eps_{n}_{k}")).collect();
+    let tau = layout.offsets().tau;
+    layout
+        .specs()
+        .iter()
+        .enumerate()
+        .filter(|(i, s)| *i >= tau || mount.contains(&s.name))
+        .map(|(i, _)| i)
+        .collect()
 }
 
 impl SimRigConfig {
@@ -132,7 +163,21 @@ impl SimRigConfig {
             imu_noise: None,
             warm_up: None,
             arm_physics: None,
+            second_imu: None,
         }
+    }
+
+    /// [`Self::drawn`] with a second IMU on the board whose own parameters
+    /// are drawn from the priors too (its own seed).
+    pub fn drawn_two_imus(robot: Robot, seed: u64) -> Self {
+        let mut config = Self::drawn(robot, seed);
+        let layout = ParamLayout::new(&config.robot);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x1_0001);
+        config.second_imu = Some(SecondImu {
+            truth: draw_truth(&layout, &mut rng),
+            chip_clock_error_ppm: 0.0,
+        });
+        config
     }
 
     /// The realistic twin at its defaults (issue 15; docs/model.md §4.8):
@@ -238,7 +283,7 @@ impl SimRig {
         // The controller's own limits are the hardware's (wider than a
         // plan's), as on the real arm.
         let aubo = SimAubo::spawn(aubo_config(config))?;
-        let (device, truth) = imu_board(config, Box::new(aubo.state_probe()))?;
+        let (device, truth) = imu_board(config, &|| Box::new(aubo.state_probe()))?;
         Ok(SimRig {
             aubo,
             device,
@@ -282,10 +327,18 @@ pub(crate) fn check_joints(robot: &Robot) -> Result<(), RigError> {
 /// hidden truth (τ forced to 0).
 fn imu_board(
     config: &SimRigConfig,
-    motion: Box<dyn TrueMotion>,
+    motion: &dyn Fn() -> Box<dyn TrueMotion>,
 ) -> Result<(SimDevice, Truth), RigError> {
-    let (source, truth) = imu_source(config, motion)?;
+    let (source, mut truth) = imu_source(config, motion())?;
     let mut device_config = SimDeviceConfig::new(Box::new(source));
+    if let Some(second) = &config.second_imu {
+        let (source, own) = second_imu_source(config, second, motion())?;
+        truth.values.extend(own.values);
+        device_config.second = Some(SecondSensor {
+            source: Box::new(source),
+            chip_clock_error_ppm: second.chip_clock_error_ppm,
+        });
+    }
     device_config.chip_model = config.chip;
     device_config.chip_clock_error_ppm = config.chip_clock_error_ppm;
     device_config.clock_offset_us = config.clock_offset_us;
@@ -332,6 +385,46 @@ pub(crate) fn imu_source(
     Ok((source, truth))
 }
 
+/// IMU 1 of a two-sensor board: [`imu_source`] at IMU 0's truth with
+/// `second`'s own entries (and its own noise seed); its truth as
+/// `imu1/<name>` for those entries (docs/model.md §9).
+fn second_imu_source(
+    config: &SimRigConfig,
+    second: &SecondImu,
+    motion: Box<dyn TrueMotion>,
+) -> Result<(ModelSource, Truth), RigError> {
+    let layout = ParamLayout::new(&config.robot);
+    if second.truth.len() != layout.len() {
+        return Err(RigError::Model(ModelError::ParamLength(
+            robimu_model::params::ParamLengthError {
+                expected: layout.len(),
+                found: second.truth.len(),
+            },
+        )));
+    }
+    let own = per_imu_indices(&config.robot, &layout);
+    let mut x = config.truth.clone();
+    for &i in &own {
+        x[i] = second.truth[i];
+    }
+    let imu1 = SimRigConfig {
+        truth: x,
+        seed: config.seed ^ 0x05EC_00D1,
+        chip_clock_error_ppm: second.chip_clock_error_ppm,
+        second_imu: None,
+        ..config.clone()
+    };
+    let (source, truth) = imu_source(&imu1, motion)?;
+    let values = own
+        .iter()
+        .map(|&i| {
+            let (name, v) = &truth.values[i];
+            (format!("imu1/{name}"), *v)
+        })
+        .collect();
+    Ok((source, Truth { values }))
+}
+
 /// The controller's settings of the AUBO rig: the hardware's limits, the
 /// config's tracking lag, the robot's Σ_q as encoder noise.
 pub(crate) fn aubo_config(config: &SimRigConfig) -> SimAuboConfig {
@@ -375,7 +468,7 @@ impl SimUrRig {
             seed: config.seed ^ 0x0B0E,
             ..SimUrConfig::default()
         })?;
-        let (device, truth) = imu_board(config, Box::new(ur.state_probe()))?;
+        let (device, truth) = imu_board(config, &|| Box::new(ur.state_probe()))?;
         Ok(SimUrRig { ur, device, truth })
     }
 

@@ -90,6 +90,16 @@ pub enum ClientError {
         /// The command.
         command: CommandKind,
     },
+    /// A board of several sensors did not describe one of them.
+    #[error("the IMU board on {path} reads {sensors} sensors but sent no DeviceInfo for sensor {sensor}")]
+    MissingSensor {
+        /// The port path.
+        path: String,
+        /// The sensor without a `DeviceInfo`.
+        sensor: usize,
+        /// How many the board announced.
+        sensors: usize,
+    },
     /// The board did not answer a request for a report (`Status`, `Pong`).
     #[error("the IMU board on {path} sent no {what} within {waited:?}")]
     NoReport {
@@ -126,8 +136,9 @@ pub struct ImuClient<R = Port, W = Port> {
     path: String,
     reader: LinkReader<R>,
     writer: LinkWriter<W>,
-    /// The last `DeviceInfo` the board sent.
-    info: Option<DeviceInfo>,
+    /// The last `DeviceInfo` the board sent for each of its sensors
+    /// (protocol 3: one per sensor), by sensor.
+    infos: Vec<Option<DeviceInfo>>,
 }
 
 impl ImuClient {
@@ -153,7 +164,7 @@ impl<R: Read, W: Write> ImuClient<R, W> {
             path: path.into(),
             reader: LinkReader::new(reader),
             writer: LinkWriter::new(writer),
-            info: None,
+            infos: Vec::new(),
         }
     }
 
@@ -197,7 +208,7 @@ impl<R: Read, W: Write> ImuClient<R, W> {
         while Instant::now() < end {
             if let Some(m) = self.poll()? {
                 if let DeviceMessage::Info(i) = m {
-                    self.info = Some(i);
+                    self.remember(i);
                 }
                 if let Some(t) = pick(&m) {
                     return Ok(Some(t));
@@ -205,6 +216,26 @@ impl<R: Read, W: Write> ImuClient<R, W> {
             }
         }
         Ok(None)
+    }
+
+    fn remember(&mut self, info: DeviceInfo) {
+        let k = usize::from(info.sensor);
+        if k < usize::from(robimu_protocol::MAX_SENSORS) {
+            if self.infos.len() <= k {
+                self.infos.resize(k + 1, None);
+            }
+            self.infos[k] = Some(info);
+        }
+    }
+
+    /// How many sensors the board reads (its last `DeviceInfo`'s `sensors`;
+    /// 1 before one came).
+    pub fn sensors(&self) -> usize {
+        self.infos
+            .iter()
+            .flatten()
+            .next()
+            .map_or(1, |i| usize::from(i.sensors).max(1))
     }
 
     /// Sends a command and waits for its `CommandResult`.
@@ -269,16 +300,73 @@ impl<R: Read, W: Write> ImuClient<R, W> {
     }
 
     /// Configures the sensor; the `DeviceInfo` the board reports after it
-    /// (the last one it sent when no fresh one comes within 0.5 s).
+    /// (the last one it sent when no fresh one comes within 0.5 s); sensor
+    /// 0's on a board of several ([`Self::configure_sensors`]).
     pub fn configure(&mut self, config: &SensorConfig) -> Result<DeviceInfo, ClientError> {
+        let infos = self.configure_sensors(config)?;
+        infos.into_iter().next().ok_or_else(|| self.no_info())
+    }
+
+    /// Configures every sensor of the board (protocol 3: one `Configure`
+    /// applies to all); the `DeviceInfo` of each, sensor 0 first (a fresh
+    /// one, or the last one it sent when none comes within 0.5 s).
+    ///
+    /// # Errors
+    ///
+    /// As [`Self::configure`]; [`ClientError::MissingSensor`] if a sensor
+    /// the board announces never describes itself.
+    pub fn configure_sensors(
+        &mut self,
+        config: &SensorConfig,
+    ) -> Result<Vec<DeviceInfo>, ClientError> {
         self.command(HostMessage::Configure(*config), CommandKind::Configure)?;
-        let fresh = self.wait_for(INFO_AFTER_CONFIGURE, |m| match m {
-            DeviceMessage::Info(i) => Some(*i),
-            _ => None,
-        })?;
-        match fresh.or(self.info) {
-            Some(info) => Ok(info),
-            None => self.get_info(INFO_AFTER_CONFIGURE),
+        let mut fresh: Vec<Option<DeviceInfo>> = Vec::new();
+        let end = Instant::now() + INFO_AFTER_CONFIGURE;
+        while Instant::now() < end {
+            let n = self.sensors();
+            if fresh.len() >= n && fresh.iter().take(n).all(Option::is_some) {
+                break;
+            }
+            let got =
+                self.wait_for(end.saturating_duration_since(Instant::now()), |m| match m {
+                    DeviceMessage::Info(i) => Some(*i),
+                    _ => None,
+                })?;
+            let Some(i) = got else { break };
+            let k = usize::from(i.sensor);
+            if k < usize::from(robimu_protocol::MAX_SENSORS) {
+                if fresh.len() <= k {
+                    fresh.resize(k + 1, None);
+                }
+                fresh[k] = Some(i);
+            }
+        }
+        if self.infos.iter().all(Option::is_none) && fresh.iter().all(Option::is_none) {
+            let first = self.get_info(INFO_AFTER_CONFIGURE)?;
+            self.remember(first);
+        }
+        let n = self.sensors();
+        (0..n)
+            .map(|k| {
+                fresh
+                    .get(k)
+                    .copied()
+                    .flatten()
+                    .or_else(|| self.infos.get(k).copied().flatten())
+                    .ok_or_else(|| ClientError::MissingSensor {
+                        path: self.path.clone(),
+                        sensor: k,
+                        sensors: n,
+                    })
+            })
+            .collect()
+    }
+
+    fn no_info(&self) -> ClientError {
+        ClientError::MissingSensor {
+            path: self.path.clone(),
+            sensor: 0,
+            sensors: self.sensors(),
         }
     }
 
@@ -365,6 +453,8 @@ mod tests {
             gyro_scale_rads_per_lsb: 1.0 / 900.0,
             temp_scale_c_per_lsb: 1.0,
             timing: robimu_protocol::SensorTiming::of(&SensorConfig::default()),
+            sensor: 0,
+            sensors: 1,
         }
     }
 
@@ -436,7 +526,7 @@ mod tests {
                 err,
                 ClientError::ProtocolVersion {
                     found: 1,
-                    expected: 2,
+                    expected: 3,
                     ..
                 }
             ),
@@ -444,7 +534,7 @@ mod tests {
         );
         let text = err.to_string();
         assert!(
-            text.contains("protocol version 1") && text.contains("version 2"),
+            text.contains("protocol version 1") && text.contains("version 3"),
             "{text}"
         );
     }
@@ -501,4 +591,82 @@ mod tests {
             ]
         );
     }
+
+    /// A two-sensor board (protocol 3): one `Configure`, a fresh
+    /// `DeviceInfo` per sensor, returned in sensor order; a sensor the
+    /// board announces but never describes is named.
+    #[test]
+    fn configure_sensors_returns_every_sensors_info() {
+        let two = |k: u8, rate: u16| {
+            let mut i = info();
+            i.sensor = k;
+            i.sensors = 2;
+            i.sw_revision = 0x0300 + u16::from(k);
+            i.config.sample_rate_hz = rate;
+            i
+        };
+        let mut c = client(&[
+            DeviceMessage::Info(two(0, 150)),
+            DeviceMessage::Info(two(1, 150)),
+            result(CommandKind::Configure, Ok(())),
+            DeviceMessage::Info(two(0, 200)),
+            DeviceMessage::Info(two(1, 200)),
+        ]);
+        assert_eq!(c.identify(Duration::from_millis(50)).unwrap(), two(0, 150));
+        let infos = c.configure_sensors(&two(0, 200).config).unwrap();
+        assert_eq!(infos, vec![two(0, 200), two(1, 200)]);
+        assert_eq!(c.sensors(), 2);
+
+        let mut c = client(&[
+            DeviceMessage::Info(two(0, 150)),
+            result(CommandKind::Configure, Ok(())),
+        ]);
+        c.identify(Duration::from_millis(50)).unwrap();
+        let err = c.configure_sensors(&SensorConfig::default()).unwrap_err();
+        assert!(matches!(
+            err,
+            ClientError::MissingSensor {
+                sensor: 1,
+                sensors: 2,
+                ..
+            }
+        ));
+        assert_eq!(
+            err.to_string(),
+            "the IMU board on /dev/test reads 2 sensors but sent no DeviceInfo for sensor 1"
+        );
+    }
+
+    /// Mixed versions: a board of protocol 2 (its `DeviceInfo` frame as
+    /// checked in, protocol/tests/golden/frames_v2.txt) is refused by name,
+    /// with both versions.
+    #[test]
+    fn a_protocol_2_board_is_refused_by_name() {
+        let v2_info: Vec<u8> = (0..GOLDEN_V2_INFO.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&GOLDEN_V2_INFO[i..i + 2], 16).unwrap())
+            .collect();
+        let mut c = ImuClient::from_parts("/dev/test", std::io::Cursor::new(v2_info), Vec::new());
+        let err = c.identify(Duration::from_millis(50)).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ClientError::ProtocolVersion {
+                    found: 2,
+                    expected: 3,
+                    ..
+                }
+            ),
+            "{err:?}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "the IMU board on /dev/test speaks robimu protocol version 2, this robimu speaks \
+             version 3: flash the firmware that comes with this robimu (or use the robimu \
+             release of the board's firmware)"
+        );
+    }
+
+    /// `device/info` of protocol/tests/golden/frames_v2.txt.
+    const GOLDEN_V2_INFO: &str = "02020102010b02a0fb320f91061501030b02780ad7233cb4a2913a0103803f01037a420103fa420103e84201077a4494c10f4c00";
 }

@@ -5,6 +5,9 @@
 //! A board that reboots mid-stream (it announces itself with `DeviceInfo`
 //! and stops streaming) is configured and started again; samples after the
 //! restart belong to a new clock *segment*, mapped by its own fit.
+//!
+//! A board of several sensors (protocol 3) is one stream: its samples name
+//! their sensor, and all share the board's clock, pings and segments.
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
@@ -28,6 +31,8 @@ use crate::link::DeviceClock;
 pub enum ImuEvent {
     /// One sample in SI units.
     Sample {
+        /// Which of the board's sensors ([`ImuSample::sensor`]).
+        sensor: u8,
         /// Clock segment (0 until the first restart).
         segment: u32,
         /// Device time, s (unwrapped, since the segment's boot).
@@ -46,7 +51,7 @@ pub enum ImuEvent {
         /// The exchange.
         echo: Echo,
     },
-    /// A health report.
+    /// A health report (one per sensor, [`Status::sensor`]).
     Status(Status),
     /// The board rebooted and was started again; a new segment begins.
     Restarted {
@@ -66,11 +71,11 @@ pub struct ImuStream {
 }
 
 impl ImuStream {
-    /// Starts streaming on an identified, configured board; host times are
-    /// seconds since `epoch`.
+    /// Starts streaming on an identified, configured board whose sensors
+    /// `infos` describes (sensor 0 first); host times are seconds since `epoch`.
     pub fn start<R, W>(
         mut link: ImuClient<R, W>,
-        info: DeviceInfo,
+        infos: Vec<DeviceInfo>,
         config: SensorConfig,
         epoch: Instant,
     ) -> Result<ImuStream, ClientError>
@@ -85,7 +90,7 @@ impl ImuStream {
         let (flag, shared_stats) = (Arc::clone(&stop), Arc::clone(&stats));
         let thread = thread::Builder::new()
             .name("robimu-imu".into())
-            .spawn(move || stream(link, info, config, epoch, &tx, &flag, &shared_stats))
+            .spawn(move || stream(link, infos, config, epoch, &tx, &flag, &shared_stats))
             .map_err(|source| ClientError::Thread {
                 path: String::new(),
                 source,
@@ -152,6 +157,7 @@ pub fn sample_event(info: &DeviceInfo, segment: u32, t_us: u64, s: &ImuSample) -
         f64::from(s.gyro_raw[2]) * g,
     ];
     ImuEvent::Sample {
+        sensor: s.sensor,
         segment,
         device: t_us as f64 * 1e-6,
         seq: s.seq,
@@ -165,7 +171,7 @@ pub const PING_PERIOD: Duration = Duration::from_millis(100);
 
 fn stream<R: Read, W: Write>(
     mut link: ImuClient<R, W>,
-    mut info: DeviceInfo,
+    mut infos: Vec<DeviceInfo>,
     config: SensorConfig,
     epoch: Instant,
     tx: &Sender<ImuEvent>,
@@ -204,7 +210,11 @@ fn stream<R: Read, W: Write>(
         let received = Instant::now();
         let t_us = clock.observe(&msg);
         let event = match msg {
-            DeviceMessage::Sample(s) => sample_event(&info, segment, t_us.unwrap_or_default(), &s),
+            DeviceMessage::Sample(s) => match infos.get(usize::from(s.sensor)) {
+                Some(info) => sample_event(info, segment, t_us.unwrap_or_default(), &s),
+                // a sensor the board did not announce at the start
+                None => continue,
+            },
             DeviceMessage::Pong(p) => match pending.remove(&p.nonce) {
                 Some(sent) => ImuEvent::Echo {
                     segment,
@@ -226,7 +236,9 @@ fn stream<R: Read, W: Write>(
                 ImuEvent::Status(s)
             }
             DeviceMessage::Info(i) => {
-                info = i;
+                if let Some(info) = infos.get_mut(usize::from(i.sensor)) {
+                    *info = i;
+                }
                 // A board announces itself after boot: find out whether it
                 // is still streaming.
                 let _ = link.send(&HostMessage::GetStatus);

@@ -19,6 +19,16 @@
 //! time of arrival); at the end `t` is recomputed from `t_robot`
 //! ([`robot_clock`], [`repair::remap_joint_times`]).
 //!
+//! **Several IMUs** (docs/model.md §9): a board may read two sensors
+//! (protocol 3), and more boards may be given
+//! ([`RecordOptions::extra_imu_ports`]). IMUs are numbered board by board,
+//! each board's sensors in order: IMU 0 is `imu.csv`, IMU j ≥ 1 is
+//! `imu<j>.csv` with an `[imu<j>]` table (its port, `board`, `sensor` and
+//! `pings`, the ping log of its board). Each board has its own streaming
+//! thread, ping log (`pings.csv`, `pings1.csv`, …) and clock fit; its
+//! sensors share them. A board that fails ends the recording with its
+//! error, keeping every board's data, as for one.
+//!
 //! Main types: [`RecordOptions`] (the board's port, the robot controller
 //! ([`controller::RobotSpec`]), the plan ([`motion::Plan`]), the session
 //! directory), [`record`] itself, [`RecordSummary`] (what was recorded, the
@@ -38,6 +48,7 @@
 //!
 //! let opts = RecordOptions {
 //!     imu_port: "/dev/ttyACM0".into(),
+//!     extra_imu_ports: Vec::new(),
 //!     baud: 921_600,
 //!     robot_spec: RobotSpec::parse("aubo:192.168.1.10")?,
 //!     robot: Robot::aubo_i5(),
@@ -93,6 +104,9 @@ use robimu_session::{ImuTiming, SessionError, SessionMeta, SessionWriter};
 pub struct RecordOptions {
     /// The IMU board's serial port.
     pub imu_port: String,
+    /// More IMU boards' serial ports (docs/model.md §9: their sensors are
+    /// the IMUs after those of `imu_port`'s board, in this order).
+    pub extra_imu_ports: Vec<String>,
     /// Its baud rate.
     pub baud: u32,
     /// The robot controller.
@@ -139,15 +153,34 @@ pub struct RecordProgress {
     pub bad_frames: u64,
     /// Board reboots recovered.
     pub restarts: u32,
-    /// Samples the board reports it dropped.
+    /// Samples the board reports it dropped (all sensors of all boards).
+    pub device_dropped: u32,
+    /// The same figures per IMU (docs/model.md §9), IMU 0 first.
+    pub imus: Vec<ImuProgress>,
+}
+
+/// One IMU's live figures: one progress line each.
+#[derive(Clone, Debug, Default)]
+pub struct ImuProgress {
+    /// Its board's serial port.
+    pub port: String,
+    /// Which of the board's sensors.
+    pub sensor: u8,
+    /// Samples written.
+    pub samples: u64,
+    /// Samples per second over the last second.
+    pub rate: f64,
+    /// Samples missing by sequence number.
+    pub seq_gaps: u64,
+    /// Samples the board reports it dropped for this sensor.
     pub device_dropped: u32,
 }
 
 impl RecordProgress {
-    /// Takes the link's error counters.
-    fn set_link(&mut self, stats: &DecoderStats) {
-        self.crc_errors = stats.crc_errors;
-        self.bad_frames = stats.errors() - stats.crc_errors;
+    /// Takes the error counters of every board's link, summed.
+    fn set_links(&mut self, stats: &[DecoderStats]) {
+        self.crc_errors = stats.iter().map(|s| s.crc_errors).sum();
+        self.bad_frames = stats.iter().map(|s| s.errors() - s.crc_errors).sum();
     }
 }
 
@@ -166,9 +199,26 @@ pub struct RecordSummary {
     pub device: DeviceInfo,
     /// Final clock fit per segment.
     pub clock: Vec<(u32, ClockFit)>,
+    /// Every board (the first is the one of `device`, `link` and `clock`).
+    pub boards: Vec<BoardSummary>,
     /// The joint times' mapping from the controller's clock (UR); `None`
     /// for a controller without one (AUBO: arrival times).
     pub joint_clock: Option<repair::JointClock>,
+}
+
+/// One board of a recording.
+#[derive(Clone, Debug)]
+pub struct BoardSummary {
+    /// Its serial port.
+    pub port: String,
+    /// Its sensors, sensor 0 first.
+    pub devices: Vec<DeviceInfo>,
+    /// The IMU number of its sensor 0 (docs/model.md §9).
+    pub first_imu: usize,
+    /// Its link's decoder counters.
+    pub link: DecoderStats,
+    /// Its final clock fit per segment.
+    pub clock: Vec<(u32, ClockFit)>,
 }
 
 /// Why a recording failed.
@@ -199,28 +249,49 @@ pub fn record(
     progress: &mut dyn FnMut(&RecordProgress),
 ) -> Result<RecordSummary, RecordError> {
     // Set-up: everything that can fail before a file is written.
-    let mut board = ImuClient::open(&opts.imu_port, opts.baud)?;
-    board.identify(Duration::from_secs(3))?;
-    let info = board.configure(&opts.sensor)?;
+    let ports: Vec<&str> = std::iter::once(opts.imu_port.as_str())
+        .chain(opts.extra_imu_ports.iter().map(String::as_str))
+        .collect();
+    let mut boards = Vec::with_capacity(ports.len());
+    for port in &ports {
+        let mut board = ImuClient::open(port, opts.baud)?;
+        board.identify(Duration::from_secs(3))?;
+        let infos = board.configure_sensors(&opts.sensor)?;
+        boards.push((board, infos));
+    }
     let mut arm = Arm::connect(&opts.robot_spec)?;
     if let Some(plan) = &opts.plan {
         arm.prepare(&opts.robot, plan)?;
     }
 
-    let mut meta = SessionMeta::new(opts.robot_name.clone());
-    meta.imu = Some(device_table(&info, &opts.imu_port));
-    meta.notes = Some(format!(
-        "recorded by robimu {} from {} and {}",
-        env!("CARGO_PKG_VERSION"),
-        opts.imu_port,
-        describe(&opts.robot_spec)
-    ));
+    let sensors: Vec<usize> = boards.iter().map(|(_, i)| i.len()).collect();
+    let meta = session_meta(opts, &ports, &boards);
     let n = opts.robot.dof();
     let controller_clock = matches!(opts.robot_spec, RobotSpec::Ur { .. });
-    let mut state = SessionSink::create_with_clock(&opts.out, &meta, n, controller_clock)?;
+    let mut state = SessionSink::create_boards(&opts.out, &meta, n, controller_clock, &sensors)?;
+    let mut summaries = Vec::with_capacity(boards.len());
+    for (b, (_, infos)) in boards.iter().enumerate() {
+        let first_imu = sensors[..b].iter().sum::<usize>();
+        for (k, _) in infos.iter().enumerate() {
+            let p = &mut state.progress.imus[first_imu + k];
+            p.port = ports[b].to_string();
+            p.sensor = k as u8;
+        }
+        summaries.push(BoardSummary {
+            port: ports[b].to_string(),
+            devices: infos.clone(),
+            first_imu,
+            link: DecoderStats::default(),
+            clock: Vec::new(),
+        });
+    }
+    let info = summaries[0].devices[0];
 
     let epoch = Instant::now();
-    let stream = ImuStream::start(board, info, opts.sensor, epoch)?;
+    let mut streams = Vec::with_capacity(boards.len());
+    for (board, infos) in boards {
+        streams.push(ImuStream::start(board, infos, opts.sensor, epoch)?);
+    }
     let motion = opts.plan.as_ref().map(|p| p.duration());
     let mut arm = arm.start(
         &opts.robot,
@@ -241,7 +312,7 @@ pub fn record(
     let mut cause: Option<String> = None;
     let mut next_flush = Instant::now() + Duration::from_secs(1);
     let mut next_show = Instant::now();
-    let mut rate_window = (Instant::now(), 0u64);
+    let mut rate_window = (Instant::now(), vec![0u64; state.progress.imus.len()]);
     while cause.is_none() {
         let now = Instant::now();
         if stop_at.is_some_and(|t| now >= t) {
@@ -255,21 +326,31 @@ pub fn record(
             cause = Some("interrupted (Ctrl-C)".into());
             break;
         }
-        match stream.events().recv_timeout(Duration::from_millis(10)) {
+        // Waits on the first board, then takes what every board has.
+        match streams[0].events().recv_timeout(Duration::from_millis(10)) {
             Ok(ev) => {
-                if let Err(c) = state.handle(ev) {
+                if let Err(c) = state.handle_from(0, ev) {
                     cause = Some(c);
-                }
-                while let Ok(ev) = stream.events().try_recv() {
-                    if let Err(c) = state.handle(ev) {
-                        cause = Some(c);
-                        break;
-                    }
                 }
             }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => {
-                cause = Some("the IMU streaming thread ended".into());
+                cause = Some(format!("the IMU streaming thread of {} ended", ports[0]));
+            }
+        }
+        for (b, stream) in streams.iter().enumerate() {
+            while cause.is_none() {
+                match stream.events().try_recv() {
+                    Ok(ev) => {
+                        if let Err(c) = state.handle_from(b, ev) {
+                            cause = Some(c);
+                        }
+                    }
+                    Err(std::sync::mpsc::TryRecvError::Empty) => break,
+                    Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                        cause = Some(format!("the IMU streaming thread of {} ended", ports[b]));
+                    }
+                }
             }
         }
         while let Some(sample) = arm.try_sample() {
@@ -295,11 +376,22 @@ pub fn record(
         if now >= next_show {
             next_show = now + Duration::from_millis(200);
             state.progress.elapsed = epoch.elapsed().as_secs_f64();
-            state.progress.set_link(&stream.stats());
+            let stats: Vec<DecoderStats> = streams.iter().map(ImuStream::stats).collect();
+            state.progress.set_links(&stats);
             let dt = rate_window.0.elapsed().as_secs_f64();
             if dt >= 1.0 {
-                state.progress.imu_rate = (state.progress.imu_samples - rate_window.1) as f64 / dt;
-                rate_window = (now, state.progress.imu_samples);
+                let counts: Vec<u64> = state.progress.imus.iter().map(|p| p.samples).collect();
+                for ((p, now_n), then_n) in state
+                    .progress
+                    .imus
+                    .iter_mut()
+                    .zip(&counts)
+                    .zip(&rate_window.1)
+                {
+                    p.rate = (now_n - then_n) as f64 / dt;
+                }
+                state.progress.imu_rate = state.progress.imus.iter().map(|p| p.rate).sum();
+                rate_window = (now, counts);
             }
             progress(&state.progress);
         }
@@ -314,25 +406,38 @@ pub fn record(
             )),
         }
     }
-    // Wind down: stop the board and the poller, keep what they still hold.
+    // Wind down: stop the boards and the poller, keep what they still hold.
     let duration = epoch.elapsed().as_secs_f64();
-    let (rest_events, link_stats) = stream.stop();
-    for ev in rest_events.try_iter() {
-        if let Err(c) = state.handle(ev) {
-            cause.get_or_insert(c);
+    let mut links = Vec::with_capacity(streams.len());
+    for (b, stream) in streams.into_iter().enumerate() {
+        let (rest_events, link_stats) = stream.stop();
+        for ev in rest_events.try_iter() {
+            if let Err(c) = state.handle_from(b, ev) {
+                cause.get_or_insert(c);
+            }
         }
+        links.push(link_stats);
     }
     for s in arm.stop() {
         state.joint_sample(&s, n)?;
     }
     state.drain_waiting(true)?;
     state.progress.elapsed = duration;
-    state.progress.set_link(&link_stats);
+    state.progress.set_links(&links);
     progress(&state.progress);
     let counters = state.progress.clone();
     let dir = state.finish()?;
-    let (clock, _) = repair::remap_imu_times(&dir)?;
-    write_clock_notes(&dir, &clock)?;
+    for (j, fits, _) in repair::remap_all_imu_times(&dir)? {
+        if let Some(board) = summaries.iter_mut().find(|b| b.first_imu == j) {
+            board.clock = fits.clone();
+        }
+        write_clock_notes_of(&dir, j, &fits)?;
+    }
+    for (board, link) in summaries.iter_mut().zip(&links) {
+        board.link = *link;
+    }
+    let clock = summaries[0].clock.clone();
+    let link_stats = summaries[0].link;
     let joint_clock = repair::remap_joint_times(&dir)?;
     if let Some(c) = &joint_clock {
         repair::write_controller_clock(&dir, c)?;
@@ -344,6 +449,7 @@ pub fn record(
         link: link_stats,
         device: info,
         clock,
+        boards: summaries,
         joint_clock,
     };
     match cause {
@@ -357,6 +463,8 @@ pub fn record(
 
 /// An IMU sample waiting for its segment's clock fit.
 struct Waiting {
+    /// Which IMU (docs/model.md §9).
+    imu: usize,
     /// Device time, s.
     device: f64,
     seq: u32,
@@ -365,17 +473,27 @@ struct Waiting {
     temp: f64,
 }
 
-/// The writing side of a recording: takes IMU events and joint samples,
-/// maps device time to session time, writes the session's files.
-pub struct SessionSink {
-    writer: SessionWriter,
+/// One board's side of a [`SessionSink`]: its ping log, clock fits and
+/// waiting samples.
+struct BoardSink {
     pings: std::io::BufWriter<std::fs::File>,
     pings_path: PathBuf,
     echoes: BTreeMap<u32, Vec<Echo>>,
     fits: BTreeMap<u32, ClockFit>,
     /// Samples of segments without a clock fit yet.
     waiting: BTreeMap<u32, Vec<Waiting>>,
-    last_seq: BTreeMap<u32, u32>,
+    /// The last `seq` by segment and sensor.
+    last_seq: BTreeMap<(u32, u8), u32>,
+    /// The IMU number of its sensor 0.
+    first_imu: usize,
+    sensors: usize,
+}
+
+/// The writing side of a recording: takes IMU events and joint samples,
+/// maps device time to session time, writes the session's files.
+pub struct SessionSink {
+    writer: SessionWriter,
+    boards: Vec<BoardSink>,
     /// Whether `joints.csv` has the controller clock's columns.
     controller_clock: bool,
     /// The counters so far.
@@ -398,6 +516,19 @@ impl SessionSink {
         joints: usize,
         controller_clock: bool,
     ) -> Result<Self, SessionError> {
+        Self::create_boards(dir, meta, joints, controller_clock, &[1])
+    }
+
+    /// [`Self::create_with_clock`] for boards of `sensors[b]` sensors each
+    /// (docs/model.md §9: IMUs numbered board by board); board b's ping log
+    /// is [`repair::pings_file`]`(b)`.
+    pub fn create_boards(
+        dir: &Path,
+        meta: &SessionMeta,
+        joints: usize,
+        controller_clock: bool,
+        sensors: &[usize],
+    ) -> Result<Self, SessionError> {
         let joint_extra: &[&str] = if controller_clock {
             &repair::JOINT_CLOCK_COLUMNS
         } else {
@@ -415,22 +546,36 @@ impl SessionSink {
                 robimu_session::IMU_TEMP_COLUMN,
             ],
         )?;
-        let pings_path = dir.join(repair::PINGS);
-        let mut pings = std::io::BufWriter::new(
-            std::fs::File::create(&pings_path).map_err(|e| SessionError::io(&pings_path, e))?,
-        );
-        writeln!(pings, "{}", repair::PINGS_HEADER)
-            .map_err(|e| SessionError::io(&pings_path, e))?;
+        let mut boards = Vec::with_capacity(sensors.len());
+        let mut first_imu = 0;
+        for (b, &n) in sensors.iter().enumerate() {
+            let pings_path = dir.join(repair::pings_file(b));
+            let mut pings = std::io::BufWriter::new(
+                std::fs::File::create(&pings_path).map_err(|e| SessionError::io(&pings_path, e))?,
+            );
+            writeln!(pings, "{}", repair::PINGS_HEADER)
+                .map_err(|e| SessionError::io(&pings_path, e))?;
+            boards.push(BoardSink {
+                pings,
+                pings_path,
+                echoes: BTreeMap::new(),
+                fits: BTreeMap::new(),
+                waiting: BTreeMap::new(),
+                last_seq: BTreeMap::new(),
+                first_imu,
+                sensors: n.max(1),
+            });
+            first_imu += n.max(1);
+        }
+        let progress = RecordProgress {
+            imus: vec![ImuProgress::default(); first_imu],
+            ..RecordProgress::default()
+        };
         Ok(SessionSink {
             writer,
-            pings,
-            pings_path,
-            echoes: BTreeMap::new(),
-            fits: BTreeMap::new(),
-            waiting: BTreeMap::new(),
-            last_seq: BTreeMap::new(),
+            boards,
             controller_clock,
-            progress: RecordProgress::default(),
+            progress,
         })
     }
 
@@ -456,21 +601,39 @@ impl SessionSink {
         Ok(())
     }
 
-    /// Takes one IMU event; `Err(cause)` ends the recording.
+    /// Takes one IMU event of the first board; `Err(cause)` ends the recording.
     pub fn handle(&mut self, ev: ImuEvent) -> Result<(), String> {
+        self.handle_from(0, ev)
+    }
+
+    /// Takes one IMU event of board `board`; `Err(cause)` ends the recording.
+    pub fn handle_from(&mut self, board: usize, ev: ImuEvent) -> Result<(), String> {
+        let Some(bs) = self.boards.get_mut(board) else {
+            return Err(format!(
+                "an event of board {board}, which the session does not have"
+            ));
+        };
         match ev {
             ImuEvent::Sample {
+                sensor,
                 segment,
                 device,
                 seq,
                 z,
                 temp,
             } => {
-                if let Some(prev) = self.last_seq.insert(segment, seq) {
-                    self.progress.seq_gaps +=
-                        u64::from(seq.wrapping_sub(prev).saturating_sub(1).min(1 << 20));
+                if usize::from(sensor) >= bs.sensors {
+                    // a sensor the board did not announce: not an IMU of the session
+                    return Ok(());
                 }
-                self.waiting.entry(segment).or_default().push(Waiting {
+                let imu = bs.first_imu + usize::from(sensor);
+                if let Some(prev) = bs.last_seq.insert((segment, sensor), seq) {
+                    let gaps = u64::from(seq.wrapping_sub(prev).saturating_sub(1).min(1 << 20));
+                    self.progress.seq_gaps += gaps;
+                    self.progress.imus[imu].seq_gaps += gaps;
+                }
+                bs.waiting.entry(segment).or_default().push(Waiting {
+                    imu,
                     device,
                     seq,
                     z,
@@ -480,23 +643,33 @@ impl SessionSink {
             }
             ImuEvent::Echo { segment, echo } => {
                 writeln!(
-                    self.pings,
+                    bs.pings,
                     "{:?},{:?},{:?},{segment}",
                     echo.host_send, echo.host_recv, echo.device
                 )
-                .map_err(|e| SessionError::io(&self.pings_path, e).to_string())?;
-                let list = self.echoes.entry(segment).or_default();
+                .map_err(|e| SessionError::io(&bs.pings_path, e).to_string())?;
+                let list = bs.echoes.entry(segment).or_default();
                 list.push(echo);
                 // Refit often while the fit is young, then once a second over
                 // the last minute of echoes (the final fit uses them all).
                 if list.len() >= 3 && (list.len() < 20 || list.len() % 10 == 0) {
                     let recent = &list[list.len().saturating_sub(600)..];
                     if let Some(fit) = ClockFit::fit(recent) {
-                        self.fits.insert(segment, fit);
+                        bs.fits.insert(segment, fit);
                     }
                 }
             }
-            ImuEvent::Status(s) => self.progress.device_dropped = s.samples_dropped,
+            ImuEvent::Status(s) => {
+                if usize::from(s.sensor) < bs.sensors {
+                    let imu = bs.first_imu + usize::from(s.sensor);
+                    self.progress.imus[imu].device_dropped = s.samples_dropped;
+                    self.progress.device_dropped = self
+                        .progress
+                        .imus
+                        .iter()
+                        .fold(0u32, |a, p| a.wrapping_add(p.device_dropped));
+                }
+            }
             ImuEvent::Restarted { .. } => self.progress.restarts += 1,
             ImuEvent::Failed(e) => return Err(e.to_string()),
         }
@@ -506,23 +679,27 @@ impl SessionSink {
     /// Writes waiting samples whose segment has a fit (all of them, with
     /// the best mapping available, when `all`).
     pub fn drain_waiting(&mut self, all: bool) -> Result<(), SessionError> {
-        let segments: Vec<u32> = self.waiting.keys().copied().collect();
-        for segment in segments {
-            let fit = match self.fits.get(&segment) {
-                Some(f) => *f,
-                None if all => match self.echoes.get(&segment).and_then(|e| e.first()) {
-                    Some(e) => ClockFit::offset_only(e),
+        for bs in &mut self.boards {
+            let segments: Vec<u32> = bs.waiting.keys().copied().collect();
+            for segment in segments {
+                let fit = match bs.fits.get(&segment) {
+                    Some(f) => *f,
+                    None if all => match bs.echoes.get(&segment).and_then(|e| e.first()) {
+                        Some(e) => ClockFit::offset_only(e),
+                        None => continue,
+                    },
                     None => continue,
-                },
-                None => continue,
-            };
-            for w in self.waiting.remove(&segment).unwrap_or_default() {
-                self.writer.imu_extra(
-                    fit.to_session(w.device),
-                    &w.z,
-                    &[w.device, f64::from(segment), f64::from(w.seq), w.temp],
-                )?;
-                self.progress.imu_samples += 1;
+                };
+                for w in bs.waiting.remove(&segment).unwrap_or_default() {
+                    self.writer.imu_extra_of(
+                        w.imu,
+                        fit.to_session(w.device),
+                        &w.z,
+                        &[w.device, f64::from(segment), f64::from(w.seq), w.temp],
+                    )?;
+                    self.progress.imu_samples += 1;
+                    self.progress.imus[w.imu].samples += 1;
+                }
             }
         }
         Ok(())
@@ -531,9 +708,12 @@ impl SessionSink {
     /// Pushes every buffered row to the operating system.
     pub fn flush(&mut self) -> Result<(), SessionError> {
         self.writer.flush()?;
-        self.pings
-            .flush()
-            .map_err(|e| SessionError::io(&self.pings_path, e))
+        for bs in &mut self.boards {
+            bs.pings
+                .flush()
+                .map_err(|e| SessionError::io(&bs.pings_path, e))?;
+        }
+        Ok(())
     }
 
     /// Writes what waits, flushes and closes.
@@ -542,6 +722,42 @@ impl SessionSink {
         self.flush()?;
         self.writer.finish()
     }
+}
+
+/// session.toml of a recording from `boards` (on `ports`): `[imu]` for
+/// IMU 0, `[imu<j>]` for the others (docs/model.md §9), each naming its
+/// port, board, sensor and ping log when there are several.
+fn session_meta<B>(
+    opts: &RecordOptions,
+    ports: &[&str],
+    boards: &[(B, Vec<DeviceInfo>)],
+) -> SessionMeta {
+    let mut meta = SessionMeta::new(opts.robot_name.clone());
+    let several = boards.iter().map(|(_, i)| i.len()).sum::<usize>() > 1;
+    let mut j = 0;
+    for (b, (_, infos)) in boards.iter().enumerate() {
+        for (k, info) in infos.iter().enumerate() {
+            let mut t = device_table(info, ports[b]);
+            if several {
+                t.insert("board".into(), (b as i64).into());
+                t.insert("sensor".into(), (k as i64).into());
+                t.insert("pings".into(), repair::pings_file(b).into());
+            }
+            if j == 0 {
+                meta.imu = Some(t);
+            } else {
+                meta.imu_tables.insert(j, t);
+            }
+            j += 1;
+        }
+    }
+    meta.notes = Some(format!(
+        "recorded by robimu {} from {} and {}",
+        env!("CARGO_PKG_VERSION"),
+        ports.join(", "),
+        describe(&opts.robot_spec)
+    ));
+    meta
 }
 
 fn describe(spec: &RobotSpec) -> String {
@@ -644,6 +860,16 @@ pub fn alias_warning(config: &SensorConfig) -> Option<String> {
 
 /// Adds the clock fits to session.toml's `[imu]` table.
 pub fn write_clock_notes(dir: &Path, clock: &[(u32, ClockFit)]) -> Result<(), SessionError> {
+    write_clock_notes_of(dir, 0, clock)
+}
+
+/// Adds the clock fits of IMU `j`'s board to its table (`[imu]` for j = 0,
+/// `[imu<j>]` else; docs/model.md §9).
+pub fn write_clock_notes_of(
+    dir: &Path,
+    j: usize,
+    clock: &[(u32, ClockFit)],
+) -> Result<(), SessionError> {
     let fits: Vec<toml::Value> = clock
         .iter()
         .map(|(segment, f)| {
@@ -659,9 +885,12 @@ pub fn write_clock_notes(dir: &Path, clock: &[(u32, ClockFit)]) -> Result<(), Se
         })
         .collect();
     repair::update_meta(dir, |meta| {
-        meta.imu
-            .get_or_insert_with(toml::Table::new)
-            .insert("clock".into(), fits.into());
+        let table = if j == 0 {
+            meta.imu.get_or_insert_with(toml::Table::new)
+        } else {
+            meta.imu_tables.entry(j).or_default()
+        };
+        table.insert("clock".into(), fits.into());
     })
 }
 
@@ -723,6 +952,8 @@ mod alias_tests {
             gyro_scale_rads_per_lsb: 1.0 / 900.0,
             temp_scale_c_per_lsb: 1.0,
             timing: SensorTiming::of(&cfg),
+            sensor: 0,
+            sensors: 1,
         };
         let t = device_table(&info, "virtual");
         assert_eq!(t["alias_margin_hz"].as_float(), Some(2.5));

@@ -304,6 +304,7 @@ mod tests {
 
     fn sample(seq: u32) -> DeviceMessage {
         DeviceMessage::Sample(ImuSample {
+            sensor: 0,
             seq,
             t_us: seq.wrapping_mul(8_333),
             accel_raw: [1, -2, 981],
@@ -484,6 +485,7 @@ mod tests {
         let sample_time = base + 300; // after the wrap
         let status_time = base + 50; // before it, arriving later
         let sample = DeviceMessage::Sample(ImuSample {
+            sensor: 0,
             seq: 0,
             t_us: (sample_time % (1u64 << 32)) as u32,
             accel_raw: [0; 3],

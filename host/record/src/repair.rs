@@ -7,6 +7,9 @@
 //!   recomputed from every ping echo in `pings.csv` with the final robust
 //!   clock fit of each segment ([`ClockFit`]), replacing the provisional
 //!   times the recorder wrote while the fit was still growing.
+//! * With several IMUs (docs/model.md §9), every `imu<j>.csv` likewise,
+//!   from the ping log of its board (its `[imu<j>]` table's `pings`,
+//!   [`pings_file`]; `pings.csv` when none is named).
 //! * `joints.csv` rows of a UR recording carry the controller's timestamp
 //!   and the host's arrival time (`t_robot`, `t_arrival` columns); their
 //!   session times are recomputed from `t_robot` with the lower-envelope
@@ -23,6 +26,16 @@ use robimu_session::{files, SessionError, SessionMeta};
 
 /// Name of the ping log in a recorded session.
 pub const PINGS: &str = "pings.csv";
+/// The ping log of board `b` of a recording: [`PINGS`] for the first,
+/// `pings<b>.csv` for the others.
+pub fn pings_file(b: usize) -> String {
+    if b == 0 {
+        PINGS.to_string()
+    } else {
+        format!("pings{b}.csv")
+    }
+}
+
 /// Header of [`PINGS`].
 pub const PINGS_HEADER: &str = "host_send,host_recv,device,segment";
 /// The extra `joints.csv` columns of a recording from a controller with a
@@ -63,7 +76,12 @@ pub fn repair(dir: &Path) -> Result<RepairReport, SessionError> {
         ));
     }
     let mut report = RepairReport::default();
-    for name in [files::JOINTS, files::IMU, files::TRACKER, PINGS] {
+    let mut names: Vec<String> = [files::JOINTS, files::IMU, files::TRACKER, PINGS]
+        .map(String::from)
+        .to_vec();
+    names.extend(extra_imu_files(dir)?.into_iter().map(|(_, n)| n));
+    names.extend((1..).map(pings_file).take_while(|n| dir.join(n).is_file()));
+    for name in &names {
         let path = dir.join(name);
         if path.is_file() {
             if let Some(line) = drop_cut_line(&path)? {
@@ -142,20 +160,90 @@ pub fn read_pings(path: &Path) -> Result<BTreeMap<u32, Vec<Echo>>, SessionError>
     Ok(out)
 }
 
-/// Rewrites the `t` column of `imu.csv` from `t_device` and `segment` with
-/// each segment's final clock fit. Returns the fits and the number of rows
-/// left as they were (segment without echoes).
-pub fn remap_imu_times(dir: &Path) -> Result<(Vec<(u32, ClockFit)>, usize), SessionError> {
-    let pings = read_pings(&dir.join(PINGS))?;
-    let fits: BTreeMap<u32, ClockFit> = pings
-        .iter()
-        .filter_map(|(s, e)| {
-            ClockFit::fit(e)
-                .or_else(|| e.first().map(ClockFit::offset_only))
-                .map(|f| (*s, f))
-        })
+/// The `imu<j>.csv` files of `dir`, with j (docs/model.md §9).
+fn extra_imu_files(dir: &Path) -> Result<Vec<(usize, String)>, SessionError> {
+    let listing = std::fs::read_dir(dir).map_err(|e| SessionError::io(dir, e))?;
+    let names: Vec<String> = listing
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
         .collect();
-    let path = dir.join(files::IMU);
+    Ok(files::extra_imu_indices(names.iter().map(String::as_str))
+        .into_iter()
+        .map(|j| (j, files::imu_csv(j)))
+        .collect())
+}
+
+/// Rewrites the `t` column of `imu.csv` from `t_device` and `segment` with
+/// each segment's final clock fit (and of every `imu<j>.csv`,
+/// [`remap_all_imu_times`]). Returns IMU 0's fits and the number of rows
+/// left as they were (segment without echoes), all IMUs counted.
+pub fn remap_imu_times(dir: &Path) -> Result<(Vec<(u32, ClockFit)>, usize), SessionError> {
+    let all = remap_all_imu_times(dir)?;
+    let unmapped = all.iter().map(|(_, _, u)| u).sum();
+    let first = all.into_iter().find(|(j, _, _)| *j == 0).map(|(_, f, _)| f);
+    Ok((first.unwrap_or_default(), unmapped))
+}
+
+/// What [`remap_all_imu_times`] did to one IMU's file: `(j, the clock
+/// fits of its board by segment, rows left as they were)`.
+pub type ImuRemap = (usize, Vec<(u32, ClockFit)>, usize);
+
+/// [`remap_imu_times`] for each IMU of the session (docs/model.md §9),
+/// each from its board's ping log: `(j, fits, rows left as they were)`,
+/// IMU 0 first.
+pub fn remap_all_imu_times(dir: &Path) -> Result<Vec<ImuRemap>, SessionError> {
+    let meta_path = dir.join(files::META);
+    let meta = if meta_path.is_file() {
+        Some(SessionMeta::read(&meta_path)?)
+    } else {
+        None
+    };
+    let pings_of = |j: usize| -> String {
+        let table = match (&meta, j) {
+            (Some(m), 0) => m.imu.as_ref(),
+            (Some(m), j) => m.imu_tables.get(&j),
+            (None, _) => None,
+        };
+        table
+            .and_then(|t| t.get("pings"))
+            .and_then(|v| v.as_str())
+            .unwrap_or(PINGS)
+            .to_string()
+    };
+    let mut imus = vec![(0, files::IMU.to_string())];
+    imus.extend(extra_imu_files(dir)?);
+    let mut fits_by_log: BTreeMap<String, BTreeMap<u32, ClockFit>> = BTreeMap::new();
+    let mut out = Vec::with_capacity(imus.len());
+    for (j, file) in imus {
+        let log = pings_of(j);
+        if !fits_by_log.contains_key(&log) {
+            let path = dir.join(&log);
+            if !path.is_file() {
+                continue;
+            }
+            let fits = read_pings(&path)?
+                .iter()
+                .filter_map(|(s, e)| {
+                    ClockFit::fit(e)
+                        .or_else(|| e.first().map(ClockFit::offset_only))
+                        .map(|f| (*s, f))
+                })
+                .collect();
+            fits_by_log.insert(log.clone(), fits);
+        }
+        let fits = &fits_by_log[&log];
+        let path = dir.join(&file);
+        if !path.is_file() {
+            continue;
+        }
+        let unmapped = remap_file(&path, fits)?;
+        out.push((j, fits.iter().map(|(s, f)| (*s, *f)).collect(), unmapped));
+    }
+    Ok(out)
+}
+
+/// Rewrites `path`'s `t` column with `fits`; the rows left as they were.
+fn remap_file(path: &Path, fits: &BTreeMap<u32, ClockFit>) -> Result<usize, SessionError> {
+    let path = path.to_path_buf();
     let text = std::fs::read_to_string(&path).map_err(|e| SessionError::io(&path, e))?;
     let mut lines = text.lines();
     let header = lines.next().unwrap_or_default();
@@ -164,7 +252,7 @@ pub fn remap_imu_times(dir: &Path) -> Result<(Vec<(u32, ClockFit)>, usize), Sess
         cols.iter().position(|c| *c == "t_device"),
         cols.iter().position(|c| *c == "segment"),
     ) else {
-        return Ok((fits.into_iter().collect(), 0));
+        return Ok(0);
     };
     let mut out = String::with_capacity(text.len());
     out.push_str(header);
@@ -194,7 +282,7 @@ pub fn remap_imu_times(dir: &Path) -> Result<(Vec<(u32, ClockFit)>, usize), Sess
         out.push('\n');
     }
     write_atomically(&path, out.as_bytes())?;
-    Ok((fits.into_iter().collect(), unmapped))
+    Ok(unmapped)
 }
 
 /// Rewrites the `t` column of `joints.csv` from its `t_robot` column with

@@ -115,9 +115,9 @@ pub fn host_variant(m: &HostMessage) -> &'static str {
 /// Worst-case frame length per variant, from the table in `frame.rs` docs.
 pub fn device_variant_max_frame(m: &DeviceMessage) -> usize {
     match m {
-        DeviceMessage::Info(_) => 55,
-        DeviceMessage::Sample(_) => 37,
-        DeviceMessage::Status(_) => 44,
+        DeviceMessage::Info(_) => 57,
+        DeviceMessage::Sample(_) => 38,
+        DeviceMessage::Status(_) => 45,
         DeviceMessage::Pong(_) => 18,
         DeviceMessage::CommandResult(_) => 11,
     }
@@ -190,6 +190,7 @@ pub fn device_info() -> impl Strategy<Value = DeviceInfo> {
         any::<u8>(),
         sensor_config(),
         [any_f32_bits(), any_f32_bits(), any_f32_bits()],
+        any::<[u8; 2]>(),
         [
             any_f32_bits(),
             any_f32_bits(),
@@ -198,7 +199,16 @@ pub fn device_info() -> impl Strategy<Value = DeviceInfo> {
         ],
     )
         .prop_map(
-            |(fw, ids, sw_revision, bootloader_revision, config, scales, rates)| {
+            |(
+                fw,
+                ids,
+                sw_revision,
+                bootloader_revision,
+                config,
+                scales,
+                [sensor, sensors],
+                rates,
+            )| {
                 let [protocol_version, chip_id, accel_id, mag_id, gyro_id] = ids;
                 let [accel_scale_mps2_per_lsb, gyro_scale_rads_per_lsb, temp_scale_c_per_lsb] =
                     scales;
@@ -221,6 +231,8 @@ pub fn device_info() -> impl Strategy<Value = DeviceInfo> {
                         gyro_bandwidth_hz: rates[2],
                         gyro_odr_hz: rates[3],
                     },
+                    sensor,
+                    sensors,
                 }
             },
         )
@@ -233,27 +245,34 @@ pub fn imu_sample() -> impl Strategy<Value = ImuSample> {
         any::<[i16; 3]>(),
         any::<[i16; 3]>(),
         any::<i8>(),
+        any::<u8>(),
     )
-        .prop_map(|(seq, t_us, accel_raw, gyro_raw, temp_raw)| ImuSample {
-            seq,
-            t_us,
-            accel_raw,
-            gyro_raw,
-            temp_raw,
-        })
+        .prop_map(
+            |(seq, t_us, accel_raw, gyro_raw, temp_raw, sensor)| ImuSample {
+                sensor,
+                seq,
+                t_us,
+                accel_raw,
+                gyro_raw,
+                temp_raw,
+            },
+        )
 }
 
 pub fn status() -> impl Strategy<Value = Status> {
-    (any::<u32>(), any::<bool>(), any::<[u32; 6]>()).prop_map(|(t_us, streaming, c)| Status {
-        t_us,
-        streaming,
-        samples_sent: c[0],
-        samples_dropped: c[1],
-        i2c_errors: c[2],
-        sensor_reinits: c[3],
-        frames_sent: c[4],
-        rx_errors: c[5],
-    })
+    (any::<u32>(), any::<bool>(), any::<[u32; 6]>(), any::<u8>()).prop_map(
+        |(t_us, streaming, c, sensor)| Status {
+            t_us,
+            streaming,
+            samples_sent: c[0],
+            samples_dropped: c[1],
+            i2c_errors: c[2],
+            sensor_reinits: c[3],
+            frames_sent: c[4],
+            rx_errors: c[5],
+            sensor,
+        },
+    )
 }
 
 pub fn pong() -> impl Strategy<Value = Pong> {

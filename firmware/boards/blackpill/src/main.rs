@@ -26,6 +26,9 @@ use port::Usart1;
 /// BNO055 I²C address: 0x28 with the ADR/COM3 pin low (the Adafruit board's
 /// default), 0x29 with it tied to 3.3 V.
 const BNO055_ADDRESS: u8 = 0x28;
+/// A second BNO055 on the same bus (its ADR pin tied to 3.3 V: 0x29), read
+/// on the same tick: `Some(0x29)` for a two-sensor board.
+const SECOND_BNO055_ADDRESS: Option<u8> = None;
 
 /// USART1 baud rate. At PCLK2 = 100 MHz the divider gives 917 431 Bd (-0.45 %).
 const BAUD: u32 = 921_600;
@@ -59,6 +62,7 @@ fn main() -> ! {
 
     let config = Config {
         i2c_address: BNO055_ADDRESS,
+        second_address: SECOND_BNO055_ADDRESS,
         ..Config::default()
     };
     let mut acquisition = Acquisition::new(i2c, delay, NbSerial::new(Usart1(usart)), clock, config);

@@ -384,6 +384,7 @@ impl DemoCmd {
         write!(std::io::stdout(), "{command}")?;
         let opts = RecordOptions {
             imu_port: rig.imu_port().to_string(),
+            extra_imu_ports: Vec::new(),
             baud: 921_600,
             robot_spec: RobotSpec::parse(&robot_spec)?,
             robot,

@@ -224,8 +224,9 @@ pub fn record_with_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummar
 }
 
 fn record_showing_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummary> {
+    let multi = indicatif::MultiProgress::new();
     let bar = std::io::stderr().is_terminal().then(|| {
-        let bar = ProgressBar::new(1000);
+        let bar = multi.add(ProgressBar::new(1000));
         let style = ProgressStyle::with_template(
             "{spinner} recording [{elapsed_precise}] {bar:30} {percent:>3}% (~{eta} left) {msg}",
         )
@@ -234,6 +235,8 @@ fn record_showing_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummary
         bar.enable_steady_tick(Duration::from_millis(200));
         bar
     });
+    // With several IMUs (docs/model.md §9): one more line per IMU.
+    let mut lines: Vec<ProgressBar> = Vec::new();
     let mut show = |p: &RecordProgress| {
         if let Some(bar) = &bar {
             let done = if p.total > 0.0 {
@@ -256,13 +259,39 @@ fn record_showing_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummary
                     String::new()
                 }
             ));
+            if p.imus.len() > 1 {
+                while lines.len() < p.imus.len() {
+                    let line = multi.add(ProgressBar::new_spinner());
+                    line.set_style(
+                        ProgressStyle::with_template("  {msg}")
+                            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+                    );
+                    lines.push(line);
+                }
+                for (j, (line, imu)) in lines.iter().zip(&p.imus).enumerate() {
+                    line.set_message(imu_progress_line(j, imu));
+                }
+            }
         }
     };
     let result = record(opts, &mut show);
+    for line in &lines {
+        line.finish_and_clear();
+    }
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
     Ok(result?)
+}
+
+/// IMU `j`'s progress line: its board and sensor, samples, rate, gaps and
+/// the board's drops.
+pub fn imu_progress_line(j: usize, p: &robimu_record::ImuProgress) -> String {
+    let file = robimu_session::files::imu_csv(j);
+    format!(
+        "IMU {j} ({file}, {} sensor {}): {} samples, {:.0}/s, {} gaps, {} dropped by the board",
+        p.port, p.sensor, p.samples, p.rate, p.seq_gaps, p.device_dropped
+    )
 }
 
 /// A spinner on stderr with a message, and log lines above it; when stderr

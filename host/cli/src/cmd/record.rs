@@ -11,7 +11,7 @@ use robimu_report::recording::RecordSummaryText;
 
 use robimu_workflows::plan::files::read_plan_table;
 
-use super::input::{record_with_progress, resolve_robot};
+use super::input::{imu_progress_line, record_with_progress, resolve_robot};
 
 /// Record a session: stream the IMU board, poll the robot's joints, and
 /// execute a plan on the robot.
@@ -20,9 +20,11 @@ use super::input::{record_with_progress, resolve_robot};
 /// second; `robimu repair SESSION` finishes one cut short by a crash.
 #[derive(Debug, Clone, clap::Args)]
 pub struct RecordCmd {
-    /// The IMU board's serial port (e.g. /dev/ttyUSB0).
-    #[arg(long)]
-    pub imu: String,
+    /// The IMU board's serial port (e.g. /dev/ttyUSB0); repeat for more
+    /// boards (`--imu A --imu B`): every sensor of every board is an IMU of
+    /// the session, board by board (imu.csv, imu1.csv, …; docs/model.md §9).
+    #[arg(long, required = true)]
+    pub imu: Vec<String>,
     /// Serial baud rate.
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
@@ -85,6 +87,11 @@ impl RecordCmd {
                 self.joint_rate
             );
         }
+        for (i, port) in self.imu.iter().enumerate() {
+            if self.imu[..i].contains(port) {
+                bail!("--imu {port} is given twice: each board is read once");
+            }
+        }
         let defaults = SensorConfig::default();
         let rate = match self.rate {
             Some(rate) if !(1..=1000).contains(&rate) => {
@@ -106,7 +113,8 @@ impl RecordCmd {
             );
         }
         Ok(RecordOptions {
-            imu_port: self.imu.clone(),
+            imu_port: self.imu[0].clone(),
+            extra_imu_ports: self.imu[1..].to_vec(),
             baud: self.baud,
             robot_spec,
             robot,
@@ -132,6 +140,33 @@ impl RecordCmd {
         }
         let summary = record_with_progress(&opts)?;
         print!("{}", RecordSummaryText(&summary));
+        print!("{}", imu_lines(&summary));
         Ok(())
     }
+}
+
+/// With several IMUs (docs/model.md §9): a line per IMU and the clock fit
+/// of every board after the first (whose fit the summary shows); empty for one.
+pub fn imu_lines(summary: &robimu_record::RecordSummary) -> String {
+    let p = &summary.progress;
+    if p.imus.len() < 2 {
+        return String::new();
+    }
+    let mut out = String::new();
+    for (j, imu) in p.imus.iter().enumerate() {
+        out += &imu_progress_line(j, imu);
+        out.push('\n');
+    }
+    for board in summary.boards.iter().skip(1) {
+        for (segment, c) in &board.clock {
+            out += &format!(
+                "board {} clock segment {segment}: device = session + {:.6} s, drift {:+.2} ppm, fit residual {:.1} µs\n",
+                board.port,
+                c.offset,
+                c.drift_ppm(),
+                c.residual_rms * 1e6
+            );
+        }
+    }
+    out
 }
