@@ -78,7 +78,7 @@ fn two_imu_monte_carlo_is_consistent_and_the_shared_sigma_shrink() {
                 .is_some_and(|e| !e.is_translation())
         })
         .collect();
-    assert_eq!(angles.len(), 10);
+    assert_eq!(angles.len(), 9);
     for (name, g) in angles {
         assert!(*g > 1.2 && *g < 1.6, "{name}: gain {g:.3}");
     }
