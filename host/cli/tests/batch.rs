@@ -245,3 +245,83 @@ fn limits_fail_the_unit_beyond_them_by_name() {
     let run = robimu(["calibrate-batch", s(&good), "--limits", s(&limits)]);
     run.assert_fails(&["unknown field `max_bias_accel`", "limits.toml"]);
 }
+
+/// A session of two IMUs (docs/model.md §9) is one joint fit and two units:
+/// a row per IMU with its own 28 parameters under their §5 names (the
+/// single joint `robimu calibrate`'s `imu1/…` values for IMU 1) and its
+/// own verdict against the limits.
+#[test]
+fn a_two_imu_session_gives_one_row_per_imu() {
+    let tmp = tempfile::tempdir().unwrap();
+    let lot = tmp.path().join("lot");
+    let dir = lot.join("pair");
+    simulate(&dir, 7, &["--imus", "2"]);
+    let single = tmp.path().join("single.json");
+    robimu_ok(["calibrate", s(&dir), "--out", s(&single)]);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&single).unwrap()).unwrap();
+    let params = json["parameters"].as_array().unwrap();
+    let value = |name: &str| {
+        params
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap_or_else(|| panic!("{name} not in the result"))["value"]
+            .as_f64()
+            .unwrap()
+    };
+    // a gyroscope-bias limit between the two IMUs' largest |b_w|: one passes
+    let worst = |prefix: &str| {
+        ["b_w_x", "b_w_y", "b_w_z"]
+            .map(|n| value(&format!("{prefix}{n}")).abs())
+            .into_iter()
+            .fold(0.0, f64::max)
+    };
+    let (w0, w1) = (worst(""), worst("imu1/"));
+    let limit = 0.5 * (w0 + w1);
+    let limits = tmp.path().join("limits.toml");
+    std::fs::write(&limits, format!("[limits]\nmax_abs_bias_gyro = {limit}\n")).unwrap();
+    let out = tmp.path().join("summary.csv");
+    let run = robimu([
+        "calibrate-batch",
+        s(&lot),
+        "--limits",
+        s(&limits),
+        "--out",
+        s(&out),
+        "--force",
+    ]);
+    run.assert_fails(&["1 of 2 units did not pass"]);
+    let rows = summary(&out);
+    assert_eq!(rows.len(), 2);
+    for (j, prefix) in [(0, ""), (1, "imu1/")] {
+        let r = &rows[j];
+        assert_eq!(r["imu"], j.to_string());
+        assert_eq!(r["status"], "ok");
+        let mut compared = 0;
+        for p in params {
+            let name = p["name"].as_str().unwrap();
+            let Some(base) = name.strip_prefix(prefix) else {
+                continue;
+            };
+            if base.starts_with("imu") {
+                continue;
+            }
+            let Some(v) = r.get(base) else { continue };
+            let v: f64 = v.parse().unwrap();
+            let want = p["value"].as_f64().unwrap();
+            assert!(
+                (v - want).abs() <= 4.0 * f64::EPSILON * want.abs(),
+                "IMU {j} {base}: {v} vs {want}"
+            );
+            compared += 1;
+        }
+        assert_eq!(compared, 28, "IMU {j}");
+        let fails = r["limits"] == "fail";
+        assert_eq!(fails, if j == 0 { w0 > limit } else { w1 > limit }, "{r:?}");
+        assert_eq!(
+            fails,
+            r["failed_limits"].starts_with("max_abs_bias_gyro (b_w_"),
+            "{r:?}"
+        );
+    }
+}

@@ -73,45 +73,80 @@ pub struct Summary {
 }
 
 impl Summary {
-    /// The rows of `sessions` checked against `limits`.
+    /// The rows of `sessions` checked against `limits`: one per IMU of a
+    /// calibrated session (docs/model.md §9: IMU j's parameters under their
+    /// §5 names, [`CalibrationResult::imu`](robimu_session::result::CalibrationResult::imu)), one for a session that failed
+    /// or is unreadable. The residual RMS of a multi-IMU result is over all
+    /// its IMUs (the result file has no per-IMU one, §8), so a residual
+    /// limit applies to the joint fit.
     pub fn new(sessions: &[SessionOutcome], limits: &Limits) -> Self {
-        let rows = sessions
-            .iter()
-            .map(|s| {
-                let mut row = Row {
-                    session: s.dir.display().to_string(),
-                    imu: 0,
-                    status: "ok",
-                    error: String::new(),
-                    failed_limits: Vec::new(),
-                    termination: String::new(),
-                    iterations: None,
-                    residual_rms: None,
-                    values: Vec::new(),
-                };
-                match &s.outcome {
-                    Outcome::Unreadable(e) => (row.status, row.error) = ("unreadable", e.clone()),
-                    Outcome::Failed(e) => (row.status, row.error) = ("failed", e.clone()),
-                    Outcome::Calibrated(r) => {
-                        row.failed_limits = limits.failures(r);
-                        row.termination = r.termination.clone().unwrap_or_default();
-                        row.iterations = r.iterations;
-                        row.residual_rms = r.residual_rms.as_ref().map(sensor_rms);
-                        row.values = s
-                            .imu_parameters
-                            .iter()
-                            .filter_map(|name| {
-                                r.parameters
-                                    .iter()
-                                    .find(|p| &p.name == name)
-                                    .map(|p| (p.name.clone(), p.value, p.sigma))
-                            })
-                            .collect();
-                    }
+        let mut rows = Vec::new();
+        for s in sessions {
+            let row = |imu: usize| Row {
+                session: s.dir.display().to_string(),
+                imu,
+                status: "ok",
+                error: String::new(),
+                failed_limits: Vec::new(),
+                termination: String::new(),
+                iterations: None,
+                residual_rms: None,
+                values: Vec::new(),
+            };
+            let r = match &s.outcome {
+                Outcome::Unreadable(e) => {
+                    rows.push(Row {
+                        status: "unreadable",
+                        error: e.clone(),
+                        ..row(0)
+                    });
+                    continue;
                 }
-                row
-            })
-            .collect();
+                Outcome::Failed(e) => {
+                    rows.push(Row {
+                        status: "failed",
+                        error: e.clone(),
+                        ..row(0)
+                    });
+                    continue;
+                }
+                Outcome::Calibrated(r) => r,
+            };
+            let k = r.imu_sets().map_or(1, |sets| sets.len());
+            for j in 0..k {
+                let view = match r.imu(j) {
+                    Ok(mut v) => {
+                        v.residual_rms = r.residual_rms;
+                        v
+                    }
+                    Err(e) => {
+                        rows.push(Row {
+                            status: "failed",
+                            error: format!("the result's IMU {j}: {e}"),
+                            ..row(j)
+                        });
+                        continue;
+                    }
+                };
+                rows.push(Row {
+                    failed_limits: limits.failures(&view),
+                    termination: view.termination.clone().unwrap_or_default(),
+                    iterations: view.iterations,
+                    residual_rms: view.residual_rms.as_ref().map(sensor_rms),
+                    values: s
+                        .imu_parameters
+                        .iter()
+                        .filter_map(|name| {
+                            view.parameters
+                                .iter()
+                                .find(|p| &p.name == name)
+                                .map(|p| (p.name.clone(), p.value, p.sigma))
+                        })
+                        .collect(),
+                    ..row(j)
+                });
+            }
+        }
         Self { rows }
     }
 
