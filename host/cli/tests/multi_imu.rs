@@ -162,3 +162,125 @@ fn simulate_and_calibrate_several_imus_and_one_alone() {
     assert!(!run.status.success());
     assert!(run.stderr.contains("one IMU only"), "{}", run.stderr);
 }
+
+/// IMU 1 mounted 60 mm from IMU 0 (a plate of boards): with the robot's one
+/// mount prior its position estimate is pulled off the truth; with
+/// `[imu1.mount]` in session.toml (docs/model.md §9) the fit uses IMU 1's own
+/// prior — for the joint fit and for `--imu 1` alone — and the estimates stay
+/// within 4σ of the truth.
+#[test]
+fn an_imu_mounted_elsewhere_takes_its_own_mount_prior() {
+    let tmp = tempfile::tempdir().unwrap();
+    let drawn = tmp.path().join("drawn");
+    robimu_ok([
+        "simulate",
+        "--imus",
+        "2",
+        "--duration",
+        "40",
+        "--seed",
+        "21",
+        "--out",
+        s(&drawn),
+    ]);
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::with_imus(&robot, 2);
+    let mut truth = Truth::read(&drawn.join("truth.toml")).unwrap();
+    let shift = [0.06, -0.02, 0.03];
+    for (i, d) in shift.iter().enumerate() {
+        let name = format!("imu1/eps_6_{}", i + 1);
+        let v = truth.values.iter_mut().find(|(n, _)| *n == name).unwrap();
+        v.1 += d;
+    }
+    let truth_file = tmp.path().join("truth.toml");
+    std::fs::write(&truth_file, truth.to_toml()).unwrap();
+    let dir = tmp.path().join("plate");
+    robimu_ok([
+        "simulate",
+        "--imus",
+        "2",
+        "--duration",
+        "40",
+        "--seed",
+        "21",
+        "--truth",
+        s(&truth_file),
+        "--out",
+        s(&dir),
+    ]);
+    let x_true = Truth::read(&dir.join("truth.toml"))
+        .unwrap()
+        .vector(&layout)
+        .unwrap();
+    let k1 = layout.index_of("imu1/eps_6_1").unwrap();
+    let mount = robot.mount().position;
+
+    // the robot's one mount prior: on 40 s the data alone know the position
+    // to ≈ 7 mm, so the prior 60 mm away pulls the estimate far off the
+    // truth (measured 4.9σ) — while every estimate stays within 4 prior σ
+    let out = tmp.path().join("one_prior.json");
+    robimu_ok(["calibrate", s(&dir), "--out", s(&out)]);
+    let r = CalibrationResult::read(&out).unwrap();
+    let p = r.parameter("imu1/eps_6_1").unwrap();
+    assert_eq!(p.prior, mount[0]);
+    let z = (p.value - x_true[k1]) / p.sigma;
+    assert!(z < -3.0, "imu1/eps_6_1 {z:.2} σ from the truth");
+    let plausible = |r: &CalibrationResult| {
+        let v = r.verdict.as_ref().expect("a verdict");
+        v.checks
+            .iter()
+            .find(|c| c.topic == "plausible")
+            .unwrap()
+            .clone()
+    };
+
+    // IMU 1's own prior (the mount as drawn to 1 mm, σ 5 mm)
+    let position: Vec<f64> = (0..3)
+        .map(|i| (x_true[k1 + i] * 1000.0).round() / 1000.0)
+        .collect();
+    let toml = std::fs::read_to_string(dir.join("session.toml")).unwrap();
+    std::fs::write(
+        dir.join("session.toml"),
+        format!(
+            "{toml}\n[imu1.mount]\nposition = [{}, {}, {}]\nposition_sigma = 0.005\n",
+            position[0], position[1], position[2]
+        ),
+    )
+    .unwrap();
+    let out = tmp.path().join("own_prior.json");
+    robimu_ok(["calibrate", s(&dir), "--out", s(&out)]);
+    let r = CalibrationResult::read(&out).unwrap();
+    for i in 0..3 {
+        let p = r.parameter(&format!("imu1/eps_6_{}", i + 1)).unwrap();
+        assert_eq!((p.prior, p.prior_sigma), (position[i], 0.005), "{p:?}");
+        // IMU 0 keeps the robot's
+        assert_eq!(
+            r.parameter(&format!("eps_6_{}", i + 1)).unwrap().prior,
+            mount[i]
+        );
+    }
+    assert!(plausible(&r).ok, "{:?}", plausible(&r));
+    for (p, t) in r.parameters.iter().zip(&x_true) {
+        let z = (p.value - t) / p.sigma;
+        assert!(z.abs() < 4.5, "{}: error {z:.2} σ", p.name);
+    }
+    // IMU 1 alone: the one-IMU result's eps_6_* prior is IMU 1's
+    let out = tmp.path().join("alone.json");
+    robimu_ok(["calibrate", s(&dir), "--imu", "1", "--out", s(&out)]);
+    let r = CalibrationResult::read(&out).unwrap();
+    assert_eq!(r.parameter("eps_6_1").unwrap().prior, position[0]);
+
+    // a misspelt key is named, with the file
+    std::fs::write(
+        dir.join("session.toml"),
+        format!("{toml}\n[imu1.mount]\nposition_sd = 0.005\n"),
+    )
+    .unwrap();
+    let run = robimu(["calibrate", s(&dir)]);
+    assert!(!run.status.success());
+    assert!(
+        run.stderr.contains("[imu1.mount]") && run.stderr.contains("position_sd"),
+        "{}",
+        run.stderr
+    );
+}

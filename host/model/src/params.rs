@@ -118,7 +118,9 @@ pub struct ModelParams<S = f64> {
 /// the §5 names in the §5 order (the first [`Self::imu_layout`]`.len()`
 /// entries), then each IMU j ≥ 1 appends its own ones — its position
 /// ε_n1..3 (where estimated), τ and 24 sensor parameters, named
-/// `imu<j>/<name>` — with the same priors. Every IMU's own vector (the
+/// `imu<j>/<name>` — with the same priors except the mount's: IMU j's
+/// position and rotation priors are [`Robot::mount_of`]`(j)` (where the
+/// position is not estimated it is fixed at IMU 0's). Every IMU's own vector (the
 /// one-IMU layout, which [`crate::MeasurementModel`] takes) maps into x by
 /// [`Self::imu_map`]; for K = 1 that map is the identity. [`Self::offsets`],
 /// [`Self::unpack`] and [`Self::eps_index`] describe IMU 0 (the prefix).
@@ -141,8 +143,13 @@ const GAMMA: [&str; 3] = ["yz", "zy", "zx"];
 impl ParamLayout {
     /// The layout for `robot`: its estimated ε set and its priors.
     pub fn new(robot: &Robot) -> Self {
+        Self::for_mount(robot, robot.mount())
+    }
+
+    /// [`Self::new`] with `mount` as the IMU's mount prior (the position
+    /// ε_n1..3 and the rotations r_a, r_ω: prior means and σ).
+    fn for_mount(robot: &Robot, mount: &crate::robot::ImuMount) -> Self {
         let n = robot.dof();
-        let mount = robot.mount();
         let pr = robot.priors();
         let mut fixed_eps = vec![[0.0; 6]; n];
         fixed_eps[n - 1][..3].copy_from_slice(&mount.position);
@@ -231,10 +238,12 @@ impl ParamLayout {
         let mut specs = one.specs.clone();
         let mut imu_maps = vec![(0..one.len()).collect::<Vec<_>>()];
         for j in 1..n_imus {
+            // IMU j's own mount prior ([`Robot::mount_of`]); the rest as IMU 0's
+            let own = Self::for_mount(robot, robot.mount_of(j));
             let map = (0..one.len())
                 .map(|k| {
                     if one.is_per_imu(k) {
-                        let s = &one.specs[k];
+                        let s = &own.specs[k];
                         specs.push(ParamSpec {
                             name: format!("imu{j}/{}", s.name),
                             ..s.clone()
@@ -622,5 +631,41 @@ mod tests {
             l.select(&["imu1/k_a_x"]).unwrap(),
             vec![l.index_of("imu1/k_a_x").unwrap()]
         );
+    }
+
+    #[test]
+    fn an_imu_with_its_own_mount_has_its_own_position_and_rotation_priors() {
+        let robot = Robot::aubo_i5();
+        let mut m = *robot.mount();
+        m.position = [0.1, -0.05, 0.02];
+        m.position_sigma = 0.002;
+        m.r_a = [0.0, 0.1, 0.0];
+        m.rotation_sigma = 0.01;
+        let moved = robot.with_mount(2, m).unwrap();
+        assert_eq!(moved.mount_of(2), &m);
+        assert_eq!(moved.mount_of(1), robot.mount());
+        let (base, l) = (
+            ParamLayout::with_imus(&robot, 3),
+            ParamLayout::with_imus(&moved, 3),
+        );
+        for (k, (a, b)) in base.specs().iter().zip(l.specs()).enumerate() {
+            let want = match b.name.as_str() {
+                "imu2/eps_6_1" => (0.1, 0.002),
+                "imu2/eps_6_2" => (-0.05, 0.002),
+                "imu2/eps_6_3" => (0.02, 0.002),
+                "imu2/r_a_z" | "imu2/r_a_x" => (0.0, 0.01),
+                "imu2/r_a_y" => (0.1, 0.01),
+                "imu2/r_w_z" => (robot.mount().r_w[0], 0.01),
+                "imu2/r_w_y" | "imu2/r_w_x" => (0.0, 0.01),
+                _ => (a.nominal, a.sigma),
+            };
+            assert_eq!((b.nominal, b.sigma), want, "{k} {}", b.name);
+        }
+        // IMU 0's own mount is the robot's
+        let zero = robot.with_mount(0, m).unwrap();
+        assert_eq!(ParamLayout::new(&zero).specs()[18].nominal, 0.1);
+        m.position_sigma = 0.0;
+        let e = robot.with_mount(1, m).unwrap_err().to_string();
+        assert!(e.contains("imu1.mount.position_sigma"), "{e}");
     }
 }

@@ -369,6 +369,12 @@ pub struct RobotDescription {
     /// Estimated ε (default: [`default_estimated_errors`]).
     #[serde(default)]
     pub errors: Option<ErrorsDescription>,
+    /// The mount priors of IMUs j ≥ 1 of a multi-IMU session that differ
+    /// from [`Self::imu_mount`] (docs/model.md §9; set from the session's
+    /// `[imu<j>.mount]` tables with [`Robot::with_mount`], not part of the
+    /// robot TOML).
+    #[serde(skip)]
+    pub imu_mounts: std::collections::BTreeMap<usize, ImuMount>,
 }
 
 /// Why a robot description was rejected.
@@ -481,6 +487,17 @@ fn finite(field: impl FnOnce() -> String, v: f64) -> Result<(), RobotError> {
     }
 }
 
+/// Every number of a mount finite, its σ positive (`what` names it).
+fn check_mount(what: &str, m: &ImuMount) -> Result<(), RobotError> {
+    for i in 0..3 {
+        finite(|| format!("{what}.position[{i}]"), m.position[i])?;
+        finite(|| format!("{what}.r_a[{i}]"), m.r_a[i])?;
+        finite(|| format!("{what}.r_w[{i}]"), m.r_w[i])?;
+    }
+    positive(|| format!("{what}.position_sigma"), m.position_sigma)?;
+    positive(|| format!("{what}.rotation_sigma"), m.rotation_sigma)
+}
+
 fn positive(field: impl Fn() -> String, v: f64) -> Result<(), RobotError> {
     finite(&field, v)?;
     if v > 0.0 {
@@ -538,14 +555,10 @@ impl Robot {
         for (i, &s) in desc.noise.sigma_z.iter().enumerate() {
             positive(|| format!("noise.sigma_z[{i}]"), s)?;
         }
-        let m = &desc.imu_mount;
-        for i in 0..3 {
-            finite(|| format!("imu_mount.position[{i}]"), m.position[i])?;
-            finite(|| format!("imu_mount.r_a[{i}]"), m.r_a[i])?;
-            finite(|| format!("imu_mount.r_w[{i}]"), m.r_w[i])?;
+        check_mount("imu_mount", &desc.imu_mount)?;
+        for (j, m) in &desc.imu_mounts {
+            check_mount(&format!("imu{j}.mount"), m)?;
         }
-        positive(|| "imu_mount.position_sigma".into(), m.position_sigma)?;
-        positive(|| "imu_mount.rotation_sigma".into(), m.rotation_sigma)?;
         let p = &desc.priors;
         for (name, v) in [
             ("eps_length_sigma", p.eps_length_sigma),
@@ -706,6 +719,7 @@ impl Robot {
             errors: Some(ErrorsDescription {
                 estimated: default_estimated_errors(6),
             }),
+            imu_mounts: Default::default(),
         };
         Self::new(desc).expect("the built-in AUBO i5 description is valid")
     }
@@ -742,6 +756,23 @@ impl Robot {
     /// IMU mount prior.
     pub fn mount(&self) -> &ImuMount {
         &self.desc.imu_mount
+    }
+    /// IMU j's mount prior (docs/model.md §9): its own when
+    /// [`Self::with_mount`] gave one, else IMU 0's [`Self::mount`].
+    pub fn mount_of(&self, j: usize) -> &ImuMount {
+        self.desc.imu_mounts.get(&j).unwrap_or(&self.desc.imu_mount)
+    }
+    /// The robot with IMU j's mount prior set to `mount` (j = 0: the
+    /// robot's own [`Self::mount`]); refused when a number is not finite or
+    /// a σ not positive.
+    pub fn with_mount(&self, j: usize, mount: ImuMount) -> Result<Self, RobotError> {
+        let mut d = self.desc.clone();
+        if j == 0 {
+            d.imu_mount = mount;
+        } else {
+            d.imu_mounts.insert(j, mount);
+        }
+        Self::new(d)
     }
     /// Prior σ.
     pub fn priors(&self) -> &Priors {

@@ -439,6 +439,7 @@ pub fn robot_from_urdf_str(
         imu_mount: opts.imu_mount,
         priors: opts.priors,
         errors: None,
+        imu_mounts: Default::default(),
     };
     let robot = Robot::new(desc)?;
     Ok((

@@ -65,7 +65,8 @@ use robimu_model::Robot;
 pub use error::SessionError;
 pub use meta::toml_error;
 pub use meta::{
-    check_ar_order_for_data, ImuTiming, NoiseOverride, NoiseShape, SessionMeta, SESSION_FORMAT,
+    check_ar_order_for_data, ImuTiming, MountPrior, NoiseOverride, NoiseShape, SessionMeta,
+    SESSION_FORMAT,
 };
 pub use result::{
     CalibrationResult, CovarianceMatrix, MissingParameter, ParameterResult, ResultError, Trust,

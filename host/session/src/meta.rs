@@ -64,6 +64,42 @@ pub struct SessionMeta {
     /// free-form description of IMU j ≥ 1, as [`Self::imu`] is IMU 0's.
     #[serde(skip)]
     pub imu_tables: std::collections::BTreeMap<usize, toml::Table>,
+    /// The `mount` sub-tables of `[imu]` (IMU 0) and `[imu<j>]`: each IMU's
+    /// mount prior where it differs from the robot's `[imu_mount]`
+    /// (docs/model.md §9). Read from those tables (which keep them).
+    #[serde(skip)]
+    pub mounts: std::collections::BTreeMap<usize, MountPrior>,
+}
+
+/// An IMU's mount prior in `session.toml` (`[imu.mount]`, `[imu<j>.mount]`,
+/// docs/model.md §9), the keys of the robot's `[imu_mount]` (SI: m, rad),
+/// each optional: a missing one keeps the robot's (IMU 0) or IMU 0's (j ≥ 1).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MountPrior {
+    /// Prior mean of the IMU's position ε_n1..3 on the flange (m).
+    pub position: Option<[f64; 3]>,
+    /// Prior σ of each position component (m).
+    pub position_sigma: Option<f64>,
+    /// Prior mean of the accelerometer rotation (r_a_z, r_a_y, r_a_x), rad.
+    pub r_a: Option<[f64; 3]>,
+    /// Prior mean of the gyroscope rotation (r_w_z, r_w_y, r_w_x), rad.
+    pub r_w: Option<[f64; 3]>,
+    /// Prior σ of every sensor rotation angle (rad).
+    pub rotation_sigma: Option<f64>,
+}
+
+impl MountPrior {
+    /// `base` with the keys this table gives.
+    pub fn over(&self, base: &robimu_model::robot::ImuMount) -> robimu_model::robot::ImuMount {
+        robimu_model::robot::ImuMount {
+            position: self.position.unwrap_or(base.position),
+            position_sigma: self.position_sigma.unwrap_or(base.position_sigma),
+            r_a: self.r_a.unwrap_or(base.r_a),
+            r_w: self.r_w.unwrap_or(base.r_w),
+            rotation_sigma: self.rotation_sigma.unwrap_or(base.rotation_sigma),
+        }
+    }
 }
 
 /// The `[noise]` table's optional keys for IMU noise correlated in time and
@@ -354,6 +390,7 @@ impl SessionMeta {
             notes: None,
             noise_shape: None,
             imu_tables: Default::default(),
+            mounts: Default::default(),
         }
     }
 
@@ -414,6 +451,21 @@ impl SessionMeta {
                 }
             }
         }
+        let tables = meta.imu.iter().map(|t| (0, "imu".to_string(), t));
+        let tables = tables.chain(
+            meta.imu_tables
+                .iter()
+                .map(|(j, t)| (*j, format!("imu{j}"), t)),
+        );
+        let mut mounts = std::collections::BTreeMap::new();
+        for (j, name, t) in tables {
+            let Some(m) = t.get("mount") else { continue };
+            let m = MountPrior::deserialize(m.clone()).map_err(|e| {
+                SessionError::file(path, format!("[{name}.mount]: {}", e.message()))
+            })?;
+            mounts.insert(j, m);
+        }
+        meta.mounts = mounts;
         Ok(meta)
     }
 
@@ -697,5 +749,35 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("`imu1` must be a table"), "{e}");
+    }
+
+    #[test]
+    fn mount_tables_are_read_per_imu_and_an_unknown_key_is_named() {
+        let text = "format = \"robimu-session/1\"\nrobot = \"aubo_i5\"\n\
+                    [imu1]\nchip = \"BNO055\"\n[imu1.mount]\nposition = [0.08, 0.0, 0.02]\n\
+                    position_sigma = 0.002\n";
+        let meta = SessionMeta::parse(text, Path::new("session.toml")).unwrap();
+        assert_eq!(meta.mounts.len(), 1);
+        let m = meta.mounts[&1];
+        assert_eq!(m.position, Some([0.08, 0.0, 0.02]));
+        assert_eq!(m.position_sigma, Some(0.002));
+        assert_eq!((m.r_a, m.rotation_sigma), (None, None));
+        let robot = robimu_model::Robot::aubo_i5();
+        let over = m.over(robot.mount());
+        assert_eq!(over.position, [0.08, 0.0, 0.02]);
+        assert_eq!(over.r_a, robot.mount().r_a);
+        // written back with its [imu1] table
+        let back = SessionMeta::parse(&meta.to_toml(), Path::new("session.toml")).unwrap();
+        assert_eq!(back.mounts, meta.mounts);
+        let e = SessionMeta::parse(
+            "format = \"robimu-session/1\"\nrobot = \"aubo_i5\"\n[imu.mount]\nposition_sd = 0.01\n",
+            Path::new("session.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("[imu.mount]") && e.contains("unknown field `position_sd`"),
+            "{e}"
+        );
     }
 }

@@ -269,6 +269,7 @@ impl CalibrateFlags {
         file: Option<&NoiseFileArg>,
     ) -> anyhow::Result<Prepared> {
         preflight(&session, &robot)?;
+        let mut robot = robot;
         let mut data = session.measurements();
         if let Some(j) = self.imu {
             let k = data.n_imus();
@@ -281,6 +282,8 @@ impl CalibrateFlags {
                 );
             }
             data = data.only_imu(j);
+            // IMU j alone: its own mount prior is the one-IMU robot's
+            robot = robot.with_mount(0, *robot.mount_of(j))?;
             session.truth = session.truth.take().map(|t| imu_truth(&robot, k, j, &t));
         }
         let layout = ParamLayout::with_imus(&robot, data.n_imus());

@@ -147,16 +147,32 @@ pub fn resolve_robot_with(
     Ok((robot, RobotSource::File(path)))
 }
 
-/// The session's robot, with the session's gravity magnitude when it sets one.
+/// The session's robot, with the session's gravity magnitude when it sets one
+/// and each IMU's mount prior from its `[imu.mount]` / `[imu<j>.mount]`
+/// table (docs/model.md §9: IMU 0's missing keys keep the robot's
+/// `[imu_mount]`, IMU j ≥ 1's keep IMU 0's).
 pub fn session_robot(session: &Session) -> anyhow::Result<Robot> {
-    let (robot, _) = resolve_robot(&session.meta.robot, Some(&session.dir))
-        .with_context(|| format!("{}: `robot`", session.dir.join("session.toml").display()))?;
-    match session.meta.gravity {
-        Some(g0) => robot
+    let toml = session.dir.join("session.toml");
+    let (mut robot, _) = resolve_robot(&session.meta.robot, Some(&session.dir))
+        .with_context(|| format!("{}: `robot`", toml.display()))?;
+    if let Some(g0) = session.meta.gravity {
+        robot = robot
             .with_gravity(g0)
-            .context("session.toml: `gravity` is not usable"),
-        None => Ok(robot),
+            .context("session.toml: `gravity` is not usable")?;
     }
+    for (&j, m) in &session.meta.mounts {
+        // in order: IMU 0 first, so that IMU j ≥ 1 builds on IMU 0's prior
+        let base = *robot.mount();
+        let name = if j == 0 {
+            "imu".into()
+        } else {
+            format!("imu{j}")
+        };
+        robot = robot
+            .with_mount(j, m.over(&base))
+            .with_context(|| format!("{}: [{name}.mount] is not usable", toml.display()))?;
+    }
+    Ok(robot)
 }
 
 /// Loads the session at `dir` with its robot, checking that they have the
