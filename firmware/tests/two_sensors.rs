@@ -52,7 +52,7 @@ fn config_100hz() -> Config {
 }
 
 fn streaming(config: Config) -> TwoRig {
-    let mut rig = TwoRig::new(config, 5_000);
+    let mut rig = TwoRig::two(config, 5_000);
     rig.core.start().unwrap();
     rig.link.send(&HostMessage::Start);
     rig.run(100, 100);
@@ -148,7 +148,7 @@ fn one_sensor_failing_is_reinitialised_alone_and_the_other_keeps_streaming() {
 /// reports it, the first is up, and `Start` is refused as a sensor fault.
 #[test]
 fn a_missing_second_sensor_is_reported_and_start_refused() {
-    let mut rig = TwoRig::new(config_100hz(), 5_000);
+    let mut rig = TwoRig::two(config_100hz(), 5_000);
     *rig.bus.borrow_mut() = robimu_bno055_sim::Bno055Bus::one(robimu_bno055_sim::Bno055Sim::new(
         0x28,
         support::TimeSource(rig.time.clone()),

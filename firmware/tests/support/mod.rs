@@ -188,66 +188,30 @@ impl embedded_io::WriteReady for Link {
     }
 }
 
-pub type Core = Acquisition<SharedBus, SimDelay, Link, SimTime>;
-
 /// A core over two simulated BNO055 (0x28, 0x29) on one bus.
-pub struct TwoRig {
-    pub core: Acquisition<SharedBus<TwoSims>, SimDelay, Link, SimTime>,
-    pub time: SimTime,
-    pub bus: Rc<RefCell<TwoSims>>,
-    pub link: Link,
-    pub host: Host,
-}
+pub type TwoRig = Rig<TwoSims>;
 
-impl TwoRig {
+impl Rig<TwoSims> {
     /// `config` with the second sensor at 0x29.
-    pub fn new(config: Config, t0_us: u64) -> Self {
+    pub fn two(config: Config, t0_us: u64) -> Self {
         let time = SimTime::starting_at(t0_us);
-        let bus = Rc::new(RefCell::new(Bno055Bus::two(
+        let bus = Bno055Bus::two(
             Bno055Sim::new(0x28, TimeSource(time.clone())),
             Bno055Sim::new(0x29, TimeSource(time.clone())),
-        )));
-        let link = Link::new();
-        let delay = SimDelay {
-            time: time.clone(),
-            total_ns: Rc::new(Cell::new(0)),
-        };
+        );
         let config = Config {
             second_address: Some(0x29),
             ..config
         };
-        let core = Acquisition::new(
-            SharedBus(bus.clone()),
-            delay,
-            link.clone(),
-            time.clone(),
-            config,
-        );
-        Self {
-            core,
-            time,
-            bus,
-            link,
-            host: Host::default(),
-        }
-    }
-
-    /// As [`Rig::run`].
-    pub fn run(&mut self, duration_us: u64, step_us: u64) {
-        let end = self.time.now() + duration_us;
-        while self.time.now() < end {
-            self.core.poll();
-            self.host.receive(&self.link.take_sent());
-            self.time.advance(step_us);
-        }
+        Self::over(bus, time, config)
     }
 }
 
-/// A core over a simulated BNO055 at 0x28, with its handles.
-pub struct Rig {
-    pub core: Core,
+/// A core over a simulated bus (default: one BNO055 at 0x28), with its handles.
+pub struct Rig<B = Sim> {
+    pub core: Acquisition<SharedBus<B>, SimDelay, Link, SimTime>,
     pub time: SimTime,
-    pub bus: Rc<RefCell<Sim>>,
+    pub bus: Rc<RefCell<B>>,
     pub link: Link,
     pub host: Host,
 }
@@ -256,7 +220,14 @@ impl Rig {
     pub fn new(config: Config, t0_us: u64, boot_busy: u32) -> Self {
         let time = SimTime::starting_at(t0_us);
         let sim = Bno055Sim::new(0x28, TimeSource(time.clone())).booting_for(boot_busy);
-        let bus = Rc::new(RefCell::new(sim));
+        Self::over(sim, time, config)
+    }
+}
+
+impl<B: I2c<Error = robimu_bno055_sim::SimError>> Rig<B> {
+    /// The core over `bus` at simulated time `time`.
+    fn over(bus: B, time: SimTime, config: Config) -> Self {
+        let bus = Rc::new(RefCell::new(bus));
         let link = Link::new();
         let delay = SimDelay {
             time: time.clone(),

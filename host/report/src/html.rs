@@ -102,27 +102,12 @@ impl HtmlPage {
     /// A table with an `id`; cells are plain text except where a cell starts
     /// with `<span class="bar"` (a bar drawn by [`bar`]).
     pub fn table(&mut self, id: &str, headers: &[&str], rows: &[Vec<String>]) {
-        let _ = write!(self.body, "<table id=\"{}\"><thead><tr>", escape(id));
-        for h in headers {
-            let _ = write!(self.body, "<th>{}</th>", escape(h));
-        }
-        self.body.push_str("</tr></thead><tbody>\n");
-        for row in rows {
-            self.body.push_str("<tr>");
-            for cell in row {
-                if cell.starts_with("<span class=\"bar\"") {
-                    let _ = write!(self.body, "<td>{cell}</td>");
-                } else {
-                    let _ = write!(self.body, "<td>{}</td>", escape(cell));
-                }
-            }
-            self.body.push_str("</tr>\n");
-        }
-        self.body.push_str("</tbody></table>\n");
+        self.grouped_table(id, headers, &[(String::new(), rows.to_vec())]);
     }
 
     /// A table whose rows come in groups, each under a full-width heading
-    /// row (`<tr class="group">`); cells as in [`Self::table`].
+    /// row (`<tr class="group">`; none for an empty title); cells as in
+    /// [`Self::table`].
     pub fn grouped_table(
         &mut self,
         id: &str,
@@ -135,12 +120,14 @@ impl HtmlPage {
         }
         self.body.push_str("</tr></thead><tbody>\n");
         for (title, rows) in groups {
-            let _ = writeln!(
-                self.body,
-                "<tr class=\"group\"><th colspan=\"{}\" style=\"text-align:left\">{}</th></tr>",
-                headers.len(),
-                escape(title)
-            );
+            if !title.is_empty() {
+                let _ = writeln!(
+                    self.body,
+                    "<tr class=\"group\"><th colspan=\"{}\" style=\"text-align:left\">{}</th></tr>",
+                    headers.len(),
+                    escape(title)
+                );
+            }
             for row in rows {
                 self.body.push_str("<tr>");
                 for cell in row {
