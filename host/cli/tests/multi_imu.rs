@@ -284,3 +284,49 @@ fn an_imu_mounted_elsewhere_takes_its_own_mount_prior() {
         run.stderr
     );
 }
+
+/// A one-IMU result's exports are byte for byte those written before the
+/// multi-IMU work (goldens of d3fc17f in fixtures/multi_imu/one_imu_golden:
+/// Kalibr imu.yaml, correction file, robot TOML, corrected CSV).
+#[test]
+fn one_imu_exports_are_unchanged() {
+    let fixtures =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/multi_imu");
+    let golden = fixtures.join("one_imu_golden");
+    let tmp = tempfile::tempdir().unwrap();
+    let result = fixtures.join("result1.json");
+    for (format, file, extra) in [
+        ("kalibr", "imu.yaml", &["--rate", "120"][..]),
+        ("correction", "correction.toml", &[][..]),
+        ("toml", "robot.toml", &[][..]),
+    ] {
+        let out = tmp.path().join(file);
+        let mut args = vec![
+            "export",
+            "--calibration",
+            s(&result),
+            "--format",
+            format,
+            "--robot",
+            "aubo_i5",
+            "--out",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        robimu_ok(args);
+        assert!(
+            std::fs::read(&out).unwrap() == std::fs::read(golden.join(file)).unwrap(),
+            "{file} differs from its golden"
+        );
+    }
+    let out = tmp.path().join("corrected.csv");
+    robimu_ok([
+        "correct",
+        "--calibration",
+        s(&result),
+        s(&fixtures.join("raw_imu.csv")),
+        "--out",
+        s(&out),
+    ]);
+    assert!(std::fs::read(&out).unwrap() == std::fs::read(golden.join("corrected.csv")).unwrap());
+}
