@@ -330,3 +330,61 @@ fn one_imu_exports_are_unchanged() {
     ]);
     assert!(std::fs::read(&out).unwrap() == std::fs::read(golden.join("corrected.csv")).unwrap());
 }
+
+/// `simulate --imu-position J=X,Y,Z` places IMU J (a plate of IMUs): its
+/// truth is drawn around that mount, session.toml carries the mount prior
+/// and calibrate uses it.
+#[test]
+fn simulate_places_an_imu_and_calibrate_takes_its_mount() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("plate");
+    robimu_ok([
+        "simulate",
+        "--imus",
+        "2",
+        "--imu-position",
+        "1=0.09,-0.05,0.06",
+        "--duration",
+        "40",
+        "--seed",
+        "5",
+        "--out",
+        s(&dir),
+    ]);
+    let meta = robimu_session::SessionMeta::read(&dir.join("session.toml")).unwrap();
+    assert_eq!(meta.mounts[&1].position, Some([0.09, -0.05, 0.06]));
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::with_imus(&robot, 2);
+    let x_true = Truth::read(&dir.join("truth.toml"))
+        .unwrap()
+        .vector(&layout)
+        .unwrap();
+    let k1 = layout.index_of("imu1/eps_6_1").unwrap();
+    // drawn from the 10 mm prior around the placed mount
+    for (i, p) in [0.09, -0.05, 0.06].iter().enumerate() {
+        assert!(
+            (x_true[k1 + i] - p).abs() < 0.05,
+            "{} vs {p}",
+            x_true[k1 + i]
+        );
+    }
+    let out = tmp.path().join("r.json");
+    robimu_ok(["calibrate", s(&dir), "--out", s(&out)]);
+    let r = CalibrationResult::read(&out).unwrap();
+    assert_eq!(r.parameter("imu1/eps_6_2").unwrap().prior, -0.05);
+    for (p, t) in r.parameters.iter().zip(&x_true) {
+        let z = (p.value - t) / p.sigma;
+        assert!(z.abs() < 4.5, "{}: error {z:.2} σ", p.name);
+    }
+    let run = robimu([
+        "simulate",
+        "--imus",
+        "2",
+        "--imu-position",
+        "2=0,0,0",
+        "--out",
+        s(&tmp.path().join("x")),
+    ]);
+    assert!(!run.status.success());
+    assert!(run.stderr.contains("there are 2 IMUs"), "{}", run.stderr);
+}

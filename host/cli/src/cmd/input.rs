@@ -353,3 +353,23 @@ impl Progress {
         }
     }
 }
+
+/// `--imu-position J=X,Y,Z`: IMU J's position on the flange (m, flange frame).
+pub fn parse_imu_position(text: &str) -> Result<(usize, [f64; 3]), String> {
+    let (j, xyz) = text
+        .split_once('=')
+        .ok_or_else(|| format!("`{text}`: expected J=X,Y,Z (IMU index, position in m)"))?;
+    let j: usize = j
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}`: IMU index `{}` is not a number ≥ 0", j.trim()))?;
+    let v: Vec<f64> = xyz
+        .split(',')
+        .map(|c| c.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("`{text}`: X,Y,Z must be three numbers (m)"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok((j, [x, y, z])),
+        _ => Err(format!("`{text}`: X,Y,Z must be three finite numbers (m)")),
+    }
+}

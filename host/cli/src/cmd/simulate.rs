@@ -114,6 +114,11 @@ pub struct SimulateCmd {
     /// (`imu1/tau`, …).
     #[arg(long, default_value_t = 1, value_name = "K")]
     pub imus: usize,
+    /// `J=X,Y,Z`: IMU J mounted at (X, Y, Z) m on the flange (a plate of
+    /// IMUs): its position truth is drawn around it, and session.toml gets
+    /// its `[imu<J>.mount]` position prior (docs/model.md §9); repeat per IMU.
+    #[arg(long, value_name = "J=X,Y,Z", value_parser = super::input::parse_imu_position)]
+    pub imu_position: Vec<(usize, [f64; 3])>,
 }
 
 /// What [`SimulateCmd::write`] produced.
@@ -172,10 +177,24 @@ impl SimulateCmd {
         in_range("--rate", self.rate, 10_000.0)?;
         let joint_rate = self.joint_rate.unwrap_or(self.rate);
         in_range("--joint-rate", joint_rate, 10_000.0)?;
-        let (robot, source) = resolve_robot_with(&self.robot, None, &self.links)?;
+        let (mut robot, source) = resolve_robot_with(&self.robot, None, &self.links)?;
         let robot_field = source.session_field(&self.robot);
         if !(1..=64).contains(&self.imus) {
             bail!("--imus must be between 1 and 64 (got {})", self.imus);
+        }
+        for &(j, position) in &self.imu_position {
+            if j >= self.imus {
+                bail!(
+                    "--imu-position {j}=…: there are {} IMUs (0 to {}; --imus K)",
+                    self.imus,
+                    self.imus - 1
+                );
+            }
+            let mount = robimu_model::robot::ImuMount {
+                position,
+                ..*robot.mount_of(j)
+            };
+            robot = robot.with_mount(j, mount)?;
         }
         if self.imus > 1 {
             for (given, flag) in [
@@ -370,6 +389,16 @@ impl SimulateCmd {
         if let Some(spec) = &self.temperature {
             let notes = meta.notes.get_or_insert_with(String::new);
             notes.push_str(&format!("; warm-up {spec} (°C, °C, s)"));
+        }
+        // each placed IMU's mount prior, for calibrate (docs/model.md §9)
+        for &(j, p) in &self.imu_position {
+            let mut mount = toml::Table::new();
+            mount.insert("position".into(), toml::Value::try_from(p)?);
+            let table = match j {
+                0 => meta.imu.get_or_insert_with(Default::default),
+                j => meta.imu_tables.entry(j).or_default(),
+            };
+            table.insert("mount".into(), toml::Value::Table(mount));
         }
         let n = robot.dof();
         let extra: &[&str] = match data.imu_temp {
