@@ -369,9 +369,18 @@ fn simulate_places_an_imu_and_calibrate_takes_its_mount() {
         );
     }
     let out = tmp.path().join("r.json");
-    robimu_ok(["calibrate", s(&dir), "--out", s(&out)]);
+    let html = tmp.path().join("html");
+    robimu_ok(["calibrate", s(&dir), "--out", s(&out), "--report", s(&html)]);
     let r = CalibrationResult::read(&out).unwrap();
     assert_eq!(r.parameter("imu1/eps_6_2").unwrap().prior, -0.05);
+    // calibrate --report: one residual figure per IMU, the same as
+    // `robimu report` draws from the result file
+    let again = tmp.path().join("again");
+    robimu_ok(["report", s(&out), "--session", s(&dir), "--out", s(&again)]);
+    for f in ["residuals_imu0.svg", "residuals_imu1.svg", "trajectory.svg"] {
+        let a = std::fs::read(html.join(f)).unwrap();
+        assert!(a == std::fs::read(again.join(f)).unwrap(), "{f} differs");
+    }
     for (p, t) in r.parameters.iter().zip(&x_true) {
         let z = (p.value - t) / p.sigma;
         assert!(z.abs() < 4.5, "{}: error {z:.2} σ", p.name);

@@ -350,23 +350,12 @@ pub fn calibration_report(
         Some(c) => Convergence::Costs(c),
         None => Convergence::Unavailable("the solver's iteration history was not given"),
     };
-    calibration_report_with(dir, result, truth, convergence, series)
-}
-
-/// [`calibration_report`] with the convergence figure's data, or the reason
-/// it is missing (stated on the page).
-pub fn calibration_report_with(
-    dir: &Path,
-    result: &CalibrationResult,
-    truth: Option<&Truth>,
-    convergence: Convergence<'_>,
-    series: Option<&SessionSeries>,
-) -> Result<PathBuf, ReportError> {
     let series = series.map_or(&[][..], std::slice::from_ref);
     calibration_report_imus(dir, result, truth, convergence, series)
 }
 
-/// [`calibration_report_with`] for a result of several IMUs (docs/model.md
+/// [`calibration_report`] with the convergence figure's data, or the reason
+/// it is missing (stated on the page), for a result of one or several IMUs (docs/model.md
 /// §9): `series[j]` is IMU j's (each under its own parameters,
 /// [`CalibrationResult::imu`]), the trajectory drawn from the first; the
 /// parameter table and the σ figure grouped by IMU. One series (or none)

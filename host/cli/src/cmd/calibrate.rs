@@ -13,7 +13,7 @@ use robimu_report::figures::NoiseBand;
 use robimu_report::fit_summary::{
     EffectEstimates, FitReport, RepeatabilityGroups, WeakDirectionsWarning,
 };
-use robimu_report::html::calibration_report;
+use robimu_report::html::{calibration_report_imus, Convergence};
 use robimu_report::noise::NoiseSummary;
 use robimu_report::verdict::{trust_line, VerdictText};
 use robimu_report::ParameterTable;
@@ -575,24 +575,33 @@ fn html_report(
     session: &Session,
 ) -> anyhow::Result<PathBuf> {
     let noise = NoiseBand::of_fit(result.noise_model.as_ref(), &opts.sigma_z);
-    // IMU 0's series (docs/model.md §9)
-    let x0 = cal.layout(robot).imu_x(0, &cal.x);
-    let series = super::report::session_series(
-        robot,
-        data,
-        &x0,
-        &opts.sigma_q,
-        Some(cal.knot_spacing),
-        &noise,
-    )?;
+    // one series per IMU, each under its own parameters (docs/model.md §9)
+    let layout = cal.layout(robot);
+    let k = layout.n_imus();
+    let series = (0..k)
+        .map(|j| {
+            let view = if k == 1 {
+                data.clone()
+            } else {
+                data.only_imu(j)
+            };
+            super::report::session_series(
+                robot,
+                &view,
+                &layout.imu_x(j, &cal.x),
+                &opts.sigma_q,
+                Some(cal.knot_spacing),
+                &noise,
+            )
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let costs = ConvergenceLog::from_summary(&cal.summary).costs();
-    let truth = session.truth.as_ref();
-    Ok(calibration_report(
+    Ok(calibration_report_imus(
         report_dir,
         result,
-        truth,
-        Some(&costs),
-        Some(&series),
+        session.truth.as_ref(),
+        Convergence::Costs(&costs),
+        &series,
     )?)
 }
 
