@@ -397,3 +397,71 @@ fn simulate_places_an_imu_and_calibrate_takes_its_mount() {
     assert!(!run.status.success());
     assert!(run.stderr.contains("there are 2 IMUs"), "{}", run.stderr);
 }
+
+/// `validate --imu J`: IMU J's parameters on its own samples (imu<J>.csv)
+/// against the tracked motion: as good as the classical tracker calibration
+/// of that IMU, far better than nominal. (IMU 0's parameters on IMU 1's
+/// samples give 20 °/s, measured.)
+#[test]
+fn validate_takes_the_imu_asked_for() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("s");
+    robimu_ok([
+        "simulate",
+        "--imus",
+        "2",
+        "--tracker",
+        "--duration",
+        "60",
+        "--seed",
+        "4",
+        "--out",
+        s(&dir),
+    ]);
+    robimu_ok(["calibrate", s(&dir)]);
+    let result = dir.join("result.json");
+    let poses = dir.join("poses.csv");
+    let gyro = |j: &str| {
+        let report = tmp.path().join(format!("v{j}"));
+        robimu_ok([
+            "validate",
+            s(&dir),
+            "--calibration",
+            s(&result),
+            "--tracker",
+            s(&poses),
+            "--imu",
+            j,
+            "--report",
+            s(&report),
+        ]);
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(report.join("validation.json")).unwrap())
+                .unwrap();
+        let rms = |k: &str| v["imu_accuracy"][k]["rms_gyro_deg_s"].as_f64().unwrap();
+        (rms("nominal"), rms("calibrated"), rms("classical"))
+    };
+    for j in ["0", "1"] {
+        let (nominal, calibrated, classical) = gyro(j);
+        assert!(
+            calibrated < 0.2 * nominal,
+            "IMU {j}: {calibrated} vs nominal {nominal}"
+        );
+        assert!(
+            calibrated < 1.1 * classical,
+            "IMU {j}: {calibrated} vs classical {classical}"
+        );
+    }
+    let run = robimu([
+        "validate",
+        s(&dir),
+        "--calibration",
+        s(&result),
+        "--tracker",
+        s(&poses),
+        "--imu",
+        "2",
+    ]);
+    assert!(!run.status.success());
+    assert!(run.stderr.contains("--imu 2"), "{}", run.stderr);
+}

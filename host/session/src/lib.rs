@@ -250,6 +250,56 @@ impl Session {
         1 + self.extra_imus.len()
     }
 
+    /// IMU `j` of a multi-IMU session as a one-IMU session (docs/model.md
+    /// §9): its samples as `imu.csv`'s, its `[imu<j>]` table (and mount
+    /// prior) as `[imu]`'s — IMU 0's mount where it has none — and a truth
+    /// under the one-IMU names (`imu<j>/X` as `X`, the other IMUs' left out).
+    /// `None` when the session has no IMU `j`.
+    pub fn only_imu(&self, j: usize) -> Option<Session> {
+        if j >= self.n_imus() {
+            return None;
+        }
+        let mut s = self.clone();
+        if j == 0 {
+            s.extra_imus.clear();
+            s.meta.imu_tables.clear();
+            s.meta.mounts.retain(|&i, _| i == 0);
+        } else {
+            let ImuTable { samples, temp } = s.extra_imus.swap_remove(j - 1);
+            (s.imu, s.imu_temp) = (samples, temp);
+            s.extra_imus.clear();
+            s.meta.imu = s.meta.imu_tables.remove(&j);
+            s.meta.imu_tables.clear();
+            if let Some(m) = s.meta.mounts.remove(&j) {
+                // IMU j's keys over IMU 0's (docs/model.md §9), as IMU 0's
+                let base = s.meta.mounts.get(&0).copied().unwrap_or_default();
+                s.meta.mounts = [(0, m.or(&base))].into();
+            } else {
+                s.meta.mounts.retain(|&i, _| i == 0);
+            }
+        }
+        let prefix = |i: usize| format!("imu{i}/");
+        s.truth = self.truth.as_ref().map(|t| {
+            let own: Vec<(String, f64)> = t
+                .values
+                .iter()
+                .filter_map(|(n, v)| n.strip_prefix(&prefix(j)).map(|b| (b.to_string(), *v)))
+                .collect();
+            let values = t
+                .values
+                .iter()
+                .filter(|(n, _)| result::split_imu_name(n).is_none())
+                .map(|(n, v)| {
+                    own.iter()
+                        .find(|(b, _)| b == n)
+                        .map_or((n.clone(), *v), |(b, w)| (b.clone(), *w))
+                })
+                .collect();
+            Truth { values }
+        });
+        Some(s)
+    }
+
     /// Number of joints in `joints.csv`.
     pub fn joint_count(&self) -> usize {
         self.joints.width()

@@ -90,6 +90,17 @@ pub struct MountPrior {
 }
 
 impl MountPrior {
+    /// These keys, the missing ones from `base`.
+    pub fn or(&self, base: &MountPrior) -> MountPrior {
+        MountPrior {
+            position: self.position.or(base.position),
+            position_sigma: self.position_sigma.or(base.position_sigma),
+            r_a: self.r_a.or(base.r_a),
+            r_w: self.r_w.or(base.r_w),
+            rotation_sigma: self.rotation_sigma.or(base.rotation_sigma),
+        }
+    }
+
     /// `base` with the keys this table gives.
     pub fn over(&self, base: &robimu_model::robot::ImuMount) -> robimu_model::robot::ImuMount {
         robimu_model::robot::ImuMount {

@@ -18,7 +18,7 @@ use robimu_report::noise::NoiseSummary;
 use robimu_report::verdict::{trust_line, VerdictText};
 use robimu_report::ParameterTable;
 use robimu_session::result::CalibrationResult;
-use robimu_session::{Session, Truth};
+use robimu_session::Session;
 use robimu_solver::IterationRecord;
 use robimu_workflows::calibrate::fit::{fit, Fit, FitSpec, Start};
 use robimu_workflows::calibrate::noise_choice::residual_identification;
@@ -270,22 +270,20 @@ impl CalibrateFlags {
     ) -> anyhow::Result<Prepared> {
         preflight(&session, &robot)?;
         let mut robot = robot;
-        let mut data = session.measurements();
         if let Some(j) = self.imu {
-            let k = data.n_imus();
-            if j >= k {
-                bail!(
+            let k = session.n_imus();
+            session = session.only_imu(j).with_context(|| {
+                format!(
                     "--imu {j}: the session {} has {k} IMU{} (0..{})",
                     dir.display(),
                     if k == 1 { "" } else { "s" },
                     k - 1
-                );
-            }
-            data = data.only_imu(j);
+                )
+            })?;
             // IMU j alone: its own mount prior is the one-IMU robot's
             robot = robot.with_mount(0, *robot.mount_of(j))?;
-            session.truth = session.truth.take().map(|t| imu_truth(&robot, k, j, &t));
         }
+        let data = session.measurements();
         let layout = ParamLayout::with_imus(&robot, data.n_imus());
         let opts = self.options(&session, &robot, &layout, file)?;
         check_measurements(&robot, &data)
@@ -444,22 +442,6 @@ impl CalibrateFlags {
             .collect::<Result<Vec<_>, _>>()
             .context("--effects")?;
         Ok(Some(effect_set(&setup, &names).context("--effects")?))
-    }
-}
-
-/// The truth of IMU `j` of a `k`-IMU session under the one-IMU names
-/// (`--imu j`): the shared parameters and IMU j's own ones (`imu<j>/tau` as
-/// `tau`).
-fn imu_truth(robot: &Robot, k: usize, j: usize, truth: &Truth) -> Truth {
-    let full = ParamLayout::with_imus(robot, k);
-    let one = full.imu_layout();
-    Truth {
-        values: one
-            .specs()
-            .iter()
-            .zip(full.imu_map(j))
-            .filter_map(|(s, &at)| Some((s.name.clone(), truth.get(&full.specs()[at].name)?)))
-            .collect(),
     }
 }
 

@@ -67,14 +67,32 @@ pub struct ValidateCmd {
     /// flange's from the joint samples].
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub tracker_offset: Option<f64>,
+    /// A session of several IMUs (docs/model.md §9): validate IMU J (its
+    /// parameters from the result, its samples imu<J>.csv) [default: 0].
+    #[arg(long = "imu", value_name = "J")]
+    pub which_imu: Option<usize>,
 }
 
 impl ValidateCmd {
     /// Validate, print and write the report.
     pub fn run(self) -> anyhow::Result<()> {
         let (session, robot) = load_session(&self.session)?;
-        let layout = ParamLayout::new(&robot);
         let result = CalibrationResult::read(&self.calibration)?;
+        // IMU J of a multi-IMU session and result, as a one-IMU pair
+        let j = self.which_imu.unwrap_or(0);
+        let result = result
+            .imu(j)
+            .map_err(anyhow::Error::msg)
+            .with_context(|| format!("--calibration {}", self.calibration.display()))?;
+        let k = session.n_imus();
+        let session = session.only_imu(j).with_context(|| {
+            format!(
+                "--imu {j}: the session {} has {k} IMU(s)",
+                self.session.display()
+            )
+        })?;
+        let robot = robot.with_mount(0, *robot.mount_of(j))?;
+        let layout = ParamLayout::new(&robot);
         let x = result
             .values(&layout)
             .with_context(|| format!("--calibration {}", self.calibration.display()))?;
@@ -102,8 +120,14 @@ impl ValidateCmd {
                 let motion = if dir == self.session {
                     session.clone()
                 } else {
-                    Session::load(&dir)
-                        .with_context(|| format!("--motion: cannot load {}", dir.display()))?
+                    let m = Session::load(&dir)
+                        .with_context(|| format!("--motion: cannot load {}", dir.display()))?;
+                    m.only_imu(j).with_context(|| {
+                        format!(
+                            "--imu {j}: the --motion session {} has no IMU {j}",
+                            dir.display()
+                        )
+                    })?
                 };
                 let a = self.alignment(&robot, &layout, &x, &motion, &dir)?;
                 let registration = &acc.baseline.registration;
