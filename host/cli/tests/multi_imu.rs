@@ -465,3 +465,71 @@ fn validate_takes_the_imu_asked_for() {
     assert!(!run.status.success());
     assert!(run.stderr.contains("--imu 2"), "{}", run.stderr);
 }
+
+/// Two IMUs whose noise differs: IMU 0 white, IMU 1's accelerometer AR(1)
+/// (φ = 0.9, 75 ms at 120 Hz; drawn here by its recursion, not by the
+/// library's sampler). One noise model serves both and is chosen on IMU 0's
+/// residuals (white), so IMU 1's σ are too small: the verdict names IMU 1.
+/// With both white it does not.
+#[test]
+fn an_imu_whose_noise_differs_is_named_in_the_verdict() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    use robimu_session::{SessionMeta, SessionWriter};
+    use robimu_workflows::simulate::random_session_imus;
+
+    let robot = Robot::aubo_i5();
+    let layout = ParamLayout::with_imus(&robot, 2);
+    let mut opts = SimulateOptions::paper(&robot);
+    opts.noise = false;
+    let clean = random_session_imus(&robot, 2, 60.0, 1.0, &opts, 11).unwrap();
+    let sz = robot.sigma_z();
+    let verdict_of = |phi: f64, name: &str| {
+        let mut data = clean.data.clone();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(12);
+        let mut e = move || -> f64 { StandardNormal.sample(&mut rng) };
+        for z in data.imu_z.iter_mut() {
+            for (c, v) in z.iter_mut().enumerate() {
+                *v += sz[c] * e();
+            }
+        }
+        let mut past = [0.0; 3];
+        for (i, z) in data.extra_imus[0].z.iter_mut().enumerate() {
+            for (c, v) in z.iter_mut().enumerate() {
+                let n = if c < 3 {
+                    let u = if i == 0 {
+                        e()
+                    } else {
+                        phi * past[c] + (1.0 - phi * phi).sqrt() * e()
+                    };
+                    past[c] = u;
+                    u
+                } else {
+                    e()
+                };
+                *v += sz[c] * n;
+            }
+        }
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join(name);
+        let mut w = SessionWriter::create(&dir, &SessionMeta::new("aubo_i5"), 6).unwrap();
+        w.measurements(&data).unwrap();
+        w.truth(&Truth::of(&layout, &clean.truth)).unwrap();
+        w.finish().unwrap();
+        let out = tmp.path().join("r.json");
+        robimu_ok(["calibrate", s(&dir), "--out", s(&out)]);
+        let r = CalibrationResult::read(&out).unwrap();
+        let v = r.verdict.unwrap();
+        v.checks
+            .into_iter()
+            .find(|c| c.topic == "residuals")
+            .unwrap()
+    };
+    let differs = verdict_of(0.9, "ar1");
+    assert!(
+        !differs.ok && differs.text.contains("IMU 1 ("),
+        "{differs:?}"
+    );
+    let same = verdict_of(0.0, "white");
+    assert!(same.ok, "{same:?}");
+}

@@ -10,7 +10,9 @@
 //!   modelled (white kept), or a whitened RMS far from 1, are *doubtful*:
 //!   something the model lacks (`robimu diagnose`) or wrong σ_z
 //!   (`robimu noise`). Correlated noise the fit identified and modelled
-//!   (GLS) passes, named;
+//!   (GLS) passes, named. In a multi-IMU fit (one noise model, chosen on
+//!   IMU 0's residuals) an IMU j ≥ 1 whose own residuals ask for another
+//!   model is *doubtful*, named (its σ are not those of its noise);
 //! * **undetermined** — parameters whose posterior σ is above
 //!   [`UNDETERMINED`] of the prior σ: their estimate is the prior's, with
 //!   the prior's σ — listed (the robot lengths apart: they need speed,
@@ -26,7 +28,7 @@
 use robimu_model::{ParamLayout, Robot};
 use robimu_session::result::{Trust, VerdictCheck, VerdictRecord};
 
-use crate::calibrate::noise_choice::NoiseOutcome;
+use crate::calibrate::noise_choice::{settled, wanted, NoiseOutcome, Settle};
 use crate::calibrate::Calibration;
 use crate::noise_id::{IdOptions, Identification, WHITENESS_ALPHA};
 use crate::plan::information::robot_lengths;
@@ -59,6 +61,9 @@ pub struct VerdictInput<'a> {
     pub whiteness: Option<&'a Identification>,
     /// The repeatability study, when asked for.
     pub repeatability: Option<&'a Repeatability>,
+    /// A multi-IMU calibration's IMUs j ≥ 1: the identification from each
+    /// one's raw residuals ([`crate::calibrate::noise_choice::other_imu_identifications`]).
+    pub other_imus: &'a [(usize, Identification)],
 }
 
 /// The verdict (module doc).
@@ -208,11 +213,43 @@ fn residuals(input: &VerdictInput<'_>) -> VerdictCheck {
         ),
         (None, None) => (true, format!("not tested; noise model {model}")),
     };
+    let others = other_imus(input);
     VerdictCheck {
         topic: "residuals".into(),
-        ok: ok && off.is_empty(),
-        text: text + &rms_text,
+        ok: ok && off.is_empty() && others.is_empty(),
+        text: text + &rms_text + &others,
     }
+}
+
+/// The IMUs j ≥ 1 whose residuals ask for another noise model than the one
+/// the fit used (chosen on IMU 0's, docs/model.md §9): correlated under a
+/// white fit, or white or differently correlated under an AR one (orders,
+/// φ within 0.1, σ within 20 %): their σ are not those of their noise.
+fn other_imus(input: &VerdictInput<'_>) -> String {
+    let model = &input.calibration.noise_model;
+    let loose = Settle {
+        max_refits: 0,
+        phi: 0.1,
+        sigma: 0.2,
+    };
+    let off: Vec<String> = input
+        .other_imus
+        .iter()
+        .filter_map(|(j, id)| {
+            let differs = match wanted(id) {
+                None => !model.is_white(),
+                Some(m) => model.is_white() || !settled(&m, model, &loose),
+            };
+            differs.then(|| format!("IMU {j} ({})", p_values(id)))
+        })
+        .collect();
+    if off.is_empty() {
+        return String::new();
+    }
+    format!(
+        "; the residuals of {} ask for another noise model than the one chosen on IMU 0's: their σ are not those of their noise (calibrate each alone with --imu J, or give --noise-model)",
+        off.join(", ")
+    )
 }
 
 /// Parameters whose σ stayed at the prior's.

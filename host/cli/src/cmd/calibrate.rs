@@ -21,14 +21,16 @@ use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
 use robimu_solver::IterationRecord;
 use robimu_workflows::calibrate::fit::{fit, Fit, FitSpec, Start};
-use robimu_workflows::calibrate::noise_choice::residual_identification;
 use robimu_workflows::calibrate::noise_choice::{
     calibrate_with_noise_settle, NoiseChoice, NoiseOutcome, Settle, MAX_REFITS,
+};
+use robimu_workflows::calibrate::noise_choice::{
+    other_imu_identifications, residual_identification,
 };
 use robimu_workflows::calibrate::{check_measurements, CalibrateOptions, Calibration};
 use robimu_workflows::check::{check_session, CheckOptions, Severity};
 use robimu_workflows::diagnose::{effect_set, fit_json, setup_with};
-use robimu_workflows::noise_id::IdOptions;
+use robimu_workflows::noise_id::{IdOptions, Identification};
 use robimu_workflows::repeatability::{self, check_windows, Repeatability, Window};
 use robimu_workflows::verdict::{self, VerdictInput};
 
@@ -181,6 +183,7 @@ impl CalibrateCmd {
             noise,
             mut result,
             whiteness,
+            other_imus,
         } = fitted?;
         let choice = &p.choice;
         let effects = &p.effects;
@@ -235,6 +238,7 @@ impl CalibrateCmd {
                 noise: Some(&noise),
                 whiteness: whiteness.as_ref(),
                 repeatability: Some(&study),
+                other_imus: &other_imus,
             });
             if let Some(c) = verdict.checks.iter().find(|c| c.topic == "repeatability") {
                 let mark = if c.ok { "ok" } else { "FAIL" };
@@ -323,12 +327,18 @@ impl CalibrateFlags {
         let whiteness = (p.choice != NoiseChoice::Auto)
             .then(|| residual_identification(&p.robot, &p.data, &cal, &IdOptions::default()).ok())
             .flatten();
+        let other_imus: Vec<(usize, Identification)> =
+            other_imu_identifications(&p.robot, &p.data, &cal, &IdOptions::default())
+                .into_iter()
+                .filter_map(|(j, id)| id.ok().map(|id| (j, id)))
+                .collect();
         let verdict = verdict::verdict(&VerdictInput {
             robot: &p.robot,
             calibration: &cal,
             noise: Some(&noise),
             whiteness: whiteness.as_ref(),
             repeatability: None,
+            other_imus: &other_imus,
         });
         let mut result = result_file(&cal, &p.layout, &p.session, dir, p.opts.use_prior);
         result.noise_warning = noise.warning.clone();
@@ -338,6 +348,7 @@ impl CalibrateFlags {
             noise,
             result,
             whiteness,
+            other_imus,
         })
     }
 
@@ -466,7 +477,9 @@ pub(crate) struct Fitted {
     pub result: CalibrationResult,
     /// The whiteness test of the final residuals when the noise choice is
     /// not `auto` (which has its own), for the verdict.
-    pub whiteness: Option<robimu_workflows::noise_id::Identification>,
+    pub whiteness: Option<Identification>,
+    /// A multi-IMU fit's IMUs j ≥ 1: the identification from each one's residuals.
+    pub other_imus: Vec<(usize, Identification)>,
 }
 
 /// Write the result file at `path` and the solver's iteration history next

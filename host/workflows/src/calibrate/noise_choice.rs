@@ -269,6 +269,31 @@ pub fn residual_identification(
     identification_of(robot, data, &cal.x, &cal.trajectory, opts)
 }
 
+/// The identification from the raw residuals of every IMU j ≥ 1 of a
+/// multi-IMU calibration (docs/model.md §9), each under its own parameters:
+/// `(j, identification or why none)`. The noise choice looks at IMU 0's
+/// residuals ([`residual_identification`]); the verdict checks these
+/// against the model the fit used (one model serves every IMU).
+pub fn other_imu_identifications(
+    robot: &Robot,
+    data: &Measurements,
+    cal: &Calibration,
+    opts: &IdOptions,
+) -> Vec<(usize, Result<Identification, String>)> {
+    let k = data.n_imus();
+    let layout = ParamLayout::with_imus(robot, k);
+    if cal.x.len() != layout.len() {
+        return Vec::new();
+    }
+    (1..k)
+        .map(|j| {
+            let x = layout.imu_x(j, &cal.x);
+            let id = identification_of(robot, &data.only_imu(j), &x, &cal.trajectory, opts);
+            (j, id)
+        })
+        .collect()
+}
+
 /// [`residual_identification`] at `x` and the joint trajectory `trajectory`.
 fn identification_of(
     robot: &Robot,
