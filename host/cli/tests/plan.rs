@@ -524,13 +524,17 @@ fn two_imu_information_is_the_scattered_sum_of_two_one_imu_informations() {
         layout.specs().iter().position(|p| p.name == name).unwrap()
     };
     let sig = layout.sigmas();
-    let mut expected = Mat::from_fn(76, 76, |a, b| {
-        if a == b {
-            1.0 / (sig[a] * sig[a])
-        } else {
-            0.0
-        }
-    });
+    let mut expected = Mat::from_fn(
+        76,
+        76,
+        |a, b| {
+            if a == b {
+                1.0 / (sig[a] * sig[a])
+            } else {
+                0.0
+            }
+        },
+    );
     for (j, d) in data.iter().enumerate() {
         for a in 0..48 {
             for b in 0..48 {
@@ -669,14 +673,21 @@ fn a_two_imu_plan_predicts_the_joint_fit_sigma() {
     );
     let layout = ParamLayout::with_imus(&robot, 2);
     let csv = std::fs::read_to_string(dir.join("sigma.csv")).unwrap();
-    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
     assert_eq!(rows.len(), 76);
     let predicted: Vec<f64> = rows.iter().map(|r| r[3].parse().unwrap()).collect();
     for (r, spec) in rows.iter().zip(layout.specs()) {
         assert_eq!(r[0], spec.name);
     }
     let text = std::fs::read_to_string(dir.join("spline.toml")).unwrap();
-    let spline = toml::from_str::<SplineFile>(&text).unwrap().spline().unwrap();
+    let spline = toml::from_str::<SplineFile>(&text)
+        .unwrap()
+        .spline()
+        .unwrap();
     let truth = mounted_nominal(&layout, &[(1, IMU1_AT)]).unwrap();
     let sim = SimulateOptions::paper(&robot);
     let data = simulate(&robot, &layout, &truth, &spline, &sim, 4).unwrap();

@@ -83,7 +83,9 @@ pub enum InformationError {
     #[error("IMU noise: {0}")]
     Noise(#[from] robimu_model::noise::NoiseModelError),
     /// The linearisation point does not fit the layout.
-    #[error("the linearisation point has {found} values but the layout of {imus} IMU(s) has {expected}")]
+    #[error(
+        "the linearisation point has {found} values but the layout of {imus} IMU(s) has {expected}"
+    )]
     PointLength {
         /// The layout's length.
         expected: usize,
