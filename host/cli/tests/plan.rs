@@ -584,9 +584,9 @@ fn two_imu_information_is_the_scattered_sum_of_two_one_imu_informations() {
             for i in 0..=count {
                 s.evaluate(i as f64 / rate, &mut js).unwrap();
                 let (zu, zd) = (mu.predict(&js), md.predict(&js));
-                for r in 0..6 {
-                    let d = (zu[r] - zd[r]) / (2.0 * h);
-                    fd += d * d / (sz[r] * sz[r]);
+                for ((u, d), sr) in zu.iter().zip(&zd).zip(&sz) {
+                    let d = (u - d) / (2.0 * h);
+                    fd += d * d / (sr * sr);
                 }
             }
         }
