@@ -555,7 +555,8 @@ fn two_imu_information_is_the_scattered_sum_of_two_one_imu_informations() {
         }
     }
     // the second IMU's position matters (else the check above could not
-    // tell a misplaced IMU): its shared information differs from IMU 0's
+    // tell a misplaced IMU): its shared information differs from IMU 0's,
+    // by far more than the 1e-12 above (measured 3.5e-4 for 2 cm)
     let shared: Vec<usize> = (0..48)
         .filter(|&k| !own_by_name(&one.specs()[k].name, 6))
         .collect();
@@ -564,7 +565,7 @@ fn two_imu_information_is_the_scattered_sum_of_two_one_imu_informations() {
         .iter()
         .map(|&k| (data[1][(k, k)] / data[0][(k, k)] - 1.0).abs())
         .fold(0.0, f64::max);
-    assert!(moved > 1e-2, "IMU 1's shared information moved by {moved}");
+    assert!(moved > 1e-4, "IMU 1's shared information moved by {moved}");
 
     // the shared diagonal by central differences of the predicted z of both IMUs
     let sz = robot.sigma_z();
