@@ -623,7 +623,7 @@ fn one_imu_plan_is_unchanged() {
         let want = std::fs::read_to_string(golden.join(f)).unwrap();
         let got = std::fs::read_to_string(dir.join(f)).unwrap();
         let nums = |t: &str| -> Vec<(String, Option<f64>)> {
-            t.split(|c: char| c == ',' || c == '\n' || c == ' ' || c == '[' || c == ']')
+            t.split([',', '\n', ' ', '[', ']'])
                 .filter(|w| !w.is_empty())
                 .map(|w| (w.to_string(), w.parse::<f64>().ok()))
                 .collect()
