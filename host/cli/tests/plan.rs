@@ -11,7 +11,7 @@ use robimu_model::{JointState, MeasurementJacobians, MeasurementModel, ParamLayo
 use robimu_workflows::calibrate::{calibrate, CalibrateOptions};
 use robimu_workflows::identifiability::{baseline, median, Baseline};
 use robimu_workflows::plan::information::{lambda_max, posterior_sigma, Information, Sampling};
-use robimu_workflows::plan::{check_limits, plan, PlanOptions, SplineFile};
+use robimu_workflows::plan::{check_limits, mounted_nominal, plan, PlanOptions, SplineFile};
 use robimu_workflows::simulate::{simulate, SimulateOptions};
 
 mod common;
@@ -466,4 +466,262 @@ fn plan_cli_prints_the_noise_model_it_assumed() {
     ]);
     assert!(!bad.success());
     assert!(bad.stderr.contains("expected `white`"), "{}", bad.stderr);
+}
+
+/// IMU 1's position on the flange in the multi-IMU tests: 2 cm and −1.5 cm
+/// from the nominal mount (a second board on a plate).
+const IMU1_AT: [f64; 3] = [0.0452, 0.0633, 0.0182];
+
+/// Whether the one-IMU parameter `name` belongs to its IMU (docs/model.md §9:
+/// its position ε_n1..3, τ and the 24 sensor parameters), by name alone.
+fn own_by_name(name: &str, n: usize) -> bool {
+    name.starts_with(&format!("eps_{n}_")) || !(name.starts_with("eps_") || name.starts_with("g_"))
+}
+
+/// The one-IMU vector of an IMU at `p` on the flange (by name).
+fn one_imu_at(one: &ParamLayout, p: [f64; 3]) -> Vec<f64> {
+    let mut x = one.nominal();
+    for (k, v) in p.iter().enumerate() {
+        x[one.index_of(&format!("eps_6_{}", k + 1)).unwrap()] = *v;
+    }
+    x
+}
+
+/// The K = 2 information (docs/model.md §9) is the prior plus the two one-IMU
+/// informations, each computed alone at its IMU's own position and scattered
+/// by hand through the §9 names; and the shared block's diagonal matches a
+/// central finite difference of the two IMUs' predicted measurements.
+#[test]
+fn two_imu_information_is_the_scattered_sum_of_two_one_imu_informations() {
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(21);
+    let s = baseline(&robot, Baseline::RandomWalk, 10.0, &mut rng).unwrap();
+    let rate = 40.0;
+    let noise = NoiseModel::white(robot.sigma_z()).unwrap();
+    let layout = ParamLayout::with_imus(&robot, 2);
+    let x = mounted_nominal(&layout, &[(1, IMU1_AT)]).unwrap();
+    let two = Information::at(&robot, layout.clone(), &x, noise.clone(), rate).unwrap();
+    assert_eq!((two.dim(), two.n_imus()), (76, 2));
+    let lam2 = two.total(&s, 1.0, Sampling::Exact);
+
+    let one = ParamLayout::new(&robot);
+    let points = [one.nominal(), one_imu_at(&one, IMU1_AT)];
+    let data: Vec<Mat<f64>> = points
+        .iter()
+        .map(|xj| {
+            let i = Information::at(&robot, one.clone(), xj, noise.clone(), rate).unwrap();
+            let (t, p) = (i.total(&s, 1.0, Sampling::Exact), i.prior());
+            Mat::from_fn(48, 48, |a, b| t[(a, b)] - p[(a, b)])
+        })
+        .collect();
+    // index in the K = 2 vector of IMU j's one-IMU parameter `name`
+    let full = |j: usize, name: &str| {
+        let name = if j > 0 && own_by_name(name, 6) {
+            format!("imu{j}/{name}")
+        } else {
+            name.to_string()
+        };
+        layout.specs().iter().position(|p| p.name == name).unwrap()
+    };
+    let sig = layout.sigmas();
+    let mut expected = Mat::from_fn(
+        76,
+        76,
+        |a, b| {
+            if a == b {
+                1.0 / (sig[a] * sig[a])
+            } else {
+                0.0
+            }
+        },
+    );
+    for (j, d) in data.iter().enumerate() {
+        for a in 0..48 {
+            for b in 0..48 {
+                let (fa, fb) = (full(j, &one.specs()[a].name), full(j, &one.specs()[b].name));
+                expected[(fa, fb)] += d[(a, b)];
+            }
+        }
+    }
+    for a in 0..76 {
+        for b in 0..76 {
+            let scale = (expected[(a, a)] * expected[(b, b)]).sqrt();
+            assert!(
+                (lam2[(a, b)] - expected[(a, b)]).abs() <= 1e-12 * scale,
+                "({a},{b}) {} vs {}",
+                lam2[(a, b)],
+                expected[(a, b)]
+            );
+        }
+    }
+    // the second IMU's position matters (else the check above could not
+    // tell a misplaced IMU): its shared information differs from IMU 0's,
+    // by far more than the 1e-12 above (measured 3.5e-4 for 2 cm)
+    let shared: Vec<usize> = (0..48)
+        .filter(|&k| !own_by_name(&one.specs()[k].name, 6))
+        .collect();
+    assert_eq!(shared.len(), 20);
+    let moved = shared
+        .iter()
+        .map(|&k| (data[1][(k, k)] / data[0][(k, k)] - 1.0).abs())
+        .fold(0.0, f64::max);
+    assert!(moved > 1e-4, "IMU 1's shared information moved by {moved}");
+
+    // the shared diagonal by central differences of the predicted z of both IMUs
+    let sz = robot.sigma_z();
+    let t1 = s.knots().end();
+    let count = (t1 * rate + 1e-9).floor() as usize;
+    let mut js = JointState::default();
+    for &k in &shared {
+        let name = &one.specs()[k].name;
+        let h = 1e-5;
+        let mut fd = 0.0;
+        for xj in &points {
+            let (mut up, mut dn) = (xj.clone(), xj.clone());
+            up[k] += h;
+            dn[k] -= h;
+            let mu = MeasurementModel::new(&robot, &one, &up).unwrap();
+            let md = MeasurementModel::new(&robot, &one, &dn).unwrap();
+            for i in 0..=count {
+                s.evaluate(i as f64 / rate, &mut js).unwrap();
+                let (zu, zd) = (mu.predict(&js), md.predict(&js));
+                for ((u, d), sr) in zu.iter().zip(&zd).zip(&sz) {
+                    let d = (u - d) / (2.0 * h);
+                    fd += d * d / (sr * sr);
+                }
+            }
+        }
+        let at = full(0, name);
+        let analytic = lam2[(at, at)] - 1.0 / (sig[at] * sig[at]);
+        assert!(
+            (analytic / fd - 1.0).abs() < 1e-5,
+            "{name}: Λ − prior {analytic} vs finite differences {fd}"
+        );
+    }
+}
+
+/// K = 1 through the multi-IMU path is today's planner: the plan and its
+/// σ are those main wrote before the multi-IMU information (golden files of
+/// `robimu plan --duration 20 --evaluations 20`, commit 5cce4d1).
+#[test]
+fn one_imu_plan_is_unchanged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("p");
+    robimu_ok([
+        "plan",
+        "--duration",
+        "20",
+        "--evaluations",
+        "20",
+        "--imus",
+        "1",
+        "--out",
+        s(&dir),
+    ]);
+    let golden = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/plan_k1");
+    for f in ["sigma.csv", "identifiability.csv", "spline.toml"] {
+        let want = std::fs::read_to_string(golden.join(f)).unwrap();
+        let got = std::fs::read_to_string(dir.join(f)).unwrap();
+        let nums = |t: &str| -> Vec<(String, Option<f64>)> {
+            t.split([',', '\n', ' ', '[', ']'])
+                .filter(|w| !w.is_empty())
+                .map(|w| (w.to_string(), w.parse::<f64>().ok()))
+                .collect()
+        };
+        let (w, g) = (nums(&want), nums(&got));
+        assert_eq!(w.len(), g.len(), "{f}");
+        for ((wt, wv), (gt, gv)) in w.iter().zip(&g) {
+            match (wv, gv) {
+                // bit-identical on the machine that wrote the golden files;
+                // a hair of rounding allowed for another CPU's SIMD kernels
+                (Some(a), Some(b)) => assert!(
+                    (a - b).abs() <= 1e-9 * a.abs().max(1e-300),
+                    "{f}: {wt} vs {gt}"
+                ),
+                _ => assert_eq!(wt, gt, "{f}"),
+            }
+        }
+    }
+}
+
+/// `plan --imus 2` with the second IMU placed by `--imu-position`: sigma.csv
+/// has the 76 §9 names, and the planned σ are those the joint calibration
+/// of a two-IMU session simulated along the plan reports (the independent
+/// estimator; the truth at the plan's linearisation point).
+#[test]
+fn a_two_imu_plan_predicts_the_joint_fit_sigma() {
+    let robot = Robot::aubo_i5();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("p2");
+    let pos = format!("1={},{},{}", IMU1_AT[0], IMU1_AT[1], IMU1_AT[2]);
+    let out = robimu_ok([
+        "plan",
+        "--duration",
+        "30",
+        "--evaluations",
+        "60",
+        "--imus",
+        "2",
+        "--imu-position",
+        &pos,
+        "--out",
+        s(&dir),
+    ]);
+    assert!(
+        out.stdout.contains("2 IMUs fitted jointly") && out.stdout.contains("imu1/k_a_x"),
+        "{}",
+        out.stdout
+    );
+    let layout = ParamLayout::with_imus(&robot, 2);
+    let csv = std::fs::read_to_string(dir.join("sigma.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 76);
+    let predicted: Vec<f64> = rows.iter().map(|r| r[3].parse().unwrap()).collect();
+    for (r, spec) in rows.iter().zip(layout.specs()) {
+        assert_eq!(r[0], spec.name);
+    }
+    let text = std::fs::read_to_string(dir.join("spline.toml")).unwrap();
+    let spline = toml::from_str::<SplineFile>(&text)
+        .unwrap()
+        .spline()
+        .unwrap();
+    let truth = mounted_nominal(&layout, &[(1, IMU1_AT)]).unwrap();
+    let sim = SimulateOptions::paper(&robot);
+    let data = simulate(&robot, &layout, &truth, &spline, &sim, 4).unwrap();
+    assert_eq!(data.n_imus(), 2);
+    let cal = calibrate(&robot, &data, &CalibrateOptions::new(&robot), |_| {}).unwrap();
+    assert_eq!(cal.sigma.len(), 76);
+    let one = layout.imu_layout();
+    let (mut worst, mut worst_angle) = (0.0f64, 0.0f64);
+    for &k in &cal.active {
+        let name = &layout.specs()[k].name;
+        let r = cal.sigma[k] / predicted[k];
+        assert!((r - 1.0).abs() < 0.1, "{name}: fit σ / planned σ = {r}");
+        worst = worst.max((r - 1.0).abs());
+        let angle = k < one.estimated_errors().len()
+            && !one.is_per_imu(k)
+            && !one.estimated_errors()[k].is_translation();
+        if angle {
+            worst_angle = worst_angle.max((r - 1.0).abs());
+        }
+    }
+    eprintln!("two IMUs: fit σ vs planned σ, worst ratio error {worst:.4} (shared robot angles {worst_angle:.4})");
+    // and the plan for two IMUs knows the shared angles better than IMU 0 alone
+    let alone = Information::new(&robot, robot.sigma_z(), 120.0).unwrap();
+    let alone = posterior_sigma(&alone.total(&spline, 1.0, Sampling::Exact)).unwrap();
+    let angles: Vec<usize> = (0..one.estimated_errors().len())
+        .filter(|&k| !one.is_per_imu(k) && !one.estimated_errors()[k].is_translation())
+        .collect();
+    assert_eq!(angles.len(), 9);
+    let mut best_gain = 0.0f64;
+    for &k in &angles {
+        let gain = alone[k] / predicted[k];
+        assert!(gain >= 1.0 - 1e-9, "{}: gain {gain}", one.specs()[k].name);
+        best_gain = best_gain.max(gain);
+    }
+    assert!(best_gain > 1.2, "shared angles gain at most {best_gain}");
 }

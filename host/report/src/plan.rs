@@ -109,15 +109,25 @@ impl fmt::Display for PlanSummary<'_> {
             last(&p.lambda_max),
             last(&p.lambda_max_without_lengths)
         )?;
-        writeln!(
-            f,
-            "{:<12} {:>6} {:>12} {:>12}",
-            "parameter", "unit", "prior sigma", "posterior"
-        )?;
-        for (s, post) in self.layout.specs().iter().zip(self.posterior) {
+        let specs = self.layout.specs();
+        let w = specs.iter().map(|s| s.name.len()).fold(12, usize::max);
+        if self.layout.n_imus() > 1 {
             writeln!(
                 f,
-                "{:<12} {:>6} {:>12.4e} {:>12.4e}",
+                "{} IMUs fitted jointly (docs/model.md §9): {} parameters",
+                self.layout.n_imus(),
+                specs.len()
+            )?;
+        }
+        writeln!(
+            f,
+            "{:<w$} {:>6} {:>12} {:>12}",
+            "parameter", "unit", "prior sigma", "posterior"
+        )?;
+        for (s, post) in specs.iter().zip(self.posterior) {
+            writeln!(
+                f,
+                "{:<w$} {:>6} {:>12.4e} {:>12.4e}",
                 s.name, s.unit, s.sigma, post
             )?;
         }

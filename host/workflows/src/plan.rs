@@ -29,6 +29,16 @@
 //! Its objective λ_max((Λ_{j−1} + I_j(C_j))⁻¹) is evaluated with the
 //! quadrature of [`information::Sampling`]; the optimiser is random
 //! candidates followed by a compass (pattern) search on u with halving steps.
+//!
+//! # Several IMUs (docs/model.md §9)
+//!
+//! With [`PlanOptions::imus`] = K the information is that of the K-IMU layout
+//! ([`ParamLayout::with_imus`], summed over the IMUs, [`information`]) and the
+//! criterion λ_max(Σ_x) spans all 20 + 28K parameters (the shared ones and
+//! every IMU's own). Every IMU is linearised at the layout's nominal mount
+//! (the robot's `imu_mount`) unless [`PlanOptions::imu_positions`] places it
+//! elsewhere on the flange (a plate of boards: each one's position, m, in
+//! the flange frame).
 
 pub mod files;
 pub mod information;
@@ -41,7 +51,7 @@ use self::information::{
     lambda_max, without_robot_lengths, Information, InformationError, Sampling,
 };
 use robimu_model::noise::NoiseModel;
-use robimu_model::{JointState, Knots, Robot, Spline, SplineError};
+use robimu_model::{JointState, Knots, ParamLayout, Robot, Spline, SplineError};
 
 /// Spline degree of a plan.
 pub const DEGREE: usize = 3;
@@ -71,11 +81,17 @@ pub struct PlanOptions {
     /// its AR coefficients are per sample at `sample_rate`
     /// ([`information`], docs/model.md §4.6).
     pub noise: Option<NoiseModel>,
+    /// Number of IMUs K on the flange (docs/model.md §9), ≥ 1.
+    pub imus: usize,
+    /// `(j, p)`: IMU j's position on the flange (ε_n1..3, m) to linearise at,
+    /// in place of the robot's nominal mount; j < `imus`.
+    pub imu_positions: Vec<(usize, [f64; 3])>,
 }
 
 impl Default for PlanOptions {
     /// 300 s, h = 0.5 s, N_c = 8, 120 Hz, quadrature 20 per s, 12 candidates,
-    /// 240 evaluations per block, 99 % of the velocity limit, seed 1, white noise.
+    /// 240 evaluations per block, 99 % of the velocity limit, seed 1, white
+    /// noise, one IMU at the nominal mount.
     fn default() -> Self {
         Self {
             duration: 300.0,
@@ -88,6 +104,8 @@ impl Default for PlanOptions {
             margin: 0.99,
             seed: 1,
             noise: None,
+            imus: 1,
+            imu_positions: Vec::new(),
         }
     }
 }
@@ -129,6 +147,14 @@ pub enum PlanError {
     /// The nominal model or the noise model is invalid.
     #[error(transparent)]
     Information(#[from] InformationError),
+    /// An IMU position names an IMU the plan does not have, or is not finite.
+    #[error("IMU position for IMU {imu}: {why}")]
+    ImuPosition {
+        /// The IMU index j.
+        imu: usize,
+        /// What is wrong.
+        why: String,
+    },
     /// The dense check found a limit violated (a bug: the constraints are sufficient).
     #[error("the planned trajectory violates a limit: {0}")]
     Violation(String),
@@ -145,8 +171,10 @@ pub struct Plan {
     pub lambda_max: Vec<f64>,
     /// The same with the robot length parameters known.
     pub lambda_max_without_lengths: Vec<f64>,
-    /// Final information Λ (prior included), SI.
+    /// Final information Λ (prior included), SI, over `layout`.
     pub information: Mat<f64>,
+    /// The parameters of Λ (K IMUs, docs/model.md §9).
+    pub layout: ParamLayout,
     /// Objective evaluations spent.
     pub evaluations: usize,
 }
@@ -244,10 +272,16 @@ pub fn plan(
     let y = knots.knots().to_vec();
     let h = y[DEGREE + 1] - y[DEGREE];
     let geo = Box6::new(robot, h, opts.margin)?;
-    let info_model = match &opts.noise {
-        Some(m) => Information::with_noise(robot, m.clone(), opts.sample_rate)?,
-        None => Information::new(robot, robot.sigma_z(), opts.sample_rate)?,
+    if opts.imus == 0 {
+        return Err(bad("imus", 0.0, "at least 1"));
+    }
+    let layout = ParamLayout::with_imus(robot, opts.imus);
+    let x = mounted_nominal(&layout, &opts.imu_positions)?;
+    let noise = match &opts.noise {
+        Some(m) => m.clone(),
+        None => NoiseModel::white(robot.sigma_z()).map_err(InformationError::from)?,
     };
+    let info_model = Information::at(robot, layout, &x, noise, opts.sample_rate)?;
     let keep_all: Vec<usize> = (0..info_model.dim()).collect();
     // at rest at mid-range, all columns (the padding blocks and the initial guess)
     let mut c = vec![0.0; m * n];
@@ -369,8 +403,50 @@ pub fn plan(
         lambda_max: lmax,
         lambda_max_without_lengths: lmax_nl,
         information: lam,
+        layout: info_model.layout().clone(),
         evaluations,
     })
+}
+
+/// The nominal x of `layout` with IMU j's position ε_n1..3 set to p for
+/// every `(j, p)` of `positions` (see the module doc).
+pub fn mounted_nominal(
+    layout: &ParamLayout,
+    positions: &[(usize, [f64; 3])],
+) -> Result<Vec<f64>, PlanError> {
+    let mut x = layout.nominal();
+    let n = layout.n_links();
+    for &(j, p) in positions {
+        if j >= layout.n_imus() {
+            return Err(PlanError::ImuPosition {
+                imu: j,
+                why: format!(
+                    "the plan has {} IMU(s), numbered 0..{}",
+                    layout.n_imus(),
+                    layout.n_imus() - 1
+                ),
+            });
+        }
+        if p.iter().any(|v| !v.is_finite()) {
+            return Err(PlanError::ImuPosition {
+                imu: j,
+                why: format!("{p:?} is not finite"),
+            });
+        }
+        for (k, v) in p.iter().enumerate() {
+            let name = format!("eps_{n}_{}", k + 1);
+            match layout.imu_index(j, &name) {
+                Some(at) => x[at] = *v,
+                None => {
+                    return Err(PlanError::ImuPosition {
+                        imu: j,
+                        why: format!("{name} is not estimated for this robot"),
+                    })
+                }
+            }
+        }
+    }
+    Ok(x)
 }
 
 /// Checks q, q̇, q̈ of `spline` against the robot's limits at `per_second`

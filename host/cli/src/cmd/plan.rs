@@ -5,7 +5,6 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use robimu_model::ParamLayout;
 use robimu_report::plan::{write_plan_files, write_sigma_csv, PlanSummary};
 use robimu_workflows::plan::information::posterior_sigma;
 use robimu_workflows::plan::{plan, PlanOptions};
@@ -25,7 +24,11 @@ use super::noise_spec::parse_noise_model;
 /// sigma.csv (every parameter's prior and posterior σ). With `--noise-model`
 /// the information is that of the generalised least squares under that IMU
 /// noise (docs/model.md §4.6), so the plan is optimised for, and its σ
-/// predicted under, the noise it will meet.
+/// predicted under, the noise it will meet. With `--imus K` the plan is for
+/// K IMUs on the flange fitted jointly (docs/model.md §9): the information
+/// is summed over the IMUs, the criterion spans the shared and every IMU's
+/// parameters, and sigma.csv names them as §9 does (`imu1/k_a_x`, …); every
+/// IMU sits at the robot's nominal mount unless `--imu-position` places it.
 #[derive(Debug, Clone, clap::Args)]
 pub struct PlanCmd {
     /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description.
@@ -58,6 +61,13 @@ pub struct PlanCmd {
     /// noise`); AR coefficients per sample at --imu-rate.
     #[arg(long, value_name = "SPEC", default_value = "white")]
     pub noise_model: String,
+    /// Number of IMUs on the flange, fitted jointly (docs/model.md §9).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub imus: u32,
+    /// `J=X,Y,Z`: IMU J's position on the flange, m, in the flange frame
+    /// (ε_n1..3; default the robot's nominal mount); repeat for each IMU placed.
+    #[arg(long, value_name = "J=X,Y,Z", value_parser = parse_imu_position)]
+    pub imu_position: Vec<(usize, [f64; 3])>,
     /// Plan directory to write (created if needed).
     #[arg(long, value_name = "PLAN_DIR")]
     pub out: PathBuf,
@@ -84,6 +94,8 @@ impl PlanCmd {
             evaluations: self.evaluations,
             seed: self.seed,
             noise: Some(noise.clone()),
+            imus: self.imus as usize,
+            imu_positions: self.imu_position.clone(),
             ..PlanOptions::default()
         };
         let progress = Progress::start("planning");
@@ -96,8 +108,7 @@ impl PlanCmd {
         progress.finish();
         let dir = &self.out;
         write_plan_files(dir, &p, self.rate)?;
-        let layout = ParamLayout::new(&robot);
-        let layout = &layout;
+        let layout = &p.layout;
         let posterior = posterior_sigma(&p.information)
             .context("the planned information matrix is not positive definite")?;
         write_sigma_csv(dir, layout, &posterior)?;
@@ -112,5 +123,25 @@ impl PlanCmd {
         };
         write!(std::io::stdout().lock(), "{summary}")?;
         Ok(())
+    }
+}
+
+/// `J=X,Y,Z` of `--imu-position`.
+fn parse_imu_position(text: &str) -> Result<(usize, [f64; 3]), String> {
+    let (j, xyz) = text
+        .split_once('=')
+        .ok_or_else(|| format!("`{text}`: expected J=X,Y,Z (IMU index, position in m)"))?;
+    let j: usize = j
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}`: IMU index `{}` is not a number ≥ 0", j.trim()))?;
+    let v: Vec<f64> = xyz
+        .split(',')
+        .map(|c| c.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("`{text}`: X,Y,Z must be three numbers (m)"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok((j, [x, y, z])),
+        _ => Err(format!("`{text}`: X,Y,Z must be three finite numbers (m)")),
     }
 }

@@ -37,6 +37,14 @@
 //! quadrature understates the information of a component of J at ω by the
 //! relative (ωT)² (T = 20 ms, 1 Hz: 1.6 %; 50 ms: 10 %), and is exact for
 //! constant regressors (biases, gravity).
+//!
+//! **Several IMUs** (docs/model.md §9). With the layout of K IMUs
+//! ([`ParamLayout::with_imus`]) every IMU j is sampled on the same grid and
+//! evaluated by the one-IMU model at its own 48 values (`imu_x(j, x)`, its own
+//! linearisation point: position, rotations); its whitened rows are scattered
+//! into x through `imu_map(j)`, so Λ = Σ⁻¹ + Σ_j P_jᵀ I_j P_j with I_j the
+//! one-IMU information of IMU j (the noise model serves every IMU, as in
+//! the fit). For K = 1 the map is the identity: exactly the one-IMU Λ.
 use faer::{Accum, Mat, Par, Side};
 
 use robimu_model::noise::NoiseModel;
@@ -53,9 +61,11 @@ pub enum Sampling {
     Quadrature(f64),
 }
 
-/// The IMU information model of one robot at its nominal parameters.
+/// The IMU information model of one robot linearised at a point x (its
+/// nominal parameters unless given), for one or several IMUs (module doc).
 pub struct Information {
-    model: MeasurementModel,
+    /// One measurement model per IMU, each at its own 48 values.
+    models: Vec<MeasurementModel>,
     layout: ParamLayout,
     noise: NoiseModel,
     /// Per channel the quadrature's factor (1 − Σφ)/σ_e (1/σ when white).
@@ -72,6 +82,18 @@ pub enum InformationError {
     /// The noise model is invalid (e.g. a σ not positive).
     #[error("IMU noise: {0}")]
     Noise(#[from] robimu_model::noise::NoiseModelError),
+    /// The linearisation point does not fit the layout.
+    #[error(
+        "the linearisation point has {found} values but the layout of {imus} IMU(s) has {expected}"
+    )]
+    PointLength {
+        /// The layout's length.
+        expected: usize,
+        /// The point's.
+        found: usize,
+        /// The layout's IMUs.
+        imus: usize,
+    },
 }
 
 impl Information {
@@ -88,13 +110,37 @@ impl Information {
         rate: f64,
     ) -> Result<Self, InformationError> {
         let layout = ParamLayout::new(robot);
-        let model = MeasurementModel::new(robot, &layout, &layout.nominal())?;
+        let x = layout.nominal();
+        Self::at(robot, layout, &x, noise, rate)
+    }
+
+    /// `robot` with the IMUs of `layout` (one or several, docs/model.md §9),
+    /// linearised at `x` (in `layout` order: each IMU's own position and
+    /// rotations are its values there), IMU noise `noise` for every IMU,
+    /// `rate` samples per second.
+    pub fn at(
+        robot: &Robot,
+        layout: ParamLayout,
+        x: &[f64],
+        noise: NoiseModel,
+        rate: f64,
+    ) -> Result<Self, InformationError> {
+        if x.len() != layout.len() {
+            return Err(InformationError::PointLength {
+                expected: layout.len(),
+                found: x.len(),
+                imus: layout.n_imus(),
+            });
+        }
+        let models = (0..layout.n_imus())
+            .map(|j| MeasurementModel::new(robot, layout.imu_layout(), &layout.imu_x(j, x)))
+            .collect::<Result<Vec<_>, _>>()?;
         let smooth = std::array::from_fn(|c| {
             let ar = &noise.imu[c].ar;
             (1.0 - ar.phi().iter().sum::<f64>()) / ar.innovation_sigma()
         });
         Ok(Self {
-            model,
+            models,
             layout,
             noise,
             smooth,
@@ -110,6 +156,11 @@ impl Information {
     /// The layout of x.
     pub fn layout(&self) -> &ParamLayout {
         &self.layout
+    }
+
+    /// Number of IMUs K.
+    pub fn n_imus(&self) -> usize {
+        self.models.len()
     }
 
     /// Number of parameters.
@@ -158,12 +209,15 @@ impl Information {
             .collect()
     }
 
-    /// ∂z/∂x at t of `trajectory` played `speed` times faster, each channel
-    /// divided by its level, into column `col` of `out` (np × 6·count, channel-minor);
+    /// ∂z/∂x of IMU `imu` at t of `trajectory` played `speed` times faster,
+    /// each channel divided by its level, into column `col` of `out`
+    /// (6·count columns, channel-minor), its entry k into row `rows[k]`;
     /// scaled by `factor[c]`.
     #[allow(clippy::too_many_arguments)]
     fn scaled_rows(
         &self,
+        imu: usize,
+        rows: &[usize],
         trajectory: &Spline,
         t: f64,
         speed: f64,
@@ -179,10 +233,10 @@ impl Information {
             js.qdd[j] *= speed * speed;
             js.qddd[j] *= speed * speed * speed;
         }
-        self.model.jacobians(js, jac);
+        self.models[imu].jacobians(js, jac);
         let qdd2: f64 = js.qdd[..trajectory.dim()].iter().map(|v| v * v).sum();
         let f: [f64; 6] = std::array::from_fn(|c| factor[c] / self.noise.imu[c].level(qdd2));
-        for (ix, dz) in jac.dz_dx.iter().enumerate() {
+        for (&ix, dz) in rows.iter().zip(&jac.dz_dx) {
             for r in 0..6 {
                 out[(ix, 6 * col + r)] = dz[r] * f[r];
             }
@@ -206,8 +260,10 @@ impl Information {
         info: &mut Mat<f64>,
     ) {
         let np = self.dim();
+        let np1 = self.layout.imu_layout().len();
+        let imus = self.models.len();
         let mut js = JointState::default();
-        let mut jac = MeasurementJacobians::new(np);
+        let mut jac = MeasurementJacobians::new(np1);
         let jt = match sampling {
             Sampling::Exact => {
                 let ks = self.sample_indices(a, b, last);
@@ -220,25 +276,30 @@ impl Information {
                 let k_lo = (ks.start - p).max(first).min(ks.start);
                 let count = (ks.end - ks.start) as usize;
                 let back = (ks.start - k_lo) as usize;
-                let mut raw = Mat::<f64>::zeros(np, 6 * (back + count));
-                for (s, k) in (k_lo..ks.end).enumerate() {
-                    let t = (k as f64 / self.rate).min(b);
-                    self.scaled_rows(
-                        trajectory, t, speed, &[1.0; 6], &mut js, &mut jac, &mut raw, s,
-                    );
-                }
-                let mut jt = Mat::<f64>::zeros(np, 6 * count);
-                for s in 0..count {
-                    let pos = (ks.start + s as i64 - first).max(0) as usize;
-                    for (r, ch) in self.noise.imu.iter().enumerate() {
-                        let (coef, scale) = ch.ar.whitening(pos);
-                        let here = 6 * (back + s) + r;
-                        for ix in 0..np {
-                            let mut v = raw[(ix, here)];
-                            for (k, ak) in coef.iter().enumerate() {
-                                v -= ak * raw[(ix, here - 6 * (k + 1))];
+                let own: Vec<usize> = (0..np1).collect();
+                let mut raw = Mat::<f64>::zeros(np1, 6 * (back + count));
+                let mut jt = Mat::<f64>::zeros(np, 6 * count * imus);
+                for imu in 0..imus {
+                    for (s, k) in (k_lo..ks.end).enumerate() {
+                        let t = (k as f64 / self.rate).min(b);
+                        self.scaled_rows(
+                            imu, &own, trajectory, t, speed, &[1.0; 6], &mut js, &mut jac,
+                            &mut raw, s,
+                        );
+                    }
+                    let map = self.layout.imu_map(imu);
+                    for s in 0..count {
+                        let pos = (ks.start + s as i64 - first).max(0) as usize;
+                        for (r, ch) in self.noise.imu.iter().enumerate() {
+                            let (coef, scale) = ch.ar.whitening(pos);
+                            let here = 6 * (back + s) + r;
+                            for (ix, &row) in map.iter().enumerate() {
+                                let mut v = raw[(ix, here)];
+                                for (k, ak) in coef.iter().enumerate() {
+                                    v -= ak * raw[(ix, here - 6 * (k + 1))];
+                                }
+                                jt[(row, 6 * (imu * count + s) + r)] = scale * v;
                             }
-                            jt[(ix, 6 * s + r)] = scale * v;
                         }
                     }
                 }
@@ -246,10 +307,16 @@ impl Information {
             }
             Sampling::Quadrature(per_second) => {
                 let pts = Self::quadrature_points(a, b, per_second, self.rate);
-                let mut jt = Mat::<f64>::zeros(np, 6 * pts.len());
-                for (s, &(t, w)) in pts.iter().enumerate() {
-                    let f = self.smooth.map(|v| v * w.sqrt());
-                    self.scaled_rows(trajectory, t, speed, &f, &mut js, &mut jac, &mut jt, s);
+                let mut jt = Mat::<f64>::zeros(np, 6 * pts.len() * imus);
+                for imu in 0..imus {
+                    let map = self.layout.imu_map(imu);
+                    for (s, &(t, w)) in pts.iter().enumerate() {
+                        let f = self.smooth.map(|v| v * w.sqrt());
+                        let col = imu * pts.len() + s;
+                        self.scaled_rows(
+                            imu, map, trajectory, t, speed, &f, &mut js, &mut jac, &mut jt, col,
+                        );
+                    }
                 }
                 jt
             }
