@@ -35,35 +35,16 @@ impl fmt::Display for RecordSummaryText<'_> {
             "link: {} sequence gaps, {} CRC errors, {} other bad frames, {} board restarts; the board dropped {}",
             p.seq_gaps, p.crc_errors, p.bad_frames, p.restarts, p.device_dropped
         )?;
-        // one line per IMU and the clock fits of every board (docs/model.md §9)
-        if p.imus.len() > 1 {
-            for (j, imu) in p.imus.iter().enumerate() {
-                writeln!(
-                    f,
-                    "IMU {j}: {} sensor {}, {} samples, {} sequence gaps, the board dropped {}",
-                    imu.port, imu.sensor, imu.samples, imu.seq_gaps, imu.device_dropped
-                )?;
-            }
-        }
-        let several = s.boards.len() > 1;
-        for b in 0..s.boards.len().max(1) {
-            let clock = if b == 0 { &s.clock } else { &s.boards[b].clock };
-            let of = if several {
-                format!("board {b} ({}) ", s.boards[b].port)
-            } else {
-                String::new()
-            };
-            for (segment, c) in clock {
-                writeln!(
-                    f,
-                    "{of}clock segment {segment}: device = session + {:.6} s, drift {:+.2} ppm, fit residual {:.1} µs ({} of {} echoes)",
-                    c.offset,
-                    c.drift_ppm(),
-                    c.residual_rms * 1e6,
-                    c.used,
-                    c.total
-                )?;
-            }
+        for (segment, c) in &s.clock {
+            writeln!(
+                f,
+                "clock segment {segment}: device = session + {:.6} s, drift {:+.2} ppm, fit residual {:.1} µs ({} of {} echoes)",
+                c.offset,
+                c.drift_ppm(),
+                c.residual_rms * 1e6,
+                c.used,
+                c.total
+            )?;
         }
         match &s.joint_clock {
             Some(c) => write!(f, "{}", JointClockText(c)),

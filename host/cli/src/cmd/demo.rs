@@ -477,6 +477,7 @@ impl DemoCmd {
         };
         let summary = record_with_progress(&opts)?;
         print!("{}", RecordSummaryText(&summary));
+        print!("{}", super::record::imu_lines(&summary));
         let truth = session.join(files::TRUTH);
         std::fs::write(&truth, rig.truth().to_toml())
             .with_context(|| format!("cannot write {}", truth.display()))
