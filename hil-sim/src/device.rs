@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 use embedded_hal::delay::DelayNs;
 use nix::errno::Errno;
-use nix::fcntl::{fcntl, FcntlArg, OFlag};
+use nix::fcntl::{fcntl, FcntlArg, FdFlag, OFlag};
 use nix::poll::{poll, PollFd, PollFlags};
 use robimu_bno055_sim::{Bno055Bus, Bno055Sim, ChipModel, SampleSource, SineSource};
 use robimu_firmware::{Acquisition, Clock, Config};
@@ -40,6 +40,9 @@ pub enum SimDeviceError {
     /// The master could not be made non-blocking.
     #[error("cannot make the pseudo-terminal master non-blocking: {0}")]
     NonBlocking(#[source] Errno),
+    /// The master could not be kept from child processes.
+    #[error("cannot set close-on-exec on the pseudo-terminal master: {0}")]
+    CloseOnExec(#[source] Errno),
     /// The device thread could not be started.
     #[error("cannot start the device thread: {0}")]
     Thread(#[source] std::io::Error),
@@ -330,6 +333,10 @@ impl SimDevice {
         drop(slave);
         fcntl(master.as_raw_fd(), FcntlArg::F_SETFL(OFlag::O_NONBLOCK))
             .map_err(SimDeviceError::NonBlocking)?;
+        // Not inherited by a `robimu record` the test starts: a child holding
+        // the master would keep the port alive after `vanish`.
+        fcntl(master.as_raw_fd(), FcntlArg::F_SETFD(FdFlag::FD_CLOEXEC))
+            .map_err(SimDeviceError::CloseOnExec)?;
         let control = Arc::new(Control::default());
         let serial = PtySerial {
             master,

@@ -122,6 +122,38 @@ pub struct SecondImu {
     pub chip_clock_error_ppm: f64,
 }
 
+/// Another IMU board on the same flange, on its own pseudo-terminal
+/// (docs/model.md §9: `robimu record --imu PORT --imu PORT2`): one sensor
+/// with its own position, τ and sensor parameters ([`SecondImu`]) and its
+/// own clock offset and drift.
+#[derive(Clone, Debug)]
+pub struct ExtraBoard {
+    /// Its sensor.
+    pub imu: SecondImu,
+    /// Its clock at start, µs.
+    pub clock_offset_us: u64,
+    /// Its clock rate error, ppm.
+    pub clock_drift_ppm: f64,
+}
+
+impl ExtraBoard {
+    /// A board whose sensor's own parameters are drawn from `robot`'s
+    /// priors (`seed`), its clock `clock_offset_us` ahead and
+    /// `clock_drift_ppm` fast.
+    pub fn drawn(robot: &Robot, seed: u64, clock_offset_us: u64, clock_drift_ppm: f64) -> Self {
+        let layout = ParamLayout::new(robot);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        Self {
+            imu: SecondImu {
+                truth: draw_truth(&layout, &mut rng),
+                chip_clock_error_ppm: 0.0,
+            },
+            clock_offset_us,
+            clock_drift_ppm,
+        }
+    }
+}
+
 /// The indices in x of one IMU's own parameters (docs/model.md §9): its
 /// flange position ε_n1..3, τ and the 24 sensor parameters.
 pub fn per_imu_indices(robot: &Robot, layout: &ParamLayout) -> Vec<usize> {
@@ -273,20 +305,45 @@ pub struct SimRig {
     pub aubo: SimAubo,
     /// The simulated IMU board.
     pub device: SimDevice,
+    /// More IMU boards ([`Self::spawn_boards`]), in IMU order.
+    pub boards: Vec<SimDevice>,
     truth: Truth,
 }
 
 impl SimRig {
     /// Starts the controller and the board.
     pub fn spawn(config: &SimRigConfig) -> Result<SimRig, RigError> {
+        Self::spawn_boards(config, &[])
+    }
+
+    /// Starts the controller, the board and one more board per `extra`
+    /// (docs/model.md §9: their sensors are the IMUs after the first
+    /// board's, in this order, `imu<j>/` in the truth).
+    pub fn spawn_boards(config: &SimRigConfig, extra: &[ExtraBoard]) -> Result<SimRig, RigError> {
         check_joints(&config.robot)?;
         // The controller's own limits are the hardware's (wider than a
         // plan's), as on the real arm.
         let aubo = SimAubo::spawn(aubo_config(config))?;
-        let (device, truth) = imu_board(config, &|| Box::new(aubo.state_probe()))?;
+        let motion = || Box::new(aubo.state_probe()) as Box<dyn TrueMotion>;
+        let (device, mut truth) = imu_board(config, &motion)?;
+        let mut boards = Vec::with_capacity(extra.len());
+        let first = 1 + usize::from(config.second_imu.is_some());
+        for (b, board) in extra.iter().enumerate() {
+            let j = first + b;
+            let (source, own) = second_imu_source(config, &board.imu, j, motion())?;
+            truth.values.extend(own.values);
+            let mut device_config = SimDeviceConfig::new(Box::new(source));
+            device_config.chip_model = config.chip;
+            device_config.chip_clock_error_ppm = board.imu.chip_clock_error_ppm;
+            device_config.clock_offset_us = board.clock_offset_us;
+            device_config.clock_drift_ppm = board.clock_drift_ppm;
+            device_config.fault_seed = config.seed ^ 0xFA17 ^ ((j as u64) << 32);
+            boards.push(SimDevice::spawn(device_config)?);
+        }
         Ok(SimRig {
             aubo,
             device,
+            boards,
             truth,
         })
     }
@@ -294,6 +351,14 @@ impl SimRig {
     /// The IMU board's serial port (a pseudo-terminal path).
     pub fn imu_port(&self) -> &str {
         self.device.port_path()
+    }
+
+    /// The serial ports of the boards after the first, in IMU order.
+    pub fn extra_imu_ports(&self) -> Vec<String> {
+        self.boards
+            .iter()
+            .map(|d| d.port_path().to_string())
+            .collect()
     }
 
     /// The controller's address.
@@ -332,7 +397,7 @@ fn imu_board(
     let (source, mut truth) = imu_source(config, motion())?;
     let mut device_config = SimDeviceConfig::new(Box::new(source));
     if let Some(second) = &config.second_imu {
-        let (source, own) = second_imu_source(config, second, motion())?;
+        let (source, own) = second_imu_source(config, second, 1, motion())?;
         truth.values.extend(own.values);
         device_config.second = Some(SecondSensor {
             source: Box::new(source),
@@ -385,12 +450,14 @@ pub(crate) fn imu_source(
     Ok((source, truth))
 }
 
-/// IMU 1 of a two-sensor board: [`imu_source`] at IMU 0's truth with
-/// `second`'s own entries (and its own noise seed); its truth as
-/// `imu1/<name>` for those entries (docs/model.md §9).
+/// IMU `j` ≥ 1 (the second sensor of a board, or another board's):
+/// [`imu_source`] at IMU 0's truth with `second`'s own entries (and its
+/// own noise seed); its truth as `imu<j>/<name>` for those entries
+/// (docs/model.md §9).
 fn second_imu_source(
     config: &SimRigConfig,
     second: &SecondImu,
+    j: usize,
     motion: Box<dyn TrueMotion>,
 ) -> Result<(ModelSource, Truth), RigError> {
     let layout = ParamLayout::new(&config.robot);
@@ -409,7 +476,7 @@ fn second_imu_source(
     }
     let imu1 = SimRigConfig {
         truth: x,
-        seed: config.seed ^ 0x05EC_00D1,
+        seed: config.seed ^ 0x05EC_00D1 ^ ((j as u64 - 1) << 40),
         chip_clock_error_ppm: second.chip_clock_error_ppm,
         second_imu: None,
         ..config.clone()
@@ -419,7 +486,7 @@ fn second_imu_source(
         .iter()
         .map(|&i| {
             let (name, v) = &truth.values[i];
-            (format!("imu1/{name}"), *v)
+            (format!("imu{j}/{name}"), *v)
         })
         .collect();
     Ok((source, Truth { values }))

@@ -153,9 +153,13 @@ impl TruthRow {
     }
 }
 
-/// The demo's last stage: diagnose's final model against the twin's truth.
+/// The demo's last stage: diagnose's final model (or, with several IMUs,
+/// the joint calibration) against the twin's truth.
 #[derive(Clone, Debug)]
 pub struct DemoTruthCheck {
+    /// What is compared (`diagnose's final model`, `the joint calibration
+    /// of 2 IMUs`).
+    pub model: String,
     /// Which twin (`realistic` or `ideal`).
     pub twin: String,
     /// The effects in the final model.
@@ -184,11 +188,12 @@ impl DemoTruthCheck {
             .max_by(|a, b| a.z().abs().total_cmp(&b.z().abs()))
     }
 
-    /// `truth_check.json`: `{"twin", "effects", "limit_sigma", "all_within",
+    /// `truth_check.json`: `{"model", "twin", "effects", "limit_sigma", "all_within",
     /// "worst", "parameters": [{"name", "estimate", "sigma", "truth", "z"}],
     /// "not_comparable": [{"effect", "why"}]}`.
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::json!({
+            "model": self.model,
             "twin": self.twin,
             "effects": self.effects,
             "limit_sigma": self.limit,
@@ -214,8 +219,8 @@ impl fmt::Display for DemoTruthCheck {
         };
         writeln!(
             f,
-            "diagnose's final model (effects: {effects}) against the {} twin's truth (docs/model.md §4.8):",
-            self.twin
+            "{} (effects: {effects}) against the {} twin's truth (docs/model.md §4.8):",
+            self.model, self.twin
         )?;
         let mut rows: Vec<&TruthRow> = self.rows.iter().collect();
         rows.sort_by(|a, b| b.z().abs().total_cmp(&a.z().abs()));

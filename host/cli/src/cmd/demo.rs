@@ -8,6 +8,12 @@
 //! (docs/model.md §4.8). The twin is the realistic one (datasheet chip,
 //! vibration noise, warm-up, elastic joints, a structural mode) unless
 //! `--ideal`.
+//!
+//! With `--imus 2` (docs/model.md §9) the simulated board reads two BNO055
+//! on its bus, each with its own hidden position, τ and sensor parameters;
+//! the session is calibrated jointly and that calibration's 76 parameters
+//! are checked against the truth (diagnose models one IMU; the ideal twin
+//! in real time only).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -26,6 +32,7 @@ use robimu_record::RecordOptions;
 use robimu_report::demo::{DemoFiles, DemoHardware, DemoPlanned, DemoRecordCommand};
 use robimu_report::demo::{DemoTruthCheck, TruthRow};
 use robimu_session::files;
+use robimu_session::result::CalibrationResult;
 use robimu_session::{Session, Truth};
 use robimu_workflows::diagnose::Diagnosis;
 use robimu_workflows::plan::PlanOptions;
@@ -70,6 +77,11 @@ pub struct DemoCmd {
     /// docs/model.md §4.8).
     #[arg(long, default_value_t = robimu_protocol::DEFAULT_SAMPLE_RATE_HZ)]
     pub rate: u16,
+    /// How many BNO055 the simulated board reads (1 or 2; docs/model.md
+    /// §9): with 2, the session has imu.csv and imu1.csv and is calibrated
+    /// jointly (needs --ideal, not --fast).
+    #[arg(long, default_value_t = 1)]
+    pub imus: usize,
 }
 
 /// Bound of the truth check, σ.
@@ -84,6 +96,20 @@ impl DemoCmd {
         }
         if !(1..=1000).contains(&self.rate) {
             bail!("--rate must be in [1, 1000] Hz (got {})", self.rate);
+        }
+        if !(1..=2).contains(&self.imus) {
+            bail!(
+                "--imus must be 1 or 2: the simulated board reads at most two BNO055 (got {})",
+                self.imus
+            );
+        }
+        if self.imus > 1 && self.fast {
+            bail!("--imus 2 records in real time: the virtual-time twin (--fast) reads one sensor");
+        }
+        if self.imus > 1 && !self.ideal {
+            bail!(
+                "--imus 2 needs --ideal: the realistic twin's truth (chip delays, warm-up) and diagnose are modelled for one sensor"
+            );
         }
         if let Some(warning) = robimu_record::alias_warning(&self.sensor()) {
             eprintln!("warning: {warning}");
@@ -183,20 +209,31 @@ impl DemoCmd {
         self.calibrate(session, &report)?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;
 
-        writeln!(out, "\n== 5. diagnose ==")?;
-        out.flush()?;
-        let t0 = Instant::now();
-        let d = self.diagnose(session, &dir.join("diagnosis"))?;
-        writeln!(out, "diagnosis took {:.1} s", t0.elapsed().as_secs_f64())?;
+        let check = if self.imus > 1 {
+            writeln!(out, "\n== 5. diagnose ==")?;
+            writeln!(
+                out,
+                "skipped: diagnose models one IMU; the {} IMUs' joint calibration is checked",
+                self.imus
+            )?;
+            writeln!(out, "\n== 6. against the truth ==")?;
+            self.joint_truth_check(session, &truth_for(&[])?)?
+        } else {
+            writeln!(out, "\n== 5. diagnose ==")?;
+            out.flush()?;
+            let t0 = Instant::now();
+            let d = self.diagnose(session, &dir.join("diagnosis"))?;
+            writeln!(out, "diagnosis took {:.1} s", t0.elapsed().as_secs_f64())?;
 
-        writeln!(out, "\n== 6. against the truth ==")?;
-        let names: Vec<String> = d
-            .final_fit
-            .effect_params
-            .iter()
-            .map(|p| p.name.clone())
-            .collect();
-        let check = self.truth_check(&robot, &d, &truth_for(&names)?);
+            writeln!(out, "\n== 6. against the truth ==")?;
+            let names: Vec<String> = d
+                .final_fit
+                .effect_params
+                .iter()
+                .map(|p| p.name.clone())
+                .collect();
+            self.truth_check(&robot, &d, &truth_for(&names)?)
+        };
         write!(out, "{check}")?;
         std::fs::create_dir_all(&report)
             .with_context(|| format!("cannot create {}", report.display()))?;
@@ -256,7 +293,9 @@ impl DemoCmd {
     /// real one is moved there first: `record` does that at half the
     /// slowest joint's limits).
     fn twin_config(&self, robot: &Robot, plan: &Plan) -> anyhow::Result<SimRigConfig> {
-        let mut config = if self.ideal {
+        let mut config = if self.imus > 1 {
+            SimRigConfig::drawn_two_imus(robot.clone(), self.seed)
+        } else if self.ideal {
             SimRigConfig::drawn(robot.clone(), self.seed)
         } else {
             SimRigConfig::realistic(robot.clone(), self.seed)?
@@ -298,6 +337,11 @@ impl DemoCmd {
                     .and_then(|a| a.mode)
                     .map_or(0.0, |m| m.frequency_hz)
             )
+        };
+        let twin = if self.imus > 1 {
+            format!("{twin}; two BNO055 on the board's bus (0x28: IMU 0, 0x29: IMU 1, each its own position, τ and sensor errors; docs/model.md §9)")
+        } else {
+            twin
         };
         let hardware = DemoHardware {
             imu_port,
@@ -356,12 +400,46 @@ impl DemoCmd {
             }
         }
         DemoTruthCheck {
+            model: "diagnose's final model".into(),
             twin: if self.ideal { "ideal" } else { "realistic" }.into(),
             effects: fit.effects.clone(),
             rows,
             not_comparable: truth.not_comparable.clone(),
             limit: TRUTH_LIMIT,
         }
+    }
+
+    /// The joint calibration's result (SESSION/result.json, docs/model.md
+    /// §9) against `truth`: every estimated parameter of every IMU.
+    fn joint_truth_check(
+        &self,
+        session: &Path,
+        truth: &robimu_hil::truth::TwinTruth,
+    ) -> anyhow::Result<DemoTruthCheck> {
+        let path = session.join("result.json");
+        let result = CalibrationResult::read(&path)
+            .with_context(|| format!("cannot read the calibration {}", path.display()))?;
+        let rows = result
+            .parameters
+            .iter()
+            .filter(|p| !p.frozen && p.sigma > 0.0)
+            .filter_map(|p| {
+                Some(TruthRow {
+                    name: p.name.clone(),
+                    estimate: p.value,
+                    sigma: p.sigma,
+                    truth: truth.get(&p.name)?,
+                })
+            })
+            .collect();
+        Ok(DemoTruthCheck {
+            model: format!("the joint calibration of {} IMUs", self.imus),
+            twin: "ideal".into(),
+            effects: Vec::new(),
+            rows,
+            not_comparable: truth.not_comparable.clone(),
+            limit: TRUTH_LIMIT,
+        })
     }
 
     /// Records the plan from `rig` into `session` as `robimu record` does,
@@ -399,6 +477,7 @@ impl DemoCmd {
         };
         let summary = record_with_progress(&opts)?;
         print!("{}", RecordSummaryText(&summary));
+        print!("{}", super::record::imu_lines(&summary));
         let truth = session.join(files::TRUTH);
         std::fs::write(&truth, rig.truth().to_toml())
             .with_context(|| format!("cannot write {}", truth.display()))
