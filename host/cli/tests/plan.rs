@@ -11,7 +11,7 @@ use robimu_model::{JointState, MeasurementJacobians, MeasurementModel, ParamLayo
 use robimu_workflows::calibrate::{calibrate, CalibrateOptions};
 use robimu_workflows::identifiability::{baseline, median, Baseline};
 use robimu_workflows::plan::information::{lambda_max, posterior_sigma, Information, Sampling};
-use robimu_workflows::plan::{check_limits, mounted_nominal, plan, PlanOptions, SplineFile};
+use robimu_workflows::plan::{check_limits, plan, PlanOptions, SplineFile};
 use robimu_workflows::simulate::{simulate, SimulateOptions};
 
 mod common;
@@ -472,6 +472,15 @@ fn plan_cli_prints_the_noise_model_it_assumed() {
 /// from the nominal mount (a second board on a plate).
 const IMU1_AT: [f64; 3] = [0.0452, 0.0633, 0.0182];
 
+/// The AUBO i5 with IMU 1 mounted at [`IMU1_AT`] (`--imu-position 1=…`).
+fn with_imu1_placed(robot: &Robot) -> Robot {
+    let mount = robimu_model::robot::ImuMount {
+        position: IMU1_AT,
+        ..*robot.mount()
+    };
+    robot.with_mount(1, mount).unwrap()
+}
+
 /// Whether the one-IMU parameter `name` belongs to its IMU (docs/model.md §9:
 /// its position ε_n1..3, τ and the 24 sensor parameters), by name alone.
 fn own_by_name(name: &str, n: usize) -> bool {
@@ -498,8 +507,8 @@ fn two_imu_information_is_the_scattered_sum_of_two_one_imu_informations() {
     let s = baseline(&robot, Baseline::RandomWalk, 10.0, &mut rng).unwrap();
     let rate = 40.0;
     let noise = NoiseModel::white(robot.sigma_z()).unwrap();
-    let layout = ParamLayout::with_imus(&robot, 2);
-    let x = mounted_nominal(&layout, &[(1, IMU1_AT)]).unwrap();
+    let layout = ParamLayout::with_imus(&with_imu1_placed(&robot), 2);
+    let x = layout.nominal();
     let two = Information::at(&robot, layout.clone(), &x, noise.clone(), rate).unwrap();
     assert_eq!((two.dim(), two.n_imus()), (76, 2));
     let lam2 = two.total(&s, 1.0, Sampling::Exact);
@@ -689,7 +698,10 @@ fn a_two_imu_plan_predicts_the_joint_fit_sigma() {
         .unwrap()
         .spline()
         .unwrap();
-    let truth = mounted_nominal(&layout, &[(1, IMU1_AT)]).unwrap();
+    // the planned robot (IMU 1 placed), the truth at its nominal point
+    let robot = with_imu1_placed(&robot);
+    let layout = ParamLayout::with_imus(&robot, 2);
+    let truth = layout.nominal();
     let sim = SimulateOptions::paper(&robot);
     let data = simulate(&robot, &layout, &truth, &spline, &sim, 4).unwrap();
     assert_eq!(data.n_imus(), 2);

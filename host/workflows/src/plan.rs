@@ -35,10 +35,9 @@
 //! With [`PlanOptions::imus`] = K the information is that of the K-IMU layout
 //! ([`ParamLayout::with_imus`], summed over the IMUs, [`information`]) and the
 //! criterion λ_max(Σ_x) spans all 20 + 28K parameters (the shared ones and
-//! every IMU's own). Every IMU is linearised at the layout's nominal mount
-//! (the robot's `imu_mount`) unless [`PlanOptions::imu_positions`] places it
-//! elsewhere on the flange (a plate of boards: each one's position, m, in
-//! the flange frame).
+//! every IMU's own). Every IMU is linearised at its nominal mount
+//! ([`Robot::mount_of`]: the robot's `imu_mount` unless the robot places it
+//! elsewhere, [`Robot::with_mount`] — a plate of boards).
 
 pub mod files;
 pub mod information;
@@ -83,9 +82,6 @@ pub struct PlanOptions {
     pub noise: Option<NoiseModel>,
     /// Number of IMUs K on the flange (docs/model.md §9), ≥ 1.
     pub imus: usize,
-    /// `(j, p)`: IMU j's position on the flange (ε_n1..3, m) to linearise at,
-    /// in place of the robot's nominal mount; j < `imus`.
-    pub imu_positions: Vec<(usize, [f64; 3])>,
 }
 
 impl Default for PlanOptions {
@@ -105,7 +101,6 @@ impl Default for PlanOptions {
             seed: 1,
             noise: None,
             imus: 1,
-            imu_positions: Vec::new(),
         }
     }
 }
@@ -147,14 +142,6 @@ pub enum PlanError {
     /// The nominal model or the noise model is invalid.
     #[error(transparent)]
     Information(#[from] InformationError),
-    /// An IMU position names an IMU the plan does not have, or is not finite.
-    #[error("IMU position for IMU {imu}: {why}")]
-    ImuPosition {
-        /// The IMU index j.
-        imu: usize,
-        /// What is wrong.
-        why: String,
-    },
     /// The dense check found a limit violated (a bug: the constraints are sufficient).
     #[error("the planned trajectory violates a limit: {0}")]
     Violation(String),
@@ -276,7 +263,7 @@ pub fn plan(
         return Err(bad("imus", 0.0, "at least 1"));
     }
     let layout = ParamLayout::with_imus(robot, opts.imus);
-    let x = mounted_nominal(&layout, &opts.imu_positions)?;
+    let x = layout.nominal();
     let noise = match &opts.noise {
         Some(m) => m.clone(),
         None => NoiseModel::white(robot.sigma_z()).map_err(InformationError::from)?,
@@ -406,47 +393,6 @@ pub fn plan(
         layout: info_model.layout().clone(),
         evaluations,
     })
-}
-
-/// The nominal x of `layout` with IMU j's position ε_n1..3 set to p for
-/// every `(j, p)` of `positions` (see the module doc).
-pub fn mounted_nominal(
-    layout: &ParamLayout,
-    positions: &[(usize, [f64; 3])],
-) -> Result<Vec<f64>, PlanError> {
-    let mut x = layout.nominal();
-    let n = layout.n_links();
-    for &(j, p) in positions {
-        if j >= layout.n_imus() {
-            return Err(PlanError::ImuPosition {
-                imu: j,
-                why: format!(
-                    "the plan has {} IMU(s), numbered 0..{}",
-                    layout.n_imus(),
-                    layout.n_imus() - 1
-                ),
-            });
-        }
-        if p.iter().any(|v| !v.is_finite()) {
-            return Err(PlanError::ImuPosition {
-                imu: j,
-                why: format!("{p:?} is not finite"),
-            });
-        }
-        for (k, v) in p.iter().enumerate() {
-            let name = format!("eps_{n}_{}", k + 1);
-            match layout.imu_index(j, &name) {
-                Some(at) => x[at] = *v,
-                None => {
-                    return Err(PlanError::ImuPosition {
-                        imu: j,
-                        why: format!("{name} is not estimated for this robot"),
-                    })
-                }
-            }
-        }
-    }
-    Ok(x)
 }
 
 /// Checks q, q̇, q̈ of `spline` against the robot's limits at `per_second`

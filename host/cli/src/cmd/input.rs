@@ -373,3 +373,29 @@ pub fn parse_imu_position(text: &str) -> Result<(usize, [f64; 3]), String> {
         _ => Err(format!("`{text}`: X,Y,Z must be three finite numbers (m)")),
     }
 }
+
+/// `robot` with the IMUs of `--imu-position J=X,Y,Z` placed (a plate of IMUs,
+/// docs/model.md §9): IMU J's mount prior centred at (X, Y, Z), m, its σ
+/// and rotations as before ([`Robot::with_mount`]); J < `imus`.
+pub fn place_imus(
+    mut robot: Robot,
+    imus: usize,
+    positions: &[(usize, [f64; 3])],
+) -> anyhow::Result<Robot> {
+    for &(j, position) in positions {
+        if j >= imus {
+            bail!(
+                "--imu-position {j}=…: there are {imus} IMUs (0 to {}; --imus K)",
+                imus - 1
+            );
+        }
+        let mount = robimu_model::robot::ImuMount {
+            position,
+            ..*robot.mount_of(j)
+        };
+        robot = robot
+            .with_mount(j, mount)
+            .with_context(|| format!("--imu-position {j}=…"))?;
+    }
+    Ok(robot)
+}

@@ -66,7 +66,7 @@ pub struct PlanCmd {
     pub imus: u32,
     /// `J=X,Y,Z`: IMU J's position on the flange, m, in the flange frame
     /// (ε_n1..3; default the robot's nominal mount); repeat for each IMU placed.
-    #[arg(long, value_name = "J=X,Y,Z", value_parser = parse_imu_position)]
+    #[arg(long, value_name = "J=X,Y,Z", value_parser = super::input::parse_imu_position)]
     pub imu_position: Vec<(usize, [f64; 3])>,
     /// Plan directory to write (created if needed).
     #[arg(long, value_name = "PLAN_DIR")]
@@ -83,6 +83,7 @@ impl PlanCmd {
             bail!("--duration must be in (0, 86400] s (got {})", self.duration);
         }
         let (robot, _) = resolve_robot(&self.robot, None)?;
+        let robot = super::input::place_imus(robot, self.imus as usize, &self.imu_position)?;
         let noise = parse_noise_model(&self.noise_model, robot.sigma_z(), self.imu_rate)?;
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("cannot create the plan directory {}", self.out.display()))?;
@@ -95,7 +96,6 @@ impl PlanCmd {
             seed: self.seed,
             noise: Some(noise.clone()),
             imus: self.imus as usize,
-            imu_positions: self.imu_position.clone(),
             ..PlanOptions::default()
         };
         let progress = Progress::start("planning");
@@ -123,25 +123,5 @@ impl PlanCmd {
         };
         write!(std::io::stdout().lock(), "{summary}")?;
         Ok(())
-    }
-}
-
-/// `J=X,Y,Z` of `--imu-position`.
-fn parse_imu_position(text: &str) -> Result<(usize, [f64; 3]), String> {
-    let (j, xyz) = text
-        .split_once('=')
-        .ok_or_else(|| format!("`{text}`: expected J=X,Y,Z (IMU index, position in m)"))?;
-    let j: usize = j
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{text}`: IMU index `{}` is not a number ≥ 0", j.trim()))?;
-    let v: Vec<f64> = xyz
-        .split(',')
-        .map(|c| c.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("`{text}`: X,Y,Z must be three numbers (m)"))?;
-    match v[..] {
-        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok((j, [x, y, z])),
-        _ => Err(format!("`{text}`: X,Y,Z must be three finite numbers (m)")),
     }
 }

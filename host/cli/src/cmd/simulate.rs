@@ -182,20 +182,7 @@ impl SimulateCmd {
         if !(1..=64).contains(&self.imus) {
             bail!("--imus must be between 1 and 64 (got {})", self.imus);
         }
-        for &(j, position) in &self.imu_position {
-            if j >= self.imus {
-                bail!(
-                    "--imu-position {j}=…: there are {} IMUs (0 to {}; --imus K)",
-                    self.imus,
-                    self.imus - 1
-                );
-            }
-            let mount = robimu_model::robot::ImuMount {
-                position,
-                ..*robot.mount_of(j)
-            };
-            robot = robot.with_mount(j, mount)?;
-        }
+        robot = super::input::place_imus(robot, self.imus, &self.imu_position)?;
         if self.imus > 1 {
             for (given, flag) in [
                 (!self.effect.is_empty(), "--effect"),
