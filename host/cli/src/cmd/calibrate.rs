@@ -287,12 +287,6 @@ impl CalibrateFlags {
         let opts = self.options(&session, &robot, &layout, file)?;
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-        if data.n_imus() > 1 && self.effects.iter().any(|e| !e.trim().is_empty()) {
-            bail!(
-                "--effects are modelled for one IMU only; this session has {} IMUs: calibrate one with --imu J",
-                data.n_imus()
-            );
-        }
         let effects = self.effect_set(&robot, &data)?;
         let choice = self.noise_choice(&session, &opts, data.imu_t.len(), file)?;
         let settle = self.settle()?;
@@ -437,7 +431,7 @@ impl CalibrateFlags {
         let mut setup = setup_with(robot, data, None, mode);
         let names = specs
             .iter()
-            .map(|s| setup.apply_spec(s).map(str::to_string))
+            .map(|s| setup.apply_spec(s))
             .collect::<Result<Vec<_>, _>>()
             .context("--effects")?;
         Ok(Some(effect_set(&setup, &names).context("--effects")?))
@@ -633,7 +627,7 @@ pub(crate) fn effects_fit(
     let f = fit(&spec, opts, |_| {})
         .with_context(|| format!("--effects: cannot fit {}", set.names().join(", ")))?;
     let epath = path.with_file_name("effects.json");
-    let json = fit_json(&ParamLayout::new(robot), &f);
+    let json = fit_json(&ParamLayout::with_imus(robot, f.n_imus), &f);
     std::fs::write(&epath, serde_json::to_string_pretty(&json)?)
         .with_context(|| format!("cannot write {}", epath.display()))?;
     Ok((f, epath))

@@ -83,10 +83,11 @@ impl DiagnoseCmd {
         let out_dir = self.out.clone().unwrap_or_else(|| dir.join("diagnosis"));
         std::fs::create_dir_all(&out_dir)
             .with_context(|| format!("cannot create the output directory {}", out_dir.display()))?;
-        let layout = ParamLayout::new(&robot);
         let mut opts = CalibrateOptions::new(&robot);
         (opts.sigma_z, opts.sigma_q) = session.noise(&robot)?;
         let data = session.measurements();
+        // every IMU of the session (docs/model.md §9)
+        let layout = ParamLayout::with_imus(&robot, data.n_imus());
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot diagnose the session {}", dir.display()))?;
         let mass = match &self.mass_model {
