@@ -10,9 +10,9 @@ use robimu_model::effects::g_sensitivity::GSensitivity;
 use robimu_model::effects::EffectSet;
 use robimu_model::JointState;
 
-use super::gls_tests::{linearized, noise_model, options, setup};
+use super::gls_tests::{linearized, noise_model, options, setup, Setup};
 use super::multi_tests::{two_imus, SZ};
-use super::{Problem, ProblemError};
+use super::{Problem, ProblemError, ProblemOptions};
 use crate::LeastSquares;
 
 /// g_sensitivity on IMU 1, encoder_scale shared.
@@ -50,9 +50,14 @@ fn per_sensor_and_shared_effects_on_two_imus_are_the_gauss_newton_of_all_residua
         for (k, v) in theta.iter_mut().enumerate() {
             *v += 1e-3 * ((k as f64) * 0.37).sin();
         }
-        p.begin_iteration(&theta).unwrap();
         let ne = p.n_effect_params();
         assert_eq!(ne, 9 + n);
+        // the Jacobian at θ_E = 0, where the score tests linearise: the
+        // assembly neglects ∂C_e/∂x θ_E (robimu_model::effects), exact there
+        let theta_e = theta[theta.len() - ne..].to_vec();
+        let nt0 = theta.len() - ne;
+        theta[nt0..].fill(0.0);
+        p.begin_iteration(&theta).unwrap();
         let resid_imu = |th: &[f64], j: usize| -> Vec<f64> {
             p.imu_residuals_of(th, j)
                 .unwrap()
@@ -113,6 +118,17 @@ fn per_sensor_and_shared_effects_on_two_imus_are_the_gauss_newton_of_all_residua
             assert!((g[i] - jtr[(i, 0)]).abs() <= 1e-6 * scale, "g[{i}]");
         }
         assert!(worst < 1e-6, "A differs from JᵀJ by {worst:e} (relative)");
+        // the cost at θ_E ≠ 0 is ½‖r‖² of the same residuals
+        let mut with_e = theta.clone();
+        with_e[nt0..].copy_from_slice(&theta_e);
+        let r_e = resid(&with_e);
+        let half_e: f64 = 0.5 * r_e.iter().map(|v| v * v).sum::<f64>();
+        let cost_e = p.cost(&with_e).unwrap();
+        assert!(
+            (cost_e - half_e).abs() <= 1e-12 * half_e,
+            "{cost_e} vs {half_e}"
+        );
+        assert!((cost_e - cost).abs() > 1e-6 * cost, "θ_E changes nothing");
         // the structure, against the numerical derivatives themselves: IMU
         // 0's residuals do not move with IMU 1's g_sensitivity, IMU 1's do;
         // both move with the shared encoder scale
@@ -152,6 +168,20 @@ fn per_sensor_and_shared_effects_on_two_imus_are_the_gauss_newton_of_all_residua
     }
 }
 
+/// The one-IMU problem of `s` with `set`.
+fn build<'a>(s: &'a Setup, opts: &ProblemOptions, set: &'a EffectSet) -> Problem<'a> {
+    Problem::new(
+        &s.robot,
+        &s.layout,
+        &s.data,
+        s.knots.clone(),
+        s.x.clone(),
+        opts,
+        set,
+    )
+    .unwrap()
+}
+
 /// With every effect on IMU 0 or shared a one-IMU problem is today's: the
 /// same matrix whether the effects are pushed as shared or on IMU 0.
 #[test]
@@ -166,19 +196,7 @@ fn one_imu_effects_on_imu_0_are_the_shared_ones() {
     on0.push(Box::new(EncoderScale::new(n)));
     assert_eq!(on0.names(), ["g_sensitivity", "encoder_scale"]);
     let opts = options(&s, None, SZ);
-    let build = |set| {
-        Problem::new(
-            &s.robot,
-            &s.layout,
-            &s.data,
-            s.knots.clone(),
-            s.x.clone(),
-            &opts,
-            set,
-        )
-        .unwrap()
-    };
-    let (p, q) = (build(&shared), build(&on0));
+    let (p, q) = (build(&s, &opts, &shared), build(&s, &opts, &on0));
     let mut theta = p.theta(&s.spline, &s.x);
     for (k, v) in theta.iter_mut().enumerate() {
         *v += 1e-3 * ((k as f64) * 0.37).sin();
