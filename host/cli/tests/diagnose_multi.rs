@@ -1,8 +1,8 @@
 //! The diagnosis of a session with two IMUs (docs/model.md §9, §4.9): a
 //! per-sensor effect is a candidate once per IMU (`imu1/g_sensitivity`),
 //! a shared effect once, Bonferroni over all of them. g_sensitivity on IMU
-//! 1 only is found as IMU 1's (not IMU 0's), an encoder scale (the robot's)
-//! once as shared, a null session gives nothing; `calibrate --effects` and
+//! 1 only is found as IMU 1's (not IMU 0's), a joint elasticity (the
+//! robot's) once as shared, a null session gives nothing; `calibrate --effects` and
 //! `diagnose` take the `imu<j>/` names on the command line.
 
 use robimu_model::effects::{self, Effect};
@@ -121,18 +121,24 @@ fn g_sensitivity_on_imu_1_is_found_as_imu_1s() {
     );
 }
 
-/// An encoder scale (2000 ppm, as in diagnose.rs) seen by both IMUs: found
-/// once, as the shared `encoder_scale` (no IMU), estimated within 4σ.
+/// Joint elasticity (5, as in diagnose.rs) seen by both IMUs: found once,
+/// as the shared `joint_elasticity` (no IMU), estimated within 4σ.
 #[test]
-fn encoder_scale_is_found_once_as_shared() {
-    let (robot, data, _, injected) = two_imu_session(14, Some(("encoder_scale", 2000.0, None)));
+fn joint_elasticity_is_found_once_as_shared() {
+    let (robot, data, _, injected) = two_imu_session(15, Some(("joint_elasticity", 5.0, None)));
     let (_, d) = diagnose_all(&robot, &data);
     check_candidates(&d);
     let names: Vec<&str> = d.found.iter().map(|f| f.name.as_str()).collect();
-    assert_eq!(names, ["encoder_scale"], "last scores {:?}", d.last_scores);
+    assert_eq!(
+        names,
+        ["joint_elasticity"],
+        "last scores {:?}",
+        d.last_scores
+    );
     assert_eq!(d.found[0].imu, None);
-    assert_eq!(effect_imu("encoder_scale"), None);
-    check_estimates("encoder_scale", &d.found[0].parameters, &injected);
+    assert_eq!(effect_imu("joint_elasticity"), None);
+    check_estimates("joint_elasticity", &d.found[0].parameters, &injected);
+    println!("joint_elasticity: score {:.1}", d.found[0].statistic);
 }
 
 /// A two-IMU session without effects: nothing is found.
