@@ -93,7 +93,8 @@ pub struct CalibrateFlags {
     /// joint_elasticity, encoder_scale, resonance, temperature_bias where imu.csv
     /// has a varying temp_c); prints their estimates and writes
     /// effects.json (the augmented model's parameters) next to the result file.
-    /// `bias_drift:M` sets its spline's M segments over the session (default
+    /// With several IMUs a per-sensor effect of IMU j ≥ 1 is `imu<j>/NAME`
+    /// (docs/model.md §9). `bias_drift:M` sets its spline's M segments over the session (default
     /// 1, a linear drift; `robimu diagnose` chooses M and prints the spec).
     #[arg(long, value_delimiter = ',')]
     pub effects: Vec<String>,

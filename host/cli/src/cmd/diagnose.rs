@@ -52,6 +52,8 @@ pub struct DiagnoseCmd {
     #[arg(long, value_name = "FILE")]
     pub mass_model: Option<PathBuf>,
     /// Candidates to consider, comma-separated [default: the whole catalogue].
+    /// With several IMUs a per-sensor effect's plain name selects it on
+    /// every IMU, `imu<j>/NAME` on IMU j alone (docs/model.md §9).
     #[arg(long, value_delimiter = ',')]
     pub candidates: Vec<String>,
     #[command(flatten)]
