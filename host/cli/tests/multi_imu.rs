@@ -158,9 +158,24 @@ fn simulate_and_calibrate_several_imus_and_one_alone() {
         "{}",
         run.stderr
     );
-    let run = robimu(["calibrate", s(&dir), "--effects", "clock_drift"]);
+    // effects per IMU (docs/model.md §9): IMU 2's clock drift; an IMU the
+    // session lacks is named
+    let effects = tmp.path().join("fx.json");
+    robimu_ok([
+        "calibrate",
+        s(&dir),
+        "--effects",
+        "imu2/clock_drift",
+        "--out",
+        s(&effects),
+    ]);
+    let fx: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("effects.json")).unwrap())
+            .unwrap();
+    assert_eq!(fx["effects"], serde_json::json!(["imu2/clock_drift"]));
+    let run = robimu(["calibrate", s(&dir), "--effects", "imu3/clock_drift"]);
     assert!(!run.status.success());
-    assert!(run.stderr.contains("one IMU only"), "{}", run.stderr);
+    assert!(run.stderr.contains("no IMU 3"), "{}", run.stderr);
 }
 
 /// IMU 1 mounted 60 mm from IMU 0 (a plate of boards): with the robot's one

@@ -148,10 +148,21 @@ impl fmt::Display for DiagnosisSummary<'_> {
                     )
                 })
                 .collect();
+            // with several IMUs: whose effect it is (docs/model.md §9)
+            let k_imus = d.final_fit.n_imus;
+            let whose = match f.imu {
+                _ if k_imus <= 1 => String::new(),
+                Some(j) => format!(" [IMU {j}]"),
+                None => format!(" [shared by the {k_imus} IMUs]"),
+            };
             let name = if ambiguous.is_empty() {
-                f.name.clone()
+                format!("{}{whose}", f.name)
             } else {
-                format!("{} (ambiguous with {})", f.name, ambiguous.join("; "))
+                format!(
+                    "{}{whose} (ambiguous with {})",
+                    f.name,
+                    ambiguous.join("; ")
+                )
             };
             writeln!(
             out,

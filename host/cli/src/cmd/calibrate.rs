@@ -95,7 +95,8 @@ pub struct CalibrateFlags {
     /// joint_elasticity, encoder_scale, resonance, temperature_bias where imu.csv
     /// has a varying temp_c); prints their estimates and writes
     /// effects.json (the augmented model's parameters) next to the result file.
-    /// `bias_drift:M` sets its spline's M segments over the session (default
+    /// With several IMUs a per-sensor effect of IMU j ≥ 1 is `imu<j>/NAME`
+    /// (docs/model.md §9). `bias_drift:M` sets its spline's M segments over the session (default
     /// 1, a linear drift; `robimu diagnose` chooses M and prints the spec).
     #[arg(long, value_delimiter = ',')]
     pub effects: Vec<String>,
@@ -292,12 +293,6 @@ impl CalibrateFlags {
         let opts = self.options(&session, &robot, &layout, file)?;
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-        if data.n_imus() > 1 && self.effects.iter().any(|e| !e.trim().is_empty()) {
-            bail!(
-                "--effects are modelled for one IMU only; this session has {} IMUs: calibrate one with --imu J",
-                data.n_imus()
-            );
-        }
         let effects = self.effect_set(&robot, &data)?;
         let choice = self.noise_choice(&session, &opts, data.imu_t.len(), file)?;
         let settle = self.settle()?;
@@ -449,7 +444,7 @@ impl CalibrateFlags {
         let mut setup = setup_with(robot, data, None, mode);
         let names = specs
             .iter()
-            .map(|s| setup.apply_spec(s).map(str::to_string))
+            .map(|s| setup.apply_spec(s))
             .collect::<Result<Vec<_>, _>>()
             .context("--effects")?;
         Ok(Some(effect_set(&setup, &names).context("--effects")?))
@@ -640,7 +635,7 @@ pub(crate) fn effects_fit(
     let f = fit(&spec, opts, |_| {})
         .with_context(|| format!("--effects: cannot fit {}", set.names().join(", ")))?;
     let epath = path.with_file_name("effects.json");
-    let json = fit_json(&ParamLayout::new(robot), &f);
+    let json = fit_json(&ParamLayout::with_imus(robot, f.n_imus), &f);
     std::fs::write(&epath, serde_json::to_string_pretty(&json)?)
         .with_context(|| format!("cannot write {}", epath.display()))?;
     Ok((f, epath))

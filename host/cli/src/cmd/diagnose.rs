@@ -52,6 +52,8 @@ pub struct DiagnoseCmd {
     #[arg(long, value_name = "FILE")]
     pub mass_model: Option<PathBuf>,
     /// Candidates to consider, comma-separated [default: the whole catalogue].
+    /// With several IMUs a per-sensor effect's plain name selects it on
+    /// every IMU, `imu<j>/NAME` on IMU j alone (docs/model.md §9).
     #[arg(long, value_delimiter = ',')]
     pub candidates: Vec<String>,
     #[command(flatten)]
@@ -83,10 +85,11 @@ impl DiagnoseCmd {
         let out_dir = self.out.clone().unwrap_or_else(|| dir.join("diagnosis"));
         std::fs::create_dir_all(&out_dir)
             .with_context(|| format!("cannot create the output directory {}", out_dir.display()))?;
-        let layout = ParamLayout::new(&robot);
         let mut opts = CalibrateOptions::new(&robot);
         (opts.sigma_z, opts.sigma_q) = session.noise(&robot)?;
         let data = session.measurements();
+        // every IMU of the session (docs/model.md §9)
+        let layout = ParamLayout::with_imus(&robot, data.n_imus());
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot diagnose the session {}", dir.display()))?;
         let mass = match &self.mass_model {

@@ -274,6 +274,52 @@ pub struct CatalogueSetup {
     /// The smoothed IMU temperature (`None`: not recorded or constant;
     /// `temperature_bias` is then unavailable).
     pub temperature: Option<Arc<temperature_bias::TemperatureTrack>>,
+    /// Number of IMUs K of the session (docs/model.md §9; 1 unless set).
+    pub n_imus: usize,
+    /// The smoothed temperature of IMU j ≥ 1 at `j − 1` (IMU 0's is
+    /// `temperature`); `temperature_bias` of IMU j uses its own.
+    pub imu_temperatures: Vec<Option<Arc<temperature_bias::TemperatureTrack>>>,
+}
+
+/// The effects of one IMU's chip or mount (its clock, its sensors'
+/// cross-sensitivities and biases, its lever arms): with several IMUs each
+/// has its own parameters, named `imu<j>/<effect>` for j ≥ 1 (docs/model.md
+/// §9). The others are the robot's (joints, links, masses) and shared.
+pub const PER_SENSOR: [&str; 6] = [
+    "g_sensitivity",
+    "size_effect",
+    "clock_drift",
+    "sensor_delay",
+    "bias_drift",
+    "temperature_bias",
+];
+
+/// Whether effect `name` (a catalogue name, no prefix) is per sensor ([`PER_SENSOR`]).
+pub fn is_per_sensor(name: &str) -> bool {
+    PER_SENSOR.contains(&name)
+}
+
+/// A candidate's label split into its IMU and effect name: `imu<j>/<effect>`
+/// (j ≥ 1) → `(Some(j), effect)`; a plain name → `(None, name)`. `None`
+/// when the prefix is malformed (`imu0/`, `imux/`).
+pub fn split_label(label: &str) -> Option<(Option<usize>, &str)> {
+    match label.split_once('/') {
+        None => Some((None, label)),
+        Some((imu, name)) => {
+            let j: usize = imu.strip_prefix("imu")?.parse().ok()?;
+            (j >= 1 && !imu[3..].starts_with('0') && !imu[3..].starts_with('+'))
+                .then_some((Some(j), name))
+        }
+    }
+}
+
+/// The label of effect `name` on IMU `imu` (`None`: shared, or IMU 0):
+/// `imu<j>/<name>` for j ≥ 1, else `name`.
+pub fn label(imu: Option<usize>, name: &str) -> String {
+    match imu {
+        Some(j) if j >= 1 => format!("imu{j}/{name}"),
+        _ => name.to_string(),
+    }
 }
 
 impl CatalogueSetup {
@@ -289,6 +335,8 @@ impl CatalogueSetup {
             mode_response: None,
             bias_drift_segments: bias_drift::DEFAULT_SEGMENTS,
             temperature: None,
+            n_imus: 1,
+            imu_temperatures: Vec::new(),
         };
         s.set_joints(mode, joints);
         s
@@ -299,6 +347,46 @@ impl CatalogueSetup {
     pub fn set_temperature(&mut self, t: &[f64], temp: &[f64]) {
         self.temperature = temperature_bias::TemperatureTrack::from_samples(t, temp).map(Arc::new);
     }
+    /// Smooth IMU `j`'s temperature readings into its track (j = 0:
+    /// [`Self::set_temperature`]).
+    pub fn set_imu_temperature(&mut self, j: usize, t: &[f64], temp: &[f64]) {
+        if j == 0 {
+            return self.set_temperature(t, temp);
+        }
+        if self.imu_temperatures.len() < j {
+            self.imu_temperatures.resize(j, None);
+        }
+        self.imu_temperatures[j - 1] =
+            temperature_bias::TemperatureTrack::from_samples(t, temp).map(Arc::new);
+    }
+    /// The set-up IMU `j`'s per-sensor effects are built from (its own
+    /// temperature; `self` for IMU 0).
+    pub fn imu_setup(&self, j: usize) -> CatalogueSetup {
+        let mut s = self.clone();
+        if j >= 1 {
+            s.temperature = self.imu_temperatures.get(j - 1).cloned().flatten();
+        }
+        s
+    }
+    /// Every candidate of the session: each per-sensor effect once per IMU
+    /// (where that IMU's catalogue has it), each shared effect once, as
+    /// labels ([`label`]): IMU 0's catalogue in its order (the one-IMU
+    /// candidates), then IMU 1's per-sensor effects, ….
+    pub fn candidates(&self) -> Vec<String> {
+        let mut out: Vec<String> = catalogue(self)
+            .iter()
+            .map(|e| e.name().to_string())
+            .collect();
+        for j in 1..self.n_imus {
+            let setup = self.imu_setup(j);
+            for e in catalogue(&setup) {
+                if is_per_sensor(e.name()) {
+                    out.push(label(Some(j), e.name()));
+                }
+            }
+        }
+        out
+    }
     /// Set the resonance mode and integrate its response to `joints`.
     pub fn set_joints(&mut self, mode: resonance::Mode, joints: Option<&Spline>) {
         self.mode = mode;
@@ -306,10 +394,12 @@ impl CatalogueSetup {
     }
     /// The resolution of effect `name` in this set-up (`None`: it has none).
     pub fn resolution(&self, name: &str) -> Option<usize> {
+        let name = split_label(name).map_or(name, |(_, n)| n);
         (name == "bias_drift").then_some(self.bias_drift_segments)
     }
     /// Set the resolution of effect `name`.
     pub fn set_resolution(&mut self, name: &str, m: usize) -> Result<(), EffectSpecError> {
+        let name = split_label(name).map_or(name, |(_, n)| n);
         if !NAMES.contains(&name) {
             return Err(UnknownEffect(name.to_string()).into());
         }
@@ -326,17 +416,21 @@ impl CatalogueSetup {
         Ok(())
     }
     /// Apply an effect spec `NAME` or `NAME:M` (M the resolution of an
-    /// effect that has one, e.g. `bias_drift:8`); the effect's name.
-    pub fn apply_spec(&mut self, spec: &str) -> Result<&'static str, EffectSpecError> {
-        let (name, m) = match spec.split_once(':') {
+    /// effect that has one, e.g. `bias_drift:8`; `NAME` a label, e.g.
+    /// `imu1/bias_drift:8`, the resolution then shared by every IMU's);
+    /// the effect's label.
+    pub fn apply_spec(&mut self, spec: &str) -> Result<String, EffectSpecError> {
+        let (label, m) = match spec.split_once(':') {
             Some((n, m)) => (n.trim(), Some(m.trim())),
             None => (spec.trim(), None),
         };
+        self.check_label(label)?;
+        let name = split_label(label).map_or(label, |(_, n)| n);
         let name = NAMES
             .iter()
             .copied()
             .find(|n| *n == name)
-            .ok_or_else(|| UnknownEffect(name.to_string()))?;
+            .ok_or_else(|| UnknownEffect(label.to_string()))?;
         if let Some(m) = m {
             let bad = || EffectSpecError::Resolution {
                 name: name.to_string(),
@@ -348,7 +442,20 @@ impl CatalogueSetup {
                 e => e,
             })?;
         }
-        Ok(name)
+        Ok(label.to_string())
+    }
+    /// Whether `label` names an effect this session can have: a catalogue
+    /// name, an `imu<j>/` prefix only on a per-sensor effect and j < K.
+    pub fn check_label(&self, label: &str) -> Result<(), UnknownEffect> {
+        let unknown = || UnknownEffect(label.to_string());
+        let (imu, name) = split_label(label).ok_or_else(unknown)?;
+        if !NAMES.contains(&name) {
+            return Err(unknown());
+        }
+        match imu {
+            Some(j) if !is_per_sensor(name) || j >= self.n_imus => Err(unknown()),
+            _ => Ok(()),
+        }
     }
     /// The spec of effect `name` in this set-up: `NAME:M` for an effect
     /// with a resolution, else `NAME` ([`Self::apply_spec`] reads it back).
@@ -441,6 +548,23 @@ fn requirement(name: &str) -> Option<&'static str> {
 }
 
 fn unknown_message(name: &str) -> String {
+    if let Some((Some(j), base)) = split_label(name) {
+        if NAMES.contains(&base) {
+            return if let Some(needs) = requirement(base).filter(|_| is_per_sensor(base)) {
+                format!("effect `{name}` is not available for this session: it needs IMU {j} with {needs}")
+            } else if is_per_sensor(base) {
+                format!("effect `{name}`: this session has no IMU {j}")
+            } else {
+                format!(
+                    "effect `{name}`: {base} is the robot's, shared by every IMU; name it without `imu{j}/`"
+                )
+            };
+        }
+    } else if split_label(name).is_none() {
+        return format!(
+            "effect `{name}`: `imu<j>/` takes an IMU j ≥ 1 (IMU 0's effects have no prefix)"
+        );
+    }
     match requirement(name) {
         Some(needs) => {
             format!("effect `{name}` is not available for this session: it needs {needs}")
@@ -449,11 +573,26 @@ fn unknown_message(name: &str) -> String {
     }
 }
 
-/// The effect named `name` from the catalogue.
+/// The effect labelled `name` (a catalogue name, or `imu<j>/<name>` for IMU
+/// j's per-sensor effect, built from its [`CatalogueSetup::imu_setup`]).
 pub fn by_name(setup: &CatalogueSetup, name: &str) -> Result<Box<dyn Effect>, UnknownEffect> {
-    catalogue(setup)
+    Ok(by_label(setup, name)?.0)
+}
+
+/// [`by_name`] with the effect's owner: `Some(j)` for a per-sensor effect
+/// of IMU j (a plain name: IMU 0), `None` for a shared one.
+pub fn by_label(
+    setup: &CatalogueSetup,
+    name: &str,
+) -> Result<(Box<dyn Effect>, Option<usize>), UnknownEffect> {
+    setup.check_label(name)?;
+    let (imu, base) = split_label(name).ok_or_else(|| UnknownEffect(name.to_string()))?;
+    let owner = is_per_sensor(base).then_some(imu.unwrap_or(0));
+    let own = setup.imu_setup(owner.unwrap_or(0));
+    catalogue(&own)
         .into_iter()
-        .find(|e| e.name() == name)
+        .find(|e| e.name() == base)
+        .map(|e| (e, owner))
         .ok_or_else(|| UnknownEffect(name.to_string()))
 }
 
@@ -464,6 +603,10 @@ pub struct EffectSet {
     effects: Vec<Box<dyn Effect>>,
     offsets: Vec<usize>,
     params: Vec<EffectParam>,
+    /// Per effect: the IMU whose rows it enters (`None`: every IMU's).
+    owners: Vec<Option<usize>>,
+    /// Per effect: its label ([`label`]).
+    labels: Vec<String>,
 }
 
 impl EffectSet {
@@ -473,6 +616,8 @@ impl EffectSet {
             effects: Vec::new(),
             offsets: Vec::new(),
             params: Vec::new(),
+            owners: Vec::new(),
+            labels: Vec::new(),
         }
     }
     /// The empty set, for problems of the baseline model alone.
@@ -480,11 +625,50 @@ impl EffectSet {
         static NONE: EffectSet = EffectSet::new();
         &NONE
     }
-    /// Append an effect.
+    /// Append an effect that enters every IMU's rows (one IMU, or a
+    /// shared effect).
     pub fn push(&mut self, e: Box<dyn Effect>) {
+        self.push_on(e, None);
+    }
+    /// Append an effect entering only IMU `imu`'s rows (`None`: every
+    /// IMU's, [`Self::push`]); for IMU j ≥ 1 its label and parameter names
+    /// take the prefix `imu<j>/` (docs/model.md §9).
+    pub fn push_on(&mut self, e: Box<dyn Effect>, imu: Option<usize>) {
         self.offsets.push(self.params.len());
-        self.params.extend(e.params());
+        let prefix = label(imu, "");
+        self.params.extend(e.params().into_iter().map(|mut p| {
+            p.name = format!("{prefix}{}", p.name);
+            p
+        }));
+        self.labels.push(label(imu, e.name()));
+        self.owners.push(imu);
         self.effects.push(e);
+    }
+    /// Per effect, the IMU whose rows it enters (`None`: every IMU's).
+    pub fn owners(&self) -> &[Option<usize>] {
+        &self.owners
+    }
+    /// θ_E indices of the parameters IMU `j`'s rows depend on, in θ_E
+    /// order: the map of its local effect columns ([`Self::columns_for`])
+    /// into θ_E, as [`ParamLayout::imu_map`] is for x. The identity when
+    /// every effect enters every IMU's rows.
+    pub fn imu_map(&self, j: usize) -> Vec<usize> {
+        let mut out = Vec::new();
+        for (e, owner) in self.owners.iter().enumerate() {
+            if owner.is_none_or(|o| o == j) {
+                out.extend(self.range_of(e));
+            }
+        }
+        out
+    }
+    /// θ_E range of effect number `e`.
+    fn range_of(&self, e: usize) -> std::ops::Range<usize> {
+        let end = self
+            .offsets
+            .get(e + 1)
+            .copied()
+            .unwrap_or(self.params.len());
+        self.offsets[e]..end
     }
     /// Total number of parameters.
     pub fn len(&self) -> usize {
@@ -507,17 +691,38 @@ impl EffectSet {
     }
     /// Every effect's [`Effect::constants`], in effect order.
     pub fn constants(&self) -> Vec<EffectConstant> {
-        self.effects.iter().flat_map(|e| e.constants()).collect()
+        self.effects
+            .iter()
+            .zip(&self.owners)
+            .flat_map(|(e, &imu)| {
+                e.constants().into_iter().map(move |mut c| {
+                    c.name = label(imu, &c.name);
+                    c
+                })
+            })
+            .collect()
     }
-    /// Names of the effects.
-    pub fn names(&self) -> Vec<&'static str> {
-        self.effects.iter().map(|e| e.name()).collect()
+    /// Labels of the effects (`imu<j>/<name>` for IMU j ≥ 1's, [`label`]).
+    pub fn names(&self) -> Vec<String> {
+        self.labels.clone()
     }
     /// All columns ∂z/∂θ_E at one sample (`cols.len() == self.len()`).
     pub fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
         for (off, e) in self.effects() {
             let k = e.params().len();
             self.columns_of(e, ctx, &mut cols[off..off + k]);
+        }
+    }
+    /// IMU `j`'s columns ∂z/∂θ_E at one of its samples, only for the
+    /// parameters of [`Self::imu_map`]`(j)` (`cols.len()` its length).
+    pub fn columns_for(&self, j: usize, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
+        let mut at = 0;
+        for (e, owner) in self.owners.iter().enumerate() {
+            if owner.is_none_or(|o| o == j) {
+                let k = self.range_of(e).len();
+                self.columns_of(self.effects[e].as_ref(), ctx, &mut cols[at..at + k]);
+                at += k;
+            }
         }
     }
     fn columns_of(&self, e: &dyn Effect, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {

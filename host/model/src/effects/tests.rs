@@ -183,3 +183,100 @@ fn unavailable_effects_say_what_they_need() {
         "{msg}"
     );
 }
+
+/// Effects with several IMUs (docs/model.md §9): labels, the candidates of
+/// a two-IMU session, the owner of each, the names in an effect set, and
+/// the refusals with their reason.
+#[test]
+fn per_sensor_effects_are_labelled_per_imu_and_shared_ones_once() {
+    let robot = Robot::aubo_i5();
+    let mut setup = CatalogueSetup::new(
+        SessionSpan { t0: 0.0, t1: 20.0 },
+        MassModel::for_robot(&robot),
+        robot.gravity(),
+        None,
+    );
+    assert_eq!(
+        split_label("imu2/bias_drift"),
+        Some((Some(2), "bias_drift"))
+    );
+    assert_eq!(split_label("bias_drift"), Some((None, "bias_drift")));
+    for bad in [
+        "imu0/bias_drift",
+        "imu01/bias_drift",
+        "imu+1/bias_drift",
+        "imux/bias_drift",
+    ] {
+        assert_eq!(split_label(bad), None, "{bad}");
+    }
+    // one IMU: the catalogue itself
+    let one: Vec<String> = catalogue(&setup).iter().map(|e| e.name().into()).collect();
+    assert_eq!(setup.candidates(), one);
+    setup.n_imus = 2;
+    // IMU 1 records a warm-up, IMU 0 nothing: only IMU 1 has temperature_bias
+    let ts: Vec<f64> = (0..2001).map(|i| i as f64 * 0.01).collect();
+    let temp: Vec<f64> = ts
+        .iter()
+        .map(|t| (30.0 - 6.0 * (-t / 8.0).exp()).round())
+        .collect();
+    setup.set_imu_temperature(1, &ts, &temp);
+    let c = setup.candidates();
+    let per_imu1: Vec<&str> = c.iter().filter_map(|n| n.strip_prefix("imu1/")).collect();
+    assert_eq!(
+        per_imu1,
+        [
+            "g_sensitivity",
+            "size_effect",
+            "clock_drift",
+            "sensor_delay",
+            "bias_drift",
+            "temperature_bias"
+        ]
+    );
+    assert_eq!(c.len(), one.len() + 6);
+    assert!(!c.iter().any(|n| n == "temperature_bias"));
+    let (e, owner) = by_label(&setup, "imu1/temperature_bias").unwrap();
+    assert_eq!((e.name(), owner), ("temperature_bias", Some(1)));
+    assert_eq!(by_label(&setup, "g_sensitivity").unwrap().1, Some(0));
+    assert_eq!(by_label(&setup, "encoder_scale").unwrap().1, None);
+    for (bad, says) in [
+        ("imu1/encoder_scale", "shared by every IMU"),
+        ("imu2/g_sensitivity", "no IMU 2"),
+        ("imu0/g_sensitivity", "IMU j ≥ 1"),
+        ("temperature_bias", "temperature column"),
+        ("imu1/g_sensitivty", "unknown effect"),
+    ] {
+        let msg = by_name(&setup, bad).err().unwrap().to_string();
+        assert!(msg.contains(says), "{bad}: {msg}");
+    }
+    assert_eq!(
+        setup.apply_spec("imu1/bias_drift:4").unwrap(),
+        "imu1/bias_drift"
+    );
+    assert_eq!(setup.spec("imu1/bias_drift"), "imu1/bias_drift:4");
+    // the set: labels, prefixed parameter and constant names, per-IMU maps
+    let mut set = EffectSet::new();
+    set.push_on(by_name(&setup, "imu1/bias_drift").unwrap(), Some(1));
+    set.push(by_name(&setup, "encoder_scale").unwrap());
+    set.push_on(by_name(&setup, "clock_drift").unwrap(), Some(0));
+    assert_eq!(
+        set.names(),
+        ["imu1/bias_drift", "encoder_scale", "clock_drift"]
+    );
+    assert!(set.params()[..24]
+        .iter()
+        .all(|p| p.name.starts_with("imu1/bias_drift.")));
+    assert_eq!(set.params()[24].name, "encoder_scale.kappa_1");
+    assert_eq!(set.params()[30].name, "clock_drift.kappa");
+    let consts: Vec<String> = set.constants().into_iter().map(|c| c.name).collect();
+    assert!(
+        consts.contains(&"imu1/bias_drift.t_start".to_string()),
+        "{consts:?}"
+    );
+    assert!(
+        consts.contains(&"clock_drift.t_ref".to_string()),
+        "{consts:?}"
+    );
+    assert_eq!(set.imu_map(0), (24..31).collect::<Vec<_>>());
+    assert_eq!(set.imu_map(1), (0..30).collect::<Vec<_>>());
+}

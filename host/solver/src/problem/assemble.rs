@@ -168,7 +168,7 @@ impl Problem<'_> {
                 if !self.white {
                     return self.gls_residuals(st, &model, &spline, tau, theta_e, range, put);
                 }
-                let mut at = self.sample_eval();
+                let mut at = self.sample_eval(st);
                 for i in range {
                     put(
                         i,
@@ -189,8 +189,8 @@ impl Problem<'_> {
         Ok(out)
     }
 
-    /// Storage for one sample (the effect part empty without effects).
-    fn sample_eval(&self) -> SampleEval {
+    /// Storage for one sample of stream `st` (the effect part empty without effects).
+    fn sample_eval(&self, st: &Stream<'_>) -> SampleEval {
         let nx = if self.effects.is_empty() {
             0
         } else {
@@ -201,7 +201,7 @@ impl Problem<'_> {
             js: JointState::default(),
             effect: EffectScratch {
                 jac: MeasurementJacobians::new(nx),
-                cols: vec![[0.0; 6]; self.n_effect_params()],
+                cols: vec![[0.0; 6]; st.effect_map.len()],
             },
         }
     }
@@ -250,8 +250,9 @@ impl Problem<'_> {
     }
 
     /// z of sample i with the effect terms: the baseline `jac.z` (already
-    /// evaluated) plus Σ ∂z/∂θ_E θ_E; leaves the columns in `cols`. With no
-    /// effects this is `jac.z` (no column is built).
+    /// evaluated) plus Σ ∂z/∂θ_E θ_E over the stream's effect columns
+    /// (`st.effect_map`); leaves the columns in `cols`. With no effects this
+    /// is `jac.z` (no column is built).
     #[allow(clippy::too_many_arguments)]
     fn with_effect_terms(
         &self,
@@ -265,8 +266,9 @@ impl Problem<'_> {
     ) -> [f64; 6] {
         let mut z = jac.z;
         let ctx = SampleContext::new(st.t[i], js, model, jac, self.imu_layout);
-        self.effects.columns(&ctx, cols);
-        for (col, th) in cols.iter().zip(theta_e) {
+        self.effects.columns_for(st.index, &ctx, cols);
+        for (col, &e) in cols.iter().zip(&st.effect_map) {
+            let th = theta_e[e];
             for c in 0..6 {
                 z[c] += col[c] * th;
             }
@@ -411,7 +413,7 @@ impl Problem<'_> {
         let n = self.n;
         let nl = (self.knots.degree() + 1) * n;
         let tau = self.tau_of(st, x);
-        let mut at = self.sample_eval();
+        let mut at = self.sample_eval(st);
         let mut cost = 0.0;
         let Some(out) = out else {
             for i in range {
@@ -541,7 +543,7 @@ impl Problem<'_> {
         range: Range<usize>,
         mut emit: impl FnMut(usize, [f64; 6]),
     ) -> Result<(), ProblemError> {
-        let mut at = self.sample_eval();
+        let mut at = self.sample_eval(st);
         let mut ring: Vec<RawSample> = (0..=self.noise.max_order())
             .map(|_| RawSample {
                 first: 0,
@@ -601,7 +603,7 @@ impl Problem<'_> {
             })
             .collect();
         let len = ring.len();
-        let mut at = self.sample_eval();
+        let mut at = self.sample_eval(st);
         let mut jac = MeasurementJacobians::new(nx);
         let mut blocks = [
             Stack::new(nl, extra * n, &st.sensor_columns[0]),

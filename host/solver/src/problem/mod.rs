@@ -66,7 +66,10 @@
 //! rows carry only that IMU's ≤ 48 columns, scattered into the border through
 //! the map: the data pass costs the same per sample for any K, the band and
 //! the shared columns are common. K = 1 is the one-IMU problem (identity map).
-//! Catalogue effects need K = 1.
+//! Effects likewise: each stream carries the map of its effect columns into
+//! θ_E ([`EffectSet::imu_map`]): a per-sensor effect of IMU j
+//! ([`EffectSet::push_on`]) enters only IMU j's rows, a shared one every
+//! IMU's rows with one parameter block (docs/model.md §9).
 //!
 //! Only the IMU samples whose u lies inside the joint-sample span (with a
 //! small margin, [`Problem::margin`]) are used; the set is chosen by
@@ -77,6 +80,8 @@
 mod assemble;
 #[cfg(test)]
 mod gls_tests;
+#[cfg(test)]
+mod multi_effects_tests;
 #[cfg(test)]
 mod multi_tests;
 
@@ -118,9 +123,14 @@ pub enum ProblemError {
         /// IMUs of the observations.
         data: usize,
     },
-    /// Catalogue effects are for one IMU only.
-    #[error("effects are modelled for one IMU only; this problem has {0} (calibrate one IMU with --imu)")]
-    EffectsNeedOneImu(usize),
+    /// An effect of an IMU the problem does not have.
+    #[error("an effect is on IMU {imu} but the problem has {n_imus} IMUs")]
+    EffectImu {
+        /// The effect's IMU.
+        imu: usize,
+        /// IMUs of the problem.
+        n_imus: usize,
+    },
 }
 
 /// How the problem is set up.
@@ -166,8 +176,13 @@ struct Stream<'a> {
     imu_range: Range<usize>,
     /// Per sensor (accelerometer, gyroscope): the estimated parameters its
     /// rows can depend on, as (index in the IMU's own vector, position in
-    /// θ's x part); effect parameter e follows as (n_own + e, n_active + e).
+    /// θ's x part); its effect column l follows as (n_own + l, n_active +
+    /// effect_map[l]).
     sensor_columns: [Vec<(usize, usize)>; 2],
+    /// The IMU's number j.
+    index: usize,
+    /// θ_E index of each of its effect columns ([`EffectSet::imu_map`]).
+    effect_map: Vec<usize>,
 }
 
 /// The calibration problem for one session.
@@ -219,8 +234,8 @@ impl<'a> Problem<'a> {
     /// first [`ParamLayout::n_imus`] of `data` (a one-IMU layout uses IMU 0
     /// of any session). The catalogue `effects`
     /// extend the model ([`EffectSet::none`] for the baseline alone): their
-    /// parameters θ_E follow x_a in θ (θ = [c, x_a, θ_E]), enter every IMU
-    /// row through ∂z/∂θ_E ([`robimu_model::effects`]) and carry their
+    /// parameters θ_E follow x_a in θ (θ = [c, x_a, θ_E]), enter the rows of
+    /// the IMUs they are on ([`EffectSet::imu_map`]) through ∂z/∂θ_E ([`robimu_model::effects`]) and carry their
     /// zero-mean priors. An empty set adds no unknown and no per-sample work.
     ///
     /// # Panics
@@ -257,8 +272,11 @@ impl<'a> Problem<'a> {
                 data: data.n_imus(),
             });
         }
-        if k_imus > 1 && !effects.is_empty() {
-            return Err(ProblemError::EffectsNeedOneImu(k_imus));
+        if let Some(&imu) = effects.owners().iter().flatten().find(|&&j| j >= k_imus) {
+            return Err(ProblemError::EffectImu {
+                imu,
+                n_imus: k_imus,
+            });
         }
         let imu_layout = layout.imu_layout();
         let noise = match &opts.noise {
@@ -272,13 +290,19 @@ impl<'a> Problem<'a> {
             .map(|j| {
                 let view = data.imu(j);
                 let map = layout.imu_map(j);
+                let effect_map = effects.imu_map(j);
                 let sensor_columns = [0, 1].map(|sensor| {
                     let mut cols: Vec<(usize, usize)> = (0..n_own)
                         .filter(|&k| sensor_depends_on(imu_layout, sensor, k))
                         .filter_map(|k| active.binary_search(&map[k]).ok().map(|a| (k, a)))
                         .collect();
                     cols.sort_by_key(|&(_, a)| a);
-                    cols.extend((0..effects.len()).map(|e| (n_own + e, na + e)));
+                    cols.extend(
+                        effect_map
+                            .iter()
+                            .enumerate()
+                            .map(|(l, &e)| (n_own + l, na + e)),
+                    );
                     cols
                 });
                 Stream {
@@ -294,6 +318,8 @@ impl<'a> Problem<'a> {
                     },
                     imu_range: 0..0,
                     sensor_columns,
+                    index: j,
+                    effect_map,
                 }
             })
             .collect();

@@ -30,7 +30,7 @@ fn checksums(p: &Problem<'_>, theta: &[f64]) -> [f64; 3] {
     [c, sg, sa]
 }
 
-const SZ: [f64; 6] = [0.05, 0.06, 0.07, 0.01, 0.012, 0.014];
+pub(super) const SZ: [f64; 6] = [0.05, 0.06, 0.07, 0.01, 0.012, 0.014];
 
 /// The problem of `layout` on `data` at θ = (spline, x) slightly moved, set up there.
 fn problem_at<'a>(
@@ -78,7 +78,7 @@ fn one_imu_gives_the_numbers_of_the_one_imu_problem() {
 }
 
 /// A two-IMU session: IMU 1 with its own position, τ and intrinsics.
-fn two_imus(s: &Setup) -> (ParamLayout, Vec<f64>, Measurements) {
+pub(super) fn two_imus(s: &Setup) -> (ParamLayout, Vec<f64>, Measurements) {
     let layout = ParamLayout::with_imus(&s.robot, 2);
     let mut x = layout.nominal();
     x[..s.x.len()].copy_from_slice(&s.x);

@@ -144,19 +144,40 @@ pub fn setup_with(
         None,
     );
     setup.set_joints(mode, joints.as_ref().map(|f| &f.spline));
-    if let Some(temp) = &data.imu_temp {
-        setup.set_temperature(&data.imu_t, temp);
+    setup.n_imus = data.n_imus();
+    for j in 0..data.n_imus() {
+        let v = data.imu(j);
+        if let Some(temp) = v.temp {
+            setup.set_imu_temperature(j, v.t, temp);
+        }
     }
     setup
 }
 
-/// The effect set of `names` (catalogue order as given).
+/// The effect set of `names` (labels, [`effects::by_label`]; order as
+/// given): a per-sensor effect on its IMU's rows, a shared one on every IMU's.
 pub fn effect_set(setup: &CatalogueSetup, names: &[String]) -> Result<EffectSet, DiagnoseError> {
     let mut set = EffectSet::new();
     for n in names {
-        set.push(effects::by_name(setup, n)?);
+        let (e, imu) = effects::by_label(setup, n)?;
+        set.push_on(e, imu);
     }
     Ok(set)
+}
+
+/// The IMU of the per-sensor effect labelled `name` (a plain name: 0),
+/// `None` for a shared effect ([`effects::PER_SENSOR`]).
+pub fn effect_imu(name: &str) -> Option<usize> {
+    let (imu, base) = effects::split_label(name)?;
+    effects::is_per_sensor(base).then_some(imu.unwrap_or(0))
+}
+
+/// Whether the requested candidate `r` selects candidate label `c`: its
+/// label, or, for IMU j's per-sensor effect, the plain effect name (which
+/// selects that effect on every IMU).
+fn is_requested(r: &str, c: &str) -> bool {
+    let base = effects::split_label(c).map_or(c, |(_, n)| n);
+    r == c || r == base
 }
 
 /// Fit the baseline plus the `names` effects from `start` (the
@@ -182,8 +203,11 @@ pub fn fit_effects(
 /// One effect added by the diagnosis.
 #[derive(Debug, Clone, Serialize)]
 pub struct FoundEffect {
-    /// Effect name.
+    /// Effect name (its label: `imu<j>/<effect>` for IMU j ≥ 1's per-sensor effect).
     pub name: String,
+    /// The IMU of a per-sensor effect (0 for a plain name), `None` (JSON
+    /// `null`) for a shared one, the robot's (docs/model.md §9).
+    pub imu: Option<usize>,
     /// Score statistic at the fit before it was added.
     pub statistic: f64,
     /// Degrees of freedom.
@@ -473,7 +497,7 @@ pub fn identify_at(
     at: &Fit,
     id_opts: &IdOptions,
 ) -> Result<Identification, String> {
-    let layout = ParamLayout::new(robot);
+    let layout = ParamLayout::with_imus(robot, data.n_imus());
     let white = with_noise(opts, None);
     let res = with_problem_at(robot, data, &white, setup, &at.effects, at, |p, theta| {
         Ok(p.imu_residuals(theta)?)
@@ -504,7 +528,7 @@ pub(crate) fn with_problem_at<T>(
     at: &Fit,
     f: impl FnOnce(&mut Problem<'_>, &[f64]) -> Result<T, DiagnoseError>,
 ) -> Result<T, DiagnoseError> {
-    let layout = ParamLayout::new(robot);
+    let layout = ParamLayout::with_imus(robot, data.n_imus());
     let set = effect_set(setup, names)?;
     let mut problem = Problem::new(
         robot,
@@ -629,16 +653,19 @@ pub fn diagnose(
     dopts: &DiagnoseOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Diagnosis, DiagnoseError> {
-    let layout = ParamLayout::new(robot);
+    let layout = ParamLayout::with_imus(robot, data.n_imus());
     // the candidates this session's catalogue has (temperature_bias needs a
-    // recorded temperature, resonance a trajectory); Bonferroni over them
-    let available: Vec<&str> = effects::catalogue(setup).iter().map(|e| e.name()).collect();
-    let offered: Vec<String> = dopts
-        .candidates
-        .iter()
-        .filter(|c| available.contains(&c.as_str()))
-        .cloned()
-        .collect();
+    // recorded temperature, resonance a trajectory), each per-sensor effect
+    // once per IMU (docs/model.md §9); Bonferroni over them
+    let all = setup.candidates();
+    let mut offered: Vec<String> = Vec::new();
+    for r in &dopts.candidates {
+        for c in all.iter().filter(|c| is_requested(r, c)) {
+            if !offered.contains(c) {
+                offered.push(c.clone());
+            }
+        }
+    }
     let threshold = dopts.alpha / offered.len().max(1) as f64;
     // resolutions chosen below are set in this copy
     let mut setup = setup.clone();
@@ -796,6 +823,7 @@ pub fn diagnose(
             .collect();
         found.push(FoundEffect {
             name: best.name.clone(),
+            imu: effect_imu(&best.name),
             statistic: best.statistic,
             dof: best.dof,
             p_value: best.p_value,
@@ -841,7 +869,8 @@ pub fn diagnose(
 /// effect's [`Effect::exact`] minus the baseline; several effects superpose,
 /// their second-order cross terms left out). `data` came from
 /// [`super::simulate::simulate`] with the same truth and trajectory; the
-/// joint samples (the encoder readings) are unchanged.
+/// joint samples (the encoder readings) are unchanged. Every IMU of `data`
+/// gets them ([`inject_effects_on`]).
 pub fn inject_effects(
     robot: &Robot,
     truth: &[f64],
@@ -849,22 +878,50 @@ pub fn inject_effects(
     data: &mut Measurements,
     injected: &[(Box<dyn Effect>, Vec<f64>)],
 ) -> Result<(), robimu_model::ModelError> {
-    let layout = ParamLayout::new(robot);
-    let model = MeasurementModel::new(robot, &layout, truth)?;
-    let tau = truth[layout.offsets().tau];
+    inject_effects_on(robot, truth, trajectory, data, None, injected)
+}
+
+/// [`inject_effects`] on IMU `imu`'s samples only (`None`: every IMU's, as
+/// a shared effect); `truth` is x of [`ParamLayout::with_imus`] for the
+/// session's IMUs, each IMU's term computed at its own parameters.
+pub fn inject_effects_on(
+    robot: &Robot,
+    truth: &[f64],
+    trajectory: &Spline,
+    data: &mut Measurements,
+    imu: Option<usize>,
+    injected: &[(Box<dyn Effect>, Vec<f64>)],
+) -> Result<(), robimu_model::ModelError> {
+    let layout = ParamLayout::with_imus(robot, data.n_imus());
+    let one = layout.imu_layout();
     let traj = effects::trajectory_fn(trajectory);
-    for (t, z) in data.imu_t.iter().zip(data.imu_z.iter_mut()) {
-        let ctx = effects::ExactContext {
-            t: *t,
-            tau,
-            model: &model,
-            trajectory: &traj,
+    for j in 0..data.n_imus() {
+        if imu.is_some_and(|i| i != j) {
+            continue;
+        }
+        let own = layout.imu_x(j, truth);
+        let model = MeasurementModel::new(robot, one, &own)?;
+        let tau = own[one.offsets().tau];
+        let (ts, zs) = match j {
+            0 => (&data.imu_t, &mut data.imu_z),
+            _ => {
+                let s = &mut data.extra_imus[j - 1];
+                (&s.t, &mut s.z)
+            }
         };
-        let base = ctx.baseline();
-        for (e, theta) in injected {
-            let ze = e.exact(&ctx, theta, &layout);
-            for c in 0..6 {
-                z[c] += ze[c] - base[c];
+        for (t, z) in ts.iter().zip(zs.iter_mut()) {
+            let ctx = effects::ExactContext {
+                t: *t,
+                tau,
+                model: &model,
+                trajectory: &traj,
+            };
+            let base = ctx.baseline();
+            for (e, theta) in injected {
+                let ze = e.exact(&ctx, theta, one);
+                for c in 0..6 {
+                    z[c] += ze[c] - base[c];
+                }
             }
         }
     }

@@ -74,7 +74,9 @@ pub fn residual_stats(
     setup: &CatalogueSetup,
     fit: &Fit,
 ) -> ResidualStats {
+    // IMU 0's residuals, at its own vector of x (docs/model.md §9)
     let layout = ParamLayout::new(robot);
+    let x0 = ParamLayout::with_imus(robot, fit.n_imus).imu_x(0, &fit.x);
     let res = &fit.residuals;
     let n = res.len().max(1);
     let ts: Vec<f64> = res.iter().map(|(i, _)| data.imu_t[*i]).collect();
@@ -83,8 +85,8 @@ pub fn residual_stats(
     } else {
         1.0
     };
-    let tau = fit.x[layout.offsets().tau];
-    let model = MeasurementModel::new(robot, &layout, &fit.x).ok();
+    let tau = x0[layout.offsets().tau];
+    let model = MeasurementModel::new(robot, &layout, &x0).ok();
     // regressors at each sample
     let dof = robot.dof();
     let mut reg_names: Vec<String> = vec!["time".into()];
