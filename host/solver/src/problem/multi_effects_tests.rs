@@ -4,13 +4,13 @@
 //! residual vector (joints, both IMUs', priors of x and θ_E) with J by
 //! central differences.
 
-use faer::Mat;
 use robimu_model::effects::encoder_scale::EncoderScale;
 use robimu_model::effects::g_sensitivity::GSensitivity;
 use robimu_model::effects::EffectSet;
 use robimu_model::JointState;
 
 use super::gls_tests::{linearized, noise_model, options, setup, Setup};
+use super::multi_tests::check_against_finite_differences;
 use super::multi_tests::{two_imus, SZ};
 use super::{Problem, ProblemError, ProblemOptions};
 use crate::LeastSquares;
@@ -87,37 +87,8 @@ fn per_sensor_and_shared_effects_on_two_imus_are_the_gauss_newton_of_all_residua
             }
             r
         };
-        let r0 = resid(&theta);
+        let (a, jac, cost) = check_against_finite_differences(&p, &theta, resid);
         let nt = theta.len();
-        let mut jac = Mat::<f64>::zeros(r0.len(), nt);
-        for k in 0..nt {
-            let h = 1e-6 * theta[k].abs().max(1e-2);
-            let mut tp = theta.clone();
-            tp[k] += h;
-            let rp = resid(&tp);
-            tp[k] -= 2.0 * h;
-            let rm = resid(&tp);
-            for row in 0..r0.len() {
-                jac[(row, k)] = (rp[row] - rm[row]) / (2.0 * h);
-            }
-        }
-        let (a, g, cost) = linearized(&p, &theta);
-        let half: f64 = 0.5 * r0.iter().map(|v| v * v).sum::<f64>();
-        assert!((cost - half).abs() <= 1e-12 * half, "{cost} vs {half}");
-        assert!((p.cost(&theta).unwrap() - cost).abs() <= 1e-12 * cost);
-        let r0m = Mat::<f64>::from_fn(r0.len(), 1, |i, _| r0[i]);
-        let jtj = jac.transpose() * &jac;
-        let jtr = jac.transpose() * &r0m;
-        let mut worst = 0.0f64;
-        for i in 0..nt {
-            for j in 0..nt {
-                let scale = (a.get(i, i) * a.get(j, j)).sqrt();
-                worst = worst.max((a.get(i, j) - jtj[(i, j)]).abs() / scale);
-            }
-            let scale = a.get(i, i).sqrt() * (2.0 * cost).sqrt();
-            assert!((g[i] - jtr[(i, 0)]).abs() <= 1e-6 * scale, "g[{i}]");
-        }
-        assert!(worst < 1e-6, "A differs from JᵀJ by {worst:e} (relative)");
         // the cost at θ_E ≠ 0 is ½‖r‖² of the same residuals
         let mut with_e = theta.clone();
         with_e[nt0..].copy_from_slice(&theta_e);

@@ -131,37 +131,7 @@ fn the_two_imu_assembly_is_the_gauss_newton_of_all_residuals() {
             }
             r
         };
-        let r0 = resid(&theta);
-        let nt = theta.len();
-        let mut jac = Mat::<f64>::zeros(r0.len(), nt);
-        for k in 0..nt {
-            let h = 1e-6 * theta[k].abs().max(1e-2);
-            let mut tp = theta.clone();
-            tp[k] += h;
-            let rp = resid(&tp);
-            tp[k] -= 2.0 * h;
-            let rm = resid(&tp);
-            for row in 0..r0.len() {
-                jac[(row, k)] = (rp[row] - rm[row]) / (2.0 * h);
-            }
-        }
-        let (a, g, cost) = linearized(&p, &theta);
-        let half: f64 = 0.5 * r0.iter().map(|v| v * v).sum::<f64>();
-        assert!((cost - half).abs() <= 1e-12 * half, "{cost} vs {half}");
-        assert!((p.cost(&theta).unwrap() - cost).abs() <= 1e-12 * cost);
-        let r0m = Mat::<f64>::from_fn(r0.len(), 1, |i, _| r0[i]);
-        let jtj = jac.transpose() * &jac;
-        let jtr = jac.transpose() * &r0m;
-        let mut worst = 0.0f64;
-        for i in 0..nt {
-            for j in 0..nt {
-                let scale = (a.get(i, i) * a.get(j, j)).sqrt();
-                worst = worst.max((a.get(i, j) - jtj[(i, j)]).abs() / scale);
-            }
-            let scale = a.get(i, i).sqrt() * (2.0 * cost).sqrt();
-            assert!((g[i] - jtr[(i, 0)]).abs() <= 1e-6 * scale, "g[{i}]");
-        }
-        assert!(worst < 1e-6, "A differs from JᵀJ by {worst:e} (relative)");
+        let (a, _jac, _cost) = check_against_finite_differences(&p, &theta, resid);
         // IMU 1's own columns are coupled to IMU 0's only through the
         // shared ones and the trajectory: the corner block between IMU 0's
         // and IMU 1's own parameters is zero
@@ -209,4 +179,47 @@ fn each_imu_is_evaluated_at_its_own_parameters() {
     .err()
     .unwrap();
     assert_eq!(err, ProblemError::ImuCount { layout: 3, data: 2 });
+}
+
+/// Checks the assembled Gauss–Newton matrix, gradient and cost of `p` at
+/// `theta` against central finite differences of `resid` (every whitened
+/// residual and prior of the problem, in any order): A = JᵀJ and g = Jᵀr to
+/// 1e-6 relative, cost = ½‖r‖² to 1e-12. Returns A, the numerical J and the cost.
+pub(super) fn check_against_finite_differences(
+    p: &Problem<'_>,
+    theta: &[f64],
+    resid: impl Fn(&[f64]) -> Vec<f64>,
+) -> (crate::ArrowMatrix, Mat<f64>, f64) {
+    let r0 = resid(theta);
+    let nt = theta.len();
+    let mut jac = Mat::<f64>::zeros(r0.len(), nt);
+    for k in 0..nt {
+        let h = 1e-6 * theta[k].abs().max(1e-2);
+        let mut tp = theta.to_vec();
+        tp[k] += h;
+        let rp = resid(&tp);
+        tp[k] -= 2.0 * h;
+        let rm = resid(&tp);
+        for row in 0..r0.len() {
+            jac[(row, k)] = (rp[row] - rm[row]) / (2.0 * h);
+        }
+    }
+    let (a, g, cost) = linearized(p, theta);
+    let half: f64 = 0.5 * r0.iter().map(|v| v * v).sum::<f64>();
+    assert!((cost - half).abs() <= 1e-12 * half, "{cost} vs {half}");
+    assert!((p.cost(theta).unwrap() - cost).abs() <= 1e-12 * cost);
+    let r0m = Mat::<f64>::from_fn(r0.len(), 1, |i, _| r0[i]);
+    let jtj = jac.transpose() * &jac;
+    let jtr = jac.transpose() * &r0m;
+    let mut worst = 0.0f64;
+    for i in 0..nt {
+        for j in 0..nt {
+            let scale = (a.get(i, i) * a.get(j, j)).sqrt();
+            worst = worst.max((a.get(i, j) - jtj[(i, j)]).abs() / scale);
+        }
+        let scale = a.get(i, i).sqrt() * (2.0 * cost).sqrt();
+        assert!((g[i] - jtr[(i, 0)]).abs() <= 1e-6 * scale, "g[{i}]");
+    }
+    assert!(worst < 1e-6, "A differs from JᵀJ by {worst:e} (relative)");
+    (a, jac, cost)
 }
