@@ -12,8 +12,9 @@
 //! With `--imus 2` (docs/model.md §9) the simulated board reads two BNO055
 //! on its bus, each with its own hidden position, τ and sensor parameters;
 //! the session is calibrated jointly and that calibration's 76 parameters
-//! are checked against the truth (diagnose models one IMU; the ideal twin
-//! in real time only).
+//! are checked against the truth (the demo's truth check of diagnose's
+//! model covers one IMU; `robimu diagnose` diagnoses each IMU; the ideal
+//! twin in real time only).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -108,7 +109,7 @@ impl DemoCmd {
         }
         if self.imus > 1 && !self.ideal {
             bail!(
-                "--imus 2 needs --ideal: the realistic twin's truth (chip delays, warm-up) and diagnose are modelled for one sensor"
+                "--imus 2 needs --ideal: the realistic twin's truth (chip delays, warm-up) is modelled for one sensor"
             );
         }
         if let Some(warning) = robimu_record::alias_warning(&self.sensor()) {
@@ -213,7 +214,7 @@ impl DemoCmd {
             writeln!(out, "\n== 5. diagnose ==")?;
             writeln!(
                 out,
-                "skipped: diagnose models one IMU; the {} IMUs' joint calibration is checked",
+                "skipped: the demo checks diagnose's model against the truth for one IMU; the {} IMUs' joint calibration is checked (`robimu diagnose SESSION` diagnoses each IMU)",
                 self.imus
             )?;
             writeln!(out, "\n== 6. against the truth ==")?;
