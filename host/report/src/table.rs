@@ -553,7 +553,7 @@ mod tests {
             for j in 0..k {
                 let section = &table.sections[1 + j];
                 assert_eq!(section.rows.len(), 28);
-                let view = ParameterTable::new(&r.imu(j).unwrap(), Some(&view_truth(&t, j)));
+                let view = ParameterTable::new(&r.imu(j).unwrap(), Some(&t.of_imu(j)));
                 for &i in &section.rows {
                     let row = &table.rows[i];
                     let base = row
@@ -587,24 +587,5 @@ mod tests {
                 k - 1
             )));
         }
-    }
-
-    /// IMU j's truth under the one-IMU names (the view's).
-    fn view_truth(t: &Truth, j: usize) -> Truth {
-        let prefix = format!("imu{j}/");
-        let mut values: Vec<(String, f64)> = t
-            .values
-            .iter()
-            .filter(|(n, _)| !n.starts_with("imu"))
-            .cloned()
-            .collect();
-        if j > 0 {
-            for (n, v) in &t.values {
-                if let Some(base) = n.strip_prefix(&prefix) {
-                    values.iter_mut().find(|(m, _)| m == base).unwrap().1 = *v;
-                }
-            }
-        }
-        Truth { values }
     }
 }

@@ -278,25 +278,7 @@ impl Session {
                 s.meta.mounts.retain(|&i, _| i == 0);
             }
         }
-        let prefix = |i: usize| format!("imu{i}/");
-        s.truth = self.truth.as_ref().map(|t| {
-            let own: Vec<(String, f64)> = t
-                .values
-                .iter()
-                .filter_map(|(n, v)| n.strip_prefix(&prefix(j)).map(|b| (b.to_string(), *v)))
-                .collect();
-            let values = t
-                .values
-                .iter()
-                .filter(|(n, _)| result::split_imu_name(n).is_none())
-                .map(|(n, v)| {
-                    own.iter()
-                        .find(|(b, _)| b == n)
-                        .map_or((n.clone(), *v), |(b, w)| (b.clone(), *w))
-                })
-                .collect();
-            Truth { values }
-        });
+        s.truth = self.truth.as_ref().map(|t| t.of_imu(j));
         Some(s)
     }
 

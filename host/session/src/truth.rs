@@ -39,6 +39,28 @@ impl Truth {
         }
     }
 
+    /// IMU `j`'s view of a multi-IMU truth (docs/model.md §9) under the
+    /// one-IMU names: the shared and IMU 0's entries, IMU j's `imu<j>/X` in
+    /// the place of `X`; the other IMUs' left out.
+    pub fn of_imu(&self, j: usize) -> Truth {
+        let prefix = format!("imu{j}/");
+        let own: Vec<(&str, f64)> = self
+            .values
+            .iter()
+            .filter_map(|(n, v)| n.strip_prefix(&prefix).map(|b| (b, *v)))
+            .collect();
+        let values = self
+            .values
+            .iter()
+            .filter(|(n, _)| crate::result::split_imu_name(n).is_none())
+            .map(|(n, v)| {
+                let v = own.iter().find(|(b, _)| b == n).map_or(*v, |(_, w)| *w);
+                (n.clone(), v)
+            })
+            .collect();
+        Truth { values }
+    }
+
     /// x in `layout` order: every parameter of `layout`, and nothing else.
     pub fn vector(&self, layout: &ParamLayout) -> Result<Vec<f64>, TruthMismatch> {
         if let Some((name, _)) = self

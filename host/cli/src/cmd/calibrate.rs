@@ -570,14 +570,9 @@ fn html_report(
     let k = layout.n_imus();
     let series = (0..k)
         .map(|j| {
-            let view = if k == 1 {
-                data.clone()
-            } else {
-                data.only_imu(j)
-            };
             super::report::session_series(
                 robot,
-                &view,
+                &data.only_imu(j),
                 &layout.imu_x(j, &cal.x),
                 &opts.sigma_q,
                 Some(cal.knot_spacing),

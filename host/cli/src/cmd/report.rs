@@ -82,14 +82,9 @@ pub fn series_for(
         .map(|j| {
             let view = result.imu(j).map_err(anyhow::Error::msg)?;
             let x = view.values(&layout)?;
-            let data = if k == 1 {
-                data.clone()
-            } else {
-                data.only_imu(j)
-            };
             session_series(
                 &robot,
-                &data,
+                &data.only_imu(j),
                 &x,
                 &sigma_q,
                 result.knot_spacing,
