@@ -8,7 +8,9 @@
 //!
 //! Termination (Ceres-style): the relative cost decrease of an accepted step,
 //! or the decrease the quadratic model predicts for the first rejected one,
-//! falls below `function_tolerance`; a rejected step whose predicted and
+//! falls below `function_tolerance`; the Newton step is so short that the
+//! point it reaches is the minimum to `newton_tolerance` (below; the step is
+//! then taken without linearising there); a rejected step whose predicted and
 //! actual changes are both lost in the cost's rounding at a negligible
 //! gradient ([`COST_ROUNDING`], [`ROUNDING_GRADIENT`]); no step lowering the
 //! cost at any damping (λ > 10¹⁶) while the gradient is below
@@ -22,6 +24,19 @@
 //! iteration's (and the final one's), so no separate cost evaluation is
 //! needed, at the price of a linearisation per rejected step. The initial
 //! cost is the first linearisation's.
+//!
+//! **The last step.** Gauss–Newton converges quadratically near the
+//! minimum: ‖δ_{k+1}‖ ≈ C‖δ_k‖². With C estimated from the last two steps
+//! (C ≈ ‖δ_k‖/‖δ_{k−1}‖², norms scaled by √D so that a coordinate's length
+//! is in units of its conditional σ, which bounds it in marginal σ), the
+//! point θ_k + δ_k is off the minimum by about e = ‖δ_k‖³/‖δ_{k−1}‖². When
+//! e < `newton_tolerance`, the previous step's gain ratio was near 1 (the
+//! quadratic model holds), the damping is negligible and the problem's
+//! set-up stays, the step is taken and the solver stops: only the cost is
+//! evaluated there (it must not rise), and the covariance uses the
+//! linearisation at θ_k, whose matrix differs from the one at θ_k + δ_k by
+//! O(C‖δ_k‖) relative. This saves the linearisation a final accepted step
+//! would cost only to show that nothing is left to gain.
 
 use super::arrow::{ArrowFactor, ArrowMatrix, FactorError};
 
@@ -65,6 +80,10 @@ pub struct LmOptions {
     pub gradient_tolerance: f64,
     /// Initial damping λ.
     pub initial_lambda: f64,
+    /// Take the last Gauss–Newton step without linearising after it when
+    /// the point it reaches is the minimum to this, in conditional σ (module
+    /// doc, *The last step*); 0 disables it.
+    pub newton_tolerance: f64,
 }
 
 impl Default for LmOptions {
@@ -75,6 +94,7 @@ impl Default for LmOptions {
             parameter_tolerance: 1e-12,
             gradient_tolerance: 1e-10,
             initial_lambda: 1e-4,
+            newton_tolerance: 1e-7,
         }
     }
 }
@@ -88,7 +108,8 @@ impl LmOptions {
         }
         if !(pos(self.function_tolerance)
             && pos(self.parameter_tolerance)
-            && pos(self.gradient_tolerance))
+            && pos(self.gradient_tolerance)
+            && pos(self.newton_tolerance))
         {
             return Err("tolerances must be finite and non-negative".into());
         }
@@ -141,6 +162,8 @@ pub enum Termination {
     ParameterTolerance,
     /// Gradient below the gradient tolerance.
     GradientTolerance,
+    /// The last Gauss–Newton step reached the minimum to the Newton tolerance.
+    NewtonTolerance,
     /// Iteration limit reached before convergence.
     MaxIterations,
     /// No step lowered the cost even with very strong damping.
@@ -160,6 +183,7 @@ impl std::fmt::Display for Termination {
             Termination::FunctionTolerance => "converged (cost change below tolerance)",
             Termination::ParameterTolerance => "converged (step below tolerance)",
             Termination::GradientTolerance => "converged (gradient below tolerance)",
+            Termination::NewtonTolerance => "converged (Newton step at the minimum)",
             Termination::MaxIterations => "stopped at the iteration limit without converging",
             Termination::NoProgress => "stopped: no step lowers the cost",
         })
@@ -254,6 +278,23 @@ fn at_rounding_floor(cost: f64, new_cost: f64, predicted: f64, gnorm: f64) -> bo
         && gnorm <= ROUNDING_GRADIENT
 }
 
+/// Whether a step of scaled length `step` is the last one (module doc, *The
+/// last step*): the previous accepted step `last` = (length, gain ratio)
+/// was modelled well (ρ within 0.75–1.25), the damping λ is negligible
+/// (≤ 10⁻³), and the error left after the step, estimated as
+/// step³/last², is below the Newton tolerance.
+fn newton_stop(opts: &LmOptions, last: Option<(f64, f64)>, step: f64, lambda: f64) -> bool {
+    let Some((prev, rho)) = last else {
+        return false;
+    };
+    opts.newton_tolerance > 0.0
+        && lambda <= 1e-3
+        && (0.75..=1.25).contains(&rho)
+        && prev > 0.0
+        && step.is_finite()
+        && step * step * step / (prev * prev) < opts.newton_tolerance
+}
+
 /// Run Levenberg–Marquardt from `theta`. `report` sees every iteration.
 pub fn solve<P: LeastSquares>(
     problem: &mut P,
@@ -276,8 +317,11 @@ pub fn solve<P: LeastSquares>(
     let mut log = Vec::new();
     let mut termination = Termination::MaxIterations;
     let mut delta = vec![0.0; n];
-    // the cost of `a` when it is the linearisation at the final θ
+    // the cost of `a` when it is the linearisation at the final θ (or,
+    // after a Newton stop, the one the covariance uses)
     let mut current = None;
+    // the scaled length of the last accepted step, and its gain ratio
+    let mut last_step: Option<(f64, f64)> = None;
     let mut record = |log: &mut Vec<IterationRecord>, r: IterationRecord| {
         report(&r);
         log.push(r);
@@ -357,7 +401,31 @@ pub fn solve<P: LeastSquares>(
                     .map(|(x, dk)| dk * x * x)
                     .sum::<f64>()
                     .sqrt();
-                let trial = if problem.keeps_setup(&candidate) {
+                let keeps = problem.keeps_setup(&candidate);
+                if tries == 1 && keeps && newton_stop(opts, last_step, step_norm, lambda) {
+                    // the last step (module doc): its cost only, and the
+                    // matrix at θ for the covariance
+                    if let Ok(c) = problem.cost(&candidate) {
+                        if c.is_finite() && c <= cost + COST_ROUNDING * cost.abs() {
+                            theta = candidate;
+                            current = Some(c);
+                            termination = Termination::NewtonTolerance;
+                            record(
+                                &mut log,
+                                IterationRecord {
+                                    iteration,
+                                    cost: c,
+                                    step_norm,
+                                    lambda,
+                                    gradient_norm: gnorm,
+                                    tries,
+                                },
+                            );
+                            break 'outer;
+                        }
+                    }
+                }
+                let trial = if keeps {
                     linearized = true;
                     problem.linearize(&candidate, &mut a_next, &mut g_next)
                 } else {
@@ -391,6 +459,7 @@ pub fn solve<P: LeastSquares>(
                 if linearized {
                     ahead = Some(new_cost);
                 }
+                last_step = Some((step_norm, rho));
                 lambda = (lambda * f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-15);
                 nu = 2.0;
                 if rel < opts.function_tolerance {
@@ -735,13 +804,18 @@ mod tests {
             s.push(0.0);
             s
         };
+        // the Newton stop needs a set-up that stays: off, so both paths match
+        let opts = LmOptions {
+            newton_tolerance: 0.0,
+            ..LmOptions::default()
+        };
         let mut plain = Toy::new(12);
-        let a = solve(&mut plain, start(), &LmOptions::default(), |_| {}).unwrap();
+        let a = solve(&mut plain, start(), &opts, |_| {}).unwrap();
         let mut ahead = Toy {
             keeps: true,
             ..Toy::new(12)
         };
-        let b = solve(&mut ahead, start(), &LmOptions::default(), |_| {}).unwrap();
+        let b = solve(&mut ahead, start(), &opts, |_| {}).unwrap();
         assert!(a.summary.termination.converged(), "{}", a.summary);
         assert_eq!(a.theta, b.theta);
         assert_eq!(a.summary.iterations, b.summary.iterations);
@@ -761,6 +835,51 @@ mod tests {
         let last = usize::from(a.summary.termination != Termination::GradientTolerance);
         assert_eq!(plain.calls.get(), (tried, iters + last));
         assert_eq!(ahead.calls.get(), (0, 1 + tried));
+    }
+
+    /// The Newton stop takes the last step without linearising after it:
+    /// one linearisation fewer than the run without it, the same minimum
+    /// (to the tolerance, in conditional σ) and a covariance from the
+    /// matrix one short step away.
+    #[test]
+    fn the_newton_stop_saves_the_last_linearisation() {
+        let start = || {
+            let mut s = vec![-1.2; 12];
+            s.push(0.0);
+            s
+        };
+        let toy = || Toy {
+            keeps: true,
+            ..Toy::new(12)
+        };
+        let (mut with, mut without) = (toy(), toy());
+        let a = solve(&mut with, start(), &LmOptions::default(), |_| {}).unwrap();
+        let off = LmOptions {
+            newton_tolerance: 0.0,
+            ..LmOptions::default()
+        };
+        let b = solve(&mut without, start(), &off, |_| {}).unwrap();
+        assert_eq!(a.summary.termination, Termination::NewtonTolerance);
+        assert!(b.summary.termination.converged(), "{}", b.summary);
+        let (_, lin_a) = with.calls.get();
+        let (_, lin_b) = without.calls.get();
+        assert!(lin_a < lin_b, "{lin_a} linearisations against {lin_b}");
+        // the minimum, in units of the conditional σ (√A_kk at the optimum)
+        let mut m = with.new_matrix();
+        let mut g = vec![0.0; a.theta.len()];
+        with.linearize(&b.theta, &mut m, &mut g).unwrap();
+        let d = m.diagonal();
+        for (k, (x, y)) in a.theta.iter().zip(&b.theta).enumerate() {
+            let e = (x - y).abs() * d[k].sqrt();
+            assert!(e < 1e-7, "θ[{k}] off by {e:e} σ");
+        }
+        let (ca, cb) = (a.factor.covariance_x(), b.factor.covariance_x());
+        let rel = (ca[(0, 0)] - cb[(0, 0)]).abs() / cb[(0, 0)];
+        assert!(rel < 1e-3, "covariance off by {rel:e}");
+        // the last record is the step taken, at the cost evaluated there
+        let last = a.summary.iterations.last().unwrap();
+        assert_eq!(last.cost, a.summary.final_cost);
+        assert!(a.summary.final_cost <= b.summary.final_cost * (1.0 + 1e-12));
     }
 
     #[test]
