@@ -45,17 +45,18 @@ impl LinkTransform for ChainLink {
 }
 
 /// Joint position, velocity, acceleration and jerk (q, q̇, q̈, q⃛) at one time;
-/// entries beyond the robot's n joints are ignored.
+/// entries beyond the robot's n joints are ignored. With `S` =
+/// [`crate::lanes::F64x4`], four samples' states lane by lane.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct JointState {
+pub struct JointState<S = f64> {
     /// q (rad).
-    pub q: [f64; MAX_JOINTS],
+    pub q: [S; MAX_JOINTS],
     /// q̇ (rad/s).
-    pub qd: [f64; MAX_JOINTS],
+    pub qd: [S; MAX_JOINTS],
     /// q̈ (rad/s²).
-    pub qdd: [f64; MAX_JOINTS],
+    pub qdd: [S; MAX_JOINTS],
     /// q⃛ (rad/s³), used only for the τ derivative.
-    pub qddd: [f64; MAX_JOINTS],
+    pub qddd: [S; MAX_JOINTS],
 }
 
 impl JointState {

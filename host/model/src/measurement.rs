@@ -36,6 +36,7 @@ use super::geom::{self, add, cross, mul_mtv, mul_mv, scale, sub, Iso, M3, V3};
 use super::imu::{self, ImuError, ImuIntrinsics};
 use super::jet::Scalar;
 use super::kinematics::{imu_motion, JointState, LinkTransform};
+use super::lanes::{has_avx2, F64x4};
 use super::params::{ModelParams, Offsets, ParamLayout, ParamLengthError};
 use super::robot::Robot;
 use super::MAX_JOINTS;
@@ -61,57 +62,90 @@ pub enum ModelError {
 
 /// The predicted measurement and its Jacobians at one sample. Columns are
 /// `[f64; 6]` in z order `[ax, ay, az, gx, gy, gz]`.
+/// With `S` = [`F64x4`], four samples' values lane by lane
+/// ([`MeasurementModel::jacobians_x4`]).
 #[derive(Clone, Debug, PartialEq)]
-pub struct MeasurementJacobians {
+pub struct MeasurementJacobians<S = f64> {
     /// Predicted z.
-    pub z: [f64; 6],
+    pub z: [S; 6],
     /// ∂z/∂x, one column per entry of x (τ column included).
-    pub dz_dx: Vec<[f64; 6]>,
+    pub dz_dx: Vec<[S; 6]>,
     /// ∂z/∂q_j, j < n.
-    pub dz_dq: [[f64; 6]; MAX_JOINTS],
+    pub dz_dq: [[S; 6]; MAX_JOINTS],
     /// ∂z/∂q̇_j, j < n.
-    pub dz_dqd: [[f64; 6]; MAX_JOINTS],
+    pub dz_dqd: [[S; 6]; MAX_JOINTS],
     /// ∂z/∂q̈_j, j < n.
-    pub dz_dqdd: [[f64; 6]; MAX_JOINTS],
+    pub dz_dqdd: [[S; 6]; MAX_JOINTS],
 }
 
 impl MeasurementJacobians {
     /// Storage for a parameter vector of `n_params` entries (allocate once, reuse).
     pub fn new(n_params: usize) -> Self {
+        Self::zeros(n_params)
+    }
+}
+
+impl<S: Scalar> MeasurementJacobians<S> {
+    /// Zeroed storage for a parameter vector of `n_params` entries.
+    pub fn zeros(n_params: usize) -> Self {
+        let z = [S::cst(0.0); 6];
         Self {
-            z: [0.0; 6],
-            dz_dx: vec![[0.0; 6]; n_params],
-            dz_dq: [[0.0; 6]; MAX_JOINTS],
-            dz_dqd: [[0.0; 6]; MAX_JOINTS],
-            dz_dqdd: [[0.0; 6]; MAX_JOINTS],
+            z,
+            dz_dx: vec![z; n_params],
+            dz_dq: [z; MAX_JOINTS],
+            dz_dqd: [z; MAX_JOINTS],
+            dz_dqdd: [z; MAX_JOINTS],
+        }
+    }
+}
+
+impl MeasurementJacobians<F64x4> {
+    /// Lane `l`'s Jacobians into `out` (sized alike).
+    pub fn lane_into(&self, l: usize, out: &mut MeasurementJacobians) {
+        let one = |c: &[F64x4; 6]| c.map(|v| v.lane(l));
+        out.z = one(&self.z);
+        for (o, c) in out.dz_dx.iter_mut().zip(&self.dz_dx) {
+            *o = one(c);
+        }
+        for j in 0..MAX_JOINTS {
+            out.dz_dq[j] = one(&self.dz_dq[j]);
+            out.dz_dqd[j] = one(&self.dz_dqd[j]);
+            out.dz_dqdd[j] = one(&self.dz_dqdd[j]);
         }
     }
 }
 
 /// Spatial twist (w, v).
-#[derive(Clone, Copy, Debug, Default)]
-struct Tw {
-    w: V3,
-    v: V3,
+#[derive(Clone, Copy, Debug)]
+struct Tw<S = f64> {
+    w: V3<S>,
+    v: V3<S>,
 }
 
-impl Tw {
+impl<S: Scalar> Tw<S> {
     #[inline(always)]
-    fn add(self, o: Tw) -> Tw {
+    fn zero() -> Self {
+        Tw {
+            w: [S::cst(0.0); 3],
+            v: [S::cst(0.0); 3],
+        }
+    }
+    #[inline(always)]
+    fn add(self, o: Tw<S>) -> Tw<S> {
         Tw {
             w: add(self.w, o.w),
             v: add(self.v, o.v),
         }
     }
     #[inline(always)]
-    fn sub(self, o: Tw) -> Tw {
+    fn sub(self, o: Tw<S>) -> Tw<S> {
         Tw {
             w: sub(self.w, o.w),
             v: sub(self.v, o.v),
         }
     }
     #[inline(always)]
-    fn scale(self, s: f64) -> Tw {
+    fn scale(self, s: S) -> Tw<S> {
         Tw {
             w: scale(self.w, s),
             v: scale(self.v, s),
@@ -119,7 +153,7 @@ impl Tw {
     }
     /// Lie bracket [self, o] = (w1×w2, w1×v2 − w2×v1).
     #[inline(always)]
-    fn bracket(self, o: Tw) -> Tw {
+    fn bracket(self, o: Tw<S>) -> Tw<S> {
         Tw {
             w: cross(self.w, o.w),
             v: sub(cross(self.w, o.v), cross(o.w, self.v)),
@@ -195,27 +229,28 @@ impl SensorConst {
 
     /// Columns ∂z/∂(γ, r, k, b) (12 × 3-vectors) for the physical vector v.
     #[inline(always)]
-    fn intrinsic_columns(&self, v: V3, out: &mut [[f64; 6]], row: usize) {
-        let u = mul_mv(&self.r, v);
-        let w = mul_mv(&self.gr, v);
+    fn intrinsic_columns<S: Scalar>(&self, v: V3<S>, out: &mut [[S; 6]], row: usize) {
+        let u = mul_mv(&lift_m(&self.r), v);
+        let w = mul_mv(&lift_m(&self.gr), v);
         let k = self.k;
-        let mut put = |c: usize, d: V3| {
+        let (z, o) = (S::cst(0.0), S::cst(1.0));
+        let mut put = |c: usize, d: V3<S>| {
             let col = &mut out[c];
-            *col = [0.0; 6];
+            *col = [z; 6];
             col[row..row + 3].copy_from_slice(&d);
         };
-        put(0, [0.0, k[1] * u[0], 0.0]);
-        put(1, [0.0, 0.0, -k[2] * u[0]]);
-        put(2, [0.0, 0.0, k[2] * u[1]]);
+        put(0, [z, u[0] * k[1], z]);
+        put(1, [z, z, -(u[0] * k[2])]);
+        put(2, [z, z, u[1] * k[2]]);
         for i in 0..3 {
-            put(3 + i, mul_mv(&self.dm_dr[i], v));
+            put(3 + i, mul_mv(&lift_m(&self.dm_dr[i]), v));
         }
-        put(6, [w[0], 0.0, 0.0]);
-        put(7, [0.0, w[1], 0.0]);
-        put(8, [0.0, 0.0, w[2]]);
-        put(9, [1.0, 0.0, 0.0]);
-        put(10, [0.0, 1.0, 0.0]);
-        put(11, [0.0, 0.0, 1.0]);
+        put(6, [w[0], z, z]);
+        put(7, [z, w[1], z]);
+        put(8, [z, z, w[2]]);
+        put(9, [o, z, z]);
+        put(10, [z, o, z]);
+        put(11, [z, z, o]);
     }
 }
 
@@ -234,44 +269,44 @@ pub struct MeasurementModel {
 }
 
 /// Chain state for one sample (spatial quantities about the base origin).
-struct Walk {
+struct Walk<S = f64> {
     /// Twists of the real joints.
-    s: [Tw; MAX_JOINTS],
+    s: [Tw<S>; MAX_JOINTS],
     /// Σ_{l ≤ i} S_l q̇_l.
-    v_le: [Tw; MAX_JOINTS],
+    v_le: [Tw<S>; MAX_JOINTS],
     /// Σ_{l ≤ i} A_l.
-    a_le: [Tw; MAX_JOINTS],
+    a_le: [Tw<S>; MAX_JOINTS],
     /// Rotation of the ideal frame i (after T_i·C_i, before E_i).
-    rg: [M3; MAX_JOINTS],
+    rg: [M3<S>; MAX_JOINTS],
     /// Origin of the real frame i (after Trans(ε_i1..3)).
-    ph: [V3; MAX_JOINTS],
-    r: M3,
-    p: V3,
+    ph: [V3<S>; MAX_JOINTS],
+    r: M3<S>,
+    p: V3<S>,
 }
 
 /// Everything at one sample that the derivatives need. Twists here are
 /// re-expressed about the IMU origin p (a constant shift of the coordinate
 /// origin, which preserves brackets), so p-terms vanish: ṗ = V_v,
 /// p̈ = V̇_v + ω_n × ṗ.
-struct Motion {
+struct Motion<S = f64> {
     /// V, V̇ about p.
-    v: Tw,
-    vd: Tw,
-    pd: V3,
+    v: Tw<S>,
+    vd: Tw<S>,
+    pd: V3<S>,
     /// p̈ − g.
-    f: V3,
+    f: V3<S>,
     /// M_a Rᵀ, M_ω Rᵀ.
-    ba: M3,
-    bw: M3,
+    ba: M3<S>,
+    bw: M3<S>,
     /// ω (IMU frame), s.
-    omega: V3,
-    s: V3,
+    omega: V3<S>,
+    s: V3<S>,
 }
 
 #[inline(always)]
-fn mul_m_mt(a: &M3, b: &M3) -> M3 {
+fn mul_m_mt<S: Scalar>(a: &M3<S>, b: &M3<S>) -> M3<S> {
     // A Bᵀ
-    let mut c = [[0.0; 3]; 3];
+    let mut c = [[S::cst(0.0); 3]; 3];
     for i in 0..3 {
         for j in 0..3 {
             c[i][j] = geom::dot(a[i], b[j]);
@@ -282,7 +317,7 @@ fn mul_m_mt(a: &M3, b: &M3) -> M3 {
 
 /// Re-expresses a spatial twist about the point p: (w, v + w × p).
 #[inline(always)]
-fn shift(x: Tw, p: V3) -> Tw {
+fn shift<S: Scalar>(x: Tw<S>, p: V3<S>) -> Tw<S> {
     Tw {
         w: x.w,
         v: add(x.v, cross(x.w, p)),
@@ -291,10 +326,21 @@ fn shift(x: Tw, p: V3) -> Tw {
 
 /// The v part of the bracket [a, b]: a_w × b_v − b_w × a_v.
 #[inline(always)]
-fn bracket_v(a: Tw, b: Tw) -> V3 {
+fn bracket_v<S: Scalar>(a: Tw<S>, b: Tw<S>) -> V3<S> {
     sub(cross(a.w, b.v), cross(b.w, a.v))
 }
 
+/// A constant vector as a vector of `S`.
+#[inline(always)]
+fn lift<S: Scalar>(v: V3) -> V3<S> {
+    v.map(S::cst)
+}
+
+/// A constant matrix as a matrix of `S`.
+#[inline(always)]
+fn lift_m<S: Scalar>(m: &M3) -> M3<S> {
+    m.map(|row| row.map(S::cst))
+}
 impl MeasurementModel {
     /// Prepares the model for parameter vector `x` (in `layout` order).
     pub fn new(robot: &Robot, layout: &ParamLayout, x: &[f64]) -> Result<Self, ModelError> {
@@ -381,9 +427,9 @@ impl MeasurementModel {
 
     /// Walks the chain: frames, joint twists, V and A prefix sums.
     #[inline(always)]
-    fn walk(&self, js: &JointState, wk: &mut Walk) {
-        let (mut vsum, mut asum) = (Tw::default(), Tw::default());
-        let (mut r, mut p) = (geom::identity(), [0.0; 3]);
+    fn walk<S: Scalar>(&self, js: &JointState<S>, wk: &mut Walk<S>) {
+        let (mut vsum, mut asum) = (Tw::zero(), Tw::zero());
+        let (mut r, mut p) = (geom::identity(), [S::cst(0.0); 3]);
         for i in 0..self.n {
             let l = &self.links[i];
             let w = geom::col(&r, 2);
@@ -397,24 +443,24 @@ impl MeasurementModel {
             // R_G = R·Rz(θ)·Rx(α), p_G = p + R·(a c, a s, d).
             let (st, ct) = (js.q[i] + l.theta0).sin_cos();
             let mz = [
-                [ct, -st * l.ca, st * l.sa],
-                [st, ct * l.ca, -ct * l.sa],
-                [0.0, l.sa, l.ca],
+                [ct, -(st * l.ca), st * l.sa],
+                [st, ct * l.ca, -(ct * l.sa)],
+                [S::cst(0.0), S::cst(l.sa), S::cst(l.ca)],
             ];
             let mut rg = geom::mul_mm(&r, &mz);
-            let mut pg = add(p, mul_mv(&r, [l.a * ct, l.a * st, l.d]));
+            let mut pg = add(p, mul_mv(&r, [ct * l.a, st * l.a, S::cst(l.d)]));
             if let Some((cr, cp)) = &l.fixed {
                 // The fixed C_i after the DH part: frame ·= [cr cp].
-                pg = add(pg, mul_mv(&rg, *cp));
-                rg = geom::mul_mm(&rg, cr);
+                pg = add(pg, mul_mv(&rg, lift(*cp)));
+                rg = geom::mul_mm(&rg, &lift_m(cr));
             }
-            let ph = add(pg, mul_mv(&rg, l.t));
+            let ph = add(pg, mul_mv(&rg, lift(l.t)));
             wk.rg[i] = rg;
             wk.ph[i] = ph;
             r = if l.e_rot_identity {
                 rg
             } else {
-                geom::mul_mm(&rg, &l.e_rot)
+                geom::mul_mm(&rg, &lift_m(&l.e_rot))
             };
             p = ph;
         }
@@ -423,26 +469,27 @@ impl MeasurementModel {
     }
 
     #[inline(always)]
-    fn new_walk() -> Walk {
+    fn new_walk<S: Scalar>() -> Walk<S> {
+        let z = S::cst(0.0);
         Walk {
-            s: [Tw::default(); MAX_JOINTS],
-            v_le: [Tw::default(); MAX_JOINTS],
-            a_le: [Tw::default(); MAX_JOINTS],
-            rg: [[[0.0; 3]; 3]; MAX_JOINTS],
-            ph: [[0.0; 3]; MAX_JOINTS],
-            r: [[0.0; 3]; 3],
-            p: [0.0; 3],
+            s: [Tw::zero(); MAX_JOINTS],
+            v_le: [Tw::zero(); MAX_JOINTS],
+            a_le: [Tw::zero(); MAX_JOINTS],
+            rg: [[[z; 3]; 3]; MAX_JOINTS],
+            ph: [[z; 3]; MAX_JOINTS],
+            r: [[z; 3]; 3],
+            p: [z; 3],
         }
     }
 
     #[inline(always)]
-    fn motion(&self, wk: &Walk) -> Motion {
+    fn motion<S: Scalar>(&self, wk: &Walk<S>) -> Motion<S> {
         let n = self.n;
         let v = shift(wk.v_le[n - 1], wk.p);
         let vd = shift(wk.a_le[n - 1], wk.p);
         let pd = v.v;
         let pdd = add(vd.v, cross(v.w, pd));
-        let f = sub(pdd, self.g);
+        let f = sub(pdd, lift(self.g));
         let omega = mul_mtv(&wk.r, v.w);
         let s = mul_mtv(&wk.r, f);
         Motion {
@@ -450,8 +497,8 @@ impl MeasurementModel {
             vd,
             pd,
             f,
-            ba: mul_m_mt(&self.accel.m, &wk.r),
-            bw: mul_m_mt(&self.gyro.m, &wk.r),
+            ba: mul_m_mt(&lift_m(&self.accel.m), &wk.r),
+            bw: mul_m_mt(&lift_m(&self.gyro.m), &wk.r),
             omega,
             s,
         }
@@ -468,6 +515,28 @@ impl MeasurementModel {
 
     /// Predicted z = [s̃; ω̃] at the joint state q(t_i + τ) (eq. (6), (10)).
     pub fn predict(&self, js: &JointState) -> [f64; 6] {
+        self.predict_lanes(js)
+    }
+
+    /// [`Self::predict`] of four samples at once, lane by lane (bit-identical
+    /// to four scalar calls; [`crate::lanes`]).
+    pub fn predict_x4(&self, js: &JointState<F64x4>) -> [F64x4; 6] {
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx,avx2")]
+            fn avx2(m: &MeasurementModel, js: &JointState<F64x4>) -> [F64x4; 6] {
+                m.predict_lanes(js)
+            }
+            if has_avx2() {
+                // SAFETY: the CPU has AVX and AVX2 (checked just above).
+                return unsafe { avx2(self, js) };
+            }
+        }
+        self.predict_lanes(js)
+    }
+
+    #[inline(always)]
+    fn predict_lanes<S: Scalar>(&self, js: &JointState<S>) -> [S; 6] {
         let mut wk = Self::new_walk();
         self.walk(js, &mut wk);
         let mo = self.motion(&wk);
@@ -475,9 +544,9 @@ impl MeasurementModel {
     }
 
     #[inline(always)]
-    fn output(&self, mo: &Motion) -> [f64; 6] {
-        let a = add(mul_mv(&self.accel.m, mo.s), self.accel.b);
-        let w = add(mul_mv(&self.gyro.m, mo.omega), self.gyro.b);
+    fn output<S: Scalar>(&self, mo: &Motion<S>) -> [S; 6] {
+        let a = add(mul_mv(&lift_m(&self.accel.m), mo.s), lift(self.accel.b));
+        let w = add(mul_mv(&lift_m(&self.gyro.m), mo.omega), lift(self.gyro.b));
         [a[0], a[1], a[2], w[0], w[1], w[2]]
     }
 
@@ -487,11 +556,44 @@ impl MeasurementModel {
     /// If `out` was not sized for this model's x (`MeasurementJacobians::new(self.n_params())`).
     #[track_caller]
     pub fn jacobians(&self, js: &JointState, out: &mut MeasurementJacobians) {
-        assert_eq!(
-            out.dz_dx.len(),
-            self.offsets.len,
-            "Jacobian storage sized for another x"
-        );
+        self.check_size(out.dz_dx.len());
+        self.jacobians_lanes(js, out);
+    }
+
+    /// [`Self::jacobians`] of four samples at once, lane by lane
+    /// (bit-identical to four scalar calls; [`crate::lanes`]).
+    ///
+    /// # Panics
+    /// If `out` was not sized for this model's x (`MeasurementJacobians::zeros(self.n_params())`).
+    #[track_caller]
+    pub fn jacobians_x4(&self, js: &JointState<F64x4>, out: &mut MeasurementJacobians<F64x4>) {
+        self.check_size(out.dz_dx.len());
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx,avx2")]
+            fn avx2(
+                m: &MeasurementModel,
+                js: &JointState<F64x4>,
+                out: &mut MeasurementJacobians<F64x4>,
+            ) {
+                m.jacobians_lanes(js, out)
+            }
+            if has_avx2() {
+                // SAFETY: the CPU has AVX and AVX2 (checked just above).
+                return unsafe { avx2(self, js, out) };
+            }
+        }
+        self.jacobians_lanes(js, out)
+    }
+
+    #[track_caller]
+    fn check_size(&self, n: usize) {
+        assert_eq!(n, self.offsets.len, "Jacobian storage sized for another x");
+    }
+
+    /// The Jacobians for any lane type (f64: one sample; [`F64x4`]: four).
+    #[inline(always)]
+    fn jacobians_lanes<S: Scalar>(&self, js: &JointState<S>, out: &mut MeasurementJacobians<S>) {
         let mut wk = Self::new_walk();
         self.walk(js, &mut wk);
         let mo = self.motion(&wk);
@@ -500,8 +602,9 @@ impl MeasurementModel {
         let p = wk.p;
         let (v, vd) = (mo.v, mo.vd);
         let (omega_n, alpha_n) = (v.w, vd.w);
+        let zero = S::cst(0.0);
 
-        let mut vle_prev = Tw::default();
+        let mut vle_prev = Tw::zero();
         for i in 0..n {
             // Split at link i, about p: V_≤, V_>, and X = V̇_> − [V_≤, V_>].
             let vle = shift(wk.v_le[i], p);
@@ -509,7 +612,7 @@ impl MeasurementModel {
             let x = vd.sub(shift(wk.a_le[i], p)).sub(vle.bracket(vgt));
             // Position-like screw on link i (twist about p) → dz:
             // ∂V = [S, V_>], ∂V̇_v = [S, X]_v + [V_≤, ∂V]_v, ∂p = S_v.
-            let screw = |sk: Tw| -> [f64; 6] {
+            let screw = |sk: Tw<S>| -> [S; 6] {
                 let dv = sk.bracket(vgt);
                 let dvd_v = add(bracket_v(sk, x), bracket_v(vle, dv));
                 let dp = sk.v;
@@ -541,14 +644,14 @@ impl MeasurementModel {
                         let dpd = add(dv_v, cross(omega_n, d));
                         let dpdd = add(add(dvd_v, cross(alpha_n, d)), cross(omega_n, dpd));
                         let da = mul_mv(&mo.ba, dpdd);
-                        out.dz_dx[col] = [da[0], da[1], da[2], 0.0, 0.0, 0.0];
+                        out.dz_dx[col] = [da[0], da[1], da[2], zero, zero, zero];
                         continue;
                     }
                     _ => {
                         let ax = match k {
                             3 => geom::col(rg, 1),
-                            4 => mul_mv(rg, l.ax5),
-                            _ => mul_mv(rg, l.ax6),
+                            4 => mul_mv(rg, lift(l.ax5)),
+                            _ => mul_mv(rg, lift(l.ax6)),
                         };
                         Tw {
                             w: ax,
@@ -567,15 +670,15 @@ impl MeasurementModel {
             let dw = mul_mv(&mo.bw, sj.w);
             out.dz_dqd[i] = [da[0], da[1], da[2], dw[0], dw[1], dw[2]];
             let da = mul_mv(&mo.ba, dpd);
-            out.dz_dqdd[i] = [da[0], da[1], da[2], 0.0, 0.0, 0.0];
+            out.dz_dqdd[i] = [da[0], da[1], da[2], zero, zero, zero];
             vle_prev = vle;
         }
         let o = &self.offsets;
         for (c, dg) in self.dg.iter().enumerate() {
-            let da = mul_mv(&mo.ba, *dg);
-            out.dz_dx[o.g_xy + c] = [-da[0], -da[1], -da[2], 0.0, 0.0, 0.0];
+            let da = mul_mv(&mo.ba, lift(*dg));
+            out.dz_dx[o.g_xy + c] = [-da[0], -da[1], -da[2], zero, zero, zero];
         }
-        let mut tau = [0.0; 6];
+        let mut tau = [zero; 6];
         for j in 0..n {
             for (r, t) in tau.iter_mut().enumerate() {
                 *t += out.dz_dq[j][r] * js.qd[j]

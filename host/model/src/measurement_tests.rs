@@ -347,3 +347,44 @@ fn bad_inputs_are_typed_errors() {
         Err(ModelError::Imu(ImuError::GravityOutOfRange { .. }))
     ));
 }
+
+/// Four samples in the lanes of [`F64x4`] give, lane by lane, exactly the
+/// bits of four scalar evaluations (prediction and every Jacobian), on the
+/// AVX2 copy where the CPU has it and on the baseline copy.
+#[test]
+fn four_lanes_are_four_scalar_evaluations_bit_for_bit() {
+    let (robot, layout) = setup();
+    let mut rng = Lcg(0x5eed_1a7e);
+    for _ in 0..5 {
+        let x = perturbed_x(&layout, &mut rng);
+        let model = MeasurementModel::new(&robot, &layout, &x).unwrap();
+        let states: [JointState; 4] = std::array::from_fn(|_| random_state(&mut rng));
+        let mut js4 = JointState::<F64x4>::default();
+        for (l, js) in states.iter().enumerate() {
+            for j in 0..MAX_JOINTS {
+                js4.q[j].0[l] = js.q[j];
+                js4.qd[j].0[l] = js.qd[j];
+                js4.qdd[j].0[l] = js.qdd[j];
+                js4.qddd[j].0[l] = js.qddd[j];
+            }
+        }
+        let mut jac4 = MeasurementJacobians::<F64x4>::zeros(layout.len());
+        model.jacobians_x4(&js4, &mut jac4);
+        let mut base4 = MeasurementJacobians::<F64x4>::zeros(layout.len());
+        model.jacobians_lanes(&js4, &mut base4);
+        assert_eq!(jac4, base4, "the AVX2 copy and the baseline copy differ");
+        let z4 = model.predict_x4(&js4);
+        let (mut one, mut lane) = (
+            MeasurementJacobians::new(layout.len()),
+            MeasurementJacobians::new(layout.len()),
+        );
+        for (l, js) in states.iter().enumerate() {
+            model.jacobians(js, &mut one);
+            jac4.lane_into(l, &mut lane);
+            assert_eq!(one, lane, "lane {l}");
+            let z = model.predict(js);
+            assert_eq!(z, z4.map(|v| v.lane(l)), "prediction, lane {l}");
+            assert_eq!(z, one.z);
+        }
+    }
+}

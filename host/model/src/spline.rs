@@ -11,6 +11,7 @@
 //! Tiller, *The NURBS Book*, A2.2 and eq. (2.9)), allocation-free.
 
 use super::kinematics::JointState;
+use super::lanes::F64x4;
 use super::MAX_JOINTS;
 
 /// Largest supported degree.
@@ -199,6 +200,31 @@ pub struct Basis {
     pub count: usize,
     /// Values and derivatives.
     pub d: [[f64; MAX_DEGREE + 1]; MAX_DERIV + 1],
+}
+
+/// The non-zero basis functions of four samples of one knot span, lane by
+/// lane ([`crate::lanes`]): `d[k][j]` as in [`Basis`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Basis4 {
+    /// Index of the first non-zero basis function (the same for every lane).
+    pub first: usize,
+    /// Number of non-zero basis functions (p + 1).
+    pub count: usize,
+    /// Values and derivatives.
+    pub d: [[F64x4; MAX_DEGREE + 1]; MAX_DERIV + 1],
+}
+
+impl Basis4 {
+    /// Put `b` into lane `l` (`first` and `count` from it).
+    pub fn set_lane(&mut self, l: usize, b: &Basis) {
+        self.first = b.first;
+        self.count = b.count;
+        for (dk, bk) in self.d.iter_mut().zip(&b.d) {
+            for (v, &x) in dk.iter_mut().zip(bk) {
+                v.0[l] = x;
+            }
+        }
+    }
 }
 
 /// The non-zero basis functions of every knot span as polynomials, for
@@ -493,6 +519,24 @@ impl Spline {
             [&mut out.q, &mut out.qd, &mut out.qdd, &mut out.qddd];
         for (k, row) in rows.into_iter().enumerate() {
             row.fill(0.0);
+            for a in 0..basis.count {
+                let w = basis.d[k][a];
+                let c = &self.coeffs[(basis.first + a) * dim..(basis.first + a + 1) * dim];
+                for j in 0..dim {
+                    row[j] += w * c[j];
+                }
+            }
+        }
+    }
+
+    /// [`Self::evaluate_basis`] of four samples of one knot span, lane by
+    /// lane (bit-identical to four scalar calls; [`crate::lanes`]).
+    pub fn evaluate_basis_x4(&self, basis: &Basis4, out: &mut JointState<F64x4>) {
+        let dim = self.dim;
+        let rows: [&mut [F64x4; MAX_JOINTS]; 4] =
+            [&mut out.q, &mut out.qd, &mut out.qdd, &mut out.qddd];
+        for (k, row) in rows.into_iter().enumerate() {
+            row.fill(F64x4::splat(0.0));
             for a in 0..basis.count {
                 let w = basis.d[k][a];
                 let c = &self.coeffs[(basis.first + a) * dim..(basis.first + a + 1) * dim];

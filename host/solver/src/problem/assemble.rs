@@ -9,7 +9,9 @@ use faer::{Accum, Mat, MatRef, Par};
 use super::{Problem, ProblemError, Stream};
 use crate::ArrowMatrix;
 use robimu_model::effects::SampleContext;
-use robimu_model::{Basis, JointState, MeasurementJacobians, MeasurementModel, Spline};
+use robimu_model::{
+    Basis, Basis4, F64x4, JointState, MeasurementJacobians, MeasurementModel, Spline,
+};
 
 /// Where one IMU sample sits on the trajectory: its basis functions and
 /// q(t_i + τ), and storage for its effect terms.
@@ -422,15 +424,17 @@ impl Problem<'_> {
             }
             return Ok(cost);
         };
-        let mut jac = MeasurementJacobians::new(nx);
+        let mut jac = MeasurementJacobians::<F64x4>::zeros(nx);
         let mut blocks = [
             Stack::new(nl, 0, &st.sensor_columns[0]),
             Stack::new(nl, 0, &st.sensor_columns[1]),
         ];
         let mut group_first = usize::MAX;
-        for i in range {
-            self.locate(st, spline, tau, i, &mut at)?;
-            let (basis, js) = (&at.basis, &at.js);
+        let mut quads = Quads::new(range);
+        let mut quad = Quad::default();
+        let mut lanes = LaneEffects::new(self, st);
+        while quads.next(self, st, spline, tau, &mut quad)? {
+            let basis = &quad.basis;
             if (basis.first != group_first && blocks[0].rows > 0) || blocks[0].full() {
                 for b in &mut blocks {
                     b.flush(out);
@@ -442,49 +446,202 @@ impl Problem<'_> {
                 }
             }
             group_first = basis.first;
-            model.jacobians(js, &mut jac);
-            let cols = &mut at.effect.cols;
-            let z = self.with_effect_terms(st, model, i, js, &jac, theta_e, cols);
-            let zm = &st.z[i];
-            for (sensor, block) in blocks.iter_mut().enumerate() {
-                for ch in 3 * sensor..3 * sensor + 3 {
-                    let w = self.inv_sigma_z[ch];
-                    let r = (zm[ch] - z[ch]) * w;
+            model.jacobians_x4(&quad.js, &mut jac);
+            let z = lanes.predictions(self, st, model, &quad, &jac, theta_e);
+            // residuals, and the cost summed sample by sample as the scalar
+            // assembly does
+            let mut res = [[0.0; 6]; 4];
+            for (l, &i) in quad.idx[..quad.len].iter().enumerate() {
+                let zm = &st.z[i];
+                for ch in 0..6 {
+                    let r = (zm[ch] - z[l][ch]) * self.inv_sigma_z[ch];
                     cost += 0.5 * r * r;
-                    let row = block.rows;
-                    block.r[row] = r;
-                    let col = block
-                        .jt
-                        .col_mut(row)
-                        .try_as_col_major_mut()
-                        .expect("contiguous column");
-                    let col = col.as_slice_mut();
+                    res[l][ch] = r;
+                }
+            }
+            for (sensor, block) in blocks.iter_mut().enumerate() {
+                for c in 0..3 {
+                    let ch = 3 * sensor + c;
+                    let row = block.rows + 4 * c;
+                    // −w per lane, 0 on the lanes that repeat a sample
+                    let w = F64x4(std::array::from_fn(|l| {
+                        if l < quad.len {
+                            -self.inv_sigma_z[ch]
+                        } else {
+                            -0.0
+                        }
+                    }));
+                    block.r[row..row + 4].copy_from_slice(&res.map(|r| r[ch]));
                     // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)/σ
                     for a in 0..basis.count {
                         let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
-                        for j in 0..n {
-                            col[a * n + j] = -w
-                                * (jac.dz_dq[j][ch] * n0
-                                    + jac.dz_dqd[j][ch] * n1
-                                    + jac.dz_dqdd[j][ch] * n2);
+                        for jn in 0..n {
+                            let v = w
+                                * (jac.dz_dq[jn][ch] * n0
+                                    + jac.dz_dqd[jn][ch] * n1
+                                    + jac.dz_dqdd[jn][ch] * n2);
+                            *block.lanes(a * n + jn, row) = v.0;
                         }
                     }
                     for (a, &(k, _)) in block.columns.iter().enumerate() {
                         let d = if k < nx {
                             jac.dz_dx[k][ch]
                         } else {
-                            at.effect.cols[k - nx][ch]
+                            lanes.column(k - nx, ch)
                         };
-                        col[nl + a] = -w * d;
+                        *block.lanes(nl + a, row) = (w * d).0;
                     }
-                    block.rows += 1;
                 }
+                block.rows += 12;
             }
         }
         for b in &mut blocks {
             b.flush(out);
         }
         Ok(cost)
+    }
+}
+
+/// Up to four consecutive samples of one knot span, evaluated together in
+/// the lanes of [`F64x4`] ([`robimu_model::lanes`]). Lanes from `len` on
+/// repeat the last sample; their rows are weighted by 0.
+#[derive(Default)]
+struct Quad {
+    idx: [usize; 4],
+    len: usize,
+    basis: Basis4,
+    js: JointState<F64x4>,
+}
+
+/// Cuts a range of samples into [`Quad`]s that never straddle a knot span.
+struct Quads {
+    next: usize,
+    end: usize,
+    /// The basis of sample `next`, when already computed (it began a new span).
+    pending: Option<Basis>,
+}
+
+impl Quads {
+    fn new(range: Range<usize>) -> Self {
+        Self {
+            next: range.start,
+            end: range.end,
+            pending: None,
+        }
+    }
+
+    /// The next quad into `q` (its basis and joint state set); false at the end.
+    fn next(
+        &mut self,
+        p: &Problem<'_>,
+        st: &Stream<'_>,
+        spline: &Spline,
+        tau: f64,
+        q: &mut Quad,
+    ) -> Result<bool, ProblemError> {
+        q.len = 0;
+        let (mut b, mut last) = (Basis::default(), Basis::default());
+        while self.next < self.end && q.len < 4 {
+            let i = self.next;
+            match self.pending.take() {
+                Some(pb) => b = pb,
+                None => p
+                    .spans
+                    .basis(st.t[i] + tau, &mut b)
+                    .map_err(|_| ProblemError::SampleOutOfSpan)?,
+            }
+            if q.len > 0 && b.first != q.basis.first {
+                self.pending = Some(b);
+                break;
+            }
+            q.basis.set_lane(q.len, &b);
+            last = b;
+            q.idx[q.len] = i;
+            q.len += 1;
+            self.next += 1;
+        }
+        if q.len == 0 {
+            return Ok(false);
+        }
+        for l in q.len..4 {
+            q.basis.set_lane(l, &last);
+            q.idx[l] = q.idx[q.len - 1];
+        }
+        spline.evaluate_basis_x4(&q.basis, &mut q.js);
+        Ok(true)
+    }
+}
+
+/// The predictions of a quad's lanes, with the effect terms when the
+/// problem has effects (they are evaluated per sample from the lane's
+/// scalar Jacobians, [`Problem::with_effect_terms`]).
+struct LaneEffects {
+    /// Scalar Jacobians of one lane (empty without effects).
+    one: MeasurementJacobians,
+    /// ∂z/∂θ_E of each lane.
+    cols: [Vec<[f64; 6]>; 4],
+}
+
+impl LaneEffects {
+    fn new(p: &Problem<'_>, st: &Stream<'_>) -> Self {
+        let nx = if p.effects.is_empty() {
+            0
+        } else {
+            p.imu_layout.len()
+        };
+        Self {
+            one: MeasurementJacobians::new(nx),
+            cols: std::array::from_fn(|_| vec![[0.0; 6]; st.effect_map.len()]),
+        }
+    }
+
+    /// z of each lane (baseline + effect terms; effect columns kept).
+    fn predictions(
+        &mut self,
+        p: &Problem<'_>,
+        st: &Stream<'_>,
+        model: &MeasurementModel,
+        q: &Quad,
+        jac: &MeasurementJacobians<F64x4>,
+        theta_e: &[f64],
+    ) -> [[f64; 6]; 4] {
+        let mut z = [[0.0; 6]; 4];
+        for l in 0..q.len {
+            if p.effects.is_empty() {
+                z[l] = jac.z.map(|v| v.lane(l));
+            } else {
+                jac.lane_into(l, &mut self.one);
+                let js = lane_state(&q.js, l);
+                z[l] = p.with_effect_terms(
+                    st,
+                    model,
+                    q.idx[l],
+                    &js,
+                    &self.one,
+                    theta_e,
+                    &mut self.cols[l],
+                );
+            }
+        }
+        z
+    }
+
+    /// Effect column `e`, channel `ch`, over the lanes (0 beyond the quad).
+    fn column(&self, e: usize, ch: usize) -> F64x4 {
+        F64x4(std::array::from_fn(|l| {
+            self.cols[l].get(e).map_or(0.0, |c| c[ch])
+        }))
+    }
+}
+
+/// Lane `l` of a four-lane joint state.
+fn lane_state(js: &JointState<F64x4>, l: usize) -> JointState {
+    let one = |v: &[F64x4; robimu_model::MAX_JOINTS]| v.map(|x| x.lane(l));
+    JointState {
+        q: one(&js.q),
+        qd: one(&js.qd),
+        qdd: one(&js.qdd),
+        qddd: one(&js.qddd),
     }
 }
 
@@ -609,6 +766,7 @@ impl Problem<'_> {
             Stack::new(nl, extra * n, &st.sensor_columns[0]),
             Stack::new(nl, extra * n, &st.sensor_columns[1]),
         ];
+        let mut row_buf = vec![0.0; nl + extra * n + widths[0].max(widths[1])];
         let mut group_first = usize::MAX;
         for i in self.warm_start(st, &range)..range.end {
             self.locate(st, spline, tau, i, &mut at)?;
@@ -669,12 +827,7 @@ impl Problem<'_> {
                     let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
                     let row = block.rows;
                     let (b0, nl_cur) = (block.b0, block.nl_cur);
-                    let col = block
-                        .jt
-                        .col_mut(row)
-                        .try_as_col_major_mut()
-                        .expect("contiguous column");
-                    let col = &mut col.as_slice_mut()[..nl_cur + block.columns.len()];
+                    let col = &mut row_buf[..nl_cur + block.columns.len()];
                     col.fill(0.0);
                     let mut u = 0.0;
                     for k in 0..=a.len() {
@@ -695,6 +848,7 @@ impl Problem<'_> {
                         }
                     }
                     cost += 0.5 * u * u;
+                    block.set_row(row, col);
                     block.r[row] = u;
                     block.rows += 1;
                 }
@@ -708,14 +862,17 @@ impl Problem<'_> {
 }
 
 /// Rows of one sensor's whitened Jacobian for the samples of knot span g,
-/// stored transposed (one contiguous column per row), over the band unknowns
-/// of spans b0 = max(g − E, 0) … g + p_s, then the sensor's x columns. The
-/// white assembly uses it with E = 0 (its rows are its own samples'), the
-/// GLS one with the E of the widened band.
+/// over the band unknowns of spans b0 = max(g − E, 0) … g + p_s, then the
+/// sensor's x columns, stored column-major (a column's rows contiguous, so
+/// that the four lanes of a quad are one store). The white assembly uses it
+/// with E = 0 (its rows are its own samples', four rows per channel and
+/// quad), the GLS one with the E of the widened band (one row at a time).
 struct Stack<'c> {
     nl: usize,
     columns: &'c [(usize, usize)],
-    jt: Mat<f64>,
+    /// J, column-major with column stride `cap`.
+    j: Vec<f64>,
+    cap: usize,
     r: Vec<f64>,
     rows: usize,
     local: Mat<f64>,
@@ -732,11 +889,13 @@ struct Stack<'c> {
 impl<'c> Stack<'c> {
     fn new(nl: usize, extra: usize, columns: &'c [(usize, usize)]) -> Self {
         let cols = nl + extra + columns.len();
+        let cap = 3 * GROUP_CAP;
         Self {
             nl,
             columns,
-            jt: Mat::zeros(cols, 3 * GROUP_CAP),
-            r: vec![0.0; 3 * GROUP_CAP],
+            j: vec![0.0; cols * cap],
+            cap,
+            r: vec![0.0; cap],
             rows: 0,
             local: Mat::zeros(cols, cols),
             glocal: Mat::zeros(cols, 1),
@@ -747,8 +906,23 @@ impl<'c> Stack<'c> {
         }
     }
 
+    /// Whether a quad's 12 rows no longer fit.
     fn full(&self) -> bool {
-        self.rows + 3 > self.r.len()
+        self.rows + 12 > self.cap
+    }
+
+    /// Rows `row..row + 4` of column `c`.
+    #[inline(always)]
+    fn lanes(&mut self, c: usize, row: usize) -> &mut [f64; 4] {
+        let at = c * self.cap + row;
+        (&mut self.j[at..at + 4]).try_into().expect("four rows")
+    }
+
+    /// Row `row` from its values over the current group's columns.
+    fn set_row(&mut self, row: usize, values: &[f64]) {
+        for (c, &v) in values.iter().enumerate() {
+            self.j[c * self.cap + row] = v;
+        }
     }
 
     /// Begin the rows of span `g` (the stack must be empty).
@@ -766,22 +940,34 @@ impl<'c> Stack<'c> {
             return;
         }
         let (nl, cols) = (self.nl_cur, self.nl_cur + self.columns.len());
-        let jt = self.jt.as_ref().submatrix(0, 0, cols, self.rows);
+        let j = MatRef::from_column_major_slice_with_stride(
+            &self.j[..(cols - 1) * self.cap + self.rows],
+            self.rows,
+            cols,
+            self.cap,
+        );
         let r = MatRef::from_column_major_slice(&self.r[..self.rows], self.rows, 1);
         let mut local = self.local.as_mut().submatrix_mut(0, 0, cols, cols);
         faer::linalg::matmul::triangular::matmul(
             local.as_mut(),
             BlockStructure::TriangularLower,
             Accum::Replace,
-            jt,
+            j.transpose(),
             BlockStructure::Rectangular,
-            jt.transpose(),
+            j,
             BlockStructure::Rectangular,
             1.0,
             Par::Seq,
         );
         let mut glocal = self.glocal.as_mut().submatrix_mut(0, 0, cols, 1);
-        faer::linalg::matmul::matmul(glocal.as_mut(), Accum::Replace, jt, r, 1.0, Par::Seq);
+        faer::linalg::matmul::matmul(
+            glocal.as_mut(),
+            Accum::Replace,
+            j.transpose(),
+            r,
+            1.0,
+            Par::Seq,
+        );
         let c0 = self.c0;
         out.a.add_local(c0, nl, &self.x_index, local.as_ref());
         let nc = out.a.dims().0;
