@@ -5,8 +5,23 @@
 //! columns: [`read_table_with`]), then one row per sample in time order.
 //! Lines starting with `#` are comments. Every value must be a finite number;
 //! time must never decrease. Errors name the file and the line.
+//!
+//! The files are read as the `csv` crate reads them (fields trimmed, `"`
+//! quotes, `\r\n` line ends, its line numbers) and every number as
+//! `str::parse::<f64>` reads it, without either on the common path:
+//! `records` splits the stream into records through one reused buffer,
+//! `decimal` reads plain numbers straight from the bytes, `read` puts
+//! the rows together and names the problem of a bad one.
+
+mod decimal;
+mod read;
+mod records;
+#[cfg(test)]
+mod reference;
 
 use std::path::Path;
+
+use records::Records;
 
 use super::SessionError;
 
@@ -105,7 +120,8 @@ pub fn read_table_with(
     optional: &[&str],
 ) -> Result<(Table, OptionalColumns), SessionError> {
     let file = std::fs::File::open(path).map_err(|e| SessionError::io(path, e))?;
-    parse_table_with(std::io::BufReader::new(file), path, columns, optional)
+    let size = file.metadata().map_or(0, |m| m.len());
+    read::table(Records::new(file), size, path, columns, optional)
 }
 
 /// [`parse_table`] with optional extra columns (see [`read_table_with`]).
@@ -115,175 +131,7 @@ pub fn parse_table_with(
     columns: Columns<'_>,
     optional: &[&str],
 ) -> Result<(Table, OptionalColumns), SessionError> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .comment(Some(b'#'))
-        .trim(csv::Trim::All)
-        .has_headers(true)
-        .flexible(true)
-        .from_reader(reader);
-    let header = rdr.headers().map_err(|e| csv_error(path, e))?.clone();
-    if header.is_empty() || header.iter().all(str::is_empty) {
-        return Err(SessionError::file(
-            path,
-            "the file is empty (no header line)",
-        ));
-    }
-    let names = required_columns(&header, columns)
-        .map_err(|m| SessionError::line(path, header_line(&header), m))?;
-    let width = names.len();
-    // the field index of each optional column, when the header has it
-    let wanted: Vec<Option<usize>> = optional
-        .iter()
-        .map(|name| {
-            header
-                .iter()
-                .skip(width + 1)
-                .position(|h| h == *name)
-                .map(|p| p + width + 1)
-        })
-        .collect();
-    let mut extra: OptionalColumns = wanted.iter().map(|w| w.map(|_| Vec::new())).collect();
-    let mut table = Table {
-        columns: names,
-        ..Table::default()
-    };
-    let mut record = csv::StringRecord::new();
-    loop {
-        match rdr.read_record(&mut record) {
-            Ok(true) => {}
-            Ok(false) => break,
-            Err(e) => return Err(csv_error(path, e)),
-        }
-        let line = record.position().map_or(0, |p| p.line());
-        if record.len() < width + 1 {
-            return Err(SessionError::line(
-                path,
-                line,
-                format!(
-                    "expected at least {} fields, found {}",
-                    width + 1,
-                    record.len()
-                ),
-            ));
-        }
-        for (k, field) in record.iter().take(width + 1).enumerate() {
-            let v: f64 = field.parse().map_err(|_| {
-                let col = if k == 0 { "t" } else { &table.columns[k - 1] };
-                SessionError::line(
-                    path,
-                    line,
-                    format!("column `{col}`: `{field}` is not a number"),
-                )
-            })?;
-            if !v.is_finite() {
-                let col = if k == 0 { "t" } else { &table.columns[k - 1] };
-                return Err(SessionError::line(
-                    path,
-                    line,
-                    format!("column `{col}`: {field} is not a finite number"),
-                ));
-            }
-            if k == 0 {
-                if let Some(&prev) = table.t.last() {
-                    if v < prev {
-                        return Err(SessionError::line(
-                            path,
-                            line,
-                            format!("time goes backwards: t = {v} after t = {prev}"),
-                        ));
-                    }
-                }
-                table.t.push(v);
-            } else {
-                table.values.push(v);
-            }
-        }
-        for ((k, name), values) in wanted.iter().zip(optional).zip(&mut extra) {
-            let (Some(k), Some(values)) = (k, values) else {
-                continue;
-            };
-            let field = record.get(*k).unwrap_or("");
-            match field.parse::<f64>() {
-                Ok(v) if v.is_finite() => values.push(v),
-                _ => {
-                    return Err(SessionError::line(
-                        path,
-                        line,
-                        format!("column `{name}`: `{field}` is not a finite number"),
-                    ))
-                }
-            }
-        }
-    }
-    if table.is_empty() {
-        return Err(SessionError::file(path, "no data rows after the header"));
-    }
-    Ok((table, extra))
-}
-
-fn header_line(header: &csv::StringRecord) -> u64 {
-    header.position().map_or(1, |p| p.line())
-}
-
-fn required_columns(
-    header: &csv::StringRecord,
-    columns: Columns<'_>,
-) -> Result<Vec<String>, String> {
-    let got: Vec<&str> = header.iter().collect();
-    if got.first() != Some(&"t") {
-        return Err(format!(
-            "the header must start with `t`, found `{}`",
-            got.first().copied().unwrap_or("")
-        ));
-    }
-    match columns {
-        Columns::Fixed(names) => {
-            for (i, name) in names.iter().enumerate() {
-                match got.get(i + 1) {
-                    Some(g) if g == name => {}
-                    Some(g) => {
-                        return Err(format!(
-                            "column {} must be `{name}`, found `{g}` (expected header `t,{}`)",
-                            i + 2,
-                            names.join(",")
-                        ))
-                    }
-                    None => {
-                        return Err(format!(
-                            "missing column `{name}` (expected header `t,{}`)",
-                            names.join(",")
-                        ))
-                    }
-                }
-            }
-            Ok(names.iter().map(|s| s.to_string()).collect())
-        }
-        Columns::Joints => {
-            let n = got[1..]
-                .iter()
-                .enumerate()
-                .take_while(|(i, g)| **g == format!("q{}", i + 1))
-                .count();
-            if n == 0 {
-                return Err("missing joint columns: expected header `t,q1,q2,…`".into());
-            }
-            Ok((1..=n).map(|i| format!("q{i}")).collect())
-        }
-    }
-}
-
-fn csv_error(path: &Path, e: csv::Error) -> SessionError {
-    let line = e.position().map(|p| p.line());
-    let message = match e.kind() {
-        csv::ErrorKind::Utf8 { .. } => "the line is not valid UTF-8".to_string(),
-        csv::ErrorKind::Io(_) => e.to_string(),
-        _ => e.to_string(),
-    };
-    match (e.into_kind(), line) {
-        (csv::ErrorKind::Io(io), _) => SessionError::io(path, io),
-        (_, Some(line)) => SessionError::line(path, line, message),
-        (_, None) => SessionError::file(path, message),
-    }
+    read::table(Records::new(reader), 0, path, columns, optional)
 }
 
 #[cfg(test)]
