@@ -1,0 +1,92 @@
+//! The body rate the nominal model predicts, on a uniform time grid, and its
+//! linear interpolation (the τ search's ω(t), docs/model.md §6.5).
+//!
+//! The nodes are evaluated once, by the trajectory's span polynomials
+//! ([`SpanPolynomials`]: a few Horner steps per node instead of the
+//! Cox–de Boor table) and [`MeasurementModel::inertial`], the two halves on
+//! two threads.
+
+use robimu_model::{Basis, JointState, MeasurementModel, SpanPolynomials, Spline};
+
+/// ω at t0 + k·h, k = 0..=steps (the last node clamped to t1).
+pub struct RateGrid {
+    t0: f64,
+    t1: f64,
+    h: f64,
+    steps: usize,
+    /// ω at node k.
+    nodes: Vec<[f64; 3]>,
+    /// ω at node k + 1 minus ω at node k (the last one 0).
+    deltas: Vec<[f64; 3]>,
+}
+
+impl RateGrid {
+    /// The grid of step `h` over the span of `trajectory`.
+    pub fn new(model: &MeasurementModel, trajectory: &Spline, h: f64) -> Self {
+        let knots = trajectory.knots();
+        let (t0, t1) = (knots.start(), knots.end());
+        let steps = ((t1 - t0) / h).ceil() as usize;
+        let spans = SpanPolynomials::new(knots);
+        let nodes = |ks: std::ops::Range<usize>| -> Vec<[f64; 3]> {
+            let (mut js, mut b) = (JointState::default(), Basis::default());
+            ks.map(|k| {
+                let u = (t0 + k as f64 * h).min(t1);
+                if spans.basis(u, &mut b).is_err() {
+                    return [0.0; 3];
+                }
+                trajectory.evaluate_basis(&b, &mut js);
+                model.inertial(&js).1
+            })
+            .collect()
+        };
+        let mid = steps.div_ceil(2);
+        let nodes: Vec<[f64; 3]> = std::thread::scope(|s| {
+            let second = s.spawn(|| nodes(mid..steps + 1));
+            let mut g = nodes(0..mid);
+            g.extend(second.join().expect("grid thread panicked"));
+            g
+        });
+        Self::from_nodes(t0, t1, h, nodes)
+    }
+
+    /// The grid of the values `nodes` at t0 + k·h (the last at t1), k =
+    /// 0..=steps with steps = ⌈(t1 − t0)/h⌉.
+    ///
+    /// # Panics
+    /// If there are not steps + 1 nodes.
+    #[track_caller]
+    pub fn from_nodes(t0: f64, t1: f64, h: f64, nodes: Vec<[f64; 3]>) -> Self {
+        let steps = ((t1 - t0) / h).ceil() as usize;
+        assert_eq!(nodes.len(), steps + 1, "one node per grid point");
+        let deltas = (0..nodes.len())
+            .map(|k| {
+                let (p, q) = (nodes[k], nodes[(k + 1).min(steps)]);
+                std::array::from_fn(|i| q[i] - p[i])
+            })
+            .collect();
+        Self {
+            t0,
+            t1,
+            h,
+            steps,
+            nodes,
+            deltas,
+        }
+    }
+
+    /// The span [t0, t1] the grid covers.
+    pub fn span(&self) -> (f64, f64) {
+        (self.t0, self.t1)
+    }
+
+    /// ω at `u` (t0 ≤ u ≤ t1, not checked) by linear interpolation.
+    #[inline(always)]
+    pub fn at_inside(&self, u: f64) -> [f64; 3] {
+        let f = (u - self.t0) / self.h;
+        // f ≥ 0: truncation is the floor
+        let k = (f as usize).min(self.steps.saturating_sub(1));
+        let a = f - k as f64;
+        let (p, d) = (&self.nodes[k], &self.deltas[k]);
+        [p[0] + a * d[0], p[1] + a * d[1], p[2] + a * d[2]]
+    }
+}
