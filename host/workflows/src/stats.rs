@@ -12,13 +12,15 @@ pub fn ljung_box(r: &[f64], lags: usize) -> (f64, f64) {
         return (0.0, 1.0);
     }
     let m = r.iter().sum::<f64>() / n as f64;
-    let c0: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
+    // centred once; each sum below takes the same terms in the same order
+    let d: Vec<f64> = r.iter().map(|v| v - m).collect();
+    let c0: f64 = d.iter().map(|v| v * v).sum();
     if c0 <= 0.0 {
         return (0.0, 1.0);
     }
     let mut q = 0.0;
     for k in 1..=lags {
-        let ck: f64 = (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum();
+        let ck: f64 = d[k..].iter().zip(&d[..n - k]).map(|(a, b)| a * b).sum();
         let rho = ck / c0;
         q += rho * rho / (n - k) as f64;
     }
