@@ -58,6 +58,7 @@
 pub mod allan;
 pub mod baseline;
 pub mod batch;
+pub mod body_rate;
 pub mod calibrate;
 pub mod check;
 pub mod diagnose;
