@@ -163,16 +163,16 @@ pub fn burg(segments: &[&[f64]], max_order: usize) -> Burg {
         }
         let k = if den > 0.0 { 2.0 * num / den } else { 0.0 };
         for (fs, bs) in f.iter_mut().zip(b.iter_mut()) {
-            let n = fs.len();
-            if n <= m {
+            if fs.len() <= m {
                 continue;
             }
-            // downwards, so that b_{t−1} is still of order m − 1
-            let (fs, bs) = (&mut fs[..n], &mut bs[..n]);
-            for t in (m..n).rev() {
-                let (ft, bt) = (fs[t], bs[t - 1]);
-                fs[t] = ft - k * bt;
-                bs[t] = bt - k * ft;
+            // b_{t−1} of order m − 1 kept before b_{t−1} is overwritten
+            let mut prev = bs[m - 1];
+            for (f, b) in fs[m..].iter_mut().zip(&mut bs[m..]) {
+                let (ft, bt) = (*f, prev);
+                prev = *b;
+                *f = ft - k * bt;
+                *b = bt - k * ft;
             }
         }
         reflection.push(k);
