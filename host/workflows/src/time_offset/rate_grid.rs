@@ -13,11 +13,10 @@ pub struct RateGrid {
     t0: f64,
     t1: f64,
     h: f64,
-    steps: usize,
-    /// ω at node k.
-    nodes: Vec<[f64; 3]>,
-    /// ω at node k + 1 minus ω at node k (the last one 0).
-    deltas: Vec<[f64; 3]>,
+    /// The last node's index less one, ≥ 0.
+    last: i64,
+    /// ω at node k, then ω at node k + 1 minus ω at node k (the last one's 0).
+    nodes: Vec<[f64; 6]>,
 }
 
 impl RateGrid {
@@ -58,19 +57,18 @@ impl RateGrid {
     pub fn from_nodes(t0: f64, t1: f64, h: f64, nodes: Vec<[f64; 3]>) -> Self {
         let steps = ((t1 - t0) / h).ceil() as usize;
         assert_eq!(nodes.len(), steps + 1, "one node per grid point");
-        let deltas = (0..nodes.len())
+        let nodes = (0..nodes.len())
             .map(|k| {
                 let (p, q) = (nodes[k], nodes[(k + 1).min(steps)]);
-                std::array::from_fn(|i| q[i] - p[i])
+                [p[0], p[1], p[2], q[0] - p[0], q[1] - p[1], q[2] - p[2]]
             })
             .collect();
         Self {
             t0,
             t1,
             h,
-            steps,
+            last: steps.saturating_sub(1) as i64,
             nodes,
-            deltas,
         }
     }
 
@@ -84,9 +82,9 @@ impl RateGrid {
     pub fn at_inside(&self, u: f64) -> [f64; 3] {
         let f = (u - self.t0) / self.h;
         // f ≥ 0: truncation is the floor
-        let k = (f as usize).min(self.steps.saturating_sub(1));
+        let k = (f as i64).min(self.last);
         let a = f - k as f64;
-        let (p, d) = (&self.nodes[k], &self.deltas[k]);
-        [p[0] + a * d[0], p[1] + a * d[1], p[2] + a * d[2]]
+        let p = &self.nodes[k as usize];
+        [p[0] + a * p[3], p[1] + a * p[4], p[2] + a * p[5]]
     }
 }
