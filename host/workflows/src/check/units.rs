@@ -305,7 +305,7 @@ pub fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
     if n < 10 {
         return None;
     }
-    let mut ata = faer::Mat::<f64>::zeros(4, 4);
+    let mut ata = [[0.0f64; 4]; 4];
     let mut atb = [0.0; 4];
     let mut mean = [0.0; 3];
     let mut square = 0.0;
@@ -317,7 +317,7 @@ pub fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
         for r in 0..4 {
             atb[r] += row[r] * y;
             for c in 0..4 {
-                ata[(r, c)] += row[r] * row[c];
+                ata[r][c] += row[r] * row[c];
             }
         }
         for c in 0..3 {
@@ -325,8 +325,9 @@ pub fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
         }
     }
     let cov = faer::Mat::from_fn(3, 3, |r, c| {
-        (ata[(r, c)] / 4.0 - n as f64 * mean[r] * mean[c]) / n as f64
+        (ata[r][c] / 4.0 - n as f64 * mean[r] * mean[c]) / n as f64
     });
+    let ata = faer::Mat::from_fn(4, 4, |r, c| ata[r][c]);
     let spread = cov
         .self_adjoint_eigenvalues(faer::Side::Lower)
         .ok()?
