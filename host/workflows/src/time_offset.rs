@@ -49,7 +49,7 @@ impl Default for TauSearch {
             coarse_step: 0.02,
             fine_step: 0.001,
             max_samples: 4000,
-            coarse_samples: 1000,
+            coarse_samples: 500,
         }
     }
 }
@@ -218,7 +218,7 @@ mod tests {
     use crate::simulate::{random_session, SimulateOptions};
     use robimu_model::{ParamLayout, Robot};
 
-    /// The coarse scan on 1000 of the 4000 samples, its best local minima
+    /// The coarse scan on 500 of the 4000 samples, its best local minima
     /// refitted on all, finds the τ of the coarse scan on all 4000 (the
     /// former search), bit for bit, on simulated sessions whose τ is drawn
     /// from its prior (±1 s), and that τ is the truth's to a few ms.

@@ -26,6 +26,7 @@ impl RateGrid {
         let (t0, t1) = (knots.start(), knots.end());
         let steps = ((t1 - t0) / h).ceil() as usize;
         let spans = SpanPolynomials::new(knots);
+        let (coeffs, dim) = (trajectory.coeffs(), trajectory.dim());
         let nodes = |ks: std::ops::Range<usize>| -> Vec<[f64; 3]> {
             let (mut js, mut b) = (JointState::default(), Basis::default());
             ks.map(|k| {
@@ -33,7 +34,18 @@ impl RateGrid {
                 if spans.basis(u, &mut b).is_err() {
                     return [0.0; 3];
                 }
-                trajectory.evaluate_basis(&b, &mut js);
+                // q and q̇ as Spline::evaluate_basis forms them; ω needs no
+                // q̈ (left at 0)
+                for (k, row) in [&mut js.q, &mut js.qd].into_iter().enumerate() {
+                    row.fill(0.0);
+                    for a in 0..b.count {
+                        let w = b.d[k][a];
+                        let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
+                        for j in 0..dim {
+                            row[j] += w * c[j];
+                        }
+                    }
+                }
                 model.inertial(&js).1
             })
             .collect()
