@@ -22,6 +22,7 @@ use robimu_session::result::{
     ParameterResult, WeakDirectionRecord, RESULT_FORMAT,
 };
 
+use super::joint_fit::JointFit;
 use super::time_offset::{TauError, TauEstimate, TauSearch};
 use fit::FitSpec;
 use robimu_model::noise::NoiseModel;
@@ -351,7 +352,8 @@ pub const AUTO_SPACING_START: f64 = 1.0;
 /// Finest spacing tried when choosing automatically, s.
 pub const AUTO_SPACING_MIN: f64 = 0.05;
 
-/// Fit the trajectory spline to the joint samples.
+/// Fit the trajectory spline to the joint samples ([`JointFit`]: by span
+/// polynomials, each sample's basis shared by the fit and its residual).
 ///
 /// With `spacing = Some(s)` the knots are every s seconds. With `None` the
 /// spacing starts at [`AUTO_SPACING_START`] and is halved while the spline
@@ -377,16 +379,16 @@ pub fn choose_knots(
     let mut h = spacing.unwrap_or(AUTO_SPACING_START);
     loop {
         let knots = Knots::uniform(a, b, h, degree)?;
-        let spline = Spline::fit(knots.clone(), n, &data.joint_t, &data.joint_q)?;
+        let fit = JointFit::new(knots.clone(), n, &data.joint_t, &data.joint_q)?;
         let mut ss = vec![0.0; n];
-        let mut js = robimu_model::JointState::default();
-        for (s, &t) in data.joint_t.iter().enumerate() {
-            spline.evaluate(t, &mut js)?;
+        for s in 0..samples {
+            let q = fit.q_at(s);
             for j in 0..n {
-                let r = (data.joint_q[s * n + j] - js.q[j]) / sigma_q[j];
+                let r = (data.joint_q[s * n + j] - q[j]) / sigma_q[j];
                 ss[j] += r * r;
             }
         }
+        let spline = fit.spline;
         let dof = (samples as f64 - knots.num_coeffs() as f64).max(1.0);
         let rms: Vec<f64> = ss.iter().map(|v| (v / dof).sqrt()).collect();
         let too_coarse = ss.iter().any(|&v| v > dof + 5.0 * (2.0 * dof).sqrt());

@@ -58,10 +58,12 @@
 pub mod allan;
 pub mod baseline;
 pub mod batch;
+pub mod body_rate;
 pub mod calibrate;
 pub mod check;
 pub mod diagnose;
 pub mod identifiability;
+pub mod joint_fit;
 pub mod montecarlo;
 pub mod motion_accuracy;
 pub mod noise;

@@ -152,17 +152,27 @@ pub fn burg(segments: &[&[f64]], max_order: usize) -> Burg {
     for m in 1..=max_order {
         let (mut num, mut den) = (0.0, 0.0);
         for (fs, bs) in f.iter().zip(&b) {
-            for t in m..fs.len() {
-                num += fs[t] * bs[t - 1];
-                den += fs[t] * fs[t] + bs[t - 1] * bs[t - 1];
+            if fs.len() <= m {
+                continue;
+            }
+            // f_t and b_{t−1}, t = m..len
+            for (&ft, &bt) in fs[m..].iter().zip(&bs[m - 1..fs.len() - 1]) {
+                num += ft * bt;
+                den += ft * ft + bt * bt;
             }
         }
         let k = if den > 0.0 { 2.0 * num / den } else { 0.0 };
         for (fs, bs) in f.iter_mut().zip(b.iter_mut()) {
-            for t in (m..fs.len()).rev() {
-                let (ft, bt) = (fs[t], bs[t - 1]);
-                fs[t] = ft - k * bt;
-                bs[t] = bt - k * ft;
+            if fs.len() <= m {
+                continue;
+            }
+            // b_{t−1} of order m − 1 kept before b_{t−1} is overwritten
+            let mut prev = bs[m - 1];
+            for (f, b) in fs[m..].iter_mut().zip(&mut bs[m..]) {
+                let (ft, bt) = (*f, prev);
+                prev = *b;
+                *f = ft - k * bt;
+                *b = bt - k * ft;
             }
         }
         reflection.push(k);
@@ -178,10 +188,14 @@ pub fn burg(segments: &[&[f64]], max_order: usize) -> Burg {
 /// Index ranges of the segments of `t`: a step above `gap_factor` × the
 /// median step starts a new one.
 pub fn segments(t: &[f64], gap_factor: f64) -> Vec<std::ops::Range<usize>> {
+    segments_at(t, gap_factor, median_step(t))
+}
+
+/// [`segments`] with the median step `median` of `t` given.
+fn segments_at(t: &[f64], gap_factor: f64, median: f64) -> Vec<std::ops::Range<usize>> {
     if t.len() < 2 {
         return std::iter::once(0..t.len()).collect();
     }
-    let median = median_step(t);
     let mut out = Vec::new();
     let mut start = 0;
     for i in 1..t.len() {
@@ -194,26 +208,56 @@ pub fn segments(t: &[f64], gap_factor: f64) -> Vec<std::ops::Range<usize>> {
     out
 }
 
+/// The segments and the median step of one stream's times, shared by its
+/// channels.
+struct Timing {
+    segs: Vec<std::ops::Range<usize>>,
+    dt: f64,
+}
+
+impl Timing {
+    fn of(t: &[f64], gap_factor: f64) -> Self {
+        let dt = median_step(t);
+        Self {
+            segs: segments_at(t, gap_factor, dt),
+            dt,
+        }
+    }
+}
+
 /// The median step of `t`, s (0 for fewer than two samples).
 fn median_step(t: &[f64]) -> f64 {
     let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     if steps.is_empty() {
         return 0.0;
     }
-    steps.sort_by(f64::total_cmp);
-    steps[steps.len() / 2]
+    let mid = steps.len() / 2;
+    *steps.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// The whitened residuals w_t of each segment under `ar` (unit variance
 /// when the model holds), concatenated.
 pub fn whiten(ar: &ArNoise, r: &[f64], segs: &[std::ops::Range<usize>]) -> Vec<f64> {
     let mut w = Vec::with_capacity(r.len());
+    let p = ar.order();
+    let (a, scale) = ar.whitening(p);
     for s in segs {
         let u = &r[s.clone()];
-        for t in 0..u.len() {
+        let head = p.min(u.len());
+        for t in 0..head {
             let (a, scale) = ar.whitening(t);
             let pred: f64 = a.iter().enumerate().map(|(k, ak)| ak * u[t - k - 1]).sum();
             w.push(scale * (u[t] - pred));
+        }
+        // from sample p on, the order-p predictor: u_{t−1} … u_{t−p} is
+        // the window before u_t, latest first
+        for (win, &ut) in u.windows(p + 1).zip(&u[head..]) {
+            let pred: f64 = a
+                .iter()
+                .zip(win[..p].iter().rev())
+                .map(|(ak, uk)| ak * uk)
+                .sum();
+            w.push(scale * (ut - pred));
         }
     }
     w
@@ -448,6 +492,20 @@ pub fn identify_channel_with(
     opts: &IdOptions,
     imprint: Option<&[f64]>,
 ) -> Result<ChannelIdentification, NoiseIdError> {
+    identify_channel_timed(channel, t, r, qdd2, opts, imprint, None)
+}
+
+/// [`identify_channel_with`] with the [`Timing`] of `t` given (computed here
+/// when `None`).
+fn identify_channel_timed(
+    channel: &str,
+    t: &[f64],
+    r: &[f64],
+    qdd2: Option<&[f64]>,
+    opts: &IdOptions,
+    imprint: Option<&[f64]>,
+    timing: Option<&Timing>,
+) -> Result<ChannelIdentification, NoiseIdError> {
     let bad = |message: String| NoiseIdError::BadSamples {
         channel: channel.to_string(),
         message,
@@ -482,7 +540,15 @@ pub fn identify_channel_with(
         channel: channel.to_string(),
         source,
     };
-    let segs = segments(t, opts.gap_factor);
+    let own;
+    let timing = match timing {
+        Some(timing) => timing,
+        None => {
+            own = Timing::of(t, opts.gap_factor);
+            &own
+        }
+    };
+    let segs = &timing.segs;
     let p_max = opts.max_order.min(n / 20);
     let mean = r.iter().sum::<f64>() / n as f64;
     let r: Vec<f64> = r.iter().map(|v| v - mean).collect();
@@ -498,7 +564,7 @@ pub fn identify_channel_with(
     let (mut motion, mut motion_t) = (0.0, 0.0);
     if let Some(x) = qdd2 {
         let ar = ArNoise::new(phi.clone(), ms.sqrt()).map_err(model_err)?;
-        let w2: Vec<f64> = whiten(&ar, &r, &segs).iter().map(|w| w * w).collect();
+        let w2: Vec<f64> = whiten(&ar, &r, segs).iter().map(|w| w * w).collect();
         let (alpha, kappa, se) = robust_slope(x, &w2);
         motion_t = if se > 0.0 { kappa / se } else { 0.0 };
         if kappa > 0.0 && alpha > 0.0 && motion_t > opts.motion_t {
@@ -518,14 +584,14 @@ pub fn identify_channel_with(
     }
     let ar = ArNoise::new(phi.clone(), sigma2.sqrt()).map_err(model_err)?;
     let noise = ChannelNoise::new(ar.clone(), motion).map_err(model_err)?;
-    let dt = median_step(t);
+    let dt = timing.dt;
     // whitened residuals at the level of rest (levels divided out)
     let level: Vec<f64> = match qdd2 {
         Some(x) => x.iter().map(|&xi| noise.level(xi)).collect(),
         None => vec![1.0; n],
     };
     let u: Vec<f64> = r.iter().zip(&level).map(|(v, s)| v / s).collect();
-    let w = whiten(&ar, &u, &segs);
+    let w = whiten(&ar, &u, segs);
     let p = ar.order();
     Ok(ChannelIdentification {
         channel: channel.to_string(),
@@ -584,10 +650,11 @@ pub fn identify(
 ) -> Result<Identification, NoiseIdError> {
     // the accelerometer's channels on a second thread (the first error in
     // channel order is reported)
+    let timing = Timing::of(t, opts.gap_factor);
     let run = |cs: std::ops::Range<usize>| -> Vec<Result<ChannelIdentification, NoiseIdError>> {
         cs.map(|c| {
             let rc: Vec<f64> = r.iter().map(|v| v[c]).collect();
-            identify_channel(IMU_COLUMNS[c], t, &rc, qdd2, opts)
+            identify_channel_timed(IMU_COLUMNS[c], t, &rc, qdd2, opts, None, Some(&timing))
         })
         .collect()
     };

@@ -267,3 +267,103 @@ fn six_channels_and_the_bonferroni_rule() {
         vec![true, false, true]
     );
 }
+
+/// Burg's recursion as plain index loops over every segment (the former
+/// code, kept as the reference): the slice loops give the same numbers,
+/// bit for bit, with segments shorter than the order among them.
+#[test]
+fn burg_equals_the_plain_recursion() {
+    fn plain(segments: &[&[f64]], max_order: usize) -> Burg {
+        let samples: usize = segments.iter().map(|s| s.len()).sum();
+        let mut f: Vec<Vec<f64>> = segments.iter().map(|s| s.to_vec()).collect();
+        let mut b = f.clone();
+        let ss: f64 = f.iter().flatten().map(|v| v * v).sum();
+        let mut v = vec![ss / samples.max(1) as f64];
+        let mut reflection = Vec::new();
+        for m in 1..=max_order {
+            let (mut num, mut den) = (0.0, 0.0);
+            for (fs, bs) in f.iter().zip(&b) {
+                for t in m..fs.len() {
+                    num += fs[t] * bs[t - 1];
+                    den += fs[t] * fs[t] + bs[t - 1] * bs[t - 1];
+                }
+            }
+            let k = if den > 0.0 { 2.0 * num / den } else { 0.0 };
+            for (fs, bs) in f.iter_mut().zip(b.iter_mut()) {
+                for t in (m..fs.len()).rev() {
+                    let (ft, bt) = (fs[t], bs[t - 1]);
+                    fs[t] = ft - k * bt;
+                    bs[t] = bt - k * ft;
+                }
+            }
+            reflection.push(k);
+            v.push(v[m - 1] * (1.0 - k * k));
+        }
+        Burg {
+            reflection,
+            error_variance: v,
+            samples,
+        }
+    }
+    let ar = ArNoise::new(vec![0.6, -0.2], 1.0).unwrap();
+    let u = sample(&ar, 3000, 5);
+    let parts: Vec<&[f64]> = vec![&u[..1200], &u[1200..1203], &u[1203..1204], &u[1204..]];
+    for max_order in [0, 1, 3, 8] {
+        assert_eq!(burg(&parts, max_order), plain(&parts, max_order));
+        assert_eq!(burg(&parts[..1], max_order), plain(&parts[..1], max_order));
+    }
+}
+
+/// The whitening with the full-order predictor hoisted equals the
+/// per-sample [`ArNoise::whitening`] formula, bit for bit, on segments
+/// shorter and longer than the order.
+#[test]
+fn whiten_equals_the_per_sample_formula() {
+    for phi in [vec![], vec![0.7], vec![0.5, 0.2, -0.1]] {
+        let ar = ArNoise::new(phi, 2.0).unwrap();
+        let u = sample(&ar, 500, 9);
+        let segs = [0..2, 2..3, 3..300, 300..500];
+        let mut want = Vec::new();
+        for s in &segs {
+            let v = &u[s.clone()];
+            for t in 0..v.len() {
+                let (a, scale) = ar.whitening(t);
+                let pred: f64 = a.iter().enumerate().map(|(k, ak)| ak * v[t - k - 1]).sum();
+                want.push(scale * (v[t] - pred));
+            }
+        }
+        assert_eq!(whiten(&ar, &u, &segs), want);
+    }
+}
+
+/// The Ljung–Box statistic from the series centred once, four lags per
+/// pass, equals the textbook sum with the mean subtracted in every term,
+/// bit for bit (whole and partial blocks of lags, a series barely longer
+/// than its lags).
+#[test]
+fn ljung_box_equals_the_direct_sum() {
+    let ar = ArNoise::new(vec![0.3], 1.0).unwrap();
+    let r: Vec<f64> = sample(&ar, 2000, 11).iter().map(|v| v + 0.4).collect();
+    for (r, lags) in [
+        (&r[..], LJUNG_BOX_LAGS),
+        (&r[..], 7),
+        (&r[..], 1),
+        (&r[..9], 6),
+    ] {
+        let n = r.len();
+        let m = r.iter().sum::<f64>() / n as f64;
+        let c0: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
+        let mut q = 0.0;
+        for k in 1..=lags {
+            let ck: f64 = (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum();
+            let rho = ck / c0;
+            q += rho * rho / (n - k) as f64;
+        }
+        q *= n as f64 * (n as f64 + 2.0);
+        assert_eq!(
+            ljung_box(r, lags),
+            (q, chi2_sf(q, lags as f64)),
+            "{lags} lags"
+        );
+    }
+}

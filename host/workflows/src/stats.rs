@@ -12,18 +12,61 @@ pub fn ljung_box(r: &[f64], lags: usize) -> (f64, f64) {
         return (0.0, 1.0);
     }
     let m = r.iter().sum::<f64>() / n as f64;
-    let c0: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
+    // centred once; each sum below takes the same terms in the same order
+    let d: Vec<f64> = r.iter().map(|v| v - m).collect();
+    let c0: f64 = d.iter().map(|v| v * v).sum();
     if c0 <= 0.0 {
         return (0.0, 1.0);
     }
     let mut q = 0.0;
-    for k in 1..=lags {
-        let ck: f64 = (k..n).map(|i| (r[i] - m) * (r[i - k] - m)).sum();
-        let rho = ck / c0;
-        q += rho * rho / (n - k) as f64;
+    let mut k = 1;
+    while k <= lags {
+        let c = lagged_products(&d, k, (lags + 1 - k).min(LAG_BLOCK));
+        for (j, ck) in c.iter().enumerate() {
+            let rho = ck / c0;
+            q += rho * rho / (n - k - j) as f64;
+        }
+        k += c.len();
     }
     q *= n as f64 * (n as f64 + 2.0);
     (q, chi2_sf(q, lags as f64))
+}
+
+/// Lags summed in one pass over the series.
+const LAG_BLOCK: usize = 4;
+
+/// Σ_{i≥k} d_i d_{i−k} for the `count` ≤ [`LAG_BLOCK`] lags k0, k0 + 1, …:
+/// one pass over the series for all of them, each sum over ascending i (the
+/// terms and order of the plain sum per lag).
+fn lagged_products(d: &[f64], k0: usize, count: usize) -> Vec<f64> {
+    let n = d.len();
+    let mut acc = [-0.0f64; LAG_BLOCK];
+    let last = k0 + count - 1;
+    // the first terms of the shorter lags, up to where every lag has one
+    for i in k0..last.min(n) {
+        for (j, a) in acc.iter_mut().enumerate().take(count) {
+            if i >= k0 + j {
+                *a += d[i] * d[i - k0 - j];
+            }
+        }
+    }
+    if count == LAG_BLOCK {
+        for (i, &di) in d.iter().enumerate().skip(last) {
+            let w = &d[i - last..=i - k0];
+            // w[LAG_BLOCK − 1 − j] = d_{i−k0−j}
+            acc[0] += di * w[3];
+            acc[1] += di * w[2];
+            acc[2] += di * w[1];
+            acc[3] += di * w[0];
+        }
+    } else {
+        for i in last..n {
+            for (j, a) in acc.iter_mut().enumerate().take(count) {
+                *a += d[i] * d[i - k0 - j];
+            }
+        }
+    }
+    acc[..count].to_vec()
 }
 
 /// P(χ²_k > x): the regularised upper incomplete gamma Q(k/2, x/2)

@@ -9,12 +9,21 @@
 //! the rate, where correlating the norms of the two rates goes flat.
 //!
 //! The predicted rate is evaluated once on a 10 ms grid and interpolated
-//! linearly (the motion's bandwidth is a few Hz, so the interpolation error
-//! is ~1e-3 of the rate); a coarse scan over the whole range (split over two
-//! threads) is refined by a fine scan around its optimum and a parabola
-//! through the best three lags. The local solver then refines τ further.
+//! linearly (`rate_grid`; the motion's bandwidth is a few Hz, so the
+//! interpolation error is ~1e-3 of the rate). A coarse scan over the whole
+//! range (`lag_fit` at each lag, the lags split over two threads) runs on
+//! at most [`TauSearch::coarse_samples`] of the samples; its best local
+//! minima and their neighbours are fitted again with all samples, and the
+//! best of those is refined by a fine scan with all samples around it and a
+//! parabola through the best three lags. The local solver then refines τ
+//! further.
 
-use robimu_model::{JointState, MeasurementModel, Spline};
+mod lag_fit;
+mod rate_grid;
+
+use lag_fit::{LagFit, Samples};
+use rate_grid::RateGrid;
+use robimu_model::{MeasurementModel, Spline};
 
 /// Search settings.
 #[derive(Debug, Clone, Copy)]
@@ -27,6 +36,10 @@ pub struct TauSearch {
     pub fine_step: f64,
     /// At most this many IMU samples are used.
     pub max_samples: usize,
+    /// At most this many of them scan the coarse lags; the coarse scan's
+    /// best local minima are then fitted again with all (the fine scan
+    /// always uses all).
+    pub coarse_samples: usize,
 }
 
 impl Default for TauSearch {
@@ -36,6 +49,7 @@ impl Default for TauSearch {
             coarse_step: 0.02,
             fine_step: 0.001,
             max_samples: 4000,
+            coarse_samples: 500,
         }
     }
 }
@@ -68,84 +82,60 @@ pub enum TauError {
     },
 }
 
-/// Mean squared residual and R² of the regression g ≈ M ω + b over the
-/// samples whose t + lag is inside the span.
-fn fit_at(
-    lag: f64,
-    imu_t: &[f64],
-    gyro: &[[f64; 3]],
-    rate_at: &mut impl FnMut(f64) -> Option<[f64; 3]>,
-) -> Option<(f64, f64, usize)> {
-    let mut m = [[0.0f64; 4]; 4];
-    let mut c = [[0.0f64; 3]; 4];
-    let mut gg = [0.0f64; 3];
-    let mut gs = [0.0f64; 3];
-    let mut count = 0usize;
-    for (t, g) in imu_t.iter().zip(gyro) {
-        let Some(w) = rate_at(t + lag) else { continue };
-        let a = [w[0], w[1], w[2], 1.0];
-        for i in 0..4 {
-            for j in 0..4 {
-                m[i][j] += a[i] * a[j];
-            }
-            for k in 0..3 {
-                c[i][k] += a[i] * g[k];
-            }
-        }
-        for k in 0..3 {
-            gg[k] += g[k] * g[k];
-            gs[k] += g[k];
-        }
-        count += 1;
-    }
-    if count < 50 {
-        return None;
-    }
-    // RSS = Σ‖g‖² − tr(Cᵀ M⁻¹ C), via Cholesky of the 4×4 M (with a tiny ridge).
-    let ridge = 1e-12 * (m[0][0] + m[1][1] + m[2][2] + m[3][3]);
-    for (i, row) in m.iter_mut().enumerate() {
-        row[i] += ridge;
-    }
-    let mut l = [[0.0f64; 4]; 4];
-    for i in 0..4 {
-        for j in 0..=i {
-            let mut s = m[i][j];
-            for k in 0..j {
-                s -= l[i][k] * l[j][k];
-            }
-            if i == j {
-                if s <= 0.0 {
-                    return None;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    let mut explained = 0.0;
-    for k in 0..3 {
-        // y = L⁻¹ c_k; explained += ‖y‖²
-        let mut y = [0.0f64; 4];
-        for i in 0..4 {
-            let mut s = c[i][k];
-            for j in 0..i {
-                s -= l[i][j] * y[j];
-            }
-            y[i] = s / l[i][i];
-        }
-        explained += y.iter().map(|v| v * v).sum::<f64>();
-    }
-    let total: f64 = gg.iter().sum();
-    let centred: f64 = (0..3).map(|k| gg[k] - gs[k] * gs[k] / count as f64).sum();
-    let rss = (total - explained).max(0.0);
-    let r2 = if centred > 0.0 {
-        1.0 - rss / centred
-    } else {
-        0.0
+/// Fit every lag of `lags` (in order, `None` where a lag has too few
+/// samples), the two halves on two threads.
+fn scan(lags: &[f64], samples: &Samples, grid: &RateGrid) -> Vec<Option<LagFit>> {
+    let run = |part: &[f64]| -> Vec<Option<LagFit>> {
+        part.iter()
+            .map(|&lag| LagFit::at(lag, samples, grid))
+            .collect()
     };
-    Some((rss / count as f64, r2, count))
+    let half = lags.len() / 2;
+    let (mut a, b) = std::thread::scope(|s| {
+        let h = s.spawn(|| run(&lags[half..]));
+        (run(&lags[..half]), h.join().expect("scan thread panicked"))
+    });
+    a.extend(b);
+    a
 }
+
+/// The fit of least mean squared residual (the first of equals).
+fn best(fits: impl IntoIterator<Item = Option<LagFit>>) -> Option<LagFit> {
+    fits.into_iter()
+        .flatten()
+        .min_by(|a, b| a.msr.total_cmp(&b.msr))
+}
+
+/// The coarse optimum: the scan of `lags` over `all` samples, or, with a
+/// thinned `coarse` set, its scan's local minima (the best
+/// [`COARSE_CANDIDATES`]) and their neighbours fitted again with all samples.
+fn coarse_best(lags: &[f64], all: &Samples, coarse: &Samples, grid: &RateGrid) -> Option<LagFit> {
+    if coarse.len() == all.len() {
+        return best(scan(lags, all, grid));
+    }
+    let thin = scan(lags, coarse, grid);
+    let msr = |k: usize| thin[k].map_or(f64::INFINITY, |f| f.msr);
+    let mut minima: Vec<usize> = (0..lags.len())
+        .filter(|&k| {
+            thin[k].is_some()
+                && (k == 0 || msr(k) <= msr(k - 1))
+                && (k + 1 == lags.len() || msr(k) <= msr(k + 1))
+        })
+        .collect();
+    minima.sort_by(|&a, &b| msr(a).total_cmp(&msr(b)));
+    minima.truncate(COARSE_CANDIDATES);
+    let mut near: Vec<usize> = minima
+        .iter()
+        .flat_map(|&k| k.saturating_sub(1)..(k + 2).min(lags.len()))
+        .collect();
+    near.sort_unstable();
+    near.dedup();
+    let again: Vec<f64> = near.iter().map(|&k| lags[k]).collect();
+    best(scan(&again, all, grid))
+}
+
+/// Local minima of the thinned coarse scan fitted again with all samples.
+pub const COARSE_CANDIDATES: usize = 8;
 
 /// Find τ: see the module doc. `model` is the nominal model, `trajectory`
 /// the spline fitted to the joint samples.
@@ -156,84 +146,52 @@ pub fn find_tau(
     imu_gyro: &[[f64; 3]],
     search: &TauSearch,
 ) -> Result<TauEstimate, TauError> {
-    let (t0, t1) = (trajectory.knots().start(), trajectory.knots().end());
     let stride = imu_t.len().div_ceil(search.max_samples.max(1)).max(1);
-    let ts: Vec<f64> = imu_t.iter().step_by(stride).copied().collect();
-    let gs: Vec<[f64; 3]> = imu_gyro.iter().step_by(stride).copied().collect();
-    let exact = |u: f64, js: &mut JointState| -> Option<[f64; 3]> {
-        if u < t0 || u > t1 {
-            return None;
-        }
-        trajectory.evaluate(u, js).ok()?;
-        Some(model.inertial(js).1)
-    };
-    // body-rate grid, its two halves on two threads
-    let h = (search.coarse_step / 2.0).min(0.01);
-    let steps = ((t1 - t0) / h).ceil() as usize;
-    let nodes = |ks: std::ops::Range<usize>| -> Vec<[f64; 3]> {
-        let mut js = JointState::default();
-        ks.map(|k| exact((t0 + k as f64 * h).min(t1), &mut js).unwrap_or([0.0; 3]))
-            .collect()
-    };
-    let mid = steps.div_ceil(2);
-    let grid: Vec<[f64; 3]> = std::thread::scope(|s| {
-        let second = s.spawn(|| nodes(mid..steps + 1));
-        let mut g = nodes(0..mid);
-        g.extend(second.join().expect("grid thread panicked"));
-        g
-    });
-    let interp = |u: f64| -> Option<[f64; 3]> {
-        if u < t0 || u > t1 {
-            return None;
-        }
-        let f = (u - t0) / h;
-        let k = (f.floor() as usize).min(steps.saturating_sub(1));
-        let a = f - k as f64;
-        let (p, q) = (grid[k], grid[(k + 1).min(steps)]);
-        Some(std::array::from_fn(|i| p[i] + a * (q[i] - p[i])))
-    };
-    // scan `lags`, best (lag, msr, r2, count) first
-    let scan = |lags: &[f64]| -> Vec<(f64, f64, f64, usize)> {
-        let half = lags.len() / 2;
-        let run = |part: &[f64]| -> Vec<(f64, f64, f64, usize)> {
-            let mut f = interp;
-            part.iter()
-                .filter_map(|&lag| fit_at(lag, &ts, &gs, &mut f).map(|(m, r2, c)| (lag, m, r2, c)))
-                .collect()
-        };
-        let (a, b) = std::thread::scope(|s| {
-            let h = s.spawn(|| run(&lags[half..]));
-            (run(&lags[..half]), h.join().expect("scan thread panicked"))
-        });
-        a.into_iter().chain(b).collect()
-    };
+    let all = Samples::new(
+        imu_t.iter().step_by(stride).copied().collect(),
+        imu_gyro.iter().step_by(stride).copied().collect(),
+    );
+    let coarse = all.every(all.len().div_ceil(search.coarse_samples.max(1)));
+    let grid = RateGrid::new(model, trajectory, (search.coarse_step / 2.0).min(0.01));
     let n_coarse = (search.range / search.coarse_step).round() as i64;
     let coarse_lags: Vec<f64> = (-n_coarse..=n_coarse)
         .map(|k| k as f64 * search.coarse_step)
         .collect();
-    let coarse = scan(&coarse_lags);
-    let Some(best) = coarse.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
+    let Some(best) = coarse_best(&coarse_lags, &all, &coarse, &grid) else {
         return Err(TauError::NoOverlap {
             range: search.range,
         });
     };
     let n_fine = (2.0 * search.coarse_step / search.fine_step).round() as i64;
     let fine_lags: Vec<f64> = (-n_fine..=n_fine)
-        .map(|k| best.0 + k as f64 * search.fine_step)
+        .map(|k| best.lag + k as f64 * search.fine_step)
         .collect();
-    let fine = scan(&fine_lags);
-    let Some(ib) = (0..fine.len()).min_by(|&a, &b| fine[a].1.total_cmp(&fine[b].1)) else {
+    let fine: Vec<LagFit> = scan(&fine_lags, &all, &grid)
+        .into_iter()
+        .flatten()
+        .collect();
+    let Some(ib) = (0..fine.len()).min_by(|&a, &b| fine[a].msr.total_cmp(&fine[b].msr)) else {
         return Err(TauError::NoOverlap {
             range: search.range,
         });
     };
-    let (lag, _, r2, count) = fine[ib];
+    let LagFit {
+        lag,
+        r_squared: r2,
+        count,
+        ..
+    } = fine[ib];
     if r2 < 0.5 {
         return Err(TauError::NoMatch { r_squared: r2 });
     }
     let mut tau = lag;
     if ib > 0 && ib + 1 < fine.len() {
-        tau += parabola_vertex(fine[ib - 1].1, fine[ib].1, fine[ib + 1].1, search.fine_step);
+        tau += parabola_vertex(
+            fine[ib - 1].msr,
+            fine[ib].msr,
+            fine[ib + 1].msr,
+            search.fine_step,
+        );
     }
     Ok(TauEstimate {
         tau,
@@ -255,7 +213,42 @@ pub fn parabola_vertex(ym: f64, y0: f64, yp: f64, h: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::parabola_vertex;
+    use super::*;
+    use crate::calibrate::choose_knots;
+    use crate::simulate::{random_session, SimulateOptions};
+    use robimu_model::{ParamLayout, Robot};
+
+    /// The coarse scan on 500 of the 4000 samples, its best local minima
+    /// refitted on all, finds the τ of the coarse scan on all 4000 (the
+    /// former search), bit for bit, on simulated sessions whose τ is drawn
+    /// from its prior (±1 s), and that τ is the truth's to a few ms.
+    #[test]
+    fn thinned_coarse_scan_finds_the_full_scans_tau() {
+        let robot = Robot::aubo_i5();
+        let layout = ParamLayout::new(&robot);
+        let sim = SimulateOptions::paper(&robot);
+        let model = MeasurementModel::new(&robot, &layout, &layout.nominal()).unwrap();
+        let thinned = TauSearch::default();
+        let full = TauSearch {
+            coarse_samples: thinned.max_samples,
+            ..thinned
+        };
+        for seed in 0..6 {
+            let s = random_session(&robot, 60.0, 1.0, &sim, 500 + seed).unwrap();
+            let data = &s.data;
+            let tf = choose_knots(data, robot.dof(), robot.sigma_q(), 3, None).unwrap();
+            let gyro: Vec<[f64; 3]> = data.imu_z.iter().map(|z| [z[3], z[4], z[5]]).collect();
+            let a = find_tau(&model, &tf.spline, &data.imu_t, &gyro, &thinned).unwrap();
+            let b = find_tau(&model, &tf.spline, &data.imu_t, &gyro, &full).unwrap();
+            assert_eq!(a, b, "seed {seed}");
+            let truth = s.truth[layout.offsets().tau];
+            assert!(
+                (a.tau - truth).abs() < 5e-3,
+                "seed {seed}: {} vs {truth}",
+                a.tau
+            );
+        }
+    }
 
     #[test]
     fn parabola_vertex_of_a_sampled_parabola() {

@@ -21,7 +21,9 @@
 
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
-use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot, Spline};
+use robimu_model::{
+    Basis, JointState, MeasurementModel, ParamLayout, Robot, SpanPolynomials, Spline, MAX_JOINTS,
+};
 use robimu_solver::IterationRecord;
 
 use super::fit::{fit, Fit, FitSpec, Start};
@@ -135,7 +137,7 @@ pub fn calibrate_with_noise_settle(
     let white_fit = fit(&FitSpec::baseline(robot, data), &white_opts, &mut report)?;
     let white = calibration_of(robot, &white_opts, &white_fit)?;
     let id_opts = IdOptions::default();
-    let first = match residual_identification(robot, data, &white, &id_opts) {
+    let first = match fit_identification(robot, data, &white_fit, &id_opts) {
         Ok(id) => id,
         Err(e) => {
             outcome.warning = Some(format!("noise not identified ({e}); white noise kept"));
@@ -161,7 +163,7 @@ pub fn calibrate_with_noise_settle(
             };
             fit(&spec, &gls(m), &mut report).map_err(|e| e.to_string())
         },
-        |f| identification_of(robot, data, &f.x, &f.trajectory, &id_opts),
+        |f| fit_identification(robot, data, f, &id_opts),
     );
     outcome.refits = refits.get();
     match settledfit {
@@ -266,7 +268,7 @@ pub fn residual_identification(
     cal: &Calibration,
     opts: &IdOptions,
 ) -> Result<Identification, String> {
-    identification_of(robot, data, &cal.x, &cal.trajectory, opts)
+    identification_of(robot, data, &cal.x, &cal.trajectory, None, opts)
 }
 
 /// The identification from the raw residuals of every IMU j ≥ 1 of a
@@ -288,18 +290,47 @@ pub fn other_imu_identifications(
     (1..k)
         .map(|j| {
             let x = layout.imu_x(j, &cal.x);
-            let id = identification_of(robot, &data.only_imu(j), &x, &cal.trajectory, opts);
+            let id = identification_of(robot, &data.only_imu(j), &x, &cal.trajectory, None, opts);
             (j, id)
         })
         .collect()
 }
 
-/// [`residual_identification`] at `x` and the joint trajectory `trajectory`.
+/// The identification from the raw residuals of the fit `f` (IMU 0): as
+/// [`residual_identification`] of its calibration. A white fit without
+/// effects hands over its residuals for the samples it used: whitened by
+/// σ_z (docs/model.md §4.4), times σ_z they are the raw ones, so that only
+/// the samples in its end margins are predicted again.
+pub fn fit_identification(
+    robot: &Robot,
+    data: &Measurements,
+    f: &Fit,
+    opts: &IdOptions,
+) -> Result<Identification, String> {
+    let known = (f.noise.is_white() && f.effects.is_empty()).then(|| Known {
+        residuals: &f.residuals,
+        sigma: std::array::from_fn(|c| f.noise.imu[c].ar.sigma()),
+    });
+    identification_of(robot, data, &f.x, &f.trajectory, known, opts)
+}
+
+/// Whitened residuals (sample index, r/σ_z) of a white fit at the x and
+/// trajectory of an identification, in sample order, and σ_z.
+struct Known<'a> {
+    residuals: &'a [(usize, [f64; 6])],
+    sigma: [f64; 6],
+}
+
+/// [`residual_identification`] at `x` and the joint trajectory `trajectory`
+/// (`known`: the residuals of some samples, see [`fit_identification`]).
+/// The trajectory is evaluated by its span polynomials; the samples in two
+/// halves, one per thread, joined in order.
 fn identification_of(
     robot: &Robot,
     data: &Measurements,
     x: &[f64],
     trajectory: &Spline,
+    known: Option<Known<'_>>,
     opts: &IdOptions,
 ) -> Result<Identification, String> {
     // IMU 0 (the prefix of x; docs/model.md §9)
@@ -308,30 +339,57 @@ fn identification_of(
     let model = MeasurementModel::new(robot, &layout, x).map_err(|e| e.to_string())?;
     let tau = x[layout.offsets().tau];
     let n = robot.dof();
-    // the samples in two halves, one per thread, joined in order
-    let part = |ts: &[f64], zs: &[[f64; 6]], cap: usize| {
+    let spans = SpanPolynomials::new(trajectory.knots());
+    let (coeffs, dim) = (trajectory.coeffs(), trajectory.dim());
+    let known = known.unwrap_or(Known {
+        residuals: &[],
+        sigma: [1.0; 6],
+    });
+    let part = |range: std::ops::Range<usize>, cap: usize| {
         let (mut t, mut r, mut qdd2) = (
             Vec::with_capacity(cap),
             Vec::<[f64; 6]>::with_capacity(cap),
             Vec::with_capacity(cap),
         );
-        let mut js = JointState::default();
-        for (&ti, z) in ts.iter().zip(zs) {
-            if trajectory.evaluate(ti + tau, &mut js).is_err() {
+        let (mut js, mut b) = (JointState::default(), Basis::default());
+        let mut next = known.residuals.partition_point(|(i, _)| *i < range.start);
+        for i in range {
+            let (ti, z) = (data.imu_t[i], &data.imu_z[i]);
+            if spans.basis(ti + tau, &mut b).is_err() {
                 continue;
             }
-            let pred = model.predict(&js);
+            // q̈ alone (the row Spline::evaluate_basis computes)
+            let mut qdd = [0.0; MAX_JOINTS];
+            for a in 0..b.count {
+                let w = b.d[2][a];
+                let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
+                for j in 0..dim {
+                    qdd[j] += w * c[j];
+                }
+            }
+            while next < known.residuals.len() && known.residuals[next].0 < i {
+                next += 1;
+            }
+            let ri = match known.residuals.get(next) {
+                Some(&(k, w)) if k == i => std::array::from_fn(|c| w[c] * known.sigma[c]),
+                _ => {
+                    trajectory.evaluate_basis(&b, &mut js);
+                    let pred = model.predict(&js);
+                    std::array::from_fn(|c| z[c] - pred[c])
+                }
+            };
             t.push(ti);
-            r.push(std::array::from_fn(|c| z[c] - pred[c]));
-            qdd2.push(js.qdd[..n].iter().map(|a| a * a).sum::<f64>());
+            r.push(ri);
+            qdd2.push(qdd[..n].iter().map(|a| a * a).sum::<f64>());
         }
         (t, r, qdd2)
     };
-    let mid = data.imu_t.len().min(data.imu_z.len()) / 2;
+    let len = data.imu_t.len().min(data.imu_z.len());
+    let mid = len / 2;
     let ((mut t, mut r, mut qdd2), (t2, r2, q2)) = std::thread::scope(|s| {
-        let h = s.spawn(|| part(&data.imu_t[mid..], &data.imu_z[mid..], 0));
+        let h = s.spawn(|| part(mid..len, 0));
         // the first half's storage holds the whole (no copy when joined)
-        let first = part(&data.imu_t[..mid], &data.imu_z[..mid], data.imu_t.len());
+        let first = part(0..mid, len);
         (first, h.join().expect("residual thread panicked"))
     });
     t.extend(t2);
@@ -339,3 +397,7 @@ fn identification_of(
     qdd2.extend(q2);
     identify(&t, &r, Some(&qdd2), opts).map_err(|e| e.to_string())
 }
+
+#[cfg(test)]
+#[path = "noise_choice_tests.rs"]
+mod tests;

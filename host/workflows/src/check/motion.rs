@@ -23,18 +23,18 @@ pub const QUADRATURE: f64 = 20.0;
 pub fn motionless(session: &Session) -> Vec<Finding> {
     let j = &session.joints;
     let n = j.width();
+    // every joint's extremes in one pass over the rows
+    let mut lo = vec![f64::INFINITY; n];
+    let mut hi = vec![f64::NEG_INFINITY; n];
+    for row in j.values.chunks(n.max(1)) {
+        for ((v, a), b) in row.iter().zip(&mut lo).zip(&mut hi) {
+            (*a, *b) = (a.min(*v), b.max(*v));
+        }
+    }
     let (mut range, mut joint) = (0.0f64, 0usize);
     for c in 0..n {
-        let (lo, hi) = j
-            .values
-            .iter()
-            .skip(c)
-            .step_by(n)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                (a.min(*v), b.max(*v))
-            });
-        if hi - lo > range {
-            (range, joint) = (hi - lo, c);
+        if hi[c] - lo[c] > range {
+            (range, joint) = (hi[c] - lo[c], c);
         }
     }
     if range >= MOTIONLESS {

@@ -14,10 +14,11 @@
 //! * **Swapped columns**: |gyro columns| ≈ g₀ at rest (or over all
 //!   samples) with |accel columns| ≪ g₀.
 
-use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
+use robimu_model::{MeasurementModel, ParamLayout, Robot, MAX_JOINTS};
 use robimu_session::{files, Session};
 
 use super::{median_of, Finding, Severity};
+use crate::body_rate::BodyRate;
 use crate::calibrate::joint_outside_limits;
 
 /// A joint row is static when every |q̇| is below this, rad/s.
@@ -233,14 +234,19 @@ fn gyro_scale(
     bias: [f64; 3],
 ) -> Option<Finding> {
     let model = MeasurementModel::new(robot, layout, &layout.nominal()).ok()?;
+    // the gyroscope's reading from the chain's rotations alone, as the
+    // model predicts it
+    let rate = BodyRate::new(robot, &model);
     let n = session.joint_count();
-    let zeros = vec![0.0; n];
     let joints = &session.joints;
     let mut predicted = 0.0;
+    // as a JointState: the joints the session lacks at 0
+    let (mut q, mut v) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
     for i in 0..joints.len() {
-        let js = JointState::from_slices(joints.row(i), &qd[i * n..(i + 1) * n], &zeros, &zeros);
-        let z = model.predict(&js);
-        predicted += z[3] * z[3] + z[4] * z[4] + z[5] * z[5];
+        q[..n].copy_from_slice(joints.row(i));
+        v[..n].copy_from_slice(&qd[i * n..(i + 1) * n]);
+        let w = rate.gyro(&q, &v);
+        predicted += w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
     }
     let predicted = (predicted / joints.len() as f64).sqrt();
     let (a, b) = joints.span()?;
@@ -299,7 +305,7 @@ pub fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
     if n < 10 {
         return None;
     }
-    let mut ata = faer::Mat::<f64>::zeros(4, 4);
+    let mut ata = [[0.0f64; 4]; 4];
     let mut atb = [0.0; 4];
     let mut mean = [0.0; 3];
     let mut square = 0.0;
@@ -311,7 +317,7 @@ pub fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
         for r in 0..4 {
             atb[r] += row[r] * y;
             for c in 0..4 {
-                ata[(r, c)] += row[r] * row[c];
+                ata[r][c] += row[r] * row[c];
             }
         }
         for c in 0..3 {
@@ -319,8 +325,9 @@ pub fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
         }
     }
     let cov = faer::Mat::from_fn(3, 3, |r, c| {
-        (ata[(r, c)] / 4.0 - n as f64 * mean[r] * mean[c]) / n as f64
+        (ata[r][c] / 4.0 - n as f64 * mean[r] * mean[c]) / n as f64
     });
+    let ata = faer::Mat::from_fn(4, 4, |r, c| ata[r][c]);
     let spread = cov
         .self_adjoint_eigenvalues(faer::Side::Lower)
         .ok()?
