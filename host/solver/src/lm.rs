@@ -49,6 +49,12 @@ pub trait LeastSquares {
     fn begin_iteration(&mut self, theta: &[f64]) -> Result<(), Self::Error>;
     /// Cost ½‖r‖² at θ. An error means θ is not acceptable (the step is rejected).
     fn cost(&self, theta: &[f64]) -> Result<f64, Self::Error>;
+    /// The cost at θ where the solver may end (its last step, module doc
+    /// *The last step*): a problem can keep what it computed there.
+    /// Default: [`Self::cost`].
+    fn end_cost(&mut self, theta: &[f64]) -> Result<f64, Self::Error> {
+        self.cost(theta)
+    }
     /// Cost, Gauss–Newton matrix and gradient at θ.
     fn linearize(
         &self,
@@ -405,7 +411,7 @@ pub fn solve<P: LeastSquares>(
                 if tries == 1 && keeps && newton_stop(opts, last_step, step_norm, lambda) {
                     // the last step (module doc): its cost only, and the
                     // matrix at θ for the covariance
-                    if let Ok(c) = problem.cost(&candidate) {
+                    if let Ok(c) = problem.end_cost(&candidate) {
                         if c.is_finite() && c <= cost + COST_ROUNDING * cost.abs() {
                             theta = candidate;
                             current = Some(c);

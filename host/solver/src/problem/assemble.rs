@@ -29,6 +29,16 @@ struct EffectScratch {
     cols: Vec<[f64; 6]>,
 }
 
+/// Every IMU's whitened residuals (sample index, r) at one θ
+/// ([`Problem::cost_and_residuals`]).
+#[derive(Debug, Clone)]
+pub struct Residuals {
+    /// The θ they are at.
+    pub theta: Vec<f64>,
+    /// IMU j's residuals, in sample order.
+    pub imus: Vec<Vec<(usize, [f64; 6])>>,
+}
+
 /// Gauss–Newton matrix A = JᵀJ and gradient g = Jᵀr being accumulated.
 struct Linearization<'m> {
     a: &'m mut ArrowMatrix,
@@ -63,6 +73,47 @@ impl Problem<'_> {
             + self.joint_terms(&spline, None)
             + self.prior_terms(&x, None, 0)
             + self.effect_prior_terms(self.effect_params_of(theta), None, 0))
+    }
+
+    /// [`Self::cost`] (the same bits) and every IMU's whitened residuals at
+    /// θ, from one pass over the samples: the solver's last cost
+    /// ([`crate::LeastSquares::end_cost`]) and the fit's residuals.
+    pub fn cost_and_residuals(&self, theta: &[f64]) -> Result<(f64, Residuals), ProblemError> {
+        let residuals = (0..self.streams.len())
+            .map(|j| self.imu_residuals_of(theta, j))
+            .collect::<Result<Vec<_>, _>>()?;
+        // summed as `cost` sums: per half, stream after stream, sample by sample
+        let half = |h: usize| {
+            let mut c = 0.0;
+            for (st, r) in self.streams.iter().zip(&residuals) {
+                let [first, _] = self.imu_parts(st);
+                let part = if h == 0 {
+                    &r[..first.len()]
+                } else {
+                    &r[first.len()..]
+                };
+                let mut cs = 0.0;
+                for (_, w) in part {
+                    cs += 0.5 * w.iter().map(|v| v * v).sum::<f64>();
+                }
+                c += cs;
+            }
+            c
+        };
+        let x = self.x_of(theta);
+        let spline = self.spline_of(theta);
+        let cost = half(0)
+            + half(1)
+            + self.joint_terms(&spline, None)
+            + self.prior_terms(&x, None, 0)
+            + self.effect_prior_terms(self.effect_params_of(theta), None, 0);
+        Ok((
+            cost,
+            Residuals {
+                theta: theta.to_vec(),
+                imus: residuals,
+            },
+        ))
     }
 
     /// Storage for [`Self::linearize`].
@@ -162,7 +213,7 @@ impl Problem<'_> {
         let part =
             |range: Range<usize>, out: &mut [(usize, [f64; 6])]| -> Result<(), ProblemError> {
                 let mut slots = out.iter_mut();
-                let mut put = |i: usize, w: [f64; 6]| {
+                let put = |i: usize, w: [f64; 6]| {
                     if let Some(slot) = slots.next() {
                         *slot = (i, w);
                     }
@@ -171,13 +222,7 @@ impl Problem<'_> {
                     return self.gls_residuals(st, &model, &spline, tau, theta_e, range, put);
                 }
                 let mut at = self.sample_eval(st);
-                for i in range {
-                    put(
-                        i,
-                        self.whitened_residual(st, &model, &spline, tau, theta_e, i, &mut at)?,
-                    );
-                }
-                Ok(())
+                self.white_residuals(st, &model, &spline, tau, theta_e, range, &mut at, put)
             };
         let [first, second] = self.imu_parts(st);
         let mut out = vec![(0, [0.0; 6]); st.imu_range.len()];
@@ -206,6 +251,46 @@ impl Problem<'_> {
                 cols: vec![[0.0; 6]; st.effect_map.len()],
             },
         }
+    }
+
+    /// Whitened residuals (z_i − h)/σ_z of the samples `range`, passed to
+    /// `emit` in order: four at a time ([`Quad`], [`MeasurementModel::predict_x4`])
+    /// without effects, else one by one ([`Self::whitened_residual`]). The
+    /// values are the same bits either way.
+    #[allow(clippy::too_many_arguments)]
+    fn white_residuals(
+        &self,
+        st: &Stream<'_>,
+        model: &MeasurementModel,
+        spline: &Spline,
+        tau: f64,
+        theta_e: &[f64],
+        range: Range<usize>,
+        at: &mut SampleEval,
+        mut emit: impl FnMut(usize, [f64; 6]),
+    ) -> Result<(), ProblemError> {
+        if !self.effects.is_empty() {
+            for i in range {
+                emit(
+                    i,
+                    self.whitened_residual(st, model, spline, tau, theta_e, i, at)?,
+                );
+            }
+            return Ok(());
+        }
+        let mut quads = Quads::new(range);
+        let mut quad = Quad::default();
+        while quads.next(self, st, spline, tau, &mut quad)? {
+            let z = model.predict_x4(&quad.js);
+            for (l, &i) in quad.idx[..quad.len].iter().enumerate() {
+                let zm = &st.z[i];
+                emit(
+                    i,
+                    std::array::from_fn(|c| (zm[c] - z[c].lane(l)) * self.inv_sigma_z[c]),
+                );
+            }
+        }
+        Ok(())
     }
 
     /// Whitened residual (z_i − h)/σ_z of IMU sample i; leaves the sample's
@@ -418,10 +503,9 @@ impl Problem<'_> {
         let mut at = self.sample_eval(st);
         let mut cost = 0.0;
         let Some(out) = out else {
-            for i in range {
-                let r = self.whitened_residual(st, model, spline, tau, theta_e, i, &mut at)?;
+            self.white_residuals(st, model, spline, tau, theta_e, range, &mut at, |_, r| {
                 cost += 0.5 * r.iter().map(|v| v * v).sum::<f64>();
-            }
+            })?;
             return Ok(cost);
         };
         let mut jac = MeasurementJacobians::<F64x4>::zeros(nx);

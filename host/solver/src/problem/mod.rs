@@ -78,6 +78,7 @@
 //! like with like (docs/model.md §4: the set is updated as τ moves).
 
 mod assemble;
+pub use assemble::Residuals;
 #[cfg(test)]
 mod gls_tests;
 #[cfg(test)]
@@ -221,6 +222,8 @@ pub struct Problem<'a> {
     joint_normal: ArrowMatrix,
     /// Catalogue effects appended to the model (empty: the baseline model).
     effects: &'a EffectSet,
+    /// The residuals of the solver's last cost ([`Self::take_residuals`]).
+    end: Option<Residuals>,
 }
 
 impl<'a> Problem<'a> {
@@ -351,6 +354,7 @@ impl<'a> Problem<'a> {
             joint_basis,
             joint_normal: ArrowMatrix::zeros(0, 0, 0),
             effects,
+            end: None,
         };
         p.joint_normal = p.joint_normal_matrix();
         let x = p.x_base.clone();
@@ -539,6 +543,21 @@ impl<'a> Problem<'a> {
         Ok(lo..hi)
     }
 
+    /// Every IMU's whitened residuals at θ (IMU j at `[j]`, in sample order):
+    /// kept from the solver's last cost when it was at θ
+    /// ([`crate::LeastSquares::end_cost`]), else computed now.
+    pub fn take_residuals(
+        &mut self,
+        theta: &[f64],
+    ) -> Result<Vec<Vec<(usize, [f64; 6])>>, ProblemError> {
+        match self.end.take() {
+            Some(r) if r.theta == theta => Ok(r.imus),
+            _ => (0..self.streams.len())
+                .map(|j| self.imu_residuals_of(theta, j))
+                .collect(),
+        }
+    }
+
     /// IMU 0's measurement model at x.
     pub fn model(&self, x: &[f64]) -> Result<MeasurementModel, ProblemError> {
         self.model_of(0, x)
@@ -602,6 +621,12 @@ impl crate::LeastSquares for Problem<'_> {
     }
     fn cost(&self, theta: &[f64]) -> Result<f64, ProblemError> {
         Problem::cost(self, theta)
+    }
+    /// The cost, keeping the residuals for [`Problem::take_residuals`].
+    fn end_cost(&mut self, theta: &[f64]) -> Result<f64, ProblemError> {
+        let (cost, r) = self.cost_and_residuals(theta)?;
+        self.end = Some(r);
+        Ok(cost)
     }
     fn linearize(
         &self,

@@ -223,3 +223,30 @@ pub(super) fn check_against_finite_differences(
     assert!(worst < 1e-6, "A differs from JᵀJ by {worst:e} (relative)");
     (a, jac, cost)
 }
+
+/// The solver's last cost with the residuals kept
+/// ([`LeastSquares::end_cost`]) is [`Problem::cost`] to the bit, and the
+/// residuals kept are those [`Problem::imu_residuals_of`] computes, for
+/// white and GLS noise and two IMUs.
+#[test]
+fn the_end_cost_is_the_cost_and_keeps_the_residuals() {
+    let s = setup();
+    let (layout, x, data) = two_imus(&s);
+    for noise in [None, Some(noise_model())] {
+        let (mut p, theta) = problem_at(&s, &layout, &data, &x, noise);
+        let cost = p.cost(&theta).unwrap();
+        let want: Vec<_> = (0..2)
+            .map(|j| p.imu_residuals_of(&theta, j).unwrap())
+            .collect();
+        assert_eq!(p.end_cost(&theta).unwrap(), cost);
+        assert_eq!(p.take_residuals(&theta).unwrap(), want);
+        // at another θ nothing is kept: computed anew
+        let mut other = theta.clone();
+        other[0] += 1e-3;
+        p.end_cost(&theta).unwrap();
+        let at_other: Vec<_> = (0..2)
+            .map(|j| p.imu_residuals_of(&other, j).unwrap())
+            .collect();
+        assert_eq!(p.take_residuals(&other).unwrap(), at_other);
+    }
+}

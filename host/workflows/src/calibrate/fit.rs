@@ -264,6 +264,8 @@ pub fn fit(
     let sigma_e = (0..effects.len())
         .map(|e| covariance[(na + e, na + e)].max(0.0).sqrt())
         .collect();
+    let mut residuals = problem.take_residuals(&sol.theta)?;
+    let extra_residuals = residuals.split_off(1);
     Ok(Fit {
         effects: effects.names().iter().map(|s| s.to_string()).collect(),
         x: problem.x_of(&sol.theta),
@@ -276,10 +278,8 @@ pub fn fit(
         effect_constants: effects.constants(),
         cost,
         trajectory: problem.spline_of(&sol.theta),
-        residuals: problem.imu_residuals(&sol.theta)?,
-        extra_residuals: (1..n_imus)
-            .map(|j| problem.imu_residuals_of(&sol.theta, j))
-            .collect::<Result<_, _>>()?,
+        residuals: residuals.remove(0),
+        extra_residuals,
         n_imus,
         active,
         theta: sol.theta,
