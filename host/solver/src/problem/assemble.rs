@@ -61,7 +61,7 @@ impl Problem<'_> {
                 let range = self.imu_parts(st)[h].clone();
                 c += self.imu_terms(st, model, &spline, &x, theta, range, None)?;
             }
-            Ok(c)
+            Ok(c + self.joint_terms(&spline, self.joint_parts()[h].clone(), None))
         };
         let (c1, c2) = std::thread::scope(|s| {
             let h = s.spawn(|| half(1));
@@ -70,7 +70,6 @@ impl Problem<'_> {
         });
         Ok(c1?
             + c2?
-            + self.joint_terms(&spline, None)
             + self.prior_terms(&x, None, 0)
             + self.effect_prior_terms(self.effect_params_of(theta), None, 0))
     }
@@ -82,7 +81,10 @@ impl Problem<'_> {
         let residuals = (0..self.streams.len())
             .map(|j| self.imu_residuals_of(theta, j))
             .collect::<Result<Vec<_>, _>>()?;
-        // summed as `cost` sums: per half, stream after stream, sample by sample
+        let x = self.x_of(theta);
+        let spline = self.spline_of(theta);
+        // summed as `cost` sums: per half, stream after stream, sample by
+        // sample, then the half's joint samples
         let half = |h: usize| {
             let mut c = 0.0;
             for (st, r) in self.streams.iter().zip(&residuals) {
@@ -98,13 +100,10 @@ impl Problem<'_> {
                 }
                 c += cs;
             }
-            c
+            c + self.joint_terms(&spline, self.joint_parts()[h].clone(), None)
         };
-        let x = self.x_of(theta);
-        let spline = self.spline_of(theta);
         let cost = half(0)
             + half(1)
-            + self.joint_terms(&spline, None)
             + self.prior_terms(&x, None, 0)
             + self.effect_prior_terms(self.effect_params_of(theta), None, 0);
         Ok((
@@ -158,7 +157,8 @@ impl Problem<'_> {
                 let range = self.imu_parts(st)[h].clone();
                 c += self.imu_terms(st, model, &spline, &x, theta, range, Some(&mut *lin))?;
             }
-            Ok(c)
+            let joints = self.joint_parts()[h].clone();
+            Ok(c + self.joint_terms(&spline, joints, Some(&mut *lin.g)))
         };
         let (r1, r2) = std::thread::scope(|s| {
             let h = s.spawn(|| half(1, &mut other));
@@ -170,7 +170,6 @@ impl Problem<'_> {
         for (u, v) in out.g.iter_mut().zip(&g2) {
             *u += v;
         }
-        cost += self.joint_terms(&spline, Some(&mut *out.g));
         out.a.add_band(&self.joint_normal);
         let nc = self.n_coeffs();
         cost += self.prior_terms(&x, Some(&mut out), nc);
@@ -401,6 +400,13 @@ impl Problem<'_> {
         Ok(())
     }
 
+    /// The joint samples split in two halves (one per thread, beside the
+    /// IMU halves of [`Self::imu_parts`]).
+    fn joint_parts(&self) -> [Range<usize>; 2] {
+        let m = self.joint_basis.len();
+        [0..m / 2, m / 2..m]
+    }
+
     /// The selected IMU range split in two halves (one per thread; a knot span
     /// cut in two is simply flushed twice, the sums are the same).
     fn imu_parts(&self, st: &Stream<'_>) -> [Range<usize>; 2] {
@@ -411,12 +417,23 @@ impl Problem<'_> {
 
     /// Joint residuals: cost, and (with `g`) their gradient terms (their
     /// Gauss–Newton block is the constant [`Self::joint_normal_matrix`]).
-    fn joint_terms(&self, spline: &Spline, mut g: Option<&mut [f64]>) -> f64 {
+    fn joint_terms(
+        &self,
+        spline: &Spline,
+        samples: Range<usize>,
+        mut g: Option<&mut [f64]>,
+    ) -> f64 {
         let n = self.n;
         let count = self.knots.degree() + 1;
         let c = spline.coeffs();
         let mut cost = 0.0;
-        for (s, b) in self.joint_basis.iter().enumerate() {
+        for (s, b) in self
+            .joint_basis
+            .iter()
+            .enumerate()
+            .take(samples.end)
+            .skip(samples.start)
+        {
             let qm = &self.data.joint_q[s * n..(s + 1) * n];
             for j in 0..n {
                 let mut q = 0.0;

@@ -258,15 +258,8 @@ impl<'a> Problem<'a> {
         let active: Vec<usize> = (0..layout.len())
             .filter(|k| !opts.frozen.contains(k))
             .collect();
-        let mut joint_basis = Vec::with_capacity(data.joint_t.len());
-        let mut b = Basis::default();
-        for &t in &data.joint_t {
-            knots.basis(t, &mut b)?;
-            joint_basis.push(JointBasis {
-                first: b.first,
-                n: b.d[0],
-            });
-        }
+        let spans = SpanPolynomials::new(&knots);
+        let joint_basis = joint_bases(&spans, &data.joint_t)?;
         let specs = layout.specs();
         let k_imus = layout.n_imus();
         if k_imus > data.n_imus() {
@@ -337,7 +330,7 @@ impl<'a> Problem<'a> {
             layout,
             imu_layout,
             data,
-            spans: SpanPolynomials::new(&knots),
+            spans,
             knots,
             n,
             inv_sigma_q: opts.sigma_q.iter().map(|s| 1.0 / s).collect(),
@@ -568,6 +561,30 @@ impl<'a> Problem<'a> {
         let own: Vec<f64> = self.streams[j].map.iter().map(|&k| x[k]).collect();
         Ok(MeasurementModel::new(self.robot, self.imu_layout, &own)?)
     }
+}
+
+/// The basis of every joint sample, the two halves on two threads.
+fn joint_bases(spans: &SpanPolynomials, t: &[f64]) -> Result<Vec<JointBasis>, SplineError> {
+    let part = |ts: &[f64]| -> Result<Vec<JointBasis>, SplineError> {
+        let mut b = Basis::default();
+        ts.iter()
+            .map(|&t| {
+                spans.basis(t, &mut b)?;
+                Ok(JointBasis {
+                    first: b.first,
+                    n: b.d[0],
+                })
+            })
+            .collect()
+    };
+    let (lo, hi) = t.split_at(t.len() / 2);
+    let (a, b) = std::thread::scope(|s| {
+        let h = s.spawn(|| part(hi));
+        (part(lo), h.join().expect("joint basis thread panicked"))
+    });
+    let mut a = a?;
+    a.extend(b?);
+    Ok(a)
 }
 
 /// Median of the steps of `t` (0 with fewer than two samples).

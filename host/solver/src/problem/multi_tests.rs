@@ -71,8 +71,11 @@ fn one_imu_gives_the_numbers_of_the_one_imu_problem() {
     for (noise, want) in [None, Some(noise_model())].into_iter().zip(GOLDEN) {
         let (p, theta) = problem_at(&s, &s.layout, &s.data, &s.x, noise);
         let got = checksums(&p, &theta);
+        // 1e-11: the joint samples' basis now comes from the span
+        // polynomials, equal to the Cox–de Boor one to rounding (the
+        // gradient checksum cancels terms ~10³ larger than itself)
         for (g, w) in got.iter().zip(want) {
-            assert!((g - w).abs() <= 1e-12 * w.abs(), "{got:?} vs {want:?}");
+            assert!((g - w).abs() <= 1e-11 * w.abs(), "{got:?} vs {want:?}");
         }
     }
 }
