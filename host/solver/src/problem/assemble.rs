@@ -201,6 +201,7 @@ impl Problem<'_> {
         theta: &[f64],
         j: usize,
     ) -> Result<Vec<(usize, [f64; 6])>, ProblemError> {
+        debug_assert_eq!(self.thin, 1, "residuals of a thinned iteration");
         let st = &self.streams[j];
         let x = self.x_of(theta);
         let model = self.model_of(j, &x)?;
@@ -277,7 +278,7 @@ impl Problem<'_> {
             }
             return Ok(());
         }
-        let mut quads = Quads::new(range);
+        let mut quads = Quads::new(range, self.thin);
         let mut quad = Quad::default();
         while quads.next(self, st, spline, tau, &mut quad)? {
             let z = model.predict_x4(&quad.js);
@@ -531,7 +532,7 @@ impl Problem<'_> {
             Stack::new(nl, 0, &st.sensor_columns[1]),
         ];
         let mut group_first = usize::MAX;
-        let mut quads = Quads::new(range);
+        let mut quads = Quads::new(range, self.thin);
         let mut quad = Quad::default();
         let mut lanes = LaneEffects::new(self, st);
         while quads.next(self, st, spline, tau, &mut quad)? {
@@ -618,15 +619,18 @@ struct Quad {
 struct Quads {
     next: usize,
     end: usize,
+    /// Every `step`-th sample (the problem's thinning).
+    step: usize,
     /// The basis of sample `next`, when already computed (it began a new span).
     pending: Option<Basis>,
 }
 
 impl Quads {
-    fn new(range: Range<usize>) -> Self {
+    fn new(range: Range<usize>, step: usize) -> Self {
         Self {
             next: range.start,
             end: range.end,
+            step,
             pending: None,
         }
     }
@@ -659,7 +663,7 @@ impl Quads {
             last = b;
             q.idx[q.len] = i;
             q.len += 1;
-            self.next += 1;
+            self.next += self.step;
         }
         if q.len == 0 {
             return Ok(false);

@@ -10,6 +10,8 @@
 //! 3. Find τ from the data ([`crate::time_offset`]) unless the fit starts
 //!    from a given x or τ is frozen.
 //! 4. Levenberg–Marquardt over θ = [c, x_a, θ_E] on the MAP cost
+//!    (from a start that is not a previous fit, the first step from a
+//!    thinned set of IMU samples: [`Problem::thin_first_iteration`])
 //!    J = ½‖e‖² of eq. (22) (residuals eq. (10), priors eq. (16)), the
 //!    effects of the spec as extra parameter blocks θ_E with their priors
 //!    ([`robimu_solver::problem::Problem`]; none in a plain calibration).
@@ -241,6 +243,10 @@ pub fn fit(
         &opts.problem_options(),
         effects,
     )?;
+    if initial.theta.is_none() {
+        // a start far from the optimum: its first step from a thinned set
+        problem.thin_first_iteration();
+    }
     let mut theta0 = problem.theta(&initial.spline, &initial.x);
     if let Some(prev) = initial.theta {
         theta0[..prev.len()].copy_from_slice(prev);
