@@ -527,10 +527,7 @@ impl Problem<'_> {
             return Ok(cost);
         };
         let mut jac = MeasurementJacobians::<F64x4>::zeros(nx);
-        let mut blocks = [
-            Stack::new(nl, 0, &st.sensor_columns[0]),
-            Stack::new(nl, 0, &st.sensor_columns[1]),
-        ];
+        let mut blocks = [0, 1].map(|s| self.stack(st, s, 0));
         let mut group_first = usize::MAX;
         let mut quads = Quads::new(range, self.thin);
         let mut quad = Quad::default();
@@ -564,7 +561,7 @@ impl Problem<'_> {
             for (sensor, block) in blocks.iter_mut().enumerate() {
                 for c in 0..3 {
                     let ch = 3 * sensor + c;
-                    let row = block.rows + 4 * c;
+                    let row = block.row(c);
                     // −w per lane, 0 on the lanes that repeat a sample
                     let w = F64x4(std::array::from_fn(|l| {
                         if l < quad.len {
@@ -585,7 +582,8 @@ impl Problem<'_> {
                             *block.lanes(a * n + jn, row) = v.0;
                         }
                     }
-                    for (a, &(k, _)) in block.columns.iter().enumerate() {
+                    for a in 0..block.columns.len() {
+                        let k = block.columns[a].0;
                         let d = if k < nx {
                             jac.dz_dx[k][ch]
                         } else {
@@ -594,7 +592,7 @@ impl Problem<'_> {
                         *block.lanes(nl + a, row) = (w * d).0;
                     }
                 }
-                block.rows += 12;
+                block.rows += 4;
             }
         }
         for b in &mut blocks {
@@ -867,10 +865,7 @@ impl Problem<'_> {
         let len = ring.len();
         let mut at = self.sample_eval(st);
         let mut jac = MeasurementJacobians::new(nx);
-        let mut blocks = [
-            Stack::new(nl, extra * n, &st.sensor_columns[0]),
-            Stack::new(nl, extra * n, &st.sensor_columns[1]),
-        ];
+        let mut blocks = [0, 1].map(|s| self.stack(st, s, extra * n));
         let mut row_buf = vec![0.0; nl + extra * n + widths[0].max(widths[1])];
         let mut group_first = usize::MAX;
         for i in self.warm_start(st, &range)..range.end {
@@ -930,7 +925,7 @@ impl Problem<'_> {
                 for c in 0..3 {
                     let ch = 3 * sensor + c;
                     let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
-                    let row = block.rows;
+                    let row = block.row(c);
                     let (b0, nl_cur) = (block.b0, block.nl_cur);
                     let col = &mut row_buf[..nl_cur + block.columns.len()];
                     col.fill(0.0);
@@ -955,8 +950,8 @@ impl Problem<'_> {
                     cost += 0.5 * u * u;
                     block.set_row(row, col);
                     block.r[row] = u;
-                    block.rows += 1;
                 }
+                block.rows += 1;
             }
         }
         for b in &mut blocks {
@@ -966,19 +961,72 @@ impl Problem<'_> {
     }
 }
 
+impl Problem<'_> {
+    /// The row stack of `sensor` (0: accelerometer, 1: gyroscope) of stream
+    /// `st`, `extra` band columns before its own (the GLS widening).
+    fn stack(&self, st: &Stream<'_>, sensor: usize, extra: usize) -> Stack {
+        let nl = (self.knots.degree() + 1) * self.n;
+        let n_own = self.imu_layout.len();
+        let channel = |k: usize| {
+            (k < n_own)
+                .then(|| single_channel(self.imu_layout, sensor, k))
+                .flatten()
+        };
+        Stack::new(nl, extra, &st.sensor_columns[sensor], channel)
+    }
+}
+
+/// The channel (0–2 within its sensor) of a column of a sensor's rows that
+/// is non-zero in one channel only — the misalignments, gains and biases
+/// of the sensor's own intrinsics (docs/model.md §3, eq. (6)): ∂z/∂γ_yz
+/// is in y, ∂z/∂γ_zy and ∂z/∂γ_zx in z, ∂z/∂k_c and ∂z/∂b_c in c — or
+/// `None` for a column that may be non-zero in every channel.
+pub(super) fn single_channel(
+    layout: &robimu_model::ParamLayout,
+    sensor: usize,
+    k: usize,
+) -> Option<usize> {
+    let o = layout.offsets();
+    let base = if sensor == 0 { o.gamma_a } else { o.gamma_w };
+    match k.checked_sub(base)? {
+        0 => Some(1),
+        1 | 2 => Some(2),
+        e @ 6..=8 => Some(e - 6),
+        e @ 9..=11 => Some(e - 9),
+        _ => None,
+    }
+}
+
 /// Rows of one sensor's whitened Jacobian for the samples of knot span g,
 /// over the band unknowns of spans b0 = max(g − E, 0) … g + p_s, then the
-/// sensor's x columns, stored column-major (a column's rows contiguous, so
-/// that the four lanes of a quad are one store). The white assembly uses it
-/// with E = 0 (its rows are its own samples', four rows per channel and
-/// quad), the GLS one with the E of the widened band (one row at a time).
-struct Stack<'c> {
+/// sensor's x columns: first those non-zero in every channel ("dense"),
+/// then those of one channel only ([`single_channel`]), channel by channel.
+/// Stored column-major, each channel's rows a segment of its own (row
+/// `c·seg + i`), so that the four lanes of a quad are one store and a
+/// single-channel column meets only its channel's rows in JᵀJ: the dense
+/// block is Σ_c J_cᵀJ_c over all columns but those, and a single-channel
+/// column's products are taken over its channel's rows alone (the zeros
+/// of the other channels are never multiplied). The white assembly uses it
+/// with E = 0 (its rows are its own samples', four per channel and quad),
+/// the GLS one with the E of the widened band (one row per channel and
+/// sample).
+struct Stack {
     nl: usize,
-    columns: &'c [(usize, usize)],
-    /// J, column-major with column stride `cap`.
+    /// The sensor's x columns (index in the IMU's own vector, position in
+    /// θ's x part), dense ones first, then channel 0's, 1's, 2's.
+    columns: Vec<(usize, usize)>,
+    /// Position in the caller's column order of each of `columns`.
+    order: Vec<usize>,
+    /// Dense x columns.
+    n_dense: usize,
+    /// Single-channel x columns of each channel, as positions in `columns`.
+    sparse: [Range<usize>; 3],
+    /// J, column-major with column stride 3·`seg`.
     j: Vec<f64>,
-    cap: usize,
+    /// Row capacity of one channel's segment.
+    seg: usize,
     r: Vec<f64>,
+    /// Rows of each channel's segment in use.
     rows: usize,
     local: Mat<f64>,
     glocal: Mat<f64>,
@@ -991,42 +1039,81 @@ struct Stack<'c> {
     c0: usize,
 }
 
-impl<'c> Stack<'c> {
-    fn new(nl: usize, extra: usize, columns: &'c [(usize, usize)]) -> Self {
+impl Stack {
+    fn new(
+        nl: usize,
+        extra: usize,
+        columns: &[(usize, usize)],
+        channel: impl Fn(usize) -> Option<usize>,
+    ) -> Self {
+        let mut order: Vec<usize> = (0..columns.len()).collect();
+        // dense first (key 0), then by channel (1 + c); stable: θ order within
+        order.sort_by_key(|&a| channel(columns[a].0).map_or(0, |c| 1 + c));
+        let n_dense = order
+            .iter()
+            .take_while(|&&a| channel(columns[a].0).is_none())
+            .count();
+        let count = |c: usize| {
+            order
+                .iter()
+                .filter(|&&a| channel(columns[a].0) == Some(c))
+                .count()
+        };
+        let (c0n, c1n, c2n) = (count(0), count(1), count(2));
+        let sparse = [
+            n_dense..n_dense + c0n,
+            n_dense + c0n..n_dense + c0n + c1n,
+            n_dense + c0n + c1n..n_dense + c0n + c1n + c2n,
+        ];
+        let columns: Vec<(usize, usize)> = order.iter().map(|&a| columns[a]).collect();
         let cols = nl + extra + columns.len();
-        let cap = 3 * GROUP_CAP;
+        let seg = GROUP_CAP;
         Self {
             nl,
+            x_index: columns.iter().map(|&(_, a)| a).collect(),
             columns,
-            j: vec![0.0; cols * cap],
-            cap,
-            r: vec![0.0; cap],
+            order,
+            n_dense,
+            sparse,
+            j: vec![0.0; cols * 3 * seg],
+            seg,
+            r: vec![0.0; 3 * seg],
             rows: 0,
             local: Mat::zeros(cols, cols),
             glocal: Mat::zeros(cols, 1),
-            x_index: columns.iter().map(|&(_, a)| a).collect(),
             b0: 0,
             nl_cur: nl,
             c0: 0,
         }
     }
 
-    /// Whether a quad's 12 rows no longer fit.
+    /// Whether a quad's four rows per channel no longer fit.
     fn full(&self) -> bool {
-        self.rows + 12 > self.cap
+        self.rows + 4 > self.seg
     }
 
-    /// Rows `row..row + 4` of column `c`.
+    /// The next free row of channel `c`'s segment.
+    fn row(&self, c: usize) -> usize {
+        c * self.seg + self.rows
+    }
+
+    /// Rows `row..row + 4` of column `c` (in this stack's column order).
     #[inline(always)]
     fn lanes(&mut self, c: usize, row: usize) -> &mut [f64; 4] {
-        let at = c * self.cap + row;
+        let at = c * 3 * self.seg + row;
         (&mut self.j[at..at + 4]).try_into().expect("four rows")
     }
 
-    /// Row `row` from its values over the current group's columns.
+    /// Row `row` from its values over the current group's columns, the x
+    /// columns in the caller's order.
     fn set_row(&mut self, row: usize, values: &[f64]) {
-        for (c, &v) in values.iter().enumerate() {
-            self.j[c * self.cap + row] = v;
+        let ld = 3 * self.seg;
+        let nl = self.nl_cur;
+        for (c, &v) in values[..nl].iter().enumerate() {
+            self.j[c * ld + row] = v;
+        }
+        for (p, &a) in self.order.iter().enumerate() {
+            self.j[(nl + p) * ld + row] = values[nl + a];
         }
     }
 
@@ -1041,38 +1128,84 @@ impl<'c> Stack<'c> {
     /// Add JᵀJ (lower triangle) and Jᵀr of the stacked rows to `out`, and
     /// empty the stack.
     fn flush(&mut self, out: &mut Linearization<'_>) {
-        if self.rows == 0 {
+        let rows = self.rows;
+        if rows == 0 {
             return;
         }
         let (nl, cols) = (self.nl_cur, self.nl_cur + self.columns.len());
-        let j = MatRef::from_column_major_slice_with_stride(
-            &self.j[..(cols - 1) * self.cap + self.rows],
-            self.rows,
-            cols,
-            self.cap,
-        );
-        let r = MatRef::from_column_major_slice(&self.r[..self.rows], self.rows, 1);
+        let nd = nl + self.n_dense;
+        let ld = 3 * self.seg;
         let mut local = self.local.as_mut().submatrix_mut(0, 0, cols, cols);
-        faer::linalg::matmul::triangular::matmul(
-            local.as_mut(),
-            BlockStructure::TriangularLower,
-            Accum::Replace,
-            j.transpose(),
-            BlockStructure::Rectangular,
-            j,
-            BlockStructure::Rectangular,
-            1.0,
-            Par::Seq,
-        );
+        local
+            .as_mut()
+            .submatrix_mut(nd, nd, cols - nd, cols - nd)
+            .fill(0.0);
         let mut glocal = self.glocal.as_mut().submatrix_mut(0, 0, cols, 1);
-        faer::linalg::matmul::matmul(
-            glocal.as_mut(),
-            Accum::Replace,
-            j.transpose(),
-            r,
-            1.0,
-            Par::Seq,
-        );
+        for c in 0..3 {
+            // channel c's rows: a column-major block of `rows` rows
+            let at = c * self.seg;
+            let jc = MatRef::from_column_major_slice_with_stride(
+                &self.j[at..at + (cols - 1) * ld + rows],
+                rows,
+                cols,
+                ld,
+            );
+            let rc = MatRef::from_column_major_slice(&self.r[at..at + rows], rows, 1);
+            let accum = if c == 0 { Accum::Replace } else { Accum::Add };
+            let dense = jc.submatrix(0, 0, rows, nd);
+            faer::linalg::matmul::triangular::matmul(
+                local.as_mut().submatrix_mut(0, 0, nd, nd),
+                BlockStructure::TriangularLower,
+                accum,
+                dense.transpose(),
+                BlockStructure::Rectangular,
+                dense,
+                BlockStructure::Rectangular,
+                1.0,
+                Par::Seq,
+            );
+            faer::linalg::matmul::matmul(
+                glocal.as_mut().submatrix_mut(0, 0, nd, 1),
+                accum,
+                dense.transpose(),
+                rc,
+                1.0,
+                Par::Seq,
+            );
+            let sc = self.sparse[c].clone();
+            if sc.is_empty() {
+                continue;
+            }
+            let (s0, ns) = (nl + sc.start, sc.len());
+            let single = jc.submatrix(0, s0, rows, ns);
+            faer::linalg::matmul::matmul(
+                local.as_mut().submatrix_mut(s0, 0, ns, nd),
+                Accum::Replace,
+                single.transpose(),
+                dense,
+                1.0,
+                Par::Seq,
+            );
+            faer::linalg::matmul::triangular::matmul(
+                local.as_mut().submatrix_mut(s0, s0, ns, ns),
+                BlockStructure::TriangularLower,
+                Accum::Replace,
+                single.transpose(),
+                BlockStructure::Rectangular,
+                single,
+                BlockStructure::Rectangular,
+                1.0,
+                Par::Seq,
+            );
+            faer::linalg::matmul::matmul(
+                glocal.as_mut().submatrix_mut(s0, 0, ns, 1),
+                Accum::Replace,
+                single.transpose(),
+                rc,
+                1.0,
+                Par::Seq,
+            );
+        }
         let c0 = self.c0;
         out.a.add_local(c0, nl, &self.x_index, local.as_ref());
         let nc = out.a.dims().0;

@@ -783,6 +783,17 @@ mod tests {
                 for sensor in 0..2 {
                     let used = sensor_depends_on(&layout, sensor, k);
                     let col = &jac.dz_dx[k][3 * sensor..3 * sensor + 3];
+                    // a single-channel column is zero in the other channels
+                    if let Some(c) = assemble::single_channel(&layout, sensor, k) {
+                        assert!(used, "{}", layout.specs()[k].name);
+                        for (d, v) in col.iter().enumerate() {
+                            assert!(
+                                (d == c) == (*v != 0.0),
+                                "{} sensor {sensor} channel {d}: {v}",
+                                layout.specs()[k].name
+                            );
+                        }
+                    }
                     if !used {
                         assert!(
                             col.iter().all(|v| *v == 0.0),
