@@ -36,8 +36,11 @@ pub struct Residuals {
     /// The θ they are at.
     pub theta: Vec<f64>,
     /// IMU j's residuals, in sample order.
-    pub imus: Vec<Vec<(usize, [f64; 6])>>,
+    pub imus: Vec<ImuResiduals>,
 }
+
+/// One IMU's whitened residuals: (sample index, r) in sample order.
+pub type ImuResiduals = Vec<(usize, [f64; 6])>;
 
 /// Gauss–Newton matrix A = JᵀJ and gradient g = Jᵀr being accumulated.
 struct Linearization<'m> {

@@ -95,7 +95,7 @@
 //! like with like (docs/model.md §4: the set is updated as τ moves).
 
 mod assemble;
-pub use assemble::Residuals;
+pub use assemble::{ImuResiduals, Residuals};
 #[cfg(test)]
 mod gls_tests;
 #[cfg(test)]
@@ -613,10 +613,7 @@ impl<'a> Problem<'a> {
     /// Every IMU's whitened residuals at θ (IMU j at `[j]`, in sample order):
     /// kept from the solver's last cost when it was at θ
     /// ([`crate::LeastSquares::end_cost`]), else computed now.
-    pub fn take_residuals(
-        &mut self,
-        theta: &[f64],
-    ) -> Result<Vec<Vec<(usize, [f64; 6])>>, ProblemError> {
+    pub fn take_residuals(&mut self, theta: &[f64]) -> Result<Vec<ImuResiduals>, ProblemError> {
         match self.end.take() {
             Some(r) if r.theta == theta => Ok(r.imus),
             _ => (0..self.streams.len())
