@@ -2,7 +2,8 @@
 //!
 //! AUBO i5, x of 48, 36 000 IMU samples (120 Hz × 300 s) along a cubic spline
 //! with 1 s knots. Reports ns per sample for: spline evaluation (q..q⃛),
-//! z only, z + all Jacobians (analytic), and z + Jacobians by forward-mode jets.
+//! z only, z + all Jacobians (analytic), the same four samples at a time
+//! (F64x4 lanes, the assembly's path), and z + Jacobians by forward-mode jets.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -10,7 +11,7 @@ use std::time::Instant;
 use robimu_model::jet::Jet;
 use robimu_model::measurement::predict_generic;
 use robimu_model::{
-    JointState, Knots, MeasurementJacobians, MeasurementModel, ParamLayout, Robot, Spline,
+    F64x4, JointState, Knots, MeasurementJacobians, MeasurementModel, ParamLayout, Robot, Spline,
 };
 
 fn main() {
@@ -74,6 +75,40 @@ fn main() {
             for s in &states[a..b] {
                 model.jacobians(black_box(s), &mut jac);
                 black_box(&jac);
+            }
+        },
+    );
+    // four samples in the lanes of F64x4 (the assembly's path), per sample
+    let quads: Vec<JointState<F64x4>> = states
+        .chunks_exact(4)
+        .map(|c| {
+            let mut q = JointState::<F64x4>::default();
+            for (l, s) in c.iter().enumerate() {
+                for j in 0..6 {
+                    q.q[j].0[l] = s.q[j];
+                    q.qd[j].0[l] = s.qd[j];
+                    q.qdd[j].0[l] = s.qdd[j];
+                    q.qddd[j].0[l] = s.qddd[j];
+                }
+            }
+            q
+        })
+        .collect();
+    time("z only, four lanes (predict_x4)", n, &mut |a, b| {
+        let mut acc = 0.0;
+        for q in &quads[a / 4..b / 4] {
+            acc += model.predict_x4(black_box(q))[0].lane(0);
+        }
+        black_box(acc);
+    });
+    let mut jac4 = MeasurementJacobians::<F64x4>::zeros(layout.len());
+    time(
+        "z + all Jacobians, four lanes (jacobians_x4)",
+        n,
+        &mut |a, b| {
+            for q in &quads[a / 4..b / 4] {
+                model.jacobians_x4(black_box(q), &mut jac4);
+                black_box(&jac4);
             }
         },
     );
