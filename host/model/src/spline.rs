@@ -10,6 +10,7 @@
 //! derivatives up to order 3 come from Cox–de Boor with derivatives (Piegl &
 //! Tiller, *The NURBS Book*, A2.2 and eq. (2.9)), allocation-free.
 
+use super::jet::Scalar;
 use super::kinematics::JointState;
 use super::lanes::F64x4;
 use super::MAX_JOINTS;
@@ -214,19 +215,6 @@ pub struct Basis4 {
     pub d: [[F64x4; MAX_DEGREE + 1]; MAX_DERIV + 1],
 }
 
-impl Basis4 {
-    /// Put `b` into lane `l` (`first` and `count` from it).
-    pub fn set_lane(&mut self, l: usize, b: &Basis) {
-        self.first = b.first;
-        self.count = b.count;
-        for (dk, bk) in self.d.iter_mut().zip(&b.d) {
-            for (v, &x) in dk.iter_mut().zip(bk) {
-                v.0[l] = x;
-            }
-        }
-    }
-}
-
 /// The non-zero basis functions of every knot span as polynomials, for
 /// evaluating many times on one knot vector (the calibration evaluates every
 /// IMU sample at every cost and linearisation, docs/model.md §5).
@@ -290,26 +278,61 @@ impl SpanPolynomials {
         let p = self.knots.degree;
         let (s, c) = (t - self.knots.y[mu], &self.coef[mu - p]);
         match p {
-            1 => horner::<1>(c, s, &mut out.d),
-            2 => horner::<2>(c, s, &mut out.d),
-            3 => horner::<3>(c, s, &mut out.d),
-            4 => horner::<4>(c, s, &mut out.d),
-            _ => horner::<5>(c, s, &mut out.d),
+            1 => horner::<1, f64>(c, s, &mut out.d),
+            2 => horner::<2, f64>(c, s, &mut out.d),
+            3 => horner::<3, f64>(c, s, &mut out.d),
+            4 => horner::<4, f64>(c, s, &mut out.d),
+            _ => horner::<5, f64>(c, s, &mut out.d),
         }
         out.first = mu - p;
         out.count = p + 1;
         Ok(())
     }
+
+    /// The span μ of t ([`Knots::span`]), tried first at `hint` (the span
+    /// of the previous of many ordered times).
+    #[inline]
+    pub fn span_near(&self, t: f64, hint: usize) -> Result<usize, SplineError> {
+        let (y, p, m) = (&self.knots.y, self.knots.degree, self.knots.num_coeffs());
+        if (p..m).contains(&hint)
+            && y[hint] <= t
+            && (t < y[hint + 1] || (hint + 1 == m && t <= y[m]))
+        {
+            return Ok(hint);
+        }
+        self.knots.span(t)
+    }
+
+    /// [`Self::basis`] of four times in the span μ, lane by lane
+    /// (bit-identical to four scalar calls; [`crate::lanes`]).
+    pub fn basis_x4(&self, mu: usize, t: F64x4, out: &mut Basis4) {
+        let p = self.knots.degree;
+        let (s, c) = (t - self.knots.y[mu], &self.coef[mu - p]);
+        match p {
+            1 => horner::<1, F64x4>(c, s, &mut out.d),
+            2 => horner::<2, F64x4>(c, s, &mut out.d),
+            3 => horner::<3, F64x4>(c, s, &mut out.d),
+            4 => horner::<4, F64x4>(c, s, &mut out.d),
+            _ => horner::<5, F64x4>(c, s, &mut out.d),
+        }
+        out.first = mu - p;
+        out.count = p + 1;
+    }
 }
 
-/// The rows of [`Basis::d`] at s from one span's coefficients (degree P).
+/// The rows of [`Basis::d`] at s from one span's coefficients (degree P),
+/// for one time (f64) or four ([`F64x4`]).
 #[inline(always)]
-fn horner<const P: usize>(c: &SpanCoeffs, s: f64, d: &mut [[f64; MAX_DEGREE + 1]; MAX_DERIV + 1]) {
-    *d = [[0.0; MAX_DEGREE + 1]; MAX_DERIV + 1];
+fn horner<const P: usize, S: Scalar>(
+    c: &SpanCoeffs,
+    s: S,
+    d: &mut [[S; MAX_DEGREE + 1]; MAX_DERIV + 1],
+) {
+    *d = [[S::cst(0.0); MAX_DEGREE + 1]; MAX_DERIV + 1];
     for k in 0..=MAX_DERIV.min(P) {
         for a in 0..=P {
             let ca = &c[k][a];
-            let mut v = ca[P - k];
+            let mut v = S::cst(ca[P - k]);
             for i in (0..P - k).rev() {
                 v = v * s + ca[i];
             }
@@ -643,6 +666,57 @@ mod tests {
                 for a in 0..b.count {
                     let i = b.first + a;
                     assert!(t >= y[i] && t <= y[i + knots.degree() + 1]);
+                }
+            }
+        }
+    }
+
+    /// `span_near` finds `Knots::span` from any hint, and `basis_x4` is
+    /// four scalar `basis` calls bit for bit (every degree, a double knot,
+    /// the ends, knots themselves).
+    #[test]
+    fn span_hints_and_four_lane_bases_match_the_scalar_ones() {
+        let double = Knots::new(
+            3,
+            vec![0.0, 0.0, 0.0, 0.0, 0.3, 1.1, 1.1, 1.2, 2.0, 2.0, 2.0, 2.0],
+        )
+        .unwrap();
+        let mut sets = vec![irregular(), double];
+        sets.extend((1..=5).map(|p| Knots::uniform(0.0, 3.0, 0.37, p).unwrap()));
+        for knots in sets {
+            let poly = SpanPolynomials::new(&knots);
+            let (t0, t1) = (knots.start(), knots.end());
+            let mut ts: Vec<f64> = knots.knots().to_vec();
+            ts.extend((0..=403).map(|i| t0 + (t1 - t0) * i as f64 / 403.0));
+            let m = knots.num_coeffs();
+            for &t in &ts {
+                let want = knots.span(t).unwrap();
+                for hint in 0..m + 2 {
+                    assert_eq!(poly.span_near(t, hint).unwrap(), want, "t {t} hint {hint}");
+                }
+            }
+            assert!(poly.span_near(t1 + 1.0, 0).is_err());
+            for quad in ts.chunks(4) {
+                let mu = knots.span(quad[0]).unwrap();
+                let lanes: [f64; 4] = std::array::from_fn(|l| {
+                    let t = quad[l.min(quad.len() - 1)];
+                    if knots.span(t).unwrap() == mu {
+                        t
+                    } else {
+                        quad[0]
+                    }
+                });
+                let mut b4 = Basis4::default();
+                poly.basis_x4(mu, F64x4(lanes), &mut b4);
+                for (l, &t) in lanes.iter().enumerate() {
+                    let mut b = Basis::default();
+                    poly.basis(t, &mut b).unwrap();
+                    assert_eq!((b4.first, b4.count), (b.first, b.count));
+                    for k in 0..=MAX_DERIV {
+                        for a in 0..=MAX_DEGREE {
+                            assert_eq!(b4.d[k][a].lane(l).to_bits(), b.d[k][a].to_bits());
+                        }
+                    }
                 }
             }
         }

@@ -681,8 +681,8 @@ struct Quads {
     end: usize,
     /// Every `step`-th sample (the problem's thinning).
     step: usize,
-    /// The basis of sample `next`, when already computed (it began a new span).
-    pending: Option<Basis>,
+    /// The knot span of the last sample (the first one tried for the next).
+    mu: usize,
 }
 
 impl Quads {
@@ -691,7 +691,7 @@ impl Quads {
             next: range.start,
             end: range.end,
             step,
-            pending: None,
+            mu: 0,
         }
     }
 
@@ -705,22 +705,21 @@ impl Quads {
         q: &mut Quad,
     ) -> Result<bool, ProblemError> {
         q.len = 0;
-        let (mut b, mut last) = (Basis::default(), Basis::default());
+        let mut u = F64x4::splat(0.0);
+        let mut mu = self.mu;
         while self.next < self.end && q.len < 4 {
             let i = self.next;
-            match self.pending.take() {
-                Some(pb) => b = pb,
-                None => p
-                    .spans
-                    .basis(st.t[i] + tau, &mut b)
-                    .map_err(|_| ProblemError::SampleOutOfSpan)?,
-            }
-            if q.len > 0 && b.first != q.basis.first {
-                self.pending = Some(b);
+            let ui = st.t[i] + tau;
+            let m = p
+                .spans
+                .span_near(ui, self.mu)
+                .map_err(|_| ProblemError::SampleOutOfSpan)?;
+            self.mu = m;
+            if q.len > 0 && m != mu {
                 break;
             }
-            q.basis.set_lane(q.len, &b);
-            last = b;
+            mu = m;
+            u.0[q.len] = ui;
             q.idx[q.len] = i;
             q.len += 1;
             self.next += self.step;
@@ -729,9 +728,10 @@ impl Quads {
             return Ok(false);
         }
         for l in q.len..4 {
-            q.basis.set_lane(l, &last);
+            u.0[l] = u.0[q.len - 1];
             q.idx[l] = q.idx[q.len - 1];
         }
+        p.spans.basis_x4(mu, u, &mut q.basis);
         spline.evaluate_basis_x4(&q.basis, &mut q.js);
         Ok(true)
     }
