@@ -13,11 +13,16 @@
 //! to calibrate; with `--long`, also calibrate on 300 s at 1 kHz and 30 min
 //! at 120 Hz (slow); with `--imus K` (K > 1), also calibrate on a 300 s
 //! 120 Hz session of K IMUs (`simulate --imus K`, the joint fit of
-//! docs/model.md §9), with its ratio to the one-IMU calibrate. `--runs N` (default 7) and `--bin PATH` (time
-//! another build of robimu, e.g. a copy of an older one, on the same
-//! sessions) are optional.
+//! docs/model.md §9), with its ratio to the one-IMU calibrate. The long
+//! cases print their ratio to the 120 Hz calibrate. `--runs N` (default 7)
+//! and `--bin PATH` (time another build of robimu, e.g. a copy of an older
+//! one, on the same sessions) are optional. `--versus PATH` times another
+//! build's `calibrate` interleaved run by run with this one's on every
+//! case (so that both see the same machine: the figures of a shared
+//! machine drift by tens of per cent within minutes) and prints the ratio
+//! of their medians — the back-to-back comparison issue 18 is measured by.
 //!
-//! `cargo bench -p robimu --bench calibrate_process [-- --long --runs 7 --imus 3]`
+//! `cargo bench -p robimu --bench calibrate_process [-- --long --runs 7 --imus 3 --versus OLD]`
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -48,9 +53,10 @@ fn simulate(bin: &Path, dir: &Path, duration: f64, rate: f64, imus: usize) {
     assert!(status.success(), "robimu simulate failed");
 }
 
-/// `robimu calibrate DIR` or `robimu diagnose DIR` (`what`), output in DIR.
-fn run_once(what: &str, bin: &Path, dir: &Path, time: Option<&Path>) -> Run {
-    let report = dir.join("time.txt");
+/// `robimu calibrate DIR` or `robimu diagnose DIR` (`what`), output in DIR
+/// (a name of its own per binary `tag`).
+fn run_once(what: &str, bin: &Path, dir: &Path, time: Option<&Path>, tag: &str) -> Run {
+    let report = dir.join(format!("time{tag}.txt"));
     let mut cmd = match time {
         Some(t) => {
             let mut c = Command::new(t);
@@ -60,8 +66,8 @@ fn run_once(what: &str, bin: &Path, dir: &Path, time: Option<&Path>) -> Run {
         None => Command::new(bin),
     };
     let out = match what {
-        "calibrate" => dir.join("bench-result.json"),
-        _ => dir.join("bench-diagnosis"),
+        "calibrate" => dir.join(format!("bench-result{tag}.json")),
+        _ => dir.join(format!("bench-diagnosis{tag}")),
     };
     cmd.arg(what)
         .arg(dir)
@@ -111,6 +117,7 @@ fn main() {
         || PathBuf::from(env!("CARGO_BIN_EXE_robimu")),
         PathBuf::from,
     );
+    let versus = value("--versus").map(PathBuf::from);
     let time = gnu_time();
     let work = tempfile::tempdir().expect("temporary directory");
     let mut cases = vec![("300 s at 120 Hz", 300.0, 120.0, 1)];
@@ -123,6 +130,8 @@ fn main() {
     }
     // calibrate's wall and CPU on the first (one-IMU) case
     let mut one_imu: Option<(f64, Option<f64>)> = None;
+    // calibrate's wall on the 120 Hz case, for the long cases' ratios
+    let mut base_wall: Option<f64> = None;
     println!(
         "{}: `robimu calibrate DIR` on sessions of `robimu simulate --seed 1`; {runs} runs per case; {} cores",
         bin.display(),
@@ -139,8 +148,15 @@ fn main() {
         let mut calibrate_median = None;
         for &what in whats {
             let load_before = load();
+            let other = versus.as_ref().filter(|_| what == "calibrate");
+            let mut theirs = Vec::new();
             let results: Vec<Run> = (0..runs)
-                .map(|_| run_once(what, &bin, &dir, time))
+                .map(|_| {
+                    if let Some(o) = other {
+                        theirs.push(run_once(what, o, &dir, time, "-versus").wall);
+                    }
+                    run_once(what, &bin, &dir, time, "")
+                })
                 .collect();
             let walls: Vec<f64> = results.iter().map(|r| r.wall).collect();
             let min = walls.iter().cloned().fold(f64::INFINITY, f64::min);
@@ -161,6 +177,23 @@ fn main() {
             }
             if k == 0 && what == "calibrate" {
                 one_imu = Some((med, cpu_total));
+            }
+            if what == "calibrate" && imus == 1 {
+                match base_wall {
+                    None => base_wall = Some(med),
+                    Some(b) => line += &format!("; {:.2}x the 120 Hz calibrate's wall", med / b),
+                }
+            }
+            if let Some(o) = other {
+                let (their, their_min) = (
+                    median(theirs.clone()),
+                    theirs.iter().cloned().fold(f64::INFINITY, f64::min),
+                );
+                line += &format!(
+                    "; versus {} interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's",
+                    o.display(),
+                    their / med
+                );
             }
             if imus > 1 {
                 if let Some((c, c_cpu)) = one_imu {
