@@ -15,6 +15,8 @@ pub mod noise_choice;
 pub mod sandwich;
 #[cfg(test)]
 mod sandwich_montecarlo;
+#[cfg(test)]
+mod tau_search_tests;
 
 use faer::Side;
 use robimu_session::result::{
