@@ -246,24 +246,22 @@ impl std::fmt::Display for JointLimitViolation {
 /// The first joint sample of `joint_q` (rows of the robot's joints) beyond
 /// the robot's limits by more than 0.2 rad (recorded positions may overshoot
 /// a planning limit a little), the joints in order: found by a search when
-/// a first pass over the rows finds some joint's extremes beyond them.
+/// a first pass over the rows finds some sample beyond them.
 pub fn joint_outside_limits(robot: &Robot, joint_q: &[f64]) -> Option<JointLimitViolation> {
     const SLACK: f64 = 0.2;
     // a robot has 1..=MAX_JOINTS joints
     let n = robot.dof();
-    let mut lo = [f64::INFINITY; MAX_JOINTS];
-    let mut hi = [f64::NEG_INFINITY; MAX_JOINTS];
+    let (mut below, mut above) = ([f64::NEG_INFINITY; MAX_JOINTS], [f64::INFINITY; MAX_JOINTS]);
+    for (j, lim) in robot.limits().iter().enumerate() {
+        (below[j], above[j]) = (lim.q_min - SLACK, lim.q_max + SLACK);
+    }
+    let mut beyond = false;
     for row in joint_q.chunks_exact(n) {
-        for ((v, a), b) in row.iter().zip(&mut lo).zip(&mut hi) {
-            (*a, *b) = (a.min(*v), b.max(*v));
+        for ((q, b), a) in row.iter().zip(&below[..n]).zip(&above[..n]) {
+            beyond |= (*q < *b) | (*q > *a);
         }
     }
-    let inside = robot
-        .limits()
-        .iter()
-        .zip(lo.iter().zip(&hi))
-        .all(|(lim, (a, b))| *a >= lim.q_min - SLACK && *b <= lim.q_max + SLACK);
-    if inside && joint_q.len() % n == 0 {
+    if !beyond && joint_q.len() % n == 0 {
         return None;
     }
     robot.limits().iter().enumerate().find_map(|(j, lim)| {
