@@ -15,6 +15,8 @@ use super::kinematics::JointState;
 use super::lanes::F64x4;
 use super::MAX_JOINTS;
 
+mod fit;
+
 /// Largest supported degree.
 pub const MAX_DEGREE: usize = 5;
 /// Highest derivative evaluated (q⃛).
@@ -434,88 +436,6 @@ impl Spline {
             });
         }
         Ok(Self { knots, dim, coeffs })
-    }
-
-    /// Least-squares fit to samples `values[s·dim + j]` at `times[s]` (all in
-    /// [t0, t1]), by the banded normal equations (bandwidth p, Cholesky).
-    pub fn fit(
-        knots: Knots,
-        dim: usize,
-        times: &[f64],
-        values: &[f64],
-    ) -> Result<Self, SplineError> {
-        if !(1..=MAX_JOINTS).contains(&dim) {
-            return Err(SplineError::BadDimension(dim));
-        }
-        if values.len() != times.len() * dim {
-            return Err(SplineError::LengthMismatch {
-                what: "sample values",
-                expected: times.len() * dim,
-                found: values.len(),
-            });
-        }
-        let p = knots.degree();
-        let m = knots.num_coeffs();
-        let bw = p + 1;
-        // band[i·bw + d] = A[i][i−d]
-        let mut band = vec![0.0; m * bw];
-        let mut rhs = vec![0.0; m * dim];
-        let mut b = Basis::default();
-        for (s, &t) in times.iter().enumerate() {
-            knots.basis(t, &mut b)?;
-            let y = &values[s * dim..(s + 1) * dim];
-            for a in 0..=p {
-                let i = b.first + a;
-                let na = b.d[0][a];
-                for c in 0..=a {
-                    band[i * bw + (a - c)] += na * b.d[0][c];
-                }
-                for j in 0..dim {
-                    rhs[i * dim + j] += na * y[j];
-                }
-            }
-        }
-        // Banded Cholesky A = L Lᵀ in place.
-        let scale = (0..m).map(|i| band[i * bw]).fold(0.0, f64::max);
-        for i in 0..m {
-            for d in (0..bw.min(i + 1)).rev() {
-                let j = i - d;
-                let mut sum = band[i * bw + d];
-                // Σ_k L[i][k] L[j][k], k from max(i, j)−p … j−1
-                let k0 = i.saturating_sub(p);
-                for k in k0..j {
-                    sum -= band[i * bw + (i - k)] * band[j * bw + (j - k)];
-                }
-                if d == 0 {
-                    if sum.is_nan() || sum <= 1e-13 * scale {
-                        return Err(SplineError::Singular { coeff: i });
-                    }
-                    band[i * bw] = sum.sqrt();
-                } else {
-                    band[i * bw + d] = sum / band[j * bw];
-                }
-            }
-        }
-        // Solve L y = rhs, then Lᵀ c = y.
-        for i in 0..m {
-            for j in 0..dim {
-                let mut v = rhs[i * dim + j];
-                for k in i.saturating_sub(p)..i {
-                    v -= band[i * bw + (i - k)] * rhs[k * dim + j];
-                }
-                rhs[i * dim + j] = v / band[i * bw];
-            }
-        }
-        for i in (0..m).rev() {
-            for j in 0..dim {
-                let mut v = rhs[i * dim + j];
-                for k in i + 1..(i + bw).min(m) {
-                    v -= band[k * bw + (k - i)] * rhs[k * dim + j];
-                }
-                rhs[i * dim + j] = v / band[i * bw];
-            }
-        }
-        Self::new(knots, dim, rhs)
     }
 
     /// The knots.

@@ -4,8 +4,8 @@
 //! i − 1, after E_{i−1}), and ω = R_nᵀ ω_n in the IMU frame.
 //!
 //! The rotation part of the chain only: the check's gyroscope scale (§7.8)
-//! needs no position, velocity or acceleration of the frames, nor the
-//! specific force. The operations are those of
+//! and the τ search's predicted rate (§6.5) need no position, velocity or
+//! acceleration of the frames, nor the specific force. The operations are those of
 //! [`MeasurementModel`]'s chain walk and gyroscope output, in their order,
 //! so that ω equals the ω of [`MeasurementModel::inertial`] and the reading
 //! ω̃ the gyroscope's of [`MeasurementModel::predict`] bit for bit (tested).

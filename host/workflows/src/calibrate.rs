@@ -24,12 +24,13 @@ use robimu_session::result::{
     ParameterResult, WeakDirectionRecord, RESULT_FORMAT,
 };
 
-use super::joint_fit::JointFit;
 use super::time_offset::{TauError, TauEstimate, TauSearch};
 use fit::FitSpec;
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
-use robimu_model::{Knots, ModelError, ParamLayout, Robot, Spline, SplineError};
+use robimu_model::spline::MAX_DEGREE;
+use robimu_model::MAX_JOINTS;
+use robimu_model::{Knots, ModelError, ParamLayout, Robot, SpanPolynomials, Spline, SplineError};
 use robimu_solver::problem::{ProblemError, ProblemOptions};
 use robimu_solver::{IterationRecord, LmError, LmOptions, LmSummary};
 
@@ -246,10 +247,25 @@ impl std::fmt::Display for JointLimitViolation {
 
 /// The first joint sample of `joint_q` (rows of the robot's joints) beyond
 /// the robot's limits by more than 0.2 rad (recorded positions may overshoot
-/// a planning limit a little).
+/// a planning limit a little), the joints in order: found by a search when
+/// a first pass over the rows finds some sample beyond them.
 pub fn joint_outside_limits(robot: &Robot, joint_q: &[f64]) -> Option<JointLimitViolation> {
     const SLACK: f64 = 0.2;
+    // a robot has 1..=MAX_JOINTS joints
     let n = robot.dof();
+    let (mut below, mut above) = ([f64::NEG_INFINITY; MAX_JOINTS], [f64::INFINITY; MAX_JOINTS]);
+    for (j, lim) in robot.limits().iter().enumerate() {
+        (below[j], above[j]) = (lim.q_min - SLACK, lim.q_max + SLACK);
+    }
+    let mut beyond = false;
+    for row in joint_q.chunks_exact(n) {
+        for ((q, b), a) in row.iter().zip(&below[..n]).zip(&above[..n]) {
+            beyond |= (*q < *b) | (*q > *a);
+        }
+    }
+    if !beyond && joint_q.len() % n == 0 {
+        return None;
+    }
     robot.limits().iter().enumerate().find_map(|(j, lim)| {
         joint_q
             .chunks(n)
@@ -354,8 +370,8 @@ pub const AUTO_SPACING_START: f64 = 1.0;
 /// Finest spacing tried when choosing automatically, s.
 pub const AUTO_SPACING_MIN: f64 = 0.05;
 
-/// Fit the trajectory spline to the joint samples ([`JointFit`]: by span
-/// polynomials, each sample's basis shared by the fit and its residual).
+/// Fit the trajectory spline to the joint samples ([`Spline::fit_on`] the
+/// knots' span polynomials, which also give the residuals' basis).
 ///
 /// With `spacing = Some(s)` the knots are every s seconds. With `None` the
 /// spacing starts at [`AUTO_SPACING_START`] and is halved while the spline
@@ -381,16 +397,9 @@ pub fn choose_knots(
     let mut h = spacing.unwrap_or(AUTO_SPACING_START);
     loop {
         let knots = Knots::uniform(a, b, h, degree)?;
-        let fit = JointFit::new(knots.clone(), n, &data.joint_t, &data.joint_q)?;
-        let mut ss = vec![0.0; n];
-        for s in 0..samples {
-            let q = fit.q_at(s);
-            for j in 0..n {
-                let r = (data.joint_q[s * n + j] - q[j]) / sigma_q[j];
-                ss[j] += r * r;
-            }
-        }
-        let spline = fit.spline;
+        let spans = SpanPolynomials::new(&knots);
+        let spline = Spline::fit_on(&spans, n, &data.joint_t, &data.joint_q)?;
+        let ss = whitened_squares(&spans, &spline, data, sigma_q);
         let dof = (samples as f64 - knots.num_coeffs() as f64).max(1.0);
         let rms: Vec<f64> = ss.iter().map(|v| (v / dof).sqrt()).collect();
         let too_coarse = ss.iter().any(|&v| v > dof + 5.0 * (2.0 * dof).sqrt());
@@ -404,6 +413,63 @@ pub fn choose_knots(
         }
         h /= 2.0;
     }
+}
+
+/// Per joint, the sum over the joint samples of the squared residual of
+/// `spline` (on the knots of `spans`) in units of `sigma_q`. The samples in
+/// two halves on two threads; the second half's terms are added after the
+/// first's (the sums of one pass in sample order).
+fn whitened_squares(
+    spans: &SpanPolynomials,
+    spline: &Spline,
+    data: &Measurements,
+    sigma_q: &[f64],
+) -> Vec<f64> {
+    let n = spline.dim();
+    let (coeffs, count) = (spline.coeffs(), spline.knots().degree() + 1);
+    // each sample's terms, as the basis forms q (Spline::evaluate_basis)
+    let terms = |s: usize, span: &mut usize, out: &mut [f64]| {
+        let mut v = [0.0; MAX_DEGREE + 1];
+        let first = spans
+            .values_near(data.joint_t[s], span, &mut v)
+            .expect("a fitted sample is inside the knots");
+        let mut q = [0.0; MAX_JOINTS];
+        for a in 0..count {
+            let c = &coeffs[(first + a) * n..(first + a + 1) * n];
+            for j in 0..n {
+                q[j] += v[a] * c[j];
+            }
+        }
+        for j in 0..n {
+            out[j] = (data.joint_q[s * n + j] - q[j]) / sigma_q[j];
+            out[j] *= out[j];
+        }
+    };
+    let samples = data.joint_t.len();
+    let mid = samples / 2;
+    let (mut ss, second) = std::thread::scope(|sc| {
+        let h = sc.spawn(|| {
+            let (mut t, mut span) = (vec![0.0; (samples - mid) * n], 0);
+            for (s, out) in (mid..samples).zip(t.chunks_exact_mut(n)) {
+                terms(s, &mut span, out);
+            }
+            t
+        });
+        let (mut ss, mut out, mut span) = (vec![0.0; n], [0.0; MAX_JOINTS], 0);
+        for s in 0..mid {
+            terms(s, &mut span, &mut out[..n]);
+            for j in 0..n {
+                ss[j] += out[j];
+            }
+        }
+        (ss, h.join().expect("residual thread panicked"))
+    });
+    for row in second.chunks_exact(n) {
+        for j in 0..n {
+            ss[j] += row[j];
+        }
+    }
+    ss
 }
 
 /// Relative eigenvalue of the data information below which a direction is
@@ -550,5 +616,55 @@ pub fn noise_model_record(m: &NoiseModel) -> NoiseModelRecord {
                 motion: c.motion,
             })
             .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The former search: joint by joint, the first sample beyond the limits.
+    fn search(robot: &Robot, joint_q: &[f64]) -> Option<JointLimitViolation> {
+        let n = robot.dof();
+        robot.limits().iter().enumerate().find_map(|(j, lim)| {
+            joint_q
+                .chunks(n)
+                .map(|row| row[j])
+                .enumerate()
+                .find(|(_, q)| *q < lim.q_min - 0.2 || *q > lim.q_max + 0.2)
+                .map(|(sample, q)| JointLimitViolation {
+                    joint: j,
+                    sample,
+                    q,
+                    limits: (lim.q_min, lim.q_max),
+                })
+        })
+    }
+
+    /// With the first pass over the extremes, the violation found is the
+    /// search's: none inside the limits (and at the slack's edge), the first
+    /// in joint order when several joints and samples are beyond them.
+    #[test]
+    fn joint_outside_limits_is_the_searchs() {
+        let robot = Robot::aubo_i5();
+        let (n, lims) = (robot.dof(), robot.limits());
+        let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+        let mut q: Vec<f64> = (0..500 * n)
+            .map(|k| {
+                let l = &lims[k % n];
+                rng.random_range(l.q_min..l.q_max)
+            })
+            .collect();
+        assert_eq!(joint_outside_limits(&robot, &q), None);
+        q[7 * n + 2] = lims[2].q_max + 0.2;
+        q[9 * n + 4] = lims[4].q_min - 0.2;
+        assert_eq!(joint_outside_limits(&robot, &q), None);
+        for (sample, joint, v) in [(300, 4, -9.0), (100, 4, 9.0), (400, 1, 1e3), (2, 5, -1e3)] {
+            q[sample * n + joint] = v;
+            assert_eq!(joint_outside_limits(&robot, &q), search(&robot, &q));
+            assert!(joint_outside_limits(&robot, &q).is_some());
+        }
+        assert_eq!(joint_outside_limits(&robot, &q).unwrap().joint, 1);
     }
 }

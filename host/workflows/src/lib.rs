@@ -63,7 +63,6 @@ pub mod calibrate;
 pub mod check;
 pub mod diagnose;
 pub mod identifiability;
-pub mod joint_fit;
 pub mod montecarlo;
 pub mod motion_accuracy;
 pub mod noise;

@@ -149,30 +149,44 @@ pub fn burg(segments: &[&[f64]], max_order: usize) -> Burg {
     let ss: f64 = f.iter().flatten().map(|v| v * v).sum();
     let mut v = vec![ss / samples.max(1) as f64];
     let mut reflection = Vec::with_capacity(max_order);
-    for m in 1..=max_order {
-        let (mut num, mut den) = (0.0, 0.0);
-        for (fs, bs) in f.iter().zip(&b) {
-            if fs.len() <= m {
-                continue;
-            }
-            // f_t and b_{t−1}, t = m..len
-            for (&ft, &bt) in fs[m..].iter().zip(&bs[m - 1..fs.len() - 1]) {
+    // order 1's sums; each order's update then sums the next order's terms
+    // as it makes them (Σ over segments, t ascending: the order of a pass
+    // of their own)
+    let (mut num, mut den) = (0.0, 0.0);
+    if max_order >= 1 {
+        for fs in &f {
+            for w in fs.windows(2) {
+                // f_t and b_{t−1} (b = f at order 0), t = 1..len
+                let (ft, bt) = (w[1], w[0]);
                 num += ft * bt;
                 den += ft * ft + bt * bt;
             }
         }
+    }
+    for m in 1..=max_order {
         let k = if den > 0.0 { 2.0 * num / den } else { 0.0 };
+        (num, den) = (0.0, 0.0);
         for (fs, bs) in f.iter_mut().zip(b.iter_mut()) {
             if fs.len() <= m {
                 continue;
             }
-            // b_{t−1} of order m − 1 kept before b_{t−1} is overwritten
+            // b_{t−1} of order m − 1 kept before b_{t−1} is overwritten;
+            // `made`: b_{t−1} of order m
             let mut prev = bs[m - 1];
+            let mut made = None;
+            let next = m < max_order;
             for (f, b) in fs[m..].iter_mut().zip(&mut bs[m..]) {
                 let (ft, bt) = (*f, prev);
                 prev = *b;
                 *f = ft - k * bt;
                 *b = bt - k * ft;
+                // order m + 1's terms, t = m + 1..len
+                if let (true, Some(bt)) = (next, made) {
+                    let ft = *f;
+                    num += ft * bt;
+                    den += ft * ft + bt * bt;
+                }
+                made = Some(*b);
             }
         }
         reflection.push(k);

@@ -34,6 +34,7 @@
 use faer::Mat;
 
 use super::{check_measurements, choose_knots, CalibrateError, CalibrateOptions};
+use crate::body_rate::BodyRate;
 use crate::time_offset::{find_tau, TauEstimate};
 use robimu_model::effects::{EffectConstant, EffectParam, EffectSet};
 use robimu_model::noise::NoiseModel;
@@ -217,7 +218,8 @@ pub fn fit(
                         let imu = data.imu(j);
                         let gyro: Vec<[f64; 3]> =
                             imu.z.iter().map(|z| [z[3], z[4], z[5]]).collect();
-                        let est = find_tau(&model, &tf.spline, imu.t, &gyro, search)?;
+                        let rate = BodyRate::new(robot, &model);
+                        let est = find_tau(&rate, &tf.spline, imu.t, &gyro, search)?;
                         x[tau_at] = est.tau;
                         Some(est)
                     }

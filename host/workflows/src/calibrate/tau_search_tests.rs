@@ -3,6 +3,7 @@
 //! `time_offset` so that module never names the calibration that uses it.
 
 use super::choose_knots;
+use crate::body_rate::BodyRate;
 use crate::simulate::{random_session, SimulateOptions};
 use crate::time_offset::{find_tau, TauSearch};
 use robimu_model::{MeasurementModel, ParamLayout, Robot};
@@ -27,8 +28,8 @@ fn thinned_coarse_scan_finds_the_full_scans_tau() {
         let data = &s.data;
         let tf = choose_knots(data, robot.dof(), robot.sigma_q(), 3, None).unwrap();
         let gyro: Vec<[f64; 3]> = data.imu_z.iter().map(|z| [z[3], z[4], z[5]]).collect();
-        let a = find_tau(&model, &tf.spline, &data.imu_t, &gyro, &thinned).unwrap();
-        let b = find_tau(&model, &tf.spline, &data.imu_t, &gyro, &full).unwrap();
+        let a = find_tau(&rate, &tf.spline, &data.imu_t, &gyro, &thinned).unwrap();
+        let b = find_tau(&rate, &tf.spline, &data.imu_t, &gyro, &full).unwrap();
         assert_eq!(a, b, "seed {seed}");
         let truth = s.truth[layout.offsets().tau];
         assert!(

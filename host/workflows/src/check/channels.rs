@@ -53,10 +53,13 @@ fn column(t: &Table, c: usize) -> impl Iterator<Item = f64> + '_ {
 /// A joint that does not move is a warning (its parameters stay at the
 /// prior: the excitation finding names them), an IMU channel fatal.
 fn stuck(t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
-    let v: Vec<f64> = column(t, c).collect();
+    let (w, len) = (t.width(), t.len());
+    let v = |i: usize| t.values[i * w + c];
     let (mut best, mut start, mut run_start) = (1usize, 0usize, 0usize);
-    for i in 1..v.len() {
-        if v[i] != v[i - 1] {
+    // the column's values side by side, row by row
+    let pairs = (t.values.chunks_exact(w)).zip(t.values.get(w..).unwrap_or(&[]).chunks_exact(w));
+    for (i, (before, row)) in (1..).zip(pairs) {
+        if row[c] != before[c] {
             run_start = i;
         } else if i + 1 - run_start > best {
             best = i + 1 - run_start;
@@ -66,7 +69,7 @@ fn stuck(t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
     let end = start + best - 1;
     let seconds = t.t[end] - t.t[start];
     let file = if imu { files::IMU } else { files::JOINTS };
-    if best == v.len() && v.len() > 1 {
+    if best == len && len > 1 {
         let severity = if imu {
             Severity::Fatal
         } else {
@@ -76,12 +79,8 @@ fn stuck(t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
             "stuck",
             severity,
             name,
-            v[0],
-            format!(
-                "{file}: {name} is constant ({} in all {} rows)",
-                v[0],
-                v.len()
-            ),
+            v(0),
+            format!("{file}: {name} is constant ({} in all {len} rows)", v(0)),
             if imu {
                 "a stuck or disconnected channel: check the sensor and record again"
             } else {
@@ -89,7 +88,7 @@ fn stuck(t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
             },
         ));
     }
-    let share = best as f64 / v.len() as f64;
+    let share = best as f64 / len as f64;
     if best > 2 && (share >= STUCK_SHARE || seconds >= STUCK_RUN_S) {
         let severity = if imu && share >= STUCK_SHARE {
             Severity::Fatal
@@ -103,7 +102,7 @@ fn stuck(t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
             seconds,
             format!(
                 "{file}: {name} repeats {} for {seconds:.2} s ({best} rows from t = {:.3} s, {:.1} % of the rows)",
-                v[start],
+                v(start),
                 t.t[start],
                 100.0 * share
             ),

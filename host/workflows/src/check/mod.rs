@@ -9,7 +9,8 @@
 //!   against the device's range (session.toml `[imu]`, docs/model.md §7.2);
 //! * [`units`] — the accelerometer and gyroscope units: |s̃| at rest
 //!   against g₀ within the gains' prior, |ω̃| during motion against the
-//!   nominal kinematics' prediction from q̇ (§1.5), swapped columns;
+//!   nominal kinematics' prediction from q̇ (§1.5, [`predicted_rate`]),
+//!   swapped columns;
 //! * [`motion`] — a motionless recording, and the excitation: the posterior
 //!   σ the recorded motion gives under the prior (paper eq. (26), the
 //!   information of [`crate::plan::information`]) — the parameters this
@@ -20,11 +21,13 @@
 
 pub mod channels;
 pub mod motion;
+pub mod predicted_rate;
 pub mod streams;
 pub mod units;
 
 use std::fmt;
 
+use predicted_rate::PredictedRate;
 use robimu_model::Robot;
 use robimu_session::Session;
 use serde::Serialize;
@@ -146,14 +149,30 @@ impl CheckReport {
 ///
 /// The excitation is assessed only when nothing else is fatal (a
 /// recording in the wrong units or on a broken clock says nothing about it).
+///
+/// The gyroscope's predicted rate ([`predicted_rate`], the longest part) is
+/// computed on a second thread from the start; this one checks everything
+/// else, then helps with what is left of it.
 pub fn check_session(session: &Session, robot: &Robot, opts: &CheckOptions) -> CheckReport {
-    let mut findings = Vec::new();
-    findings.extend(streams::check(session));
-    findings.extend(channels::check(session));
-    let moving = motion::motionless(session);
-    let still = moving.iter().any(|f| f.severity == Severity::Fatal);
-    findings.extend(moving);
-    findings.extend(units::check(session, robot, still));
+    let rate = PredictedRate::new(session, robot);
+    let mut findings = std::thread::scope(|s| {
+        let helper = s.spawn(|| rate.work());
+        let predicted = || {
+            rate.work();
+            helper.join().expect("gyroscope prediction thread panicked");
+            rate.rms()
+        };
+        let mut findings = Vec::new();
+        findings.extend(streams::check(session));
+        findings.extend(channels::check(session));
+        let moving = motion::motionless(session);
+        let still = moving.iter().any(|f| f.severity == Severity::Fatal);
+        findings.extend(moving);
+        findings.extend(units::check(session, robot, still, predicted));
+        // not asked for (a fatal finding first): the rest is not computed
+        rate.stop();
+        findings
+    });
     let fatal = findings.iter().any(|f| f.severity == Severity::Fatal);
     if opts.excitation && !fatal {
         findings.extend(motion::excitation(session, robot));

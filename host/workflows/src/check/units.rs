@@ -14,11 +14,10 @@
 //! * **Swapped columns**: |gyro columns| ≈ g₀ at rest (or over all
 //!   samples) with |accel columns| ≪ g₀.
 
-use robimu_model::{MeasurementModel, ParamLayout, Robot, MAX_JOINTS};
-use robimu_session::{files, Session};
+use robimu_model::{ParamLayout, Robot};
+use robimu_session::{files, Session, Table};
 
 use super::{median_of, Finding, Severity};
-use crate::body_rate::BodyRate;
 use crate::calibrate::joint_outside_limits;
 
 /// A joint row is static when every |q̇| is below this, rad/s.
@@ -37,24 +36,30 @@ pub const GYRO_RATIO: (f64, f64) = (0.6, 1.6);
 /// q̇ at every joint row by central differences (one-sided at the ends,
 /// 0 across repeated times).
 pub fn joint_speeds(session: &Session) -> Vec<f64> {
-    let t = &session.joints.t;
     let n = session.joint_count();
-    let q = &session.joints.values;
-    let rows = t.len();
-    let mut qd = vec![0.0; rows * n];
-    if rows < 2 {
-        return qd;
-    }
-    for i in 0..rows {
-        let (a, b) = (i.saturating_sub(1), (i + 1).min(rows - 1));
-        let dt = t[b] - t[a];
-        if dt > 0.0 {
-            for j in 0..n {
-                qd[i * n + j] = (q[b * n + j] - q[a * n + j]) / dt;
-            }
-        }
+    let mut qd = vec![0.0; session.joints.len() * n];
+    for (i, row) in qd.chunks_exact_mut(n.max(1)).enumerate() {
+        speeds_at(&session.joints, i, row);
     }
     qd
+}
+
+/// q̇ at joint row `i` of `joints` into `out` (one per column), as
+/// [`joint_speeds`].
+pub(super) fn speeds_at(joints: &Table, i: usize, out: &mut [f64]) {
+    let (t, rows) = (&joints.t, joints.len());
+    out.fill(0.0);
+    if rows < 2 {
+        return;
+    }
+    let (a, b) = (i.saturating_sub(1), (i + 1).min(rows - 1));
+    let dt = t[b] - t[a];
+    if dt > 0.0 {
+        let (qa, qb) = (joints.row(a), joints.row(b));
+        for j in 0..out.len() {
+            out[j] = (qb[j] - qa[j]) / dt;
+        }
+    }
 }
 
 /// The static stretches of the joints, `(t0, t1)` of at least
@@ -84,8 +89,15 @@ pub fn static_stretches(session: &Session, qd: &[f64]) -> Vec<(f64, f64)> {
 }
 
 /// The unit findings; `motionless`: the recording does not move (the
-/// gyroscope's scale then cannot be checked).
-pub fn check(session: &Session, robot: &Robot, motionless: bool) -> Vec<Finding> {
+/// gyroscope's scale then cannot be checked); `predicted`: the RMS |ω̃|
+/// the nominal kinematics predict over the joint rows
+/// ([`super::predicted_rate`]), asked for only when the scale is checked.
+pub fn check(
+    session: &Session,
+    robot: &Robot,
+    motionless: bool,
+    predicted: impl FnOnce() -> Option<f64>,
+) -> Vec<Finding> {
     let mut out = Vec::new();
     // joints in degrees: the gyroscope's comparison with the joint speeds
     // would then blame the gyroscope
@@ -219,36 +231,21 @@ pub fn check(session: &Session, robot: &Robot, motionless: bool) -> Vec<Finding>
     if motionless {
         return out;
     }
-    if let Some(f) = gyro_scale(session, robot, &layout, &qd, bias) {
+    if let Some(f) = gyro_scale(session, predicted, bias) {
         out.push(f);
     }
     out
 }
 
-/// The gyroscope's RMS |ω̃ − b| against the nominal kinematics' RMS |ω|.
+/// The gyroscope's RMS |ω̃ − b| against the RMS |ω̃| the nominal
+/// kinematics predict (`predicted`).
 fn gyro_scale(
     session: &Session,
-    robot: &Robot,
-    layout: &ParamLayout,
-    qd: &[f64],
+    predicted: impl FnOnce() -> Option<f64>,
     bias: [f64; 3],
 ) -> Option<Finding> {
-    let model = MeasurementModel::new(robot, layout, &layout.nominal()).ok()?;
-    // the gyroscope's reading from the chain's rotations alone, as the
-    // model predicts it
-    let rate = BodyRate::new(robot, &model);
-    let n = session.joint_count();
+    let predicted = predicted()?;
     let joints = &session.joints;
-    let mut predicted = 0.0;
-    // as a JointState: the joints the session lacks at 0
-    let (mut q, mut v) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
-    for i in 0..joints.len() {
-        q[..n].copy_from_slice(joints.row(i));
-        v[..n].copy_from_slice(&qd[i * n..(i + 1) * n]);
-        let w = rate.gyro(&q, &v);
-        predicted += w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
-    }
-    let predicted = (predicted / joints.len() as f64).sqrt();
     let (a, b) = joints.span()?;
     let imu = &session.imu;
     let (mut measured, mut count) = (0.0, 0usize);
@@ -309,19 +306,24 @@ pub fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
     let mut atb = [0.0; 4];
     let mut mean = [0.0; 3];
     let mut square = 0.0;
-    for i in 0..n {
-        let a = &imu.row(i)[..3];
+    for a in imu.values.chunks_exact(imu.width()) {
         let row = [2.0 * a[0], 2.0 * a[1], 2.0 * a[2], 1.0];
         let y = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
         square += y / n as f64;
         for r in 0..4 {
             atb[r] += row[r] * y;
-            for c in 0..4 {
+            // the upper triangle (the lower one sums the same products)
+            for c in r..4 {
                 ata[r][c] += row[r] * row[c];
             }
         }
         for c in 0..3 {
             mean[c] += a[c] / n as f64;
+        }
+    }
+    for r in 1..4 {
+        for c in 0..r {
+            ata[r][c] = ata[c][r];
         }
     }
     let cov = faer::Mat::from_fn(3, 3, |r, c| {

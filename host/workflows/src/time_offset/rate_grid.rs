@@ -3,10 +3,12 @@
 //!
 //! The nodes are evaluated once, by the trajectory's span polynomials
 //! ([`SpanPolynomials`]: a few Horner steps per node instead of the
-//! Cox–de Boor table) and [`MeasurementModel::inertial`], the two halves on
-//! two threads.
+//! Cox–de Boor table) and the chain's rotations alone ([`BodyRate`]: ω of
+//! docs/model.md §1.5 from q and q̇, bit for bit the ω of
+//! `MeasurementModel::inertial`), the two halves on two threads.
 
-use robimu_model::{Basis, JointState, MeasurementModel, SpanPolynomials, Spline};
+use crate::body_rate::BodyRate;
+use robimu_model::{Basis, SpanPolynomials, Spline, MAX_JOINTS};
 
 /// ω at t0 + k·h, k = 0..=steps (the last node clamped to t1).
 pub struct RateGrid {
@@ -20,23 +22,23 @@ pub struct RateGrid {
 }
 
 impl RateGrid {
-    /// The grid of step `h` over the span of `trajectory`.
-    pub fn new(model: &MeasurementModel, trajectory: &Spline, h: f64) -> Self {
+    /// The grid of step `h` over the span of `trajectory`, ω from `rate`.
+    pub fn new(rate: &BodyRate, trajectory: &Spline, h: f64) -> Self {
         let knots = trajectory.knots();
         let (t0, t1) = (knots.start(), knots.end());
         let steps = ((t1 - t0) / h).ceil() as usize;
         let spans = SpanPolynomials::new(knots);
         let (coeffs, dim) = (trajectory.coeffs(), trajectory.dim());
         let nodes = |ks: std::ops::Range<usize>| -> Vec<[f64; 3]> {
-            let (mut js, mut b) = (JointState::default(), Basis::default());
+            let (mut q, mut qd) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+            let mut b = Basis::default();
             ks.map(|k| {
                 let u = (t0 + k as f64 * h).min(t1);
                 if spans.basis(u, &mut b).is_err() {
                     return [0.0; 3];
                 }
-                // q and q̇ as Spline::evaluate_basis forms them; ω needs no
-                // q̈ (left at 0)
-                for (k, row) in [&mut js.q, &mut js.qd].into_iter().enumerate() {
+                // q and q̇ as Spline::evaluate_basis forms them (ω needs no q̈)
+                for (k, row) in [&mut q, &mut qd].into_iter().enumerate() {
                     row.fill(0.0);
                     for a in 0..b.count {
                         let w = b.d[k][a];
@@ -46,7 +48,7 @@ impl RateGrid {
                         }
                     }
                 }
-                model.inertial(&js).1
+                rate.imu(&q, &qd)
             })
             .collect()
         };

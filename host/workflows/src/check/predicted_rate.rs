@@ -1,0 +1,104 @@
+//! The gyroscope reading the nominal kinematics predict at every joint row
+//! (the RMS |ω| of the gyroscope's unit check, docs/model.md §7.8): q from
+//! the row, q̇ by central differences ([`super::units::joint_speeds`]),
+//! ω̃ = K Γ R ω + b of [`BodyRate`] at the nominal x.
+//!
+//! The longest part of the check (the chain's rotations, six sines and
+//! cosines per row): the rows are cut into chunks that any thread may take
+//! ([`PredictedRate::work`]), so that a second thread computes them while
+//! the first checks everything else and then helps. Each row's |ω̃|² is
+//! kept, and the mean square sums them in row order: the sum of one pass.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::OnceLock;
+
+use robimu_model::{MeasurementModel, ParamLayout, Robot, MAX_JOINTS};
+use robimu_session::Session;
+
+use super::units::speeds_at;
+use crate::body_rate::BodyRate;
+
+/// Rows per chunk.
+const CHUNK: usize = 2048;
+
+/// The predicted |ω̃|² of every joint row, chunk by chunk.
+pub struct PredictedRate<'s> {
+    session: &'s Session,
+    /// The nominal model's rotations (`None` when the model cannot be built).
+    rate: Option<BodyRate>,
+    /// The next chunk not yet taken.
+    next: AtomicUsize,
+    /// Each chunk's rows' |ω̃|², once computed.
+    chunks: Vec<OnceLock<Vec<f64>>>,
+}
+
+impl<'s> PredictedRate<'s> {
+    /// The prediction for `session`'s joint rows with `robot` (nothing
+    /// computed yet).
+    pub fn new(session: &'s Session, robot: &Robot) -> Self {
+        let layout = ParamLayout::new(robot);
+        let rate = MeasurementModel::new(robot, &layout, &layout.nominal())
+            .ok()
+            .map(|model| BodyRate::new(robot, &model));
+        let count = match rate {
+            Some(_) => session.joints.len().div_ceil(CHUNK),
+            None => 0,
+        };
+        Self {
+            session,
+            rate,
+            next: AtomicUsize::new(0),
+            chunks: (0..count).map(|_| OnceLock::new()).collect(),
+        }
+    }
+
+    /// Compute the chunks no thread has taken yet, until none is left.
+    pub fn work(&self) {
+        let Some(rate) = &self.rate else { return };
+        loop {
+            let c = self.next.fetch_add(1, Ordering::Relaxed);
+            let Some(slot) = self.chunks.get(c) else {
+                return;
+            };
+            let rows = c * CHUNK..((c + 1) * CHUNK).min(self.session.joints.len());
+            let _ = slot.set(self.squares(rate, rows));
+        }
+    }
+
+    /// Leave the chunks not yet taken (the prediction is not needed).
+    pub fn stop(&self) {
+        self.next.fetch_max(self.chunks.len(), Ordering::Relaxed);
+    }
+
+    /// RMS |ω̃| over the joint rows (NaN without rows); `None` when the
+    /// nominal model cannot be built.
+    ///
+    /// # Panics
+    /// Unless every chunk has been computed ([`Self::work`] returned on
+    /// every thread that called it).
+    pub fn rms(&self) -> Option<f64> {
+        self.rate.as_ref()?;
+        let mut sum = 0.0;
+        for chunk in &self.chunks {
+            for w2 in chunk.get().expect("every chunk computed") {
+                sum += w2;
+            }
+        }
+        Some((sum / self.session.joints.len() as f64).sqrt())
+    }
+
+    /// |ω̃|² at the joint rows `rows`.
+    fn squares(&self, rate: &BodyRate, rows: std::ops::Range<usize>) -> Vec<f64> {
+        let joints = &self.session.joints;
+        let n = self.session.joint_count();
+        // as a JointState: the joints the session lacks at 0
+        let (mut q, mut v) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+        rows.map(|i| {
+            q[..n].copy_from_slice(joints.row(i));
+            speeds_at(joints, i, &mut v[..n]);
+            let w = rate.gyro(&q, &v);
+            w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
+        })
+        .collect()
+    }
+}
