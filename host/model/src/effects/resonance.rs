@@ -27,7 +27,7 @@
 use std::sync::{Arc, OnceLock};
 
 use super::{Effect, EffectParam, ExactContext, SampleContext};
-use crate::{JointState, ParamLayout, SpanPolynomials, Spline, MAX_JOINTS};
+use crate::{JointState, Knots, ParamLayout, SpanPolynomials, Spline, MAX_JOINTS};
 
 /// The mode's natural frequency and damping.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,6 +83,18 @@ impl ModeResponse {
         t1: f64,
         qdd: impl Fn(f64) -> JointState,
     ) -> Self {
+        Self::integrate_qdd(mode, n, t0, t1, |t| qdd(t).qdd)
+    }
+
+    /// [`Self::integrate`] from q̈(t) alone, asked for at non-decreasing
+    /// times (eight per grid step: the RK4 sub-steps' middles and ends).
+    fn integrate_qdd(
+        mode: Mode,
+        n: usize,
+        t0: f64,
+        t1: f64,
+        mut qdd: impl FnMut(f64) -> [f64; MAX_JOINTS],
+    ) -> Self {
         let w = mode.omega();
         let dt = 0.002f64.min(0.1 / w);
         // grid on multiples of dt: responses of one trajectory over different
@@ -94,13 +106,12 @@ impl ModeResponse {
         let mut nodes = Vec::with_capacity((steps + 1) * n);
         let mut y = [0.0; MAX_JOINTS];
         let mut yd = [0.0; MAX_JOINTS];
-        let push = |nodes: &mut Vec<[f64; 3]>, t: f64, y: &[f64], yd: &[f64]| {
-            let a = qdd(t).qdd;
+        // a: q̈ at the node (the last sub-step's end, at the same time)
+        let push = |nodes: &mut Vec<[f64; 3]>, a: &[f64], y: &[f64], yd: &[f64]| {
             for j in 0..n {
                 nodes.push([y[j], yd[j], mode.accel(a[j], y[j], yd[j])]);
             }
         };
-        push(&mut nodes, t0, &y, &yd);
         // sub-step s of step k starts at t0 + k·dt + s·h (the step's end is
         // the next step's start), so each sub-step's end value is the next
         // one's start value
@@ -108,11 +119,13 @@ impl ModeResponse {
             let (k, s) = if s == sub { (k + 1, 0) } else { (k, s) };
             t0 + k as f64 * dt + s as f64 * h
         };
-        let mut a0 = qdd(t0).qdd;
+        let mut a0 = qdd(t0);
+        push(&mut nodes, &a0, &y, &yd);
         for k in 0..steps {
             for s in 0..sub {
                 let t = at(k, s);
-                let (am, a1) = (qdd(t + 0.5 * h).qdd, qdd(at(k, s + 1)).qdd);
+                let am = qdd(t + 0.5 * h);
+                let a1 = qdd(at(k, s + 1));
                 for j in 0..n {
                     // RK4 on (y, ẏ)
                     let f = |a: f64, y: f64, v: f64| (v, mode.accel(a, y, v));
@@ -125,7 +138,8 @@ impl ModeResponse {
                 }
                 a0 = a1;
             }
-            push(&mut nodes, t0 + (k + 1) as f64 * dt, &y, &yd);
+            // the node t0 + (k+1)·dt is the last sub-step's end: its q̈ is a0
+            push(&mut nodes, &a0, &y, &yd);
         }
         Self {
             mode,
@@ -137,22 +151,24 @@ impl ModeResponse {
     }
 
     /// The response to a joint spline (at rest outside its span), over the
-    /// spline's span widened by 2 s.
+    /// spline's span widened by 2 s. A spline of degree ≤ 3 has a q̈ linear
+    /// on each knot span, evaluated from its value and q⃛ at the span's
+    /// start ([`SpanAccelerations`]: a few operations per time instead of
+    /// the span search and the whole joint state; equal to rounding); a
+    /// higher degree is evaluated through its span polynomials.
     pub fn of_spline(mode: Mode, spline: &Spline) -> Self {
+        let k = spline.knots();
+        let (t0, t1) = (k.start() - MARGIN, k.end() + MARGIN);
+        if let Some(mut acc) = SpanAccelerations::new(spline) {
+            return Self::integrate_qdd(mode, spline.dim(), t0, t1, |t| acc.at(t));
+        }
         let spans = SpanPolynomials::new(spline.knots());
         let traj = |t| {
             let mut js = JointState::default();
             spline.state_at_spans(&spans, t, &mut js);
             js
         };
-        let k = spline.knots();
-        Self::integrate(
-            mode,
-            spline.dim(),
-            k.start() - MARGIN,
-            k.end() + MARGIN,
-            traj,
-        )
+        Self::integrate(mode, spline.dim(), t0, t1, traj)
     }
 
     /// (y, ẏ) of joint j at t by cubic Hermite interpolation (constant
@@ -176,6 +192,64 @@ impl ModeResponse {
         let y = h00 * a[0] + h10 * h * a[1] + h01 * b[0] + h11 * h * b[1];
         let yd = h00 * a[1] + h10 * h * a[2] + h01 * b[1] + h11 * h * b[2];
         [y, yd, self.mode.accel(qdd, y, yd)]
+    }
+}
+
+/// q̈(t) of a spline of degree p ≤ 3 for many t in increasing order: on
+/// knot span μ it is q̈(y_μ) + (t − y_μ) q⃛(y_μ) exactly (q̈ has degree
+/// p − 2 ≤ 1 there; q⃛ the right-hand derivative), the span found by a
+/// cursor that moves forward (a binary search when t goes back), and zero
+/// outside the spline's span (at rest, [`Spline::state_at`]).
+struct SpanAccelerations<'s> {
+    knots: &'s Knots,
+    /// Per span μ − p: q̈(y_μ), q⃛(y_μ) (zero on an empty span).
+    coef: Vec<[[f64; MAX_JOINTS]; 2]>,
+    /// The span of the last time asked for.
+    cursor: usize,
+}
+
+impl<'s> SpanAccelerations<'s> {
+    /// `None` for a degree above 3.
+    fn new(spline: &'s Spline) -> Option<Self> {
+        let knots = spline.knots();
+        let (p, m, y) = (knots.degree(), knots.num_coeffs(), knots.knots());
+        if p > 3 {
+            return None;
+        }
+        let mut js = JointState::default();
+        let coef = (p..m)
+            .map(|mu| {
+                if y[mu] < y[mu + 1] && spline.evaluate(y[mu], &mut js).is_ok() {
+                    [js.qdd, js.qddd]
+                } else {
+                    [[0.0; MAX_JOINTS]; 2]
+                }
+            })
+            .collect();
+        Some(Self {
+            knots,
+            coef,
+            cursor: p,
+        })
+    }
+
+    /// q̈(t) ([`Spline::state_at`]'s, to rounding).
+    fn at(&mut self, t: f64) -> [f64; MAX_JOINTS] {
+        let k = self.knots;
+        if !k.contains(t) {
+            return [0.0; MAX_JOINTS];
+        }
+        let (p, m, y) = (k.degree(), k.num_coeffs(), k.knots());
+        // the span of Knots::span: the last μ ≤ m − 1 with y_μ ≤ t
+        if t < y[self.cursor] {
+            self.cursor = k.span(t).unwrap_or(p);
+        }
+        while self.cursor + 1 < m && y[self.cursor + 1] <= t {
+            self.cursor += 1;
+        }
+        let [a, b] = &self.coef[self.cursor - p];
+        let s = t - y[self.cursor];
+        std::array::from_fn(|j| a[j] + s * b[j])
     }
 }
 
@@ -304,6 +378,88 @@ mod tests {
                 (rydd - ydd).abs() < 1e-4 * a * w * w,
                 "t {t}: ÿ {rydd} vs {ydd}"
             );
+        }
+    }
+
+    /// A test spline: `dim` joints on `knots`, smooth pseudo-random coefficients.
+    fn spline_on(knots: Knots, dim: usize) -> Spline {
+        let m = knots.num_coeffs();
+        let coeffs = (0..m * dim)
+            .map(|i| 0.7 * ((i as f64 * 0.37).sin() + 0.5 * (i as f64 * 1.91).cos()))
+            .collect();
+        Spline::new(knots, dim, coeffs).unwrap()
+    }
+
+    /// The span accelerations of a cubic (uniform knots, and irregular ones
+    /// with a repeated interior knot) equal q̈ of [`Spline::state_at`] to
+    /// rounding at times forward, backward and outside the span; a quintic
+    /// has none.
+    #[test]
+    fn span_accelerations_are_the_splines_qdd() {
+        let irregular = Knots::new(
+            3,
+            vec![0.0, 0.0, 0.0, 0.0, 0.3, 1.1, 1.1, 1.2, 2.0, 2.0, 2.0, 2.0],
+        )
+        .unwrap();
+        for knots in [Knots::uniform(0.0, 7.0, 0.25, 3).unwrap(), irregular] {
+            let s = spline_on(knots, 6);
+            let mut acc = SpanAccelerations::new(&s).unwrap();
+            let (a, b) = (s.knots().start(), s.knots().end());
+            let mut ts: Vec<f64> = (0..=400)
+                .map(|i| a - 0.5 + (b - a + 1.0) * i as f64 / 400.0)
+                .collect();
+            ts.extend([b, a, 1.1, 1.1 - 1e-12, 0.3, b - 1e-9, a + 1e-9]);
+            ts.extend((0..50).map(|i| b - (b - a) * i as f64 / 50.0));
+            for t in ts {
+                let mut js = JointState::default();
+                s.state_at(t, &mut js);
+                let got = acc.at(t);
+                for j in 0..MAX_JOINTS {
+                    let scale = 1.0 + js.qdd[j].abs();
+                    assert!(
+                        (got[j] - js.qdd[j]).abs() < 1e-11 * scale,
+                        "t {t} joint {j}: {} vs {}",
+                        got[j],
+                        js.qdd[j]
+                    );
+                }
+            }
+        }
+        let quintic = spline_on(Knots::uniform(0.0, 3.0, 0.5, 5).unwrap(), 2);
+        assert!(SpanAccelerations::new(&quintic).is_none());
+    }
+
+    /// [`ModeResponse::of_spline`] (span accelerations) against the
+    /// integration of the spline's state through its span polynomials (the
+    /// former evaluation), node by node; and a quintic takes that path.
+    #[test]
+    fn of_spline_matches_the_state_evaluation() {
+        let mode = Mode::default();
+        for (degree, spacing) in [(3, 0.2), (5, 0.5)] {
+            let s = spline_on(Knots::uniform(1.0, 9.0, spacing, degree).unwrap(), 6);
+            let spans = SpanPolynomials::new(s.knots());
+            let k = s.knots();
+            let old = ModeResponse::integrate(mode, 6, k.start() - MARGIN, k.end() + MARGIN, |t| {
+                let mut js = JointState::default();
+                s.state_at_spans(&spans, t, &mut js);
+                js
+            });
+            let new = ModeResponse::of_spline(mode, &s);
+            assert_eq!(
+                (old.t0, old.dt, old.nodes.len()),
+                (new.t0, new.dt, new.nodes.len())
+            );
+            let scale: [f64; 3] =
+                std::array::from_fn(|c| old.nodes.iter().map(|v| v[c].abs()).fold(0.0, f64::max));
+            assert!(scale.iter().all(|&v| v > 0.0), "{scale:?}");
+            for (a, b) in old.nodes.iter().zip(&new.nodes) {
+                for c in 0..3 {
+                    assert!(
+                        (a[c] - b[c]).abs() <= 1e-12 * scale[c],
+                        "degree {degree}: {a:?} vs {b:?}"
+                    );
+                }
+            }
         }
     }
 }

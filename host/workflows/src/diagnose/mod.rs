@@ -653,7 +653,6 @@ pub fn diagnose(
     dopts: &DiagnoseOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Diagnosis, DiagnoseError> {
-    let layout = ParamLayout::with_imus(robot, data.n_imus());
     // the candidates this session's catalogue has (temperature_bias needs a
     // recorded temperature, resonance a trajectory), each per-sensor effect
     // once per IMU (docs/model.md §9); Bonferroni over them
@@ -671,7 +670,68 @@ pub fn diagnose(
     let mut setup = setup.clone();
     let setup = &mut setup;
     progress("fitting the baseline model");
-    let (baseline, mut noise) = baseline_fit(robot, data, opts, setup, dopts, &mut progress)?;
+    let (baseline, noise) = baseline_fit(robot, data, opts, setup, dopts, &mut progress)?;
+    // the baseline's residual statistics on the other core while the
+    // effects are searched (they need only the baseline fit)
+    let stats_setup = setup.clone();
+    let (stats_before, search) = std::thread::scope(|scope| {
+        let before = scope.spawn(|| residual_stats(robot, data, &stats_setup, &baseline));
+        let search = search_effects(
+            robot,
+            data,
+            opts,
+            setup,
+            dopts,
+            &offered,
+            &baseline,
+            noise,
+            &mut progress,
+        );
+        (before.join().expect("residual statistics panicked"), search)
+    });
+    let (current, found, rejected, last_scores, noise) = search?;
+    // with no effect added the final fit is the baseline itself
+    let stats_after = if found.is_empty() {
+        stats_before.clone()
+    } else {
+        residual_stats(robot, data, setup, &current)
+    };
+    Ok(Diagnosis {
+        unexplained: unexplained(&stats_after),
+        rejected,
+        baseline,
+        final_fit: current,
+        found,
+        last_scores,
+        threshold,
+        stats_before,
+        stats_after,
+        sigma_z: opts.sigma_z,
+        noise,
+        setup: setup.clone(),
+    })
+}
+
+/// What [`search_effects`] ends with: the final fit, the effects found,
+/// the candidates rejected, the last round's scores and the noise use.
+type Search = (Fit, Vec<FoundEffect>, Vec<Rejected>, Vec<Score>, NoiseUse);
+
+/// Steps 3–4 of the module doc from the baseline fit: add significant
+/// effects one at a time from `offered` (Bonferroni threshold α/|offered|).
+#[allow(clippy::too_many_arguments)]
+fn search_effects(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &mut CatalogueSetup,
+    dopts: &DiagnoseOptions,
+    offered: &[String],
+    baseline: &Fit,
+    mut noise: NoiseUse,
+    mut progress: impl FnMut(&str),
+) -> Result<Search, DiagnoseError> {
+    let layout = ParamLayout::with_imus(robot, data.n_imus());
+    let threshold = dopts.alpha / offered.len().max(1) as f64;
     let auto = matches!(dopts.noise, NoiseChoice::Auto);
     let mut current = baseline.clone();
     let mut found: Vec<FoundEffect> = Vec::new();
@@ -842,27 +902,7 @@ pub fn diagnose(
         });
         current = next;
     };
-    let stats_before = residual_stats(robot, data, setup, &baseline);
-    // with no effect added the final fit is the baseline itself
-    let stats_after = if found.is_empty() {
-        stats_before.clone()
-    } else {
-        residual_stats(robot, data, setup, &current)
-    };
-    Ok(Diagnosis {
-        unexplained: unexplained(&stats_after),
-        rejected,
-        baseline,
-        final_fit: current,
-        found,
-        last_scores,
-        threshold,
-        stats_before,
-        stats_after,
-        sigma_z: opts.sigma_z,
-        noise,
-        setup: setup.clone(),
-    })
+    Ok((current, found, rejected, last_scores, noise))
 }
 
 /// Add the exact effect terms of `injected` to simulated IMU samples (each

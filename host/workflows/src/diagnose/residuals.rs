@@ -109,32 +109,39 @@ pub fn residual_stats(
     if temp.is_some() {
         reg_names.push("temp".into());
     }
-    let regs: Vec<Vec<f64>> = res
-        .iter()
-        .map(|(i, _)| {
-            let mut js = JointState::default();
-            let t = data.imu_t[*i];
-            fit.trajectory.evaluate_clamped(t + tau, &mut js);
-            let mut v = vec![t];
-            for j in 0..dof {
-                v.extend([js.q[j], js.qd[j], js.qdd[j]]);
-            }
-            if let Some(m) = &model {
-                let (_, w, s) = m.inertial(&js);
-                v.extend(w);
-                v.extend(s);
-            } else {
-                v.extend([0.0; 6]);
-            }
-            if gravity {
-                v.extend(setup.mass.gravity_torques(&js.q[..dof], setup.g0));
-            }
-            if let Some(c) = temp {
-                v.push(c[*i]);
-            }
-            v
-        })
+    // the regressors as columns, one value per sample
+    let mut regs: Vec<Vec<f64>> = (0..reg_names.len())
+        .map(|_| Vec::with_capacity(res.len()))
         .collect();
+    let mut js = JointState::default();
+    for (i, _) in res {
+        let t = data.imu_t[*i];
+        fit.trajectory.evaluate_clamped(t + tau, &mut js);
+        let mut cols = regs.iter_mut();
+        let mut put = |v: f64| cols.next().expect("one column per regressor").push(v);
+        put(t);
+        for j in 0..dof {
+            put(js.q[j]);
+            put(js.qd[j]);
+            put(js.qdd[j]);
+        }
+        let (w, s) = match &model {
+            Some(m) => {
+                let (_, w, s) = m.inertial(&js);
+                (w, s)
+            }
+            None => ([0.0; 3], [0.0; 3]),
+        };
+        w.into_iter().chain(s).for_each(&mut put);
+        if gravity {
+            let tg = setup.mass.gravity_torques_array(&js.q[..dof], setup.g0);
+            tg[..dof].iter().for_each(|&v| put(v));
+        }
+        if let Some(c) = temp {
+            put(c[*i]);
+        }
+    }
+    let regs: Vec<Centred> = regs.iter().map(|x| Centred::new(x)).collect();
     let mut out = ResidualStats {
         samples: res.len(),
         rms: BTreeMap::new(),
@@ -182,9 +189,9 @@ pub fn residual_stats(
         out.worst_window
             .insert(name.to_string(), (worst.0, worst.1 / rms.max(1e-300)));
         let mut best = (String::new(), 0.0f64);
-        for (g, gname) in reg_names.iter().enumerate() {
-            let x: Vec<f64> = regs.iter().map(|v| v[g]).collect();
-            let corr = correlation(&x, &r);
+        let centred = Centred::new(&r);
+        for (x, gname) in regs.iter().zip(&reg_names) {
+            let corr = x.correlation(&centred);
             if corr.abs() > best.1.abs() {
                 best = (gname.clone(), corr);
             }
@@ -200,23 +207,61 @@ pub fn residual_stats(
 /// Pearson correlation (0 when either series is constant: tested exactly,
 /// since the rounded mean of a constant series such as a recorded 24.7 °C
 /// leaves deviations of one ulp that would otherwise give a spurious r).
+#[cfg(test)]
 pub(super) fn correlation(x: &[f64], y: &[f64]) -> f64 {
-    let constant = |s: &[f64]| s.windows(2).all(|w| w[0] == w[1]);
-    if constant(x) || constant(y) {
-        return 0.0;
+    Centred::new(x).correlation(&Centred::new(y))
+}
+
+/// A series prepared for [`Centred::correlation`] with many others: its
+/// deviations from the mean and their sum of squares, computed once (the
+/// residual statistics correlate every channel with every regressor).
+struct Centred {
+    /// x_i − x̄ (empty for a constant series).
+    dev: Vec<f64>,
+    /// Σ (x_i − x̄)².
+    ss: f64,
+    /// Every value equal.
+    constant: bool,
+}
+
+impl Centred {
+    fn new(x: &[f64]) -> Self {
+        if x.windows(2).all(|w| w[0] == w[1]) {
+            return Self {
+                dev: Vec::new(),
+                ss: 0.0,
+                constant: true,
+            };
+        }
+        let n = x.len().max(1) as f64;
+        let mean = x.iter().sum::<f64>() / n;
+        let dev: Vec<f64> = x.iter().map(|a| a - mean).collect();
+        let mut ss = 0.0;
+        for d in &dev {
+            ss += d * d;
+        }
+        Self {
+            dev,
+            ss,
+            constant: false,
+        }
     }
-    let n = x.len().max(1) as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
-    for (a, b) in x.iter().zip(y) {
-        sxy += (a - mx) * (b - my);
-        sxx += (a - mx) * (a - mx);
-        syy += (b - my) * (b - my);
-    }
-    if sxx <= 0.0 || syy <= 0.0 {
-        0.0
-    } else {
-        sxy / (sxx * syy).sqrt()
+
+    /// Pearson correlation with `other` (same length): 0 when either is
+    /// constant (see [`correlation`]).
+    fn correlation(&self, other: &Centred) -> f64 {
+        if self.constant || other.constant {
+            return 0.0;
+        }
+        let mut sxy = 0.0;
+        for (a, b) in self.dev.iter().zip(&other.dev) {
+            sxy += a * b;
+        }
+        if self.ss <= 0.0 || other.ss <= 0.0 {
+            0.0
+        } else {
+            sxy / (self.ss * other.ss).sqrt()
+        }
     }
 }
 
@@ -380,6 +425,44 @@ impl Dft {
 #[cfg(test)]
 mod tests {
     use super::Dft;
+
+    /// The correlation through [`super::Centred`] (deviations and sums of
+    /// squares computed once per series) is bit-identical to the former
+    /// one-pass form, constant series included.
+    #[test]
+    fn centred_correlation_is_the_former_one() {
+        fn former(x: &[f64], y: &[f64]) -> f64 {
+            let constant = |s: &[f64]| s.windows(2).all(|w| w[0] == w[1]);
+            if constant(x) || constant(y) {
+                return 0.0;
+            }
+            let n = x.len().max(1) as f64;
+            let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+            let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+            for (a, b) in x.iter().zip(y) {
+                sxy += (a - mx) * (b - my);
+                sxx += (a - mx) * (a - mx);
+                syy += (b - my) * (b - my);
+            }
+            if sxx <= 0.0 || syy <= 0.0 {
+                0.0
+            } else {
+                sxy / (sxx * syy).sqrt()
+            }
+        }
+        let series = |k: usize| -> Vec<f64> {
+            (0..997)
+                .map(|i| ((i * (3 + k)) as f64 * 0.731).sin() * (1.0 + k as f64) + 0.1 * k as f64)
+                .collect()
+        };
+        let mut all: Vec<Vec<f64>> = (0..6).map(series).collect();
+        all.push(vec![24.7; 997]);
+        for x in &all {
+            for y in &all {
+                assert_eq!(super::correlation(x, y).to_bits(), former(x, y).to_bits());
+            }
+        }
+    }
 
     /// The FFT of [`Dft`] equals the direct sum Σ_i x_i e^{−2πi·ki/L}
     /// (evaluated here independently, with sin/cos per term) for powers of
