@@ -278,7 +278,8 @@ pub struct CatalogueSetup {
     /// The resonance's natural frequency and damping.
     pub mode: resonance::Mode,
     /// The mode's response to the recorded joint trajectory (`None`: no
-    /// trajectory could be fitted; `resonance` is then unavailable).
+    /// trajectory could be fitted; `resonance` is then unavailable),
+    /// integrated on its first use ([`resonance::ModeResponse::prepare`]).
     pub mode_response: Option<Arc<resonance::ModeResponse>>,
     /// Segments of `bias_drift`'s bias spline (its time resolution;
     /// [`bias_drift::DEFAULT_SEGMENTS`] unless set, diagnose chooses it

@@ -60,10 +60,22 @@ impl Mode {
 }
 
 /// y, ẏ, ÿ of every joint on a uniform time grid (see the module doc).
+/// The response to a joint spline ([`Self::of_spline`]) is integrated on
+/// its first use ([`Self::prepare`] does it ahead, e.g. on another thread
+/// while the baseline is fitted).
 #[derive(Debug, Clone)]
 pub struct ModeResponse {
     mode: Mode,
     n: usize,
+    /// The joint spline integrated on first use (`None`: integrated when
+    /// made).
+    spline: Option<Spline>,
+    grid: OnceLock<Grid>,
+}
+
+/// The integrated response.
+#[derive(Debug, Clone)]
+struct Grid {
     t0: f64,
     dt: f64,
     /// [y, ẏ, ÿ] per grid point and joint: `nodes[k * n + j]`.
@@ -83,12 +95,70 @@ impl ModeResponse {
         t1: f64,
         qdd: impl Fn(f64) -> JointState,
     ) -> Self {
-        Self::integrate_qdd(mode, n, t0, t1, |t| qdd(t).qdd)
+        let grid = Grid::integrate(mode, n, t0, t1, |t| qdd(t).qdd);
+        Self {
+            mode,
+            n,
+            spline: None,
+            grid: OnceLock::from(grid),
+        }
     }
 
-    /// [`Self::integrate`] from q̈(t) alone, asked for at non-decreasing
-    /// times (eight per grid step: the RK4 sub-steps' middles and ends).
-    fn integrate_qdd(
+    /// The response to a joint spline (at rest outside its span), over the
+    /// spline's span widened by 2 s, integrated on first use.
+    pub fn of_spline(mode: Mode, spline: &Spline) -> Self {
+        Self {
+            mode,
+            n: spline.dim(),
+            spline: Some(spline.clone()),
+            grid: OnceLock::new(),
+        }
+    }
+
+    /// Integrate the response now if it is not yet (a later use, on any
+    /// thread, waits for one under way).
+    pub fn prepare(&self) {
+        self.grid();
+    }
+
+    fn grid(&self) -> &Grid {
+        self.grid.get_or_init(|| {
+            let spline = self
+                .spline
+                .as_ref()
+                .expect("a lazy response has its spline");
+            Grid::of_spline(self.mode, spline)
+        })
+    }
+
+    /// (y, ẏ) of joint j at t by cubic Hermite interpolation (constant
+    /// outside the grid), and ÿ from the mode equation with q̈_j(t) = `qdd`.
+    pub fn at(&self, t: f64, j: usize, qdd: f64) -> [f64; 3] {
+        let g = self.grid();
+        let n = self.n;
+        let last = g.nodes.len() / n - 1;
+        let u = ((t - g.t0) / g.dt).clamp(0.0, last as f64);
+        let k = (u.floor() as usize).min(last.saturating_sub(1));
+        let s = (u - k as f64).clamp(0.0, 1.0);
+        let (a, b) = (g.nodes[k * n + j], g.nodes[(k + 1).min(last) * n + j]);
+        let h = g.dt;
+        let (h00, h10, h01, h11) = (
+            (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
+            s * (1.0 - s) * (1.0 - s),
+            s * s * (3.0 - 2.0 * s),
+            s * s * (s - 1.0),
+        );
+        let y = h00 * a[0] + h10 * h * a[1] + h01 * b[0] + h11 * h * b[1];
+        let yd = h00 * a[1] + h10 * h * a[2] + h01 * b[1] + h11 * h * b[2];
+        [y, yd, self.mode.accel(qdd, y, yd)]
+    }
+}
+
+impl Grid {
+    /// [`ModeResponse::integrate`] from q̈(t) alone, asked for at
+    /// non-decreasing times (eight per grid step: the RK4 sub-steps'
+    /// middles and ends).
+    fn integrate(
         mode: Mode,
         n: usize,
         t0: f64,
@@ -141,13 +211,7 @@ impl ModeResponse {
             // the node t0 + (k+1)·dt is the last sub-step's end: its q̈ is a0
             push(&mut nodes, &a0, &y, &yd);
         }
-        Self {
-            mode,
-            n,
-            t0,
-            dt,
-            nodes,
-        }
+        Self { t0, dt, nodes }
     }
 
     /// The response to a joint spline (at rest outside its span), over the
@@ -156,42 +220,19 @@ impl ModeResponse {
     /// start ([`SpanAccelerations`]: a few operations per time instead of
     /// the span search and the whole joint state; equal to rounding); a
     /// higher degree is evaluated through its span polynomials.
-    pub fn of_spline(mode: Mode, spline: &Spline) -> Self {
+    fn of_spline(mode: Mode, spline: &Spline) -> Self {
         let k = spline.knots();
         let (t0, t1) = (k.start() - MARGIN, k.end() + MARGIN);
         if let Some(mut acc) = SpanAccelerations::new(spline) {
-            return Self::integrate_qdd(mode, spline.dim(), t0, t1, |t| acc.at(t));
+            return Self::integrate(mode, spline.dim(), t0, t1, |t| acc.at(t));
         }
         let spans = SpanPolynomials::new(spline.knots());
-        let traj = |t| {
+        let qdd = |t| {
             let mut js = JointState::default();
             spline.state_at_spans(&spans, t, &mut js);
-            js
+            js.qdd
         };
-        Self::integrate(mode, spline.dim(), t0, t1, traj)
-    }
-
-    /// (y, ẏ) of joint j at t by cubic Hermite interpolation (constant
-    /// outside the grid), and ÿ from the mode equation with q̈_j(t) = `qdd`.
-    pub fn at(&self, t: f64, j: usize, qdd: f64) -> [f64; 3] {
-        let last = self.nodes.len() / self.n - 1;
-        let u = ((t - self.t0) / self.dt).clamp(0.0, last as f64);
-        let k = (u.floor() as usize).min(last.saturating_sub(1));
-        let s = (u - k as f64).clamp(0.0, 1.0);
-        let (a, b) = (
-            self.nodes[k * self.n + j],
-            self.nodes[(k + 1).min(last) * self.n + j],
-        );
-        let h = self.dt;
-        let (h00, h10, h01, h11) = (
-            (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
-            s * (1.0 - s) * (1.0 - s),
-            s * s * (3.0 - 2.0 * s),
-            s * s * (s - 1.0),
-        );
-        let y = h00 * a[0] + h10 * h * a[1] + h01 * b[0] + h11 * h * b[1];
-        let yd = h00 * a[1] + h10 * h * a[2] + h01 * b[1] + h11 * h * b[2];
-        [y, yd, self.mode.accel(qdd, y, yd)]
+        Self::integrate(mode, spline.dim(), t0, t1, qdd)
     }
 }
 
@@ -429,9 +470,10 @@ mod tests {
         assert!(SpanAccelerations::new(&quintic).is_none());
     }
 
-    /// [`ModeResponse::of_spline`] (span accelerations) against the
-    /// integration of the spline's state through its span polynomials (the
-    /// former evaluation), node by node; and a quintic takes that path.
+    /// [`ModeResponse::of_spline`] (span accelerations, integrated on first
+    /// use) against the integration of the spline's state through its span
+    /// polynomials (the former evaluation), node by node; and a quintic
+    /// takes that path.
     #[test]
     fn of_spline_matches_the_state_evaluation() {
         let mode = Mode::default();
@@ -445,6 +487,9 @@ mod tests {
                 js
             });
             let new = ModeResponse::of_spline(mode, &s);
+            assert!(new.grid.get().is_none(), "integrated on first use");
+            new.prepare();
+            let (old, new) = (old.grid(), new.grid());
             assert_eq!(
                 (old.t0, old.dt, old.nodes.len()),
                 (new.t0, new.dt, new.nodes.len())

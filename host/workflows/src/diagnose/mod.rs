@@ -489,6 +489,8 @@ fn with_noise(opts: &CalibrateOptions, noise: Option<NoiseModel>) -> CalibrateOp
 /// The noise identified ([`crate::noise_id::identify`]) from the raw IMU
 /// residuals z_i − h(x̂, q(t_i + τ̂)) − C_e(i) θ̂_e of the fit `at` (its
 /// effects included), with ‖q̈‖² of its trajectory as the motion regressor.
+/// A fit under white noise has them already (its residuals, whitened by
+/// σ_z: the same problem's at the same θ); another's are evaluated anew.
 pub fn identify_at(
     robot: &Robot,
     data: &Measurements,
@@ -499,15 +501,21 @@ pub fn identify_at(
 ) -> Result<Identification, String> {
     let layout = ParamLayout::with_imus(robot, data.n_imus());
     let white = with_noise(opts, None);
-    let res = with_problem_at(robot, data, &white, setup, &at.effects, at, |p, theta| {
-        Ok(p.imu_residuals(theta)?)
-    })
-    .map_err(|e| e.to_string())?;
+    let evaluated;
+    let res = if at.noise.is_white() && at.noise.sigma_z() == opts.sigma_z {
+        &at.residuals
+    } else {
+        evaluated = with_problem_at(robot, data, &white, setup, &at.effects, at, |p, theta| {
+            Ok(p.imu_residuals(theta)?)
+        })
+        .map_err(|e| e.to_string())?;
+        &evaluated
+    };
     let tau = at.x[layout.offsets().tau];
     let n = robot.dof();
     let mut js = JointState::default();
     let (mut t, mut r, mut qdd2) = (Vec::new(), Vec::new(), Vec::new());
-    for (i, w) in res {
+    for &(i, w) in res {
         t.push(data.imu_t[i]);
         r.push(std::array::from_fn(|c| w[c] * opts.sigma_z[c]));
         at.trajectory.evaluate_clamped(data.imu_t[i] + tau, &mut js);
@@ -670,7 +678,15 @@ pub fn diagnose(
     let mut setup = setup.clone();
     let setup = &mut setup;
     progress("fitting the baseline model");
-    let (baseline, noise) = baseline_fit(robot, data, opts, setup, dopts, &mut progress)?;
+    // the resonance's response (integrated on first use) on the other core
+    // while the baseline is fitted: the scores are its first use
+    let response = setup.mode_response.clone();
+    let (baseline, noise) = std::thread::scope(|scope| {
+        if let Some(r) = &response {
+            scope.spawn(|| r.prepare());
+        }
+        baseline_fit(robot, data, opts, setup, dopts, &mut progress)
+    })?;
     // the baseline's residual statistics on the other core while the
     // effects are searched (they need only the baseline fit)
     let stats_setup = setup.clone();
