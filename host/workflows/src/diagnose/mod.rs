@@ -513,14 +513,29 @@ pub fn identify_at(
     };
     let tau = at.x[layout.offsets().tau];
     let n = robot.dof();
-    let mut js = JointState::default();
-    let (mut t, mut r, mut qdd2) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut t, mut r) = (Vec::new(), Vec::new());
     for &(i, w) in res {
         t.push(data.imu_t[i]);
         r.push(std::array::from_fn(|c| w[c] * opts.sigma_z[c]));
-        at.trajectory.evaluate_clamped(data.imu_t[i] + tau, &mut js);
-        qdd2.push(js.qdd[..n].iter().map(|a| a * a).sum());
     }
+    // ‖q̈‖² along the trajectory, the two halves of the samples on two threads
+    let qdd2_of = |part: &[(usize, [f64; 6])]| -> Vec<f64> {
+        let mut js = JointState::default();
+        part.iter()
+            .map(|(i, _)| {
+                at.trajectory
+                    .evaluate_clamped(data.imu_t[*i] + tau, &mut js);
+                js.qdd[..n].iter().map(|a| a * a).sum()
+            })
+            .collect()
+    };
+    let (first, second) = res.split_at(res.len() / 2);
+    let qdd2 = std::thread::scope(|s| {
+        let h = s.spawn(|| qdd2_of(second));
+        let mut v = qdd2_of(first);
+        v.extend(h.join().expect("trajectory thread panicked"));
+        v
+    });
     identify(&t, &r, Some(&qdd2), id_opts).map_err(|e| e.to_string())
 }
 
