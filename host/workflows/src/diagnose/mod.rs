@@ -780,7 +780,7 @@ fn search_effects(
         // scores, refit and LR under the current fit's noise model
         let ropts = with_noise_of(opts, &current);
         progress("scoring the candidate effects");
-        let (base_q, scores) = scores_at(robot, data, &ropts, setup, &current, &candidates)?;
+        let (base_q, scores, set) = scores_at(robot, data, &ropts, setup, &current, &candidates)?;
         let mut best = scores[0].clone();
         if best.p_value >= threshold {
             break scores;
@@ -853,7 +853,7 @@ fn search_effects(
         let mut ranked = scores.clone();
         ranked[0] = best.clone();
         let alternatives = ranking::alternatives(
-            robot, data, &ropts, setup, &current, base_q, &ranked, threshold,
+            robot, data, &ropts, setup, &current, base_q, &set, &ranked, threshold,
         )?;
         let ambiguous_with = alternatives
             .iter()

@@ -1,6 +1,8 @@
 //! The Rao score test of a candidate effect at the current fit (step 3 of
 //! the diagnosis, see the module doc of [`super`]).
 
+use std::ops::Range;
+
 use serde::Serialize;
 
 use super::{with_problem_at, DiagnoseError};
@@ -61,8 +63,8 @@ pub fn score_all(
     Ok(scores_at(robot, data, opts, setup, at, candidates)?.1)
 }
 
-/// [`score_all`] and gᵀ A⁻¹ g of `at`'s own model (the base every score
-/// is taken against).
+/// [`score_all`], gᵀ A⁻¹ g of `at`'s own model (the base every score is
+/// taken against) and the linearisation they came from, reduced.
 ///
 /// One linearisation at `at` of the model with every candidate added (θ
 /// of the candidates at 0, so the residuals are `at`'s): the normal matrix
@@ -77,33 +79,43 @@ pub(super) fn scores_at(
     setup: &CatalogueSetup,
     at: &Fit,
     candidates: &[String],
-) -> Result<(f64, Vec<Score>), DiagnoseError> {
+) -> Result<(f64, Vec<Score>, ScoreSet), DiagnoseError> {
     let mut all = at.effects.clone();
     all.extend(candidates.iter().cloned());
     let dofs = candidates
         .iter()
         .map(|c| Ok(effects::by_name(setup, c)?.params().len()))
         .collect::<Result<Vec<usize>, DiagnoseError>>()?;
-    let (base, stats) = with_problem_at(robot, data, opts, setup, &all, at, |problem, theta| {
-        let mut a = problem.new_matrix();
-        let mut g = vec![0.0; theta.len()];
-        problem.linearize(theta, &mut a, &mut g)?;
-        // border unknowns: x_a and θ_at, then the candidates' θ in order
-        let own = problem.active().len() + (problem.n_effect_params() - dofs.iter().sum::<usize>());
-        let reduced = Reduced::new(&a, &g).map_err(|e| singular(&at.effects, e))?;
-        let base_keep: Vec<usize> = (0..own).collect();
-        let base = reduced.score(&base_keep, &at.effects)?;
-        let mut first = own;
-        let mut stats = Vec::with_capacity(candidates.len());
-        for (c, &dof) in candidates.iter().zip(&dofs) {
-            let keep: Vec<usize> = (0..own).chain(first..first + dof).collect();
-            first += dof;
-            let mut names = at.effects.clone();
-            names.push(c.clone());
-            stats.push(reduced.score(&keep, &names)?);
-        }
-        Ok((base, stats))
-    })?;
+    let (base, stats, set) =
+        with_problem_at(robot, data, opts, setup, &all, at, |problem, theta| {
+            let mut a = problem.new_matrix();
+            let mut g = vec![0.0; theta.len()];
+            problem.linearize(theta, &mut a, &mut g)?;
+            // border unknowns: x_a and θ_at, then the candidates' θ in order
+            let own =
+                problem.active().len() + (problem.n_effect_params() - dofs.iter().sum::<usize>());
+            let reduced = Reduced::new(&a, &g).map_err(|e| singular(&at.effects, e))?;
+            let base_keep: Vec<usize> = (0..own).collect();
+            let base = reduced.score(&base_keep, &at.effects)?;
+            let mut first = own;
+            let mut stats = Vec::with_capacity(candidates.len());
+            let mut blocks = Vec::with_capacity(candidates.len());
+            for (c, &dof) in candidates.iter().zip(&dofs) {
+                let keep: Vec<usize> = (0..own).chain(first..first + dof).collect();
+                blocks.push((c.clone(), setup.spec(c), first..first + dof));
+                first += dof;
+                let mut names = at.effects.clone();
+                names.push(c.clone());
+                stats.push(reduced.score(&keep, &names)?);
+            }
+            let set = ScoreSet {
+                reduced,
+                own,
+                effects: at.effects.clone(),
+                blocks,
+            };
+            Ok((base, stats, set))
+        })?;
     let mut out: Vec<Score> = candidates
         .iter()
         .zip(&dofs)
@@ -123,7 +135,47 @@ pub(super) fn scores_at(
             .total_cmp(&b.p_value)
             .then(b.statistic.total_cmp(&a.statistic))
     });
-    Ok((base, out))
+    Ok((base, out, set))
+}
+
+/// The reduced linearisation of one round's scores ([`scores_at`]): `at`'s
+/// model with every candidate, from which the score of `at`'s model plus
+/// any two of them is one more restriction (the effects' columns and priors
+/// do not depend on which others are present), instead of a linearisation
+/// of that model of its own (docs/model.md §4.9).
+pub(super) struct ScoreSet {
+    reduced: Reduced,
+    /// Border unknowns of `at`'s own model (x_a, θ_at).
+    own: usize,
+    /// `at`'s effects.
+    effects: Vec<String>,
+    /// Per candidate: its label, its spec when scored (its resolution) and
+    /// its border unknowns.
+    blocks: Vec<(String, String, Range<usize>)>,
+}
+
+impl ScoreSet {
+    /// gᵀ A⁻¹ g of `at`'s model plus the candidates `a` and `b`, when both
+    /// were scored here at the resolutions `setup` has now (`None`
+    /// otherwise: e.g. `a`'s resolution was chosen since).
+    pub(super) fn joint(
+        &self,
+        setup: &CatalogueSetup,
+        a: &str,
+        b: &str,
+    ) -> Option<Result<f64, DiagnoseError>> {
+        let block = |name: &str| {
+            self.blocks
+                .iter()
+                .find(|(n, spec, _)| n == name && *spec == setup.spec(name))
+                .map(|(_, _, r)| r.clone())
+        };
+        let (ra, rb) = (block(a)?, block(b)?);
+        let keep: Vec<usize> = (0..self.own).chain(ra).chain(rb).collect();
+        let mut names = self.effects.clone();
+        names.extend([a.to_string(), b.to_string()]);
+        Some(self.reduced.score(&keep, &names))
+    }
 }
 
 /// The error of a model (the effects `names`) whose information is singular.
