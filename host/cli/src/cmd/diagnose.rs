@@ -143,21 +143,47 @@ impl DiagnoseCmd {
         });
         progress.finish();
         let d = d.with_context(|| format!("cannot diagnose the session {}", dir.display()))?;
+        // the two figures on their own threads while the summary and the
+        // JSON are written (each is independent of the others)
+        let (written, residuals, spectra) = std::thread::scope(|s| {
+            let residuals = s.spawn(|| residuals_plot(&out_dir, &data, &d));
+            let spectra = s.spawn(|| spectra_plot(&out_dir, &data, &d));
+            let written = write_summary(&out_dir, &layout, &d);
+            (
+                written,
+                residuals.join().expect("residual plot panicked"),
+                spectra.join().expect("spectra plot panicked"),
+            )
+        });
+        written?;
         let mut out = std::io::stdout().lock();
-        write!(out, "{}", DiagnosisSummary(&d))?;
-        let json = d.to_json(&layout);
-        let path = out_dir.join("diagnosis.json");
-        std::fs::write(&path, serde_json::to_string_pretty(&json)?)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        writeln!(out, "wrote {}", path.display())?;
-        for p in residuals_plot(&out_dir, &data, &d)? {
-            writeln!(out, "wrote {}", p.display())?;
-        }
-        for p in spectra_plot(&out_dir, &data, &d)? {
+        for p in residuals?.into_iter().chain(spectra?) {
             writeln!(out, "wrote {}", p.display())?;
         }
         Ok(d)
     }
+}
+
+/// Print the summary and write DIR/diagnosis.json.
+fn write_summary(
+    out_dir: &std::path::Path,
+    layout: &ParamLayout,
+    d: &Diagnosis,
+) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    write!(out, "{}", DiagnosisSummary(d))?;
+    let json = d.to_json(layout);
+    let path = out_dir.join("diagnosis.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&json)?)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    writeln!(out, "wrote {}", path.display())?;
+    Ok(())
+}
+
+/// Whether the final fit is the baseline itself (no effect added): its
+/// residual curves are then the baseline's, computed once.
+fn same_fits(d: &Diagnosis) -> bool {
+    d.found.is_empty() && d.final_fit.effects.is_empty()
 }
 
 /// Window of the residual plot, s.
@@ -183,16 +209,15 @@ fn residuals_plot(
         .iter()
         .enumerate()
         .map(|(c, name)| {
-            let mut series: Vec<(String, Vec<(f64, f64)>)> =
-                [("before", &d.baseline), ("after", &d.final_fit)]
-                    .into_iter()
-                    .map(|(label, fit)| {
-                        let t: Vec<f64> =
-                            fit.residuals.iter().map(|(i, _)| data.imu_t[*i]).collect();
-                        let r: Vec<f64> = fit.residuals.iter().map(|(_, v)| v[c]).collect();
-                        (label.to_string(), windowed_rms(&t, &r, window))
-                    })
-                    .collect();
+            let rms = |fit: &robimu_workflows::calibrate::fit::Fit| {
+                let t: Vec<f64> = fit.residuals.iter().map(|(i, _)| data.imu_t[*i]).collect();
+                let r: Vec<f64> = fit.residuals.iter().map(|(_, v)| v[c]).collect();
+                windowed_rms(&t, &r, window)
+            };
+            let before = rms(&d.baseline);
+            let after = same_fits(d).then(|| before.clone());
+            let after = after.unwrap_or_else(|| rms(&d.final_fit));
+            let mut series = vec![("before".to_string(), before), ("after".to_string(), after)];
             series.push(("noise model".into(), vec![(span.0, 1.0), (span.1, 1.0)]));
             LinePanel {
                 title: format!("{name} residual"),
@@ -224,13 +249,25 @@ fn spectra_plot(
             1.0
         }
     };
+    let spectrum = |fit: &robimu_workflows::calibrate::fit::Fit, c: usize| {
+        let r: Vec<f64> = fit.residuals.iter().map(|(_, v)| v[c]).collect();
+        welch(&r, rate)
+    };
     let mut panels = Vec::new();
     for (sensor, title) in [(0, "accelerometer"), (1, "gyroscope")] {
+        let before: Vec<_> = (3 * sensor..3 * sensor + 3)
+            .map(|c| spectrum(&d.baseline, c))
+            .collect();
+        let after: Vec<_> = match same_fits(d) {
+            true => before.clone(),
+            false => (3 * sensor..3 * sensor + 3)
+                .map(|c| spectrum(&d.final_fit, c))
+                .collect(),
+        };
         let mut series = Vec::new();
-        for (label, fit) in [("before", &d.baseline), ("after", &d.final_fit)] {
-            for c in 3 * sensor..3 * sensor + 3 {
-                let r: Vec<f64> = fit.residuals.iter().map(|(_, v)| v[c]).collect();
-                series.push((format!("{} {label}", CHANNELS[c]), welch(&r, rate)));
+        for (label, spectra) in [("before", before), ("after", after)] {
+            for (c, p) in (3 * sensor..).zip(spectra) {
+                series.push((format!("{} {label}", CHANNELS[c]), p));
             }
         }
         panels.push(LogLogPanel {

@@ -41,7 +41,7 @@ impl Effect for GSensitivity {
         out
     }
     fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
-        let s = ctx.inertial().s;
+        let (_, s) = ctx.omega_and_force();
         for r in 0..3 {
             for c in 0..3 {
                 cols[3 * r + c][3 + r] = s[c];

@@ -16,7 +16,7 @@
 //! torque's error (the effect is still detected; c·m is what the data sees).
 
 use super::{shifted, Effect, EffectParam, ExactContext, MassModel, SampleContext, TIME_STEP};
-use crate::{JointState, ParamLayout};
+use crate::{JointState, ParamLayout, MAX_JOINTS};
 
 /// See the module doc.
 pub struct JointElasticity {
@@ -30,16 +30,18 @@ pub struct JointElasticity {
 const DISPLAY: f64 = 180.0 / std::f64::consts::PI * 1e3;
 
 /// Gravity torques and their first two time derivatives at a joint state.
-fn torques(mass: &MassModel, g0: f64, js: &JointState) -> [Vec<f64>; 3] {
+fn torques(mass: &MassModel, g0: f64, js: &JointState) -> [[f64; MAX_JOINTS]; 3] {
     let n = mass.dof();
     let h = TIME_STEP;
-    let t0 = mass.gravity_torques(&js.q[..n], g0);
-    let tp = mass.gravity_torques(&shifted(js, h).q[..n], g0);
-    let tm = mass.gravity_torques(&shifted(js, -h).q[..n], g0);
-    let d1 = (0..n).map(|j| (tp[j] - tm[j]) / (2.0 * h)).collect();
-    let d2 = (0..n)
-        .map(|j| (tp[j] - 2.0 * t0[j] + tm[j]) / (h * h))
-        .collect();
+    let t0 = mass.gravity_torques_array(&js.q[..n], g0);
+    let tp = mass.gravity_torques_array(&shifted(js, h).q[..n], g0);
+    let tm = mass.gravity_torques_array(&shifted(js, -h).q[..n], g0);
+    let mut d1 = [0.0; MAX_JOINTS];
+    let mut d2 = [0.0; MAX_JOINTS];
+    for j in 0..n {
+        d1[j] = (tp[j] - tm[j]) / (2.0 * h);
+        d2[j] = (tp[j] - 2.0 * t0[j] + tm[j]) / (h * h);
+    }
     [t0, d1, d2]
 }
 

@@ -20,12 +20,14 @@ use serde::Deserialize;
 use crate::geom::{add, cross, dot, mul_mv, sub, V3};
 use crate::kinematics::link_transform;
 use crate::robot::DhLink;
-use crate::{geom::Iso, Robot};
+use crate::{geom::Iso, Robot, MAX_JOINTS};
 
 /// Link masses and centres of mass (see the module doc).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MassModel {
     links: Vec<DhLink>,
+    /// Per link: (sin α, cos α) of its twist (for [`Self::link_transform`]).
+    twist: Vec<(f64, f64)>,
     mass: Vec<f64>,
     com: Vec<V3>,
 }
@@ -63,6 +65,20 @@ struct LinkMass {
 }
 
 impl MassModel {
+    /// The model of `links` with these masses and centres of mass.
+    fn of_links(links: Vec<DhLink>, mass: Vec<f64>, com: Vec<V3>) -> Self {
+        let twist = links
+            .iter()
+            .map(|l| (l.alpha.sin(), l.alpha.cos()))
+            .collect();
+        Self {
+            links,
+            twist,
+            mass,
+            com,
+        }
+    }
+
     /// From masses (kg) and centres of mass (m, link DH frames).
     pub fn new(robot: &Robot, mass: Vec<f64>, com: Vec<V3>) -> Result<Self, MassError> {
         let n = robot.dof();
@@ -75,11 +91,7 @@ impl MassModel {
         if let Some(m) = mass.iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
             return Err(MassError::Invalid(format!("link mass {m} kg is not ≥ 0")));
         }
-        Ok(Self {
-            links: robot.links().to_vec(),
-            mass,
-            com,
-        })
+        Ok(Self::of_links(robot.links().to_vec(), mass, com))
     }
 
     /// A built-in estimate for the AUBO i5 (24 kg arm; masses and centres of
@@ -107,11 +119,7 @@ impl MassModel {
             }
         }
         let n = robot.dof();
-        Self {
-            links: robot.links().to_vec(),
-            mass: vec![2.0; n],
-            com: vec![[0.0; 3]; n],
-        }
+        Self::of_links(robot.links().to_vec(), vec![2.0; n], vec![[0.0; 3]; n])
     }
 
     /// Parse a TOML mass model for `robot`.
@@ -137,29 +145,58 @@ impl MassModel {
 
     /// Gravity torque τ_j(q) on every joint (N·m), gravity g0 along −z.
     pub fn gravity_torques(&self, q: &[f64], g0: f64) -> Vec<f64> {
+        self.gravity_torques_array(q, g0)[..self.dof()].to_vec()
+    }
+
+    /// [`Self::gravity_torques`] without allocating (the same operations;
+    /// entries beyond [`Self::dof`] zero): the effects evaluate it three
+    /// times per IMU sample.
+    ///
+    /// # Panics
+    /// With more links than [`MAX_JOINTS`] or fewer angles in `q` than links.
+    pub fn gravity_torques_array(&self, q: &[f64], g0: f64) -> [f64; MAX_JOINTS] {
         let n = self.links.len();
-        let mut frames = Vec::with_capacity(n + 1);
-        let mut f = Iso::identity();
-        frames.push(f);
-        for (dh, &qi) in self.links.iter().zip(q) {
-            f = f.compose(&link_transform(dh, qi));
-            frames.push(f);
+        assert!(
+            n <= MAX_JOINTS && q.len() >= n,
+            "{n} links, {} angles",
+            q.len()
+        );
+        let mut frames = [Iso::identity(); MAX_JOINTS + 1];
+        for l in 0..n {
+            frames[l + 1] = frames[l].compose(&self.link_transform(l, q[l]));
         }
-        let centres: Vec<V3> = (0..n)
-            .map(|l| add(frames[l + 1].p, mul_mv(&frames[l + 1].r, self.com[l])))
-            .collect();
-        (0..n)
-            .map(|j| {
-                let axis = [frames[j].r[0][2], frames[j].r[1][2], frames[j].r[2][2]];
-                let origin = frames[j].p;
-                (j..n)
-                    .map(|l| {
-                        let force = [0.0, 0.0, -g0 * self.mass[l]];
-                        dot(axis, cross(sub(centres[l], origin), force))
-                    })
-                    .sum()
-            })
-            .collect()
+        let mut centres = [[0.0; 3]; MAX_JOINTS];
+        for l in 0..n {
+            centres[l] = add(frames[l + 1].p, mul_mv(&frames[l + 1].r, self.com[l]));
+        }
+        let mut out = [0.0; MAX_JOINTS];
+        for (j, o) in out.iter_mut().enumerate().take(n) {
+            let axis = [frames[j].r[0][2], frames[j].r[1][2], frames[j].r[2][2]];
+            let origin = frames[j].p;
+            *o = (j..n)
+                .map(|l| {
+                    let force = [0.0, 0.0, -g0 * self.mass[l]];
+                    dot(axis, cross(sub(centres[l], origin), force))
+                })
+                .sum();
+        }
+        out
+    }
+
+    /// The DH transform of link `l` at angle `q`: [`link_transform`] with
+    /// the twist's sine and cosine computed once ([`Self::twist`]).
+    fn link_transform(&self, l: usize, q: f64) -> Iso {
+        let dh = &self.links[l];
+        let (st, ct) = (q + dh.theta0).sin_cos();
+        let (sa, ca) = self.twist[l];
+        Iso {
+            r: [
+                [ct, -(st * ca), st * sa],
+                [st, ct * ca, -(ct * sa)],
+                [0.0, sa, ca],
+            ],
+            p: [ct * dh.a, st * dh.a, dh.d],
+        }
     }
 }
 

@@ -89,6 +89,8 @@ pub struct SampleContext<'a> {
     pub jac: &'a MeasurementJacobians,
     /// Index of τ in x.
     pub tau_index: usize,
+    /// ω and s at the sample (computed on first use).
+    motion: OnceCell<(V3, V3)>,
     inertial: OnceCell<Inertial>,
 }
 
@@ -135,14 +137,25 @@ impl<'a> SampleContext<'a> {
             model,
             jac,
             tau_index: layout.offsets().tau,
+            motion: OnceCell::new(),
             inertial: OnceCell::new(),
         }
+    }
+
+    /// ω and s in the IMU frame (computed once, on first use): what
+    /// [`Self::inertial`] has without ω̇ and its two further evaluations of
+    /// the model.
+    pub fn omega_and_force(&self) -> (V3, V3) {
+        *self.motion.get_or_init(|| {
+            let (_, omega, s) = self.model.inertial(self.js);
+            (omega, s)
+        })
     }
 
     /// ω, ω̇, s in the IMU frame (computed once, on first use).
     pub fn inertial(&self) -> &Inertial {
         self.inertial.get_or_init(|| {
-            let (_, omega, s) = self.model.inertial(self.js);
+            let (omega, s) = self.omega_and_force();
             let h = TIME_STEP;
             let (_, wp, _) = self.model.inertial(&shifted(self.js, h));
             let (_, wm, _) = self.model.inertial(&shifted(self.js, -h));
@@ -265,7 +278,8 @@ pub struct CatalogueSetup {
     /// The resonance's natural frequency and damping.
     pub mode: resonance::Mode,
     /// The mode's response to the recorded joint trajectory (`None`: no
-    /// trajectory could be fitted; `resonance` is then unavailable).
+    /// trajectory could be fitted; `resonance` is then unavailable),
+    /// integrated on its first use ([`resonance::ModeResponse::prepare`]).
     pub mode_response: Option<Arc<resonance::ModeResponse>>,
     /// Segments of `bias_drift`'s bias spline (its time resolution;
     /// [`bias_drift::DEFAULT_SEGMENTS`] unless set, diagnose chooses it
@@ -708,9 +722,8 @@ impl EffectSet {
     }
     /// All columns ∂z/∂θ_E at one sample (`cols.len() == self.len()`).
     pub fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
-        for (off, e) in self.effects() {
-            let k = e.params().len();
-            self.columns_of(e, ctx, &mut cols[off..off + k]);
+        for (i, e) in self.effects.iter().enumerate() {
+            self.columns_of(e.as_ref(), ctx, &mut cols[self.range_of(i)]);
         }
     }
     /// IMU `j`'s columns ∂z/∂θ_E at one of its samples, only for the

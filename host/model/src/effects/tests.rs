@@ -121,6 +121,69 @@ fn gravity_torque_matches_finite_differences_of_potential_energy() {
     );
 }
 
+/// The allocation-free gravity torques (twist sines once per model) are
+/// bit-identical to the former form: frames by [`link_transform`] in a
+/// vector, then the same sums.
+#[test]
+fn gravity_torque_array_is_the_former_computation() {
+    use crate::geom::{add, cross, dot, mul_mv, sub, Iso};
+    use crate::kinematics::link_transform;
+    let robot = Robot::aubo_i5();
+    let mass = MassModel::for_robot(&robot);
+    let coms = [[0.1, -0.02, 0.3]; 6];
+    let masses = [1.0, 2.0, 3.0, 0.5, 0.25, 4.0];
+    let other = MassModel::new(&robot, masses.to_vec(), coms.to_vec()).unwrap();
+    for (m, com, model) in [
+        (vec![5.0, 6.5, 3.0, 1.5, 1.5, 0.5], None, &mass),
+        (masses.to_vec(), Some(coms), &other),
+    ] {
+        for k in 0..50 {
+            let q: Vec<f64> = (0..6)
+                .map(|j| 2.0 * ((k * 7 + j * 3) as f64 * 0.91).sin())
+                .collect();
+            let g0 = 9.80665;
+            // the former computation
+            let n = robot.dof();
+            let mut frames = vec![Iso::identity()];
+            for (dh, &qi) in robot.links().iter().zip(&q) {
+                let f = frames[frames.len() - 1].compose(&link_transform(dh, qi));
+                frames.push(f);
+            }
+            let com_l = |l: usize| match com {
+                Some(c) => c[l],
+                None => [
+                    [0.0, 0.0, 0.02],
+                    [-0.204, 0.0, 0.06],
+                    [-0.188, 0.0, 0.01],
+                    [0.0; 3],
+                    [0.0; 3],
+                    [0.0, 0.0, -0.02],
+                ][l],
+            };
+            let centres: Vec<[f64; 3]> = (0..n)
+                .map(|l| add(frames[l + 1].p, mul_mv(&frames[l + 1].r, com_l(l))))
+                .collect();
+            let want: Vec<f64> = (0..n)
+                .map(|j| {
+                    let axis = [frames[j].r[0][2], frames[j].r[1][2], frames[j].r[2][2]];
+                    (j..n)
+                        .map(|l| {
+                            dot(
+                                axis,
+                                cross(sub(centres[l], frames[j].p), [0.0, 0.0, -g0 * m[l]]),
+                            )
+                        })
+                        .sum()
+                })
+                .collect();
+            let got = model.gravity_torques_array(&q, g0);
+            assert_eq!(&got[..n], &want[..], "q {q:?}");
+            assert!(got[n..].iter().all(|&v| v == 0.0));
+            assert_eq!(model.gravity_torques(&q, g0), want);
+        }
+    }
+}
+
 /// Effect specs: `NAME` and `NAME:M`, M only for an effect with a
 /// resolution, in range, a whole number; `spec` reads back.
 #[test]

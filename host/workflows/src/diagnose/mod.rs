@@ -489,6 +489,8 @@ fn with_noise(opts: &CalibrateOptions, noise: Option<NoiseModel>) -> CalibrateOp
 /// The noise identified ([`crate::noise_id::identify`]) from the raw IMU
 /// residuals z_i − h(x̂, q(t_i + τ̂)) − C_e(i) θ̂_e of the fit `at` (its
 /// effects included), with ‖q̈‖² of its trajectory as the motion regressor.
+/// A fit under white noise has them already (its residuals, whitened by
+/// σ_z: the same problem's at the same θ); another's are evaluated anew.
 pub fn identify_at(
     robot: &Robot,
     data: &Measurements,
@@ -499,20 +501,41 @@ pub fn identify_at(
 ) -> Result<Identification, String> {
     let layout = ParamLayout::with_imus(robot, data.n_imus());
     let white = with_noise(opts, None);
-    let res = with_problem_at(robot, data, &white, setup, &at.effects, at, |p, theta| {
-        Ok(p.imu_residuals(theta)?)
-    })
-    .map_err(|e| e.to_string())?;
+    let evaluated;
+    let res = if at.noise.is_white() && at.noise.sigma_z() == opts.sigma_z {
+        &at.residuals
+    } else {
+        evaluated = with_problem_at(robot, data, &white, setup, &at.effects, at, |p, theta| {
+            Ok(p.imu_residuals(theta)?)
+        })
+        .map_err(|e| e.to_string())?;
+        &evaluated
+    };
     let tau = at.x[layout.offsets().tau];
     let n = robot.dof();
-    let mut js = JointState::default();
-    let (mut t, mut r, mut qdd2) = (Vec::new(), Vec::new(), Vec::new());
-    for (i, w) in res {
+    let (mut t, mut r) = (Vec::new(), Vec::new());
+    for &(i, w) in res {
         t.push(data.imu_t[i]);
         r.push(std::array::from_fn(|c| w[c] * opts.sigma_z[c]));
-        at.trajectory.evaluate_clamped(data.imu_t[i] + tau, &mut js);
-        qdd2.push(js.qdd[..n].iter().map(|a| a * a).sum());
     }
+    // ‖q̈‖² along the trajectory, the two halves of the samples on two threads
+    let qdd2_of = |part: &[(usize, [f64; 6])]| -> Vec<f64> {
+        let mut js = JointState::default();
+        part.iter()
+            .map(|(i, _)| {
+                at.trajectory
+                    .evaluate_clamped(data.imu_t[*i] + tau, &mut js);
+                js.qdd[..n].iter().map(|a| a * a).sum()
+            })
+            .collect()
+    };
+    let (first, second) = res.split_at(res.len() / 2);
+    let qdd2 = std::thread::scope(|s| {
+        let h = s.spawn(|| qdd2_of(second));
+        let mut v = qdd2_of(first);
+        v.extend(h.join().expect("trajectory thread panicked"));
+        v
+    });
     identify(&t, &r, Some(&qdd2), id_opts).map_err(|e| e.to_string())
 }
 
@@ -653,7 +676,6 @@ pub fn diagnose(
     dopts: &DiagnoseOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Diagnosis, DiagnoseError> {
-    let layout = ParamLayout::with_imus(robot, data.n_imus());
     // the candidates this session's catalogue has (temperature_bias needs a
     // recorded temperature, resonance a trajectory), each per-sensor effect
     // once per IMU (docs/model.md §9); Bonferroni over them
@@ -671,7 +693,76 @@ pub fn diagnose(
     let mut setup = setup.clone();
     let setup = &mut setup;
     progress("fitting the baseline model");
-    let (baseline, mut noise) = baseline_fit(robot, data, opts, setup, dopts, &mut progress)?;
+    // the resonance's response (integrated on first use) on the other core
+    // while the baseline is fitted: the scores are its first use
+    let response = setup.mode_response.clone();
+    let (baseline, noise) = std::thread::scope(|scope| {
+        if let Some(r) = &response {
+            scope.spawn(|| r.prepare());
+        }
+        baseline_fit(robot, data, opts, setup, dopts, &mut progress)
+    })?;
+    // the baseline's residual statistics on the other core while the
+    // effects are searched (they need only the baseline fit)
+    let stats_setup = setup.clone();
+    let (stats_before, search) = std::thread::scope(|scope| {
+        let before = scope.spawn(|| residual_stats(robot, data, &stats_setup, &baseline));
+        let search = search_effects(
+            robot,
+            data,
+            opts,
+            setup,
+            dopts,
+            &offered,
+            &baseline,
+            noise,
+            &mut progress,
+        );
+        (before.join().expect("residual statistics panicked"), search)
+    });
+    let (current, found, rejected, last_scores, noise) = search?;
+    // with no effect added the final fit is the baseline itself
+    let stats_after = if found.is_empty() {
+        stats_before.clone()
+    } else {
+        residual_stats(robot, data, setup, &current)
+    };
+    Ok(Diagnosis {
+        unexplained: unexplained(&stats_after),
+        rejected,
+        baseline,
+        final_fit: current,
+        found,
+        last_scores,
+        threshold,
+        stats_before,
+        stats_after,
+        sigma_z: opts.sigma_z,
+        noise,
+        setup: setup.clone(),
+    })
+}
+
+/// What [`search_effects`] ends with: the final fit, the effects found,
+/// the candidates rejected, the last round's scores and the noise use.
+type Search = (Fit, Vec<FoundEffect>, Vec<Rejected>, Vec<Score>, NoiseUse);
+
+/// Steps 3–4 of the module doc from the baseline fit: add significant
+/// effects one at a time from `offered` (Bonferroni threshold α/|offered|).
+#[allow(clippy::too_many_arguments)]
+fn search_effects(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &mut CatalogueSetup,
+    dopts: &DiagnoseOptions,
+    offered: &[String],
+    baseline: &Fit,
+    mut noise: NoiseUse,
+    mut progress: impl FnMut(&str),
+) -> Result<Search, DiagnoseError> {
+    let layout = ParamLayout::with_imus(robot, data.n_imus());
+    let threshold = dopts.alpha / offered.len().max(1) as f64;
     let auto = matches!(dopts.noise, NoiseChoice::Auto);
     let mut current = baseline.clone();
     let mut found: Vec<FoundEffect> = Vec::new();
@@ -689,7 +780,7 @@ pub fn diagnose(
         // scores, refit and LR under the current fit's noise model
         let ropts = with_noise_of(opts, &current);
         progress("scoring the candidate effects");
-        let (base_q, scores) = scores_at(robot, data, &ropts, setup, &current, &candidates)?;
+        let (base_q, scores, set) = scores_at(robot, data, &ropts, setup, &current, &candidates)?;
         let mut best = scores[0].clone();
         if best.p_value >= threshold {
             break scores;
@@ -762,7 +853,7 @@ pub fn diagnose(
         let mut ranked = scores.clone();
         ranked[0] = best.clone();
         let alternatives = ranking::alternatives(
-            robot, data, &ropts, setup, &current, base_q, &ranked, threshold,
+            robot, data, &ropts, setup, &current, base_q, &set, &ranked, threshold,
         )?;
         let ambiguous_with = alternatives
             .iter()
@@ -842,27 +933,7 @@ pub fn diagnose(
         });
         current = next;
     };
-    let stats_before = residual_stats(robot, data, setup, &baseline);
-    // with no effect added the final fit is the baseline itself
-    let stats_after = if found.is_empty() {
-        stats_before.clone()
-    } else {
-        residual_stats(robot, data, setup, &current)
-    };
-    Ok(Diagnosis {
-        unexplained: unexplained(&stats_after),
-        rejected,
-        baseline,
-        final_fit: current,
-        found,
-        last_scores,
-        threshold,
-        stats_before,
-        stats_after,
-        sigma_z: opts.sigma_z,
-        noise,
-        setup: setup.clone(),
-    })
+    Ok((current, found, rejected, last_scores, noise))
 }
 
 /// Add the exact effect terms of `injected` to simulated IMU samples (each

@@ -40,7 +40,7 @@ use std::ops::Range;
 use faer::{Mat, Side};
 use serde::Serialize;
 
-use super::score::{quadratic_score, Score};
+use super::score::{quadratic_score, Score, ScoreSet};
 use super::DiagnoseError;
 use crate::calibrate::fit::Fit;
 use crate::calibrate::CalibrateOptions;
@@ -79,15 +79,19 @@ pub struct Alternative {
 
 /// Every candidate of `scores` (sorted, the winner first) significant
 /// alone (p < `threshold`) compared with the winner; `base` is gᵀA⁻¹g of
-/// `at`'s own model ([`super::score::scores_at`]). One linearisation each.
+/// `at`'s own model and `set` the round's linearisation
+/// ([`super::score::scores_at`]): S(a∪b) is a restriction of it where it
+/// has both at their current resolutions, else one linearisation of its
+/// own.
 #[allow(clippy::too_many_arguments)]
-pub fn alternatives(
+pub(super) fn alternatives(
     robot: &Robot,
     data: &Measurements,
     opts: &CalibrateOptions,
     setup: &CatalogueSetup,
     at: &Fit,
     base: f64,
+    set: &ScoreSet,
     scores: &[Score],
     threshold: f64,
 ) -> Result<Vec<Alternative>, DiagnoseError> {
@@ -98,7 +102,11 @@ pub fn alternatives(
     for b in rest.iter().filter(|b| b.p_value < threshold) {
         let mut names = at.effects.clone();
         names.extend([a.name.clone(), b.name.clone()]);
-        let joint = (quadratic_score(robot, data, opts, setup, &names, at)? - base).max(0.0);
+        let joint = match set.joint(setup, &a.name, &b.name) {
+            Some(q) => q?,
+            None => quadratic_score(robot, data, opts, setup, &names, at)?,
+        };
+        let joint = (joint - base).max(0.0);
         let given_winner = (joint - a.statistic).max(0.0);
         let winner_given_it = (joint - b.statistic).max(0.0);
         let given_winner_p = chi2_sf(given_winner, b.dof as f64);

@@ -78,7 +78,6 @@ pub fn residual_stats(
     let layout = ParamLayout::new(robot);
     let x0 = ParamLayout::with_imus(robot, fit.n_imus).imu_x(0, &fit.x);
     let res = &fit.residuals;
-    let n = res.len().max(1);
     let ts: Vec<f64> = res.iter().map(|(i, _)| data.imu_t[*i]).collect();
     let rate = if ts.len() > 1 {
         (ts.len() - 1) as f64 / (ts[ts.len() - 1] - ts[0]).max(1e-9)
@@ -109,32 +108,51 @@ pub fn residual_stats(
     if temp.is_some() {
         reg_names.push("temp".into());
     }
-    let regs: Vec<Vec<f64>> = res
-        .iter()
-        .map(|(i, _)| {
-            let mut js = JointState::default();
+    // the regressors as columns, one value per sample; the two halves of
+    // the samples on two threads
+    let columns = |part: &[(usize, [f64; 6])]| -> Vec<Vec<f64>> {
+        let mut regs: Vec<Vec<f64>> = (0..reg_names.len())
+            .map(|_| Vec::with_capacity(part.len()))
+            .collect();
+        let mut js = JointState::default();
+        for (i, _) in part {
             let t = data.imu_t[*i];
             fit.trajectory.evaluate_clamped(t + tau, &mut js);
-            let mut v = vec![t];
+            let mut cols = regs.iter_mut();
+            let mut put = |v: f64| cols.next().expect("one column per regressor").push(v);
+            put(t);
             for j in 0..dof {
-                v.extend([js.q[j], js.qd[j], js.qdd[j]]);
+                put(js.q[j]);
+                put(js.qd[j]);
+                put(js.qdd[j]);
             }
-            if let Some(m) = &model {
-                let (_, w, s) = m.inertial(&js);
-                v.extend(w);
-                v.extend(s);
-            } else {
-                v.extend([0.0; 6]);
-            }
+            let (w, s) = match &model {
+                Some(m) => {
+                    let (_, w, s) = m.inertial(&js);
+                    (w, s)
+                }
+                None => ([0.0; 3], [0.0; 3]),
+            };
+            w.into_iter().chain(s).for_each(&mut put);
             if gravity {
-                v.extend(setup.mass.gravity_torques(&js.q[..dof], setup.g0));
+                let tg = setup.mass.gravity_torques_array(&js.q[..dof], setup.g0);
+                tg[..dof].iter().for_each(|&v| put(v));
             }
             if let Some(c) = temp {
-                v.push(c[*i]);
+                put(c[*i]);
             }
-            v
-        })
-        .collect();
+        }
+        regs
+    };
+    let (first, second) = res.split_at(res.len() / 2);
+    let (mut regs, rest) = std::thread::scope(|s| {
+        let h = s.spawn(|| columns(second));
+        (columns(first), h.join().expect("regressor thread panicked"))
+    });
+    for (col, more) in regs.iter_mut().zip(rest) {
+        col.extend(more);
+    }
+    let regs: Vec<Centred> = regs.iter().map(|x| Centred::new(x)).collect();
     let mut out = ResidualStats {
         samples: res.len(),
         rms: BTreeMap::new(),
@@ -147,76 +165,155 @@ pub fn residual_stats(
         top_regressor: BTreeMap::new(),
         regressors: reg_names.len(),
     };
-    for (c, name) in CHANNELS.iter().enumerate() {
-        let r: Vec<f64> = res.iter().map(|(_, v)| v[c]).collect();
-        let ss: f64 = r.iter().map(|v| v * v).sum();
-        out.chi2_total.0 += ss;
-        let rms = (ss / n as f64).sqrt();
-        out.rms.insert(name.to_string(), rms);
-        out.chi2.insert(name.to_string(), ss);
-        out.ljung_box
-            .insert(name.to_string(), ljung_box(&r, LJUNG_BOX_LAGS));
-        let spec = welch(&r, rate);
-        let mut powers: Vec<f64> = spec.iter().map(|p| p.1).collect();
-        powers.sort_by(f64::total_cmp);
-        let median = powers
-            .get(powers.len() / 2)
-            .copied()
-            .unwrap_or(1.0)
-            .max(1e-300);
-        if let Some(&(f, p)) = spec.iter().skip(1).max_by(|a, b| a.1.total_cmp(&b.1)) {
-            out.spectral_peak.insert(name.to_string(), (f, p / median));
-            out.spectral_peak_p.insert(
-                name.to_string(),
-                peak_p_value(p / median, welch_segments(r.len()), spec.len() - 1),
-            );
+    // the channels' statistics, three per thread, gathered in channel order
+    let channel = |c: usize| channel_stats(res, c, &ts, rate, &regs, &reg_names);
+    let per_channel: Vec<ChannelStats> = std::thread::scope(|s| {
+        let h = s.spawn(|| (3..6).map(channel).collect::<Vec<_>>());
+        let mut v: Vec<ChannelStats> = (0..3).map(channel).collect();
+        v.extend(h.join().expect("channel statistics thread panicked"));
+        v
+    });
+    for (name, st) in CHANNELS.iter().zip(per_channel) {
+        let name = name.to_string();
+        out.chi2_total.0 += st.ss;
+        out.rms.insert(name.clone(), st.rms);
+        out.chi2.insert(name.clone(), st.ss);
+        out.ljung_box.insert(name.clone(), st.ljung_box);
+        if let Some((peak, p)) = st.peak {
+            out.spectral_peak.insert(name.clone(), peak);
+            out.spectral_peak_p.insert(name.clone(), p);
         }
-        let w = (r.len() / 10).max(1);
-        let mut worst = (0.0, 0.0);
-        for (k, chunk) in r.chunks(w).enumerate() {
-            let wr = (chunk.iter().map(|v| v * v).sum::<f64>() / chunk.len() as f64).sqrt();
-            if wr > worst.1 {
-                worst = (ts[k * w], wr);
-            }
-        }
-        out.worst_window
-            .insert(name.to_string(), (worst.0, worst.1 / rms.max(1e-300)));
-        let mut best = (String::new(), 0.0f64);
-        for (g, gname) in reg_names.iter().enumerate() {
-            let x: Vec<f64> = regs.iter().map(|v| v[g]).collect();
-            let corr = correlation(&x, &r);
-            if corr.abs() > best.1.abs() {
-                best = (gname.clone(), corr);
-            }
-        }
-        out.top_regressor.insert(
-            name.to_string(),
-            (best.0, best.1, best.1 * (n as f64).sqrt()),
-        );
+        out.worst_window.insert(name.clone(), st.worst_window);
+        out.top_regressor.insert(name, st.top_regressor);
     }
     out
+}
+
+/// One channel's part of [`ResidualStats`].
+struct ChannelStats {
+    ss: f64,
+    rms: f64,
+    ljung_box: (f64, f64),
+    /// ((frequency, peak over median), its p-value).
+    peak: Option<((f64, f64), f64)>,
+    worst_window: (f64, f64),
+    top_regressor: (String, f64, f64),
+}
+
+/// The statistics of channel `c` of the residuals `res` (sample times
+/// `ts`, `rate` Hz) against the regressors `regs` named `names`.
+fn channel_stats(
+    res: &[(usize, [f64; 6])],
+    c: usize,
+    ts: &[f64],
+    rate: f64,
+    regs: &[Centred],
+    names: &[String],
+) -> ChannelStats {
+    let n = res.len().max(1);
+    let r: Vec<f64> = res.iter().map(|(_, v)| v[c]).collect();
+    let ss: f64 = r.iter().map(|v| v * v).sum();
+    let rms = (ss / n as f64).sqrt();
+    let spec = welch(&r, rate);
+    let mut powers: Vec<f64> = spec.iter().map(|p| p.1).collect();
+    powers.sort_by(f64::total_cmp);
+    let median = powers
+        .get(powers.len() / 2)
+        .copied()
+        .unwrap_or(1.0)
+        .max(1e-300);
+    let peak = spec
+        .iter()
+        .skip(1)
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|&(f, p)| {
+            let pv = peak_p_value(p / median, welch_segments(r.len()), spec.len() - 1);
+            ((f, p / median), pv)
+        });
+    let w = (r.len() / 10).max(1);
+    let mut worst = (0.0, 0.0);
+    for (k, chunk) in r.chunks(w).enumerate() {
+        let wr = (chunk.iter().map(|v| v * v).sum::<f64>() / chunk.len() as f64).sqrt();
+        if wr > worst.1 {
+            worst = (ts[k * w], wr);
+        }
+    }
+    let mut best = (String::new(), 0.0f64);
+    let centred = Centred::new(&r);
+    for (x, gname) in regs.iter().zip(names) {
+        let corr = x.correlation(&centred);
+        if corr.abs() > best.1.abs() {
+            best = (gname.clone(), corr);
+        }
+    }
+    ChannelStats {
+        ss,
+        rms,
+        ljung_box: ljung_box(&r, LJUNG_BOX_LAGS),
+        peak,
+        worst_window: (worst.0, worst.1 / rms.max(1e-300)),
+        top_regressor: (best.0, best.1, best.1 * (n as f64).sqrt()),
+    }
 }
 
 /// Pearson correlation (0 when either series is constant: tested exactly,
 /// since the rounded mean of a constant series such as a recorded 24.7 °C
 /// leaves deviations of one ulp that would otherwise give a spurious r).
+#[cfg(test)]
 pub(super) fn correlation(x: &[f64], y: &[f64]) -> f64 {
-    let constant = |s: &[f64]| s.windows(2).all(|w| w[0] == w[1]);
-    if constant(x) || constant(y) {
-        return 0.0;
+    Centred::new(x).correlation(&Centred::new(y))
+}
+
+/// A series prepared for [`Centred::correlation`] with many others: its
+/// deviations from the mean and their sum of squares, computed once (the
+/// residual statistics correlate every channel with every regressor).
+struct Centred {
+    /// x_i − x̄ (empty for a constant series).
+    dev: Vec<f64>,
+    /// Σ (x_i − x̄)².
+    ss: f64,
+    /// Every value equal.
+    constant: bool,
+}
+
+impl Centred {
+    fn new(x: &[f64]) -> Self {
+        if x.windows(2).all(|w| w[0] == w[1]) {
+            return Self {
+                dev: Vec::new(),
+                ss: 0.0,
+                constant: true,
+            };
+        }
+        let n = x.len().max(1) as f64;
+        let mean = x.iter().sum::<f64>() / n;
+        let dev: Vec<f64> = x.iter().map(|a| a - mean).collect();
+        let mut ss = 0.0;
+        for d in &dev {
+            ss += d * d;
+        }
+        Self {
+            dev,
+            ss,
+            constant: false,
+        }
     }
-    let n = x.len().max(1) as f64;
-    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
-    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
-    for (a, b) in x.iter().zip(y) {
-        sxy += (a - mx) * (b - my);
-        sxx += (a - mx) * (a - mx);
-        syy += (b - my) * (b - my);
-    }
-    if sxx <= 0.0 || syy <= 0.0 {
-        0.0
-    } else {
-        sxy / (sxx * syy).sqrt()
+
+    /// Pearson correlation with `other` (same length): 0 when either is
+    /// constant (see [`correlation`]).
+    fn correlation(&self, other: &Centred) -> f64 {
+        if self.constant || other.constant {
+            return 0.0;
+        }
+        let mut sxy = 0.0;
+        for (a, b) in self.dev.iter().zip(&other.dev) {
+            sxy += a * b;
+        }
+        if self.ss <= 0.0 || other.ss <= 0.0 {
+            0.0
+        } else {
+            sxy / (self.ss * other.ss).sqrt()
+        }
     }
 }
 
@@ -380,6 +477,44 @@ impl Dft {
 #[cfg(test)]
 mod tests {
     use super::Dft;
+
+    /// The correlation through [`super::Centred`] (deviations and sums of
+    /// squares computed once per series) is bit-identical to the former
+    /// one-pass form, constant series included.
+    #[test]
+    fn centred_correlation_is_the_former_one() {
+        fn former(x: &[f64], y: &[f64]) -> f64 {
+            let constant = |s: &[f64]| s.windows(2).all(|w| w[0] == w[1]);
+            if constant(x) || constant(y) {
+                return 0.0;
+            }
+            let n = x.len().max(1) as f64;
+            let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+            let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+            for (a, b) in x.iter().zip(y) {
+                sxy += (a - mx) * (b - my);
+                sxx += (a - mx) * (a - mx);
+                syy += (b - my) * (b - my);
+            }
+            if sxx <= 0.0 || syy <= 0.0 {
+                0.0
+            } else {
+                sxy / (sxx * syy).sqrt()
+            }
+        }
+        let series = |k: usize| -> Vec<f64> {
+            (0..997)
+                .map(|i| ((i * (3 + k)) as f64 * 0.731).sin() * (1.0 + k as f64) + 0.1 * k as f64)
+                .collect()
+        };
+        let mut all: Vec<Vec<f64>> = (0..6).map(series).collect();
+        all.push(vec![24.7; 997]);
+        for x in &all {
+            for y in &all {
+                assert_eq!(super::correlation(x, y).to_bits(), former(x, y).to_bits());
+            }
+        }
+    }
 
     /// The FFT of [`Dft`] equals the direct sum Σ_i x_i e^{−2πi·ki/L}
     /// (evaluated here independently, with sin/cos per term) for powers of
