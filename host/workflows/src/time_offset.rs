@@ -21,9 +21,10 @@
 mod lag_fit;
 mod rate_grid;
 
+use crate::body_rate::BodyRate;
 use lag_fit::{LagFit, Samples};
 use rate_grid::RateGrid;
-use robimu_model::{MeasurementModel, Spline};
+use robimu_model::Spline;
 
 /// Search settings.
 #[derive(Debug, Clone, Copy)]
@@ -137,10 +138,10 @@ fn coarse_best(lags: &[f64], all: &Samples, coarse: &Samples, grid: &RateGrid) -
 /// Local minima of the thinned coarse scan fitted again with all samples.
 pub const COARSE_CANDIDATES: usize = 8;
 
-/// Find τ: see the module doc. `model` is the nominal model, `trajectory`
-/// the spline fitted to the joint samples.
+/// Find τ: see the module doc. `rate` is the nominal model's body rate
+/// ([`BodyRate`]), `trajectory` the spline fitted to the joint samples.
 pub fn find_tau(
-    model: &MeasurementModel,
+    rate: &BodyRate,
     trajectory: &Spline,
     imu_t: &[f64],
     imu_gyro: &[[f64; 3]],
@@ -152,7 +153,7 @@ pub fn find_tau(
         imu_gyro.iter().step_by(stride).copied().collect(),
     );
     let coarse = all.every(all.len().div_ceil(search.coarse_samples.max(1)));
-    let grid = RateGrid::new(model, trajectory, (search.coarse_step / 2.0).min(0.01));
+    let grid = RateGrid::new(rate, trajectory, (search.coarse_step / 2.0).min(0.01));
     let n_coarse = (search.range / search.coarse_step).round() as i64;
     let coarse_lags: Vec<f64> = (-n_coarse..=n_coarse)
         .map(|k| k as f64 * search.coarse_step)
