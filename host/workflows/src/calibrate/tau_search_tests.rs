@@ -18,6 +18,7 @@ fn thinned_coarse_scan_finds_the_full_scans_tau() {
     let layout = ParamLayout::new(&robot);
     let sim = SimulateOptions::paper(&robot);
     let model = MeasurementModel::new(&robot, &layout, &layout.nominal()).unwrap();
+    let rate = BodyRate::new(&robot, &model);
     let thinned = TauSearch::default();
     let full = TauSearch {
         coarse_samples: thinned.max_samples,
