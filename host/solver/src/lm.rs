@@ -235,6 +235,16 @@ pub enum LmError<E: std::error::Error + 'static> {
     /// The undamped normal matrix at the solution is singular.
     #[error(transparent)]
     Factor(#[from] FactorError),
+    /// The solver converged, but the information about x at the solution
+    /// (the Schur complement S, eq. (24)) is singular: the data and priors
+    /// do not determine some direction of x. S is returned for naming it.
+    #[error("the information about the model parameters is singular at the solution")]
+    Unidentified {
+        /// The estimate.
+        theta: Vec<f64>,
+        /// S at θ (nx × nx), not positive definite.
+        schur: faer::Mat<f64>,
+    },
 }
 
 /// The solution: θ, the summary, and the factored normal matrix at θ.
@@ -528,7 +538,14 @@ pub fn solve<P: LeastSquares>(
             }
         }
     };
-    let factor = a.factor()?;
+    let factor = match a.factor() {
+        Ok(factor) => factor,
+        Err(FactorError::SchurNotPositiveDefinite) => {
+            let schur = a.schur_complement()?;
+            return Err(LmError::Unidentified { theta, schur });
+        }
+        Err(e) => return Err(e.into()),
+    };
     Ok(LmSolution {
         theta,
         summary: LmSummary {
@@ -886,6 +903,66 @@ mod tests {
         let last = a.summary.iterations.last().unwrap();
         assert_eq!(last.cost, a.summary.final_cost);
         assert!(a.summary.final_cost <= b.summary.final_cost * (1.0 + 1e-12));
+    }
+
+    /// z_i = x₀ + x₁ + noise: only the sum is determined, so the
+    /// information about x is exactly singular at any solution.
+    struct Sum {
+        z: Vec<f64>,
+    }
+
+    impl LeastSquares for Sum {
+        type Error = Never;
+        fn begin_iteration(&mut self, _: &[f64]) -> Result<(), Never> {
+            Ok(())
+        }
+        fn cost(&self, th: &[f64]) -> Result<f64, Never> {
+            Ok(0.5
+                * self
+                    .z
+                    .iter()
+                    .map(|z| (z - th[0] - th[1]).powi(2))
+                    .sum::<f64>())
+        }
+        fn linearize(&self, th: &[f64], a: &mut ArrowMatrix, g: &mut [f64]) -> Result<f64, Never> {
+            a.clear();
+            g.fill(0.0);
+            for z in &self.z {
+                let r = z - th[0] - th[1];
+                for p in 0..2 {
+                    g[p] -= r;
+                    for q in 0..=p {
+                        a.add_xx(p, q, 1.0);
+                    }
+                }
+            }
+            self.cost(th)
+        }
+        fn new_matrix(&self) -> ArrowMatrix {
+            ArrowMatrix::zeros(0, 0, 2)
+        }
+    }
+
+    /// A direction the data do not determine ends in `Unidentified`, with
+    /// the solution (the determined sum at its least-squares value) and
+    /// the singular S (n·[[1, 1], [1, 1]]) to name the direction by.
+    #[test]
+    fn an_undetermined_direction_is_reported_with_its_information() {
+        let z: Vec<f64> = (0..50)
+            .map(|i| 3.0 + ((i * 37) % 11) as f64 * 0.1)
+            .collect();
+        let mean = z.iter().sum::<f64>() / z.len() as f64;
+        let mut sum = Sum { z };
+        match solve(&mut sum, vec![0.0, 0.0], &LmOptions::default(), |_| {}) {
+            Err(LmError::Unidentified { theta, schur }) => {
+                assert!((theta[0] + theta[1] - mean).abs() < 1e-6, "{theta:?}");
+                for (i, j) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                    assert_eq!(schur[(i, j)], 50.0, "S[{i}, {j}]");
+                }
+            }
+            Err(e) => panic!("unexpected error {e}"),
+            Ok(sol) => panic!("a singular problem was solved: {}", sol.summary),
+        }
     }
 
     #[test]

@@ -304,34 +304,12 @@ pub fn calibration_of(
     let layout = ParamLayout::with_imus(robot, f.n_imus);
     let active = &f.active;
     let na = active.len();
-    let specs = layout.specs();
-    // information about x from the data alone, in units of the prior σ
-    let schur = &f.information;
-    let mut info = faer::Mat::from_fn(na, na, |i, j| {
-        let (si, sj) = (specs[active[i]].sigma, specs[active[j]].sigma);
-        let prior = if opts.use_prior && i == j {
-            1.0 / (si * si)
-        } else {
-            0.0
-        };
-        (schur[(i, j)] - prior) * si * sj
-    });
-    for i in 0..na {
-        for j in 0..i {
-            let v = 0.5 * (info[(i, j)] + info[(j, i)]);
-            info[(i, j)] = v;
-            info[(j, i)] = v;
-        }
-    }
+    let info = data_information(&f.information, active, &layout, opts.use_prior);
     let weak_directions = weak_directions(&info, active, &layout, opts.use_prior);
     if !opts.use_prior && !weak_directions.is_empty() {
-        let mut names: Vec<String> = Vec::new();
-        for (name, _) in weak_directions.iter().flat_map(|w| &w.parameters) {
-            if !names.contains(name) {
-                names.push(name.clone());
-            }
-        }
-        return Err(CalibrateError::Unidentifiable { names });
+        return Err(CalibrateError::Unidentifiable {
+            names: direction_names(&weak_directions),
+        });
     }
     let cov = &f.covariance;
     let covariance = (0..na * na).map(|k| cov[(k / na, k % na)]).collect();
@@ -481,6 +459,68 @@ pub const SINGULAR: f64 = 1e-13;
 /// Directions in which the data's information (prior-σ units) is negligible:
 /// below [`SINGULAR`] of the largest (numerically singular), or — with priors — below
 /// 0.01 of the prior's (the data adds almost nothing to the prior there).
+/// The information about the active x from the data alone, in units of
+/// the prior σ: the Schur complement S (eq. (24); data and priors) less the
+/// priors when they are used, scaled by σ_i σ_j and symmetrised.
+fn data_information(
+    schur: &faer::Mat<f64>,
+    active: &[usize],
+    layout: &ParamLayout,
+    use_prior: bool,
+) -> faer::Mat<f64> {
+    let na = active.len();
+    let specs = layout.specs();
+    let mut info = faer::Mat::from_fn(na, na, |i, j| {
+        let (si, sj) = (specs[active[i]].sigma, specs[active[j]].sigma);
+        let prior = if use_prior && i == j {
+            1.0 / (si * si)
+        } else {
+            0.0
+        };
+        (schur[(i, j)] - prior) * si * sj
+    });
+    for i in 0..na {
+        for j in 0..i {
+            let v = 0.5 * (info[(i, j)] + info[(j, i)]);
+            info[(i, j)] = v;
+            info[(j, i)] = v;
+        }
+    }
+    info
+}
+
+/// The parameters the directions involve, each once, in order.
+fn direction_names(directions: &[WeakDirection]) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for (name, _) in directions.iter().flat_map(|w| &w.parameters) {
+        if !names.contains(name) {
+            names.push(name.clone());
+        }
+    }
+    names
+}
+
+/// The parameters of the directions a singular information S at the
+/// solution leaves undetermined ([`LmError::Unidentified`]): those of its
+/// (near-)null directions, or all active ones if none stands out.
+fn unidentified_names(
+    schur: &faer::Mat<f64>,
+    active: &[usize],
+    layout: &ParamLayout,
+    use_prior: bool,
+) -> Vec<String> {
+    let info = data_information(schur, active, layout, use_prior);
+    let names = direction_names(&weak_directions(&info, active, layout, false));
+    if names.is_empty() {
+        active
+            .iter()
+            .map(|&k| layout.specs()[k].name.clone())
+            .collect()
+    } else {
+        names
+    }
+}
+
 fn weak_directions(
     info: &faer::Mat<f64>,
     active: &[usize],

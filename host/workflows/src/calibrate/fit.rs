@@ -33,7 +33,9 @@
 
 use faer::Mat;
 
-use super::{check_measurements, choose_knots, CalibrateError, CalibrateOptions};
+use super::{
+    check_measurements, choose_knots, unidentified_names, CalibrateError, CalibrateOptions,
+};
 use crate::body_rate::BodyRate;
 use crate::time_offset::{find_tau, TauEstimate};
 use robimu_model::effects::{EffectConstant, EffectParam, EffectSet};
@@ -42,7 +44,7 @@ use robimu_model::observations::Measurements;
 use robimu_model::{MeasurementModel, ParamLayout, Robot, Spline};
 use robimu_solver as solver;
 use robimu_solver::problem::Problem;
-use robimu_solver::{IterationRecord, LmSummary};
+use robimu_solver::{IterationRecord, LmError, LmSummary};
 
 /// Where a fit starts.
 #[derive(Debug, Clone, Copy)]
@@ -253,7 +255,13 @@ pub fn fit(
     if let Some(prev) = initial.theta {
         theta0[..prev.len()].copy_from_slice(prev);
     }
-    let sol = solver::solve(&mut problem, theta0, &opts.lm, report)?;
+    let sol = match solver::solve(&mut problem, theta0, &opts.lm, report) {
+        Err(LmError::Unidentified { schur, .. }) => {
+            let names = unidentified_names(&schur, problem.active(), &layout, opts.use_prior);
+            return Err(CalibrateError::Unidentifiable { names });
+        }
+        sol => sol?,
+    };
     if !sol.summary.termination.converged() {
         return Err(CalibrateError::NotConverged {
             summary: Box::new(sol.summary),
