@@ -25,18 +25,20 @@
 //! needed, at the price of a linearisation per rejected step. The initial
 //! cost is the first linearisation's.
 //!
-//! **The last step.** Gauss–Newton converges quadratically near the
-//! minimum: ‖δ_{k+1}‖ ≈ C‖δ_k‖². With C estimated from the last two steps
-//! (C ≈ ‖δ_k‖/‖δ_{k−1}‖², norms scaled by √D so that a coordinate's length
-//! is in units of its conditional σ, which bounds it in marginal σ), the
-//! point θ_k + δ_k is off the minimum by about e = ‖δ_k‖³/‖δ_{k−1}‖². When
-//! e < `newton_tolerance`, the previous step's gain ratio was near 1 (the
-//! quadratic model holds), the damping is negligible and the problem's
-//! set-up stays, the step is taken and the solver stops: only the cost is
-//! evaluated there (it must not rise), and the covariance uses the
-//! linearisation at θ_k, whose matrix differs from the one at θ_k + δ_k by
-//! O(C‖δ_k‖) relative. This saves the linearisation a final accepted step
-//! would cost only to show that nothing is left to gain.
+//! **The last step.** Near the minimum the steps shrink by a rate
+//! r ≈ ‖δ_k‖/‖δ_{k−1}‖ per iteration, norms scaled by √D so that a
+//! coordinate's length is in units of its conditional σ (which bounds it in
+//! marginal σ): Gauss–Newton converges linearly when the residuals do not
+//! vanish (r of the order of the residuals' curvature over √N: about 10⁻³
+//! on a 300 s session) and faster when they do, where the linear model is
+//! an upper bound. So the point θ_k + δ_k is off the minimum by about
+//! e = r‖δ_k‖ = ‖δ_k‖²/‖δ_{k−1}‖. When e < `newton_tolerance`, the previous
+//! step's gain ratio was near 1 (the quadratic model holds), the damping is
+//! negligible and the problem's set-up stays, the step is taken and the
+//! solver stops: only the cost is evaluated there (it must not rise), and
+//! the covariance uses the linearisation at θ_k, whose matrix differs from
+//! the one at θ_k + δ_k by O(r) relative. This saves the linearisation a
+//! final accepted step would cost only to show that nothing is left to gain.
 
 use super::arrow::{ArrowFactor, ArrowMatrix, FactorError};
 
@@ -88,7 +90,8 @@ pub struct LmOptions {
     pub initial_lambda: f64,
     /// Take the last Gauss–Newton step without linearising after it when
     /// the point it reaches is the minimum to this, in conditional σ (module
-    /// doc, *The last step*); 0 disables it.
+    /// doc, *The last step*); 0 disables it. The default, 10⁻⁴ σ, is a cost
+    /// excess of 5·10⁻⁹, far below what `function_tolerance` resolves.
     pub newton_tolerance: f64,
 }
 
@@ -100,7 +103,7 @@ impl Default for LmOptions {
             parameter_tolerance: 1e-12,
             gradient_tolerance: 1e-10,
             initial_lambda: 1e-4,
-            newton_tolerance: 1e-7,
+            newton_tolerance: 1e-4,
         }
     }
 }
@@ -297,8 +300,8 @@ fn at_rounding_floor(cost: f64, new_cost: f64, predicted: f64, gnorm: f64) -> bo
 /// Whether a step of scaled length `step` is the last one (module doc, *The
 /// last step*): the previous accepted step `last` = (length, gain ratio)
 /// was modelled well (ρ within 0.75–1.25), the damping λ is negligible
-/// (≤ 10⁻³), and the error left after the step, estimated as
-/// step³/last², is below the Newton tolerance.
+/// (≤ 10⁻³), and the error left after the step, estimated as step²/last
+/// (the step times the rate of the last two), is below the Newton tolerance.
 fn newton_stop(opts: &LmOptions, last: Option<(f64, f64)>, step: f64, lambda: f64) -> bool {
     let Some((prev, rho)) = last else {
         return false;
@@ -308,7 +311,7 @@ fn newton_stop(opts: &LmOptions, last: Option<(f64, f64)>, step: f64, lambda: f6
         && (0.75..=1.25).contains(&rho)
         && prev > 0.0
         && step.is_finite()
-        && step * step * step / (prev * prev) < opts.newton_tolerance
+        && step * step / prev < opts.newton_tolerance
 }
 
 /// Run Levenberg–Marquardt from `theta`. `report` sees every iteration.
@@ -892,9 +895,10 @@ mod tests {
         let mut g = vec![0.0; a.theta.len()];
         with.linearize(&b.theta, &mut m, &mut g).unwrap();
         let d = m.diagonal();
+        let tol = LmOptions::default().newton_tolerance;
         for (k, (x, y)) in a.theta.iter().zip(&b.theta).enumerate() {
             let e = (x - y).abs() * d[k].sqrt();
-            assert!(e < 1e-7, "θ[{k}] off by {e:e} σ");
+            assert!(e < tol, "θ[{k}] off by {e:e} σ");
         }
         let (ca, cb) = (a.factor.covariance_x(), b.factor.covariance_x());
         let rel = (ca[(0, 0)] - cb[(0, 0)]).abs() / cb[(0, 0)];
@@ -902,7 +906,9 @@ mod tests {
         // the last record is the step taken, at the cost evaluated there
         let last = a.summary.iterations.last().unwrap();
         assert_eq!(last.cost, a.summary.final_cost);
-        assert!(a.summary.final_cost <= b.summary.final_cost * (1.0 + 1e-12));
+        // off the minimum by e < tol conditional σ: a cost excess below ½tol²
+        let excess = a.summary.final_cost - b.summary.final_cost;
+        assert!(excess <= 0.5 * tol * tol, "cost excess {excess:e}");
     }
 
     /// z_i = x₀ + x₁ + noise: only the sum is determined, so the

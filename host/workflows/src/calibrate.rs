@@ -11,6 +11,8 @@
 pub mod fit;
 #[cfg(test)]
 mod gls_montecarlo;
+#[cfg(test)]
+mod newton_stop_tests;
 pub mod noise_choice;
 pub mod sandwich;
 #[cfg(test)]
