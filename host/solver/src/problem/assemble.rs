@@ -824,6 +824,15 @@ struct RawSample {
     rows: [Vec<f64>; 2],
 }
 
+/// Lane l of `v` into the raw row entry `at` of `sensor` of ring slot
+/// `slots[l]`, for each of a quad's samples.
+#[inline(always)]
+fn put_lanes(ring: &mut [RawSample], slots: &[usize], sensor: usize, at: usize, v: F64x4) {
+    for (l, &k) in slots.iter().enumerate() {
+        ring[k].rows[sensor][at] = v.lane(l);
+    }
+}
+
 impl Problem<'_> {
     /// 1/s_i of sample i (1 without motion levels).
     fn inv_level(&self, st: &Stream<'_>, i: usize) -> [f64; 6] {
@@ -910,13 +919,54 @@ impl Problem<'_> {
             })?;
             return Ok(cost);
         };
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx,avx2")]
+            #[allow(clippy::too_many_arguments)]
+            fn avx2(
+                p: &Problem<'_>,
+                st: &Stream<'_>,
+                model: &MeasurementModel,
+                spline: &Spline,
+                tau: f64,
+                theta_e: &[f64],
+                range: Range<usize>,
+                out: &mut Linearization<'_>,
+            ) -> Result<f64, ProblemError> {
+                p.gls_terms(st, model, spline, tau, theta_e, range, out)
+            }
+            if robimu_model::lanes::has_avx2() {
+                // SAFETY: the CPU has AVX and AVX2 (checked just above).
+                return unsafe { avx2(self, st, model, spline, tau, theta_e, range, out) };
+            }
+        }
+        self.gls_terms(st, model, spline, tau, theta_e, range, out)
+    }
+
+    /// The GLS Gauss–Newton terms of the samples `range` (see
+    /// [`Self::imu_terms_gls`]), run as compiled for AVX2 where the CPU has
+    /// it (the same bits).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn gls_terms(
+        &self,
+        st: &Stream<'_>,
+        model: &MeasurementModel,
+        spline: &Spline,
+        tau: f64,
+        theta_e: &[f64],
+        range: Range<usize>,
+        out: &mut Linearization<'_>,
+    ) -> Result<f64, ProblemError> {
+        let mut cost = 0.0;
         let nx = self.imu_layout.len();
         let n = self.n;
         let deg = self.knots.degree();
         let nl = (deg + 1) * n;
         let extra = self.extra_spans;
         let widths = [0, 1].map(|s| nl + st.sensor_columns[s].len());
-        let mut ring: Vec<RawSample> = (0..=self.noise.max_order())
+        // a quad's four samples and the P before the first of them
+        let mut ring: Vec<RawSample> = (0..self.noise.max_order() + 4)
             .map(|_| RawSample {
                 first: 0,
                 r: [0.0; 6],
@@ -925,95 +975,115 @@ impl Problem<'_> {
             })
             .collect();
         let len = ring.len();
-        let mut at = self.sample_eval(st);
-        let mut jac = MeasurementJacobians::new(nx);
+        let mut jac = MeasurementJacobians::<F64x4>::zeros(nx);
+        let mut lanes = LaneEffects::new(self, st);
+        let mut quads = Quads::new(self.warm_start(st, &range)..range.end, 1);
+        let mut quad = Quad::default();
         let mut blocks = [0, 1].map(|s| self.stack(st, s, extra * n));
         let mut row_buf = vec![0.0; nl + extra * n + widths[0].max(widths[1])];
         let mut group_first = usize::MAX;
-        for i in self.warm_start(st, &range)..range.end {
-            self.locate(st, spline, tau, i, &mut at)?;
-            let (basis, js) = (&at.basis, &at.js);
-            model.jacobians(js, &mut jac);
-            let cols = &mut at.effect.cols;
-            let z = self.with_effect_terms(st, model, i, js, &jac, theta_e, cols);
-            let zm = &st.z[i];
-            let slot = &mut ring[i % len];
-            slot.first = basis.first;
-            slot.r = std::array::from_fn(|c| zm[c] - z[c]);
-            slot.inv_level = self.inv_level(st, i);
-            for (sensor, rows) in slot.rows.iter_mut().enumerate() {
-                let w = widths[sensor];
-                for (c, row) in rows.chunks_exact_mut(w).enumerate() {
+        // the raw terms four samples at a time ([`Quad`], lane-wise
+        // arithmetic: the bits of one sample at a time), then each sample's
+        // whitened rows in order
+        while quads.next(self, st, spline, tau, &mut quad)? {
+            let basis = &quad.basis;
+            model.jacobians_x4(&quad.js, &mut jac);
+            let z4 = lanes.predictions(self, st, model, &quad, &jac, theta_e);
+            let idx = &quad.idx[..quad.len];
+            for (&i, z) in idx.iter().zip(&z4) {
+                let zm = &st.z[i];
+                let slot = &mut ring[i % len];
+                slot.first = basis.first;
+                slot.r = std::array::from_fn(|c| zm[c] - z[c]);
+                slot.inv_level = self.inv_level(st, i);
+            }
+            let slots: [usize; 4] = std::array::from_fn(|l| quad.idx[l] % len);
+            let slots = &slots[..quad.len];
+            for (sensor, &w) in widths.iter().enumerate() {
+                for c in 0..3 {
                     let ch = 3 * sensor + c;
+                    let at = c * w;
                     // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)
                     for a in 0..=deg {
                         for j in 0..n {
-                            row[a * n + j] = if a < basis.count {
-                                -(jac.dz_dq[j][ch] * basis.d[0][a]
-                                    + jac.dz_dqd[j][ch] * basis.d[1][a]
-                                    + jac.dz_dqdd[j][ch] * basis.d[2][a])
+                            let v = if a < basis.count {
+                                F64x4::splat(-1.0)
+                                    * (jac.dz_dq[j][ch] * basis.d[0][a]
+                                        + jac.dz_dqd[j][ch] * basis.d[1][a]
+                                        + jac.dz_dqdd[j][ch] * basis.d[2][a])
                             } else {
-                                0.0
+                                F64x4::splat(0.0)
                             };
+                            put_lanes(&mut ring, slots, sensor, at + a * n + j, v);
                         }
                     }
                     for (a, &(k, _)) in st.sensor_columns[sensor].iter().enumerate() {
-                        row[nl + a] = -if k < nx {
+                        let v = if k < nx {
                             jac.dz_dx[k][ch]
                         } else {
-                            at.effect.cols[k - nx][ch]
+                            lanes.column(k - nx, ch)
                         };
-                    }
-                }
-            }
-            if i < range.start {
-                continue;
-            }
-            let g = basis.first;
-            if (g != group_first && blocks[0].rows > 0) || blocks[0].full() {
-                for b in &mut blocks {
-                    b.flush(out);
-                }
-            }
-            if g != group_first {
-                for b in &mut blocks {
-                    b.start_group(g, extra, n);
-                }
-                group_first = g;
-            }
-            let pos = st.seg_pos[i - st.imu_range.start] as usize;
-            for (sensor, block) in blocks.iter_mut().enumerate() {
-                let w = widths[sensor];
-                for c in 0..3 {
-                    let ch = 3 * sensor + c;
-                    let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
-                    let row = block.row(c);
-                    let (b0, nl_cur) = (block.b0, block.nl_cur);
-                    let col = &mut row_buf[..nl_cur + block.columns.len()];
-                    col.fill(0.0);
-                    let mut u = 0.0;
-                    for k in 0..=a.len() {
-                        let s = &ring[(i - k) % len];
-                        let coef = scale * s.inv_level[ch] * if k == 0 { 1.0 } else { -a[k - 1] };
-                        u += coef * s.r[ch];
-                        assert!(
-                            s.first >= b0 && s.first <= g,
-                            "a whitened row reaches beyond the widened band"
+                        put_lanes(
+                            &mut ring,
+                            slots,
+                            sensor,
+                            at + nl + a,
+                            F64x4::splat(-1.0) * v,
                         );
-                        let off = (s.first - b0) * n;
-                        let raw = &s.rows[sensor][c * w..(c + 1) * w];
-                        for (d, v) in col[off..off + nl].iter_mut().zip(&raw[..nl]) {
-                            *d += coef * v;
-                        }
-                        for (d, v) in col[nl_cur..].iter_mut().zip(&raw[nl..]) {
-                            *d += coef * v;
-                        }
                     }
-                    cost += 0.5 * u * u;
-                    block.set_row(row, col);
-                    block.r[row] = u;
                 }
-                block.rows += 1;
+            }
+            for &i in idx {
+                if i < range.start {
+                    continue;
+                }
+                let g = basis.first;
+                if (g != group_first && blocks[0].rows > 0) || blocks[0].full() {
+                    for b in &mut blocks {
+                        b.flush(out);
+                    }
+                }
+                if g != group_first {
+                    for b in &mut blocks {
+                        b.start_group(g, extra, n);
+                    }
+                    group_first = g;
+                }
+                let pos = st.seg_pos[i - st.imu_range.start] as usize;
+                for (sensor, block) in blocks.iter_mut().enumerate() {
+                    let w = widths[sensor];
+                    for c in 0..3 {
+                        let ch = 3 * sensor + c;
+                        let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
+                        let row = block.row(c);
+                        let (b0, nl_cur) = (block.b0, block.nl_cur);
+                        let col = &mut row_buf[..nl_cur + block.columns.len()];
+                        col.fill(0.0);
+                        let mut u = 0.0;
+                        for k in 0..=a.len() {
+                            let s = &ring[(i - k) % len];
+                            let coef =
+                                scale * s.inv_level[ch] * if k == 0 { 1.0 } else { -a[k - 1] };
+                            u += coef * s.r[ch];
+                            assert!(
+                                s.first >= b0 && s.first <= g,
+                                "a whitened row reaches beyond the widened band"
+                            );
+                            let off = (s.first - b0) * n;
+                            let raw = &s.rows[sensor][c * w..(c + 1) * w];
+                            for (d, v) in col[off..off + nl].iter_mut().zip(&raw[..nl]) {
+                                *d += coef * v;
+                            }
+                            for (d, v) in col[nl_cur..].iter_mut().zip(&raw[nl..]) {
+                                *d += coef * v;
+                            }
+                        }
+                        cost += 0.5 * u * u;
+                        block.set_row(row, col);
+                        block.r[row] = u;
+                    }
+                    block.rows += 1;
+                }
             }
         }
         for b in &mut blocks {
