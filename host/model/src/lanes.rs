@@ -142,6 +142,25 @@ pub fn has_avx2() -> bool {
     }
 }
 
+/// `f()` run as compiled for AVX2 where the CPU has it ([`has_avx2`]), else
+/// as is: the four-lane kernels `f` inlines (`#[inline(always)]`) then use
+/// its vector instructions. The same bits either way.
+#[inline(always)]
+pub fn on_avx2<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx,avx2")]
+        fn avx2<R>(f: impl FnOnce() -> R) -> R {
+            f()
+        }
+        if has_avx2() {
+            // SAFETY: the CPU has AVX and AVX2 (checked just above).
+            return unsafe { avx2(f) };
+        }
+    }
+    f()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

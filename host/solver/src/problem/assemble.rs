@@ -544,28 +544,9 @@ impl Problem<'_> {
         range: Range<usize>,
         out: &mut Linearization<'_>,
     ) -> Result<f64, ProblemError> {
-        #[cfg(target_arch = "x86_64")]
-        {
-            #[target_feature(enable = "avx,avx2")]
-            #[allow(clippy::too_many_arguments)]
-            fn avx2(
-                p: &Problem<'_>,
-                st: &Stream<'_>,
-                model: &MeasurementModel,
-                spline: &Spline,
-                tau: f64,
-                theta_e: &[f64],
-                range: Range<usize>,
-                out: &mut Linearization<'_>,
-            ) -> Result<f64, ProblemError> {
-                p.white_terms_lanes(st, model, spline, tau, theta_e, range, out)
-            }
-            if robimu_model::lanes::has_avx2() {
-                // SAFETY: the CPU has AVX and AVX2 (checked just above).
-                return unsafe { avx2(self, st, model, spline, tau, theta_e, range, out) };
-            }
-        }
-        self.white_terms_lanes(st, model, spline, tau, theta_e, range, out)
+        robimu_model::lanes::on_avx2(|| {
+            self.white_terms_lanes(st, model, spline, tau, theta_e, range, out)
+        })
     }
 
     #[inline(always)]
@@ -919,28 +900,7 @@ impl Problem<'_> {
             })?;
             return Ok(cost);
         };
-        #[cfg(target_arch = "x86_64")]
-        {
-            #[target_feature(enable = "avx,avx2")]
-            #[allow(clippy::too_many_arguments)]
-            fn avx2(
-                p: &Problem<'_>,
-                st: &Stream<'_>,
-                model: &MeasurementModel,
-                spline: &Spline,
-                tau: f64,
-                theta_e: &[f64],
-                range: Range<usize>,
-                out: &mut Linearization<'_>,
-            ) -> Result<f64, ProblemError> {
-                p.gls_terms(st, model, spline, tau, theta_e, range, out)
-            }
-            if robimu_model::lanes::has_avx2() {
-                // SAFETY: the CPU has AVX and AVX2 (checked just above).
-                return unsafe { avx2(self, st, model, spline, tau, theta_e, range, out) };
-            }
-        }
-        self.gls_terms(st, model, spline, tau, theta_e, range, out)
+        robimu_model::lanes::on_avx2(|| self.gls_terms(st, model, spline, tau, theta_e, range, out))
     }
 
     /// The GLS Gauss–Newton terms of the samples `range` (see
