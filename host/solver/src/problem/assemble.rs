@@ -526,32 +526,19 @@ impl Problem<'_> {
             })?;
             return Ok(cost);
         };
-        self.white_terms(st, model, spline, tau, theta_e, range, out)
-    }
-
-    /// The white Gauss–Newton terms of the samples `range` (see
-    /// [`Self::imu_terms`]), run as compiled for AVX2 where the CPU has it
-    /// (the four-lane row writes then use its vector instructions; the
-    /// results are the same bits).
-    #[allow(clippy::too_many_arguments)]
-    fn white_terms(
-        &self,
-        st: &Stream<'_>,
-        model: &MeasurementModel,
-        spline: &Spline,
-        tau: f64,
-        theta_e: &[f64],
-        range: Range<usize>,
-        out: &mut Linearization<'_>,
-    ) -> Result<f64, ProblemError> {
         robimu_model::lanes::on_avx2(|| {
-            self.white_terms_lanes(st, model, spline, tau, theta_e, range, out)
+            self.white_terms(st, model, spline, tau, theta_e, range, out)
         })
     }
 
+    /// The white Gauss–Newton terms of the samples `range` (see
+    /// [`Self::imu_terms`]), four samples at a time; run as compiled for
+    /// AVX2 where the CPU has it ([`robimu_model::lanes::on_avx2`]: the
+    /// four-lane row writes then use its vector instructions; the results
+    /// are the same bits).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn white_terms_lanes(
+    fn white_terms(
         &self,
         st: &Stream<'_>,
         model: &MeasurementModel,
@@ -617,22 +604,12 @@ impl Problem<'_> {
                     };
                     // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)/σ
                     for a in 0..basis.count {
-                        let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
                         for jn in 0..n {
-                            let v = w
-                                * (jac.dz_dq[jn][ch] * n0
-                                    + jac.dz_dqd[jn][ch] * n1
-                                    + jac.dz_dqdd[jn][ch] * n2);
-                            put(a * n + jn, v);
+                            put(a * n + jn, w * dz_dc(&jac, basis, a, jn, ch));
                         }
                     }
                     for (a, &(k, _)) in columns.iter().enumerate() {
-                        let d = if k < nx {
-                            jac.dz_dx[k][ch]
-                        } else {
-                            lanes.column(k - nx, ch)
-                        };
-                        put(nl + a, w * d);
+                        put(nl + a, w * lanes.dz_dx(&jac, k, ch));
                     }
                 }
                 block.rows += 4;
@@ -772,12 +749,38 @@ impl LaneEffects {
         z
     }
 
+    /// ∂z/∂θ column `k` (x columns, then effect columns), channel `ch`,
+    /// over the lanes.
+    #[inline(always)]
+    fn dz_dx(&self, jac: &MeasurementJacobians<F64x4>, k: usize, ch: usize) -> F64x4 {
+        match jac.dz_dx.get(k) {
+            Some(d) => d[ch],
+            None => self.column(k - jac.dz_dx.len(), ch),
+        }
+    }
+
     /// Effect column `e`, channel `ch`, over the lanes (0 beyond the quad).
     fn column(&self, e: usize, ch: usize) -> F64x4 {
         F64x4(std::array::from_fn(|l| {
             self.cols[l].get(e).map_or(0.0, |c| c[ch])
         }))
     }
+}
+
+/// ∂z/∂c_{first+a, j} of channel `ch` over a quad's lanes: ∂h/∂q_j N_a +
+/// ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a (the spline coefficient's column, before
+/// the residual's sign and weight).
+#[inline(always)]
+fn dz_dc(
+    jac: &MeasurementJacobians<F64x4>,
+    basis: &Basis4,
+    a: usize,
+    j: usize,
+    ch: usize,
+) -> F64x4 {
+    jac.dz_dq[j][ch] * basis.d[0][a]
+        + jac.dz_dqd[j][ch] * basis.d[1][a]
+        + jac.dz_dqdd[j][ch] * basis.d[2][a]
 }
 
 /// Lane `l` of a four-lane joint state.
@@ -964,13 +967,11 @@ impl Problem<'_> {
                     let ch = 3 * sensor + c;
                     let at = c * w;
                     // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)
+                    let minus = F64x4::splat(-1.0);
                     for a in 0..=deg {
                         for j in 0..n {
                             let v = if a < basis.count {
-                                F64x4::splat(-1.0)
-                                    * (jac.dz_dq[j][ch] * basis.d[0][a]
-                                        + jac.dz_dqd[j][ch] * basis.d[1][a]
-                                        + jac.dz_dqdd[j][ch] * basis.d[2][a])
+                                minus * dz_dc(&jac, basis, a, j, ch)
                             } else {
                                 F64x4::splat(0.0)
                             };
@@ -978,18 +979,8 @@ impl Problem<'_> {
                         }
                     }
                     for (a, &(k, _)) in st.sensor_columns[sensor].iter().enumerate() {
-                        let v = if k < nx {
-                            jac.dz_dx[k][ch]
-                        } else {
-                            lanes.column(k - nx, ch)
-                        };
-                        put_lanes(
-                            &mut ring,
-                            slots,
-                            sensor,
-                            at + nl + a,
-                            F64x4::splat(-1.0) * v,
-                        );
+                        let v = minus * lanes.dz_dx(&jac, k, ch);
+                        put_lanes(&mut ring, slots, sensor, at + nl + a, v);
                     }
                 }
             }
