@@ -51,6 +51,18 @@ struct Linearization<'m> {
 /// IMU samples stacked per flush of a group buffer.
 const GROUP_CAP: usize = 256;
 
+/// One IMU stream evaluated at one θ: what every residual and Jacobian row
+/// of its samples needs — the stream, the one-IMU measurement model of its
+/// vector, the trajectory q(t) (eq. (20)), its τ and the effects' θ_E.
+#[derive(Clone, Copy)]
+struct StreamAt<'a> {
+    st: &'a Stream<'a>,
+    model: &'a MeasurementModel,
+    spline: &'a Spline,
+    tau: f64,
+    theta_e: &'a [f64],
+}
+
 impl Problem<'_> {
     /// The cost ½‖r‖² at θ over the selected IMU samples.
     pub fn cost(&self, theta: &[f64]) -> Result<f64, ProblemError> {
@@ -62,7 +74,7 @@ impl Problem<'_> {
             let mut c = 0.0;
             for (st, model) in self.streams.iter().zip(&models) {
                 let range = self.imu_parts(st)[h].clone();
-                c += self.imu_terms(st, model, &spline, &x, theta, range, None)?;
+                c += self.imu_terms(self.stream_at(st, model, &spline, &x, theta), range, None)?;
             }
             Ok(c + self.joint_terms(&spline, self.joint_parts()[h].clone(), None))
         };
@@ -158,7 +170,8 @@ impl Problem<'_> {
             let mut c = 0.0;
             for (st, model) in self.streams.iter().zip(&models) {
                 let range = self.imu_parts(st)[h].clone();
-                c += self.imu_terms(st, model, &spline, &x, theta, range, Some(&mut *lin))?;
+                let ev = self.stream_at(st, model, &spline, &x, theta);
+                c += self.imu_terms(ev, range, Some(&mut *lin))?;
             }
             let joints = self.joint_parts()[h].clone();
             Ok(c + self.joint_terms(&spline, joints, Some(&mut *lin.g)))
@@ -192,6 +205,24 @@ impl Problem<'_> {
         x[st.map[self.imu_layout.offsets().tau]]
     }
 
+    /// Stream `st` evaluated at θ (x = x(θ), `model` its one-IMU model).
+    fn stream_at<'a>(
+        &'a self,
+        st: &'a Stream<'a>,
+        model: &'a MeasurementModel,
+        spline: &'a Spline,
+        x: &[f64],
+        theta: &'a [f64],
+    ) -> StreamAt<'a> {
+        StreamAt {
+            st,
+            model,
+            spline,
+            tau: self.tau_of(st, x),
+            theta_e: self.effect_params_of(theta),
+        }
+    }
+
     /// Whitened IMU residuals r = (z − h)/σ_z at θ for every selected sample
     /// of IMU 0, with the index of the sample.
     pub fn imu_residuals(&self, theta: &[f64]) -> Result<Vec<(usize, [f64; 6])>, ProblemError> {
@@ -209,8 +240,7 @@ impl Problem<'_> {
         let x = self.x_of(theta);
         let model = self.model_of(j, &x)?;
         let spline = self.spline_of(theta);
-        let tau = self.tau_of(st, &x);
-        let theta_e = self.effect_params_of(theta);
+        let ev = self.stream_at(st, &model, &spline, &x, theta);
         // the two halves of the samples on two threads, each filling its
         // part of the output (one residual per sample, in order)
         let part =
@@ -222,10 +252,10 @@ impl Problem<'_> {
                     }
                 };
                 if !self.white {
-                    return self.gls_residuals(st, &model, &spline, tau, theta_e, range, put);
+                    return self.gls_residuals(ev, range, put);
                 }
                 let mut at = self.sample_eval(st);
-                self.white_residuals(st, &model, &spline, tau, theta_e, range, &mut at, put)
+                self.white_residuals(ev, range, &mut at, put)
             };
         let [first, second] = self.imu_parts(st);
         let mut out = vec![(0, [0.0; 6]); st.imu_range.len()];
@@ -260,27 +290,26 @@ impl Problem<'_> {
     /// `emit` in order: four at a time ([`Quad`], [`MeasurementModel::predict_x4`])
     /// without effects, else one by one ([`Self::whitened_residual`]). The
     /// values are the same bits either way.
-    #[allow(clippy::too_many_arguments)]
     fn white_residuals(
         &self,
-        st: &Stream<'_>,
-        model: &MeasurementModel,
-        spline: &Spline,
-        tau: f64,
-        theta_e: &[f64],
+        ev: StreamAt<'_>,
         range: Range<usize>,
         at: &mut SampleEval,
         mut emit: impl FnMut(usize, [f64; 6]),
     ) -> Result<(), ProblemError> {
         if !self.effects.is_empty() {
             for i in range {
-                emit(
-                    i,
-                    self.whitened_residual(st, model, spline, tau, theta_e, i, at)?,
-                );
+                emit(i, self.whitened_residual(ev, i, at)?);
             }
             return Ok(());
         }
+        let StreamAt {
+            st,
+            model,
+            spline,
+            tau,
+            ..
+        } = ev;
         let mut quads = Quads::new(range, self.thin);
         let mut quad = Quad::default();
         while quads.next(self, st, spline, tau, &mut quad)? {
@@ -300,40 +329,31 @@ impl Problem<'_> {
     /// basis and joint state in `at`. Without effects z is the baseline
     /// prediction alone; with them, the effect columns need the baseline
     /// Jacobians (computed into `at.effect`).
-    #[allow(clippy::too_many_arguments)]
     fn whitened_residual(
         &self,
-        st: &Stream<'_>,
-        model: &MeasurementModel,
-        spline: &Spline,
-        tau: f64,
-        theta_e: &[f64],
+        ev: StreamAt<'_>,
         i: usize,
         at: &mut SampleEval,
     ) -> Result<[f64; 6], ProblemError> {
-        let r = self.raw_residual(st, model, spline, tau, theta_e, i, at)?;
+        let r = self.raw_residual(ev, i, at)?;
         Ok(std::array::from_fn(|c| r[c] * self.inv_sigma_z[c]))
     }
 
     /// Raw residual z_i − h of IMU sample i (see [`Self::whitened_residual`]).
-    #[allow(clippy::too_many_arguments)]
     fn raw_residual(
         &self,
-        st: &Stream<'_>,
-        model: &MeasurementModel,
-        spline: &Spline,
-        tau: f64,
-        theta_e: &[f64],
+        ev: StreamAt<'_>,
         i: usize,
         at: &mut SampleEval,
     ) -> Result<[f64; 6], ProblemError> {
-        self.locate(st, spline, tau, i, at)?;
+        let (st, model) = (ev.st, ev.model);
+        self.locate(st, ev.spline, ev.tau, i, at)?;
         let z = if self.effects.is_empty() {
             model.predict(&at.js)
         } else {
             let e = &mut at.effect;
             model.jacobians(&at.js, &mut e.jac);
-            self.with_effect_terms(st, model, i, &at.js, &e.jac, theta_e, &mut e.cols)
+            self.with_effect_terms(st, model, i, &at.js, &e.jac, ev.theta_e, &mut e.cols)
         };
         let zm = &st.z[i];
         Ok(std::array::from_fn(|c| zm[c] - z[c]))
@@ -502,33 +522,24 @@ impl Problem<'_> {
     /// Gauss–Newton blocks, flushed per knot span. Accelerometer and gyroscope
     /// rows are stacked separately, each with only the x columns it depends
     /// on ([`Problem::sensor_columns`]).
-    #[allow(clippy::too_many_arguments)]
     fn imu_terms(
         &self,
-        st: &Stream<'_>,
-        model: &MeasurementModel,
-        spline: &Spline,
-        x: &[f64],
-        theta: &[f64],
+        ev: StreamAt<'_>,
         range: Range<usize>,
         out: Option<&mut Linearization<'_>>,
     ) -> Result<f64, ProblemError> {
         if !self.white {
-            return self.imu_terms_gls(st, model, spline, x, theta, range, out);
+            return self.imu_terms_gls(ev, range, out);
         }
-        let theta_e = self.effect_params_of(theta);
-        let tau = self.tau_of(st, x);
-        let mut at = self.sample_eval(st);
+        let mut at = self.sample_eval(ev.st);
         let mut cost = 0.0;
         let Some(out) = out else {
-            self.white_residuals(st, model, spline, tau, theta_e, range, &mut at, |_, r| {
+            self.white_residuals(ev, range, &mut at, |_, r| {
                 cost += 0.5 * r.iter().map(|v| v * v).sum::<f64>();
             })?;
             return Ok(cost);
         };
-        robimu_model::lanes::on_avx2(|| {
-            self.white_terms(st, model, spline, tau, theta_e, range, out)
-        })
+        robimu_model::lanes::on_avx2(|| self.white_terms(ev, range, out))
     }
 
     /// The white Gauss–Newton terms of the samples `range` (see
@@ -537,17 +548,19 @@ impl Problem<'_> {
     /// four-lane row writes then use its vector instructions; the results
     /// are the same bits).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn white_terms(
         &self,
-        st: &Stream<'_>,
-        model: &MeasurementModel,
-        spline: &Spline,
-        tau: f64,
-        theta_e: &[f64],
+        ev: StreamAt<'_>,
         range: Range<usize>,
         out: &mut Linearization<'_>,
     ) -> Result<f64, ProblemError> {
+        let StreamAt {
+            st,
+            model,
+            spline,
+            tau,
+            theta_e,
+        } = ev;
         let nx = self.imu_layout.len();
         let n = self.n;
         let nl = (self.knots.degree() + 1) * n;
@@ -847,17 +860,13 @@ impl Problem<'_> {
 
     /// GLS-whitened residuals of the samples `range` (module doc), passed to
     /// `emit` in order.
-    #[allow(clippy::too_many_arguments)]
     fn gls_residuals(
         &self,
-        st: &Stream<'_>,
-        model: &MeasurementModel,
-        spline: &Spline,
-        tau: f64,
-        theta_e: &[f64],
+        ev: StreamAt<'_>,
         range: Range<usize>,
         mut emit: impl FnMut(usize, [f64; 6]),
     ) -> Result<(), ProblemError> {
+        let st = ev.st;
         let mut at = self.sample_eval(st);
         let mut ring: Vec<RawSample> = (0..=self.noise.max_order())
             .map(|_| RawSample {
@@ -869,7 +878,7 @@ impl Problem<'_> {
             .collect();
         let len = ring.len();
         for i in self.warm_start(st, &range)..range.end {
-            let r = self.raw_residual(st, model, spline, tau, theta_e, i, &mut at)?;
+            let r = self.raw_residual(ev, i, &mut at)?;
             let slot = &mut ring[i % len];
             slot.r = r;
             slot.inv_level = self.inv_level(st, i);
@@ -883,44 +892,33 @@ impl Problem<'_> {
     /// [`Self::imu_terms`] for noise that is not white: rows whitened along
     /// time, each combining the raw rows of up to P samples before it, which
     /// may lie in earlier knot spans (module doc).
-    #[allow(clippy::too_many_arguments)]
     fn imu_terms_gls(
         &self,
-        st: &Stream<'_>,
-        model: &MeasurementModel,
-        spline: &Spline,
-        x: &[f64],
-        theta: &[f64],
+        ev: StreamAt<'_>,
         range: Range<usize>,
         out: Option<&mut Linearization<'_>>,
     ) -> Result<f64, ProblemError> {
-        let theta_e = self.effect_params_of(theta);
-        let tau = self.tau_of(st, x);
         let mut cost = 0.0;
         let Some(out) = out else {
-            self.gls_residuals(st, model, spline, tau, theta_e, range, |_, w| {
+            self.gls_residuals(ev, range, |_, w| {
                 cost += 0.5 * w.iter().map(|v| v * v).sum::<f64>();
             })?;
             return Ok(cost);
         };
-        robimu_model::lanes::on_avx2(|| self.gls_terms(st, model, spline, tau, theta_e, range, out))
+        robimu_model::lanes::on_avx2(|| self.gls_terms(ev, range, out))
     }
 
     /// The GLS Gauss–Newton terms of the samples `range` (see
     /// [`Self::imu_terms_gls`]), run as compiled for AVX2 where the CPU has
     /// it (the same bits).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
     fn gls_terms(
         &self,
-        st: &Stream<'_>,
-        model: &MeasurementModel,
-        spline: &Spline,
-        tau: f64,
-        theta_e: &[f64],
+        ev: StreamAt<'_>,
         range: Range<usize>,
         out: &mut Linearization<'_>,
     ) -> Result<f64, ProblemError> {
+        let (st, model) = (ev.st, ev.model);
         let mut cost = 0.0;
         let nx = self.imu_layout.len();
         let n = self.n;
@@ -948,10 +946,10 @@ impl Problem<'_> {
         // the raw terms four samples at a time ([`Quad`], lane-wise
         // arithmetic: the bits of one sample at a time), then each sample's
         // whitened rows in order
-        while quads.next(self, st, spline, tau, &mut quad)? {
+        while quads.next(self, st, ev.spline, ev.tau, &mut quad)? {
             let basis = &quad.basis;
             model.jacobians_x4(&quad.js, &mut jac);
-            let z4 = lanes.predictions(self, st, model, &quad, &jac, theta_e);
+            let z4 = lanes.predictions(self, st, model, &quad, &jac, ev.theta_e);
             let idx = &quad.idx[..quad.len];
             for (&i, z) in idx.iter().zip(&z4) {
                 let zm = &st.z[i];
