@@ -303,6 +303,36 @@ struct Motion<S = f64> {
     s: V3<S>,
 }
 
+/// The chain split at link i, about p: V_≤ (the twist of links ≤ i),
+/// V_> = V − V_≤ and X = V̇_> − [V_≤, V_>].
+struct Split<S> {
+    vle: Tw<S>,
+    vgt: Tw<S>,
+    x: Tw<S>,
+}
+
+impl<S: Scalar> Split<S> {
+    /// dz of a position-like screw `sk` on link i (a twist about p):
+    /// ∂V = [S, V_>], ∂V̇_v = [S, X]_v + [V_≤, ∂V]_v, ∂p = S_v. A function
+    /// the compiler inlines (a closure here was compiled apart, without the
+    /// caller's AVX2).
+    #[inline(always)]
+    fn screw(&self, sk: Tw<S>, mo: &Motion<S>) -> [S; 6] {
+        let (omega_n, alpha_n) = (mo.v.w, mo.vd.w);
+        let dv = sk.bracket(self.vgt);
+        let dvd_v = add(bracket_v(sk, self.x), bracket_v(self.vle, dv));
+        let dp = sk.v;
+        let dpd = add(dv.v, cross(omega_n, dp));
+        let dpdd = add(
+            add(dvd_v, cross(alpha_n, dp)),
+            add(cross(dv.w, mo.pd), cross(omega_n, dpd)),
+        );
+        let da = mul_mv(&mo.ba, sub(dpdd, cross(sk.w, mo.f)));
+        let dw = mul_mv(&mo.bw, sub(dv.w, cross(sk.w, omega_n)));
+        [da[0], da[1], da[2], dw[0], dw[1], dw[2]]
+    }
+}
+
 #[inline(always)]
 fn mul_m_mt<S: Scalar>(a: &M3<S>, b: &M3<S>) -> M3<S> {
     // A Bᵀ
@@ -610,23 +640,9 @@ impl MeasurementModel {
             let vle = shift(wk.v_le[i], p);
             let vgt = v.sub(vle);
             let x = vd.sub(shift(wk.a_le[i], p)).sub(vle.bracket(vgt));
-            // Position-like screw on link i (twist about p) → dz:
-            // ∂V = [S, V_>], ∂V̇_v = [S, X]_v + [V_≤, ∂V]_v, ∂p = S_v.
-            let screw = |sk: Tw<S>| -> [S; 6] {
-                let dv = sk.bracket(vgt);
-                let dvd_v = add(bracket_v(sk, x), bracket_v(vle, dv));
-                let dp = sk.v;
-                let dpd = add(dv.v, cross(omega_n, dp));
-                let dpdd = add(
-                    add(dvd_v, cross(alpha_n, dp)),
-                    add(cross(dv.w, mo.pd), cross(omega_n, dpd)),
-                );
-                let da = mul_mv(&mo.ba, sub(dpdd, cross(sk.w, mo.f)));
-                let dw = mul_mv(&mo.bw, sub(dv.w, cross(sk.w, omega_n)));
-                [da[0], da[1], da[2], dw[0], dw[1], dw[2]]
-            };
+            let split = Split { vle, vgt, x };
             let sj = shift(wk.s[i], p);
-            out.dz_dq[i] = screw(sj);
+            out.dz_dq[i] = split.screw(sj, &mo);
             let l = &self.links[i];
             let rg = &wk.rg[i];
             let c = sub(wk.ph[i], p);
@@ -659,7 +675,7 @@ impl MeasurementModel {
                         }
                     }
                 };
-                out.dz_dx[col] = screw(tw);
+                out.dz_dx[col] = split.screw(tw, &mo);
             }
             // Joint rate: ∂V/∂q̇_j = S_j, ∂V̇/∂q̇_j = [V_<, S_j] + [S_j, V_>];
             // joint acceleration: ∂V̇/∂q̈_j = S_j.
