@@ -199,13 +199,15 @@ fn a_board_reset_mid_stream_is_recovered_in_a_new_clock_segment() {
     let rig = rig(4);
     let dir = tempfile::tempdir().unwrap();
     let device = &rig.device;
-    let s = record_with(&rig, dir.path(), 6.0, 2.5, || device.reset()).unwrap();
+    // segments of about 4 s each: long enough that the arrival jitter of a
+    // loaded machine leaves each one's drift within the bound below
+    let s = record_with(&rig, dir.path(), 9.0, 4.0, || device.reset()).unwrap();
     assert_eq!(s.progress.restarts, 1, "{:?}", s.progress);
     assert_eq!(s.clock.len(), 2);
     let session = check_session(dir.path());
     let t = session.measurements().imu_t;
     // At most a second lost to the reboot; the rest at 120 Hz.
-    assert!(t.len() as f64 > 120.0 * 4.5, "{} samples", t.len());
+    assert!(t.len() as f64 > 120.0 * 7.5, "{} samples", t.len());
     let largest_gap = t.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
     assert!(largest_gap < 1.5, "gap {largest_gap}");
     // Both segments map onto one session clock: the drift of each is right.
