@@ -251,11 +251,7 @@ impl Problem<'_> {
                         *slot = (i, w);
                     }
                 };
-                if !self.white {
-                    return self.gls_residuals(ev, range, put);
-                }
-                let mut at = self.sample_eval(st);
-                self.white_residuals(ev, range, &mut at, put)
+                self.residuals(ev, range, put)
             };
         let [first, second] = self.imu_parts(st);
         let mut out = vec![(0, [0.0; 6]); st.imu_range.len()];
@@ -528,18 +524,34 @@ impl Problem<'_> {
         range: Range<usize>,
         out: Option<&mut Linearization<'_>>,
     ) -> Result<f64, ProblemError> {
-        if !self.white {
-            return self.imu_terms_gls(ev, range, out);
-        }
-        let mut at = self.sample_eval(ev.st);
-        let mut cost = 0.0;
         let Some(out) = out else {
-            self.white_residuals(ev, range, &mut at, |_, r| {
+            let mut cost = 0.0;
+            self.residuals(ev, range, |_, r| {
                 cost += 0.5 * r.iter().map(|v| v * v).sum::<f64>();
             })?;
             return Ok(cost);
         };
-        robimu_model::lanes::on_avx2(|| self.white_terms(ev, range, out))
+        if self.white {
+            robimu_model::lanes::on_avx2(|| self.white_terms(ev, range, out))
+        } else {
+            robimu_model::lanes::on_avx2(|| self.gls_terms(ev, range, out))
+        }
+    }
+
+    /// Whitened residuals of the samples `range`, passed to `emit` in order:
+    /// r = (z − h)/σ_z for white noise ([`Self::white_residuals`]), else
+    /// whitened along time ([`Self::gls_residuals`]).
+    fn residuals(
+        &self,
+        ev: StreamAt<'_>,
+        range: Range<usize>,
+        emit: impl FnMut(usize, [f64; 6]),
+    ) -> Result<(), ProblemError> {
+        if !self.white {
+            return self.gls_residuals(ev, range, emit);
+        }
+        let mut at = self.sample_eval(ev.st);
+        self.white_residuals(ev, range, &mut at, emit)
     }
 
     /// The white Gauss–Newton terms of the samples `range` (see
@@ -889,28 +901,11 @@ impl Problem<'_> {
         Ok(())
     }
 
-    /// [`Self::imu_terms`] for noise that is not white: rows whitened along
-    /// time, each combining the raw rows of up to P samples before it, which
-    /// may lie in earlier knot spans (module doc).
-    fn imu_terms_gls(
-        &self,
-        ev: StreamAt<'_>,
-        range: Range<usize>,
-        out: Option<&mut Linearization<'_>>,
-    ) -> Result<f64, ProblemError> {
-        let mut cost = 0.0;
-        let Some(out) = out else {
-            self.gls_residuals(ev, range, |_, w| {
-                cost += 0.5 * w.iter().map(|v| v * v).sum::<f64>();
-            })?;
-            return Ok(cost);
-        };
-        robimu_model::lanes::on_avx2(|| self.gls_terms(ev, range, out))
-    }
-
     /// The GLS Gauss–Newton terms of the samples `range` (see
-    /// [`Self::imu_terms_gls`]), run as compiled for AVX2 where the CPU has
-    /// it (the same bits).
+    /// [`Self::imu_terms`]), for noise that is not white: rows whitened
+    /// along time, each combining the raw rows of up to P samples before it,
+    /// which may lie in earlier knot spans (module doc); run as compiled for
+    /// AVX2 where the CPU has it (the same bits).
     #[inline(always)]
     fn gls_terms(
         &self,
