@@ -21,8 +21,12 @@
 //! case (so that both see the same machine: the figures of a shared
 //! machine drift by tens of per cent within minutes) and prints the ratio
 //! of their medians — the back-to-back comparison issue 18 is measured by.
+//! `--ceres PATH` times the independent Ceres implementation of
+//! `peers/ceres` (built by `peers/ceres/build.sh`) the same way on the
+//! 300 s / 120 Hz case, given robimu's τ start and knot spacing (it does no
+//! τ search or knot choice of its own), and prints how much slower it is.
 //!
-//! `cargo bench -p robimu --bench calibrate_process [-- --long --runs 7 --imus 3 --versus OLD]`
+//! `cargo bench -p robimu --bench calibrate_process [-- --long --runs 7 --imus 3 --versus OLD --ceres PEER]`
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -56,6 +60,50 @@ fn simulate(bin: &Path, dir: &Path, duration: f64, rate: f64, imus: usize) {
 /// `robimu calibrate DIR` or `robimu diagnose DIR` (`what`), output in DIR
 /// (a name of its own per binary `tag`).
 fn run_once(what: &str, bin: &Path, dir: &Path, time: Option<&Path>, tag: &str) -> Run {
+    let out = match what {
+        "calibrate" => dir.join(format!("bench-result{tag}.json")),
+        _ => dir.join(format!("bench-diagnosis{tag}")),
+    };
+    let args = [
+        what.into(),
+        dir.as_os_str().to_owned(),
+        "--out".into(),
+        out.into(),
+    ];
+    run_timed(bin, &args, dir, time, tag)
+}
+
+/// The Ceres peer on DIR, started where robimu's result `start` says (its
+/// `tau_initial` and `knot_spacing`).
+fn run_ceres(peer: &Path, dir: &Path, start: &Path, time: Option<&Path>) -> Run {
+    let text = std::fs::read_to_string(start).expect("read robimu's result");
+    let result: serde_json::Value = serde_json::from_str(&text).expect("robimu's result is JSON");
+    let number = |key: &str| {
+        result[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("robimu's result has no {key}"))
+            .to_string()
+    };
+    let args = [
+        dir.as_os_str().to_owned(),
+        "--tau".into(),
+        number("tau_initial").into(),
+        "--knot-spacing".into(),
+        number("knot_spacing").into(),
+        "--out".into(),
+        dir.join("bench-result-ceres.json").into(),
+    ];
+    run_timed(peer, &args, dir, time, "-ceres")
+}
+
+/// One run of `bin args`, under GNU `time` when there is one.
+fn run_timed(
+    bin: &Path,
+    args: &[std::ffi::OsString],
+    dir: &Path,
+    time: Option<&Path>,
+    tag: &str,
+) -> Run {
     let report = dir.join(format!("time{tag}.txt"));
     let mut cmd = match time {
         Some(t) => {
@@ -65,24 +113,13 @@ fn run_once(what: &str, bin: &Path, dir: &Path, time: Option<&Path>, tag: &str) 
         }
         None => Command::new(bin),
     };
-    let out = match what {
-        "calibrate" => dir.join(format!("bench-result{tag}.json")),
-        _ => dir.join(format!("bench-diagnosis{tag}")),
-    };
-    cmd.arg(what)
-        .arg(dir)
-        .arg("--out")
-        .arg(out)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null());
+    cmd.args(args).stdout(Stdio::null()).stderr(Stdio::null());
     let start = Instant::now();
-    let status = cmd.status().expect("run robimu");
+    let status = cmd
+        .status()
+        .unwrap_or_else(|e| panic!("run {}: {e}", bin.display()));
     let wall = start.elapsed().as_secs_f64();
-    assert!(
-        status.success(),
-        "robimu {what} failed on {}",
-        dir.display()
-    );
+    assert!(status.success(), "{} {args:?} failed", bin.display());
     let cpu = time.and_then(|_| {
         let s = std::fs::read_to_string(&report).ok()?;
         let v: Vec<f64> = s
@@ -118,6 +155,7 @@ fn main() {
         PathBuf::from,
     );
     let versus = value("--versus").map(PathBuf::from);
+    let ceres = value("--ceres").map(PathBuf::from);
     let time = gnu_time();
     let work = tempfile::tempdir().expect("temporary directory");
     let mut cases = vec![("300 s at 120 Hz", 300.0, 120.0, 1)];
@@ -149,13 +187,19 @@ fn main() {
         for &what in whats {
             let load_before = load();
             let other = versus.as_ref().filter(|_| what == "calibrate");
+            let peer = ceres.as_ref().filter(|_| what == "calibrate" && k == 0);
             let mut theirs = Vec::new();
+            let mut peers = Vec::new();
             let results: Vec<Run> = (0..runs)
                 .map(|_| {
                     if let Some(o) = other {
                         theirs.push(run_once(what, o, &dir, time, "-versus").wall);
                     }
-                    run_once(what, &bin, &dir, time, "")
+                    let run = run_once(what, &bin, &dir, time, "");
+                    if let Some(p) = peer {
+                        peers.push(run_ceres(p, &dir, &dir.join("bench-result.json"), time));
+                    }
+                    run
                 })
                 .collect();
             let walls: Vec<f64> = results.iter().map(|r| r.wall).collect();
@@ -194,6 +238,22 @@ fn main() {
                     o.display(),
                     their / med
                 );
+            }
+            if !peers.is_empty() {
+                let walls: Vec<f64> = peers.iter().map(|r| r.wall).collect();
+                let (their, their_min) = (
+                    median(walls.clone()),
+                    walls.iter().cloned().fold(f64::INFINITY, f64::min),
+                );
+                line += &format!(
+                    "; Ceres peer interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's",
+                    their / med
+                );
+                if peers.iter().all(|r| r.cpu.is_some()) {
+                    let user = median(peers.iter().map(|r| r.cpu.unwrap().0).collect());
+                    let peak = peers.iter().map(|r| r.cpu.unwrap().2).fold(0.0, f64::max);
+                    line += &format!(" (CPU median user {user:.2} s, peak RSS {peak:.0} MB)");
+                }
             }
             if imus > 1 {
                 if let Some((c, c_cpu)) = one_imu {
