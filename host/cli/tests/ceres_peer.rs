@@ -10,35 +10,35 @@
 //! `cargo test -p robimu --test ceres_peer -- --ignored`.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 use serde_json::Value;
 
-fn robimu(args: &[&str]) {
-    let out = Command::new(env!("CARGO_BIN_EXE_robimu"))
-        .args(args)
+mod common;
+use common::{json_matrix, robimu_ok, s};
+
+/// Runs `cmd`, asserting success with `what` and its error output.
+fn succeed(cmd: &mut Command, what: &str) -> Output {
+    let out = cmd
         .output()
-        .expect("run robimu");
+        .unwrap_or_else(|e| panic!("{what}: cannot start: {e}"));
     assert!(
         out.status.success(),
-        "robimu {args:?} failed: {}",
+        "{what} failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
+    out
 }
 
-/// Builds the peer with `peers/ceres/build.sh`; fails with the install hint.
+/// Builds the peer with `peers/ceres/build.sh`.
 fn build_peer() -> PathBuf {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let exe = Path::new(env!("CARGO_TARGET_TMPDIR")).join("robimu_ceres");
-    let out = Command::new("sh")
-        .arg(root.join("peers/ceres/build.sh"))
-        .arg(&exe)
-        .output()
-        .expect("run sh");
-    assert!(
-        out.status.success(),
-        "building the Ceres peer failed (Debian: apt-get install g++ libceres-dev): {}",
-        String::from_utf8_lossy(&out.stderr)
+    succeed(
+        Command::new("sh")
+            .arg(root.join("peers/ceres/build.sh"))
+            .arg(&exe),
+        "building the Ceres peer (Debian: apt-get install g++ libceres-dev)",
     );
     exe
 }
@@ -60,27 +60,35 @@ fn an_independent_ceres_implementation_finds_the_same_estimate_and_covariance() 
     let peer = build_peer();
     let work = tempfile::tempdir().unwrap();
     let session = work.path().join("session");
-    let s = session.to_str().unwrap();
-    robimu(&["simulate", "--duration", "120", "--seed", "3", "--out", s]);
+    // the two streams on grids of their own (docs/model.md §4.2)
+    robimu_ok([
+        "simulate",
+        "--duration",
+        "120",
+        "--seed",
+        "3",
+        "--rate",
+        "100",
+        "--joint-rate",
+        "125",
+        "--out",
+        s(&session),
+    ]);
     let ours_path = work.path().join("robimu.json");
-    robimu(&["calibrate", s, "--out", ours_path.to_str().unwrap()]);
+    robimu_ok(["calibrate", s(&session), "--out", s(&ours_path)]);
     let ours = read(&ours_path);
 
     // The peer starts where robimu's τ search and knot choice ended (it has
     // neither) and runs Levenberg–Marquardt to its rounding level.
     let theirs_path = work.path().join("ceres.json");
-    let out = Command::new(&peer)
-        .arg(&session)
-        .args(["--tau", &number(&ours, "tau_initial").to_string()])
-        .args(["--knot-spacing", &number(&ours, "knot_spacing").to_string()])
-        .args(["--function-tolerance", "1e-15", "--out"])
-        .arg(&theirs_path)
-        .output()
-        .expect("run the Ceres peer");
-    assert!(
-        out.status.success(),
-        "the Ceres peer failed: {}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = succeed(
+        Command::new(&peer)
+            .arg(&session)
+            .args(["--tau", &number(&ours, "tau_initial").to_string()])
+            .args(["--knot-spacing", &number(&ours, "knot_spacing").to_string()])
+            .args(["--function-tolerance", "1e-15", "--out"])
+            .arg(&theirs_path),
+        "the Ceres peer",
     );
     eprintln!("{}", String::from_utf8_lossy(&out.stderr));
     let theirs = read(&theirs_path);
@@ -111,22 +119,9 @@ fn an_independent_ceres_implementation_finds_the_same_estimate_and_covariance() 
     assert!(ds < 1e-5, "σ differ by {ds} relative");
 
     // The whole marginal covariance, entry by entry in units of σ_i σ_j.
-    let cov = |v: &Value| -> Vec<Vec<f64>> {
-        v["covariance"]["matrix"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|row| {
-                row.as_array()
-                    .unwrap()
-                    .iter()
-                    .map(|x| x.as_f64().unwrap())
-                    .collect()
-            })
-            .collect()
-    };
     assert_eq!(ours["covariance"]["names"], theirs["covariance"]["names"]);
-    let (ca, cb) = (cov(&ours), cov(&theirs));
+    let ca = json_matrix(&ours["covariance"]["matrix"]);
+    let cb = json_matrix(&theirs["covariance"]["matrix"]);
     let mut dc = 0.0_f64;
     for i in 0..ca.len() {
         for j in 0..ca.len() {

@@ -11,7 +11,7 @@ use robimu_session::Truth;
 use serde_json::Value;
 
 mod common;
-use common::{robimu, robimu_ok, s, Run};
+use common::{json_matrix, robimu, robimu_ok, s, Run};
 
 /// A simulated AUBO i5 session of `seconds` in `dir/name`.
 fn simulate(dir: &Path, name: &str, seconds: &str, seed: &str, extra: &[&str]) -> PathBuf {
@@ -76,18 +76,7 @@ fn check_result_json(text: &str, layout: &ParamLayout) -> Vec<String> {
         .map(|n| n.as_str().unwrap().to_string())
         .collect();
     assert_eq!(names, estimated);
-    let m: Vec<Vec<f64>> = v["covariance"]["matrix"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|row| {
-            row.as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        })
-        .collect();
+    let m = json_matrix(&v["covariance"]["matrix"]);
     let n = names.len();
     assert_eq!(m.len(), n);
     for (i, row) in m.iter().enumerate() {

@@ -2,7 +2,8 @@
 //! pseudo-terminal and a simulated AUBO controller on loopback TCP, with a
 //! hidden truth (robimu_hil). End to end, every fault switch, and a kill.
 //!
-//! These run in real time (a few seconds each; the end-to-end one 30 s).
+//! These run in real time (a few seconds each; the end-to-end one 30 s), one
+//! at a time ([`common::real_time_slot`]).
 
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -110,6 +111,7 @@ fn check_session(dir: &Path) -> Session {
 
 #[test]
 fn end_to_end_recording_recovers_the_hidden_truth_within_4_sigma() {
+    let _slot = common::real_time_slot();
     let robot = Robot::aubo_i5();
     let mut rng = rand::rngs::StdRng::seed_from_u64(21);
     let traj = random_walk(&robot, 30.0, 1.0, &mut rng).unwrap();
@@ -167,6 +169,7 @@ fn record_with(
 
 #[test]
 fn corrupted_and_dropped_bytes_are_counted_and_skipped() {
+    let _slot = common::real_time_slot();
     let rig = rig(3);
     let dir = tempfile::tempdir().unwrap();
     let device = &rig.device;
@@ -196,6 +199,7 @@ fn corrupted_and_dropped_bytes_are_counted_and_skipped() {
 
 #[test]
 fn a_board_reset_mid_stream_is_recovered_in_a_new_clock_segment() {
+    let _slot = common::real_time_slot();
     let rig = rig(4);
     let dir = tempfile::tempdir().unwrap();
     let device = &rig.device;
@@ -218,6 +222,7 @@ fn a_board_reset_mid_stream_is_recovered_in_a_new_clock_segment() {
 
 #[test]
 fn a_vanished_port_stops_with_a_clear_error_and_keeps_the_data() {
+    let _slot = common::real_time_slot();
     let rig = rig(5);
     let dir = tempfile::tempdir().unwrap();
     let device = &rig.device;
@@ -238,6 +243,7 @@ fn a_vanished_port_stops_with_a_clear_error_and_keeps_the_data() {
 
 #[test]
 fn a_dropped_robot_connection_stops_with_a_clear_error_and_keeps_the_data() {
+    let _slot = common::real_time_slot();
     let rig = rig(6);
     let dir = tempfile::tempdir().unwrap();
     let aubo = &rig.aubo;
@@ -259,6 +265,7 @@ fn a_dropped_robot_connection_stops_with_a_clear_error_and_keeps_the_data() {
 
 #[test]
 fn slow_robot_replies_lower_the_joint_rate_but_the_recording_goes_on() {
+    let _slot = common::real_time_slot();
     let rig = rig(7);
     let dir = tempfile::tempdir().unwrap();
     let aubo = &rig.aubo;
@@ -276,6 +283,7 @@ fn slow_robot_replies_lower_the_joint_rate_but_the_recording_goes_on() {
 
 #[test]
 fn a_robot_that_refuses_the_plan_gives_a_clear_error() {
+    let _slot = common::real_time_slot();
     let robot = Robot::aubo_i5();
     let mut rng = rand::rngs::StdRng::seed_from_u64(8);
     let plan = Plan::from_spline(&random_walk(&robot, 10.0, 1.0, &mut rng).unwrap(), 250.0);
@@ -297,6 +305,7 @@ fn a_robot_that_refuses_the_plan_gives_a_clear_error() {
 
 #[test]
 fn missing_busy_and_foreign_ports_are_named() {
+    let _slot = common::real_time_slot();
     let rig = rig(9);
     let dir = tempfile::tempdir().unwrap();
     let mut opts = options(&rig, &dir.path().join("s"), None, 1.0);
@@ -357,6 +366,7 @@ fn start_recording(
 /// (flushed every second), and `robimu repair` finishes it.
 #[test]
 fn a_recording_killed_with_sigkill_leaves_a_readable_session() {
+    let _slot = common::real_time_slot();
     let rig = rig(10);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("killed");
@@ -389,6 +399,7 @@ fn a_recording_killed_with_sigkill_leaves_a_readable_session() {
 /// says so and exits non-zero.
 #[test]
 fn ctrl_c_halts_the_robot_and_finishes_the_session() {
+    let _slot = common::real_time_slot();
     use robimu_record::controller::aubo::AuboClient;
     let robot = Robot::aubo_i5();
     let mut rng = rand::rngs::StdRng::seed_from_u64(31);
@@ -480,6 +491,7 @@ fn ur_setup(
 /// controller's rate, the session loads and follows the plan.
 #[test]
 fn recording_from_the_simulated_ur_controller_runs_the_plan() {
+    let _slot = common::real_time_slot();
     let dir = tempfile::tempdir().unwrap();
     let (ur, _device, plan, opts) = ur_setup(12, 6.0, Default::default(), dir.path());
     let s = record(&opts, &mut |_| {}).unwrap();
@@ -502,6 +514,7 @@ fn recording_from_the_simulated_ur_controller_runs_the_plan() {
 /// come over RTDE at 125 Hz; the calibration recovers the truth within 4σ.
 #[test]
 fn ur_recording_recovers_the_hidden_truth_within_4_sigma() {
+    let _slot = common::real_time_slot();
     use robimu_hil::rig::SimUrRig;
     let robot = Robot::aubo_i5();
     let mut rng = rand::rngs::StdRng::seed_from_u64(31);
@@ -535,6 +548,7 @@ fn ur_recording_recovers_the_hidden_truth_within_4_sigma() {
 /// plan's end; the session is finished.
 #[test]
 fn an_interrupted_ur_recording_stops_the_arm() {
+    let _slot = common::real_time_slot();
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Arc;
     let dir = tempfile::tempdir().unwrap();
@@ -574,6 +588,7 @@ fn an_interrupted_ur_recording_stops_the_arm() {
 /// time. `robimu repair` reproduces the times bit for bit.
 #[test]
 fn ur_joint_times_follow_the_controller_clock_despite_arrival_jitter() {
+    let _slot = common::real_time_slot();
     use robimu_hil_sim::ur::{FaultSwitches as UrFaults, SimUrConfig};
     use robimu_record::repair::{repair, JointClock};
     let config = SimUrConfig {
@@ -707,6 +722,7 @@ fn mean(x: &[f64]) -> f64 {
 // channel loops index several per-channel arrays
 #[allow(clippy::needless_range_loop)]
 fn the_rigs_vibration_noise_has_the_configured_correlation() {
+    let _slot = common::real_time_slot();
     let phi = 0.8;
     let config = SimRigConfig::drawn(Robot::aubo_i5(), 41)
         .with_vibration_noise(phi, 1e-3)
@@ -760,6 +776,7 @@ fn the_rigs_vibration_noise_has_the_configured_correlation() {
 // channel loops index several per-channel arrays
 #[allow(clippy::needless_range_loop)]
 fn the_rigs_warm_up_shows_in_the_temperature_column_and_the_biases() {
+    let _slot = common::real_time_slot();
     let mut config = SimRigConfig::drawn(Robot::aubo_i5(), 43);
     let offset = [2.0, 0.0, 0.0, 0.05, 0.0, 0.0];
     config.warm_up = Some(robimu_hil::rig::WarmUp {
@@ -837,6 +854,7 @@ fn the_rigs_warm_up_shows_in_the_temperature_column_and_the_biases() {
 // channel loops index several per-channel arrays
 #[allow(clippy::needless_range_loop)]
 fn the_rig_with_a_datasheet_chip_reads_the_truth_at_rest() {
+    let _slot = common::real_time_slot();
     let robot = Robot::aubo_i5();
     let mut config = SimRigConfig::drawn(robot.clone(), 45);
     config.chip = robimu_hil::rig::ChipModel::Datasheet;
@@ -919,6 +937,7 @@ fn the_rig_with_a_datasheet_chip_reads_the_truth_at_rest() {
 #[test]
 #[ignore = "110 s of real-time recording, whose data differ run to run (a loaded machine drops samples); with the LM stationary stop it passed (sensor_delay first, 4.17 ± 0.81 ms vs 5.01; resonance second); the virtual-time twin tests in tests/twin.rs cover the datasheet chip in CI"]
 fn a_datasheet_chip_is_diagnosed_with_its_sensor_delay() {
+    let _slot = common::real_time_slot();
     let robot = Robot::aubo_i5();
     let mut rng = rand::rngs::StdRng::seed_from_u64(33);
     let traj = random_walk(&robot, 90.0, 1.0, &mut rng).unwrap();

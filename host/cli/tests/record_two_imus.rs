@@ -118,6 +118,7 @@ fn check_imu_times(session: &Session) {
 
 #[test]
 fn two_sensors_on_one_board_record_the_section_9_session_and_calibrate_jointly_within_4_sigma() {
+    let _slot = common::real_time_slot();
     let rig = SimRig::spawn(&SimRigConfig::drawn_two_imus(Robot::aubo_i5(), 23)).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut lines = 0;
@@ -185,6 +186,7 @@ fn two_board_rig(seed: u64) -> SimRig {
 /// its own drift), and the joint fit within 4σ.
 #[test]
 fn two_boards_record_one_clock_fit_each_and_calibrate_jointly_within_4_sigma() {
+    let _slot = common::real_time_slot();
     let rig = two_board_rig(41);
     let dir = tempfile::tempdir().unwrap();
     let plan_dir = dir.path().join("plan");
@@ -268,6 +270,7 @@ fn two_boards_record_one_clock_fit_each_and_calibrate_jointly_within_4_sigma() {
 /// kept as a §9 session.
 #[test]
 fn one_of_two_boards_vanishing_ends_the_recording_with_its_name_and_keeps_all_data() {
+    let _slot = common::real_time_slot();
     let rig = two_board_rig(42);
     let dir = tempfile::tempdir().unwrap();
     let opts = options(&rig, dir.path(), None, 10.0);
@@ -343,6 +346,7 @@ fn one_of_two_boards_vanishing_ends_the_recording_with_its_name_and_keeps_all_da
 /// parameters checked against the truth.
 #[test]
 fn demo_with_two_imus_records_calibrates_jointly_and_checks_the_truth() {
+    let _slot = common::real_time_slot();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("demo");
     let run = robimu_ok([

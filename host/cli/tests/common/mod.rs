@@ -122,6 +122,32 @@ where
     run
 }
 
+/// One real-time test at a time in a test binary: hold the guard for the
+/// whole test. The simulated board and controller of a recording are
+/// threads on the host's cores, and miss their sample deadlines (counted as
+/// the board's own drops, a lower joint rate) when the binary's other tests
+/// calibrate on both cores meanwhile. A failed test's poisoned lock is taken
+/// over.
+pub fn real_time_slot() -> std::sync::MutexGuard<'static, ()> {
+    static SLOT: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    SLOT.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A JSON array of arrays of numbers (a result file's covariance `matrix`).
+pub fn json_matrix(v: &serde_json::Value) -> Vec<Vec<f64>> {
+    v.as_array()
+        .expect("an array of rows")
+        .iter()
+        .map(|row| {
+            row.as_array()
+                .expect("a row")
+                .iter()
+                .map(|x| x.as_f64().expect("a number"))
+                .collect()
+        })
+        .collect()
+}
+
 /// `p` as a command-line argument (temporary paths are UTF-8).
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("temporary paths are UTF-8")
