@@ -122,14 +122,17 @@ fn end_to_end_recording_recovers_the_hidden_truth_within_4_sigma() {
     let truth = rig.truth().clone();
     drop(rig);
     let p = &summary.progress;
-    // The link loses nothing: no spoiled frame, so every gap is a slot the
-    // board itself missed. The simulated board is a thread on the host, and
-    // a loaded machine (the other tests calibrate on both cores meanwhile)
-    // can stall it past a sample deadline now and then; it drops and counts
-    // the sample as the real one does. Those misses depend on the load, not
-    // on robimu: they are only bounded loosely here.
+    // The link loses nothing (no spoiled frame) and every slot is either a
+    // sample or one the board counted as missed.
     assert_eq!((p.crc_errors, p.bad_frames), (0, 0), "{p:?}");
-    assert!(p.seq_gaps as f64 <= 0.03 * p.imu_samples as f64, "{p:?}");
+    let rate = f64::from(SensorConfig::default().sample_rate_hz);
+    common::assert_every_slot_accounted(
+        p.imu_samples,
+        p.seq_gaps,
+        p.device_dropped,
+        rate,
+        summary.duration,
+    );
     assert!(
         (31.5..33.0).contains(&summary.duration),
         "{}",

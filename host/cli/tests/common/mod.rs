@@ -133,6 +133,35 @@ pub fn real_time_slot() -> std::sync::MutexGuard<'static, ()> {
     SLOT.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// One IMU stream of a real-time recording lost nothing unseen: every
+/// sequence gap is a slot the board itself missed and counted (a host that
+/// stalls the simulated board's thread past a sample deadline makes it drop
+/// and count the sample, as the real board does on an overrun: how many
+/// depends on the machine's load, not on robimu), and the delivered and the
+/// missed slots together fill the configured rate over the recording, to
+/// 1 %.
+#[track_caller]
+pub fn assert_every_slot_accounted(
+    samples: u64,
+    seq_gaps: u64,
+    dropped: u32,
+    rate_hz: f64,
+    duration: f64,
+) {
+    assert_eq!(
+        seq_gaps,
+        u64::from(dropped),
+        "sequence gaps that the board did not count as its own drops"
+    );
+    let slots = (samples + seq_gaps) as f64;
+    let want = rate_hz * duration;
+    assert!(
+        (slots - want).abs() <= 0.01 * want,
+        "{samples} samples + {seq_gaps} missed slots over {duration} s at {rate_hz} Hz (want {want:.0})"
+    );
+    eprintln!("slots: {samples} samples + {seq_gaps} missed = {slots} (rate x duration {want:.1})");
+}
+
 /// A JSON array of arrays of numbers (a result file's covariance `matrix`).
 pub fn json_matrix(v: &serde_json::Value) -> Vec<Vec<f64>> {
     v.as_array()
