@@ -133,6 +133,14 @@ fn run_timed(
     Run { wall, cpu }
 }
 
+/// The median and the least of run times.
+fn median_min(v: &[f64]) -> (f64, f64) {
+    (
+        median(v.to_vec()),
+        v.iter().cloned().fold(f64::INFINITY, f64::min),
+    )
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -203,8 +211,7 @@ fn main() {
                 })
                 .collect();
             let walls: Vec<f64> = results.iter().map(|r| r.wall).collect();
-            let min = walls.iter().cloned().fold(f64::INFINITY, f64::min);
-            let med = median(walls.clone());
+            let (med, min) = median_min(&walls);
             let mut line = format!(
                 "{what}, {label} (`robimu simulate --duration {duration} --rate {rate} --seed 1 --imus {imus}`): wall median {med:.3} s, min {min:.3} s",
             );
@@ -229,10 +236,7 @@ fn main() {
                 }
             }
             if let Some(o) = other {
-                let (their, their_min) = (
-                    median(theirs.clone()),
-                    theirs.iter().cloned().fold(f64::INFINITY, f64::min),
-                );
+                let (their, their_min) = median_min(&theirs);
                 line += &format!(
                     "; versus {} interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's",
                     o.display(),
@@ -241,10 +245,7 @@ fn main() {
             }
             if !peers.is_empty() {
                 let walls: Vec<f64> = peers.iter().map(|r| r.wall).collect();
-                let (their, their_min) = (
-                    median(walls.clone()),
-                    walls.iter().cloned().fold(f64::INFINITY, f64::min),
-                );
+                let (their, their_min) = median_min(&walls);
                 line += &format!(
                     "; Ceres peer interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's",
                     their / med
