@@ -80,11 +80,6 @@ int eps_index(int link, int k) {
 
 // --- Small rotations on column-major 3×3 arrays (R[3*col + row]) ----------
 
-template <typename T>
-struct Frame {
-  T R[9];  // columns: x, y, z axes in the base frame
-};
-
 // R ← R · Rx(θ), R · Ry(θ), R · Rz(θ), given c = cos θ, s = sin θ.
 template <typename T, typename S>
 void post_rx(T* R, const S& c, const S& s) {
