@@ -19,8 +19,10 @@
 //! one, on the same sessions) are optional. `--versus PATH` times another
 //! build's `calibrate` interleaved run by run with this one's on every
 //! case (so that both see the same machine: the figures of a shared
-//! machine drift by tens of per cent within minutes) and prints the ratio
-//! of their medians — the back-to-back comparison issue 18 is measured by.
+//! machine drift by tens of per cent within minutes; the other build goes
+//! first on even runs and second on odd ones) and prints the ratio of their
+//! medians — the back-to-back comparison issue 18 is measured by — and the
+//! median and range of the run-by-run ratios.
 //! `--ceres PATH` times the independent Ceres implementation of
 //! `peers/ceres` (built by `peers/ceres/build.sh`) the same way on the
 //! 300 s / 120 Hz case, given robimu's τ start and knot spacing (it does no
@@ -141,6 +143,23 @@ fn median_min(v: &[f64]) -> (f64, f64) {
     )
 }
 
+/// The run-by-run ratios of interleaved runs (each `theirs[i] / ours[i]`,
+/// timed seconds apart): their median and range, which a drift of the
+/// machine over the whole bench moves less than the ratio of the medians.
+fn pairwise(theirs: &[f64], ours: &[f64]) -> String {
+    let r: Vec<f64> = theirs.iter().zip(ours).map(|(a, b)| a / b).collect();
+    if r.len() < 2 {
+        return String::new();
+    }
+    let (lo, hi) = r
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), &v| (l.min(v), h.max(v)));
+    format!(
+        " (run by run: median {:.2}x, {lo:.2}–{hi:.2}x)",
+        median(r.clone())
+    )
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -199,11 +218,21 @@ fn main() {
             let mut theirs = Vec::new();
             let mut peers = Vec::new();
             let results: Vec<Run> = (0..runs)
-                .map(|_| {
-                    if let Some(o) = other {
-                        theirs.push(run_once(what, o, &dir, time, "-versus").wall);
+                .map(|i| {
+                    // the other build first on even runs, second on odd ones
+                    // (no build always runs right after the same one)
+                    let versus_run = |theirs: &mut Vec<f64>| {
+                        if let Some(o) = other {
+                            theirs.push(run_once(what, o, &dir, time, "-versus").wall);
+                        }
+                    };
+                    if i % 2 == 0 {
+                        versus_run(&mut theirs);
                     }
                     let run = run_once(what, &bin, &dir, time, "");
+                    if i % 2 == 1 {
+                        versus_run(&mut theirs);
+                    }
                     if let Some(p) = peer {
                         peers.push(run_ceres(p, &dir, &dir.join("bench-result.json"), time));
                     }
@@ -238,17 +267,20 @@ fn main() {
             if let Some(o) = other {
                 let (their, their_min) = median_min(&theirs);
                 line += &format!(
-                    "; versus {} interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's",
+                    "; versus {} interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's{}",
                     o.display(),
-                    their / med
+                    their / med,
+                    pairwise(&theirs, &walls)
                 );
             }
             if !peers.is_empty() {
+                let walls_this = &walls;
                 let walls: Vec<f64> = peers.iter().map(|r| r.wall).collect();
                 let (their, their_min) = median_min(&walls);
                 line += &format!(
-                    "; Ceres peer interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's",
-                    their / med
+                    "; Ceres peer interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's{}",
+                    their / med,
+                    pairwise(&walls, walls_this)
                 );
                 if peers.iter().all(|r| r.cpu.is_some()) {
                     let user = median(peers.iter().map(|r| r.cpu.unwrap().0).collect());
