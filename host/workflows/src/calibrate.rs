@@ -170,7 +170,13 @@ pub enum CalibrateError {
     #[error("the fit failed: {0}")]
     Solver(#[from] LmError<ProblemError>),
     /// The fit did not converge.
-    #[error("the fit did not converge: {summary}")]
+    #[error(
+        "the fit did not converge ({} iterations, cost {:.6e} -> {:.6e}: {})",
+        summary.iterations.len(),
+        summary.initial_cost,
+        summary.final_cost,
+        summary.termination
+    )]
     NotConverged {
         /// The solver run.
         summary: Box<LmSummary>,

@@ -329,3 +329,49 @@ fn the_gls_path_reduces_to_the_white_one() {
     }
     assert!((forced.cost(&theta).unwrap() - c0).abs() <= 1e-12 * c0);
 }
+
+/// The motion levels are set from the trajectory of the solve's first
+/// iteration and held (module doc): a second `begin_iteration` at another
+/// trajectory leaves every level, and so the cost, as it was; a trial step
+/// that keeps the samples keeps the setup; a new problem at the other
+/// trajectory has other levels (they do depend on q̈).
+#[test]
+fn motion_levels_are_held_for_the_whole_solve() {
+    let s = setup();
+    let none = EffectSet::none();
+    let model = noise_model();
+    let problem = || {
+        Problem::new(
+            &s.robot,
+            &s.layout,
+            &s.data,
+            s.knots.clone(),
+            s.x.clone(),
+            &options(&s, Some(model.clone()), [1.0; 6]),
+            none,
+        )
+        .unwrap()
+    };
+    let mut p = problem();
+    let theta = p.theta(&s.spline, &s.x);
+    p.begin_iteration(&theta).unwrap();
+    let levels = p.streams[0].inv_levels.clone();
+    let cost = p.cost(&theta).unwrap();
+    // another trajectory: q̈ of every span changed, τ (and so the samples) not
+    let nc = p.n_coeffs();
+    let mut other = theta.clone();
+    for (i, c) in other[..nc].iter_mut().enumerate() {
+        *c += 0.3 * (i as f64 * 0.37).cos();
+    }
+    assert!(p.keeps_setup(&other));
+    p.begin_iteration(&other).unwrap();
+    assert_eq!(p.streams[0].inv_levels, levels);
+    assert_eq!(p.cost(&theta).unwrap(), cost);
+    let mut q = problem();
+    q.begin_iteration(&other).unwrap();
+    let range = q.imu_range();
+    let changed = range
+        .filter(|&i| q.streams[0].inv_levels[i][2] != levels[i][2])
+        .count();
+    assert!(changed > 0, "the levels of another trajectory differ");
+}

@@ -29,12 +29,19 @@
 //! no approximation at segment starts). Segments start at the first
 //! selected sample and after every gap (a time step > 1.5× the median step
 //! of the session's IMU stream); different segments are independent. The
-//! levels s_i = sqrt(1 + c‖q̈(t_i+τ)‖²/σ²) are computed from the current
-//! trajectory in [`crate::LeastSquares::begin_iteration`] (with the sample
-//! selection) and **held fixed** during the linearisation: they are not
-//! differentiated (the Gauss–Newton matrix is that of the weighted problem
-//! with the weights frozen, as in iteratively reweighted least squares).
-//! Until the first `begin_iteration` every level is 1.
+//! levels s_i = sqrt(1 + c‖q̈(t_i+τ)‖²/σ²) are computed from the trajectory
+//! the solve starts from, in its first [`crate::LeastSquares::begin_iteration`],
+//! and **held fixed** for the whole solve (later iterations only set them
+//! for samples a moved τ selects anew, from the same trajectory): they are
+//! not differentiated, and they do not follow the iterates. Levels
+//! recomputed from every iterate (reweighting at each iteration) can
+//! oscillate: where the IMU rows weigh less the trajectory follows the joint
+//! samples, its q̈ changes, and so do the levels — on a 62 s recording of the
+//! demo's realistic twin (knots every 62.5 ms) the fit alternated between
+//! two points for its 100 iterations. The noise choice's refits
+//! (`robimu_workflows`) start each solve from the previous fit, so the
+//! levels follow the trajectory from one refit to the next. Until the first
+//! `begin_iteration` every level is 1.
 //!
 //! **Rows spanning knot intervals.** A whitened row of sample t combines the
 //! raw Jacobian rows of samples t−m … t, whose basis functions may begin in
@@ -192,6 +199,9 @@ struct Stream<'a> {
     /// 1/s_i per channel for every sample (empty when no channel has a
     /// motion level; set for the selected samples by `begin_iteration`).
     inv_levels: Vec<[f64; 6]>,
+    /// Whether `inv_levels[i]` has been set (each sample's level is set
+    /// once per solve, module doc).
+    level_set: Vec<bool>,
     /// Samples currently used.
     imu_range: Range<usize>,
     /// Per sensor (accelerometer, gyroscope): the estimated parameters its
@@ -226,6 +236,9 @@ pub struct Problem<'a> {
     thin_first: usize,
     /// Iterations the solver has begun ([`crate::LeastSquares::begin_iteration`]).
     iterations_begun: usize,
+    /// The θ whose trajectory gives the motion levels (the first
+    /// [`Self::update_levels`]'s; module doc).
+    level_theta: Option<Vec<f64>>,
     /// The IMU noise model in use.
     noise: NoiseModel,
     /// Whether it is white (then the white assembly runs).
@@ -338,6 +351,11 @@ impl<'a> Problem<'a> {
                     } else {
                         Vec::new()
                     },
+                    level_set: if motion {
+                        vec![false; view.t.len()]
+                    } else {
+                        Vec::new()
+                    },
                     imu_range: 0..0,
                     sensor_columns,
                     index: j,
@@ -364,6 +382,7 @@ impl<'a> Problem<'a> {
             thin: 1,
             thin_first: 1,
             iterations_begun: 0,
+            level_theta: None,
             noise,
             white,
             extra_spans,
@@ -455,25 +474,36 @@ impl<'a> Problem<'a> {
         self.extra_spans
     }
 
-    /// Compute the levels s_i of the selected samples from the trajectory
-    /// of θ (held fixed until the next call; see the module doc). Nothing to
-    /// do when no channel has a motion level.
+    /// Set the levels s_i of the selected samples not yet set, from the
+    /// trajectory of the θ of the first call, the solve's start (module doc:
+    /// held for the whole solve; a later call only covers samples a moved τ
+    /// selects anew). Nothing to do when no channel has a motion level.
     pub fn update_levels(&mut self, theta: &[f64]) -> Result<(), ProblemError> {
         if self.streams[0].inv_levels.is_empty() {
             return Ok(());
         }
-        let spline = self.spline_of(theta);
+        // the trajectory of the first call, for every later one; a sample's
+        // t + τ at the τ that selects it (inside the span)
+        let at = self
+            .level_theta
+            .get_or_insert_with(|| theta.to_vec())
+            .clone();
+        let spline = self.spline_of(&at);
         let x = self.x_of(theta);
         let tau_at = self.imu_layout.offsets().tau;
         let mut js = JointState::default();
         for s in &mut self.streams {
             let tau = x[s.map[tau_at]];
             for i in s.imu_range.clone() {
+                if s.level_set[i] {
+                    continue;
+                }
                 spline
                     .evaluate(s.t[i] + tau, &mut js)
                     .map_err(|_| ProblemError::SampleOutOfSpan)?;
                 let qdd2: f64 = js.qdd[..self.n].iter().map(|v| v * v).sum();
                 s.inv_levels[i] = std::array::from_fn(|c| 1.0 / self.noise.imu[c].level(qdd2));
+                s.level_set[i] = true;
             }
         }
         Ok(())
@@ -738,18 +768,18 @@ impl crate::LeastSquares for Problem<'_> {
     fn new_matrix(&self) -> crate::ArrowMatrix {
         Problem::new_matrix(self)
     }
-    /// The same samples at θ's τ, and no motion levels (they follow θ),
-    /// and no thinning (the next iteration uses every sample).
+    /// The same samples at θ's τ (the motion levels are the solve's, module
+    /// doc), and no thinning (the next iteration uses every sample).
     fn keeps_setup(&self, theta: &[f64]) -> bool {
         if self.thin > 1 {
             return false;
         }
         let x = self.x_of(theta);
         let tau_at = self.imu_layout.offsets().tau;
-        self.streams.iter().enumerate().all(|(j, s)| {
-            s.inv_levels.is_empty()
-                && self.samples_at(j, x[s.map[tau_at]]).ok() == Some(s.imu_range.clone())
-        })
+        self.streams
+            .iter()
+            .enumerate()
+            .all(|(j, s)| self.samples_at(j, x[s.map[tau_at]]).ok() == Some(s.imu_range.clone()))
     }
 }
 
