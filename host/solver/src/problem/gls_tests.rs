@@ -114,6 +114,20 @@ pub(super) fn options(s: &Setup, noise: Option<NoiseModel>, sigma_z: [f64; 6]) -
     }
 }
 
+/// The problem of `s` without effects, with `noise` and `sigma_z`.
+pub(super) fn problem(s: &Setup, noise: Option<NoiseModel>, sigma_z: [f64; 6]) -> Problem<'_> {
+    Problem::new(
+        &s.robot,
+        &s.layout,
+        &s.data,
+        s.knots.clone(),
+        s.x.clone(),
+        &options(s, noise, sigma_z),
+        EffectSet::none(),
+    )
+    .unwrap()
+}
+
 pub(super) fn linearized(p: &Problem<'_>, theta: &[f64]) -> (crate::ArrowMatrix, Vec<f64>, f64) {
     let mut a = p.new_matrix();
     let mut g = vec![0.0; theta.len()];
@@ -124,28 +138,9 @@ pub(super) fn linearized(p: &Problem<'_>, theta: &[f64]) -> (crate::ArrowMatrix,
 #[test]
 fn gls_assembly_equals_the_dense_generalised_least_squares() {
     let s = setup();
-    let none = EffectSet::none();
     let model = noise_model();
-    let mut white1 = Problem::new(
-        &s.robot,
-        &s.layout,
-        &s.data,
-        s.knots.clone(),
-        s.x.clone(),
-        &options(&s, None, [1.0; 6]),
-        none,
-    )
-    .unwrap();
-    let mut gls = Problem::new(
-        &s.robot,
-        &s.layout,
-        &s.data,
-        s.knots.clone(),
-        s.x.clone(),
-        &options(&s, Some(model.clone()), [1.0; 6]),
-        none,
-    )
-    .unwrap();
+    let mut white1 = problem(&s, None, [1.0; 6]);
+    let mut gls = problem(&s, Some(model.clone()), [1.0; 6]);
     assert!(gls.extra_spans() >= 1);
     assert!(gls.bandwidth() > white1.bandwidth());
     let theta = white1.theta(&s.spline, &s.x);
@@ -283,19 +278,9 @@ fn gls_assembly_equals_the_dense_generalised_least_squares() {
 #[test]
 fn the_gls_path_reduces_to_the_white_one() {
     let s = setup();
-    let none = EffectSet::none();
     let sz = [0.05, 0.06, 0.07, 0.01, 0.012, 0.014];
     let mk = |noise| {
-        let mut p = Problem::new(
-            &s.robot,
-            &s.layout,
-            &s.data,
-            s.knots.clone(),
-            s.x.clone(),
-            &options(&s, noise, sz),
-            none,
-        )
-        .unwrap();
+        let mut p = problem(&s, noise, sz);
         let theta = p.theta(&s.spline, &s.x);
         p.begin_iteration(&theta).unwrap();
         (p, theta)
@@ -338,21 +323,8 @@ fn the_gls_path_reduces_to_the_white_one() {
 #[test]
 fn motion_levels_are_held_for_the_whole_solve() {
     let s = setup();
-    let none = EffectSet::none();
     let model = noise_model();
-    let problem = || {
-        Problem::new(
-            &s.robot,
-            &s.layout,
-            &s.data,
-            s.knots.clone(),
-            s.x.clone(),
-            &options(&s, Some(model.clone()), [1.0; 6]),
-            none,
-        )
-        .unwrap()
-    };
-    let mut p = problem();
+    let mut p = problem(&s, Some(model.clone()), [1.0; 6]);
     let theta = p.theta(&s.spline, &s.x);
     p.begin_iteration(&theta).unwrap();
     let levels = p.streams[0].inv_levels.clone();
@@ -367,7 +339,7 @@ fn motion_levels_are_held_for_the_whole_solve() {
     p.begin_iteration(&other).unwrap();
     assert_eq!(p.streams[0].inv_levels, levels);
     assert_eq!(p.cost(&theta).unwrap(), cost);
-    let mut q = problem();
+    let mut q = problem(&s, Some(model), [1.0; 6]);
     q.begin_iteration(&other).unwrap();
     let range = q.imu_range();
     let changed = range

@@ -5,7 +5,7 @@
 
 use robimu_model::effects::EffectSet;
 
-use super::gls_tests::{options, setup};
+use super::gls_tests::{options, problem, setup};
 use super::multi_tests::SZ;
 use super::Problem;
 use crate::{solve, LeastSquares, LmOptions};
@@ -13,20 +13,7 @@ use crate::{solve, LeastSquares, LmOptions};
 #[test]
 fn the_thinned_cost_is_every_kth_sample_weighted_by_k() {
     let s = setup();
-    let none = EffectSet::none();
-    let new = || {
-        Problem::new(
-            &s.robot,
-            &s.layout,
-            &s.data,
-            s.knots.clone(),
-            s.x.clone(),
-            &options(&s, None, SZ),
-            none,
-        )
-        .unwrap()
-    };
-    let (mut full, mut thin) = (new(), new());
+    let (mut full, mut thin) = (problem(&s, None, SZ), problem(&s, None, SZ));
     let mut theta = full.theta(&s.spline, &s.x);
     for (k, v) in theta.iter_mut().enumerate() {
         *v += 1e-3 * ((k as f64) * 0.37).sin();
