@@ -114,18 +114,23 @@ pub(super) fn options(s: &Setup, noise: Option<NoiseModel>, sigma_z: [f64; 6]) -
     }
 }
 
-/// The problem of `s` without effects, with `noise` and `sigma_z`.
-pub(super) fn problem(s: &Setup, noise: Option<NoiseModel>, sigma_z: [f64; 6]) -> Problem<'_> {
+/// The one-IMU problem of `s` with `opts` and the effects `set`.
+pub(super) fn build<'a>(s: &'a Setup, opts: &ProblemOptions, set: &'a EffectSet) -> Problem<'a> {
     Problem::new(
         &s.robot,
         &s.layout,
         &s.data,
         s.knots.clone(),
         s.x.clone(),
-        &options(s, noise, sigma_z),
-        EffectSet::none(),
+        opts,
+        set,
     )
     .unwrap()
+}
+
+/// The problem of `s` without effects, with `noise` and `sigma_z`.
+pub(super) fn problem(s: &Setup, noise: Option<NoiseModel>, sigma_z: [f64; 6]) -> Problem<'_> {
+    build(s, &options(s, noise, sigma_z), EffectSet::none())
 }
 
 pub(super) fn linearized(p: &Problem<'_>, theta: &[f64]) -> (crate::ArrowMatrix, Vec<f64>, f64) {

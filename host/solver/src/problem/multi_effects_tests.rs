@@ -9,10 +9,10 @@ use robimu_model::effects::g_sensitivity::GSensitivity;
 use robimu_model::effects::EffectSet;
 use robimu_model::JointState;
 
-use super::gls_tests::{linearized, noise_model, options, setup, Setup};
+use super::gls_tests::{build, linearized, noise_model, options, setup};
 use super::multi_tests::check_against_finite_differences;
 use super::multi_tests::{two_imus, SZ};
-use super::{Problem, ProblemError, ProblemOptions};
+use super::{Problem, ProblemError};
 use crate::LeastSquares;
 
 /// g_sensitivity on IMU 1, encoder_scale shared.
@@ -137,20 +137,6 @@ fn per_sensor_and_shared_effects_on_two_imus_are_the_gauss_newton_of_all_residua
         assert_ne!(a.get(e0 + 9, pos("k_w_x")), 0.0);
         assert_ne!(a.get(e0 + 9, pos("imu1/k_w_x")), 0.0);
     }
-}
-
-/// The one-IMU problem of `s` with `set`.
-fn build<'a>(s: &'a Setup, opts: &ProblemOptions, set: &'a EffectSet) -> Problem<'a> {
-    Problem::new(
-        &s.robot,
-        &s.layout,
-        &s.data,
-        s.knots.clone(),
-        s.x.clone(),
-        opts,
-        set,
-    )
-    .unwrap()
 }
 
 /// With every effect on IMU 0 or shared a one-IMU problem is today's: the
