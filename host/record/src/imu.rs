@@ -261,5 +261,38 @@ fn stream<R: Read, W: Write>(
         }
     }
     let _ = link.send(&HostMessage::Stop);
+    final_status(&mut link, infos.len(), tx);
     *stats.lock().unwrap_or_else(|e| e.into_inner()) = *link.stats();
+}
+
+/// How long a stopped board's last health reports are waited for.
+const FINAL_STATUS_WAIT: Duration = Duration::from_millis(300);
+
+/// After Stop: ask for the board's health reports once more and pass one
+/// per sensor on, so that the drop counters of the recording's summary
+/// cover its last second too (the periodic reports come about once a
+/// second). Samples still in flight are not kept; a board that does not
+/// answer within [`FINAL_STATUS_WAIT`] leaves its last periodic counts.
+fn final_status<R: Read, W: Write>(
+    link: &mut ImuClient<R, W>,
+    sensors: usize,
+    tx: &Sender<ImuEvent>,
+) {
+    if link.send(&HostMessage::GetStatus).is_err() {
+        return;
+    }
+    let deadline = Instant::now() + FINAL_STATUS_WAIT;
+    let mut seen = vec![false; sensors];
+    while seen.iter().any(|s| !s) && Instant::now() < deadline {
+        match link.poll() {
+            Ok(Some(DeviceMessage::Status(s))) => {
+                if let Some(k) = seen.get_mut(usize::from(s.sensor)) {
+                    *k = true;
+                    let _ = tx.send(ImuEvent::Status(s));
+                }
+            }
+            Ok(_) => {}
+            Err(_) => return,
+        }
+    }
 }

@@ -137,9 +137,10 @@ pub fn real_time_slot() -> std::sync::MutexGuard<'static, ()> {
 /// sequence gap is a slot the board itself missed and counted (a host that
 /// stalls the simulated board's thread past a sample deadline makes it drop
 /// and count the sample, as the real board does on an overrun: how many
-/// depends on the machine's load, not on robimu), and the delivered and the
-/// missed slots together fill the configured rate over the recording, to
-/// 1 %.
+/// depends on the machine's load, not on robimu; the count is the board's
+/// report after Stop, which may also hold drops after the last sample the
+/// host read, so it may exceed the gaps), and the delivered and the missed
+/// slots together fill the configured rate over the recording, to 1 %.
 #[track_caller]
 pub fn assert_every_slot_accounted(
     samples: u64,
@@ -148,10 +149,9 @@ pub fn assert_every_slot_accounted(
     rate_hz: f64,
     duration: f64,
 ) {
-    assert_eq!(
-        seq_gaps,
-        u64::from(dropped),
-        "sequence gaps that the board did not count as its own drops"
+    assert!(
+        seq_gaps <= u64::from(dropped),
+        "{seq_gaps} sequence gaps, of which the board counted only {dropped} as its own drops"
     );
     let slots = (samples + seq_gaps) as f64;
     let want = rate_hz * duration;
