@@ -154,10 +154,7 @@ fn pairwise(theirs: &[f64], ours: &[f64]) -> String {
     let (lo, hi) = r
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(l, h), &v| (l.min(v), h.max(v)));
-    format!(
-        " (run by run: median {:.2}x, {lo:.2}–{hi:.2}x)",
-        median(r.clone())
-    )
+    format!(" (run by run: median {:.2}x, {lo:.2}–{hi:.2}x)", median(r))
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -274,13 +271,12 @@ fn main() {
                 );
             }
             if !peers.is_empty() {
-                let walls_this = &walls;
-                let walls: Vec<f64> = peers.iter().map(|r| r.wall).collect();
-                let (their, their_min) = median_min(&walls);
+                let peer_walls: Vec<f64> = peers.iter().map(|r| r.wall).collect();
+                let (their, their_min) = median_min(&peer_walls);
                 line += &format!(
                     "; Ceres peer interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's{}",
                     their / med,
-                    pairwise(&walls, walls_this)
+                    pairwise(&peer_walls, &walls)
                 );
                 if peers.iter().all(|r| r.cpu.is_some()) {
                     let user = median(peers.iter().map(|r| r.cpu.unwrap().0).collect());
