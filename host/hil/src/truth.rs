@@ -16,6 +16,10 @@
 //!   curve's mean.
 //! * `joint_elasticity.c_j`: the arm's compliance (its mass model is the
 //!   catalogue's), 0 on loaded joints that do not deflect.
+//! * With the structural mode (the realistic twin), every value plus the
+//!   compared model's share of it: its estimate minus its estimate from
+//!   the session without the mode's signal ([`mode_signal`]; computed by
+//!   the caller, which has the fits, and passed to [`twin_truth`]).
 //! * Any other effect parameter: 0 (the twin has no such effect), except
 //!   those listed in [`TwinTruth::not_comparable`] (`resonance`: the
 //!   twin's mode moves the IMU mount, the catalogue's deflects the joints;
@@ -23,8 +27,10 @@
 //!   reference temperature).
 
 use robimu_bno055_sim::Timing;
+use robimu_model::ParamLayout;
 use robimu_session::{ImuTiming, Truth};
 
+use crate::arm_physics::{ArmEffects, ArmPhysics, UrdfArm};
 use crate::rig::{ChipModel, SimRigConfig};
 
 /// Effect names whose parameters have no truth in the twin.
@@ -48,12 +54,22 @@ pub struct TwinTruth {
     pub not_comparable: Vec<(String, String)>,
     /// The gyroscope's and accelerometer's signal delays d_g, d_a, s.
     pub delays: [f64; 2],
+    /// The structural mode's share included in `values`, by name.
+    pub mode: Vec<(String, f64)>,
 }
 
 impl TwinTruth {
     /// The truth of `name`, if the twin has one.
     pub fn get(&self, name: &str) -> Option<f64> {
         self.values.iter().find(|(n, _)| n == name).map(|v| v.1)
+    }
+
+    /// The structural mode's share of the truth of `name` (0 without one).
+    pub fn mode_share(&self, name: &str) -> f64 {
+        self.mode
+            .iter()
+            .find(|(n, _)| n == name)
+            .map_or(0.0, |v| v.1)
     }
 }
 
@@ -72,13 +88,16 @@ pub fn signal_delay(bandwidth_hz: f64, odr_hz: f64) -> f64 {
 /// truth is `truth` (τ = 0, as the rig reports it): `timing` from its
 /// session.toml, `since_power_on` the IMU samples' times since the board's
 /// power-up (s, for the warm-up), `effect_params` the parameter names of
-/// the effects in the model compared (e.g. diagnose's final fit).
+/// the effects in the model compared (e.g. diagnose's final fit), `mode`
+/// the structural mode's share of the estimate per parameter name
+/// ([`mode_signal`]).
 pub fn twin_truth(
     config: &SimRigConfig,
     truth: &Truth,
     timing: Option<&ImuTiming>,
     since_power_on: &[f64],
     effect_params: &[String],
+    mode: Option<&[(String, f64)]>,
 ) -> TwinTruth {
     let clock = 1.0 + config.chip_clock_error_ppm * 1e-6;
     let delays = match (config.chip, timing) {
@@ -108,6 +127,9 @@ pub fn twin_truth(
         if let Some(c) = BIAS_NAMES.iter().position(|b| b == name) {
             *v += bias.b[c];
         }
+        if let Some((_, d)) = mode.and_then(|m| m.iter().find(|(n, _)| n == name)) {
+            *v += d;
+        }
     }
     let mut not_comparable = Vec::new();
     for p in effect_params {
@@ -121,18 +143,89 @@ pub fn twin_truth(
             }
             continue;
         }
-        let value = effect_truth(config, p, delays, &bias);
-        values.push((p.clone(), value));
+        let share = mode
+            .and_then(|m| m.iter().find(|(n, _)| n == p))
+            .map_or(0.0, |v| v.1);
+        values.push((p.clone(), effect_truth(config, p, delays, &bias) + share));
     }
     TwinTruth {
         values,
         not_comparable,
         delays,
+        mode: mode.map(<[_]>::to_vec).unwrap_or_default(),
     }
 }
 
 const BIAS_NAMES: [&str; 6] = ["b_a_x", "b_a_y", "b_a_z", "b_w_x", "b_w_y", "b_w_z"];
 const CHANNELS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
+
+/// The IMU's joint state at one sample: arm time t (s) and q, q̇, q̈.
+#[derive(Clone, Debug)]
+pub struct MotionSample {
+    /// Arm time, s (the mode integrates along it).
+    pub t: f64,
+    /// q, rad.
+    pub q: Vec<f64>,
+    /// q̇, rad/s.
+    pub qd: Vec<f64>,
+    /// q̈, rad/s².
+    pub qdd: Vec<f64>,
+}
+
+/// The structural mode's part of the noise-free output at each sample of
+/// `motion` (docs/model.md §4.8): the twin's signal with its mount mode
+/// minus the same without it (`[ax, ay, az, gx, gy, gz]`). None when the
+/// twin has no mode.
+///
+/// Below its frequency the mount's mode adds to ω the flange's rate
+/// filtered by ≈ (f/f₀)² and to s a tilt and a lag of the flange's
+/// acceleration: a signal that follows the motion, so a calibration absorbs
+/// part of it into the sensors' gains, axes and the trajectory. What it
+/// absorbs is the truth's share of the mode: the difference between the
+/// fits of the session with and without this signal (the demo's
+/// `mode_share_of`).
+pub fn mode_signal(
+    config: &SimRigConfig,
+    motion: &[MotionSample],
+) -> Result<Option<Vec<[f64; 6]>>, TruthError> {
+    let Some(effects) = config.arm_physics.as_ref().filter(|e| e.mode.is_some()) else {
+        return Ok(None);
+    };
+    let robot = &config.robot;
+    let layout = ParamLayout::new(robot);
+    let mut x = config.truth.clone();
+    if let Some(tau) = x.get_mut(layout.offsets().tau) {
+        *tau = 0.0;
+    }
+    let arm = UrdfArm::from_model(robot, &layout, &x)?;
+    let still = ArmEffects {
+        mode: None,
+        ..effects.clone()
+    };
+    let mut with = ArmPhysics::new(arm.clone(), effects.clone(), robot.gravity())?;
+    let mut without = ArmPhysics::new(arm, still, robot.gravity())?;
+    Ok(Some(
+        motion
+            .iter()
+            .map(|m| {
+                let z = with.signal(m.t, &m.q, &m.qd, &m.qdd);
+                let z0 = without.signal(m.t, &m.q, &m.qd, &m.qdd);
+                std::array::from_fn(|c| z[c] - z0[c])
+            })
+            .collect(),
+    ))
+}
+
+/// Why [`mode_signal`] could not be computed.
+#[derive(Debug, thiserror::Error)]
+pub enum TruthError {
+    /// The truth does not fit the robot.
+    #[error(transparent)]
+    Model(#[from] robimu_model::ModelError),
+    /// The twin's arm could not be built.
+    #[error(transparent)]
+    Arm(#[from] crate::arm_physics::ArmPhysicsError),
+}
 
 /// The truth of effect parameter `name` (0 unless the twin has the effect).
 fn effect_truth(config: &SimRigConfig, name: &str, delays: [f64; 2], bias: &BiasProjection) -> f64 {
@@ -243,6 +336,73 @@ fn warm_up_projection(config: &SimRigConfig, t: &[f64], segments: Option<usize>)
 mod tests {
     use super::*;
     use robimu_model::Robot;
+
+    /// Joint 1 swinging as A sin(Ωt), the others still: the mount's
+    /// rotation obeys φ̈ + 2ζω₀φ̇ + ω₀²φ = −α (base frame), so once the
+    /// start's transient has died φ̇ = r²/(1 − r²) ω to O(ζr) (r = Ω/ω₀,
+    /// ω the flange's rate, about joint 1's axis; the forced response of a
+    /// base-excited oscillator, an independent formula): the gyroscope's
+    /// part of the mode's signal, taken back through the sensor's K Γ R and
+    /// the IMU's orientation, is that.
+    #[test]
+    fn the_mode_signal_is_the_base_excited_oscillators_response() {
+        let robot = Robot::aubo_i5();
+        let config = SimRigConfig::realistic(robot.clone(), 3).unwrap();
+        let mode = config.arm_physics.as_ref().unwrap().mode.unwrap();
+        let (f, amp) = (0.7, 0.4);
+        let omega = 2.0 * std::f64::consts::PI * f;
+        let r = f / mode.frequency_hz;
+        let pose = [0.0, 0.3, 1.2, -0.4, 0.8, 0.2];
+        let motion: Vec<MotionSample> = (0..3000)
+            .map(|i| {
+                let t = i as f64 / 200.0;
+                let mut q = pose.to_vec();
+                let mut qd = vec![0.0; 6];
+                let mut qdd = vec![0.0; 6];
+                q[0] = amp * (omega * t).sin();
+                qd[0] = amp * omega * (omega * t).cos();
+                qdd[0] = -amp * omega * omega * (omega * t).sin();
+                MotionSample { t, q, qd, qdd }
+            })
+            .collect();
+        let dz = mode_signal(&config, &motion).unwrap().unwrap();
+        let layout = ParamLayout::new(&robot);
+        let p = layout.unpack(&config.truth).unwrap();
+        let arm = UrdfArm::from_model(&robot, &layout, &config.truth).unwrap();
+        // the joints stand deflected by the elasticity: the IMU's orientation there
+        let effects = config.arm_physics.clone().unwrap();
+        let physics = ArmPhysics::new(arm.clone(), effects, robot.gravity()).unwrap();
+        let expected = r * r / (1.0 - r * r);
+        // after 5 s: the start's transient has decayed by e^{−ζω₀t} ≈ 6·10⁻⁴
+        let pairs: Vec<_> = motion
+            .iter()
+            .zip(&dz)
+            .skip(1000)
+            .map(|(m, d)| {
+                let raw = [d[3] + p.gyro.b[0], d[4] + p.gyro.b[1], d[5] + p.gyro.b[2]];
+                let [q, qd, qdd] = physics.actual_joints(&m.q, &m.qd, &m.qdd);
+                let k = arm.kinematics(&q, &qd, &qdd);
+                let u = k.r * nalgebra::Vector3::from(p.gyro.invert(raw).unwrap());
+                (u, k.r * k.omega)
+            })
+            .collect();
+        let slope = pairs.iter().map(|(u, w)| u.dot(w)).sum::<f64>()
+            / pairs.iter().map(|(_, w)| w.norm_squared()).sum::<f64>();
+        assert!(
+            (slope / expected - 1.0).abs() < 1e-3,
+            "φ̇ / ω = {slope:.5e}, the oscillator's {expected:.5e}"
+        );
+        let peak = expected * amp * omega;
+        let off = pairs
+            .iter()
+            .map(|(u, w)| (u - w * expected).norm())
+            .fold(0.0, f64::max);
+        // the damping's phase lag: 2ζr/(1 − r²) ≈ 2·10⁻³ of the peak
+        assert!(
+            off < 0.005 * peak,
+            "φ̇ off the oscillator's by {off:.2e} (peak {peak:.2e})"
+        );
+    }
 
     fn warm_config() -> (SimRigConfig, crate::physics::WarmUp) {
         let mut config = SimRigConfig::drawn(Robot::aubo_i5(), 1);

@@ -144,6 +144,10 @@ pub struct TruthRow {
     pub sigma: f64,
     /// The twin's truth (docs/model.md §4.8).
     pub truth: f64,
+    /// The part of `truth` that is the model's share of the twin's
+    /// structural mode (what it absorbs of an effect it does not have,
+    /// docs/model.md §4.8); 0 without a mode.
+    pub mode_share: f64,
 }
 
 impl TruthRow {
@@ -189,7 +193,7 @@ impl DemoTruthCheck {
     }
 
     /// `truth_check.json`: `{"model", "twin", "effects", "limit_sigma", "all_within",
-    /// "worst", "parameters": [{"name", "estimate", "sigma", "truth", "z"}],
+    /// "worst", "parameters": [{"name", "estimate", "sigma", "truth", "z", "mode_share"}],
     /// "not_comparable": [{"effect", "why"}]}`.
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::json!({
@@ -201,7 +205,7 @@ impl DemoTruthCheck {
             "worst": self.worst().map(|r| serde_json::json!({"name": r.name, "z": r.z()})),
             "parameters": self.rows.iter().map(|r| serde_json::json!({
                 "name": r.name, "estimate": r.estimate, "sigma": r.sigma,
-                "truth": r.truth, "z": r.z(),
+                "truth": r.truth, "z": r.z(), "mode_share": r.mode_share,
             })).collect::<Vec<_>>(),
             "not_comparable": self.not_comparable.iter().map(|(e, why)| serde_json::json!({
                 "effect": e, "why": why,
@@ -246,6 +250,24 @@ impl fmt::Display for DemoTruthCheck {
         }
         for (e, why) in &self.not_comparable {
             writeln!(f, "  {e}: not compared ({why})")?;
+        }
+        let mut shares: Vec<&TruthRow> = self.rows.iter().filter(|r| r.mode_share != 0.0).collect();
+        shares.sort_by(|a, b| {
+            (b.mode_share / b.sigma)
+                .abs()
+                .total_cmp(&(a.mode_share / a.sigma).abs())
+        });
+        if !shares.is_empty() {
+            writeln!(
+                f,
+                "  the truth includes the model's share of the twin's structural mode (docs/model.md §4.8), largest: {}",
+                shares
+                    .iter()
+                    .take(3)
+                    .map(|r| format!("{} {:+.1}σ", r.name, r.mode_share / r.sigma))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )?;
         }
         let failures = self.failures();
         match (failures.is_empty(), self.worst()) {

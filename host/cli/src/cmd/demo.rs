@@ -22,8 +22,9 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use robimu_hil::rig::{SimRig, SimRigConfig};
-use robimu_hil::truth::twin_truth;
+use robimu_hil::truth::{mode_signal, twin_truth, MotionSample};
 use robimu_hil::twin::{record_offline, TwinOptions};
+use robimu_model::observations::Measurements;
 use robimu_model::ParamLayout;
 use robimu_model::Robot;
 use robimu_protocol::SensorConfig;
@@ -35,6 +36,8 @@ use robimu_report::demo::{DemoTruthCheck, TruthRow};
 use robimu_session::files;
 use robimu_session::result::CalibrationResult;
 use robimu_session::{Session, Truth};
+use robimu_workflows::calibrate::{calibrate, CalibrateOptions};
+use robimu_workflows::diagnose::refit_final;
 use robimu_workflows::diagnose::Diagnosis;
 use robimu_workflows::plan::PlanOptions;
 
@@ -175,7 +178,10 @@ impl DemoCmd {
         // calibrate's report compares with.
         let hidden =
             Truth::read(&session.join(files::TRUTH)).context("cannot read the hidden truth")?;
-        let truth_for = |effects: &[String]| -> anyhow::Result<robimu_hil::truth::TwinTruth> {
+        let mode = ModeShare::of(&config, session)?;
+        let truth_for = |effects: &[String],
+                         mode: Option<&[(String, f64)]>|
+         -> anyhow::Result<robimu_hil::truth::TwinTruth> {
             let s = Session::load(session)?;
             let timing = s.meta.imu_timing(&session.join(files::META))?;
             let since: Vec<f64> = s
@@ -190,9 +196,10 @@ impl DemoCmd {
                 timing.as_ref(),
                 &since,
                 effects,
+                mode,
             ))
         };
-        let baseline = truth_for(&[])?;
+        let baseline = truth_for(&[], mode.as_ref().map(|m| m.baseline.as_slice()))?;
         let path = session.join(files::TRUTH);
         std::fs::write(
             &path,
@@ -218,7 +225,10 @@ impl DemoCmd {
                 self.imus
             )?;
             writeln!(out, "\n== 6. against the truth ==")?;
-            self.joint_truth_check(session, &truth_for(&[])?)?
+            self.joint_truth_check(
+                session,
+                &truth_for(&[], mode.as_ref().map(|m| m.baseline.as_slice()))?,
+            )?
         } else {
             writeln!(out, "\n== 5. diagnose ==")?;
             out.flush()?;
@@ -233,7 +243,11 @@ impl DemoCmd {
                 .iter()
                 .map(|p| p.name.clone())
                 .collect();
-            self.truth_check(&robot, &d, &truth_for(&names)?)
+            let share = match &mode {
+                Some(m) => Some(m.of_final(&robot, &d)?),
+                None => None,
+            };
+            self.truth_check(&robot, &d, &truth_for(&names, share.as_deref())?)
         };
         write!(out, "{check}")?;
         std::fs::create_dir_all(&report)
@@ -387,6 +401,7 @@ impl DemoCmd {
                     estimate: fit.x[k],
                     sigma: fit.sigma_x[k],
                     truth: t,
+                    mode_share: truth.mode_share(&spec.name),
                 });
             }
         }
@@ -397,6 +412,7 @@ impl DemoCmd {
                     estimate: fit.theta_e[i],
                     sigma: fit.sigma_e[i],
                     truth: t,
+                    mode_share: truth.mode_share(&p.name),
                 });
             }
         }
@@ -430,6 +446,7 @@ impl DemoCmd {
                     estimate: p.value,
                     sigma: p.sigma,
                     truth: truth.get(&p.name)?,
+                    mode_share: truth.mode_share(&p.name),
                 })
             })
             .collect();
@@ -495,4 +512,107 @@ impl DemoCmd {
         }
         .run()
     }
+}
+
+/// The twin's structural mode in a session (docs/model.md §4.8): the
+/// session's samples with the mode's part of the signal taken out, and its
+/// share of the baseline calibration. A model's share of the mode is its
+/// estimate minus its estimate from those samples: what it absorbs of an
+/// effect it does not have, which the truth it is compared with includes.
+struct ModeShare {
+    /// The session's samples without the mode's signal.
+    still: Measurements,
+    /// The calibration options of the session.
+    opts: CalibrateOptions,
+    /// Per parameter of x: the baseline calibration's share.
+    baseline: Vec<(String, f64)>,
+}
+
+impl ModeShare {
+    /// None when the twin has no mode. The mode's signal ([`mode_signal`])
+    /// follows the baseline calibration's trajectory at each IMU sample.
+    fn of(config: &SimRigConfig, session: &Path) -> anyhow::Result<Option<Self>> {
+        if config.arm_physics.as_ref().is_none_or(|a| a.mode.is_none()) {
+            return Ok(None);
+        }
+        let s = Session::load(session)?;
+        let data = s.measurements();
+        let robot = &config.robot;
+        let n = robot.dof();
+        let mut opts = CalibrateOptions::new(robot);
+        (opts.sigma_z, opts.sigma_q) = s.noise(robot)?;
+        let with =
+            calibrate(robot, &data, &opts, |_| {}).context("cannot calibrate for the truth")?;
+        let layout = ParamLayout::new(robot);
+        let (tau, spline) = (with.x[layout.offsets().tau], &with.trajectory);
+        let mut js = robimu_model::JointState::default();
+        let (index, motion): (Vec<usize>, Vec<MotionSample>) = data
+            .imu_t
+            .iter()
+            .enumerate()
+            .filter(|(_, &t)| spline.knots().contains(t + tau))
+            .map(|(i, &t)| {
+                spline.evaluate_clamped(t + tau, &mut js);
+                let sample = MotionSample {
+                    t,
+                    q: js.q[..n].to_vec(),
+                    qd: js.qd[..n].to_vec(),
+                    qdd: js.qdd[..n].to_vec(),
+                };
+                (i, sample)
+            })
+            .unzip();
+        let Some(dz) = mode_signal(config, &motion)? else {
+            return Ok(None);
+        };
+        let mut still = data.clone();
+        for (&i, d) in index.iter().zip(&dz) {
+            for (z, d) in still.imu_z[i].iter_mut().zip(d) {
+                *z -= d;
+            }
+        }
+        let without =
+            calibrate(robot, &still, &opts, |_| {}).context("cannot calibrate for the truth")?;
+        let baseline = differences(&layout, &with.x, &without.x, &[], &[], &[]);
+        Ok(Some(Self {
+            still,
+            opts,
+            baseline,
+        }))
+    }
+
+    /// The share of diagnose's final model: its estimate minus its refit
+    /// to the samples without the mode.
+    fn of_final(&self, robot: &Robot, d: &Diagnosis) -> anyhow::Result<Vec<(String, f64)>> {
+        let f = &d.final_fit;
+        let without = refit_final(robot, &self.still, &self.opts, d)
+            .context("cannot refit diagnose's model for the truth")?;
+        let names: Vec<String> = f.effect_params.iter().map(|p| p.name.clone()).collect();
+        Ok(differences(
+            &ParamLayout::new(robot),
+            &f.x,
+            &without.x,
+            &names,
+            &f.theta_e,
+            &without.theta_e,
+        ))
+    }
+}
+
+/// (name, a − b) of every parameter of x and every effect parameter.
+fn differences(
+    layout: &ParamLayout,
+    x_a: &[f64],
+    x_b: &[f64],
+    effect_names: &[String],
+    e_a: &[f64],
+    e_b: &[f64],
+) -> Vec<(String, f64)> {
+    let x = layout
+        .specs()
+        .iter()
+        .map(|s| s.name.clone())
+        .zip(x_a.iter().zip(x_b));
+    let e = effect_names.iter().cloned().zip(e_a.iter().zip(e_b));
+    x.chain(e).map(|(n, (a, b))| (n, a - b)).collect()
 }

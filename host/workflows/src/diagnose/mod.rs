@@ -473,6 +473,26 @@ impl Diagnosis {
     }
 }
 
+/// The final model of `d` fitted to `data`, other samples of the same
+/// session (e.g. with a known signal taken out): the same effects, noise
+/// model and knots, from the final fit's estimate.
+pub fn refit_final(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    d: &Diagnosis,
+) -> Result<Fit, DiagnoseError> {
+    let f = &d.final_fit;
+    fit_effects(
+        robot,
+        data,
+        &with_noise_of(opts, f),
+        &d.setup,
+        &f.effects,
+        Start::Refit(f),
+    )
+}
+
 /// The calibration options of the fits and tests under the noise of `f`
 /// (`None` when white).
 fn with_noise_of(opts: &CalibrateOptions, f: &Fit) -> CalibrateOptions {
