@@ -234,7 +234,10 @@ fn the_demo_on_the_realistic_twin_recovers_the_truth_within_4_sigma() {
         let name = format!("k_w_{axis}");
         let p = params.iter().find(|p| p["name"] == name.as_str()).unwrap();
         let share = p["mode_share"].as_f64().unwrap() / p["sigma"].as_f64().unwrap();
-        assert!((0.2..3.0).contains(&share), "{name}: mode share {share:+.2}σ");
+        assert!(
+            (0.2..3.0).contains(&share),
+            "{name}: mode share {share:+.2}σ"
+        );
     }
     assert!(
         run.stdout.contains("share of the twin's structural mode"),
