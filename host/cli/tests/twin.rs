@@ -190,6 +190,43 @@ fn the_virtual_time_twin_records_what_the_real_time_rig_records() {
     );
 }
 
+/// The clock mapping's error the twin reports
+/// ([`TwinSummary::imu_time_error_s`], which the demo's τ truth adds) puts
+/// the session's IMU times back where the board stamped them: on its poll
+/// grid (virtual time advances by whole polls). Without it they sit half a
+/// poll off (a ping is answered at the next poll and its echo read there).
+#[test]
+fn the_twins_imu_time_error_puts_the_samples_back_on_the_poll_grid() {
+    let p = plan(2, 10.0);
+    let mut config = SimRigConfig::realistic_null(Robot::aubo_i5(), 2).unwrap();
+    config.initial = p.q[0];
+    let dir = tempfile::tempdir().unwrap();
+    let s = offline(&config, &p, dir.path());
+    let poll = TwinOptions::default().poll_interval_s;
+    let data = Session::load(dir.path()).unwrap().measurements();
+    // the largest distance of a sample's time + e from the grid, in polls
+    let off = |e: f64| {
+        data.imu_t
+            .iter()
+            .map(|t| {
+                let x = (t + e) / poll;
+                (x - x.round()).abs()
+            })
+            .fold(0.0f64, f64::max)
+    };
+    let e = s.imu_time_error_s;
+    assert!(
+        off(e) < 0.02,
+        "e = {e:.3e} s: {:.3} polls off the grid",
+        off(e)
+    );
+    assert!(off(0.0) > 0.4, "without e: {:.3} polls off", off(0.0));
+    assert!(
+        (e / poll - 0.5).abs() < 0.02,
+        "e = {e:.3e} s, poll {poll:.1e} s"
+    );
+}
+
 /// `robimu demo --fast` on the realistic twin at its defaults: diagnose's
 /// final model puts every parameter with a truth within 4σ of it
 /// (truth_check.json), the truth includes a share of the mount mode that

@@ -6,7 +6,9 @@
 //!   plus on average half an update period old, d_g = gd_g + 1/(2·ODR_g),
 //!   the ODR the chip's clock makes it (ODR·(1 + ε), ε its clock error),
 //!   so the sample stamped t saw the arm at t − d_g: τ = −d_g (the ideal
-//!   chip: 0).
+//!   chip: 0); plus, when it is known (virtual time), the error e of the
+//!   session's clock mapping (a sample the session puts at t was taken at
+//!   t + e): τ = e − d_g.
 //! * `sensor_delay.delta` = d_a − d_g, the same for the accelerometer.
 //! * With a warm-up, the biases are x*'s (settled) plus the offset curve
 //!   `o·f(t)` over the session's samples: when `bias_drift` (M segments)
@@ -90,7 +92,9 @@ pub fn signal_delay(bandwidth_hz: f64, odr_hz: f64) -> f64 {
 /// power-up (s, for the warm-up), `effect_params` the parameter names of
 /// the effects in the model compared (e.g. diagnose's final fit), `mode`
 /// the structural mode's share of the estimate per parameter name
-/// ([`mode_signal`]).
+/// ([`mode_signal`]), `imu_time_error_s` the IMU samples' true session
+/// times minus the session's (its clock mapping's error, when known:
+/// [`crate::twin::TwinSummary::imu_time_error_s`]; τ absorbs it).
 pub fn twin_truth(
     config: &SimRigConfig,
     truth: &Truth,
@@ -98,6 +102,7 @@ pub fn twin_truth(
     since_power_on: &[f64],
     effect_params: &[String],
     mode: Option<&[(String, f64)]>,
+    imu_time_error_s: f64,
 ) -> TwinTruth {
     let clock = 1.0 + config.chip_clock_error_ppm * 1e-6;
     let delays = match (config.chip, timing) {
@@ -122,7 +127,7 @@ pub fn twin_truth(
     let mut values: Vec<(String, f64)> = truth.values.clone();
     for (name, v) in values.iter_mut() {
         if name == "tau" {
-            *v = -delays[0];
+            *v = imu_time_error_s - delays[0];
         }
         if let Some(c) = BIAS_NAMES.iter().position(|b| b == name) {
             *v += bias.b[c];

@@ -113,6 +113,12 @@ pub struct TwinSummary {
     /// The board's power-up (the warm-up's time zero) before the session's
     /// time zero, s.
     pub powered_for_s: f64,
+    /// The IMU samples' true session times minus the times the session
+    /// gives them (its clock fit from the pings), at the session's middle,
+    /// s: the clock mapping's own error, which τ absorbs (docs/model.md
+    /// §4.8). A ping is answered at the next poll and its echo read there,
+    /// so the echo's midpoint is half a poll interval early.
+    pub imu_time_error_s: f64,
 }
 
 /// Virtual time, ns, shared by the board's clock, its delays and the arm.
@@ -464,6 +470,14 @@ pub fn record_offline(
     let dir = sink.finish()?;
     let (clock, _) = repair::remap_imu_times(&dir)?;
     robimu_record::write_clock_notes(&dir, &clock)?;
+    // the board's clock at the session's middle, and the time the fit gives it
+    let middle = epoch + duration / 2.0;
+    let device =
+        config.clock_offset_us as f64 * 1e-6 + middle * (1.0 + config.clock_drift_ppm * 1e-6);
+    let imu_time_error_s = clock
+        .iter()
+        .find(|(segment, _)| *segment == 0)
+        .map_or(0.0, |(_, fit)| duration / 2.0 - fit.to_session(device));
     let truth_path = dir.join(robimu_session::files::TRUTH);
     std::fs::write(&truth_path, truth.to_toml()).map_err(|e| SessionError::io(&truth_path, e))?;
     Ok(TwinSummary {
@@ -474,5 +488,6 @@ pub fn record_offline(
         device: info,
         truth,
         powered_for_s: epoch,
+        imu_time_error_s,
     })
 }

@@ -142,7 +142,9 @@ impl DemoCmd {
 
         writeln!(out, "\n== 3. record ==")?;
         let (plan_dir, session) = (plan_dir.as_path(), session.as_path());
-        let powered_for = if self.fast {
+        // with the clock mapping's error in virtual time (the twin knows its
+        // board's clock); in real time the link's latencies are not known: 0
+        let (powered_for, imu_time_error) = if self.fast {
             self.show_hardware(&config, None, None)?;
             let opts = TwinOptions {
                 sensor: self.sensor(),
@@ -160,7 +162,7 @@ impl DemoCmd {
                 s.joint_samples,
                 session.display()
             )?;
-            s.powered_for_s
+            (s.powered_for_s, s.imu_time_error_s)
         } else {
             let powered = Instant::now();
             let rig = SimRig::spawn(&config).context("cannot start the simulated hardware")?;
@@ -172,7 +174,7 @@ impl DemoCmd {
             let powered_for = powered.elapsed().as_secs_f64();
             self.record(&rig, robot.clone(), plan, plan_dir, session)?;
             drop(rig);
-            powered_for
+            (powered_for, 0.0)
         };
         // truth.toml: the twin's truth for the baseline model (§4.8), which
         // calibrate's report compares with.
@@ -197,6 +199,7 @@ impl DemoCmd {
                 &since,
                 effects,
                 mode,
+                imu_time_error,
             ))
         };
         let baseline = truth_for(&[], mode.as_ref().map(|m| m.baseline.as_slice()))?;
