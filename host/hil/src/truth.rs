@@ -188,7 +188,7 @@ pub struct MotionSample {
 /// part of it into the sensors' gains, axes and the trajectory. What it
 /// absorbs is the truth's share of the mode: the difference between the
 /// fits of the session with and without this signal (the demo's
-/// `mode_share_of`).
+/// `ModeShare`).
 pub fn mode_signal(
     config: &SimRigConfig,
     motion: &[MotionSample],
