@@ -131,6 +131,17 @@ impl DriftingClock {
         }
     }
 
+    /// Unwrapped device time at `instant`, µs, unrounded (what
+    /// [`Self::now_us_u64`] reads then, before its rounding down).
+    pub fn device_us_at(&self, instant: Instant) -> f64 {
+        let elapsed_us = if instant >= self.start {
+            (instant - self.start).as_secs_f64() * 1e6
+        } else {
+            -(self.start - instant).as_secs_f64() * 1e6
+        };
+        self.offset_us as f64 + elapsed_us * (1.0 + self.drift_ppm * 1e-6)
+    }
+
     /// Unwrapped device time, µs.
     pub fn now_us_u64(&self) -> u64 {
         let elapsed_us = self.start.elapsed().as_nanos() as f64 / 1000.0;
@@ -317,6 +328,7 @@ pub struct SimDevice {
     port_path: String,
     control: Arc<Control>,
     thread: Option<JoinHandle<Status>>,
+    clock: DriftingClock,
 }
 
 impl SimDevice {
@@ -344,15 +356,22 @@ impl SimDevice {
             rng: SplitMix(config.fault_seed),
         };
         let thread_control = Arc::clone(&control);
+        let clock = DriftingClock::new(config.clock_offset_us, config.clock_drift_ppm);
         let thread = thread::Builder::new()
             .name("robimu-sim-device".into())
-            .spawn(move || run(config, serial, &thread_control))
+            .spawn(move || run(config, serial, clock, &thread_control))
             .map_err(SimDeviceError::Thread)?;
         Ok(Self {
             port_path,
             control,
             thread: Some(thread),
+            clock,
         })
+    }
+
+    /// The board's clock until its first [`Self::reset`] (which restarts it).
+    pub fn clock(&self) -> DriftingClock {
+        self.clock
     }
 
     /// Replaces the injected serial faults (effective from the next write).
@@ -448,7 +467,12 @@ fn chips(
     }
 }
 
-fn run(mut config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Status {
+fn run(
+    mut config: SimDeviceConfig,
+    serial: PtySerial,
+    clock: DriftingClock,
+    control: &Control,
+) -> Status {
     let mut firmware = config.config;
     let second = config.second.take();
     if second.is_some() && firmware.second_address.is_none() {
@@ -466,7 +490,6 @@ fn run(mut config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Sta
         [Some(source), second.map(|s| s.source)],
         ppm,
     );
-    let clock = DriftingClock::new(config.clock_offset_us, config.clock_drift_ppm);
     let mut core: SimCore = Acquisition::new(bus, SleepDelay, serial, clock, firmware);
     // A boot failure leaves the core answering the host and retrying.
     let _ = core.start();
@@ -489,4 +512,32 @@ fn run(mut config: SimDeviceConfig, serial: PtySerial, control: &Control) -> Sta
         thread::sleep(config.poll_interval);
     }
     core.status()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `device_us_at` is the clock's reading at an instant: its offset and
+    /// rate over a second, and `now_us_u64` (which rounds down) now.
+    #[test]
+    fn device_us_at_is_the_clocks_reading_then() {
+        let clock = DriftingClock::new(1_234_000, 48.7);
+        let t0 = clock.device_us_at(clock.start);
+        assert_eq!(t0, 1_234_000.0);
+        let t1 = clock.device_us_at(clock.start + Duration::from_secs(1));
+        assert!(
+            (t1 - t0 - 1e6 * (1.0 + 48.7e-6)).abs() < 1e-6,
+            "{}",
+            t1 - t0
+        );
+        let before = clock.device_us_at(clock.start - Duration::from_millis(2));
+        assert!((t0 - before - 2e3 * (1.0 + 48.7e-6)).abs() < 1e-6);
+        let (a, read, b) = (Instant::now(), clock.now_us_u64(), Instant::now());
+        let (lo, hi) = (clock.device_us_at(a), clock.device_us_at(b));
+        assert!(
+            lo - 1.0 <= read as f64 && read as f64 <= hi,
+            "{lo} {read} {hi}"
+        );
+    }
 }

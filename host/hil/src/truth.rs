@@ -6,9 +6,9 @@
 //!   plus on average half an update period old, d_g = gd_g + 1/(2·ODR_g),
 //!   the ODR the chip's clock makes it (ODR·(1 + ε), ε its clock error),
 //!   so the sample stamped t saw the arm at t − d_g: τ = −d_g (the ideal
-//!   chip: 0); plus, when it is known (virtual time), the error e of the
-//!   session's clock mapping (a sample the session puts at t was taken at
-//!   t + e): τ = e − d_g.
+//!   chip: 0); plus the error e of the session's clock mapping (a sample
+//!   the session puts at t was taken at t + e; the twin knows its board's
+//!   clock): τ = e − d_g.
 //! * `sensor_delay.delta` = d_a − d_g, the same for the accelerometer.
 //! * With a warm-up, the biases are x*'s (settled) plus the offset curve
 //!   `o·f(t)` over the session's samples: when `bias_drift` (M segments)

@@ -204,6 +204,8 @@ pub struct RecordSummary {
     /// The joint times' mapping from the controller's clock (UR); `None`
     /// for a controller without one (AUBO: arrival times).
     pub joint_clock: Option<repair::JointClock>,
+    /// The host instant of the session's time 0 (streaming starts).
+    pub epoch: Instant,
 }
 
 /// One board of a recording.
@@ -451,6 +453,7 @@ pub fn record(
         clock,
         boards: summaries,
         joint_clock,
+        epoch,
     };
     match cause {
         None => Ok(summary),

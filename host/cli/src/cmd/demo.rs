@@ -142,8 +142,8 @@ impl DemoCmd {
 
         writeln!(out, "\n== 3. record ==")?;
         let (plan_dir, session) = (plan_dir.as_path(), session.as_path());
-        // with the clock mapping's error in virtual time (the twin knows its
-        // board's clock); in real time the link's latencies are not known: 0
+        // and the session clock mapping's own error (the twin knows its
+        // board's clock)
         let (powered_for, imu_time_error) = if self.fast {
             self.show_hardware(&config, None, None)?;
             let opts = TwinOptions {
@@ -172,9 +172,9 @@ impl DemoCmd {
                 Some(rig.robot_addr().to_string()),
             )?;
             let powered_for = powered.elapsed().as_secs_f64();
-            self.record(&rig, robot.clone(), plan, plan_dir, session)?;
+            let error = self.record(&rig, robot.clone(), plan, plan_dir, session)?;
             drop(rig);
-            (powered_for, 0.0)
+            (powered_for, error)
         };
         // truth.toml: the twin's truth for the baseline model (§4.8), which
         // calibrate's report compares with.
@@ -464,7 +464,9 @@ impl DemoCmd {
     }
 
     /// Records the plan from `rig` into `session` as `robimu record` does,
-    /// with the hidden truth beside it.
+    /// with the hidden truth beside it; returns the session clock mapping's
+    /// error at its middle (the IMU samples' true session times minus the
+    /// session's, docs/model.md §4.8).
     fn record(
         &self,
         rig: &SimRig,
@@ -472,7 +474,7 @@ impl DemoCmd {
         plan: Plan,
         plan_dir: &Path,
         session: &Path,
-    ) -> anyhow::Result<()> {
+    ) -> anyhow::Result<f64> {
         let robot_spec = rig.robot_spec();
         let command = DemoRecordCommand {
             imu_port: rig.imu_port(),
@@ -501,7 +503,17 @@ impl DemoCmd {
         print!("{}", super::record::imu_lines(&summary));
         let truth = session.join(files::TRUTH);
         std::fs::write(&truth, rig.truth().to_toml())
-            .with_context(|| format!("cannot write {}", truth.display()))
+            .with_context(|| format!("cannot write {}", truth.display()))?;
+        // the board's true clock at the session's middle against the time
+        // the session's clock fit gives it
+        let middle = summary.duration / 2.0;
+        let at = summary.epoch + std::time::Duration::from_secs_f64(middle);
+        let device = rig.device.clock().device_us_at(at) * 1e-6;
+        Ok(summary
+            .clock
+            .iter()
+            .find(|(segment, _)| *segment == 0)
+            .map_or(0.0, |(_, fit)| middle - fit.to_session(device)))
     }
 
     /// `robimu calibrate SESSION --report REPORT`.
