@@ -30,6 +30,7 @@
 
 use robimu_bno055_sim::Timing;
 use robimu_model::ParamLayout;
+use robimu_record::clock_fit::ClockFit;
 use robimu_session::{ImuTiming, Truth};
 
 use crate::arm_physics::{ArmEffects, ArmPhysics, UrdfArm};
@@ -68,10 +69,7 @@ impl TwinTruth {
 
     /// The structural mode's share of the truth of `name` (0 without one).
     pub fn mode_share(&self, name: &str) -> f64 {
-        self.mode
-            .iter()
-            .find(|(n, _)| n == name)
-            .map_or(0.0, |v| v.1)
+        share_of(&self.mode, name)
     }
 }
 
@@ -124,6 +122,7 @@ pub fn twin_truth(
         })
         .max();
     let bias = warm_up_projection(config, since_power_on, segments);
+    let mode = mode.unwrap_or_default();
     let mut values: Vec<(String, f64)> = truth.values.clone();
     for (name, v) in values.iter_mut() {
         if name == "tau" {
@@ -132,9 +131,7 @@ pub fn twin_truth(
         if let Some(c) = BIAS_NAMES.iter().position(|b| b == name) {
             *v += bias.b[c];
         }
-        if let Some((_, d)) = mode.and_then(|m| m.iter().find(|(n, _)| n == name)) {
-            *v += d;
-        }
+        *v += share_of(mode, name);
     }
     let mut not_comparable = Vec::new();
     for p in effect_params {
@@ -148,17 +145,32 @@ pub fn twin_truth(
             }
             continue;
         }
-        let share = mode
-            .and_then(|m| m.iter().find(|(n, _)| n == p))
-            .map_or(0.0, |v| v.1);
-        values.push((p.clone(), effect_truth(config, p, delays, &bias) + share));
+        values.push((
+            p.clone(),
+            effect_truth(config, p, delays, &bias) + share_of(mode, p),
+        ));
     }
     TwinTruth {
         values,
         not_comparable,
         delays,
-        mode: mode.map(<[_]>::to_vec).unwrap_or_default(),
+        mode: mode.to_vec(),
     }
+}
+
+/// The share of `name` in a list of (name, share); 0 when it is not listed.
+fn share_of(shares: &[(String, f64)], name: &str) -> f64 {
+    shares.iter().find(|(n, _)| n == name).map_or(0.0, |v| v.1)
+}
+
+/// The session clock mapping's own error at session time `middle`: the
+/// true session time of the board's clock reading `device_s` there (s,
+/// unwrapped) minus the time the session's clock fit of segment 0 gives it
+/// (0 without one). τ absorbs it (docs/model.md §4.8).
+pub fn clock_mapping_error(fits: &[(u32, ClockFit)], middle: f64, device_s: f64) -> f64 {
+    fits.iter()
+        .find(|(segment, _)| *segment == 0)
+        .map_or(0.0, |(_, fit)| middle - fit.to_session(device_s))
 }
 
 const BIAS_NAMES: [&str; 6] = ["b_a_x", "b_a_y", "b_a_z", "b_w_x", "b_w_y", "b_w_z"];

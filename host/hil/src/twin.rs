@@ -474,10 +474,7 @@ pub fn record_offline(
     let middle = epoch + duration / 2.0;
     let device =
         config.clock_offset_us as f64 * 1e-6 + middle * (1.0 + config.clock_drift_ppm * 1e-6);
-    let imu_time_error_s = clock
-        .iter()
-        .find(|(segment, _)| *segment == 0)
-        .map_or(0.0, |(_, fit)| duration / 2.0 - fit.to_session(device));
+    let imu_time_error_s = crate::truth::clock_mapping_error(&clock, duration / 2.0, device);
     let truth_path = dir.join(robimu_session::files::TRUTH);
     std::fs::write(&truth_path, truth.to_toml()).map_err(|e| SessionError::io(&truth_path, e))?;
     Ok(TwinSummary {

@@ -22,7 +22,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use robimu_hil::rig::{SimRig, SimRigConfig};
-use robimu_hil::truth::{mode_signal, twin_truth, MotionSample};
+use robimu_hil::truth::{clock_mapping_error, mode_signal, twin_truth, MotionSample};
 use robimu_hil::twin::{record_offline, TwinOptions};
 use robimu_model::observations::Measurements;
 use robimu_model::ParamLayout;
@@ -509,11 +509,7 @@ impl DemoCmd {
         let middle = summary.duration / 2.0;
         let at = summary.epoch + std::time::Duration::from_secs_f64(middle);
         let device = rig.device.clock().device_us_at(at) * 1e-6;
-        Ok(summary
-            .clock
-            .iter()
-            .find(|(segment, _)| *segment == 0)
-            .map_or(0.0, |(_, fit)| middle - fit.to_session(device)))
+        Ok(clock_mapping_error(&summary.clock, middle, device))
     }
 
     /// `robimu calibrate SESSION --report REPORT`.
