@@ -157,6 +157,29 @@ fn pairwise(theirs: &[f64], ours: &[f64]) -> String {
     format!(" (run by run: median {:.2}x, {lo:.2}–{hi:.2}x)", median(r))
 }
 
+/// The program a `--bin`, `--versus` or `--ceres` flag names. `cargo bench`
+/// runs this bench in the package's directory (host/cli), so a relative path
+/// is taken from the workspace root, where the README's commands are typed
+/// (`--ceres peers/ceres/robimu_ceres`), unless it names a file from here.
+fn program(flag: &str, path: &str) -> PathBuf {
+    let given = PathBuf::from(path);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let found = if given.is_relative() && !given.is_file() {
+        root.join(&given)
+    } else {
+        given
+    };
+    if !found.is_file() {
+        eprintln!(
+            "{flag} {path}: no such program (relative paths are taken from the workspace root {}; \
+             peers/ceres/build.sh builds the Ceres peer)",
+            root.display()
+        );
+        std::process::exit(2);
+    }
+    found
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -176,10 +199,10 @@ fn main() {
     assert!(imus > 0, "--imus must be at least 1");
     let bin = value("--bin").map_or_else(
         || PathBuf::from(env!("CARGO_BIN_EXE_robimu")),
-        PathBuf::from,
+        |p| program("--bin", p),
     );
-    let versus = value("--versus").map(PathBuf::from);
-    let ceres = value("--ceres").map(PathBuf::from);
+    let versus = value("--versus").map(|p| program("--versus", p));
+    let ceres = value("--ceres").map(|p| program("--ceres", p));
     let time = gnu_time();
     let work = tempfile::tempdir().expect("temporary directory");
     let mut cases = vec![("300 s at 120 Hz", 300.0, 120.0, 1)];

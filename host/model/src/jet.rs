@@ -50,11 +50,11 @@ impl Scalar for f64 {
     }
     #[inline(always)]
     fn sin(self) -> Self {
-        f64::sin(self)
+        crate::trig::sin_cos(self).0
     }
     #[inline(always)]
     fn cos(self) -> Self {
-        f64::cos(self)
+        crate::trig::sin_cos(self).1
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -62,7 +62,7 @@ impl Scalar for f64 {
     }
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        f64::sin_cos(self)
+        crate::trig::sin_cos(self)
     }
 }
 
@@ -220,7 +220,7 @@ impl<const N: usize> Scalar for Jet<N> {
     }
     #[inline(always)]
     fn sin(self) -> Self {
-        let (s, c) = self.v.sin_cos();
+        let (s, c) = crate::trig::sin_cos(self.v);
         Self {
             v: s,
             d: self.scale_grad(c),
@@ -228,7 +228,7 @@ impl<const N: usize> Scalar for Jet<N> {
     }
     #[inline(always)]
     fn cos(self) -> Self {
-        let (s, c) = self.v.sin_cos();
+        let (s, c) = crate::trig::sin_cos(self.v);
         Self {
             v: c,
             d: self.scale_grad(-s),
@@ -244,7 +244,7 @@ impl<const N: usize> Scalar for Jet<N> {
     }
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        let (s, c) = self.v.sin_cos();
+        let (s, c) = crate::trig::sin_cos(self.v);
         (
             Self {
                 v: s,

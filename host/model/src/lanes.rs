@@ -6,7 +6,8 @@
 //! Every lane computes exactly what the scalar code computes for its
 //! sample — the same operations in the same order, no fused multiply-add —
 //! so the four-lane results are bit-identical to four scalar evaluations
-//! (tested in `measurement_tests.rs`). The speed comes from the compiler
+//! (tested in `measurement_tests.rs`; sin and cos by [`crate::trig`]). The
+//! speed comes from the compiler
 //! turning each lane-wise operation into one AVX instruction where the CPU
 //! has it ([`has_avx2`]); elsewhere into two SSE2 instructions.
 
@@ -106,11 +107,11 @@ impl Scalar for F64x4 {
     }
     #[inline(always)]
     fn sin(self) -> Self {
-        self.map(f64::sin)
+        crate::trig::sin_cos_x4(self).0
     }
     #[inline(always)]
     fn cos(self) -> Self {
-        self.map(f64::cos)
+        crate::trig::sin_cos_x4(self).1
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -118,11 +119,7 @@ impl Scalar for F64x4 {
     }
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        let s = self.0.map(f64::sin_cos);
-        (
-            Self([s[0].0, s[1].0, s[2].0, s[3].0]),
-            Self([s[0].1, s[1].1, s[2].1, s[3].1]),
-        )
+        crate::trig::sin_cos_x4(self)
     }
 }
 
@@ -178,8 +175,8 @@ mod tests {
             assert_eq!((-a).0[l], -x);
             assert_eq!((a * 0.7).0[l], x * 0.7);
             assert_eq!((a + 0.7).0[l], x + 0.7);
-            assert_eq!(b.sin_cos().0 .0[l], y.sin());
-            assert_eq!(b.sin_cos().1 .0[l], y.cos());
+            assert_eq!(b.sin_cos().0 .0[l], Scalar::sin(y));
+            assert_eq!(b.sin_cos().1 .0[l], Scalar::cos(y));
         }
     }
 }

@@ -66,6 +66,7 @@ pub mod params;
 pub mod robot;
 pub mod spline;
 pub mod trajectory;
+pub mod trig;
 pub mod units;
 pub mod urdf;
 

@@ -87,7 +87,7 @@ impl BodyRate {
         let mut r = geom::identity();
         for ((l, &qi), &qdi) in self.links.iter().zip(q).zip(qd) {
             w = geom::add(w, geom::scale(geom::col(&r, 2), qdi));
-            let (st, ct) = (qi + l.theta0).sin_cos();
+            let (st, ct) = robimu_model::trig::sin_cos(qi + l.theta0);
             let mz = [
                 [ct, -st * l.ca, st * l.sa],
                 [st, ct * l.ca, -ct * l.sa],

@@ -187,7 +187,7 @@ impl MassModel {
     /// the twist's sine and cosine computed once ([`Self::twist`]).
     fn link_transform(&self, l: usize, q: f64) -> Iso {
         let dh = &self.links[l];
-        let (st, ct) = (q + dh.theta0).sin_cos();
+        let (st, ct) = crate::trig::sin_cos(q + dh.theta0);
         let (sa, ca) = self.twist[l];
         Iso {
             r: [
