@@ -9,9 +9,13 @@
 //! [`MeasurementModel`]'s chain walk and gyroscope output, in their order,
 //! so that ω equals the ω of [`MeasurementModel::inertial`] and the reading
 //! ω̃ the gyroscope's of [`MeasurementModel::predict`] bit for bit (tested).
+//! Generic over [`Scalar`]: with [`F64x4`] four joint states at once, each
+//! lane the bits of the `f64` call ([`robimu_model::lanes`]).
 
 use robimu_model::geom::{self, M3, V3};
-use robimu_model::{MeasurementModel, Robot};
+use robimu_model::jet::Scalar;
+use robimu_model::lanes::F64x4;
+use robimu_model::{MeasurementModel, Robot, MAX_JOINTS};
 
 /// One link's constant rotations.
 #[derive(Debug, Clone)]
@@ -70,40 +74,103 @@ impl BodyRate {
 
     /// The gyroscope's reading ω̃ = K Γ R ω + b (eq. (6)): the last three
     /// entries of [`MeasurementModel::predict`].
-    pub fn gyro(&self, q: &[f64], qd: &[f64]) -> V3 {
-        geom::add(geom::mul_mv(&self.gyro_m, self.imu(q, qd)), self.gyro_b)
+    #[inline(always)]
+    pub fn gyro<S: Scalar>(&self, q: &[S], qd: &[S]) -> V3<S> {
+        geom::add(
+            geom::mul_mv(&cst_m(&self.gyro_m), self.imu(q, qd)),
+            self.gyro_b.map(S::cst),
+        )
     }
 
     /// ω in the IMU frame at joint positions `q` and speeds `qd` (one per
     /// joint).
-    pub fn imu(&self, q: &[f64], qd: &[f64]) -> V3 {
+    #[inline(always)]
+    pub fn imu<S: Scalar>(&self, q: &[S], qd: &[S]) -> V3<S> {
         let (w, r) = self.base(q, qd);
         geom::mul_mtv(&r, w)
     }
 
     /// ω_n in the base frame and the IMU frame's rotation R_n.
-    pub fn base(&self, q: &[f64], qd: &[f64]) -> (V3, M3) {
-        let mut w = [0.0; 3];
+    #[inline(always)]
+    pub fn base<S: Scalar>(&self, q: &[S], qd: &[S]) -> (V3<S>, M3<S>) {
+        let zero = S::cst(0.0);
+        let mut w = [zero; 3];
         let mut r = geom::identity();
         for ((l, &qi), &qdi) in self.links.iter().zip(q).zip(qd) {
             w = geom::add(w, geom::scale(geom::col(&r, 2), qdi));
-            let (st, ct) = robimu_model::trig::sin_cos(qi + l.theta0);
+            let (st, ct) = (qi + l.theta0).sin_cos();
             let mz = [
                 [ct, -st * l.ca, st * l.sa],
                 [st, ct * l.ca, -ct * l.sa],
-                [0.0, l.sa, l.ca],
+                [zero, S::cst(l.sa), S::cst(l.ca)],
             ];
             let mut rg = geom::mul_mm(&r, &mz);
             if let Some(cr) = &l.fixed {
-                rg = geom::mul_mm(&rg, cr);
+                rg = geom::mul_mm(&rg, &cst_m(cr));
             }
             r = match &l.error {
-                Some(e) => geom::mul_mm(&rg, e),
+                Some(e) => geom::mul_mm(&rg, &cst_m(e)),
                 None => rg,
             };
         }
         (w, r)
     }
+
+    /// [`Self::imu`] of four joint states, one per lane (`q[j][l]`,
+    /// `qd[j][l]` joint j's position and speed in lane l; the same bits).
+    pub fn imu_x4(&self, q: &[[f64; 4]], qd: &[[f64; 4]]) -> [V3; 4] {
+        self.x4(q, qd, false)
+    }
+
+    /// [`Self::gyro`] of four joint states, as [`Self::imu_x4`].
+    pub fn gyro_x4(&self, q: &[[f64; 4]], qd: &[[f64; 4]]) -> [V3; 4] {
+        self.x4(q, qd, true)
+    }
+
+    /// ω̃ (`gyro`) or ω of the lanes, compiled for AVX2 where the CPU has it
+    /// (as `MeasurementModel::predict_x4`), split back into lanes.
+    fn x4(&self, q: &[[f64; 4]], qd: &[[f64; 4]], gyro: bool) -> [V3; 4] {
+        // as the f64 calls: the links paired with the given joints
+        let n = self.links.len().min(q.len()).min(qd.len());
+        let (mut q4, mut qd4) = (
+            [F64x4::default(); MAX_JOINTS],
+            [F64x4::default(); MAX_JOINTS],
+        );
+        for j in 0..n {
+            q4[j] = F64x4(q[j]);
+            qd4[j] = F64x4(qd[j]);
+        }
+        let (q4, qd4) = (&q4[..n], &qd4[..n]);
+        #[inline(always)]
+        fn lanes(r: &BodyRate, q: &[F64x4], qd: &[F64x4], gyro: bool) -> V3<F64x4> {
+            if gyro {
+                r.gyro(q, qd)
+            } else {
+                r.imu(q, qd)
+            }
+        }
+        let w = 'w: {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx,avx2")]
+                fn avx2(r: &BodyRate, q: &[F64x4], qd: &[F64x4], gyro: bool) -> V3<F64x4> {
+                    lanes(r, q, qd, gyro)
+                }
+                if robimu_model::lanes::has_avx2() {
+                    // SAFETY: the CPU has AVX and AVX2 (checked just above).
+                    break 'w unsafe { avx2(self, q4, qd4, gyro) };
+                }
+            }
+            lanes(self, q4, qd4, gyro)
+        };
+        std::array::from_fn(|l| [w[0].lane(l), w[1].lane(l), w[2].lane(l)])
+    }
+}
+
+/// A constant matrix in the scalar type `S`.
+#[inline(always)]
+fn cst_m<S: Scalar>(m: &M3) -> M3<S> {
+    m.map(|row| row.map(S::cst))
 }
 
 #[cfg(test)]
@@ -115,7 +182,8 @@ mod tests {
     /// At random joint states, at the nominal and at random parameters
     /// (errors ε on every link, the gyroscope's intrinsics) ω and the
     /// gyroscope's reading equal the model's bit for bit, for the AUBO i5
-    /// and a URDF robot with general axes and fixed joints.
+    /// and a URDF robot with general axes and fixed joints; four of them at
+    /// once in the lanes of `imu_x4`/`gyro_x4` give the same bits.
     #[test]
     fn equals_the_models_rate_bit_for_bit() {
         let mut rng = rand::rngs::StdRng::seed_from_u64(7);
@@ -140,6 +208,7 @@ mod tests {
             for x in [&nominal, &x] {
                 let model = MeasurementModel::new(&robot, &layout, x).unwrap();
                 let rate = BodyRate::new(&robot, &model);
+                let mut states = Vec::new();
                 for _ in 0..200 {
                     let q: Vec<f64> = (0..n).map(|_| rng.random_range(-3.0..3.0)).collect();
                     let qd: Vec<f64> = (0..n).map(|_| rng.random_range(-2.0..2.0)).collect();
@@ -148,6 +217,31 @@ mod tests {
                     assert_eq!(rate.imu(&q, &qd), model.inertial(&js).1);
                     let z = model.predict(&js);
                     assert_eq!(&z[3..], &rate.gyro(&q, &qd)[..]);
+                    states.push((q, qd));
+                }
+                // four lanes: each the bits of its f64 call
+                for four in states.chunks_exact(4) {
+                    // lane l of joint j: state l's value
+                    let lanes =
+                        |speed: bool| -> Vec<[f64; 4]> {
+                            (0..n)
+                                .map(|j| {
+                                    std::array::from_fn(|l| {
+                                        if speed {
+                                            four[l].1[j]
+                                        } else {
+                                            four[l].0[j]
+                                        }
+                                    })
+                                })
+                                .collect()
+                        };
+                    let (q4, qd4) = (lanes(false), lanes(true));
+                    let (w4, g4) = (rate.imu_x4(&q4, &qd4), rate.gyro_x4(&q4, &qd4));
+                    for (l, (q, qd)) in four.iter().enumerate() {
+                        assert_eq!(w4[l], rate.imu(q, qd));
+                        assert_eq!(g4[l], rate.gyro(q, qd));
+                    }
                 }
             }
         }

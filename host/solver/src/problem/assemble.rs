@@ -9,6 +9,7 @@ use faer::{Accum, Mat, MatRef, Par};
 use super::{Problem, ProblemError, Stream};
 use crate::ArrowMatrix;
 use robimu_model::effects::SampleContext;
+use robimu_model::spline::MAX_DEGREE;
 use robimu_model::{
     Basis, Basis4, F64x4, JointState, MeasurementJacobians, MeasurementModel, Spline,
 };
@@ -479,18 +480,34 @@ impl Problem<'_> {
         let n = self.n;
         let count = self.knots.degree() + 1;
         let mut out = ArrowMatrix::zeros(self.n_coeffs(), count * n - 1, 0);
-        for b in &self.joint_basis {
+        // Σ N_a N_b over the samples of one span (the same `first`), then
+        // into each joint's band with its weight 1/σ_q²
+        let mut sums = [[0.0; MAX_DEGREE + 1]; MAX_DEGREE + 1];
+        let mut flush = |first: usize, sums: &mut [[f64; MAX_DEGREE + 1]; MAX_DEGREE + 1]| {
             for j in 0..n {
-                let w = self.inv_sigma_q[j];
+                let w2 = self.inv_sigma_q[j] * self.inv_sigma_q[j];
                 for a in 0..count {
-                    let ia = (b.first + a) * n + j;
-                    let ja = -b.n[a] * w;
                     for bb in 0..=a {
-                        let ib = (b.first + bb) * n + j;
-                        out.add_cc(ia, ib, ja * (-b.n[bb] * w));
+                        out.add_cc((first + a) * n + j, (first + bb) * n + j, w2 * sums[a][bb]);
                     }
                 }
             }
+            *sums = [[0.0; MAX_DEGREE + 1]; MAX_DEGREE + 1];
+        };
+        let mut first = None;
+        for b in &self.joint_basis {
+            if first.is_some_and(|f| f != b.first) {
+                flush(first.unwrap_or(0), &mut sums);
+            }
+            first = Some(b.first);
+            for a in 0..count {
+                for bb in 0..=a {
+                    sums[a][bb] += b.n[a] * b.n[bb];
+                }
+            }
+        }
+        if let Some(f) = first {
+            flush(f, &mut sums);
         }
         out
     }
@@ -1200,7 +1217,9 @@ impl Stack {
     /// empty the stack. Channel c's rows are multiplied over the columns up
     /// to its own single-channel ones (the dense columns, then channel 0's,
     /// …, c's: the earlier channels' columns are zero in its rows, and the
-    /// later ones' are skipped).
+    /// later ones' are skipped). Channel 2's rows span every column: its
+    /// products are written first (no clearing of the block), the others
+    /// added.
     fn flush(&mut self, out: &mut Linearization<'_>) {
         let rows = self.rows;
         if rows == 0 {
@@ -1210,9 +1229,18 @@ impl Stack {
         let ld = 3 * self.seg;
         let mut local = self.local.as_mut().submatrix_mut(0, 0, cols, cols);
         let mut glocal = self.glocal.as_mut().submatrix_mut(0, 0, cols, 1);
-        local.fill(0.0);
-        glocal.fill(0.0);
-        for c in 0..3 {
+        // channel 2 first: its block covers every column (then no clearing)
+        let covers = nl + self.sparse[2].end == cols;
+        if !covers {
+            local.fill(0.0);
+            glocal.fill(0.0);
+        }
+        for c in [2, 1, 0] {
+            let accum = if c == 2 && covers {
+                Accum::Replace
+            } else {
+                Accum::Add
+            };
             // channel c's rows: a column-major block of `rows` rows
             let at = c * self.seg;
             let w = nl + self.sparse[c].end;
@@ -1226,7 +1254,7 @@ impl Stack {
             faer::linalg::matmul::triangular::matmul(
                 local.as_mut().submatrix_mut(0, 0, w, w),
                 BlockStructure::TriangularLower,
-                Accum::Add,
+                accum,
                 jc.transpose(),
                 BlockStructure::Rectangular,
                 jc,
@@ -1236,7 +1264,7 @@ impl Stack {
             );
             faer::linalg::matmul::matmul(
                 glocal.as_mut().submatrix_mut(0, 0, w, 1),
-                Accum::Add,
+                accum,
                 jc.transpose(),
                 rc,
                 1.0,

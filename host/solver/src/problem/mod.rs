@@ -120,8 +120,8 @@ use robimu_model::noise::NoiseModel;
 pub use robimu_model::observations::Measurements;
 use robimu_model::spline::MAX_DEGREE;
 use robimu_model::{
-    Basis, JointState, Knots, MeasurementModel, ModelError, ParamLayout, Robot, SpanPolynomials,
-    Spline, SplineError,
+    JointState, Knots, MeasurementModel, ModelError, ParamLayout, Robot, SpanPolynomials, Spline,
+    SplineError,
 };
 
 /// Why the problem cannot be evaluated at some θ.
@@ -666,26 +666,33 @@ impl<'a> Problem<'a> {
 
 /// The basis of every joint sample, the two halves on two threads.
 fn joint_bases(spans: &SpanPolynomials, t: &[f64]) -> Result<Vec<JointBasis>, SplineError> {
-    let part = |ts: &[f64]| -> Result<Vec<JointBasis>, SplineError> {
-        let mut b = Basis::default();
-        ts.iter()
-            .map(|&t| {
-                spans.basis(t, &mut b)?;
-                Ok(JointBasis {
-                    first: b.first,
-                    n: b.d[0],
-                })
-            })
-            .collect()
+    // written in place, half by each thread (no growth, no copy)
+    let mut out = vec![
+        JointBasis {
+            first: 0,
+            n: [0.0; MAX_DEGREE + 1]
+        };
+        t.len()
+    ];
+    let part = |ts: &[f64], out: &mut [JointBasis]| -> Result<(), SplineError> {
+        let mut span = 0;
+        for (&t, b) in ts.iter().zip(out) {
+            b.first = spans.values_near(t, &mut span, &mut b.n)?;
+        }
+        Ok(())
     };
     let (lo, hi) = t.split_at(t.len() / 2);
+    let (out_lo, out_hi) = out.split_at_mut(lo.len());
     let (a, b) = std::thread::scope(|s| {
-        let h = s.spawn(|| part(hi));
-        (part(lo), h.join().expect("joint basis thread panicked"))
+        let h = s.spawn(|| part(hi, out_hi));
+        (
+            part(lo, out_lo),
+            h.join().expect("joint basis thread panicked"),
+        )
     });
-    let mut a = a?;
-    a.extend(b?);
-    Ok(a)
+    a?;
+    b?;
+    Ok(out)
 }
 
 /// Median of the steps of `t` (0 with fewer than two samples).

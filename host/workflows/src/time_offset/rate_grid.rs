@@ -29,28 +29,43 @@ impl RateGrid {
         let steps = ((t1 - t0) / h).ceil() as usize;
         let spans = SpanPolynomials::new(knots);
         let (coeffs, dim) = (trajectory.coeffs(), trajectory.dim());
+        // four nodes at a time, one per lane of BodyRate::imu_x4 (the bits
+        // of four BodyRate::imu calls)
         let nodes = |ks: std::ops::Range<usize>| -> Vec<[f64; 3]> {
-            let (mut q, mut qd) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+            let (mut q, mut qd) = ([[0.0; 4]; MAX_JOINTS], [[0.0; 4]; MAX_JOINTS]);
             let mut b = Basis::default();
-            ks.map(|k| {
-                let u = (t0 + k as f64 * h).min(t1);
-                if spans.basis(u, &mut b).is_err() {
-                    return [0.0; 3];
-                }
-                // q and q̇ as Spline::evaluate_basis forms them (ω needs no q̈)
-                for (k, row) in [&mut q, &mut qd].into_iter().enumerate() {
-                    row.fill(0.0);
-                    for a in 0..b.count {
-                        let w = b.d[k][a];
-                        let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
-                        for j in 0..dim {
-                            row[j] += w * c[j];
+            let mut out = Vec::with_capacity(ks.len());
+            let ks: Vec<usize> = ks.collect();
+            for quad in ks.chunks(4) {
+                let mut inside = [false; 4];
+                for l in 0..4 {
+                    // a short last quad repeats its last node
+                    let k = quad[l.min(quad.len() - 1)];
+                    let u = (t0 + k as f64 * h).min(t1);
+                    inside[l] = spans.basis(u, &mut b).is_ok();
+                    // q and q̇ as Spline::evaluate_basis forms them (ω needs no q̈)
+                    for (d, rows) in [&mut q, &mut qd].into_iter().enumerate() {
+                        for row in rows.iter_mut().take(dim) {
+                            row[l] = 0.0;
+                        }
+                        if !inside[l] {
+                            continue;
+                        }
+                        for a in 0..b.count {
+                            let w = b.d[d][a];
+                            let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
+                            for j in 0..dim {
+                                rows[j][l] += w * c[j];
+                            }
                         }
                     }
                 }
-                rate.imu(&q, &qd)
-            })
-            .collect()
+                let w = rate.imu_x4(&q, &qd);
+                for l in 0..quad.len() {
+                    out.push(if inside[l] { w[l] } else { [0.0; 3] });
+                }
+            }
+            out
         };
         let mid = steps.div_ceil(2);
         let nodes: Vec<[f64; 3]> = std::thread::scope(|s| {
