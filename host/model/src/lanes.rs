@@ -14,6 +14,7 @@
 use core::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 
 use super::jet::Scalar;
+use crate::trig;
 
 /// Four `f64` lanes, one per sample.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -94,6 +95,13 @@ impl Neg for F64x4 {
     }
 }
 
+impl trig::Real for F64x4 {
+    #[inline(always)]
+    fn cst(v: f64) -> Self {
+        Self::splat(v)
+    }
+}
+
 impl Scalar for F64x4 {
     #[inline(always)]
     fn cst(v: f64) -> Self {
@@ -107,19 +115,28 @@ impl Scalar for F64x4 {
     }
     #[inline(always)]
     fn sin(self) -> Self {
-        crate::trig::sin_cos_x4(self).0
+        self.sin_cos().0
     }
     #[inline(always)]
     fn cos(self) -> Self {
-        crate::trig::sin_cos_x4(self).1
+        self.sin_cos().1
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
         self.map(f64::sqrt)
     }
+    /// [`trig::sin_cos`] of each lane, the same bits: the reduction and
+    /// kernels on the four lanes together, the quadrant lane by lane (every
+    /// lane by the scalar function when one is not [`trig::reducible`]).
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        crate::trig::sin_cos_x4(self)
+        let v: [(f64, f64); 4] = if self.0.iter().all(|&x| trig::reducible(x)) {
+            let (n, s, c) = trig::reduced(self);
+            std::array::from_fn(|l| trig::quadrant(self.0[l], n.0[l], s.0[l], c.0[l]))
+        } else {
+            self.0.map(trig::sin_cos)
+        };
+        (Self(v.map(|p| p.0)), Self(v.map(|p| p.1)))
     }
 }
 
@@ -177,6 +194,35 @@ mod tests {
             assert_eq!((a + 0.7).0[l], x + 0.7);
             assert_eq!(b.sin_cos().0 .0[l], Scalar::sin(y));
             assert_eq!(b.sin_cos().1 .0[l], Scalar::cos(y));
+        }
+    }
+
+    /// sin and cos of four lanes give the bits of four scalar calls
+    /// ([`trig::sin_cos`]) on the trig tests' arguments, also with a lane
+    /// beyond [`trig::LIMIT`] (then every lane takes the scalar path), and
+    /// compiled for AVX2.
+    #[test]
+    fn lanes_compute_the_scalar_sin_cos() {
+        let args = trig::tests::arguments();
+        for chunk in args.chunks_exact(4) {
+            let x = F64x4([chunk[0], chunk[1], chunk[2], chunk[3]]);
+            let (s, c) = x.sin_cos();
+            for l in 0..4 {
+                let (s1, c1) = trig::sin_cos(chunk[l]);
+                assert_eq!(
+                    (s.0[l].to_bits(), c.0[l].to_bits()),
+                    (s1.to_bits(), c1.to_bits())
+                );
+            }
+        }
+        let x = F64x4([0.3, -2.0, 7.5, -1e-9]);
+        let on = on_avx2(|| x.sin_cos());
+        for l in 0..4 {
+            let (s1, c1) = trig::sin_cos(x.0[l]);
+            assert_eq!(
+                (on.0 .0[l].to_bits(), on.1 .0[l].to_bits()),
+                (s1.to_bits(), c1.to_bits())
+            );
         }
     }
 }

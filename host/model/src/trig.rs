@@ -1,6 +1,7 @@
-//! sin and cos of the model's angles, for one value ([`sin_cos`]) and for the
-//! four lanes of [`F64x4`] at once ([`sin_cos_x4`]) with the same operations,
-//! so that both give the same bits (docs/model.md §4.4).
+//! sin and cos of the model's angles, for one value ([`sin_cos`]) and, with
+//! the same operations on any [`Real`] (the four lanes of
+//! [`crate::lanes::F64x4`]), for several at once ([`reduced`] and
+//! [`quadrant`]), so that both give the same bits (docs/model.md §4.4).
 //!
 //! The joint angles' sin and cos are needed at every sample of every pass;
 //! the C library's `sincos` takes one value at a time (and saves and restores
@@ -18,8 +19,29 @@
 // fdlibm's constants, digit for digit (each rounds to the double fdlibm uses)
 #![allow(clippy::excessive_precision)]
 
-use crate::jet::Scalar;
-use crate::lanes::F64x4;
+use core::ops::{Add, Mul, Sub};
+
+/// What the reduction and the kernels compute with: `f64`, or several
+/// `f64` lanes whose every operation acts lane by lane.
+pub trait Real:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Add<f64, Output = Self>
+    + Sub<f64, Output = Self>
+    + Mul<f64, Output = Self>
+{
+    /// The constant `v` (in every lane).
+    fn cst(v: f64) -> Self;
+}
+
+impl Real for f64 {
+    #[inline(always)]
+    fn cst(v: f64) -> Self {
+        v
+    }
+}
 
 /// Largest |x| reduced here (|n| < 2¹⁷, well inside the 2²⁰ of exact products).
 pub const LIMIT: f64 = 1.0e5;
@@ -50,7 +72,7 @@ const C6: f64 = -1.135_964_755_778_819_482_65e-11;
 /// is split exactly into a sum and its rounding error (Knuth's two-sum),
 /// and n·P₃ (π/2 − P₁ − P₂) enters the tail.
 #[inline(always)]
-fn reduce<S: Scalar>(x: S) -> (S, S, S) {
+fn reduce<S: Real>(x: S) -> (S, S, S) {
     let n = (x * INV_PIO2 + TOINT) - TOINT;
     let a = x - n * PIO2_1;
     let b = n * PIO2_2;
@@ -65,7 +87,7 @@ fn reduce<S: Scalar>(x: S) -> (S, S, S) {
 
 /// sin(y₀ + y₁) and cos(y₀ + y₁) for |y₀| ≤ π/4 (fdlibm's kernels).
 #[inline(always)]
-fn kernels<S: Scalar>(x: S, y: S) -> (S, S) {
+fn kernels<S: Real>(x: S, y: S) -> (S, S) {
     let z = x * x;
     let w = z * z;
     // __kernel_sin(x, y, 1)
@@ -81,10 +103,27 @@ fn kernels<S: Scalar>(x: S, y: S) -> (S, S) {
     (s, c)
 }
 
+/// n = rint(x·2/π) and the kernels' sin y, cos y of y = x − nπ/2, for x
+/// with [`reducible`] true (in every lane); [`quadrant`] then gives
+/// (sin x, cos x) from them.
+#[inline(always)]
+pub fn reduced<S: Real>(x: S) -> (S, S, S) {
+    let (n, y0, y1) = reduce(x);
+    let (s, c) = kernels(y0, y1);
+    (n, s, c)
+}
+
+/// Whether x is reduced here (|x| ≤ [`LIMIT`], not NaN); else [`sin_cos`]
+/// takes the C library's values.
+#[inline(always)]
+pub fn reducible(x: f64) -> bool {
+    x.abs() <= LIMIT
+}
+
 /// (sin x, cos x) from the kernels' values in quadrant n mod 4 (x = ±0
 /// keeps its sign in sin x, which the reduction's sums lose).
 #[inline(always)]
-fn quadrant(x: f64, n: f64, s: f64, c: f64) -> (f64, f64) {
+pub fn quadrant(x: f64, n: f64, s: f64, c: f64) -> (f64, f64) {
     if x == 0.0 {
         return (x, 1.0);
     }
@@ -99,29 +138,15 @@ fn quadrant(x: f64, n: f64, s: f64, c: f64) -> (f64, f64) {
 /// (sin x, cos x), within 1 ulp of the exact values.
 #[inline(always)]
 pub fn sin_cos(x: f64) -> (f64, f64) {
-    if x.abs() > LIMIT || x.is_nan() {
+    if !reducible(x) {
         return f64::sin_cos(x);
     }
-    let (n, y0, y1) = reduce(x);
-    let (s, c) = kernels(y0, y1);
+    let (n, s, c) = reduced(x);
     quadrant(x, n, s, c)
 }
 
-/// [`sin_cos`] of each lane, the same bits.
-#[inline(always)]
-pub fn sin_cos_x4(x: F64x4) -> (F64x4, F64x4) {
-    if !x.0.iter().all(|v| v.abs() <= LIMIT) {
-        let v = x.0.map(sin_cos);
-        return (F64x4(v.map(|p| p.0)), F64x4(v.map(|p| p.1)));
-    }
-    let (n, y0, y1) = reduce(x);
-    let (s, c) = kernels(y0, y1);
-    let v: [(f64, f64); 4] = std::array::from_fn(|l| quadrant(x.0[l], n.0[l], s.0[l], c.0[l]));
-    (F64x4(v.map(|p| p.0)), F64x4(v.map(|p| p.1)))
-}
-
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Distance in units in the last place (same-sign finite values).
@@ -143,7 +168,7 @@ mod tests {
     /// Arguments: a dense sweep of the joint range, the neighbourhoods of
     /// multiples of π/4 (where the reduction cancels and the quadrant turns),
     /// tiny and signed zeros, and large values up to and beyond [`LIMIT`].
-    fn arguments() -> Vec<f64> {
+    pub(crate) fn arguments() -> Vec<f64> {
         let mut v: Vec<f64> = (0..200_001).map(|i| -10.0 + 1e-4 * i as f64).collect();
         for k in -400i32..=400 {
             let m = k as f64 * std::f64::consts::FRAC_PI_4;
@@ -256,28 +281,5 @@ mod tests {
             worst = worst.max(ulps(fs, s.0)).max(ulps(fc, c.0));
         }
         assert!(worst <= 1, "{worst} ulp");
-    }
-
-    /// Four lanes give the bits of four scalar calls, also with a lane
-    /// beyond [`LIMIT`] (then every lane takes the scalar path).
-    #[test]
-    fn lanes_compute_what_scalars_compute() {
-        let args = arguments();
-        for chunk in args.chunks_exact(4) {
-            let x = F64x4([chunk[0], chunk[1], chunk[2], chunk[3]]);
-            let (s, c) = sin_cos_x4(x);
-            for l in 0..4 {
-                let (s1, c1) = sin_cos(chunk[l]);
-                assert_eq!(
-                    (s.0[l].to_bits(), c.0[l].to_bits()),
-                    (s1.to_bits(), c1.to_bits())
-                );
-            }
-        }
-        let on = crate::lanes::on_avx2(|| sin_cos_x4(F64x4([0.3, -2.0, 7.5, -1e-9])));
-        for (l, x) in [0.3, -2.0, 7.5, -1e-9].into_iter().enumerate() {
-            assert_eq!(on.0 .0[l].to_bits(), sin_cos(x).0.to_bits());
-            assert_eq!(on.1 .0[l].to_bits(), sin_cos(x).1.to_bits());
-        }
     }
 }
