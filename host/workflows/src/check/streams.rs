@@ -1,6 +1,7 @@
 //! Sample rates, gaps and clocks of `joints.csv` and `imu.csv`
 //! (docs/model.md §7.1): per stream the median rate, the gaps longer than
 //! [`GAP_FACTOR`] median periods (count and largest), repeated timestamps,
+//! time stamps off their neighbours' midpoint (irregular, [`STAMP_OFF`]),
 //! timestamps in ms (or µs, ns: the rate 10³ᵏ× off the nominal), and the
 //! overlap of the two streams.
 
@@ -11,6 +12,10 @@ use robimu_session::{files, Session, Table};
 pub const GAP_FACTOR: f64 = 3.0;
 /// A gap at least this long (s) is a dropout or a clock jump.
 pub const JUMP: f64 = 1.0;
+/// A row's time stamp is off when it lies more than this part of the median
+/// period from the midpoint of its neighbours' (the two periods around it
+/// summing to two periods within half of one: no row lost or added).
+pub const STAMP_OFF: f64 = 0.125;
 /// Plausible sample rates of a recording, Hz.
 pub const RATES: (f64, f64) = (5.0, 10_000.0);
 /// The IMU samples may lie outside the joint span by this much (s): the time
@@ -135,8 +140,53 @@ fn stream(name: &str, table: &Table, nominal: Option<f64>) -> Vec<Finding> {
             },
         ));
     }
+    out.extend(stamps_off(name, t, period));
     dt.clear();
     out
+}
+
+/// The rows whose time stamp lies more than [`STAMP_OFF`] periods from the
+/// midpoint of its neighbours' (information). Harmless when the stamps are
+/// the instants the values were sampled at, however irregular; when they are
+/// a poll's round trip (the AUBO driver stamps a joint reply at the
+/// midpoint of its request and reply) a stalled host puts errors into them,
+/// the trajectory spline follows them and the knot choice takes finer knots
+/// (README, Recording: the real-time demo's sessions, where dropping these
+/// rows restored the 125 ms knots).
+fn stamps_off(name: &str, t: &[f64], period: f64) -> Option<Finding> {
+    let (mut off, mut count, mut worst) = (0usize, 0usize, (0.0f64, 0usize));
+    for i in 1..t.len().saturating_sub(1) {
+        let (a, b) = (t[i] - t[i - 1], t[i + 1] - t[i]);
+        if a <= 0.0 || b <= 0.0 || (a + b - 2.0 * period).abs() > 0.5 * period {
+            continue;
+        }
+        count += 1;
+        let r = 0.5 * (a - b);
+        if r.abs() > STAMP_OFF * period {
+            off += 1;
+            if r.abs() > worst.0 {
+                worst = (r.abs(), i);
+            }
+        }
+    }
+    if off == 0 {
+        return None;
+    }
+    let fraction = off as f64 / count as f64;
+    Some(Finding::new(
+        "stamps_off",
+        Severity::Info,
+        name,
+        fraction,
+        format!(
+            "{name}: {off} of {count} rows ({:.1} %) are stamped more than {:.2} ms ({STAMP_OFF} of the period) off the midpoint of their neighbours' stamps (worst {:.2} ms at t = {:.3} s): sampled or stamped irregularly",
+            100.0 * fraction,
+            STAMP_OFF * period * 1e3,
+            worst.0 * 1e3,
+            t[worst.1]
+        ),
+        "none if these are the true sample instants; if they are a poll's round trip, their errors make the trajectory's knots finer: record on a host that is not busy, or from a controller that stamps its own samples",
+    ))
 }
 
 /// Timestamps in ms, µs or ns: the rate 10³ᵏ× below the nominal (or
@@ -217,4 +267,68 @@ fn overlap(joints: &Table, imu: &Table) -> Option<Finding> {
             ""
         },
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 125 Hz stamps as a recorder writes them (1e-9 s rounding).
+    fn regular(n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|i| (i as f64 * 0.008 * 1e9).round() / 1e9)
+            .collect()
+    }
+
+    #[test]
+    fn regular_stamps_and_lost_rows_are_not_off() {
+        let t = regular(2000);
+        assert!(stamps_off("joints.csv", &t, 0.008).is_none());
+        // rows lost (one, then three in a row): gaps, not late stamps
+        let lost: Vec<f64> = t
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| i != 500 && !(900..903).contains(&i))
+            .map(|(_, &v)| v)
+            .collect();
+        assert!(stamps_off("joints.csv", &lost, 0.008).is_none());
+        // jitter within 1/10 of the period (the midpoint moves by less)
+        let small: Vec<f64> = t
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| v + 0.0008 * ((i * 7919 % 13) as f64 / 12.0 - 0.5))
+            .collect();
+        assert!(stamps_off("joints.csv", &small, 0.008).is_none());
+    }
+
+    /// Every 50th row stamped 3 ms late: it and its two neighbours lie off
+    /// the midpoints (by 3 and 1.5 ms), 3 of every 50 rows, and the worst
+    /// is named; one late row in 2 000 is counted with its neighbours.
+    #[test]
+    fn late_stamps_are_counted_and_the_worst_named() {
+        let mut t = regular(2000);
+        for i in (25..2000).step_by(50) {
+            t[i] += 0.003;
+        }
+        let f = stamps_off("joints.csv", &t, 0.008).expect("late stamps found");
+        assert_eq!(f.kind, "stamps_off");
+        assert_eq!(f.severity, Severity::Info);
+        assert!((f.value - 3.0 / 50.0).abs() < 2e-3, "{}", f.value);
+        // the worst is a late row (t = 0.203 + 0.4 k s), off by 3 ms
+        let at: f64 = f
+            .message
+            .split("worst 3.00 ms at t = ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("{}", f.message));
+        assert!(
+            ((at - 0.203) / 0.4 - ((at - 0.203) / 0.4).round()).abs() < 1e-6,
+            "{at}"
+        );
+        let mut one = regular(2000);
+        one[1000] += 0.003;
+        let f = stamps_off("joints.csv", &one, 0.008).expect("one late stamp");
+        assert!((f.value - 3.0 / 1998.0).abs() < 1e-9, "{}", f.value);
+    }
 }
