@@ -496,8 +496,8 @@ impl Problem<'_> {
         };
         let mut first = None;
         for b in &self.joint_basis {
-            if first.is_some_and(|f| f != b.first) {
-                flush(first.unwrap_or(0), &mut sums);
+            if let Some(f) = first.filter(|&f| f != b.first) {
+                flush(f, &mut sums);
             }
             first = Some(b.first);
             for a in 0..count {
@@ -1156,6 +1156,9 @@ impl Stack {
             n_dense + c0n + c1n..n_dense + c0n + c1n + c2n,
         ];
         let columns: Vec<(usize, usize)> = order.iter().map(|&a| columns[a]).collect();
+        // every column is dense or one channel's: channel 2's rows span them
+        // all (`flush` overwrites the block with its products)
+        assert_eq!(sparse[2].end, columns.len(), "a column of no channel 0–2");
         let cols = nl + extra + columns.len();
         let seg = GROUP_CAP;
         Self {
@@ -1229,18 +1232,10 @@ impl Stack {
         let ld = 3 * self.seg;
         let mut local = self.local.as_mut().submatrix_mut(0, 0, cols, cols);
         let mut glocal = self.glocal.as_mut().submatrix_mut(0, 0, cols, 1);
-        // channel 2 first: its block covers every column (then no clearing)
-        let covers = nl + self.sparse[2].end == cols;
-        if !covers {
-            local.fill(0.0);
-            glocal.fill(0.0);
-        }
+        // channel 2 first: its block covers every column (Self::new), so it
+        // overwrites the block and the others add to it
         for c in [2, 1, 0] {
-            let accum = if c == 2 && covers {
-                Accum::Replace
-            } else {
-                Accum::Add
-            };
+            let accum = if c == 2 { Accum::Replace } else { Accum::Add };
             // channel c's rows: a column-major block of `rows` rows
             let at = c * self.seg;
             let w = nl + self.sparse[c].end;
