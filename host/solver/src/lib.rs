@@ -57,6 +57,7 @@
 
 pub mod arrow;
 pub mod dense;
+pub mod gram;
 pub mod lm;
 pub mod problem;
 

@@ -15,7 +15,7 @@
 use robimu_model::geom::{self, M3, V3};
 use robimu_model::jet::Scalar;
 use robimu_model::lanes::F64x4;
-use robimu_model::{MeasurementModel, Robot, MAX_JOINTS};
+use robimu_model::{MeasurementModel, Robot};
 
 /// One link's constant rotations.
 #[derive(Debug, Clone)]
@@ -116,31 +116,23 @@ impl BodyRate {
         (w, r)
     }
 
-    /// [`Self::imu`] of four joint states, one per lane (`q[j][l]`,
-    /// `qd[j][l]` joint j's position and speed in lane l; the same bits).
-    pub fn imu_x4(&self, q: &[[f64; 4]], qd: &[[f64; 4]]) -> [V3; 4] {
+    /// [`Self::imu`] of four joint states, one per lane (`q[j]`, `qd[j]`
+    /// joint j's positions and speeds; each lane the bits of the `f64` call).
+    pub fn imu_x4(&self, q: &[F64x4], qd: &[F64x4]) -> [V3; 4] {
         self.x4(q, qd, false)
     }
 
     /// [`Self::gyro`] of four joint states, as [`Self::imu_x4`].
-    pub fn gyro_x4(&self, q: &[[f64; 4]], qd: &[[f64; 4]]) -> [V3; 4] {
+    pub fn gyro_x4(&self, q: &[F64x4], qd: &[F64x4]) -> [V3; 4] {
         self.x4(q, qd, true)
     }
 
     /// ω̃ (`gyro`) or ω of the lanes, compiled for AVX2 where the CPU has it
     /// (as `MeasurementModel::predict_x4`), split back into lanes.
-    fn x4(&self, q: &[[f64; 4]], qd: &[[f64; 4]], gyro: bool) -> [V3; 4] {
+    fn x4(&self, q: &[F64x4], qd: &[F64x4], gyro: bool) -> [V3; 4] {
         // as the f64 calls: the links paired with the given joints
         let n = self.links.len().min(q.len()).min(qd.len());
-        let (mut q4, mut qd4) = (
-            [F64x4::default(); MAX_JOINTS],
-            [F64x4::default(); MAX_JOINTS],
-        );
-        for j in 0..n {
-            q4[j] = F64x4(q[j]);
-            qd4[j] = F64x4(qd[j]);
-        }
-        let (q4, qd4) = (&q4[..n], &qd4[..n]);
+        let (q, qd) = (&q[..n], &qd[..n]);
         #[inline(always)]
         fn lanes(r: &BodyRate, q: &[F64x4], qd: &[F64x4], gyro: bool) -> V3<F64x4> {
             if gyro {
@@ -158,13 +150,24 @@ impl BodyRate {
                 }
                 if robimu_model::lanes::has_avx2() {
                     // SAFETY: the CPU has AVX and AVX2 (checked just above).
-                    break 'w unsafe { avx2(self, q4, qd4, gyro) };
+                    break 'w unsafe { avx2(self, q, qd, gyro) };
                 }
             }
-            lanes(self, q4, qd4, gyro)
+            lanes(self, q, qd, gyro)
         };
         std::array::from_fn(|l| [w[0].lane(l), w[1].lane(l), w[2].lane(l)])
     }
+}
+
+/// The indices of `range` four at a time, one per lane of a four-lane call
+/// ([`BodyRate::imu_x4`]): each quad's indices and how many of them are
+/// its own (a short last quad repeats its last index in the other lanes).
+pub fn quads(range: std::ops::Range<usize>) -> impl Iterator<Item = ([usize; 4], usize)> {
+    let end = range.end;
+    range.step_by(4).map(move |i| {
+        let len = (end - i).min(4);
+        (std::array::from_fn(|l| i + l.min(len - 1)), len)
+    })
 }
 
 /// A constant matrix in the scalar type `S`.
@@ -222,20 +225,19 @@ mod tests {
                 // four lanes: each the bits of its f64 call
                 for four in states.chunks_exact(4) {
                     // lane l of joint j: state l's value
-                    let lanes =
-                        |speed: bool| -> Vec<[f64; 4]> {
-                            (0..n)
-                                .map(|j| {
-                                    std::array::from_fn(|l| {
-                                        if speed {
-                                            four[l].1[j]
-                                        } else {
-                                            four[l].0[j]
-                                        }
-                                    })
-                                })
-                                .collect()
-                        };
+                    let lanes = |speed: bool| -> Vec<F64x4> {
+                        (0..n)
+                            .map(|j| {
+                                F64x4(std::array::from_fn(|l| {
+                                    if speed {
+                                        four[l].1[j]
+                                    } else {
+                                        four[l].0[j]
+                                    }
+                                }))
+                            })
+                            .collect()
+                    };
                     let (q4, qd4) = (lanes(false), lanes(true));
                     let (w4, g4) = (rate.imu_x4(&q4, &qd4), rate.gyro_x4(&q4, &qd4));
                     for (l, (q, qd)) in four.iter().enumerate() {
@@ -244,6 +246,21 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Every index once, in order, four to a quad; a short last quad
+    /// repeats its last index; an empty range gives no quad.
+    #[test]
+    fn quads_cover_the_range_in_order() {
+        assert_eq!(quads(3..3).count(), 0);
+        let q: Vec<_> = quads(5..11).collect();
+        assert_eq!(q, vec![([5, 6, 7, 8], 4), ([9, 10, 10, 10], 2)]);
+        for end in 0..13 {
+            let own: Vec<usize> = quads(0..end)
+                .flat_map(|(q, len)| q[..len].to_vec())
+                .collect();
+            assert_eq!(own, (0..end).collect::<Vec<_>>());
         }
     }
 }

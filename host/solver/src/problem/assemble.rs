@@ -3,10 +3,10 @@
 
 use std::ops::Range;
 
-use faer::linalg::matmul::triangular::BlockStructure;
 use faer::{Accum, Mat, MatRef, Par};
 
 use super::{Problem, ProblemError, Stream};
+use crate::gram::lower_gram;
 use crate::ArrowMatrix;
 use robimu_model::effects::SampleContext;
 use robimu_model::spline::MAX_DEGREE;
@@ -456,17 +456,25 @@ impl Problem<'_> {
             .skip(samples.start)
         {
             let qm = &self.data.joint_q[s * n..(s + 1) * n];
-            for j in 0..n {
-                let mut q = 0.0;
-                for a in 0..count {
-                    q += b.n[a] * c[(b.first + a) * n + j];
+            // q_j = Σ_a N_a c_{first+a, j}, summed in a's order for every
+            // joint at once (the coefficients of one a are contiguous)
+            let mut q = [0.0; robimu_model::MAX_JOINTS];
+            for a in 0..count {
+                let ca = &c[(b.first + a) * n..(b.first + a + 1) * n];
+                for (qj, cj) in q.iter_mut().zip(ca) {
+                    *qj += b.n[a] * cj;
                 }
-                let w = self.inv_sigma_q[j];
-                let r = (qm[j] - q) * w;
-                cost += 0.5 * r * r;
-                if let Some(g) = g.as_deref_mut() {
-                    for a in 0..count {
-                        g[(b.first + a) * n + j] += -b.n[a] * w * r;
+            }
+            let mut r = [0.0; robimu_model::MAX_JOINTS];
+            for j in 0..n {
+                r[j] = (qm[j] - q[j]) * self.inv_sigma_q[j];
+                cost += 0.5 * r[j] * r[j];
+            }
+            if let Some(g) = g.as_deref_mut() {
+                for a in 0..count {
+                    let ga = &mut g[(b.first + a) * n..(b.first + a + 1) * n];
+                    for ((gj, w), rj) in ga.iter_mut().zip(&self.inv_sigma_q).zip(&r) {
+                        *gj += -b.n[a] * w * rj;
                     }
                 }
             }
@@ -1246,17 +1254,7 @@ impl Stack {
                 ld,
             );
             let rc = MatRef::from_column_major_slice(&self.r[at..at + rows], rows, 1);
-            faer::linalg::matmul::triangular::matmul(
-                local.as_mut().submatrix_mut(0, 0, w, w),
-                BlockStructure::TriangularLower,
-                accum,
-                jc.transpose(),
-                BlockStructure::Rectangular,
-                jc,
-                BlockStructure::Rectangular,
-                1.0,
-                Par::Seq,
-            );
+            lower_gram(local.as_mut().submatrix_mut(0, 0, w, w), accum, jc);
             faer::linalg::matmul::matmul(
                 glocal.as_mut().submatrix_mut(0, 0, w, 1),
                 accum,

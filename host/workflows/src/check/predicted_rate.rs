@@ -12,11 +12,12 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
+use robimu_model::lanes::F64x4;
 use robimu_model::{MeasurementModel, ParamLayout, Robot, MAX_JOINTS};
 use robimu_session::Session;
 
 use super::units::speeds_at;
-use crate::body_rate::BodyRate;
+use crate::body_rate::{quads, BodyRate};
 
 /// Rows per chunk.
 const CHUNK: usize = 2048;
@@ -94,24 +95,22 @@ impl<'s> PredictedRate<'s> {
         // as a JointState: the joints the session lacks at 0; four rows at a
         // time, one per lane of BodyRate::gyro_x4 (the bits of four
         // BodyRate::gyro calls)
-        let (mut q, mut v) = ([[0.0; 4]; MAX_JOINTS], [[0.0; 4]; MAX_JOINTS]);
+        let zero = F64x4::splat(0.0);
+        let (mut q, mut v) = ([zero; MAX_JOINTS], [zero; MAX_JOINTS]);
         let mut speeds = [0.0; MAX_JOINTS];
-        let rows: Vec<usize> = rows.collect();
         let mut out = Vec::with_capacity(rows.len());
-        for quad in rows.chunks(4) {
-            for l in 0..4 {
-                // a short last quad repeats its last row
-                let i = quad[l.min(quad.len() - 1)];
+        for (quad, len) in quads(rows) {
+            for (l, &i) in quad.iter().enumerate() {
                 speeds_at(joints, i, &mut speeds[..n]);
                 for (j, &qj) in joints.row(i).iter().enumerate() {
-                    q[j][l] = qj;
-                    v[j][l] = speeds[j];
+                    q[j].0[l] = qj;
+                    v[j].0[l] = speeds[j];
                 }
             }
             let w = rate.gyro_x4(&q, &v);
             out.extend(
                 w.iter()
-                    .take(quad.len())
+                    .take(len)
                     .map(|w| w[0] * w[0] + w[1] * w[1] + w[2] * w[2]),
             );
         }

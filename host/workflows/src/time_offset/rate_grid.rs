@@ -7,8 +7,9 @@
 //! docs/model.md §1.5 from q and q̇, bit for bit the ω of
 //! `MeasurementModel::inertial`), the two halves on two threads.
 
-use crate::body_rate::BodyRate;
-use robimu_model::{Basis, SpanPolynomials, Spline, MAX_JOINTS};
+use crate::body_rate::{quads, BodyRate};
+use robimu_model::lanes::F64x4;
+use robimu_model::{Basis, Basis4, SpanPolynomials, Spline, MAX_JOINTS};
 
 /// ω at t0 + k·h, k = 0..=steps (the last node clamped to t1).
 pub struct RateGrid {
@@ -32,36 +33,52 @@ impl RateGrid {
         // four nodes at a time, one per lane of BodyRate::imu_x4 (the bits
         // of four BodyRate::imu calls)
         let nodes = |ks: std::ops::Range<usize>| -> Vec<[f64; 3]> {
-            let (mut q, mut qd) = ([[0.0; 4]; MAX_JOINTS], [[0.0; 4]; MAX_JOINTS]);
-            let mut b = Basis::default();
+            let zero = F64x4::splat(0.0);
+            let (mut q, mut qd) = ([zero; MAX_JOINTS], [zero; MAX_JOINTS]);
+            let (mut b, mut b4) = (Basis::default(), Basis4::default());
             let mut out = Vec::with_capacity(ks.len());
-            let ks: Vec<usize> = ks.collect();
-            for quad in ks.chunks(4) {
-                let mut inside = [false; 4];
-                for l in 0..4 {
-                    // a short last quad repeats its last node
-                    let k = quad[l.min(quad.len() - 1)];
-                    let u = (t0 + k as f64 * h).min(t1);
-                    inside[l] = spans.basis(u, &mut b).is_ok();
-                    // q and q̇ as Spline::evaluate_basis forms them (ω needs no q̈)
+            let mut hint = 0;
+            for (quad, len) in quads(ks) {
+                let u = F64x4(quad.map(|k| (t0 + k as f64 * h).min(t1)));
+                let mu = u.0.map(|ul| spans.span_near(ul, hint).ok());
+                hint = mu[3].unwrap_or(hint);
+                let mut inside = mu.map(|m| m.is_some());
+                if let Some(m) = mu[0].filter(|_| mu.iter().all(|&v| v == mu[0])) {
+                    // the four in one span: their basis at once
+                    spans.basis_x4(m, u, &mut b4);
                     for (d, rows) in [&mut q, &mut qd].into_iter().enumerate() {
-                        for row in rows.iter_mut().take(dim) {
-                            row[l] = 0.0;
-                        }
-                        if !inside[l] {
-                            continue;
-                        }
-                        for a in 0..b.count {
-                            let w = b.d[d][a];
-                            let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
+                        rows[..dim].fill(zero);
+                        for a in 0..b4.count {
+                            let w = b4.d[d][a];
+                            let c = &coeffs[(b4.first + a) * dim..(b4.first + a + 1) * dim];
                             for j in 0..dim {
-                                rows[j][l] += w * c[j];
+                                rows[j] += w * c[j];
+                            }
+                        }
+                    }
+                } else {
+                    // lane by lane: q and q̇ as Spline::evaluate_basis forms them
+                    for l in 0..4 {
+                        inside[l] = spans.basis(u.lane(l), &mut b).is_ok();
+                        for (d, rows) in [&mut q, &mut qd].into_iter().enumerate() {
+                            for row in rows.iter_mut().take(dim) {
+                                row.0[l] = 0.0;
+                            }
+                            if !inside[l] {
+                                continue;
+                            }
+                            for a in 0..b.count {
+                                let w = b.d[d][a];
+                                let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
+                                for j in 0..dim {
+                                    rows[j].0[l] += w * c[j];
+                                }
                             }
                         }
                     }
                 }
-                let w = rate.imu_x4(&q, &qd);
-                for l in 0..quad.len() {
+                let w = rate.imu_x4(&q[..dim], &qd[..dim]);
+                for l in 0..len {
                     out.push(if inside[l] { w[l] } else { [0.0; 3] });
                 }
             }
