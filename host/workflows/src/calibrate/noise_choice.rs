@@ -19,15 +19,18 @@
 //! white fit succeeded). The loop ([`settle_noise`]) is the one diagnose
 //! runs after each effect it adds.
 
+use robimu_model::lanes::F64x4;
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{
-    Basis, JointState, MeasurementModel, ParamLayout, Robot, SpanPolynomials, Spline, MAX_JOINTS,
+    Basis, Basis4, JointState, MeasurementModel, ParamLayout, Robot, SpanPolynomials, Spline,
+    MAX_JOINTS,
 };
 use robimu_solver::IterationRecord;
 
 use super::fit::{fit, Fit, FitSpec, Start};
 use super::{calibrate, calibration_of, CalibrateError, CalibrateOptions, Calibration};
+use crate::body_rate::quads;
 use crate::noise_id::{identify, IdOptions, Identification};
 
 /// Most GLS refits of `Auto`.
@@ -351,36 +354,71 @@ fn identification_of(
             Vec::<[f64; 6]>::with_capacity(cap),
             Vec::with_capacity(cap),
         );
-        let (mut js, mut b) = (JointState::default(), Basis::default());
+        let (mut js, mut b, mut b4) = (JointState::default(), Basis::default(), Basis4::default());
         let mut next = known.residuals.partition_point(|(i, _)| *i < range.start);
-        for i in range {
-            let (ti, z) = (data.imu_t[i], &data.imu_z[i]);
-            if spans.basis(ti + tau, &mut b).is_err() {
-                continue;
-            }
-            // q̈ alone (the row Spline::evaluate_basis computes)
-            let mut qdd = [0.0; MAX_JOINTS];
-            for a in 0..b.count {
-                let w = b.d[2][a];
-                let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
-                for j in 0..dim {
-                    qdd[j] += w * c[j];
+        let mut hint = 0;
+        // four samples at a time: their q̈ from one four-lane basis when they
+        // share a knot span (the bits of the scalar basis), else one by one
+        for (quad, len) in quads(range) {
+            let u = F64x4(quad.map(|i| data.imu_t[i] + tau));
+            let mu = u.0.map(|ul| spans.span_near(ul, hint).ok());
+            hint = mu[3].unwrap_or(hint);
+            let mut qdd = [[0.0; MAX_JOINTS]; 4];
+            let mut inside = [true; 4];
+            match mu[0].filter(|_| mu.iter().all(|&m| m == mu[0])) {
+                Some(m) => {
+                    spans.basis_x4(m, u, &mut b4);
+                    let mut acc = [F64x4::splat(0.0); MAX_JOINTS];
+                    for a in 0..b4.count {
+                        let w = b4.d[2][a];
+                        let c = &coeffs[(b4.first + a) * dim..(b4.first + a + 1) * dim];
+                        for j in 0..dim {
+                            acc[j] += w * c[j];
+                        }
+                    }
+                    for (l, q) in qdd.iter_mut().enumerate() {
+                        *q = acc.map(|v| v.0[l]);
+                    }
+                }
+                None => {
+                    for l in 0..len {
+                        inside[l] = spans.basis(u.0[l], &mut b).is_ok();
+                        if !inside[l] {
+                            continue;
+                        }
+                        // q̈ alone (the row Spline::evaluate_basis computes)
+                        for a in 0..b.count {
+                            let w = b.d[2][a];
+                            let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
+                            for j in 0..dim {
+                                qdd[l][j] += w * c[j];
+                            }
+                        }
+                    }
                 }
             }
-            while next < known.residuals.len() && known.residuals[next].0 < i {
-                next += 1;
-            }
-            let ri = match known.residuals.get(next) {
-                Some(&(k, w)) if k == i => std::array::from_fn(|c| w[c] * known.sigma[c]),
-                _ => {
-                    trajectory.evaluate_basis(&b, &mut js);
-                    let pred = model.predict(&js);
-                    std::array::from_fn(|c| z[c] - pred[c])
+            for l in 0..len {
+                let i = quad[l];
+                if !inside[l] {
+                    continue;
                 }
-            };
-            t.push(ti);
-            r.push(ri);
-            qdd2.push(qdd[..n].iter().map(|a| a * a).sum::<f64>());
+                let (ti, z) = (data.imu_t[i], &data.imu_z[i]);
+                while next < known.residuals.len() && known.residuals[next].0 < i {
+                    next += 1;
+                }
+                let ri = match known.residuals.get(next) {
+                    Some(&(k, w)) if k == i => std::array::from_fn(|c| w[c] * known.sigma[c]),
+                    _ => {
+                        spans.basis(ti + tau, &mut b).expect("inside the span");
+                        trajectory.evaluate_basis(&b, &mut js);
+                        let pred = model.predict(&js);
+                        std::array::from_fn(|c| z[c] - pred[c])
+                    }
+                };
+                t.push(ti);
+                r.push(ri);
+                qdd2.push(qdd[l][..n].iter().map(|a| a * a).sum::<f64>());
+            }
         }
         (t, r, qdd2)
     };

@@ -32,11 +32,12 @@ impl RateGrid {
         let (coeffs, dim) = (trajectory.coeffs(), trajectory.dim());
         // four nodes at a time, one per lane of BodyRate::imu_x4 (the bits
         // of four BodyRate::imu calls)
-        let nodes = |ks: std::ops::Range<usize>| -> Vec<[f64; 3]> {
+        // (ω of node first + i into out[i][..3])
+        let nodes = |first: usize, out: &mut [[f64; 6]]| {
             let zero = F64x4::splat(0.0);
             let (mut q, mut qd) = ([zero; MAX_JOINTS], [zero; MAX_JOINTS]);
             let (mut b, mut b4) = (Basis::default(), Basis4::default());
-            let mut out = Vec::with_capacity(ks.len());
+            let ks = first..first + out.len();
             let mut hint = 0;
             for (quad, len) in quads(ks) {
                 let u = F64x4(quad.map(|k| (t0 + k as f64 * h).min(t1)));
@@ -79,19 +80,20 @@ impl RateGrid {
                 }
                 let w = rate.imu_x4(&q[..dim], &qd[..dim]);
                 for l in 0..len {
-                    out.push(if inside[l] { w[l] } else { [0.0; 3] });
+                    let at = quad[l] - first;
+                    out[at][..3].copy_from_slice(if inside[l] { &w[l] } else { &[0.0; 3] });
                 }
             }
-            out
         };
+        // the two halves on two threads, each writing its part in place
+        let mut grid = vec![[0.0; 6]; steps + 1];
         let mid = steps.div_ceil(2);
-        let nodes: Vec<[f64; 3]> = std::thread::scope(|s| {
-            let second = s.spawn(|| nodes(mid..steps + 1));
-            let mut g = nodes(0..mid);
-            g.extend(second.join().expect("grid thread panicked"));
-            g
+        std::thread::scope(|s| {
+            let (first, second) = grid.split_at_mut(mid);
+            s.spawn(|| nodes(mid, second));
+            nodes(0, first);
         });
-        Self::from_nodes(t0, t1, h, nodes)
+        Self::with_differences(t0, t1, h, grid)
     }
 
     /// The grid of the values `nodes` at t0 + k·h (the last at t1), k =
@@ -99,16 +101,29 @@ impl RateGrid {
     ///
     /// # Panics
     /// If there are not steps + 1 nodes.
+    #[cfg(test)]
     #[track_caller]
     pub fn from_nodes(t0: f64, t1: f64, h: f64, nodes: Vec<[f64; 3]>) -> Self {
+        let nodes = nodes
+            .iter()
+            .map(|p| [p[0], p[1], p[2], 0.0, 0.0, 0.0])
+            .collect();
+        Self::with_differences(t0, t1, h, nodes)
+    }
+
+    /// The grid of the values `nodes[k][..3]` (as [`Self::from_nodes`]),
+    /// their differences to the next node written into `nodes[k][3..]`.
+    #[track_caller]
+    fn with_differences(t0: f64, t1: f64, h: f64, mut nodes: Vec<[f64; 6]>) -> Self {
         let steps = ((t1 - t0) / h).ceil() as usize;
         assert_eq!(nodes.len(), steps + 1, "one node per grid point");
-        let nodes = (0..nodes.len())
-            .map(|k| {
-                let (p, q) = (nodes[k], nodes[(k + 1).min(steps)]);
-                [p[0], p[1], p[2], q[0] - p[0], q[1] - p[1], q[2] - p[2]]
-            })
-            .collect();
+        for k in 0..=steps {
+            let q = nodes[(k + 1).min(steps)];
+            let p = &mut nodes[k];
+            for a in 0..3 {
+                p[3 + a] = q[a] - p[a];
+            }
+        }
         Self {
             t0,
             t1,
