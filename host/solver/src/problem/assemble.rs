@@ -94,11 +94,24 @@ impl Problem<'_> {
     /// θ, from one pass over the samples: the solver's last cost
     /// ([`crate::LeastSquares::end_cost`]) and the fit's residuals.
     pub fn cost_and_residuals(&self, theta: &[f64]) -> Result<(f64, Residuals), ProblemError> {
-        let residuals = (0..self.streams.len())
-            .map(|j| self.imu_residuals_of(theta, j))
-            .collect::<Result<Vec<_>, _>>()?;
         let x = self.x_of(theta);
         let spline = self.spline_of(theta);
+        // the joint residuals' two halves on a thread of their own while
+        // the IMU residuals take both cores
+        let (residuals, joint) = std::thread::scope(|s| {
+            let joint = s.spawn(|| {
+                self.joint_parts()
+                    .map(|part| self.joint_terms(&spline, part, None))
+            });
+            let residuals = (0..self.streams.len())
+                .map(|j| self.imu_residuals_of(theta, j))
+                .collect::<Result<Vec<_>, _>>();
+            (
+                residuals,
+                joint.join().expect("joint residual thread panicked"),
+            )
+        });
+        let residuals = residuals?;
         // summed as `cost` sums: per half, stream after stream, sample by
         // sample, then the half's joint samples
         let half = |h: usize| {
@@ -116,7 +129,7 @@ impl Problem<'_> {
                 }
                 c += cs;
             }
-            c + self.joint_terms(&spline, self.joint_parts()[h].clone(), None)
+            c + joint[h]
         };
         let cost = half(0)
             + half(1)
