@@ -666,9 +666,16 @@ impl Problem<'_> {
                         j[col * ld..col * ld + 4].copy_from_slice(&v.0);
                     };
                     // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)/σ
+                    // (the gyroscope's ∂h/∂q̈ is zero: its term is left out)
                     for a in 0..basis.count {
                         for jn in 0..n {
-                            put(a * n + jn, w * dz_dc(&jac, basis, a, jn, ch));
+                            let d = if sensor == 0 {
+                                dz_dc(&jac, basis, a, jn, ch)
+                            } else {
+                                jac.dz_dq[jn][ch] * basis.d[0][a]
+                                    + jac.dz_dqd[jn][ch] * basis.d[1][a]
+                            };
+                            put(a * n + jn, w * d);
                         }
                     }
                     for (a, &(k, _)) in columns.iter().enumerate() {
