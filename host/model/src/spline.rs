@@ -490,6 +490,63 @@ impl Spline {
         }
     }
 
+    /// The derivative rows `orders` (0: q, 1: q̇, 2: q̈, 3: q⃛) at four
+    /// times, one per lane of `out[o][j]` (joint j of order `orders[o]`),
+    /// by `spans` (the span polynomials of this spline's knots): one
+    /// four-lane basis when the four share a knot span, else lane by lane;
+    /// either way each lane has the bits of [`Self::evaluate_basis`]'s row.
+    /// `hint` is the span tried first and is left at the last lane's. A
+    /// lane outside the knots is zero and false in the returned mask;
+    /// entries beyond `dim` are left as they are.
+    pub fn rows_x4<const D: usize>(
+        &self,
+        spans: &SpanPolynomials,
+        u: F64x4,
+        orders: [usize; D],
+        hint: &mut usize,
+        out: &mut [[F64x4; MAX_JOINTS]; D],
+    ) -> [bool; 4] {
+        let dim = self.dim;
+        let mu = u.0.map(|ul| spans.span_near(ul, *hint).ok());
+        *hint = mu[3].unwrap_or(*hint);
+        if let Some(m) = mu[0].filter(|_| mu.iter().all(|&v| v == mu[0])) {
+            let mut b4 = Basis4::default();
+            spans.basis_x4(m, u, &mut b4);
+            for (row, &k) in out.iter_mut().zip(&orders) {
+                row[..dim].fill(F64x4::splat(0.0));
+                for a in 0..b4.count {
+                    let w = b4.d[k][a];
+                    let c = &self.coeffs[(b4.first + a) * dim..(b4.first + a + 1) * dim];
+                    for j in 0..dim {
+                        row[j] += w * c[j];
+                    }
+                }
+            }
+            return [true; 4];
+        }
+        let mut inside = [false; 4];
+        let mut b = Basis::default();
+        for l in 0..4 {
+            inside[l] = spans.basis(u.lane(l), &mut b).is_ok();
+            for (row, &k) in out.iter_mut().zip(&orders) {
+                for r in row.iter_mut().take(dim) {
+                    r.0[l] = 0.0;
+                }
+                if !inside[l] {
+                    continue;
+                }
+                for a in 0..b.count {
+                    let w = b.d[k][a];
+                    let c = &self.coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
+                    for j in 0..dim {
+                        row[j].0[l] += w * c[j];
+                    }
+                }
+            }
+        }
+        inside
+    }
+
     /// q, q̇, q̈, q⃛ at t (entries beyond `dim` are zero).
     pub fn evaluate(&self, t: f64, out: &mut JointState) -> Result<(), SplineError> {
         let mut b = Basis::default();
@@ -586,6 +643,52 @@ mod tests {
                 for a in 0..b.count {
                     let i = b.first + a;
                     assert!(t >= y[i] && t <= y[i + knots.degree() + 1]);
+                }
+            }
+        }
+    }
+
+    /// `rows_x4` gives each lane the bits of the scalar rows (the span
+    /// polynomials' basis, `evaluate_basis`), for four
+    /// times in one span, across spans, and partly outside the knots.
+    #[test]
+    fn four_lane_rows_are_the_scalar_rows() {
+        let knots = Knots::uniform(0.0, 3.0, 0.37, 5).unwrap();
+        let (nc, dim) = (knots.num_coeffs(), 3);
+        let coeffs: Vec<f64> = (0..nc * dim)
+            .map(|i| ((i * 37) % 11) as f64 * 0.3 - 1.4)
+            .collect();
+        let spline = Spline::new(knots.clone(), dim, coeffs).unwrap();
+        let spans = SpanPolynomials::new(&knots);
+        let quads = [
+            [0.40, 0.41, 0.45, 0.50],
+            [0.30, 0.36, 0.38, 0.90],
+            [2.9, 2.95, 3.0, 3.2],
+            [-0.1, 0.0, 1.0, 2.0],
+        ];
+        let mut hint = 0;
+        for u in quads {
+            let mut out = [[F64x4::splat(7.0); MAX_JOINTS]; 3];
+            let inside = spline.rows_x4(&spans, F64x4(u), [0, 1, 2], &mut hint, &mut out);
+            for (l, &t) in u.iter().enumerate() {
+                // the scalar path: the span polynomials' basis, evaluate_basis
+                let (mut js, mut b) = (JointState::default(), Basis::default());
+                let ok = spans.basis(t, &mut b).is_ok();
+                if ok {
+                    spline.evaluate_basis(&b, &mut js);
+                }
+                assert_eq!(inside[l], ok, "t {t}");
+                for (o, row) in [js.q, js.qd, js.qdd].iter().enumerate() {
+                    for j in 0..dim {
+                        let want = if ok { row[j] } else { 0.0 };
+                        assert_eq!(
+                            out[o][j].lane(l).to_bits(),
+                            want.to_bits(),
+                            "t {t} order {o}"
+                        );
+                    }
+                    // beyond dim: untouched
+                    assert_eq!(out[o][dim].lane(l), 7.0);
                 }
             }
         }

@@ -23,8 +23,7 @@ use robimu_model::lanes::F64x4;
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{
-    Basis, Basis4, JointState, MeasurementModel, ParamLayout, Robot, SpanPolynomials, Spline,
-    MAX_JOINTS,
+    Basis, JointState, MeasurementModel, ParamLayout, Robot, SpanPolynomials, Spline, MAX_JOINTS,
 };
 use robimu_solver::IterationRecord;
 
@@ -343,7 +342,6 @@ fn identification_of(
     let tau = x[layout.offsets().tau];
     let n = robot.dof();
     let spans = SpanPolynomials::new(trajectory.knots());
-    let (coeffs, dim) = (trajectory.coeffs(), trajectory.dim());
     let known = known.unwrap_or(Known {
         residuals: &[],
         sigma: [1.0; 6],
@@ -354,49 +352,16 @@ fn identification_of(
             Vec::<[f64; 6]>::with_capacity(cap),
             Vec::with_capacity(cap),
         );
-        let (mut js, mut b, mut b4) = (JointState::default(), Basis::default(), Basis4::default());
+        let (mut js, mut b) = (JointState::default(), Basis::default());
+        let mut qdd = [[F64x4::splat(0.0); MAX_JOINTS]; 1];
         let mut next = known.residuals.partition_point(|(i, _)| *i < range.start);
         let mut hint = 0;
         // four samples at a time: their q̈ from one four-lane basis when they
         // share a knot span (the bits of the scalar basis), else one by one
         for (quad, len) in quads(range) {
             let u = F64x4(quad.map(|i| data.imu_t[i] + tau));
-            let mu = u.0.map(|ul| spans.span_near(ul, hint).ok());
-            hint = mu[3].unwrap_or(hint);
-            let mut qdd = [[0.0; MAX_JOINTS]; 4];
-            let mut inside = [true; 4];
-            match mu[0].filter(|_| mu.iter().all(|&m| m == mu[0])) {
-                Some(m) => {
-                    spans.basis_x4(m, u, &mut b4);
-                    let mut acc = [F64x4::splat(0.0); MAX_JOINTS];
-                    for a in 0..b4.count {
-                        let w = b4.d[2][a];
-                        let c = &coeffs[(b4.first + a) * dim..(b4.first + a + 1) * dim];
-                        for j in 0..dim {
-                            acc[j] += w * c[j];
-                        }
-                    }
-                    for (l, q) in qdd.iter_mut().enumerate() {
-                        *q = acc.map(|v| v.0[l]);
-                    }
-                }
-                None => {
-                    for l in 0..len {
-                        inside[l] = spans.basis(u.0[l], &mut b).is_ok();
-                        if !inside[l] {
-                            continue;
-                        }
-                        // q̈ alone (the row Spline::evaluate_basis computes)
-                        for a in 0..b.count {
-                            let w = b.d[2][a];
-                            let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
-                            for j in 0..dim {
-                                qdd[l][j] += w * c[j];
-                            }
-                        }
-                    }
-                }
-            }
+            // q̈ alone (the row Spline::evaluate_basis computes)
+            let inside = trajectory.rows_x4(&spans, u, [2], &mut hint, &mut qdd);
             for l in 0..len {
                 let i = quad[l];
                 if !inside[l] {
@@ -417,7 +382,12 @@ fn identification_of(
                 };
                 t.push(ti);
                 r.push(ri);
-                qdd2.push(qdd[l][..n].iter().map(|a| a * a).sum::<f64>());
+                qdd2.push(
+                    qdd[0][..n]
+                        .iter()
+                        .map(|a| a.lane(l) * a.lane(l))
+                        .sum::<f64>(),
+                );
             }
         }
         (t, r, qdd2)

@@ -9,7 +9,7 @@
 
 use crate::body_rate::{quads, BodyRate};
 use robimu_model::lanes::F64x4;
-use robimu_model::{Basis, Basis4, SpanPolynomials, Spline, MAX_JOINTS};
+use robimu_model::{SpanPolynomials, Spline, MAX_JOINTS};
 
 /// ω at t0 + k·h, k = 0..=steps (the last node clamped to t1).
 pub struct RateGrid {
@@ -29,56 +29,18 @@ impl RateGrid {
         let (t0, t1) = (knots.start(), knots.end());
         let steps = ((t1 - t0) / h).ceil() as usize;
         let spans = SpanPolynomials::new(knots);
-        let (coeffs, dim) = (trajectory.coeffs(), trajectory.dim());
+        let dim = trajectory.dim();
         // four nodes at a time, one per lane of BodyRate::imu_x4 (the bits
         // of four BodyRate::imu calls)
         // (ω of node first + i into out[i][..3])
         let nodes = |first: usize, out: &mut [[f64; 6]]| {
-            let zero = F64x4::splat(0.0);
-            let (mut q, mut qd) = ([zero; MAX_JOINTS], [zero; MAX_JOINTS]);
-            let (mut b, mut b4) = (Basis::default(), Basis4::default());
-            let ks = first..first + out.len();
+            // q and q̇ (ω needs no q̈)
+            let mut rows = [[F64x4::splat(0.0); MAX_JOINTS]; 2];
             let mut hint = 0;
-            for (quad, len) in quads(ks) {
+            for (quad, len) in quads(first..first + out.len()) {
                 let u = F64x4(quad.map(|k| (t0 + k as f64 * h).min(t1)));
-                let mu = u.0.map(|ul| spans.span_near(ul, hint).ok());
-                hint = mu[3].unwrap_or(hint);
-                let mut inside = mu.map(|m| m.is_some());
-                if let Some(m) = mu[0].filter(|_| mu.iter().all(|&v| v == mu[0])) {
-                    // the four in one span: their basis at once
-                    spans.basis_x4(m, u, &mut b4);
-                    for (d, rows) in [&mut q, &mut qd].into_iter().enumerate() {
-                        rows[..dim].fill(zero);
-                        for a in 0..b4.count {
-                            let w = b4.d[d][a];
-                            let c = &coeffs[(b4.first + a) * dim..(b4.first + a + 1) * dim];
-                            for j in 0..dim {
-                                rows[j] += w * c[j];
-                            }
-                        }
-                    }
-                } else {
-                    // lane by lane: q and q̇ as Spline::evaluate_basis forms them
-                    for l in 0..4 {
-                        inside[l] = spans.basis(u.lane(l), &mut b).is_ok();
-                        for (d, rows) in [&mut q, &mut qd].into_iter().enumerate() {
-                            for row in rows.iter_mut().take(dim) {
-                                row.0[l] = 0.0;
-                            }
-                            if !inside[l] {
-                                continue;
-                            }
-                            for a in 0..b.count {
-                                let w = b.d[d][a];
-                                let c = &coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
-                                for j in 0..dim {
-                                    rows[j].0[l] += w * c[j];
-                                }
-                            }
-                        }
-                    }
-                }
-                let w = rate.imu_x4(&q[..dim], &qd[..dim]);
+                let inside = trajectory.rows_x4(&spans, u, [0, 1], &mut hint, &mut rows);
+                let w = rate.imu_x4(&rows[0][..dim], &rows[1][..dim]);
                 for l in 0..len {
                     let at = quad[l] - first;
                     out[at][..3].copy_from_slice(if inside[l] { &w[l] } else { &[0.0; 3] });
@@ -111,7 +73,7 @@ impl RateGrid {
         Self::with_differences(t0, t1, h, nodes)
     }
 
-    /// The grid of the values `nodes[k][..3]` (as [`Self::from_nodes`]),
+    /// The grid of the values `nodes[k][..3]` at t0 + k·h (the last at t1),
     /// their differences to the next node written into `nodes[k][3..]`.
     #[track_caller]
     fn with_differences(t0: f64, t1: f64, h: f64, mut nodes: Vec<[f64; 6]>) -> Self {
