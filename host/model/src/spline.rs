@@ -10,6 +10,8 @@
 //! derivatives up to order 3 come from Cox–de Boor with derivatives (Piegl &
 //! Tiller, *The NURBS Book*, A2.2 and eq. (2.9)), allocation-free.
 
+use std::ops::{AddAssign, Mul};
+
 use super::jet::Scalar;
 use super::kinematics::JointState;
 use super::lanes::F64x4;
@@ -457,17 +459,28 @@ impl Spline {
 
     /// q, q̇, q̈, q⃛ at t from precomputed basis functions (see [`Knots::basis`]).
     pub fn evaluate_basis(&self, basis: &Basis, out: &mut JointState) {
-        let dim = self.dim;
         let rows: [&mut [f64; MAX_JOINTS]; 4] =
             [&mut out.q, &mut out.qd, &mut out.qdd, &mut out.qddd];
         for (k, row) in rows.into_iter().enumerate() {
             row.fill(0.0);
-            for a in 0..basis.count {
-                let w = basis.d[k][a];
-                let c = &self.coeffs[(basis.first + a) * dim..(basis.first + a + 1) * dim];
-                for j in 0..dim {
-                    row[j] += w * c[j];
-                }
+            self.add_row(basis.first, &basis.d[k][..basis.count], row);
+        }
+    }
+
+    /// Adds Σ_a w_a c_{first+a, j} to `row[j]` (j < dim, a in the weights'
+    /// order): one derivative row from a basis's weights of that order, in
+    /// `f64` or in the lanes of [`F64x4`] (the same operations, so the same
+    /// bits lane by lane).
+    #[inline(always)]
+    fn add_row<S>(&self, first: usize, weights: &[S], row: &mut [S])
+    where
+        S: Copy + AddAssign + Mul<f64, Output = S>,
+    {
+        let dim = self.dim;
+        for (a, &w) in weights.iter().enumerate() {
+            let c = &self.coeffs[(first + a) * dim..(first + a + 1) * dim];
+            for (r, &cj) in row[..dim].iter_mut().zip(c) {
+                *r += w * cj;
             }
         }
     }
@@ -475,18 +488,11 @@ impl Spline {
     /// [`Self::evaluate_basis`] of four samples of one knot span, lane by
     /// lane (bit-identical to four scalar calls; [`crate::lanes`]).
     pub fn evaluate_basis_x4(&self, basis: &Basis4, out: &mut JointState<F64x4>) {
-        let dim = self.dim;
         let rows: [&mut [F64x4; MAX_JOINTS]; 4] =
             [&mut out.q, &mut out.qd, &mut out.qdd, &mut out.qddd];
         for (k, row) in rows.into_iter().enumerate() {
             row.fill(F64x4::splat(0.0));
-            for a in 0..basis.count {
-                let w = basis.d[k][a];
-                let c = &self.coeffs[(basis.first + a) * dim..(basis.first + a + 1) * dim];
-                for j in 0..dim {
-                    row[j] += w * c[j];
-                }
-            }
+            self.add_row(basis.first, &basis.d[k][..basis.count], row);
         }
     }
 
@@ -514,13 +520,7 @@ impl Spline {
             spans.basis_x4(m, u, &mut b4);
             for (row, &k) in out.iter_mut().zip(&orders) {
                 row[..dim].fill(F64x4::splat(0.0));
-                for a in 0..b4.count {
-                    let w = b4.d[k][a];
-                    let c = &self.coeffs[(b4.first + a) * dim..(b4.first + a + 1) * dim];
-                    for j in 0..dim {
-                        row[j] += w * c[j];
-                    }
-                }
+                self.add_row(b4.first, &b4.d[k][..b4.count], row);
             }
             return [true; 4];
         }
@@ -529,18 +529,12 @@ impl Spline {
         for l in 0..4 {
             inside[l] = spans.basis(u.lane(l), &mut b).is_ok();
             for (row, &k) in out.iter_mut().zip(&orders) {
-                for r in row.iter_mut().take(dim) {
-                    r.0[l] = 0.0;
+                let mut one = [0.0; MAX_JOINTS];
+                if inside[l] {
+                    self.add_row(b.first, &b.d[k][..b.count], &mut one);
                 }
-                if !inside[l] {
-                    continue;
-                }
-                for a in 0..b.count {
-                    let w = b.d[k][a];
-                    let c = &self.coeffs[(b.first + a) * dim..(b.first + a + 1) * dim];
-                    for j in 0..dim {
-                        row[j].0[l] += w * c[j];
-                    }
+                for (r, v) in row[..dim].iter_mut().zip(one) {
+                    r.0[l] = v;
                 }
             }
         }
