@@ -175,6 +175,17 @@ pub fn on_avx2<R>(f: impl FnOnce() -> R) -> R {
     f()
 }
 
+/// The indices of `range` four at a time, one per lane of a four-lane call:
+/// each quad's indices and how many of them are its own (a short last quad
+/// repeats its last index in the other lanes, whose results are dropped).
+pub fn quads(range: std::ops::Range<usize>) -> impl Iterator<Item = ([usize; 4], usize)> {
+    let end = range.end;
+    range.step_by(4).map(move |i| {
+        let len = (end - i).min(4);
+        (std::array::from_fn(|l| i + l.min(len - 1)), len)
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -223,6 +234,21 @@ mod tests {
                 (on.0 .0[l].to_bits(), on.1 .0[l].to_bits()),
                 (s1.to_bits(), c1.to_bits())
             );
+        }
+    }
+
+    /// Every index once, in order, four to a quad; a short last quad
+    /// repeats its last index; an empty range gives no quad.
+    #[test]
+    fn quads_cover_the_range_in_order() {
+        assert_eq!(quads(3..3).count(), 0);
+        let q: Vec<_> = quads(5..11).collect();
+        assert_eq!(q, vec![([5, 6, 7, 8], 4), ([9, 10, 10, 10], 2)]);
+        for end in 0..13 {
+            let own: Vec<usize> = quads(0..end)
+                .flat_map(|(q, len)| q[..len].to_vec())
+                .collect();
+            assert_eq!(own, (0..end).collect::<Vec<_>>());
         }
     }
 }

@@ -159,17 +159,6 @@ impl BodyRate {
     }
 }
 
-/// The indices of `range` four at a time, one per lane of a four-lane call
-/// ([`BodyRate::imu_x4`]): each quad's indices and how many of them are
-/// its own (a short last quad repeats its last index in the other lanes).
-pub fn quads(range: std::ops::Range<usize>) -> impl Iterator<Item = ([usize; 4], usize)> {
-    let end = range.end;
-    range.step_by(4).map(move |i| {
-        let len = (end - i).min(4);
-        (std::array::from_fn(|l| i + l.min(len - 1)), len)
-    })
-}
-
 /// A constant matrix in the scalar type `S`.
 #[inline(always)]
 fn cst_m<S: Scalar>(m: &M3) -> M3<S> {
@@ -246,21 +235,6 @@ mod tests {
                     }
                 }
             }
-        }
-    }
-
-    /// Every index once, in order, four to a quad; a short last quad
-    /// repeats its last index; an empty range gives no quad.
-    #[test]
-    fn quads_cover_the_range_in_order() {
-        assert_eq!(quads(3..3).count(), 0);
-        let q: Vec<_> = quads(5..11).collect();
-        assert_eq!(q, vec![([5, 6, 7, 8], 4), ([9, 10, 10, 10], 2)]);
-        for end in 0..13 {
-            let own: Vec<usize> = quads(0..end)
-                .flat_map(|(q, len)| q[..len].to_vec())
-                .collect();
-            assert_eq!(own, (0..end).collect::<Vec<_>>());
         }
     }
 }

@@ -24,6 +24,7 @@ mod rate_grid;
 use crate::body_rate::BodyRate;
 use lag_fit::{LagFit, Samples};
 use rate_grid::RateGrid;
+use robimu_model::lanes::quads;
 use robimu_model::Spline;
 
 /// Search settings.
@@ -86,15 +87,13 @@ pub enum TauError {
 /// Fit every lag of `lags` (in order, `None` where a lag has too few
 /// samples), the two halves on two threads.
 fn scan(lags: &[f64], samples: &Samples, grid: &RateGrid) -> Vec<Option<LagFit>> {
-    // four lags at a time (LagFit::at_x4: the bits of four `at` calls)
+    // four lags at a time (LagFit::at_x4; a short last quad repeats a lag)
     let run = |part: &[f64]| -> Vec<Option<LagFit>> {
         let mut fits = Vec::with_capacity(part.len());
-        let quads = part.chunks_exact(4);
-        let rest = quads.remainder();
-        for q in quads {
-            fits.extend(LagFit::at_x4([q[0], q[1], q[2], q[3]], samples, grid));
+        for (quad, len) in quads(0..part.len()) {
+            let four = LagFit::at_x4(quad.map(|k| part[k]), samples, grid);
+            fits.extend(four.into_iter().take(len));
         }
-        fits.extend(rest.iter().map(|&lag| LagFit::at(lag, samples, grid)));
         fits
     };
     let half = lags.len() / 2;

@@ -19,7 +19,7 @@
 //! white fit succeeded). The loop ([`settle_noise`]) is the one diagnose
 //! runs after each effect it adds.
 
-use robimu_model::lanes::F64x4;
+use robimu_model::lanes::{quads, F64x4};
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
 use robimu_model::{
@@ -29,7 +29,6 @@ use robimu_solver::IterationRecord;
 
 use super::fit::{fit, Fit, FitSpec, Start};
 use super::{calibrate, calibration_of, CalibrateError, CalibrateOptions, Calibration};
-use crate::body_rate::quads;
 use crate::noise_id::{identify, IdOptions, Identification};
 
 /// Most GLS refits of `Auto`.

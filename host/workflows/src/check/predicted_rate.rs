@@ -12,12 +12,12 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
-use robimu_model::lanes::F64x4;
+use robimu_model::lanes::{quads, F64x4};
 use robimu_model::{MeasurementModel, ParamLayout, Robot, MAX_JOINTS};
 use robimu_session::Session;
 
 use super::units::speeds_at;
-use crate::body_rate::{quads, BodyRate};
+use crate::body_rate::BodyRate;
 
 /// Rows per chunk.
 const CHUNK: usize = 2048;

@@ -65,57 +65,32 @@ const MIN_COUNT: usize = 50;
 
 impl LagFit {
     /// The regression at `lag` of `samples` on the rate of `grid` (`None`
-    /// with fewer than 50 samples inside the span or a singular Σ a aᵀ).
+    /// with fewer than 50 samples inside the span or a singular Σ a aᵀ):
+    /// one lane of [`Self::at_x4`]'s sums (the search fits four lags at a
+    /// time; this is the one-lag reference its tests compare with).
+    #[cfg(test)]
     pub fn at(lag: f64, samples: &Samples, grid: &RateGrid) -> Option<Self> {
-        let (t0, t1) = grid.span();
-        let t = &samples.t;
-        // t + lag is monotone in t: the samples inside are one run
-        let lo = t.partition_point(|&ti| ti + lag < t0);
-        let hi = lo + t[lo..].partition_point(|&ti| ti + lag <= t1);
-        let mut m = [[0.0f64; 4]; 4];
-        let mut c = [[0.0f64; 3]; 3];
-        let mut gg = [0.0f64; 3];
-        let mut gs = [0.0f64; 3];
-        for (&ti, g) in t[lo..hi].iter().zip(&samples.g[lo..hi]) {
-            let w = grid.at_inside(ti + lag);
-            for i in 0..3 {
-                for j in i..3 {
-                    m[i][j] += w[i] * w[j];
-                }
-                m[i][3] += w[i];
-                for k in 0..3 {
-                    c[i][k] += w[i] * g[k];
-                }
-            }
-            for k in 0..3 {
-                gg[k] += g[k] * g[k];
-                gs[k] += g[k];
-            }
+        let (lo, hi) = run(lag, samples, grid);
+        let mut sums = Sums4::default();
+        for i in lo..hi {
+            sums.add_lane(0, grid.at_inside(samples.t[i] + lag), &samples.g[i]);
         }
-        let count = hi - lo;
-        if count < MIN_COUNT {
-            return None;
-        }
-        m[3][3] = count as f64;
-        for i in 0..4 {
-            for j in 0..i {
-                m[i][j] = m[j][i];
-            }
-        }
-        let c = [c[0], c[1], c[2], gs];
-        let (msr, r_squared) = solve(m, &c, gg, gs, count)?;
-        Some(Self {
-            lag,
-            msr,
-            r_squared,
-            count,
-        })
+        sums.fit(0, lag, hi - lo)
     }
 }
 
+/// The samples inside the span of `grid` at `lag`: t + lag is monotone in
+/// t, so they are one run lo..hi.
+fn run(lag: f64, samples: &Samples, grid: &RateGrid) -> (usize, usize) {
+    let (t0, t1) = grid.span();
+    let t = &samples.t;
+    let lo = t.partition_point(|&ti| ti + lag < t0);
+    (lo, lo + t[lo..].partition_point(|&ti| ti + lag <= t1))
+}
+
 impl LagFit {
-    /// [`Self::at`] of four lags, each lane the bits of its own call: every
-    /// lag's sums run over its samples in order, the samples inside all
+    /// The regressions at four lags, each lane the bits of a fit of its lag
+    /// alone ([`Self::at`]): every lag's sums run over its samples in order, the samples inside all
     /// four spans in the lanes of [`F64x4`] (the same operations lane by
     /// lane), the few at the ends of one lag's span alone. Compiled for
     /// AVX2 where the CPU has it.
@@ -136,14 +111,9 @@ impl LagFit {
 
     #[inline(always)]
     fn at_lanes(lags: [f64; 4], samples: &Samples, grid: &RateGrid) -> [Option<Self>; 4] {
-        let (t0, t1) = grid.span();
-        let t = &samples.t;
-        let g = &samples.g;
-        // each lag's samples inside the span, as in `at`
-        let runs = lags.map(|lag| {
-            let lo = t.partition_point(|&ti| ti + lag < t0);
-            (lo, lo + t[lo..].partition_point(|&ti| ti + lag <= t1))
-        });
+        let (t, g) = (&samples.t, &samples.g);
+        // each lag's samples inside the span
+        let runs = lags.map(|lag| run(lag, samples, grid));
         let common_lo = runs.iter().map(|r| r.0).max().unwrap_or(0);
         let common_hi = runs.iter().map(|r| r.1).min().unwrap_or(0).max(common_lo);
         let mut sums = Sums4::default();
@@ -167,7 +137,7 @@ impl LagFit {
     }
 }
 
-/// The sums of [`LagFit::at`] for four lags, one per lane.
+/// The regression sums of four lags, one per lane.
 #[derive(Default)]
 struct Sums4 {
     m: [[F64x4; 4]; 3],
@@ -213,7 +183,7 @@ impl Sums4 {
         }
     }
 
-    /// Lane `l`'s fit, as [`LagFit::at`] finishes it.
+    /// Lane `l`'s fit from its sums over `count` samples.
     fn fit(&self, l: usize, lag: f64, count: usize) -> Option<LagFit> {
         if count < MIN_COUNT {
             return None;

@@ -7,8 +7,8 @@
 //! docs/model.md §1.5 from q and q̇, bit for bit the ω of
 //! `MeasurementModel::inertial`), the two halves on two threads.
 
-use crate::body_rate::{quads, BodyRate};
-use robimu_model::lanes::F64x4;
+use crate::body_rate::BodyRate;
+use robimu_model::lanes::{quads, F64x4};
 use robimu_model::{SpanPolynomials, Spline, MAX_JOINTS};
 
 /// ω at t0 + k·h, k = 0..=steps (the last node clamped to t1).
