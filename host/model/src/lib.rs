@@ -62,6 +62,7 @@ pub mod lanes;
 pub mod measurement;
 pub mod noise;
 pub mod observations;
+pub mod pair;
 pub mod params;
 pub mod robot;
 pub mod spline;

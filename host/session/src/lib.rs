@@ -196,11 +196,10 @@ impl Session {
         }
         let meta = SessionMeta::read(&dir.join(files::META))?;
         // the two streams are parsed on two threads (joints.csv's error first)
-        let (joints, imu) = std::thread::scope(|s| {
-            let imu = s.spawn(|| ImuTable::read(&dir.join(files::IMU)));
-            let joints = read_table(&dir.join(files::JOINTS), Columns::Joints);
-            (joints, imu.join().expect("imu.csv reader panicked"))
-        });
+        let (joints, imu) = robimu_model::pair::join(
+            || read_table(&dir.join(files::JOINTS), Columns::Joints),
+            || ImuTable::read(&dir.join(files::IMU)),
+        );
         let joints = joints?;
         let ImuTable {
             samples: imu,

@@ -433,23 +433,25 @@ fn whitened_squares(
     };
     let samples = data.joint_t.len();
     let mid = samples / 2;
-    let (mut ss, second) = std::thread::scope(|sc| {
-        let h = sc.spawn(|| {
+    let (mut ss, second) = robimu_model::pair::join(
+        || {
+            let (mut ss, mut out, mut span) = (vec![0.0; n], [0.0; MAX_JOINTS], 0);
+            for s in 0..mid {
+                terms(s, &mut span, &mut out[..n]);
+                for j in 0..n {
+                    ss[j] += out[j];
+                }
+            }
+            ss
+        },
+        || {
             let (mut t, mut span) = (vec![0.0; (samples - mid) * n], 0);
             for (s, out) in (mid..samples).zip(t.chunks_exact_mut(n)) {
                 terms(s, &mut span, out);
             }
             t
-        });
-        let (mut ss, mut out, mut span) = (vec![0.0; n], [0.0; MAX_JOINTS], 0);
-        for s in 0..mid {
-            terms(s, &mut span, &mut out[..n]);
-            for j in 0..n {
-                ss[j] += out[j];
-            }
-        }
-        (ss, h.join().expect("residual thread panicked"))
-    });
+        },
+    );
     for row in second.chunks_exact(n) {
         for j in 0..n {
             ss[j] += row[j];

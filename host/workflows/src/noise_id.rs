@@ -672,11 +672,7 @@ pub fn identify(
         })
         .collect()
     };
-    let (accel, gyro) = std::thread::scope(|s| {
-        let h = s.spawn(|| run(0..3));
-        let gyro = run(3..6);
-        (h.join().expect("identification thread panicked"), gyro)
-    });
+    let (gyro, accel) = robimu_model::pair::join(|| run(3..6), || run(0..3));
     let channels = accel
         .into_iter()
         .chain(gyro)

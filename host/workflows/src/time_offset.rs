@@ -97,10 +97,7 @@ fn scan(lags: &[f64], samples: &Samples, grid: &RateGrid) -> Vec<Option<LagFit>>
         fits
     };
     let half = lags.len() / 2;
-    let (mut a, b) = std::thread::scope(|s| {
-        let h = s.spawn(|| run(&lags[half..]));
-        (run(&lags[..half]), h.join().expect("scan thread panicked"))
-    });
+    let (mut a, b) = robimu_model::pair::join(|| run(&lags[..half]), || run(&lags[half..]));
     a.extend(b);
     a
 }

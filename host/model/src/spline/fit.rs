@@ -134,13 +134,7 @@ impl NormalEquations {
             let mut eq = Self::zero(spans.knots(), dim);
             eq.add_samples(spans, times, values, range).map(|()| eq)
         };
-        let (first, second) = std::thread::scope(|s| {
-            let h = s.spawn(|| sum(mid..n));
-            (
-                sum(0..mid),
-                h.join().expect("normal-equation thread panicked"),
-            )
-        });
+        let (first, second) = crate::pair::join(|| sum(0..mid), || sum(mid..n));
         // the first half's error is the first sample's
         let (mut eq, second) = (first?, second?);
         let (bw, p) = (eq.p + 1, eq.p);

@@ -79,11 +79,7 @@ impl Problem<'_> {
             }
             Ok(c + self.joint_terms(&spline, self.joint_parts()[h].clone(), None))
         };
-        let (c1, c2) = std::thread::scope(|s| {
-            let h = s.spawn(|| half(1));
-            let c1 = half(0);
-            (c1, h.join().expect("cost thread panicked"))
-        });
+        let (c1, c2) = robimu_model::pair::join(|| half(0), || half(1));
         Ok(c1?
             + c2?
             + self.prior_terms(&x, None, 0)
@@ -96,22 +92,16 @@ impl Problem<'_> {
     pub fn cost_and_residuals(&self, theta: &[f64]) -> Result<(f64, Residuals), ProblemError> {
         let x = self.x_of(theta);
         let spline = self.spline_of(theta);
-        // the joint residuals' two halves on a thread of their own while
-        // the IMU residuals take both cores
-        let (residuals, joint) = std::thread::scope(|s| {
-            let joint = s.spawn(|| {
-                self.joint_parts()
-                    .map(|part| self.joint_terms(&spline, part, None))
-            });
-            let residuals = (0..self.streams.len())
-                .map(|j| self.imu_residuals_of(theta, j))
-                .collect::<Result<Vec<_>, _>>();
-            (
-                residuals,
-                joint.join().expect("joint residual thread panicked"),
-            )
-        });
-        let residuals = residuals?;
+        // the IMU residuals on both cores, then the joint residuals' two halves
+        let residuals = (0..self.streams.len())
+            .map(|j| self.imu_residuals_of(theta, j))
+            .collect::<Result<Vec<_>, _>>()?;
+        let [p0, p1] = self.joint_parts();
+        let joint = robimu_model::pair::join(
+            || self.joint_terms(&spline, p0, None),
+            || self.joint_terms(&spline, p1, None),
+        );
+        let joint = [joint.0, joint.1];
         // summed as `cost` sums: per half, stream after stream, sample by
         // sample, then the half's joint samples
         let half = |h: usize| {
@@ -190,11 +180,7 @@ impl Problem<'_> {
             let joints = self.joint_parts()[h].clone();
             Ok(c + self.joint_terms(&spline, joints, Some(&mut *lin.g)))
         };
-        let (r1, r2) = std::thread::scope(|s| {
-            let h = s.spawn(|| half(1, &mut other));
-            let r1 = half(0, &mut out);
-            (r1, h.join().expect("assembly thread panicked"))
-        });
+        let (r1, r2) = robimu_model::pair::join(|| half(0, &mut out), || half(1, &mut other));
         let mut cost = r1? + r2?;
         out.a.add_assign(&a2);
         for (u, v) in out.g.iter_mut().zip(&g2) {
@@ -270,10 +256,7 @@ impl Problem<'_> {
         let [first, second] = self.imu_parts(st);
         let mut out = vec![(0, [0.0; 6]); st.imu_range.len()];
         let (lo, hi) = out.split_at_mut(first.len());
-        let (a, b) = std::thread::scope(|s| {
-            let h = s.spawn(|| part(second, hi));
-            (part(first, lo), h.join().expect("residual thread panicked"))
-        });
+        let (a, b) = robimu_model::pair::join(|| part(first, lo), || part(second, hi));
         a?;
         b?;
         Ok(out)

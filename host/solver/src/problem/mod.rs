@@ -683,13 +683,7 @@ fn joint_bases(spans: &SpanPolynomials, t: &[f64]) -> Result<Vec<JointBasis>, Sp
     };
     let (lo, hi) = t.split_at(t.len() / 2);
     let (out_lo, out_hi) = out.split_at_mut(lo.len());
-    let (a, b) = std::thread::scope(|s| {
-        let h = s.spawn(|| part(hi, out_hi));
-        (
-            part(lo, out_lo),
-            h.join().expect("joint basis thread panicked"),
-        )
-    });
+    let (a, b) = robimu_model::pair::join(|| part(lo, out_lo), || part(hi, out_hi));
     a?;
     b?;
     Ok(out)

@@ -393,12 +393,9 @@ fn identification_of(
     };
     let len = data.imu_t.len().min(data.imu_z.len());
     let mid = len / 2;
-    let ((mut t, mut r, mut qdd2), (t2, r2, q2)) = std::thread::scope(|s| {
-        let h = s.spawn(|| part(mid..len, 0));
-        // the first half's storage holds the whole (no copy when joined)
-        let first = part(0..mid, len);
-        (first, h.join().expect("residual thread panicked"))
-    });
+    // the first half's storage holds the whole (no copy when joined)
+    let ((mut t, mut r, mut qdd2), (t2, r2, q2)) =
+        robimu_model::pair::join(|| part(0..mid, len), || part(mid..len, 0));
     t.extend(t2);
     r.extend(r2);
     qdd2.extend(q2);

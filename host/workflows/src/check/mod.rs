@@ -155,24 +155,26 @@ impl CheckReport {
 /// else, then helps with what is left of it.
 pub fn check_session(session: &Session, robot: &Robot, opts: &CheckOptions) -> CheckReport {
     let rate = PredictedRate::new(session, robot);
-    let mut findings = std::thread::scope(|s| {
-        let helper = s.spawn(|| rate.work());
-        let predicted = || {
-            rate.work();
-            helper.join().expect("gyroscope prediction thread panicked");
-            rate.rms()
-        };
-        let mut findings = Vec::new();
-        findings.extend(streams::check(session));
-        findings.extend(channels::check(session));
-        let moving = motion::motionless(session);
-        let still = moving.iter().any(|f| f.severity == Severity::Fatal);
-        findings.extend(moving);
-        findings.extend(units::check(session, robot, still, predicted));
-        // not asked for (a fatal finding first): the rest is not computed
-        rate.stop();
-        findings
-    });
+    let (mut findings, ()) = robimu_model::pair::join(
+        || {
+            let predicted = || {
+                rate.work();
+                rate.wait();
+                rate.rms()
+            };
+            let mut findings = Vec::new();
+            findings.extend(streams::check(session));
+            findings.extend(channels::check(session));
+            let moving = motion::motionless(session);
+            let still = moving.iter().any(|f| f.severity == Severity::Fatal);
+            findings.extend(moving);
+            findings.extend(units::check(session, robot, still, predicted));
+            // not asked for (a fatal finding first): the rest is not computed
+            rate.stop();
+            findings
+        },
+        || rate.work(),
+    );
     let fatal = findings.iter().any(|f| f.severity == Severity::Fatal);
     if opts.excitation && !fatal {
         findings.extend(motion::excitation(session, robot));

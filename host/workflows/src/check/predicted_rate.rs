@@ -66,6 +66,13 @@ impl<'s> PredictedRate<'s> {
         }
     }
 
+    /// Wait until every chunk taken by another thread is computed.
+    pub fn wait(&self) {
+        while self.chunks.iter().any(|c| c.get().is_none()) {
+            std::thread::yield_now();
+        }
+    }
+
     /// Leave the chunks not yet taken (the prediction is not needed).
     pub fn stop(&self) {
         self.next.fetch_max(self.chunks.len(), Ordering::Relaxed);

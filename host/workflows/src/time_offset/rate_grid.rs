@@ -50,11 +50,8 @@ impl RateGrid {
         // the two halves on two threads, each writing its part in place
         let mut grid = vec![[0.0; 6]; steps + 1];
         let mid = steps.div_ceil(2);
-        std::thread::scope(|s| {
-            let (first, second) = grid.split_at_mut(mid);
-            s.spawn(|| nodes(mid, second));
-            nodes(0, first);
-        });
+        let (first, second) = grid.split_at_mut(mid);
+        robimu_model::pair::join(|| nodes(0, first), || nodes(mid, second));
         Self::with_differences(t0, t1, h, grid)
     }
 
