@@ -9,7 +9,7 @@
 //! the first checks everything else and then helps. Each row's |ω̃|² is
 //! kept, and the mean square sums them in row order: the sum of one pass.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
 use robimu_model::lanes::{quads, F64x4};
@@ -31,6 +31,19 @@ pub struct PredictedRate<'s> {
     next: AtomicUsize,
     /// Each chunk's rows' |ω̃|², once computed.
     chunks: Vec<OnceLock<Vec<f64>>>,
+    /// A thread panicked computing a chunk (it will never be set).
+    failed: AtomicBool,
+}
+
+/// Marks [`PredictedRate::failed`] when dropped by a panic.
+struct FailOnPanic<'a>(&'a AtomicBool);
+
+impl Drop for FailOnPanic<'_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.store(true, Ordering::Release);
+        }
+    }
 }
 
 impl<'s> PredictedRate<'s> {
@@ -50,12 +63,14 @@ impl<'s> PredictedRate<'s> {
             rate,
             next: AtomicUsize::new(0),
             chunks: (0..count).map(|_| OnceLock::new()).collect(),
+            failed: AtomicBool::new(false),
         }
     }
 
     /// Compute the chunks no thread has taken yet, until none is left.
     pub fn work(&self) {
         let Some(rate) = &self.rate else { return };
+        let _guard = FailOnPanic(&self.failed);
         loop {
             let c = self.next.fetch_add(1, Ordering::Relaxed);
             let Some(slot) = self.chunks.get(c) else {
@@ -67,8 +82,15 @@ impl<'s> PredictedRate<'s> {
     }
 
     /// Wait until every chunk taken by another thread is computed.
+    ///
+    /// # Panics
+    /// When a thread panicked computing one (it would never be computed).
     pub fn wait(&self) {
         while self.chunks.iter().any(|c| c.get().is_none()) {
+            assert!(
+                !self.failed.load(Ordering::Acquire),
+                "gyroscope prediction thread panicked"
+            );
             std::thread::yield_now();
         }
     }
@@ -122,5 +144,27 @@ impl<'s> PredictedRate<'s> {
             );
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A thread that panics while computing chunks marks the prediction
+    /// failed (so [`PredictedRate::wait`] stops instead of waiting for a
+    /// chunk that will never come); one that returns does not.
+    #[test]
+    fn a_panic_while_computing_marks_the_prediction_failed() {
+        let failed = AtomicBool::new(false);
+        let r = std::panic::catch_unwind(|| {
+            let _guard = FailOnPanic(&failed);
+            panic!("a chunk's computation failed");
+        });
+        assert!(r.is_err());
+        assert!(failed.load(Ordering::Acquire));
+        let fine = AtomicBool::new(false);
+        drop(FailOnPanic(&fine));
+        assert!(!fine.load(Ordering::Acquire));
     }
 }

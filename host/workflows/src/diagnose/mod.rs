@@ -550,12 +550,8 @@ pub fn identify_at(
             .collect()
     };
     let (first, second) = res.split_at(res.len() / 2);
-    let qdd2 = std::thread::scope(|s| {
-        let h = s.spawn(|| qdd2_of(second));
-        let mut v = qdd2_of(first);
-        v.extend(h.join().expect("trajectory thread panicked"));
-        v
-    });
+    let (mut qdd2, rest) = robimu_model::pair::join(|| qdd2_of(first), || qdd2_of(second));
+    qdd2.extend(rest);
     identify(&t, &r, Some(&qdd2), id_opts).map_err(|e| e.to_string())
 }
 

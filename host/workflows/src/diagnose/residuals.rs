@@ -145,10 +145,7 @@ pub fn residual_stats(
         regs
     };
     let (first, second) = res.split_at(res.len() / 2);
-    let (mut regs, rest) = std::thread::scope(|s| {
-        let h = s.spawn(|| columns(second));
-        (columns(first), h.join().expect("regressor thread panicked"))
-    });
+    let (mut regs, rest) = robimu_model::pair::join(|| columns(first), || columns(second));
     for (col, more) in regs.iter_mut().zip(rest) {
         col.extend(more);
     }
@@ -167,12 +164,11 @@ pub fn residual_stats(
     };
     // the channels' statistics, three per thread, gathered in channel order
     let channel = |c: usize| channel_stats(res, c, &ts, rate, &regs, &reg_names);
-    let per_channel: Vec<ChannelStats> = std::thread::scope(|s| {
-        let h = s.spawn(|| (3..6).map(channel).collect::<Vec<_>>());
-        let mut v: Vec<ChannelStats> = (0..3).map(channel).collect();
-        v.extend(h.join().expect("channel statistics thread panicked"));
-        v
-    });
+    let (mut per_channel, rest) = robimu_model::pair::join(
+        || (0..3).map(channel).collect::<Vec<ChannelStats>>(),
+        || (3..6).map(channel).collect::<Vec<_>>(),
+    );
+    per_channel.extend(rest);
     for (name, st) in CHANNELS.iter().zip(per_channel) {
         let name = name.to_string();
         out.chi2_total.0 += st.ss;
