@@ -107,26 +107,31 @@ impl<B: FnOnce() -> RB, RB> StackJob<B, RB> {
 
     /// Wait until the helper has run the job: poll, then park.
     fn wait(&self) {
-        let start = Instant::now();
-        while !self.done.load(Ordering::Acquire) {
-            if poll(&self.done, start) {
-                continue;
-            }
+        wait_for(|| self.done.load(Ordering::Acquire));
+    }
+}
+
+/// Return once `ready()`: poll it for up to [`SPIN`], then park between
+/// looks (whoever makes it true unparks this thread).
+fn wait_for(ready: impl Fn() -> bool) {
+    let start = Instant::now();
+    while !ready() {
+        if !poll(&ready, start) {
             thread::park();
         }
     }
 }
 
-/// Poll `flag` for up to [`SPIN`] since `start`: whether it was set.
-fn poll(flag: &AtomicBool, start: Instant) -> bool {
+/// Poll `ready` until [`SPIN`] after `start`: whether it became true.
+fn poll(ready: &impl Fn() -> bool, start: Instant) -> bool {
     loop {
         for _ in 0..4096 {
-            if flag.load(Ordering::Acquire) {
+            if ready() {
                 return true;
             }
         }
         if start.elapsed() > SPIN {
-            return flag.load(Ordering::Acquire);
+            return ready();
         }
         // let another thread of this core run (a scoped thread of a
         // `join` made while the helper is busy, another process)
@@ -146,8 +151,6 @@ struct Helper {
     busy: AtomicBool,
     /// The posted job (null: none); a `Box<RawJob>`.
     job: AtomicPtr<RawJob>,
-    /// Set with `job`, for the helper's poll.
-    posted: AtomicBool,
     thread: Thread,
 }
 
@@ -169,7 +172,6 @@ impl Helper {
             let helper: &'static Helper = Box::leak(Box::new(Helper {
                 busy: AtomicBool::new(false),
                 job: AtomicPtr::new(std::ptr::null_mut()),
-                posted: AtomicBool::new(false),
                 thread: handle.thread().clone(),
             }));
             tx.send(helper).ok()?;
@@ -182,23 +184,14 @@ impl Helper {
             .job
             .swap(Box::into_raw(Box::new(job)), Ordering::AcqRel);
         debug_assert!(old.is_null(), "one job at a time");
-        self.posted.store(true, Ordering::Release);
         self.thread.unpark();
     }
 
     fn serve(&self) -> ! {
         loop {
-            let start = Instant::now();
-            while !self.posted.load(Ordering::Acquire) {
-                if !poll(&self.posted, start) {
-                    thread::park();
-                }
-            }
-            self.posted.store(false, Ordering::Relaxed);
+            wait_for(|| !self.job.load(Ordering::Acquire).is_null());
+            // only this thread takes jobs: the one seen is still there
             let job = self.job.swap(std::ptr::null_mut(), Ordering::AcqRel);
-            if job.is_null() {
-                continue;
-            }
             // SAFETY: posted by `join`, which waits for the job to finish.
             let job = unsafe { Box::from_raw(job) };
             unsafe { (job.run)(job.data) };
