@@ -26,8 +26,8 @@ struct Cli {
 /// buffers (matrices, residuals, tables of 1–2 MB) many times, and on a
 /// virtual machine a page fault costs ≈ 2 µs (7 000 of them in a 300 s
 /// calibrate). Serving blocks up to 32 MiB from the heap and keeping up to
-/// 256 MiB of freed memory for reuse leaves 5 100 of them (issue 18, README
-/// Performance); memory is returned at exit.
+/// 256 MiB of freed memory for reuse leaves 5 100 of them (issue 18,
+/// docs/performance.md); memory is returned at exit.
 fn keep_freed_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only sets the allocator's parameters; called before

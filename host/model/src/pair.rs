@@ -7,7 +7,7 @@
 //! finds the other core halted, and on a virtual machine waking a halted
 //! core is the hypervisor's business: on the project's 2-core machine a
 //! thread spawned after a 2–4 ms serial step started 1.2–2.9 ms later, as
-//! long as the step itself (issue 18, README *Performance*). The helper
+//! long as the step itself (issue 18, docs/performance.md). The helper
 //! here keeps its core awake instead: after a job it polls for the next
 //! one for [`SPIN`] before it parks (what OpenMP runtimes do between
 //! parallel regions), so a `join` made shortly after the last one starts
