@@ -11,7 +11,8 @@ use std::net::TcpStream;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use robimu_hil_sim::aubo::{FaultSwitches, JointLimits, SimAubo, SimAuboConfig, TrueSample};
+use robimu_hil_sim::arm::{reading_errors, true_joints_at};
+use robimu_hil_sim::aubo::{FaultSwitches, JointLimits, SimAubo, SimAuboConfig};
 use robimu_record::controller::aubo::{AuboClient, AuboError, JointPoller, JointSample};
 use serde_json::Value;
 
@@ -29,14 +30,6 @@ fn spawn(lag: f64, noise: f64, limits: JointLimits, faults: FaultSwitches) -> (S
     })
     .expect("simulator starts");
     (sim, epoch)
-}
-
-/// Linear interpolation of joint `j` of the true trajectory at time `t`.
-fn interp(log: &[TrueSample], t: f64, j: usize) -> f64 {
-    let k = log.partition_point(|s| s.t < t).clamp(1, log.len() - 1);
-    let (a, b) = (&log[k - 1], &log[k]);
-    let u = ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0);
-    a.q[j] + u * (b.q[j] - a.q[j])
 }
 
 #[test]
@@ -80,7 +73,7 @@ fn move_joint_reaches_target_within_velocity_and_acceleration_limits() {
     let (t0, t1) = (log[0].t, log.last().unwrap().t);
     let h = 0.002;
     let grid: Vec<f64> = (0..((t1 - t0) / h) as usize)
-        .map(|k| interp(&log, t0 + k as f64 * h, 0))
+        .map(|k| true_joints_at(&log, t0 + k as f64 * h)[0])
         .collect();
     let vel: Vec<f64> = grid.windows(2).map(|w| (w[1] - w[0]) / h).collect();
     // Over 20 ms: the log is sampled irregularly (≤ 2 ms apart) and linear
@@ -180,12 +173,7 @@ fn path_buffer_sinusoid_is_followed_with_the_configured_lag_and_noise() {
 
     // Polled readings against the true trajectory at the same instants.
     let log = sim.true_trajectory();
-    let diffs: Vec<f64> = window
-        .iter()
-        .map(|s| s.q[1] - interp(&log, s.t, 1))
-        .collect();
-    let mean = diffs.iter().sum::<f64>() / diffs.len() as f64;
-    let sd = (diffs.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / diffs.len() as f64).sqrt();
+    let (mean, sd) = reading_errors(&log, 1, window.iter().map(|s| (s.t, s.q[1])));
     assert!(
         mean.abs() < 3e-4 && (sd - noise).abs() < 0.3 * noise,
         "mean {mean} sd {sd}"

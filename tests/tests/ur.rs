@@ -11,7 +11,7 @@ use std::net::TcpStream;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use robimu_hil_sim::aubo::TrueSample;
+use robimu_hil_sim::arm::reading_errors;
 use robimu_hil_sim::ur::{FaultSwitches, SimUr, SimUrConfig};
 use robimu_record::controller::ur::{
     FieldType, UrClient, UrError, UrPorts, UrRobot, SAMPLE_OUTPUTS,
@@ -30,14 +30,6 @@ fn robot(sim: &SimUr, timeout: Duration) -> Result<UrRobot, UrError> {
         script: sim.script_addr().port(),
     };
     UrRobot::connect("127.0.0.1", ports, timeout)
-}
-
-/// Linear interpolation of joint `j` of the true trajectory at time `t`.
-fn interp(log: &[TrueSample], t: f64, j: usize) -> f64 {
-    let k = log.partition_point(|s| s.t < t).clamp(1, log.len() - 1);
-    let (a, b) = (&log[k - 1], &log[k]);
-    let u = ((t - a.t) / (b.t - a.t)).clamp(0.0, 1.0);
-    a.q[j] + u * (b.q[j] - a.q[j])
 }
 
 #[test]
@@ -239,12 +231,7 @@ fn servoj_plan_is_followed_with_the_configured_lag_and_noise() {
 
     // Reported angles against the true trajectory at their cycle times.
     let log = sim.true_trajectory();
-    let diffs: Vec<f64> = window
-        .iter()
-        .map(|r| r[1][1] - interp(&log, t_of(r), 1))
-        .collect();
-    let mean = diffs.iter().sum::<f64>() / diffs.len() as f64;
-    let sd = (diffs.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / diffs.len() as f64).sqrt();
+    let (mean, sd) = reading_errors(&log, 1, window.iter().map(|r| (t_of(r), r[1][1])));
     assert!(
         mean.abs() < 2e-4 && (sd - noise).abs() < 0.2 * noise,
         "mean {mean} sd {sd}"

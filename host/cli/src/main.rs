@@ -6,7 +6,10 @@
 
 #![deny(missing_docs)]
 
+mod args;
 mod cmd;
+mod flows;
+mod input;
 
 use std::process::ExitCode;
 

@@ -13,7 +13,8 @@ use robimu_workflows::calibrate::fit::{Fit, Start};
 use robimu_workflows::calibrate::noise_choice::NoiseChoice;
 use robimu_workflows::calibrate::CalibrateOptions;
 use robimu_workflows::diagnose::{
-    fit_effects, inject_effects, residual_stats, score_all, setup_for, DiagnoseOptions, Diagnosis,
+    fit_effects, inject_effects, residual_stats, score_all, setup_for, AddedParameter,
+    DiagnoseOptions, Diagnosis,
 };
 use robimu_workflows::simulate::{random_session, RandomSession, SimulateOptions};
 
@@ -151,9 +152,10 @@ fn session(seed: u64, effect: Option<(&str, f64)>) -> (Robot, Measurements, Vec<
 }
 
 /// Every effect parameter of `found` within 4σ of `injected`.
-fn check_estimates(name: &str, parameters: &[(String, String, f64, f64)], injected: &[f64]) {
+fn check_estimates(name: &str, parameters: &[AddedParameter], injected: &[f64]) {
     assert_eq!(parameters.len(), injected.len(), "{name}");
-    for ((pname, _, v, s), truth) in parameters.iter().zip(injected) {
+    for (p, truth) in parameters.iter().zip(injected) {
+        let (pname, v, s) = (&p.name, &p.value, &p.sigma);
         let z = (v - truth) / s;
         assert!(
             z.abs() < 4.0,
@@ -326,15 +328,15 @@ fn two_hidden_effects_are_both_found() {
             .take_while(|e| e != name)
             .map(|e| effects::by_name(&setup, e).unwrap().params().len())
             .sum();
-        let params: Vec<(String, String, f64, f64)> = (0..f.dof)
+        let params: Vec<AddedParameter> = (0..f.dof)
             .map(|i| {
                 let p = &d.final_fit.effect_params[off + i];
-                (
-                    p.name.clone(),
-                    p.unit.to_string(),
-                    d.final_fit.theta_e[off + i],
-                    d.final_fit.sigma_e[off + i],
-                )
+                AddedParameter {
+                    name: p.name.clone(),
+                    unit: p.unit.to_string(),
+                    value: d.final_fit.theta_e[off + i],
+                    sigma: d.final_fit.sigma_e[off + i],
+                }
             })
             .collect();
         check_estimates(name, &params, &injected[k]);
@@ -613,7 +615,7 @@ fn a_regressor_no_effect_explains_is_unexplained_structure() {
             "{r:?}"
         );
         assert!(d2.found.iter().all(|f| f.name != r.name), "{r:?}");
-        let (with, a) = r.aliased_with.clone().unwrap();
+        let (with, a) = r.aliased_with.clone().map(|m| (m.name, m.rho2)).unwrap();
         assert!(
             d2.found.iter().any(|f| f.name == with) && a <= r.aliasing + 1e-12,
             "{r:?}"

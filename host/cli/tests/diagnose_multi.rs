@@ -8,7 +8,9 @@
 use robimu_model::effects::{self, Effect};
 use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
-use robimu_workflows::diagnose::{effect_imu, inject_effects_on, setup_for, Diagnosis};
+use robimu_workflows::diagnose::{
+    effect_imu, inject_effects_on, setup_for, AddedParameter, Diagnosis,
+};
 use robimu_workflows::simulate::{random_session_imus, simulate, SimulateOptions};
 
 mod common;
@@ -62,9 +64,10 @@ fn check_candidates(d: &Diagnosis) {
 }
 
 /// Each estimate within 4σ of the injected value.
-fn check_estimates(name: &str, parameters: &[(String, String, f64, f64)], injected: &[f64]) {
+fn check_estimates(name: &str, parameters: &[AddedParameter], injected: &[f64]) {
     assert_eq!(parameters.len(), injected.len(), "{name}");
-    for ((pname, _, v, s), truth) in parameters.iter().zip(injected) {
+    for (p, truth) in parameters.iter().zip(injected) {
+        let (pname, v, s) = (&p.name, &p.value, &p.sigma);
         let z = (v - truth) / s;
         assert!(
             z.abs() < 4.0,
@@ -96,7 +99,7 @@ fn g_sensitivity_on_imu_1_is_found_as_imu_1s() {
     assert_eq!(f.imu, Some(1));
     assert!(f.p_value < d.threshold);
     assert!(
-        f.parameters[0].0.starts_with("imu1/g_sensitivity."),
+        f.parameters[0].name.starts_with("imu1/g_sensitivity."),
         "{:?}",
         f.parameters
     );

@@ -973,7 +973,7 @@ fn a_datasheet_chip_is_diagnosed_with_its_sensor_delay() {
     eprintln!("found {names:?}; want δ {:.2} ms", want * 1e3);
     let f = d.found.first().expect("an effect is found");
     assert_eq!(f.name, "sensor_delay", "found {names:?}: {:?}", f.scores);
-    let (_, _, v, s) = &f.parameters[0];
+    let (v, s) = (&f.parameters[0].value, &f.parameters[0].sigma);
     eprintln!("δ {:.2} ± {:.2} ms", v * 1e3, s * 1e3);
     assert!(((v - want) / s).abs() < 4.0, "δ {v} ± {s} vs {want}");
 }

@@ -9,7 +9,7 @@ use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
 use robimu_workflows::calibrate::fit::Fit;
 use robimu_workflows::calibrate::CalibrateOptions;
-use robimu_workflows::diagnose::{diagnose, setup_for, DiagnoseOptions};
+use robimu_workflows::diagnose::{diagnose, setup_for, AddedParameter, DiagnoseOptions};
 use robimu_workflows::simulate::{random_session, simulate, SimulateOptions, WarmUpTemperature};
 
 mod common;
@@ -127,7 +127,19 @@ fn a_warm_up_is_named_temperature_bias_and_recovered() {
     );
     assert_eq!(names, ["temperature_bias"]);
     assert!(first.p_value < d.threshold);
-    for (c, ((name, _, v, sigma), want)) in first.parameters.iter().zip(k).enumerate() {
+    for (
+        c,
+        (
+            AddedParameter {
+                name,
+                value: v,
+                sigma,
+                ..
+            },
+            want,
+        ),
+    ) in first.parameters.iter().zip(k).enumerate()
+    {
         let z = (v - want) / sigma;
         println!("{name}: {v:.4e} ± {sigma:.1e} (injected {want:.4e}, {z:+.2} σ)");
         assert!(z.abs() < 4.0, "channel {c}: {name} {v} ± {sigma} vs {want}");
@@ -329,7 +341,16 @@ fn a_rig_recording_of_a_warm_up_is_diagnosed() {
         score("bias_drift")
     );
     assert_eq!(names, ["temperature_bias"]);
-    for ((name, _, v, sigma), want) in first.parameters.iter().zip(k) {
+    for (
+        AddedParameter {
+            name,
+            value: v,
+            sigma,
+            ..
+        },
+        want,
+    ) in first.parameters.iter().zip(k)
+    {
         let z = (v - want) / sigma;
         println!("{name}: {v:.4e} ± {sigma:.1e} (hidden {want:.4e}, {z:+.2} σ)");
         assert!(z.abs() < 4.0, "{name}");

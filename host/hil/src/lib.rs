@@ -39,4 +39,5 @@ pub mod arm_physics;
 pub mod physics;
 pub mod rig;
 pub mod truth;
+pub mod truth_check;
 pub mod twin;

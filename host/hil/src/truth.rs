@@ -29,7 +29,7 @@
 //!   reference temperature).
 
 use robimu_bno055_sim::Timing;
-use robimu_model::ParamLayout;
+use robimu_model::{ParamLayout, IMU_CHANNELS};
 use robimu_record::clock_fit::ClockFit;
 use robimu_session::{ImuTiming, Truth};
 
@@ -174,7 +174,6 @@ pub fn clock_mapping_error(fits: &[(u32, ClockFit)], middle: f64, device_s: f64)
 }
 
 const BIAS_NAMES: [&str; 6] = ["b_a_x", "b_a_y", "b_a_z", "b_w_x", "b_w_y", "b_w_z"];
-const CHANNELS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
 
 /// The IMU's joint state at one sample: arm time t (s) and q, q̇, q̈.
 #[derive(Clone, Debug)]
@@ -256,7 +255,10 @@ fn effect_truth(config: &SimRigConfig, name: &str, delays: [f64; 2], bias: &Bias
             parts.next(),
             parts.next().and_then(|k| k.parse::<usize>().ok()),
         );
-        if let (Some(c), Some(k)) = (ch.and_then(|ch| CHANNELS.iter().position(|x| *x == ch)), k) {
+        if let (Some(c), Some(k)) = (
+            ch.and_then(|ch| IMU_CHANNELS.iter().position(|x| *x == ch)),
+            k,
+        ) {
             return bias.beta[c].get(k.wrapping_sub(1)).copied().unwrap_or(0.0);
         }
     }

@@ -335,6 +335,40 @@ pub fn record_offline(
     opts: &TwinOptions,
 ) -> Result<TwinSummary, TwinError> {
     check_joints(&config.robot)?;
+    check_options(opts)?;
+    let time = VirtualTime::default();
+    let arm = Arc::new(Mutex::new(VirtualAubo::new(&aubo_config(config))));
+    let (mut board, truth) = boot_board(config, opts, &time, &arm)?;
+    let info = board.start(opts.sensor)?;
+
+    let mut meta = SessionMeta::new(opts.robot_name.clone());
+    meta.imu = Some(robimu_record::device_table(&info, "virtual"));
+    meta.notes = Some(format!(
+        "recorded in virtual time by robimu {} from the simulated rig (robimu_hil::twin)",
+        env!("CARGO_PKG_VERSION")
+    ));
+    let sink = SessionSink::create(dir, &meta, config.robot.dof())?;
+
+    // Session time 0: streaming starts.
+    let epoch = time.seconds();
+    let mut run = OfflineRun {
+        config,
+        opts,
+        info,
+        time,
+        epoch,
+        sink,
+        pending: HashMap::new(),
+        nonce: 0,
+        imu_samples: 0,
+    };
+    run.play(&mut board, &arm, plan)?;
+    board.send(&HostMessage::Stop);
+    run.finish(truth)
+}
+
+/// Checks the poll interval, the joint rate and the rest.
+fn check_options(opts: &TwinOptions) -> Result<(), TwinError> {
     if !(opts.poll_interval_s > 0.0 && opts.poll_interval_s <= 0.01) {
         return Err(TwinError::Options(format!(
             "poll interval {} s is not in (0, 0.01]",
@@ -347,10 +381,19 @@ pub fn record_offline(
             opts.joint_rate, opts.rest
         )));
     }
-    let time = VirtualTime::default();
-    let arm = Arc::new(Mutex::new(VirtualAubo::new(&aubo_config(config))));
+    Ok(())
+}
+
+/// Builds the board on the virtual clock `time` (its chip sensing the
+/// motion of `arm` and the hidden truth, returned) and boots it.
+fn boot_board(
+    config: &SimRigConfig,
+    opts: &TwinOptions,
+    time: &VirtualTime,
+    arm: &Arc<Mutex<VirtualAubo>>,
+) -> Result<(Board, Truth), TwinError> {
     let motion = VirtualMotion {
-        arm: Arc::clone(&arm),
+        arm: Arc::clone(arm),
         time: time.clone(),
     };
     let (source, truth) = imu_source(config, Box::new(motion))?;
@@ -383,108 +426,144 @@ pub fn record_offline(
         .core
         .start()
         .map_err(|e| TwinError::Board(format!("boot failed: {e:?}")))?;
-    let info = board.start(opts.sensor)?;
+    Ok((board, truth))
+}
 
-    let mut meta = SessionMeta::new(opts.robot_name.clone());
-    meta.imu = Some(robimu_record::device_table(&info, "virtual"));
-    meta.notes = Some(format!(
-        "recorded in virtual time by robimu {} from the simulated rig (robimu_hil::twin)",
-        env!("CARGO_PKG_VERSION")
-    ));
-    let mut sink = SessionSink::create(dir, &meta, config.robot.dof())?;
+/// A recording in virtual time: the session being written and the pings
+/// in flight.
+struct OfflineRun<'a> {
+    config: &'a SimRigConfig,
+    opts: &'a TwinOptions,
+    /// The board's sensor.
+    info: DeviceInfo,
+    time: VirtualTime,
+    /// The virtual time (s) of session time 0.
+    epoch: f64,
+    sink: SessionSink,
+    /// Session time each ping in flight was sent at.
+    pending: HashMap<u32, f64>,
+    nonce: u32,
+    imu_samples: u64,
+}
 
-    // Session time 0: streaming starts.
-    let epoch = time.seconds();
-    let session_t = |time: &VirtualTime| time.seconds() - epoch;
-    let joint_period = 1.0 / opts.joint_rate;
-    let ping_period = robimu_record::imu::PING_PERIOD.as_secs_f64();
-    let (mut next_joint, mut next_ping) = (0.0, 0.0);
-    let mut pending: HashMap<u32, f64> = HashMap::new();
-    let mut nonce = 0u32;
-    let mut plan_sent = false;
-    let mut imu_samples = 0u64;
-    let mut stop_at: Option<f64> = None;
-    let limit = plan.duration() + 2.0 * opts.rest + 60.0;
-    let (a, v) = robimu_record::motion::path_limits(&config.robot);
-    loop {
-        let t = session_t(&time);
-        if stop_at.is_some_and(|s| t >= s) {
-            break;
+impl OfflineRun<'_> {
+    /// Session time now.
+    fn session_t(&self) -> f64 {
+        self.time.seconds() - self.epoch
+    }
+
+    /// The loop: pings, board steps, IMU messages and joint samples until
+    /// `rest` after the plan (sent after `rest`) ends.
+    fn play(
+        &mut self,
+        board: &mut Board,
+        arm: &Mutex<VirtualAubo>,
+        plan: &Plan,
+    ) -> Result<(), TwinError> {
+        let (opts, robot) = (self.opts, &self.config.robot);
+        let joint_period = 1.0 / opts.joint_rate;
+        let ping_period = robimu_record::imu::PING_PERIOD.as_secs_f64();
+        let (mut next_joint, mut next_ping) = (0.0, 0.0);
+        let mut plan_sent = false;
+        let mut stop_at: Option<f64> = None;
+        let limit = plan.duration() + 2.0 * opts.rest + 60.0;
+        let (a, v) = robimu_record::motion::path_limits(robot);
+        loop {
+            let t = self.session_t();
+            if stop_at.is_some_and(|s| t >= s) {
+                return Ok(());
+            }
+            if t > limit {
+                return Err(TwinError::Board(format!(
+                    "the plan did not end within {limit:.0} s"
+                )));
+            }
+            if t >= next_ping {
+                next_ping += ping_period;
+                self.nonce = self.nonce.wrapping_add(1);
+                board.send(&HostMessage::Ping { nonce: self.nonce });
+                self.pending.insert(self.nonce, t);
+            }
+            board.step();
+            let t = self.session_t();
+            self.take_messages(board, t)?;
+            let now = self.time.seconds();
+            let mut arm = arm.lock().unwrap_or_else(|e| e.into_inner());
+            while next_joint <= t {
+                let q = arm.joint_positions(now);
+                self.sink.joint(t, &q[..robot.dof()])?;
+                next_joint += joint_period;
+            }
+            if !plan_sent && t >= opts.rest {
+                plan_sent = true;
+                arm.play_path(now, &plan.q, plan.dt, a, v)
+                    .map_err(TwinError::Refused)?;
+            } else if plan_sent && stop_at.is_none() && arm.idle_at(now) {
+                stop_at = Some(t + opts.rest);
+            }
         }
-        if t > limit {
-            return Err(TwinError::Board(format!(
-                "the plan did not end within {limit:.0} s"
-            )));
-        }
-        if t >= next_ping {
-            next_ping += ping_period;
-            nonce = nonce.wrapping_add(1);
-            board.send(&HostMessage::Ping { nonce });
-            pending.insert(nonce, t);
-        }
-        board.step();
-        let t = session_t(&time);
+    }
+
+    /// Writes what the board sent (samples, ping echoes received at
+    /// session time `t`, status).
+    fn take_messages(&mut self, board: &mut Board, t: f64) -> Result<(), TwinError> {
         while let Some(msg) = board.next_message() {
             let t_us = board.clock.observe(&msg);
             match msg {
                 DeviceMessage::Sample(s) => {
-                    imu_samples += 1;
-                    let ev = sample_event(&info, 0, t_us.unwrap_or_default(), &s);
-                    sink.handle(ev).map_err(TwinError::Sink)?;
+                    self.imu_samples += 1;
+                    let ev = sample_event(&self.info, 0, t_us.unwrap_or_default(), &s);
+                    self.sink.handle(ev).map_err(TwinError::Sink)?;
                 }
                 DeviceMessage::Pong(p) => {
-                    if let Some(sent) = pending.remove(&p.nonce) {
+                    if let Some(sent) = self.pending.remove(&p.nonce) {
                         let echo = Echo {
                             host_send: sent,
                             host_recv: t,
                             device: t_us.unwrap_or_default() as f64 * 1e-6,
                         };
-                        sink.handle(ImuEvent::Echo { segment: 0, echo })
+                        self.sink
+                            .handle(ImuEvent::Echo { segment: 0, echo })
                             .map_err(TwinError::Sink)?;
                     }
                 }
                 DeviceMessage::Status(s) => {
-                    sink.handle(ImuEvent::Status(s)).map_err(TwinError::Sink)?;
+                    self.sink
+                        .handle(ImuEvent::Status(s))
+                        .map_err(TwinError::Sink)?;
                 }
                 DeviceMessage::Info(_) | DeviceMessage::CommandResult(_) => {}
             }
         }
-        let now = time.seconds();
-        let mut arm = arm.lock().unwrap_or_else(|e| e.into_inner());
-        while next_joint <= t {
-            let q = arm.joint_positions(now);
-            sink.joint(t, &q[..config.robot.dof()])?;
-            next_joint += joint_period;
-        }
-        if !plan_sent && t >= opts.rest {
-            plan_sent = true;
-            arm.play_path(now, &plan.q, plan.dt, a, v)
-                .map_err(TwinError::Refused)?;
-        } else if plan_sent && stop_at.is_none() && arm.idle_at(now) {
-            stop_at = Some(t + opts.rest);
-        }
+        Ok(())
     }
-    board.send(&HostMessage::Stop);
-    let duration = session_t(&time);
-    let joint_samples = sink.progress.joint_samples;
-    let dir = sink.finish()?;
-    let (clock, _) = repair::remap_imu_times(&dir)?;
-    robimu_record::write_clock_notes(&dir, &clock)?;
-    // the board's clock at the session's middle, and the time the fit gives it
-    let middle = epoch + duration / 2.0;
-    let device =
-        config.clock_offset_us as f64 * 1e-6 + middle * (1.0 + config.clock_drift_ppm * 1e-6);
-    let imu_time_error_s = crate::truth::clock_mapping_error(&clock, duration / 2.0, device);
-    let truth_path = dir.join(robimu_session::files::TRUTH);
-    std::fs::write(&truth_path, truth.to_toml()).map_err(|e| SessionError::io(&truth_path, e))?;
-    Ok(TwinSummary {
-        dir,
-        duration,
-        imu_samples,
-        joint_samples,
-        device: info,
-        truth,
-        powered_for_s: epoch,
-        imu_time_error_s,
-    })
+
+    /// Closes the session, maps its IMU times by the final clock fit and
+    /// writes the hidden `truth` beside it.
+    fn finish(self, truth: Truth) -> Result<TwinSummary, TwinError> {
+        let (config, epoch) = (self.config, self.epoch);
+        let duration = self.session_t();
+        let joint_samples = self.sink.progress.joint_samples;
+        let dir = self.sink.finish()?;
+        let (clock, _) = repair::remap_imu_times(&dir)?;
+        robimu_record::write_clock_notes(&dir, &clock)?;
+        // the board's clock at the session's middle, and the time the fit gives it
+        let middle = epoch + duration / 2.0;
+        let device =
+            config.clock_offset_us as f64 * 1e-6 + middle * (1.0 + config.clock_drift_ppm * 1e-6);
+        let imu_time_error_s = crate::truth::clock_mapping_error(&clock, duration / 2.0, device);
+        let truth_path = dir.join(robimu_session::files::TRUTH);
+        std::fs::write(&truth_path, truth.to_toml())
+            .map_err(|e| SessionError::io(&truth_path, e))?;
+        Ok(TwinSummary {
+            dir,
+            duration,
+            imu_samples: self.imu_samples,
+            joint_samples,
+            device: self.info,
+            truth,
+            powered_for_s: epoch,
+            imu_time_error_s,
+        })
+    }
 }

@@ -11,6 +11,11 @@
 use super::geom::{self, mul_mtv, mul_mv, sub, M3, V3};
 use super::jet::Scalar;
 
+/// The six IMU channels in z order: accelerometer x, y, z (m/s²), then
+/// gyroscope x, y, z (rad/s) — the `imu.csv` value columns and the names of
+/// per-channel parameters and statistics.
+pub const IMU_CHANNELS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
+
 /// Why an inertial computation is undefined.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum ImuError {

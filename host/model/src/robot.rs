@@ -523,89 +523,9 @@ impl Robot {
             return Err(RobotError::TooManyJoints { n, max: MAX_JOINTS });
         }
         positive(|| "gravity".into(), desc.gravity)?;
-        for (i, j) in desc.joints.iter().enumerate() {
-            let f = |name: &str| format!("joint {} {name}", i + 1);
-            for (name, v) in [
-                ("theta0", j.theta0),
-                ("d", j.d),
-                ("a", j.a),
-                ("alpha", j.alpha),
-            ] {
-                finite(|| f(name), v)?;
-            }
-            finite(|| f("q_min"), j.q_min)?;
-            finite(|| f("q_max"), j.q_max)?;
-            if j.q_min >= j.q_max {
-                return Err(RobotError::EmptyRange {
-                    joint: i + 1,
-                    q_min: j.q_min,
-                    q_max: j.q_max,
-                });
-            }
-            positive(|| f("qd_max"), j.qd_max)?;
-            positive(|| f("qdd_max"), j.qdd_max)?;
-            positive(|| f("sigma_q"), j.sigma_q)?;
-            if let Some(o) = &j.origin {
-                for k in 0..3 {
-                    finite(|| f(&format!("origin.xyz[{k}]")), o.xyz[k])?;
-                    finite(|| f(&format!("origin.rpy[{k}]")), o.rpy[k])?;
-                }
-            }
-        }
-        for (i, &s) in desc.noise.sigma_z.iter().enumerate() {
-            positive(|| format!("noise.sigma_z[{i}]"), s)?;
-        }
-        check_mount("imu_mount", &desc.imu_mount)?;
-        for (j, m) in &desc.imu_mounts {
-            check_mount(&format!("imu{j}.mount"), m)?;
-        }
-        let p = &desc.priors;
-        for (name, v) in [
-            ("eps_length_sigma", p.eps_length_sigma),
-            ("eps_angle_sigma", p.eps_angle_sigma),
-            ("g_xy_sigma", p.g_xy_sigma),
-            ("tau_sigma", p.tau_sigma),
-            ("gamma_a_sigma", p.gamma_a_sigma),
-            ("k_a_sigma", p.k_a_sigma),
-            ("b_a_sigma", p.b_a_sigma),
-            ("gamma_w_sigma", p.gamma_w_sigma),
-            ("k_w_sigma", p.k_w_sigma),
-            ("b_w_sigma", p.b_w_sigma),
-        ] {
-            positive(|| format!("priors.{name}"), v)?;
-        }
-        let mut estimated = match &desc.errors {
-            Some(e) => e.estimated.clone(),
-            None => default_estimated_errors(n),
-        };
-        for e in &estimated {
-            let bad = |reason| RobotError::BadErrorIndex {
-                link: e.link,
-                k: e.k,
-                reason,
-            };
-            if e.link == 0 {
-                return Err(bad("E_0 (the base pose) is not identifiable from the IMU"));
-            }
-            if e.link > n {
-                return Err(bad("link beyond the last joint"));
-            }
-            if !(1..=6).contains(&e.k) {
-                return Err(bad("k must be 1..6"));
-            }
-            if e.link == n && e.k >= 4 {
-                return Err(bad(
-                    "the IMU frame rotation is fixed (redundant with r_a, r_w)",
-                ));
-            }
-        }
-        estimated.sort();
-        if let Some(w) = estimated.windows(2).find(|w| w[0] == w[1]) {
-            return Err(RobotError::DuplicateErrorIndex {
-                link: w[0].link,
-                k: w[0].k,
-            });
-        }
+        check_joints(&desc.joints)?;
+        check_noise_mounts_priors(&desc)?;
+        let estimated = estimated_errors(&desc, n)?;
         let links: Vec<DhLink> = desc
             .joints
             .iter()
@@ -802,6 +722,105 @@ impl Robot {
         d.gravity = g0;
         Self::new(d)
     }
+}
+
+/// Checks every joint's DH parameters, limits, σ and fixed origin.
+fn check_joints(joints: &[JointDescription]) -> Result<(), RobotError> {
+    for (i, j) in joints.iter().enumerate() {
+        let f = |name: &str| format!("joint {} {name}", i + 1);
+        for (name, v) in [
+            ("theta0", j.theta0),
+            ("d", j.d),
+            ("a", j.a),
+            ("alpha", j.alpha),
+        ] {
+            finite(|| f(name), v)?;
+        }
+        finite(|| f("q_min"), j.q_min)?;
+        finite(|| f("q_max"), j.q_max)?;
+        if j.q_min >= j.q_max {
+            return Err(RobotError::EmptyRange {
+                joint: i + 1,
+                q_min: j.q_min,
+                q_max: j.q_max,
+            });
+        }
+        positive(|| f("qd_max"), j.qd_max)?;
+        positive(|| f("qdd_max"), j.qdd_max)?;
+        positive(|| f("sigma_q"), j.sigma_q)?;
+        if let Some(o) = &j.origin {
+            for k in 0..3 {
+                finite(|| f(&format!("origin.xyz[{k}]")), o.xyz[k])?;
+                finite(|| f(&format!("origin.rpy[{k}]")), o.rpy[k])?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks the noise σ, the IMU mounts and the priors' σ.
+fn check_noise_mounts_priors(desc: &RobotDescription) -> Result<(), RobotError> {
+    for (i, &s) in desc.noise.sigma_z.iter().enumerate() {
+        positive(|| format!("noise.sigma_z[{i}]"), s)?;
+    }
+    check_mount("imu_mount", &desc.imu_mount)?;
+    for (j, m) in &desc.imu_mounts {
+        check_mount(&format!("imu{j}.mount"), m)?;
+    }
+    let p = &desc.priors;
+    for (name, v) in [
+        ("eps_length_sigma", p.eps_length_sigma),
+        ("eps_angle_sigma", p.eps_angle_sigma),
+        ("g_xy_sigma", p.g_xy_sigma),
+        ("tau_sigma", p.tau_sigma),
+        ("gamma_a_sigma", p.gamma_a_sigma),
+        ("k_a_sigma", p.k_a_sigma),
+        ("b_a_sigma", p.b_a_sigma),
+        ("gamma_w_sigma", p.gamma_w_sigma),
+        ("k_w_sigma", p.k_w_sigma),
+        ("b_w_sigma", p.b_w_sigma),
+    ] {
+        positive(|| format!("priors.{name}"), v)?;
+    }
+    Ok(())
+}
+
+/// The estimated error parameters (the description's, or the default
+/// set), checked (identifiable, no duplicate) and sorted.
+fn estimated_errors(desc: &RobotDescription, n: usize) -> Result<Vec<ErrorIndex>, RobotError> {
+    let mut estimated = match &desc.errors {
+        Some(e) => e.estimated.clone(),
+        None => default_estimated_errors(n),
+    };
+    for e in &estimated {
+        let bad = |reason| RobotError::BadErrorIndex {
+            link: e.link,
+            k: e.k,
+            reason,
+        };
+        if e.link == 0 {
+            return Err(bad("E_0 (the base pose) is not identifiable from the IMU"));
+        }
+        if e.link > n {
+            return Err(bad("link beyond the last joint"));
+        }
+        if !(1..=6).contains(&e.k) {
+            return Err(bad("k must be 1..6"));
+        }
+        if e.link == n && e.k >= 4 {
+            return Err(bad(
+                "the IMU frame rotation is fixed (redundant with r_a, r_w)",
+            ));
+        }
+    }
+    estimated.sort();
+    if let Some(w) = estimated.windows(2).find(|w| w[0] == w[1]) {
+        return Err(RobotError::DuplicateErrorIndex {
+            link: w[0].link,
+            k: w[0].k,
+        });
+    }
+    Ok(estimated)
 }
 
 #[cfg(test)]

@@ -90,7 +90,7 @@ use std::time::{Duration, Instant};
 
 use robimu_protocol::{DecoderStats, DeviceInfo, SensorConfig};
 
-use self::arm::{Arm, ArmError};
+use self::arm::{Arm, ArmError, ArmRun};
 use self::client::{ClientError, ImuClient};
 use self::clock_fit::{ClockFit, Echo};
 use self::imu::{ImuEvent, ImuStream};
@@ -254,8 +254,30 @@ pub fn record(
     let ports: Vec<&str> = std::iter::once(opts.imu_port.as_str())
         .chain(opts.extra_imu_ports.iter().map(String::as_str))
         .collect();
+    let (boards, arm) = connect(opts, &ports)?;
+    let (state, summaries) = create_session(opts, &ports, &boards)?;
+    let mut recording = Recording::start(opts, &ports, boards, arm, state)?;
+    let mut cause = recording.run(progress)?;
+    // Stopping early: halt the plan first.
+    if let Some(c) = cause.as_mut().filter(|_| recording.arm.moving()) {
+        match recording.arm.halt() {
+            Ok(()) => c.push_str("; the robot was stopped"),
+            Err(e) => c.push_str(&format!(
+                "; COULD NOT STOP THE ROBOT ({e}): stop it at the controller"
+            )),
+        }
+    }
+    recording.wind_down(summaries, cause, progress)
+}
+
+/// An opened board, its sensors configured (their infos, sensor 0 first).
+type Board = (ImuClient, Vec<DeviceInfo>);
+
+/// Opens, identifies and configures every board (its sensors' infos beside
+/// it), connects to the robot and prepares the plan.
+fn connect(opts: &RecordOptions, ports: &[&str]) -> Result<(Vec<Board>, Arm), RecordError> {
     let mut boards = Vec::with_capacity(ports.len());
-    for port in &ports {
+    for port in ports {
         let mut board = ImuClient::open(port, opts.baud)?;
         board.identify(Duration::from_secs(3))?;
         let infos = board.configure_sensors(&opts.sensor)?;
@@ -265,9 +287,18 @@ pub fn record(
     if let Some(plan) = &opts.plan {
         arm.prepare(&opts.robot, plan)?;
     }
+    Ok((boards, arm))
+}
 
+/// Creates the session directory and every board's summary (its IMUs'
+/// progress lines named by port and sensor).
+fn create_session(
+    opts: &RecordOptions,
+    ports: &[&str],
+    boards: &[Board],
+) -> Result<(SessionSink, Vec<BoardSummary>), RecordError> {
     let sensors: Vec<usize> = boards.iter().map(|(_, i)| i.len()).collect();
-    let meta = session_meta(opts, &ports, &boards);
+    let meta = session_meta(opts, ports, boards);
     let n = opts.robot.dof();
     let controller_clock = matches!(opts.robot_spec, RobotSpec::Ur { .. });
     let mut state = SessionSink::create_boards(&opts.out, &meta, n, controller_clock, &sensors)?;
@@ -287,180 +318,277 @@ pub fn record(
             clock: Vec::new(),
         });
     }
-    let info = summaries[0].devices[0];
+    Ok((state, summaries))
+}
 
-    let epoch = Instant::now();
-    let mut streams = Vec::with_capacity(boards.len());
-    for (board, infos) in boards {
-        streams.push(ImuStream::start(board, infos, opts.sensor, epoch)?);
+/// A recording under way: the streams, the robot, the session being
+/// written and the loop's clocks.
+struct Recording<'a> {
+    opts: &'a RecordOptions,
+    ports: &'a [&'a str],
+    /// Every board's streaming thread.
+    streams: Vec<ImuStream>,
+    /// The joint poller and the plan.
+    arm: ArmRun,
+    /// The session being written.
+    state: SessionSink,
+    /// The host instant of session time 0.
+    epoch: Instant,
+    /// When the recording ends: set at the start without a plan, `rest`
+    /// after the motion with one.
+    stop_at: Option<Instant>,
+    /// When the files are flushed next.
+    next_flush: Instant,
+    /// When `progress` is called next.
+    next_show: Instant,
+    /// The start of the sample-rate window and every IMU's count then.
+    rate_window: (Instant, Vec<u64>),
+}
+
+impl<'a> Recording<'a> {
+    /// Starts the session clock, every board's stream and the robot's
+    /// poller (and, after the rest, the plan).
+    fn start(
+        opts: &'a RecordOptions,
+        ports: &'a [&'a str],
+        boards: Vec<Board>,
+        arm: Arm,
+        mut state: SessionSink,
+    ) -> Result<Self, RecordError> {
+        let epoch = Instant::now();
+        let mut streams = Vec::with_capacity(boards.len());
+        for (board, infos) in boards {
+            streams.push(ImuStream::start(board, infos, opts.sensor, epoch)?);
+        }
+        let motion = opts.plan.as_ref().map(|p| p.duration());
+        let arm = arm.start(
+            &opts.robot,
+            opts.plan.clone(),
+            opts.joint_rate,
+            epoch,
+            opts.rest,
+            &opts.robot_spec,
+        )?;
+        let total = motion.map_or(opts.duration, |d| d + 2.0 * opts.rest);
+
+        state.progress.total = total;
+        let stop_at = if motion.is_none() {
+            Some(epoch + Duration::from_secs_f64(opts.duration))
+        } else {
+            None
+        };
+        let next_flush = Instant::now() + Duration::from_secs(1);
+        let next_show = Instant::now();
+        let rate_window = (Instant::now(), vec![0u64; state.progress.imus.len()]);
+        Ok(Self {
+            opts,
+            ports,
+            streams,
+            arm,
+            state,
+            epoch,
+            stop_at,
+            next_flush,
+            next_show,
+            rate_window,
+        })
     }
-    let motion = opts.plan.as_ref().map(|p| p.duration());
-    let mut arm = arm.start(
-        &opts.robot,
-        opts.plan.clone(),
-        opts.joint_rate,
-        epoch,
-        opts.rest,
-        &opts.robot_spec,
-    )?;
-    let total = motion.map_or(opts.duration, |d| d + 2.0 * opts.rest);
 
-    state.progress.total = total;
-    let mut stop_at = if motion.is_none() {
-        Some(epoch + Duration::from_secs_f64(opts.duration))
-    } else {
-        None
-    };
-    let mut cause: Option<String> = None;
-    let mut next_flush = Instant::now() + Duration::from_secs(1);
-    let mut next_show = Instant::now();
-    let mut rate_window = (Instant::now(), vec![0u64; state.progress.imus.len()]);
-    while cause.is_none() {
-        let now = Instant::now();
-        if stop_at.is_some_and(|t| now >= t) {
-            break;
+    /// The loop: writes what arrives until the end, an interrupt or a
+    /// failure (its cause).
+    fn run(
+        &mut self,
+        progress: &mut dyn FnMut(&RecordProgress),
+    ) -> Result<Option<String>, RecordError> {
+        let mut cause: Option<String> = None;
+        while cause.is_none() {
+            let now = Instant::now();
+            if self.stop_at.is_some_and(|t| now >= t) {
+                break;
+            }
+            if self
+                .opts
+                .interrupt
+                .as_ref()
+                .is_some_and(|f| f.load(Ordering::Relaxed))
+            {
+                cause = Some("interrupted (Ctrl-C)".into());
+                break;
+            }
+            self.take_imu_events(&mut cause);
+            self.take_joint_samples(&mut cause)?;
+            if self.stop_at.is_none() {
+                match self.arm.motion_done() {
+                    Ok(true) => {
+                        self.stop_at =
+                            Some(Instant::now() + Duration::from_secs_f64(self.opts.rest))
+                    }
+                    Ok(false) => {}
+                    Err(e) => cause = Some(e),
+                }
+            }
+            if now >= self.next_flush {
+                self.next_flush = now + Duration::from_secs(1);
+                self.state.flush()?;
+            }
+            if now >= self.next_show {
+                self.next_show = now + Duration::from_millis(200);
+                self.show_progress(now, progress);
+            }
         }
-        if opts
-            .interrupt
-            .as_ref()
-            .is_some_and(|f| f.load(Ordering::Relaxed))
+        Ok(cause)
+    }
+
+    /// Waits on the first board, then takes what every board has.
+    fn take_imu_events(&mut self, cause: &mut Option<String>) {
+        match self.streams[0]
+            .events()
+            .recv_timeout(Duration::from_millis(10))
         {
-            cause = Some("interrupted (Ctrl-C)".into());
-            break;
-        }
-        // Waits on the first board, then takes what every board has.
-        match streams[0].events().recv_timeout(Duration::from_millis(10)) {
             Ok(ev) => {
-                if let Err(c) = state.handle_from(0, ev) {
-                    cause = Some(c);
+                if let Err(c) = self.state.handle_from(0, ev) {
+                    *cause = Some(c);
                 }
             }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => {
-                cause = Some(format!("the IMU streaming thread of {} ended", ports[0]));
+                *cause = Some(format!(
+                    "the IMU streaming thread of {} ended",
+                    self.ports[0]
+                ));
             }
         }
-        for (b, stream) in streams.iter().enumerate() {
+        for (b, stream) in self.streams.iter().enumerate() {
             while cause.is_none() {
                 match stream.events().try_recv() {
                     Ok(ev) => {
-                        if let Err(c) = state.handle_from(b, ev) {
-                            cause = Some(c);
+                        if let Err(c) = self.state.handle_from(b, ev) {
+                            *cause = Some(c);
                         }
                     }
                     Err(std::sync::mpsc::TryRecvError::Empty) => break,
                     Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                        cause = Some(format!("the IMU streaming thread of {} ended", ports[b]));
+                        *cause = Some(format!(
+                            "the IMU streaming thread of {} ended",
+                            self.ports[b]
+                        ));
                     }
                 }
             }
         }
-        while let Some(sample) = arm.try_sample() {
+    }
+
+    /// Writes the joint samples polled so far.
+    fn take_joint_samples(&mut self, cause: &mut Option<String>) -> Result<(), RecordError> {
+        while let Some(sample) = self.arm.try_sample() {
             match sample {
-                Ok(s) => state.joint_sample(&s, n)?,
+                Ok(s) => self.state.joint_sample(&s, self.opts.robot.dof())?,
                 Err(e) => {
-                    cause = Some(format!("the robot connection failed: {e}"));
+                    *cause = Some(format!("the robot connection failed: {e}"));
                     break;
                 }
             }
         }
-        if stop_at.is_none() {
-            match arm.motion_done() {
-                Ok(true) => stop_at = Some(Instant::now() + Duration::from_secs_f64(opts.rest)),
-                Ok(false) => {}
-                Err(e) => cause = Some(e),
-            }
-        }
-        if now >= next_flush {
-            next_flush = now + Duration::from_secs(1);
-            state.flush()?;
-        }
-        if now >= next_show {
-            next_show = now + Duration::from_millis(200);
-            state.progress.elapsed = epoch.elapsed().as_secs_f64();
-            let stats: Vec<DecoderStats> = streams.iter().map(ImuStream::stats).collect();
-            state.progress.set_links(&stats);
-            let dt = rate_window.0.elapsed().as_secs_f64();
-            if dt >= 1.0 {
-                let counts: Vec<u64> = state.progress.imus.iter().map(|p| p.samples).collect();
-                for ((p, now_n), then_n) in state
-                    .progress
-                    .imus
-                    .iter_mut()
-                    .zip(&counts)
-                    .zip(&rate_window.1)
-                {
-                    p.rate = (now_n - then_n) as f64 / dt;
-                }
-                state.progress.imu_rate = state.progress.imus.iter().map(|p| p.rate).sum();
-                rate_window = (now, counts);
-            }
-            progress(&state.progress);
-        }
+        Ok(())
     }
 
-    // Stopping early: halt the plan first.
-    if let Some(c) = cause.as_mut().filter(|_| arm.moving()) {
-        match arm.halt() {
-            Ok(()) => c.push_str("; the robot was stopped"),
-            Err(e) => c.push_str(&format!(
-                "; COULD NOT STOP THE ROBOT ({e}): stop it at the controller"
-            )),
-        }
-    }
-    // Wind down: stop the boards and the poller, keep what they still hold.
-    let duration = epoch.elapsed().as_secs_f64();
-    let mut links = Vec::with_capacity(streams.len());
-    for (b, stream) in streams.into_iter().enumerate() {
-        let (rest_events, link_stats) = stream.stop();
-        for ev in rest_events.try_iter() {
-            if let Err(c) = state.handle_from(b, ev) {
-                cause.get_or_insert(c);
+    /// Updates the live figures (elapsed time, link counters, sample rates
+    /// over the last second) and shows them.
+    fn show_progress(&mut self, now: Instant, progress: &mut dyn FnMut(&RecordProgress)) {
+        let state = &mut self.state;
+        state.progress.elapsed = self.epoch.elapsed().as_secs_f64();
+        let stats: Vec<DecoderStats> = self.streams.iter().map(ImuStream::stats).collect();
+        state.progress.set_links(&stats);
+        let dt = self.rate_window.0.elapsed().as_secs_f64();
+        if dt >= 1.0 {
+            let counts: Vec<u64> = state.progress.imus.iter().map(|p| p.samples).collect();
+            for ((p, now_n), then_n) in state
+                .progress
+                .imus
+                .iter_mut()
+                .zip(&counts)
+                .zip(&self.rate_window.1)
+            {
+                p.rate = (now_n - then_n) as f64 / dt;
             }
+            state.progress.imu_rate = state.progress.imus.iter().map(|p| p.rate).sum();
+            self.rate_window = (now, counts);
         }
-        links.push(link_stats);
+        progress(&state.progress);
     }
-    for s in arm.stop() {
-        state.joint_sample(&s, n)?;
-    }
-    state.drain_waiting(true)?;
-    state.progress.elapsed = duration;
-    state.progress.set_links(&links);
-    progress(&state.progress);
-    let counters = state.progress.clone();
-    let dir = state.finish()?;
-    for (j, fits, _) in repair::remap_all_imu_times(&dir)? {
-        if let Some(board) = summaries.iter_mut().find(|b| b.first_imu == j) {
-            board.clock = fits.clone();
+
+    /// Wind down: stops the boards and the poller, keeps what they still
+    /// hold, closes the session and maps its times (the final clock fits);
+    /// the summary, or the summary in an error when `cause` stopped it.
+    fn wind_down(
+        self,
+        mut summaries: Vec<BoardSummary>,
+        mut cause: Option<String>,
+        progress: &mut dyn FnMut(&RecordProgress),
+    ) -> Result<RecordSummary, RecordError> {
+        let Self {
+            opts,
+            streams,
+            arm,
+            mut state,
+            epoch,
+            ..
+        } = self;
+        let n = opts.robot.dof();
+        let info = summaries[0].devices[0];
+        let duration = epoch.elapsed().as_secs_f64();
+        let mut links = Vec::with_capacity(streams.len());
+        for (b, stream) in streams.into_iter().enumerate() {
+            let (rest_events, link_stats) = stream.stop();
+            for ev in rest_events.try_iter() {
+                if let Err(c) = state.handle_from(b, ev) {
+                    cause.get_or_insert(c);
+                }
+            }
+            links.push(link_stats);
         }
-        write_clock_notes_of(&dir, j, &fits)?;
-    }
-    for (board, link) in summaries.iter_mut().zip(&links) {
-        board.link = *link;
-    }
-    let clock = summaries[0].clock.clone();
-    let link_stats = summaries[0].link;
-    let joint_clock = repair::remap_joint_times(&dir)?;
-    if let Some(c) = &joint_clock {
-        repair::write_controller_clock(&dir, c)?;
-    }
-    let summary = RecordSummary {
-        dir,
-        duration,
-        progress: counters,
-        link: link_stats,
-        device: info,
-        clock,
-        boards: summaries,
-        joint_clock,
-        epoch,
-    };
-    match cause {
-        None => Ok(summary),
-        Some(cause) => Err(RecordError::Aborted {
-            cause,
-            summary: Box::new(summary),
-        }),
+        for s in arm.stop() {
+            state.joint_sample(&s, n)?;
+        }
+        state.drain_waiting(true)?;
+        state.progress.elapsed = duration;
+        state.progress.set_links(&links);
+        progress(&state.progress);
+        let counters = state.progress.clone();
+        let dir = state.finish()?;
+        for (j, fits, _) in repair::remap_all_imu_times(&dir)? {
+            if let Some(board) = summaries.iter_mut().find(|b| b.first_imu == j) {
+                board.clock = fits.clone();
+            }
+            write_clock_notes_of(&dir, j, &fits)?;
+        }
+        for (board, link) in summaries.iter_mut().zip(&links) {
+            board.link = *link;
+        }
+        let clock = summaries[0].clock.clone();
+        let link_stats = summaries[0].link;
+        let joint_clock = repair::remap_joint_times(&dir)?;
+        if let Some(c) = &joint_clock {
+            repair::write_controller_clock(&dir, c)?;
+        }
+        let summary = RecordSummary {
+            dir,
+            duration,
+            progress: counters,
+            link: link_stats,
+            device: info,
+            clock,
+            boards: summaries,
+            joint_clock,
+            epoch,
+        };
+        match cause {
+            None => Ok(summary),
+            Some(cause) => Err(RecordError::Aborted {
+                cause,
+                summary: Box::new(summary),
+            }),
+        }
     }
 }
 

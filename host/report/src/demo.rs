@@ -133,29 +133,7 @@ impl fmt::Display for DemoFiles<'_> {
     }
 }
 
-/// One parameter of the truth check.
-#[derive(Clone, Debug)]
-pub struct TruthRow {
-    /// Parameter name.
-    pub name: String,
-    /// Estimate, SI.
-    pub estimate: f64,
-    /// Its posterior σ.
-    pub sigma: f64,
-    /// The twin's truth (docs/model.md §4.8).
-    pub truth: f64,
-    /// The part of `truth` that is the model's share of the twin's
-    /// structural mode (what it absorbs of an effect it does not have,
-    /// docs/model.md §4.8); 0 without a mode.
-    pub mode_share: f64,
-}
-
-impl TruthRow {
-    /// (estimate − truth)/σ.
-    pub fn z(&self) -> f64 {
-        (self.estimate - self.truth) / self.sigma
-    }
-}
+pub use robimu_session::TruthRow;
 
 /// The demo's last stage: diagnose's final model (or, with several IMUs,
 /// the joint calibration) against the twin's truth.

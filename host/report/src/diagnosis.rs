@@ -3,7 +3,10 @@
 
 use std::fmt;
 
-use robimu_workflows::diagnose::{Diagnosis, ResidualStats, CHANNELS, UNEXPLAINED_ALPHA};
+use robimu_model::IMU_CHANNELS as CHANNELS;
+use robimu_workflows::diagnose::{
+    AddedParameter, Diagnosis, FoundEffect, Rejected, ResidualStats, UNEXPLAINED_ALPHA,
+};
 
 use crate::fit_summary::EffectValue;
 use crate::noise::NoiseChannels;
@@ -14,7 +17,7 @@ use crate::noise::NoiseChannels;
 fn write_knot_values(
     out: &mut fmt::Formatter<'_>,
     params: &[robimu_model::effects::EffectParam],
-    values: &[(String, String, f64, f64)],
+    values: &[AddedParameter],
 ) -> fmt::Result {
     let mut k = 0;
     while k < values.len() {
@@ -22,19 +25,19 @@ fn write_knot_values(
             n.rsplit_once('_')
                 .map_or(n.to_string(), |(a, _)| a.to_string())
         };
-        let head = prefix(&values[k].0);
+        let head = prefix(&values[k].name);
         let end = (k..values.len())
-            .find(|&e| prefix(&values[e].0) != head)
+            .find(|&e| prefix(&values[e].name) != head)
             .unwrap_or(values.len());
         let (unit, scale) = params
             .iter()
-            .find(|p| p.name == values[k].0)
+            .find(|p| p.name == values[k].name)
             .map_or(("", 1.0), |p| p.display);
         let knots: Vec<String> = values[k..end]
             .iter()
-            .map(|(_, _, v, _)| format!("{:+.3}", v * scale))
+            .map(|p| format!("{:+.3}", p.value * scale))
             .collect();
-        let sigma = values[k..end].iter().map(|p| p.3).fold(0.0, f64::max) * scale;
+        let sigma = values[k..end].iter().map(|p| p.sigma).fold(0.0, f64::max) * scale;
         writeln!(
             out,
             "   {head} at knots 1..{} [{unit}]: {} (σ ≤ {sigma:.3})",
@@ -112,158 +115,222 @@ pub struct DiagnosisSummary<'a>(pub &'a Diagnosis);
 impl fmt::Display for DiagnosisSummary<'_> {
     fn fmt(&self, out: &mut fmt::Formatter<'_>) -> fmt::Result {
         let d = self.0;
-        let before = &d.stats_before;
         write_noise(out, d)?;
-        writeln!(
-            out,
-            "baseline: {} IMU samples, chi2 {:.0} for {} dof ({:.3} per dof)",
-            before.samples,
-            before.chi2_total.0,
-            before.chi2_total.1,
-            before.chi2_total.0 / before.chi2_total.1.max(1) as f64
-        )?;
-        write_stats(out, before)?;
-        if d.found.is_empty() {
-            writeln!(
-                out,
-                "no catalogued effect is significant (Bonferroni threshold p < {:.2e})",
-                d.threshold
-            )?;
-        }
+        write_baseline(out, d)?;
         for (k, f) in d.found.iter().enumerate() {
-            let ambiguous: Vec<String> = f
-                .alternatives
-                .iter()
-                .filter(|a| a.ambiguous)
-                .map(|a| {
-                    format!(
-                        "{}: S({b}|{a}) = {:.1}, p = {:.2e}; S({a}|{b}) = {:.1}, p = {:.2e}",
-                        a.name,
-                        a.given_winner,
-                        a.given_winner_p,
-                        a.winner_given_it,
-                        a.winner_given_it_p,
-                        a = f.name,
-                        b = a.name,
-                    )
-                })
-                .collect();
-            // with several IMUs: whose effect it is (docs/model.md §9)
-            let k_imus = d.final_fit.n_imus;
-            let whose = match f.imu {
-                _ if k_imus <= 1 => String::new(),
-                Some(j) => format!(" [IMU {j}]"),
-                None => format!(" [shared by the {k_imus} IMUs]"),
-            };
-            let name = if ambiguous.is_empty() {
-                format!("{}{whose}", f.name)
-            } else {
-                format!(
-                    "{}{whose} (ambiguous with {})",
-                    f.name,
-                    ambiguous.join("; ")
-                )
-            };
-            writeln!(
-            out,
-            "\n{}. missing effect: {}  (score {:.1}, {} dof, p = {:.2e}; refit LR {:.1}, p = {:.2e}, dBIC {:.1})",
-            k + 1,
-            name,
-            f.statistic,
-            f.dof,
-            f.p_value,
-            f.lr_statistic,
-            f.lr_p_value,
-            f.delta_bic
-        )?;
-            if let Some(r) = &f.resolution {
-                let table: Vec<String> = r
-                    .candidates
-                    .iter()
-                    .map(|c| {
-                        format!(
-                            "M={} score {:.1} AIC {:.1}",
-                            c.resolution, c.statistic, c.aic
-                        )
-                    })
-                    .collect();
-                writeln!(
-                    out,
-                    "   resolution {} segments by AIC (at most {}; refit with --effects {}): {}",
-                    r.chosen,
-                    r.max,
-                    r.spec,
-                    table.join(", ")
-                )?;
-            }
-            let params = &d.final_fit.effect_params;
-            if f.resolution.is_some() {
-                // one line per channel: the knot values of its spline
-                write_knot_values(out, params, &f.parameters)?;
-            }
-            for (name, _unit, v, s) in f.parameters.iter().filter(|_| f.resolution.is_none()) {
-                let display = params
-                    .iter()
-                    .find(|p| &p.name == name)
-                    .map_or(("", 1.0), |p| p.display);
-                let value = EffectValue {
-                    name,
-                    value: *v,
-                    sigma: *s,
-                    display,
-                };
-                writeln!(out, "   {value}")?;
-            }
-            let rb = f.rms_before;
-            let ra = f.rms_after;
-            let line: Vec<String> = CHANNELS
-                .iter()
-                .enumerate()
-                .map(|(c, n)| format!("{n} {:.3}→{:.3}", rb[c], ra[c]))
-                .collect();
-            writeln!(out, "   whitened residual rms: {}", line.join("  "))?;
-            if !f.baseline_moves.is_empty() {
-                let moves: Vec<String> = f
-                    .baseline_moves
-                    .iter()
-                    .map(|(n, a, b, s)| format!("{n} {a:.4e}→{b:.4e} (σ {s:.1e})"))
-                    .collect();
-                writeln!(
-                    out,
-                    "   baseline parameters moved > 1σ: {}",
-                    moves.join(", ")
-                )?;
-            }
+            write_found(out, d, k, f)?;
         }
         for r in &d.rejected {
-            let lr = if r.lr_statistic.is_finite() {
-                format!("; refit LR {:.1}", r.lr_statistic)
-            } else {
-                String::new()
-            };
-            writeln!(
-                out,
-                "\nnot added: {} (score {:.1}, {} dof, p = {:.2e}{lr}): {}",
-                r.name, r.statistic, r.dof, r.p_value, r.reason
-            )?;
+            write_rejected(out, r)?;
         }
-        let sz = d.sigma_z;
-        let pb = physical_rms(&d.baseline.residual_rms(), &sz);
-        let pa = physical_rms(&d.final_fit.residual_rms(), &sz);
-        writeln!(
-        out,
-        "\nresidual rms before → after: accel {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} m/s^2, gyro {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} deg/s",
-        pb[0], pb[1], pb[2], pa[0], pa[1], pa[2], pb[3], pb[4], pb[5], pa[3], pa[4], pa[5]
-    )?;
+        write_rms_change(out, d)?;
         writeln!(
             out,
             "final model: baseline + [{}]",
             d.final_specs().join(", ")
         )?;
         write_stats(out, &d.stats_after)?;
-        // structure left that no candidate explains
-        let lb_threshold = 0.01 / 6.0;
-        let left: Vec<String> = d
+        write_structure_left(out, d)?;
+        write_unexplained(out, d)
+    }
+}
+
+/// The level of a per-channel test: [`UNEXPLAINED_ALPHA`], Bonferroni over
+/// the channels (the Ljung–Box p below which a channel's residuals count as
+/// not white, and the unexplained structure's level).
+fn per_channel_alpha() -> f64 {
+    UNEXPLAINED_ALPHA / CHANNELS.len() as f64
+}
+
+/// The baseline's fit and residual statistics (and, when nothing was
+/// found, that nothing is significant).
+fn write_baseline(out: &mut fmt::Formatter<'_>, d: &Diagnosis) -> fmt::Result {
+    let before = &d.stats_before;
+    writeln!(
+        out,
+        "baseline: {} IMU samples, chi2 {:.0} for {} dof ({:.3} per dof)",
+        before.samples,
+        before.chi2_total.0,
+        before.chi2_total.1,
+        before.chi2_total.0 / before.chi2_total.1.max(1) as f64
+    )?;
+    write_stats(out, before)?;
+    if d.found.is_empty() {
+        writeln!(
+            out,
+            "no catalogued effect is significant (Bonferroni threshold p < {:.2e})",
+            d.threshold
+        )?;
+    }
+    Ok(())
+}
+
+/// The `k`-th effect found: its name (whose, what it is ambiguous with),
+/// tests, resolution, parameters, residual RMS before and after and the
+/// baseline parameters it moved.
+fn write_found(
+    out: &mut fmt::Formatter<'_>,
+    d: &Diagnosis,
+    k: usize,
+    f: &FoundEffect,
+) -> fmt::Result {
+    writeln!(
+        out,
+        "\n{}. missing effect: {}  (score {:.1}, {} dof, p = {:.2e}; refit LR {:.1}, p = {:.2e}, dBIC {:.1})",
+        k + 1,
+        found_name(d, f),
+        f.statistic,
+        f.dof,
+        f.p_value,
+        f.lr_statistic,
+        f.lr_p_value,
+        f.delta_bic
+    )?;
+    if let Some(r) = &f.resolution {
+        let table: Vec<String> = r
+            .candidates
+            .iter()
+            .map(|c| {
+                format!(
+                    "M={} score {:.1} AIC {:.1}",
+                    c.resolution, c.statistic, c.aic
+                )
+            })
+            .collect();
+        writeln!(
+            out,
+            "   resolution {} segments by AIC (at most {}; refit with --effects {}): {}",
+            r.chosen,
+            r.max,
+            r.spec,
+            table.join(", ")
+        )?;
+    }
+    write_found_parameters(out, d, f)?;
+    let rb = f.rms_before;
+    let ra = f.rms_after;
+    let line: Vec<String> = CHANNELS
+        .iter()
+        .enumerate()
+        .map(|(c, n)| format!("{n} {:.3}→{:.3}", rb[c], ra[c]))
+        .collect();
+    writeln!(out, "   whitened residual rms: {}", line.join("  "))?;
+    if !f.baseline_moves.is_empty() {
+        let moves: Vec<String> = f
+            .baseline_moves
+            .iter()
+            .map(|m| {
+                format!(
+                    "{} {:.4e}→{:.4e} (σ {:.1e})",
+                    m.name, m.before, m.after, m.sigma
+                )
+            })
+            .collect();
+        writeln!(
+            out,
+            "   baseline parameters moved > 1σ: {}",
+            moves.join(", ")
+        )?;
+    }
+    Ok(())
+}
+
+/// An effect's name as listed: with several IMUs whose it is (docs/model.md
+/// §9), and the alternatives it is ambiguous with.
+fn found_name(d: &Diagnosis, f: &FoundEffect) -> String {
+    let ambiguous: Vec<String> = f
+        .alternatives
+        .iter()
+        .filter(|a| a.ambiguous)
+        .map(|a| {
+            format!(
+                "{}: S({b}|{a}) = {:.1}, p = {:.2e}; S({a}|{b}) = {:.1}, p = {:.2e}",
+                a.name,
+                a.given_winner,
+                a.given_winner_p,
+                a.winner_given_it,
+                a.winner_given_it_p,
+                a = f.name,
+                b = a.name,
+            )
+        })
+        .collect();
+    let k_imus = d.final_fit.n_imus;
+    let whose = match f.imu {
+        _ if k_imus <= 1 => String::new(),
+        Some(j) => format!(" [IMU {j}]"),
+        None => format!(" [shared by the {k_imus} IMUs]"),
+    };
+    if ambiguous.is_empty() {
+        format!("{}{whose}", f.name)
+    } else {
+        format!(
+            "{}{whose} (ambiguous with {})",
+            f.name,
+            ambiguous.join("; ")
+        )
+    }
+}
+
+/// An effect's parameters in display units: one line per channel (its
+/// knot values) for an effect with a resolution, else one per parameter.
+fn write_found_parameters(
+    out: &mut fmt::Formatter<'_>,
+    d: &Diagnosis,
+    f: &FoundEffect,
+) -> fmt::Result {
+    let params = &d.final_fit.effect_params;
+    if f.resolution.is_some() {
+        return write_knot_values(out, params, &f.parameters);
+    }
+    for a in &f.parameters {
+        let display = params
+            .iter()
+            .find(|p| p.name == a.name)
+            .map_or(("", 1.0), |p| p.display);
+        let value = EffectValue {
+            name: &a.name,
+            value: a.value,
+            sigma: a.sigma,
+            display,
+        };
+        writeln!(out, "   {value}")?;
+    }
+    Ok(())
+}
+
+/// A candidate not added, and why.
+fn write_rejected(out: &mut fmt::Formatter<'_>, r: &Rejected) -> fmt::Result {
+    let lr = if r.lr_statistic.is_finite() {
+        format!("; refit LR {:.1}", r.lr_statistic)
+    } else {
+        String::new()
+    };
+    writeln!(
+        out,
+        "\nnot added: {} (score {:.1}, {} dof, p = {:.2e}{lr}): {}",
+        r.name, r.statistic, r.dof, r.p_value, r.reason
+    )
+}
+
+/// The residual RMS of the baseline and of the final model in physical
+/// units.
+fn write_rms_change(out: &mut fmt::Formatter<'_>, d: &Diagnosis) -> fmt::Result {
+    let sz = d.sigma_z;
+    let pb = physical_rms(&d.baseline.residual_rms(), &sz);
+    let pa = physical_rms(&d.final_fit.residual_rms(), &sz);
+    writeln!(
+        out,
+        "\nresidual rms before → after: accel {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} m/s^2, gyro {:.3}/{:.3}/{:.3} → {:.3}/{:.3}/{:.3} deg/s",
+        pb[0], pb[1], pb[2], pa[0], pa[1], pa[2], pb[3], pb[4], pb[5], pa[3], pa[4], pa[5]
+    )
+}
+
+/// The structure left in the final residuals that no candidate explains
+/// (the channels failing the Ljung–Box test), or that they are white.
+fn write_structure_left(out: &mut fmt::Formatter<'_>, d: &Diagnosis) -> fmt::Result {
+    let lb_threshold = per_channel_alpha();
+    let left: Vec<String> = d
         .stats_after
         .ljung_box
         .iter()
@@ -279,51 +346,55 @@ impl fmt::Display for DiagnosisSummary<'_> {
             format!("{c} (peak {f:.2} Hz at {pk:.0}× median power; follows {r}, r = {corr:+.3}, z = {z:.1})")
         })
         .collect();
-        if left.is_empty() {
-            writeln!(
-                out,
-                "residuals are white in every channel (Ljung–Box, p ≥ {lb_threshold:.1e})"
-            )?;
-        } else {
-            writeln!(
-                out,
-                "structure remains that no candidate explains: {}",
-                left.join("; ")
-            )?;
-        }
-        if !d.unexplained.is_empty() {
-            let items: Vec<String> = d
-                .unexplained
-                .iter()
-                .map(|u| {
-                    let mut parts = Vec::new();
-                    if u.narrow_peak {
-                        parts.push(format!(
-                            "narrow peak at {:.2} Hz ({:.1}× median power, p = {:.1e})",
-                            u.frequency_hz, u.peak_ratio, u.p_value
-                        ));
-                    }
-                    let p = if u.follows_regressor {
-                        format!(", p = {:.1e}", u.regressor_p_value)
-                    } else {
-                        String::new()
-                    };
-                    parts.push(format!(
-                        "follows {} (r = {:+.3}, z = {:.1}{p})",
-                        u.regressor, u.r, u.z
-                    ));
-                    format!("{} {}", u.channel, parts.join("; "))
-                })
-                .collect();
-            writeln!(
-                out,
-                "unexplained structure (a narrow spectral peak the noise model does not capture, or a correlation with a regressor no effect explains; p < {:.1e} each): {}",
-                UNEXPLAINED_ALPHA / CHANNELS.len() as f64,
-                items.join("; ")
-            )?;
-        }
-        Ok(())
+    if left.is_empty() {
+        writeln!(
+            out,
+            "residuals are white in every channel (Ljung–Box, p ≥ {lb_threshold:.1e})"
+        )
+    } else {
+        writeln!(
+            out,
+            "structure remains that no candidate explains: {}",
+            left.join("; ")
+        )
     }
+}
+
+/// The unexplained structure the diagnosis flagged: narrow spectral peaks
+/// and correlations with regressors no effect explains.
+fn write_unexplained(out: &mut fmt::Formatter<'_>, d: &Diagnosis) -> fmt::Result {
+    if d.unexplained.is_empty() {
+        return Ok(());
+    }
+    let items: Vec<String> = d
+        .unexplained
+        .iter()
+        .map(|u| {
+            let mut parts = Vec::new();
+            if u.narrow_peak {
+                parts.push(format!(
+                    "narrow peak at {:.2} Hz ({:.1}× median power, p = {:.1e})",
+                    u.frequency_hz, u.peak_ratio, u.p_value
+                ));
+            }
+            let p = if u.follows_regressor {
+                format!(", p = {:.1e}", u.regressor_p_value)
+            } else {
+                String::new()
+            };
+            parts.push(format!(
+                "follows {} (r = {:+.3}, z = {:.1}{p})",
+                u.regressor, u.r, u.z
+            ));
+            format!("{} {}", u.channel, parts.join("; "))
+        })
+        .collect();
+    writeln!(
+        out,
+        "unexplained structure (a narrow spectral peak the noise model does not capture, or a correlation with a regressor no effect explains; p < {:.1e} each): {}",
+        per_channel_alpha(),
+        items.join("; ")
+    )
 }
 
 /// The per-channel table of residual statistics.

@@ -277,55 +277,6 @@ impl SessionSeries {
     }
 }
 
-#[cfg(test)]
-mod band_tests {
-    use super::*;
-    use crate::figures::NoiseBand;
-
-    /// The band is the noise's ±1σ: on a simulated session whose
-    /// accelerometer noise grows with the joint acceleration (AR(1), motion
-    /// gain c), the true parameters' residuals fall inside it 68 % of the
-    /// time in every channel, where the band at rest holds far fewer.
-    #[test]
-    fn residual_band_holds_68_percent_of_simulated_noise() {
-        use robimu_model::noise::NoiseModel;
-        use robimu_workflows::calibrate::noise_model_record;
-        use robimu_workflows::simulate::{random_session, SimulateOptions};
-        let robot = Robot::aubo_i5();
-        let mut opts = SimulateOptions::paper(&robot);
-        let model = NoiseModel::ar1(opts.sigma_z, [Some(0.6), None], [0.3, 0.0]).unwrap();
-        opts.noise_model = Some(model.clone());
-        let s = random_session(&robot, 30.0, 1.0, &opts, 5).unwrap();
-        let inside = |band: &NoiseBand| {
-            let series =
-                SessionSeries::new(&robot, &s.data, &s.truth, &s.trajectory, band).unwrap();
-            (0..6)
-                .map(|c| {
-                    let (r, sd) = (&series.residuals[c], &series.sigma[c]);
-                    assert_eq!(r.len(), sd.len());
-                    let k = r.iter().zip(sd).filter(|(r, s)| r.1.abs() <= s.1).count();
-                    k as f64 / r.len() as f64
-                })
-                .collect::<Vec<f64>>()
-        };
-        let record = noise_model_record(&model);
-        let fit = inside(&NoiseBand::of_fit(Some(&record), &opts.sigma_z));
-        for (c, f) in fit.iter().enumerate() {
-            assert!(
-                (f - 0.6827).abs() < 0.05,
-                "channel {c}: {f:.3} inside ±1σ ({fit:?})"
-            );
-        }
-        let at_rest = inside(&NoiseBand::of_fit(None, &opts.sigma_z));
-        for c in 0..3 {
-            assert!(
-                at_rest[c] < fit[c] - 0.1,
-                "channel {c}: {at_rest:?} vs {fit:?}"
-            );
-        }
-    }
-}
-
 /// What the report knows of the solver's iterations.
 #[derive(Debug, Clone, Copy)]
 pub enum Convergence<'a> {
@@ -369,6 +320,17 @@ pub fn calibration_report_imus(
 ) -> Result<PathBuf, ReportError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut page = HtmlPage::new("robimu calibration report");
+    overview_section(&mut page, result);
+    parameters_section(&mut page, dir, result, truth)?;
+    convergence_section(&mut page, dir, result, convergence)?;
+    series_sections(&mut page, dir, series)?;
+    let path = dir.join("report.html");
+    page.write(&path)?;
+    Ok(path)
+}
+
+/// The page's opening: what was calibrated, and the verdict.
+fn overview_section(page: &mut HtmlPage, result: &CalibrationResult) {
     let mut facts = Vec::new();
     if let Some(r) = &result.robot {
         facts.push(format!("robot {r}"));
@@ -386,8 +348,17 @@ pub fn calibration_report_imus(
         facts.push(format!("{k} IMUs (docs/model.md §9)"));
     }
     page.paragraph(&facts.join("; "));
-    verdict_block(&mut page, result);
+    verdict_block(page, result);
+}
 
+/// The parameter table (grouped by section, against `truth` when given)
+/// and the figure of posterior σ against prior σ.
+fn parameters_section(
+    page: &mut HtmlPage,
+    dir: &Path,
+    result: &CalibrationResult,
+    truth: Option<&Truth>,
+) -> Result<(), ReportError> {
     page.heading("Parameters");
     let table = ParameterTable::new(result, truth);
     let mut headers = vec![
@@ -470,7 +441,17 @@ pub fn calibration_report_imus(
         &files[1],
         "How much the data reduced each parameter's uncertainty: each bar runs from 1 (the prior σ, not reduced) to posterior σ / prior σ, on a log scale (one decade = ten times smaller).",
     )?;
+    Ok(())
+}
 
+/// The solver's run (iterations, costs, termination, residual RMS) and
+/// the convergence figure, or why it is missing.
+fn convergence_section(
+    page: &mut HtmlPage,
+    dir: &Path,
+    result: &CalibrationResult,
+    convergence: Convergence<'_>,
+) -> Result<(), ReportError> {
     page.heading("Convergence");
     let mut text = String::new();
     if let (Some(i), Some(c0), Some(c1)) =
@@ -522,7 +503,16 @@ pub fn calibration_report_imus(
         )?;
         page.figure(&files[1], "The solver's cost at each iteration.")?;
     }
+    Ok(())
+}
 
+/// The trajectory (from the first series) and each IMU's residuals with
+/// the noise model's band; nothing without a series.
+fn series_sections(
+    page: &mut HtmlPage,
+    dir: &Path,
+    series: &[SessionSeries],
+) -> Result<(), ReportError> {
     if let Some(s) = series.first() {
         page.heading("Trajectory");
         let panels: Vec<LinePanel> = s
@@ -556,9 +546,7 @@ pub fn calibration_report_imus(
             )?;
         }
     }
-    let path = dir.join("report.html");
-    page.write(&path)?;
-    Ok(path)
+    Ok(())
 }
 
 /// Write `dir/validation.html` (and the Fig. 10 / Fig. 11 histograms, PNG +
@@ -586,6 +574,23 @@ pub fn validation_report_with(
 ) -> Result<PathBuf, ReportError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut page = HtmlPage::new("robimu validation against an external tracker");
+    robot_accuracy_section(&mut page, dir, robot)?;
+    robot_parameters_section(&mut page, layout, result, robot);
+    if let Some(imu) = imu {
+        imu_accuracy_section(&mut page, dir, imu, alignment)?;
+    }
+    let path = dir.join("validation.html");
+    page.write(&path)?;
+    Ok(path)
+}
+
+/// The robot's accuracy on held-out poses with nominal, calibrated and
+/// classical parameters: table and histograms.
+fn robot_accuracy_section(
+    page: &mut HtmlPage,
+    dir: &Path,
+    robot: &RobotAccuracy,
+) -> Result<(), ReportError> {
     page.heading("Robot accuracy");
     page.paragraph(&format!(
         "{} poses solve the tracker and marker transforms (and the classical calibration); {} held-out poses give the errors.",
@@ -642,7 +647,17 @@ pub fn validation_report_with(
         &files[1],
         "Position and rotation errors before calibration (top), after this calibration (middle) and after the classical calibration (bottom).",
     )?;
+    Ok(())
+}
 
+/// The robot parameters this calibration and the classical one estimate,
+/// side by side, and the classical fit's residual.
+fn robot_parameters_section(
+    page: &mut HtmlPage,
+    layout: &ParamLayout,
+    result: &CalibrationResult,
+    robot: &RobotAccuracy,
+) {
     page.heading("Robot parameters: calibrated and classical");
     let rows: Vec<Vec<String>> = robot
         .baseline
@@ -670,67 +685,72 @@ pub fn validation_report_with(
         "Classical calibration: weighted pose residual RMS {:.2} (1 = tracker noise of 0.1 mm / 0.05°).",
         robot.baseline.residual_rms
     ));
+}
 
-    if let Some(imu) = imu {
-        page.heading("IMU accuracy");
-        page.paragraph(&format!(
-            "Ground truth from degree-5 splines fitted to the tracked IMU pose; {} IMU samples fit the classical IMU calibration, {} held-out samples give the errors.",
-            imu.train, imu.test
-        ));
-        if let Some(a) = alignment {
-            page.paragraph(&tracker_alignment_text(a));
-        }
-        let methods = [
-            ("nominal", &imu.nominal),
-            ("calibrated (this method)", &imu.calibrated),
-            ("classical (tracker)", &imu.classical),
-        ];
-        let rows: Vec<Vec<String>> = methods
-            .iter()
-            .map(|(name, e)| {
-                vec![
-                    name.to_string(),
-                    format!("{:.3}", e.rms_gyro().to_degrees()),
-                    format!("{:.3}", e.rms_accel()),
-                ]
-            })
-            .collect();
-        page.table(
-            "imu-accuracy",
-            &[
-                "intrinsics",
-                "RMS angular-rate error [°/s]",
-                "RMS specific-force error [m/s²]",
-            ],
-            &rows,
-        );
-        let mut panels = Vec::new();
-        for (name, e) in methods {
-            panels.push(HistogramPanel {
-                title: format!("{name}: |Δω| [deg/s]"),
-                values: e.gyro.iter().map(|v| v.to_degrees()).collect(),
-                normal: None,
-            });
-            panels.push(HistogramPanel {
-                title: format!("{name}: |Δs| [m/s^2]"),
-                values: e.accel.clone(),
-                normal: None,
-            });
-        }
-        let files = histogram_grid(
-            &dir.join("imu_accuracy"),
-            "IMU accuracy against the tracked ground truth",
-            &panels,
-            2,
-        )?;
-        page.figure(
-            &files[1],
-            "Angular-rate and specific-force errors with nominal, calibrated and classical intrinsics.",
-        )?;
+/// The IMU's accuracy against the tracked ground truth (with the tracker's
+/// time offset when given): table and histograms.
+fn imu_accuracy_section(
+    page: &mut HtmlPage,
+    dir: &Path,
+    imu: &ImuAccuracy,
+    alignment: Option<&TrackerAlignment>,
+) -> Result<(), ReportError> {
+    page.heading("IMU accuracy");
+    page.paragraph(&format!(
+        "Ground truth from degree-5 splines fitted to the tracked IMU pose; {} IMU samples fit the classical IMU calibration, {} held-out samples give the errors.",
+        imu.train, imu.test
+    ));
+    if let Some(a) = alignment {
+        page.paragraph(&tracker_alignment_text(a));
     }
-    let path = dir.join("validation.html");
-    page.write(&path)?;
-    Ok(path)
+    let methods = [
+        ("nominal", &imu.nominal),
+        ("calibrated (this method)", &imu.calibrated),
+        ("classical (tracker)", &imu.classical),
+    ];
+    let rows: Vec<Vec<String>> = methods
+        .iter()
+        .map(|(name, e)| {
+            vec![
+                name.to_string(),
+                format!("{:.3}", e.rms_gyro().to_degrees()),
+                format!("{:.3}", e.rms_accel()),
+            ]
+        })
+        .collect();
+    page.table(
+        "imu-accuracy",
+        &[
+            "intrinsics",
+            "RMS angular-rate error [°/s]",
+            "RMS specific-force error [m/s²]",
+        ],
+        &rows,
+    );
+    let mut panels = Vec::new();
+    for (name, e) in methods {
+        panels.push(HistogramPanel {
+            title: format!("{name}: |Δω| [deg/s]"),
+            values: e.gyro.iter().map(|v| v.to_degrees()).collect(),
+            normal: None,
+        });
+        panels.push(HistogramPanel {
+            title: format!("{name}: |Δs| [m/s^2]"),
+            values: e.accel.clone(),
+            normal: None,
+        });
+    }
+    let files = histogram_grid(
+        &dir.join("imu_accuracy"),
+        "IMU accuracy against the tracked ground truth",
+        &panels,
+        2,
+    )?;
+    page.figure(
+        &files[1],
+        "Angular-rate and specific-force errors with nominal, calibrated and classical intrinsics.",
+    )?;
+    Ok(())
 }
 
 /// One sentence on the tracker/robot time offset δ.
@@ -792,5 +812,54 @@ mod tests {
         assert!(html.contains("<td>&lt;b&gt;</td>"));
         assert!(html.contains("<td><span class=\"bar\" style=\"width:4em\"></span></td>"));
         assert!(!html.contains("http://") && !html.contains("https://"));
+    }
+}
+
+#[cfg(test)]
+mod band_tests {
+    use super::*;
+    use crate::figures::NoiseBand;
+
+    /// The band is the noise's ±1σ: on a simulated session whose
+    /// accelerometer noise grows with the joint acceleration (AR(1), motion
+    /// gain c), the true parameters' residuals fall inside it 68 % of the
+    /// time in every channel, where the band at rest holds far fewer.
+    #[test]
+    fn residual_band_holds_68_percent_of_simulated_noise() {
+        use robimu_model::noise::NoiseModel;
+        use robimu_workflows::calibrate::noise_model_record;
+        use robimu_workflows::simulate::{random_session, SimulateOptions};
+        let robot = Robot::aubo_i5();
+        let mut opts = SimulateOptions::paper(&robot);
+        let model = NoiseModel::ar1(opts.sigma_z, [Some(0.6), None], [0.3, 0.0]).unwrap();
+        opts.noise_model = Some(model.clone());
+        let s = random_session(&robot, 30.0, 1.0, &opts, 5).unwrap();
+        let inside = |band: &NoiseBand| {
+            let series =
+                SessionSeries::new(&robot, &s.data, &s.truth, &s.trajectory, band).unwrap();
+            (0..6)
+                .map(|c| {
+                    let (r, sd) = (&series.residuals[c], &series.sigma[c]);
+                    assert_eq!(r.len(), sd.len());
+                    let k = r.iter().zip(sd).filter(|(r, s)| r.1.abs() <= s.1).count();
+                    k as f64 / r.len() as f64
+                })
+                .collect::<Vec<f64>>()
+        };
+        let record = noise_model_record(&model);
+        let fit = inside(&NoiseBand::of_fit(Some(&record), &opts.sigma_z));
+        for (c, f) in fit.iter().enumerate() {
+            assert!(
+                (f - 0.6827).abs() < 0.05,
+                "channel {c}: {f:.3} inside ±1σ ({fit:?})"
+            );
+        }
+        let at_rest = inside(&NoiseBand::of_fit(None, &opts.sigma_z));
+        for c in 0..3 {
+            assert!(
+                at_rest[c] < fit[c] - 0.1,
+                "channel {c}: {at_rest:?} vs {fit:?}"
+            );
+        }
     }
 }

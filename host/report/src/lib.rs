@@ -22,6 +22,8 @@
 //! * [`noise`] — the table of `robimu noise`;
 //! * [`plan`] — the plan directory and the summary of `robimu plan`;
 //! * [`recording`] — the summaries of a recording and of a repair;
+//! * [`result_report`] — `robimu report`'s page of a result file, with its
+//!   session's series and iteration history;
 //! * [`verdict`] — the verdict on a calibration, as text (the HTML block is [`html`]'s);
 //! * [`validation`] — the accuracy tables `robimu validate` prints and validation.json.
 //!
@@ -61,6 +63,7 @@ pub mod noise;
 pub mod plan;
 pub mod plot;
 pub mod recording;
+pub mod result_report;
 pub mod table;
 pub mod validation;
 pub mod verdict;

@@ -153,3 +153,64 @@ pub fn error_histograms(
         8,
     )
 }
+
+/// runs.csv and summary.csv of the study `result` in the directory `out`;
+/// their paths.
+pub fn write_study_csv(
+    out: &Path,
+    layout: &ParamLayout,
+    result: &MonteCarloResult,
+) -> Result<(PathBuf, PathBuf), crate::html::ReportError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| crate::html::ReportError::Io { path, source }
+    };
+    let runs_path = out.join("runs.csv");
+    write_runs_csv(&runs_path, layout, result).map_err(io(&runs_path))?;
+    let summary_path = out.join("summary.csv");
+    write_summary_csv(&summary_path, result).map_err(io(&summary_path))?;
+    Ok((runs_path, summary_path))
+}
+
+/// The lines after [`MonteCarloSummary`]: how many runs of the `auto` fit
+/// noise (`auto_noise`) were refitted by GLS or kept white with a warning,
+/// and with several IMUs the mean σ gain of each shared parameter
+/// ([`MonteCarloResult::shared_sigma_gain`]).
+pub struct MonteCarloNotes<'a> {
+    /// The study.
+    pub result: &'a MonteCarloResult,
+    /// Its parameters.
+    pub layout: &'a ParamLayout,
+    /// Whether the fits' noise model was `auto`.
+    pub auto_noise: bool,
+    /// IMUs per session.
+    pub imus: usize,
+}
+
+impl fmt::Display for MonteCarloNotes<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let result = self.result;
+        if self.auto_noise {
+            let refitted = result.runs.iter().filter(|r| r.refits > 0).count();
+            let warned = result.runs.iter().filter(|r| r.warning.is_some()).count();
+            writeln!(
+                f,
+                "fit noise auto: identified and refitted by GLS in {refitted} of {} runs; white kept with a warning in {warned}",
+                result.runs.len()
+            )?;
+        }
+        let gain = result.shared_sigma_gain(self.layout);
+        if !gain.is_empty() {
+            writeln!(
+                f,
+                "shared parameters, mean sigma(IMU 0 alone) / sigma({} IMUs jointly) (sqrt(K) = {:.3}):",
+                self.imus,
+                (self.imus as f64).sqrt()
+            )?;
+            for (name, g) in &gain {
+                writeln!(f, "  {name:<10} {g:.3}")?;
+            }
+        }
+        Ok(())
+    }
+}

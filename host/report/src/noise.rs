@@ -3,7 +3,7 @@
 
 use std::fmt;
 
-use robimu_session::IMU_COLUMNS;
+use robimu_model::IMU_CHANNELS;
 use robimu_workflows::noise::{ChannelNoise, NoiseEstimate};
 
 /// The σ assumed without the estimate: `(Σ_z, Σ_q)`.
@@ -61,7 +61,7 @@ impl fmt::Display for NoiseTable<'_> {
         for (k, c) in self.estimate.sigma_z.iter().enumerate() {
             let unit = if k < 3 { "m/s^2" } else { "rad/s" };
             let given = self.assumed.map(|(z, _)| z[k]);
-            row(f, IMU_COLUMNS[k], c, unit, given)?;
+            row(f, IMU_CHANNELS[k], c, unit, given)?;
         }
         for (j, c) in self.estimate.sigma_q.iter().enumerate() {
             let given = self.assumed.and_then(|(_, q)| q.get(j).copied());
@@ -138,7 +138,7 @@ pub struct NoiseChannels<'a>(pub &'a robimu_model::noise::NoiseModel);
 
 impl fmt::Display for NoiseChannels<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        for (name, c) in IMU_COLUMNS.iter().zip(&self.0.imu) {
+        for (name, c) in IMU_CHANNELS.iter().zip(&self.0.imu) {
             if c.is_white() {
                 writeln!(f, "  {name}: white")?;
                 continue;
@@ -195,7 +195,7 @@ impl fmt::Display for NoiseSummary<'_> {
             }
             NoiseChoice::Auto => {
                 let p = |id: &robimu_workflows::noise_id::Identification| -> String {
-                    IMU_COLUMNS
+                    IMU_CHANNELS
                         .iter()
                         .zip(&id.channels)
                         .map(|(n, c)| format!("{n} {:.2e}", c.ljung_box_p))

@@ -111,6 +111,43 @@ impl fmt::Display for RepairText<'_> {
     }
 }
 
+
+/// IMU `j`'s progress line: its board and sensor, samples, rate, gaps and
+/// the board's drops.
+pub fn imu_progress_line(j: usize, p: &robimu_record::ImuProgress) -> String {
+    let file = robimu_session::files::imu_csv(j);
+    format!(
+        "IMU {j} ({file}, {} sensor {}): {} samples, {:.0}/s, {} gaps, {} dropped by the board",
+        p.port, p.sensor, p.samples, p.rate, p.seq_gaps, p.device_dropped
+    )
+}
+
+/// With several IMUs (docs/model.md §9): a line per IMU and the clock fit
+/// of every board after the first (whose fit the summary shows); empty for one.
+pub fn imu_lines(summary: &RecordSummary) -> String {
+    let p = &summary.progress;
+    if p.imus.len() < 2 {
+        return String::new();
+    }
+    let mut out = String::new();
+    for (j, imu) in p.imus.iter().enumerate() {
+        out += &imu_progress_line(j, imu);
+        out.push('\n');
+    }
+    for board in summary.boards.iter().skip(1) {
+        for (segment, c) in &board.clock {
+            out += &format!(
+                "board {} clock segment {segment}: device = session + {:.6} s, drift {:+.2} ppm, fit residual {:.1} µs\n",
+                board.port,
+                c.offset,
+                c.drift_ppm(),
+                c.residual_rms * 1e6
+            );
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -75,11 +75,11 @@ pub use result::{
 pub use table::{
     parse_table, parse_table_with, read_table, read_table_with, Columns, OptionalColumns, Table,
 };
-pub use truth::{Truth, TruthMismatch};
+pub use truth::{Truth, TruthMismatch, TruthRow};
 pub use writer::SessionWriter;
 
 /// `imu.csv` value columns.
-pub const IMU_COLUMNS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
+pub use robimu_model::IMU_CHANNELS as IMU_COLUMNS;
 /// The optional `imu.csv` column of the sensor temperature, °C (an extra
 /// column after [`IMU_COLUMNS`], docs/model.md §7).
 pub const IMU_TEMP_COLUMN: &str = "temp_c";

@@ -135,6 +135,31 @@ impl Truth {
     }
 }
 
+/// One parameter of a truth check: an estimate with its σ against the
+/// truth of a simulated session.
+#[derive(Clone, Debug)]
+pub struct TruthRow {
+    /// Parameter name.
+    pub name: String,
+    /// Estimate, SI.
+    pub estimate: f64,
+    /// Its posterior σ.
+    pub sigma: f64,
+    /// The twin's truth (docs/model.md §4.8).
+    pub truth: f64,
+    /// The part of `truth` that is the model's share of the twin's
+    /// structural mode (what it absorbs of an effect it does not have,
+    /// docs/model.md §4.8); 0 without a mode.
+    pub mode_share: f64,
+}
+
+impl TruthRow {
+    /// (estimate − truth)/σ.
+    pub fn z(&self) -> f64 {
+        (self.estimate - self.truth) / self.sigma
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,17 +6,14 @@
 //! the cost decreases, and updates λ by Nielsen's rule from the gain ratio
 //! ρ = (actual decrease) / (decrease predicted by the quadratic model).
 //!
-//! Termination (Ceres-style): the relative cost decrease of an accepted step,
-//! or the decrease the quadratic model predicts for the first rejected one,
-//! falls below `function_tolerance`; the Newton step is so short that the
-//! point it reaches is the minimum to `newton_tolerance` (below; the step is
-//! then taken without linearising there); a rejected step whose predicted and
-//! actual changes are both lost in the cost's rounding at a negligible
-//! gradient ([`COST_ROUNDING`], [`ROUNDING_GRADIENT`]); no step lowering the
-//! cost at any damping (λ > 10¹⁶) while the gradient is below
-//! [`ROUNDING_GRADIENT`] (stationary to 0.1σ; `NoProgress` above it); the
-//! scaled step below `parameter_tolerance`, the scaled gradient below
-//! `gradient_tolerance`, or `max_iterations` is reached.
+//! [`solve`] is an outline of named steps (as Ceres'
+//! `TrustRegionMinimizer::Minimize`); each stopping rule is a predicate with
+//! its reasoning in its doc: `gradient_tolerance_reached`,
+//! `function_tolerance_reached`, `parameter_tolerance_reached`,
+//! `model_predicts_no_decrease`, `at_rounding_floor`,
+//! `damping_exhausted`, `stationary` and `newton_tolerance_reached`
+//! (*The last step*: the Newton step is taken without linearising after
+//! it); `max_iterations` bounds the loop.
 //!
 //! A trial step is evaluated by its cost, or — when the problem says its
 //! set-up would not change there ([`LeastSquares::keeps_setup`]) — by
@@ -24,21 +21,6 @@
 //! iteration's (and the final one's), so no separate cost evaluation is
 //! needed, at the price of a linearisation per rejected step. The initial
 //! cost is the first linearisation's.
-//!
-//! **The last step.** Near the minimum the steps shrink by a rate
-//! r ≈ ‖δ_k‖/‖δ_{k−1}‖ per iteration, norms scaled by √D so that a
-//! coordinate's length is in units of its conditional σ (which bounds it in
-//! marginal σ): Gauss–Newton converges linearly when the residuals do not
-//! vanish (r of the order of the residuals' curvature over √N: about 10⁻³
-//! on a 300 s session) and faster when they do, where the linear model is
-//! an upper bound. So the point θ_k + δ_k is off the minimum by about
-//! e = r‖δ_k‖ = ‖δ_k‖²/‖δ_{k−1}‖. When e < `newton_tolerance`, the previous
-//! step's gain ratio was near 1 (the quadratic model holds), the damping is
-//! negligible and the problem's set-up stays, the step is taken and the
-//! solver stops: only the cost is evaluated there (it must not rise), and
-//! the covariance uses the linearisation at θ_k, whose matrix differs from
-//! the one at θ_k + δ_k by O(r) relative. This saves the linearisation a
-//! final accepted step would cost only to show that nothing is left to gain.
 
 use super::arrow::{ArrowFactor, ArrowMatrix, FactorError};
 
@@ -51,8 +33,9 @@ pub trait LeastSquares {
     fn begin_iteration(&mut self, theta: &[f64]) -> Result<(), Self::Error>;
     /// Cost ½‖r‖² at θ. An error means θ is not acceptable (the step is rejected).
     fn cost(&self, theta: &[f64]) -> Result<f64, Self::Error>;
-    /// The cost at θ where the solver may end (its last step, module doc
-    /// *The last step*): a problem can keep what it computed there.
+    /// The cost at θ where the solver may end (its last step, *The last
+    /// step* in the doc of `newton_tolerance_reached`): a problem can keep
+    /// what it computed there.
     /// Default: [`Self::cost`].
     fn end_cost(&mut self, theta: &[f64]) -> Result<f64, Self::Error> {
         self.cost(theta)
@@ -89,8 +72,8 @@ pub struct LmOptions {
     /// Initial damping λ.
     pub initial_lambda: f64,
     /// Take the last Gauss–Newton step without linearising after it when
-    /// the point it reaches is the minimum to this, in conditional σ (module
-    /// doc, *The last step*); 0 disables it. The default, 10⁻⁴ σ, is a cost
+    /// the point it reaches is the minimum to this, in conditional σ (*The
+    /// last step* in the doc of `newton_tolerance_reached`); 0 disables it. The default, 10⁻⁴ σ, is a cost
     /// excess of 5·10⁻⁹, far below what `function_tolerance` resolves.
     pub newton_tolerance: f64,
 }
@@ -282,6 +265,40 @@ pub const COST_ROUNDING: f64 = 1e-12;
 /// wrong Jacobian or a real non-minimum, reported as `NoProgress`.
 pub const ROUNDING_GRADIENT: f64 = 0.1;
 
+/// Stop when the gradient is below `gradient_tolerance`: max_k |g_k|/√D_k
+/// (the gradient in whitened units, `gnorm`) at the start of an iteration,
+/// before any step is tried.
+fn gradient_tolerance_reached(opts: &LmOptions, gnorm: f64) -> bool {
+    gnorm < opts.gradient_tolerance
+}
+
+/// Stop when an accepted step lowered the cost from `cost` to `new_cost` by
+/// less than the fraction `function_tolerance` of it (Ceres' relative
+/// cost decrease).
+fn function_tolerance_reached(opts: &LmOptions, cost: f64, new_cost: f64) -> bool {
+    let rel = (cost - new_cost) / cost.max(f64::MIN_POSITIVE);
+    rel < opts.function_tolerance
+}
+
+/// Stop when an accepted step `delta` from `theta` is short: every
+/// |δ_k| ≤ `parameter_tolerance` · (|θ_k| + s_k), with s_k = 1/√D_k the
+/// coordinate's conditional σ (so a parameter at 0 is measured in σ).
+fn parameter_tolerance_reached(opts: &LmOptions, delta: &[f64], theta: &[f64], d: &[f64]) -> bool {
+    delta
+        .iter()
+        .zip(theta)
+        .zip(d)
+        .all(|((dt, t), dk)| dt.abs() <= opts.parameter_tolerance * (t.abs() + 1.0 / dk.sqrt()))
+}
+
+/// Stop at the first rejected step of an iteration (`tries` = 1) when the
+/// decrease the quadratic model predicts for it is non-negative and below
+/// `function_tolerance` · J: even the (least damped) model predicts no
+/// meaningful decrease, so the cost is at its minimum to rounding.
+fn model_predicts_no_decrease(opts: &LmOptions, tries: usize, predicted: f64, cost: f64) -> bool {
+    tries == 1 && predicted >= 0.0 && predicted < opts.function_tolerance * cost
+}
+
 /// Whether a rejected step only failed because the cost is flat to
 /// rounding: the decrease the damped model predicts and the actual change
 /// are both below [`COST_ROUNDING`] · J, and the gradient is below
@@ -297,12 +314,47 @@ fn at_rounding_floor(cost: f64, new_cost: f64, predicted: f64, gnorm: f64) -> bo
         && gnorm <= ROUNDING_GRADIENT
 }
 
-/// Whether a step of scaled length `step` is the last one (module doc, *The
-/// last step*): the previous accepted step `last` = (length, gain ratio)
-/// was modelled well (ρ within 0.75–1.25), the damping λ is negligible
-/// (≤ 10⁻³), and the error left after the step, estimated as step²/last
-/// (the step times the rate of the last two), is below the Newton tolerance.
-fn newton_stop(opts: &LmOptions, last: Option<(f64, f64)>, step: f64, lambda: f64) -> bool {
+/// Stop when no step lowers the cost at any damping: the next λ (λ·ν)
+/// would exceed 10¹⁶. Whether that is convergence is [`stationary`]'s.
+fn damping_exhausted(lambda: f64, nu: f64) -> bool {
+    lambda * nu > 1e16
+}
+
+/// When no step lowers the cost at any damping ([`damping_exhausted`]),
+/// whether the point counts as the minimum: at a whitened gradient `gnorm`
+/// below [`ROUNDING_GRADIENT`] it is stationary to 0.1σ, to what any
+/// statistic resolves (the cost's own discontinuities, e.g. the sample
+/// set, exceed the decrease left); above it the run ends `NoProgress`.
+fn stationary(gnorm: f64) -> bool {
+    gnorm <= ROUNDING_GRADIENT
+}
+
+/// Whether a step of scaled length `step` is the last one: the previous
+/// accepted step `last` = (length, gain ratio) was modelled well (ρ within
+/// 0.75–1.25), the damping λ is negligible (≤ 10⁻³), and the error left
+/// after the step, estimated as step²/last (the step times the rate of the
+/// last two), is below the Newton tolerance.
+///
+/// **The last step.** Near the minimum the steps shrink by a rate
+/// r ≈ ‖δ_k‖/‖δ_{k−1}‖ per iteration, norms scaled by √D so that a
+/// coordinate's length is in units of its conditional σ (which bounds it in
+/// marginal σ): Gauss–Newton converges linearly when the residuals do not
+/// vanish (r of the order of the residuals' curvature over √N: about 10⁻³
+/// on a 300 s session) and faster when they do, where the linear model is
+/// an upper bound. So the point θ_k + δ_k is off the minimum by about
+/// e = r‖δ_k‖ = ‖δ_k‖²/‖δ_{k−1}‖. When e < `newton_tolerance`, the previous
+/// step's gain ratio was near 1 (the quadratic model holds), the damping is
+/// negligible and the problem's set-up stays, the step is taken and the
+/// solver stops: only the cost is evaluated there (it must not rise), and
+/// the covariance uses the linearisation at θ_k, whose matrix differs from
+/// the one at θ_k + δ_k by O(r) relative. This saves the linearisation a
+/// final accepted step would cost only to show that nothing is left to gain.
+fn newton_tolerance_reached(
+    opts: &LmOptions,
+    last: Option<(f64, f64)>,
+    step: f64,
+    lambda: f64,
+) -> bool {
     let Some((prev, rho)) = last else {
         return false;
     };
@@ -317,248 +369,407 @@ fn newton_stop(opts: &LmOptions, last: Option<(f64, f64)>, step: f64, lambda: f6
 /// Run Levenberg–Marquardt from `theta`. `report` sees every iteration.
 pub fn solve<P: LeastSquares>(
     problem: &mut P,
-    mut theta: Vec<f64>,
+    theta: Vec<f64>,
     opts: &LmOptions,
-    mut report: impl FnMut(&IterationRecord),
+    report: impl FnMut(&IterationRecord),
 ) -> Result<LmSolution, LmError<P::Error>> {
     opts.validate().map_err(LmError::Options)?;
-    let n = theta.len();
-    let mut a = problem.new_matrix();
-    let mut g = vec![0.0; n];
-    // the linearisation at an accepted trial step (module doc), and its cost
-    // while it is the one at θ
-    let (mut a_next, mut g_next) = (problem.new_matrix(), vec![0.0; n]);
-    let mut ahead = None;
-    let mut lambda = opts.initial_lambda;
-    let mut nu = 2.0;
-    problem.begin_iteration(&theta).map_err(LmError::Start)?;
-    let mut initial_cost = None;
-    let mut log = Vec::new();
+    let mut run = Run::new(problem, theta, opts, report);
+    problem
+        .begin_iteration(&run.theta)
+        .map_err(LmError::Start)?;
     let mut termination = Termination::MaxIterations;
-    let mut delta = vec![0.0; n];
-    // the cost of `a` when it is the linearisation at the final θ (or,
-    // after a Newton stop, the one the covariance uses)
-    let mut current = None;
-    // the scaled length of the last accepted step, and its gain ratio
-    let mut last_step: Option<(f64, f64)> = None;
-    let mut record = |log: &mut Vec<IterationRecord>, r: IterationRecord| {
-        report(&r);
-        log.push(r);
-    };
-    'outer: for iteration in 1..=opts.max_iterations {
+    for iteration in 1..=opts.max_iterations {
         if iteration > 1 {
             // the selected sample set may change with θ; the cost is re-evaluated below
-            problem.begin_iteration(&theta).map_err(LmError::Start)?;
+            problem
+                .begin_iteration(&run.theta)
+                .map_err(LmError::Start)?;
         }
-        let mut cost = match ahead.take() {
-            Some(cost) => {
-                std::mem::swap(&mut a, &mut a_next);
-                std::mem::swap(&mut g, &mut g_next);
-                cost
+        if let Some(reason) = run.iteration(problem, iteration)? {
+            termination = reason;
+            break;
+        }
+    }
+    let final_cost = run.final_linearization(problem)?;
+    run.finish(final_cost, termination)
+}
+
+/// The solver's state across iterations.
+struct Run<'o, R> {
+    opts: &'o LmOptions,
+    /// The estimate.
+    theta: Vec<f64>,
+    /// The Gauss–Newton matrix and gradient at θ.
+    a: ArrowMatrix,
+    g: Vec<f64>,
+    /// The linearisation at an accepted trial step (module doc), and its
+    /// cost (`ahead`) while it is the one at θ.
+    a_next: ArrowMatrix,
+    g_next: Vec<f64>,
+    ahead: Option<f64>,
+    /// The damping λ, and ν, its factor after a rejected step (Nielsen).
+    lambda: f64,
+    nu: f64,
+    /// The cost of the first linearisation.
+    initial_cost: Option<f64>,
+    /// The iteration log, and who else sees it.
+    log: Vec<IterationRecord>,
+    report: R,
+    /// The step being tried.
+    delta: Vec<f64>,
+    /// The cost of `a` when it is the linearisation at the final θ (or,
+    /// after a Newton stop, the one the covariance uses).
+    current: Option<f64>,
+    /// The scaled length of the last accepted step, and its gain ratio.
+    last_step: Option<(f64, f64)>,
+}
+
+/// An iteration's starting point: its number, the cost at θ, the scaling D
+/// and the whitened gradient max_k |g_k|/√D_k.
+struct IterationStart {
+    iteration: usize,
+    cost: f64,
+    d: Vec<f64>,
+    gnorm: f64,
+}
+
+/// A step tried from θ (θ + δ, δ in [`Run::delta`]).
+struct Trial {
+    /// Which try of the iteration, from 1.
+    tries: usize,
+    /// Whether the damped system gave a finite step.
+    step_ok: bool,
+    /// θ + δ.
+    candidate: Vec<f64>,
+    /// The decrease the damped quadratic model predicts.
+    predicted: f64,
+    /// ‖√D δ‖.
+    step_norm: f64,
+    /// The cost at the candidate (∞ when not evaluated or not acceptable).
+    new_cost: f64,
+    /// Whether the candidate was evaluated by linearising (into `a_next`).
+    linearized: bool,
+}
+
+impl<'o, R: FnMut(&IterationRecord)> Run<'o, R> {
+    fn new<P: LeastSquares>(problem: &P, theta: Vec<f64>, opts: &'o LmOptions, report: R) -> Self {
+        let n = theta.len();
+        Self {
+            opts,
+            theta,
+            a: problem.new_matrix(),
+            g: vec![0.0; n],
+            a_next: problem.new_matrix(),
+            g_next: vec![0.0; n],
+            ahead: None,
+            lambda: opts.initial_lambda,
+            nu: 2.0,
+            initial_cost: None,
+            log: Vec::new(),
+            report,
+            delta: vec![0.0; n],
+            current: None,
+            last_step: None,
+        }
+    }
+
+    /// One iteration (after `begin_iteration`): linearise at θ, then try
+    /// steps until one is accepted or a stopping rule holds.
+    fn iteration<P: LeastSquares>(
+        &mut self,
+        problem: &mut P,
+        iteration: usize,
+    ) -> Result<Option<Termination>, LmError<P::Error>> {
+        let at = self.start(problem, iteration)?;
+        if gradient_tolerance_reached(self.opts, at.gnorm) {
+            self.current = Some(at.cost);
+            self.record(&at, at.cost, 0.0, 0);
+            return Ok(Some(Termination::GradientTolerance));
+        }
+        let mut tries = 0;
+        loop {
+            tries += 1;
+            let mut trial = self.compute_step(&at, tries);
+            if trial.step_ok {
+                let keeps = problem.keeps_setup(&trial.candidate);
+                if tries == 1
+                    && keeps
+                    && newton_tolerance_reached(
+                        self.opts,
+                        self.last_step,
+                        trial.step_norm,
+                        self.lambda,
+                    )
+                    && self.take_last_step(problem, &at, &mut trial)
+                {
+                    return Ok(Some(Termination::NewtonTolerance));
+                }
+                self.evaluate_step(problem, keeps, &mut trial);
             }
-            None => problem
-                .linearize(&theta, &mut a, &mut g)
-                .map_err(LmError::Start)?,
-        };
-        initial_cost.get_or_insert(cost);
-        let diag = a.diagonal();
+            let rho = if trial.predicted > 0.0 {
+                (at.cost - trial.new_cost) / trial.predicted
+            } else {
+                -1.0
+            };
+            if trial.new_cost.is_finite() && trial.new_cost <= at.cost && rho > 0.0 {
+                return Ok(self.handle_successful_step(&at, trial, rho));
+            }
+            if let Some(reason) = self.handle_unsuccessful_step(&at, &trial) {
+                return Ok(Some(reason));
+            }
+        }
+    }
+
+    /// The linearisation at θ (the accepted step's, or a new one), the
+    /// scaling D = diag(A) (floored) and the whitened gradient.
+    fn start<P: LeastSquares>(
+        &mut self,
+        problem: &mut P,
+        iteration: usize,
+    ) -> Result<IterationStart, LmError<P::Error>> {
+        let cost = self.linearization_at_theta(problem)?;
+        self.initial_cost.get_or_insert(cost);
+        let diag = self.a.diagonal();
         let dmax = diag.iter().cloned().fold(0.0f64, f64::max);
         let d: Vec<f64> = diag
             .iter()
             .map(|&v| v.max(1e-12 * dmax).max(1e-300))
             .collect();
-        let gnorm = g
+        let gnorm = self
+            .g
             .iter()
             .zip(&d)
             .map(|(gk, dk)| gk.abs() / dk.sqrt())
             .fold(0.0f64, f64::max);
-        if gnorm < opts.gradient_tolerance {
-            termination = Termination::GradientTolerance;
-            current = Some(cost);
-            record(
-                &mut log,
-                IterationRecord {
-                    iteration,
-                    cost,
-                    step_norm: 0.0,
-                    lambda,
-                    gradient_norm: gnorm,
-                    tries: 0,
-                },
-            );
-            break;
-        }
-        let mut tries = 0;
-        loop {
-            tries += 1;
-            let mut damped = a.clone();
-            let damping: Vec<f64> = d.iter().map(|v| lambda * v).collect();
-            damped.add_diagonal(&damping);
-            let step_ok = match damped.factor() {
-                Ok(f) => {
-                    for (dk, gk) in delta.iter_mut().zip(&g) {
-                        *dk = -gk;
-                    }
-                    f.solve_in_place(&mut delta);
-                    delta.iter().all(|v| v.is_finite())
-                }
-                Err(_) => false,
-            };
-            let mut new_cost = f64::INFINITY;
-            let mut predicted = 0.0;
-            let mut step_norm = f64::INFINITY;
-            let mut linearized = false;
-            let candidate: Vec<f64> = theta.iter().zip(&delta).map(|(t, dt)| t + dt).collect();
-            if step_ok {
-                // predicted decrease of the quadratic model: −gᵀδ − ½δᵀAδ = ½δᵀ(λD)δ − ½gᵀδ
-                let gd: f64 = g.iter().zip(&delta).map(|(a, b)| a * b).sum();
-                let dd: f64 = delta.iter().zip(&damping).map(|(x, l)| l * x * x).sum();
-                predicted = 0.5 * (dd - gd);
-                step_norm = delta
-                    .iter()
-                    .zip(&d)
-                    .map(|(x, dk)| dk * x * x)
-                    .sum::<f64>()
-                    .sqrt();
-                let keeps = problem.keeps_setup(&candidate);
-                if tries == 1 && keeps && newton_stop(opts, last_step, step_norm, lambda) {
-                    // the last step (module doc): its cost only, and the
-                    // matrix at θ for the covariance
-                    if let Ok(c) = problem.end_cost(&candidate) {
-                        if c.is_finite() && c <= cost + COST_ROUNDING * cost.abs() {
-                            theta = candidate;
-                            current = Some(c);
-                            termination = Termination::NewtonTolerance;
-                            record(
-                                &mut log,
-                                IterationRecord {
-                                    iteration,
-                                    cost: c,
-                                    step_norm,
-                                    lambda,
-                                    gradient_norm: gnorm,
-                                    tries,
-                                },
-                            );
-                            break 'outer;
-                        }
-                    }
-                }
-                let trial = if keeps {
-                    linearized = true;
-                    problem.linearize(&candidate, &mut a_next, &mut g_next)
-                } else {
-                    problem.cost(&candidate)
-                };
-                if let Ok(c) = trial {
-                    new_cost = c;
-                }
+        Ok(IterationStart {
+            iteration,
+            cost,
+            d,
+            gnorm,
+        })
+    }
+
+    /// The linearisation at θ into `a`, `g`: the one made at the accepted
+    /// step (`ahead`), or a new one. Its cost.
+    fn linearization_at_theta<P: LeastSquares>(
+        &mut self,
+        problem: &mut P,
+    ) -> Result<f64, LmError<P::Error>> {
+        match self.ahead.take() {
+            Some(cost) => {
+                std::mem::swap(&mut self.a, &mut self.a_next);
+                std::mem::swap(&mut self.g, &mut self.g_next);
+                Ok(cost)
             }
-            let rho = if predicted > 0.0 {
-                (cost - new_cost) / predicted
-            } else {
-                -1.0
-            };
-            let accepted = new_cost.is_finite() && new_cost <= cost && rho > 0.0;
-            // Even the undamped model predicts no meaningful decrease: the
-            // cost is at its minimum to rounding.
-            let first_try_flat =
-                tries == 1 && predicted >= 0.0 && predicted < opts.function_tolerance * cost;
-            let at_rounding = !accepted
-                && step_ok
-                && (first_try_flat || at_rounding_floor(cost, new_cost, predicted, gnorm));
-            let mut stop = None;
-            if accepted {
-                let rel = (cost - new_cost) / cost.max(f64::MIN_POSITIVE);
-                let small_step = delta.iter().zip(&theta).zip(&d).all(|((dt, t), dk)| {
-                    dt.abs() <= opts.parameter_tolerance * (t.abs() + 1.0 / dk.sqrt())
-                });
-                theta = candidate;
-                cost = new_cost;
-                if linearized {
-                    ahead = Some(new_cost);
-                }
-                last_step = Some((step_norm, rho));
-                lambda = (lambda * f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-15);
-                nu = 2.0;
-                if rel < opts.function_tolerance {
-                    stop = Some(Termination::FunctionTolerance);
-                } else if small_step {
-                    stop = Some(Termination::ParameterTolerance);
-                }
-            } else if at_rounding {
-                stop = Some(Termination::FunctionTolerance);
-            } else if lambda * nu > 1e16 {
-                // no step lowers the cost: at a gradient below
-                // ROUNDING_GRADIENT the point is stationary to what any
-                // statistic resolves (the cost's own discontinuities, e.g.
-                // the sample set, exceed the decrease left)
-                stop = Some(if step_ok && gnorm <= ROUNDING_GRADIENT {
-                    Termination::FunctionTolerance
-                } else {
-                    Termination::NoProgress
-                });
-            }
-            if accepted || stop.is_some() {
-                record(
-                    &mut log,
-                    IterationRecord {
-                        iteration,
-                        cost,
-                        step_norm,
-                        lambda,
-                        gradient_norm: gnorm,
-                        tries,
-                    },
-                );
-            }
-            if let Some(reason) = stop {
-                termination = reason;
-                break 'outer;
-            }
-            if accepted {
-                break;
-            }
-            lambda *= nu;
-            nu *= 2.0;
+            None => problem
+                .linearize(&self.theta, &mut self.a, &mut self.g)
+                .map_err(LmError::Start),
         }
     }
-    // the undamped matrix at the final θ, for the covariance (already in
-    // `a` when the gradient test stopped right after linearising there, in
-    // `a_next` when the last accepted step was linearised)
-    let final_cost = match current {
-        Some(cost) => cost,
-        None => {
-            problem.begin_iteration(&theta).map_err(LmError::Start)?;
-            match ahead.take() {
-                Some(cost) => {
-                    std::mem::swap(&mut a, &mut a_next);
-                    cost
+
+    /// Solve (A + λD) δ = −g into `delta`; the candidate θ + δ, the
+    /// decrease the damped model predicts and the scaled step length.
+    fn compute_step(&mut self, at: &IterationStart, tries: usize) -> Trial {
+        let mut damped = self.a.clone();
+        let damping: Vec<f64> = at.d.iter().map(|v| self.lambda * v).collect();
+        damped.add_diagonal(&damping);
+        let step_ok = match damped.factor() {
+            Ok(f) => {
+                for (dk, gk) in self.delta.iter_mut().zip(&self.g) {
+                    *dk = -gk;
                 }
-                None => problem
-                    .linearize(&theta, &mut a, &mut g)
-                    .map_err(LmError::Start)?,
+                f.solve_in_place(&mut self.delta);
+                self.delta.iter().all(|v| v.is_finite())
+            }
+            Err(_) => false,
+        };
+        let mut predicted = 0.0;
+        let mut step_norm = f64::INFINITY;
+        let candidate: Vec<f64> = self
+            .theta
+            .iter()
+            .zip(&self.delta)
+            .map(|(t, dt)| t + dt)
+            .collect();
+        if step_ok {
+            let delta = &self.delta;
+            // predicted decrease of the quadratic model: −gᵀδ − ½δᵀAδ = ½δᵀ(λD)δ − ½gᵀδ
+            let gd: f64 = self.g.iter().zip(delta).map(|(a, b)| a * b).sum();
+            let dd: f64 = delta.iter().zip(&damping).map(|(x, l)| l * x * x).sum();
+            predicted = 0.5 * (dd - gd);
+            step_norm = delta
+                .iter()
+                .zip(&at.d)
+                .map(|(x, dk)| dk * x * x)
+                .sum::<f64>()
+                .sqrt();
+        }
+        Trial {
+            tries,
+            step_ok,
+            candidate,
+            predicted,
+            step_norm,
+            new_cost: f64::INFINITY,
+            linearized: false,
+        }
+    }
+
+    /// The last step (`newton_tolerance_reached`): its cost only, and the
+    /// matrix at θ for the covariance. Taken (true) unless the cost rises
+    /// beyond rounding or cannot be evaluated.
+    fn take_last_step<P: LeastSquares>(
+        &mut self,
+        problem: &mut P,
+        at: &IterationStart,
+        trial: &mut Trial,
+    ) -> bool {
+        if let Ok(c) = problem.end_cost(&trial.candidate) {
+            if c.is_finite() && c <= at.cost + COST_ROUNDING * at.cost.abs() {
+                self.theta = std::mem::take(&mut trial.candidate);
+                self.current = Some(c);
+                self.record(at, c, trial.step_norm, trial.tries);
+                return true;
             }
         }
-    };
-    let factor = match a.factor() {
-        Ok(factor) => factor,
-        Err(FactorError::SchurNotPositiveDefinite) => {
-            let schur = a.schur_complement()?;
-            return Err(LmError::Unidentified { theta, schur });
+        false
+    }
+
+    /// The cost at the candidate: by linearising there (into `a_next`) when
+    /// the problem's set-up stays (`keeps`), else by the cost alone.
+    fn evaluate_step<P: LeastSquares>(&mut self, problem: &P, keeps: bool, trial: &mut Trial) {
+        let cost = if keeps {
+            trial.linearized = true;
+            problem.linearize(&trial.candidate, &mut self.a_next, &mut self.g_next)
+        } else {
+            problem.cost(&trial.candidate)
+        };
+        if let Ok(c) = cost {
+            trial.new_cost = c;
         }
-        Err(e) => return Err(e.into()),
-    };
-    Ok(LmSolution {
-        theta,
-        summary: LmSummary {
-            initial_cost: initial_cost.expect("at least one iteration"),
-            final_cost,
-            iterations: log,
-            termination,
-        },
-        factor,
-    })
+    }
+
+    /// Take the accepted step, lower λ by Nielsen's rule from the gain
+    /// ratio ρ, log the iteration; whether the function or parameter
+    /// tolerance stops the run.
+    fn handle_successful_step(
+        &mut self,
+        at: &IterationStart,
+        trial: Trial,
+        rho: f64,
+    ) -> Option<Termination> {
+        let cost_reached = function_tolerance_reached(self.opts, at.cost, trial.new_cost);
+        let step_reached = parameter_tolerance_reached(self.opts, &self.delta, &self.theta, &at.d);
+        self.theta = trial.candidate;
+        if trial.linearized {
+            self.ahead = Some(trial.new_cost);
+        }
+        self.last_step = Some((trial.step_norm, rho));
+        self.lambda =
+            (self.lambda * f64::max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0).powi(3))).max(1e-15);
+        self.nu = 2.0;
+        self.record(at, trial.new_cost, trial.step_norm, trial.tries);
+        if cost_reached {
+            Some(Termination::FunctionTolerance)
+        } else if step_reached {
+            Some(Termination::ParameterTolerance)
+        } else {
+            None
+        }
+    }
+
+    /// A rejected step: stop (logging the iteration) when the cost is at
+    /// its minimum to rounding or no damping helps; else raise λ for the
+    /// next try.
+    fn handle_unsuccessful_step(
+        &mut self,
+        at: &IterationStart,
+        trial: &Trial,
+    ) -> Option<Termination> {
+        let stop = if trial.step_ok
+            && (model_predicts_no_decrease(self.opts, trial.tries, trial.predicted, at.cost)
+                || at_rounding_floor(at.cost, trial.new_cost, trial.predicted, at.gnorm))
+        {
+            Some(Termination::FunctionTolerance)
+        } else if damping_exhausted(self.lambda, self.nu) {
+            Some(if trial.step_ok && stationary(at.gnorm) {
+                Termination::FunctionTolerance
+            } else {
+                Termination::NoProgress
+            })
+        } else {
+            None
+        };
+        if stop.is_some() {
+            self.record(at, at.cost, trial.step_norm, trial.tries);
+        } else {
+            self.lambda *= self.nu;
+            self.nu *= 2.0;
+        }
+        stop
+    }
+
+    /// Log an iteration (with the current λ) and show it to `report`.
+    fn record(&mut self, at: &IterationStart, cost: f64, step_norm: f64, tries: usize) {
+        let r = IterationRecord {
+            iteration: at.iteration,
+            cost,
+            step_norm,
+            lambda: self.lambda,
+            gradient_norm: at.gnorm,
+            tries,
+        };
+        (self.report)(&r);
+        self.log.push(r);
+    }
+
+    /// The cost of the undamped matrix at the final θ, for the covariance
+    /// (already in `a` when the gradient test stopped right after
+    /// linearising there or after a Newton stop, in `a_next` when the last
+    /// accepted step was linearised, else linearised now).
+    fn final_linearization<P: LeastSquares>(
+        &mut self,
+        problem: &mut P,
+    ) -> Result<f64, LmError<P::Error>> {
+        if let Some(cost) = self.current {
+            return Ok(cost);
+        }
+        problem
+            .begin_iteration(&self.theta)
+            .map_err(LmError::Start)?;
+        self.linearization_at_theta(problem)
+    }
+
+    /// Factor the matrix at θ (an undetermined direction is
+    /// [`LmError::Unidentified`]) and return the solution.
+    fn finish<E: std::error::Error + 'static>(
+        self,
+        final_cost: f64,
+        termination: Termination,
+    ) -> Result<LmSolution, LmError<E>> {
+        let factor = match self.a.factor() {
+            Ok(factor) => factor,
+            Err(FactorError::SchurNotPositiveDefinite) => {
+                let schur = self.a.schur_complement()?;
+                return Err(LmError::Unidentified {
+                    theta: self.theta,
+                    schur,
+                });
+            }
+            Err(e) => return Err(e.into()),
+        };
+        Ok(LmSolution {
+            theta: self.theta,
+            summary: LmSummary {
+                initial_cost: self.initial_cost.expect("at least one iteration"),
+                final_cost,
+                iterations: self.log,
+                termination,
+            },
+            factor,
+        })
+    }
 }
 
 #[cfg(test)]

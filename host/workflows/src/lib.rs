@@ -61,12 +61,16 @@ pub mod batch;
 pub mod body_rate;
 pub mod calibrate;
 pub mod check;
+pub mod convergence;
 pub mod diagnose;
+pub mod export;
 pub mod identifiability;
+pub mod import;
 pub mod montecarlo;
 pub mod motion_accuracy;
 pub mod noise;
 pub mod noise_id;
+pub mod pipeline;
 pub mod plan;
 pub mod repeatability;
 pub mod simulate;
@@ -76,3 +80,8 @@ pub mod tracker;
 pub mod tracker_offset;
 pub mod validate;
 pub mod verdict;
+
+pub use pipeline::{
+    calibrate_job, diagnose_session, load_session, resolve_robot, session_robot,
+    DiagnoseSettings, Diagnosed, Fitted, PipelineError, Prepared, Settings,
+};

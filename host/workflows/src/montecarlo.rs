@@ -16,8 +16,10 @@
 use super::calibrate::noise_choice::{calibrate_with_noise, NoiseChoice};
 use super::calibrate::{CalibrateError, CalibrateOptions};
 use super::simulate::{random_session_imus, RandomSession, SimulateError, SimulateOptions};
+use crate::pipeline::noise_spec::parse_noise_model;
 use faer::linalg::solvers::DenseSolveCore;
 use faer::Side;
+use robimu_model::noise::NoiseModel;
 use robimu_model::{ParamLayout, Robot};
 
 /// Settings of a Monte Carlo study.
@@ -39,6 +41,49 @@ pub struct MonteCarloOptions {
     pub n_imus: usize,
     /// Also fit IMU 0 alone in every run (K > 1): [`RunOutcome::sigma_imu0`].
     pub compare_imu0: bool,
+}
+
+impl MonteCarloOptions {
+    /// `robimu montecarlo`'s study of `robot`: `runs` sessions of `duration`
+    /// s with `imus` IMUs, simulated as the paper's with the IMU noise
+    /// `noise_model` (a `robimu simulate --noise-model` spec; default white)
+    /// and fitted with the noise model `fit_noise`: `auto`, `white`, or
+    /// `true` (the simulated model, given).
+    pub fn study(
+        robot: &Robot,
+        runs: usize,
+        duration: f64,
+        seed: u64,
+        imus: usize,
+        noise_model: Option<&str>,
+        fit_noise: &str,
+    ) -> anyhow::Result<Self> {
+        let mut simulate = SimulateOptions::paper(robot);
+        let mut truth = NoiseModel::white(robot.sigma_z())?;
+        if let Some(spec) = noise_model {
+            truth = parse_noise_model(spec, robot.sigma_z(), simulate.imu_rate)?;
+            simulate.sigma_z = truth.sigma_z();
+            simulate.noise_model = (!truth.is_white()).then_some(truth.clone());
+        }
+        let noise = match fit_noise.trim() {
+            "auto" => NoiseChoice::Auto,
+            "white" => NoiseChoice::White,
+            "true" => NoiseChoice::Given(Box::new(truth)),
+            other => anyhow::bail!("--fit-noise `{other}`: expected `auto`, `white` or `true`"),
+        };
+        let mut calibrate = CalibrateOptions::new(robot);
+        calibrate.sigma_z = simulate.sigma_z;
+        Ok(Self {
+            runs,
+            duration,
+            seed,
+            simulate,
+            calibrate,
+            noise,
+            n_imus: imus,
+            compare_imu0: imus > 1,
+        })
+    }
 }
 
 /// One run.

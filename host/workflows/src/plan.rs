@@ -224,28 +224,7 @@ pub fn plan(
     opts: &PlanOptions,
     mut progress: impl FnMut(usize, usize, f64),
 ) -> Result<Plan, PlanError> {
-    let pos = |v: f64| v.is_finite() && v > 0.0;
-    if !pos(opts.duration) {
-        return Err(bad("duration", opts.duration, "finite, > 0"));
-    }
-    if !pos(opts.knot_spacing) {
-        return Err(bad("knot_spacing", opts.knot_spacing, "finite, > 0"));
-    }
-    if !pos(opts.sample_rate) {
-        return Err(bad("sample_rate", opts.sample_rate, "finite, > 0"));
-    }
-    if !pos(opts.eval_rate) {
-        return Err(bad("eval_rate", opts.eval_rate, "finite, > 0"));
-    }
-    if !(opts.margin > 0.0 && opts.margin <= 1.0) {
-        return Err(bad("margin", opts.margin, "in (0, 1]"));
-    }
-    if opts.block == 0 {
-        return Err(bad("block", 0.0, "at least 1"));
-    }
-    if opts.evaluations == 0 {
-        return Err(bad("evaluations", 0.0, "at least 1"));
-    }
+    validate(opts)?;
     let n = robot.dof();
     let knots = Knots::uniform(0.0, opts.duration, opts.knot_spacing, DEGREE)?;
     let m = knots.num_coeffs();
@@ -292,24 +271,117 @@ pub fn plan(
     let nb = blocks.len();
     for (bi, &(i0, i1)) in blocks.iter().enumerate() {
         let last = i1 == free_end;
-        let (a, b) = (y[i0], if last { y[m] } else { y[i1] });
-        let nu = (i1 - i0) * n;
-        let mut eval = |u: &[f64], spline: &mut Spline| -> f64 {
-            let c = spline.coeffs_mut();
-            geo.apply(c, n, i0, i1, u);
-            if last {
-                for i in i1..m {
-                    for j in 0..n {
-                        c[i * n + j] = c[(i1 - 1) * n + j];
-                    }
+        let mut block = Block {
+            info_model: &info_model,
+            geo: &geo,
+            lam: &lam,
+            keep_all: &keep_all,
+            n,
+            m,
+            columns: (i0, i1),
+            interval: (y[i0], if last { y[m] } else { y[i1] }),
+            last,
+            quad,
+            evaluations: &mut evaluations,
+        };
+        let (best, best_u) = block.random_candidates(opts, &mut rng, &mut spline);
+        let (best, best_u) = block.compass_search(opts, &mut rng, &mut spline, best, best_u);
+        let _ = block.eval(&best_u, &mut spline);
+        let (a, b) = block.interval;
+        info_model.accumulate(&spline, a, b, last, 1.0, quad, &mut lam);
+        progress(bi + 1, nb, best);
+    }
+    check_limits(robot, &spline, 1000.0).map_err(PlanError::Violation)?;
+    Ok(identifiability_over_time(
+        &info_model,
+        spline,
+        (&y, m),
+        &blocks,
+        evaluations,
+    ))
+}
+
+/// Checks the options (those checked before anything is computed).
+fn validate(opts: &PlanOptions) -> Result<(), PlanError> {
+    let pos = |v: f64| v.is_finite() && v > 0.0;
+    if !pos(opts.duration) {
+        return Err(bad("duration", opts.duration, "finite, > 0"));
+    }
+    if !pos(opts.knot_spacing) {
+        return Err(bad("knot_spacing", opts.knot_spacing, "finite, > 0"));
+    }
+    if !pos(opts.sample_rate) {
+        return Err(bad("sample_rate", opts.sample_rate, "finite, > 0"));
+    }
+    if !pos(opts.eval_rate) {
+        return Err(bad("eval_rate", opts.eval_rate, "finite, > 0"));
+    }
+    if !(opts.margin > 0.0 && opts.margin <= 1.0) {
+        return Err(bad("margin", opts.margin, "in (0, 1]"));
+    }
+    if opts.block == 0 {
+        return Err(bad("block", 0.0, "at least 1"));
+    }
+    if opts.evaluations == 0 {
+        return Err(bad("evaluations", 0.0, "at least 1"));
+    }
+    Ok(())
+}
+
+/// One block of spline columns being chosen: the objective λ_max of the
+/// information after its interval, given Λ before it.
+struct Block<'a> {
+    info_model: &'a Information,
+    geo: &'a Box6,
+    /// Λ before the block.
+    lam: &'a Mat<f64>,
+    /// Every parameter (λ_max over all of Λ).
+    keep_all: &'a [usize],
+    /// Joints, spline columns.
+    n: usize,
+    m: usize,
+    /// The columns i0..i1 the block sets.
+    columns: (usize, usize),
+    /// The time interval its information covers.
+    interval: (f64, f64),
+    /// Whether it is the last block (it also sets the columns after it, and
+    /// its interval is closed).
+    last: bool,
+    quad: Sampling,
+    /// Objective evaluations spent, over all blocks.
+    evaluations: &'a mut usize,
+}
+
+impl Block<'_> {
+    /// The objective at u ∈ [−1, 1]^{(i1−i0)·n} (written into `spline`).
+    fn eval(&mut self, u: &[f64], spline: &mut Spline) -> f64 {
+        let (n, m, (i0, i1)) = (self.n, self.m, self.columns);
+        let (a, b) = self.interval;
+        let c = spline.coeffs_mut();
+        self.geo.apply(c, n, i0, i1, u);
+        if self.last {
+            for i in i1..m {
+                for j in 0..n {
+                    c[i * n + j] = c[(i1 - 1) * n + j];
                 }
             }
-            let mut l = lam.clone();
-            info_model.accumulate(spline, a, b, last, 1.0, quad, &mut l);
-            evaluations += 1;
-            lambda_max(&l, &keep_all)
-        };
-        // random candidates (mixed bang-bang and interior directions)
+        }
+        let mut l = self.lam.clone();
+        self.info_model
+            .accumulate(spline, a, b, self.last, 1.0, self.quad, &mut l);
+        *self.evaluations += 1;
+        lambda_max(&l, self.keep_all)
+    }
+
+    /// Random candidates (mixed bang-bang and interior directions): the
+    /// best objective and its u.
+    fn random_candidates(
+        &mut self,
+        opts: &PlanOptions,
+        rng: &mut rand::rngs::StdRng,
+        spline: &mut Spline,
+    ) -> (f64, Vec<f64>) {
+        let nu = (self.columns.1 - self.columns.0) * self.n;
         let mut best_u = vec![0.0; nu];
         let mut best = f64::INFINITY;
         for _ in 0..opts.candidates.max(1) {
@@ -323,13 +395,27 @@ pub fn plan(
                     }
                 })
                 .collect();
-            let f = eval(&u, &mut spline);
+            let f = self.eval(&u, spline);
             if f < best {
                 best = f;
                 best_u = u;
             }
         }
-        // compass search with halving steps
+        (best, best_u)
+    }
+
+    /// Compass search with halving steps from `best_u`, until the step is
+    /// below 0.2 or the evaluations allowed (the candidates counted) are
+    /// spent: the best objective and its u.
+    fn compass_search(
+        &mut self,
+        opts: &PlanOptions,
+        rng: &mut rand::rngs::StdRng,
+        spline: &mut Spline,
+        mut best: f64,
+        mut best_u: Vec<f64>,
+    ) -> (f64, Vec<f64>) {
+        let nu = best_u.len();
         let mut used = opts.candidates.max(1);
         let mut step = 1.0;
         let mut order: Vec<usize> = (0..nu).collect();
@@ -351,7 +437,7 @@ pub fn plan(
                     let mut u = best_u.clone();
                     u[k] = new;
                     used += 1;
-                    let f = eval(&u, &mut spline);
+                    let f = self.eval(&u, spline);
                     if f < best {
                         best = f;
                         best_u = u;
@@ -364,19 +450,30 @@ pub fn plan(
                 step *= 0.5;
             }
         }
-        let _ = eval(&best_u, &mut spline);
-        info_model.accumulate(&spline, a, b, last, 1.0, quad, &mut lam);
-        progress(bi + 1, nb, best);
+        (best, best_u)
     }
-    check_limits(robot, &spline, 1000.0).map_err(PlanError::Violation)?;
-    // the identifiability measure against time, every sample counted
+}
+
+/// The plan with the identifiability measure against time, every sample
+/// counted (with and without the robot lengths), and the final Λ; `y` the
+/// knots, `m` the number of columns.
+fn identifiability_over_time(
+    info_model: &Information,
+    spline: Spline,
+    (y, m): (&[f64], usize),
+    blocks: &[(usize, usize)],
+    evaluations: usize,
+) -> Plan {
+    let pads = DEGREE + 1;
+    let free_end = m - pads;
+    let keep_all: Vec<usize> = (0..info_model.dim()).collect();
     let keep_no_len = without_robot_lengths(info_model.layout());
     let mut lam = info_model.prior();
     let mut times = vec![y[pads]];
     info_model.accumulate(&spline, 0.0, y[pads], false, 1.0, Sampling::Exact, &mut lam);
     let mut lmax = vec![lambda_max(&lam, &keep_all)];
     let mut lmax_nl = vec![lambda_max(&lam, &keep_no_len)];
-    for &(i0, i1) in &blocks {
+    for &(i0, i1) in blocks {
         let last = i1 == free_end;
         let b = if last { y[m] } else { y[i1] };
         info_model.accumulate(&spline, y[i0], b, last, 1.0, Sampling::Exact, &mut lam);
@@ -384,7 +481,7 @@ pub fn plan(
         lmax.push(lambda_max(&lam, &keep_all));
         lmax_nl.push(lambda_max(&lam, &keep_no_len));
     }
-    Ok(Plan {
+    Plan {
         spline,
         times,
         lambda_max: lmax,
@@ -392,7 +489,7 @@ pub fn plan(
         information: lam,
         layout: info_model.layout().clone(),
         evaluations,
-    })
+    }
 }
 
 /// Checks q, q̇, q̈ of `spline` against the robot's limits at `per_second`

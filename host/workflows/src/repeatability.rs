@@ -328,6 +328,41 @@ fn wrap(d: f64) -> f64 {
     }
 }
 
+/// repeatability.csv: per window and parameter (x order), SI units.
+pub fn write_csv(
+    path: &std::path::Path,
+    layout: &ParamLayout,
+    study: &Repeatability,
+) -> Result<(), csv::Error> {
+    let mut w = csv::Writer::from_path(path)?;
+    w.write_record([
+        "window",
+        "t0",
+        "t1",
+        "name",
+        "unit",
+        "value",
+        "sigma",
+        "difference",
+    ])?;
+    for (k, win) in study.windows.iter().enumerate() {
+        for (i, spec) in layout.specs().iter().enumerate() {
+            w.write_record([
+                (k + 1).to_string(),
+                win.t0.to_string(),
+                win.t1.to_string(),
+                spec.name.clone(),
+                spec.unit.to_string(),
+                win.calibration.x[i].to_string(),
+                win.calibration.sigma[i].to_string(),
+                win.difference[i].to_string(),
+            ])?;
+        }
+    }
+    w.flush()?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,17 +3,17 @@
 //! against a limits file (README "Production batches").
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
 use robimu_workflows::batch::limits::Limits;
-use robimu_workflows::batch::summary::{imu_parameter_names, SessionOutcome, Summary};
-use robimu_workflows::batch::{run_queue, session_entries, Entry, Outcome};
+use robimu_workflows::batch::summary::Summary;
+use robimu_workflows::batch::{run_queue, session_entries, Outcome};
+use robimu_workflows::pipeline::{self, calibrate_job};
 
-use super::calibrate::{effects_fit, write_result, CalibrateFlags, Fitted};
-use super::input::{load_session, output_path};
-use super::noise_spec::NoiseFileArg;
+use crate::args::CalibrateFlags;
+use crate::input::output_path;
 
 /// Calibrate many sessions in parallel (production batches).
 ///
@@ -53,12 +53,6 @@ pub struct CalibrateBatchCmd {
     pub fit: CalibrateFlags,
 }
 
-/// A session with the result file it is to get.
-struct Job {
-    entry: Entry,
-    result: PathBuf,
-}
-
 impl CalibrateBatchCmd {
     /// Calibrate every session, write the summary, fail when a unit fails.
     pub fn run(self) -> anyhow::Result<()> {
@@ -67,7 +61,7 @@ impl CalibrateBatchCmd {
             None => Limits::default(),
         };
         let file = self.fit.noise_file()?;
-        self.fit.settle()?;
+        let settings = self.fit.settings()?;
         self.fit.resonance.mode()?;
         let summary_path = output_path(Some(&self.out), self.out.clone())?;
         let jobs = match self.jobs {
@@ -75,22 +69,18 @@ impl CalibrateBatchCmd {
             Some(n) => n,
             None => std::thread::available_parallelism().map_or(1, |n| n.get()),
         };
-        let queue = self.jobs_of(session_entries(&self.dirs))?;
+        let queue = pipeline::jobs(
+            session_entries(&self.dirs),
+            self.results.as_deref(),
+            self.force,
+        )?;
 
         let bar = progress_bar(queue.len());
         let started = Instant::now();
         let done = run_queue(&queue, jobs, |job| {
             let t = Instant::now();
-            let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                self.calibrate_one(job, file.as_ref())
-            }))
-            .unwrap_or_else(|p| {
-                let why = p
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| p.downcast_ref::<String>().cloned())
-                    .unwrap_or_default();
-                failed(&job.entry.dir, format!("internal error (panic): {why}"))
+            let outcome = calibrate_job(job, &settings, file.as_ref(), |w| {
+                bar.suspend(|| eprintln!("warning: {w}"))
             });
             let status = match &outcome.outcome {
                 Outcome::Calibrated(_) => "ok",
@@ -130,104 +120,6 @@ impl CalibrateBatchCmd {
             );
         }
         Ok(())
-    }
-
-    /// Each session with its result file; refused when two sessions would
-    /// share one, or a result file exists and `--force` is not given.
-    fn jobs_of(&self, entries: Vec<Entry>) -> anyhow::Result<Vec<Job>> {
-        if let Some(dir) = &self.results {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("--results: cannot create {}", dir.display()))?;
-        }
-        let mut jobs: Vec<Job> = Vec::new();
-        for entry in entries {
-            let result = match &self.results {
-                None => entry.dir.join("result.json"),
-                Some(dir) => {
-                    let name = std::path::absolute(&entry.dir)
-                        .ok()
-                        .and_then(|p| p.file_name().map(|n| n.to_owned()))
-                        .unwrap_or_else(|| "session".into());
-                    dir.join(name).join("result.json")
-                }
-            };
-            if entry.problem.is_none() {
-                if let Some(other) = jobs
-                    .iter()
-                    .find(|j| j.entry.problem.is_none() && j.result == result)
-                {
-                    bail!(
-                        "--results: the sessions {} and {} would both write {}",
-                        other.entry.dir.display(),
-                        entry.dir.display(),
-                        result.display()
-                    );
-                }
-            }
-            jobs.push(Job { entry, result });
-        }
-        let existing: Vec<&Job> = jobs
-            .iter()
-            .filter(|j| j.entry.problem.is_none() && j.result.exists())
-            .collect();
-        if !self.force && !existing.is_empty() {
-            bail!(
-                "{} of the sessions already have a result file (first: {}): pass --force to overwrite them, or --results DIR to write elsewhere",
-                existing.len(),
-                existing[0].result.display()
-            );
-        }
-        Ok(jobs)
-    }
-
-    /// One session: read, calibrated as `robimu calibrate` does, its
-    /// result files written.
-    fn calibrate_one(&self, job: &Job, file: Option<&NoiseFileArg>) -> SessionOutcome {
-        let dir = &job.entry.dir;
-        let unreadable = |e: String| SessionOutcome {
-            dir: dir.clone(),
-            outcome: Outcome::Unreadable(e),
-            imu_parameters: Vec::new(),
-        };
-        if let Some(problem) = &job.entry.problem {
-            return unreadable(problem.clone());
-        }
-        let (session, robot) = match load_session(dir) {
-            Ok(s) => s,
-            Err(e) => return unreadable(format!("{e:#}")),
-        };
-        let p = match self.fit.prepare(dir, session, robot, file) {
-            Ok(p) => p,
-            Err(e) => return failed(dir, format!("{e:#}")),
-        };
-        let imu_parameters = imu_parameter_names(&p.layout);
-        let outcome = (|| -> anyhow::Result<Outcome> {
-            let Fitted { cal, result, .. } = self.fit.fit_prepared(&p, dir, |_| {})?;
-            if let Some(parent) = job.result.parent() {
-                std::fs::create_dir_all(parent)
-                    .with_context(|| format!("cannot create {}", parent.display()))?;
-            }
-            write_result(&result, &cal, &job.result)?;
-            if let Some(set) = &p.effects {
-                effects_fit(&p.robot, &p.data, &p.opts, set, &cal, &job.result)?;
-            }
-            Ok(Outcome::Calibrated(Box::new(result)))
-        })()
-        .unwrap_or_else(|e| Outcome::Failed(format!("{e:#}")));
-        SessionOutcome {
-            dir: dir.clone(),
-            outcome,
-            imu_parameters,
-        }
-    }
-}
-
-/// A session that failed to calibrate.
-fn failed(dir: &Path, why: String) -> SessionOutcome {
-    SessionOutcome {
-        dir: dir.to_path_buf(),
-        outcome: Outcome::Failed(why),
-        imu_parameters: Vec::new(),
     }
 }
 

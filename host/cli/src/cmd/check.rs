@@ -8,7 +8,7 @@ use robimu_report::check::CheckTable;
 use robimu_session::Session;
 use robimu_workflows::check::{check_session, CheckOptions, CheckReport, Severity};
 
-use super::input::session_robot;
+use crate::input::session_robot;
 
 /// Check a recording before calibrating it.
 ///
@@ -81,16 +81,5 @@ pub fn check_dir(dir: &Path, opts: &CheckOptions) -> anyhow::Result<CheckReport>
 
 /// An error naming the fatal findings, if any.
 pub fn fatal(report: &CheckReport, dir: &Path) -> anyhow::Result<()> {
-    let fatal: Vec<String> = report
-        .of(Severity::Fatal)
-        .map(|f| format!("{} (what to do: {})", f.message, f.action))
-        .collect();
-    if fatal.is_empty() {
-        return Ok(());
-    }
-    bail!(
-        "the session {} failed the check: {}",
-        dir.display(),
-        fatal.join("; ")
-    )
+    robimu_workflows::pipeline::fatal_findings(report, dir)
 }

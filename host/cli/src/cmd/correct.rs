@@ -8,7 +8,7 @@ use robimu_session::export::imu::{correct_rows, write_imu_csv};
 use robimu_session::result::CalibrationResult;
 use robimu_session::{read_table, Columns, IMU_COLUMNS};
 
-use super::input::output_path;
+use crate::input::output_path;
 
 /// Correct a raw IMU recording with a calibration: per sample and sensor
 /// v = Rᵀ·Γ⁻¹·K⁻¹·(z − b) (the inverse of docs/model.md §3), the specific force

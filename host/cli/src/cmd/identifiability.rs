@@ -17,9 +17,9 @@ use robimu_workflows::plan::information::Information;
 
 use robimu_workflows::plan::files::read_plan_spline;
 
-use super::input::{resolve_robot, Progress};
-use super::noise_spec::parse_noise_model;
+use crate::input::{resolve_robot, Progress};
 use robimu_report::noise::NoiseChannels;
+use robimu_workflows::pipeline::noise_spec::parse_noise_model;
 
 /// Identifiability of a plan: σ against length and speed, against random trajectories.
 ///

@@ -3,13 +3,11 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use robimu_session::import::csv::read_csv_pair;
 use robimu_session::import::ros2::{read_ros2, Ros2Options, TimeSource};
-use robimu_session::import::{Imported, Streams};
-use robimu_session::SessionMeta;
-
-use super::input::resolve_robot;
+use robimu_session::import::Imported;
+use robimu_workflows::import::write_imported;
 
 /// Import a recording made with other tools as a session directory.
 ///
@@ -136,25 +134,6 @@ impl ImportCmd {
                 )
             }
         };
-        write(streams, session, &source)
+        write_imported(streams, &session.out, &session.robot, &source)
     }
-}
-
-fn write(streams: Streams, args: &SessionArgs, source: &str) -> anyhow::Result<Imported> {
-    let (robot, kind) = resolve_robot(&args.robot, None)?;
-    let width = streams.joints.first().map_or(0, |(_, q)| q.len());
-    if width != robot.dof() {
-        bail!(
-            "{source}: {width} joints imported ({}), but robot `{}` has {} (ros2: choose them with --joint-names)",
-            streams.joint_names.join(", "),
-            robot.name(),
-            robot.dof()
-        );
-    }
-    let mut meta = SessionMeta::new(kind.session_field(&args.robot));
-    meta.notes = Some(format!("imported from {source}"));
-    let out = streams
-        .write_session(&args.out, &meta)
-        .with_context(|| format!("cannot write the session {}", args.out.display()))?;
-    Ok(out)
 }

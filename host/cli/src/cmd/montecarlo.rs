@@ -4,17 +4,15 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use robimu_model::noise::NoiseModel;
 use robimu_model::ParamLayout;
 use robimu_report::montecarlo::{
-    error_histograms, write_runs_csv, write_summary_csv, MonteCarloSummary,
+    error_histograms, write_study_csv, MonteCarloNotes, MonteCarloSummary,
 };
 use robimu_workflows::calibrate::noise_choice::NoiseChoice;
-use robimu_workflows::calibrate::CalibrateOptions;
 use robimu_workflows::montecarlo::{monte_carlo, MonteCarloOptions};
-use robimu_workflows::simulate::SimulateOptions;
 
-use super::input::{resolve_robot_with, UrdfLinks};
+use crate::args::UrdfLinks;
+use crate::input::resolve_robot_with;
 
 /// Check that the reported uncertainties are honest: per run, draw a truth
 /// from the priors, simulate a session, calibrate it, and compare the error
@@ -79,31 +77,17 @@ impl MonteCarloCmd {
         let layout = ParamLayout::with_imus(&robot, self.imus);
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("cannot create {}", self.out.display()))?;
-        let mut simulate = SimulateOptions::paper(&robot);
-        let mut truth = NoiseModel::white(robot.sigma_z())?;
-        if let Some(spec) = &self.noise_model {
-            truth = super::noise_spec::parse_noise_model(spec, robot.sigma_z(), simulate.imu_rate)?;
-            simulate.sigma_z = truth.sigma_z();
-            simulate.noise_model = (!truth.is_white()).then_some(truth.clone());
-        }
-        let noise = match self.fit_noise.trim() {
-            "auto" => NoiseChoice::Auto,
-            "white" => NoiseChoice::White,
-            "true" => NoiseChoice::Given(Box::new(truth)),
-            other => anyhow::bail!("--fit-noise `{other}`: expected `auto`, `white` or `true`"),
-        };
-        let mut calibrate = CalibrateOptions::new(&robot);
-        calibrate.sigma_z = simulate.sigma_z;
-        let opts = MonteCarloOptions {
-            runs: self.runs,
-            duration: self.duration,
-            seed: self.seed,
-            simulate,
-            calibrate,
-            noise,
-            n_imus: self.imus,
-            compare_imu0: self.imus > 1,
-        };
+        let (runs, duration, seed, imus) = (self.runs, self.duration, self.seed, self.imus);
+        let noise_model = self.noise_model.as_deref();
+        let opts = MonteCarloOptions::study(
+            &robot,
+            runs,
+            duration,
+            seed,
+            imus,
+            noise_model,
+            &self.fit_noise,
+        )?;
         let bar = indicatif::ProgressBar::new(self.runs as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(
@@ -118,38 +102,27 @@ impl MonteCarloCmd {
         })?;
         bar.finish_and_clear();
         let elapsed = started.elapsed().as_secs_f64();
-        let runs_path = self.out.join("runs.csv");
-        write_runs_csv(&runs_path, &layout, &result)
-            .with_context(|| format!("cannot write {}", runs_path.display()))?;
-        let summary_path = self.out.join("summary.csv");
-        write_summary_csv(&summary_path, &result)
-            .with_context(|| format!("cannot write {}", summary_path.display()))?;
-        let summary = MonteCarloSummary {
-            result: &result,
-            duration: self.duration,
-            elapsed,
-        };
-        print!("{summary}");
-        if matches!(opts.noise, NoiseChoice::Auto) {
-            let refitted = result.runs.iter().filter(|r| r.refits > 0).count();
-            let warned = result.runs.iter().filter(|r| r.warning.is_some()).count();
-            println!(
-                "fit noise auto: identified and refitted by GLS in {refitted} of {} runs; white kept with a warning in {warned}",
-                result.runs.len()
-            );
-        }
-        let gain = result.shared_sigma_gain(&layout);
-        if !gain.is_empty() {
-            println!(
-                "shared parameters, mean sigma(IMU 0 alone) / sigma({} IMUs jointly) (sqrt(K) = {:.3}):",
-                self.imus,
-                (self.imus as f64).sqrt()
-            );
-            for (name, g) in &gain {
-                println!("  {name:<10} {g:.3}");
+        let (runs_path, summary_path) = write_study_csv(&self.out, &layout, &result)?;
+        print!(
+            "{}",
+            MonteCarloSummary {
+                result: &result,
+                duration,
+                elapsed
             }
-        }
-        let files = error_histograms(&self.out.join("histograms"), &layout, &result)?;
+        );
+        let auto_noise = matches!(opts.noise, NoiseChoice::Auto);
+        let (result, layout) = (&result, &layout);
+        print!(
+            "{}",
+            MonteCarloNotes {
+                result,
+                layout,
+                auto_noise,
+                imus
+            }
+        );
+        let files = error_histograms(&self.out.join("histograms"), layout, result)?;
         println!(
             "wrote {}, {} and {}",
             runs_path.display(),

@@ -9,7 +9,7 @@ use robimu_session::Session;
 use robimu_workflows::noise::{estimate_noise, identify_imu_noise, NoiseFile, NoiseOptions};
 use robimu_workflows::noise_id::IdOptions;
 
-use super::input::{output_path, session_robot};
+use crate::input::{output_path, session_robot};
 
 /// Estimate the measurement noise of a session from its own samples.
 ///

@@ -9,8 +9,8 @@ use robimu_report::plan::{write_plan_files, write_sigma_csv, PlanSummary};
 use robimu_workflows::plan::information::posterior_sigma;
 use robimu_workflows::plan::{plan, PlanOptions};
 
-use super::input::{resolve_robot, Progress};
-use super::noise_spec::parse_noise_model;
+use crate::input::{resolve_robot, Progress};
+use robimu_workflows::pipeline::noise_spec::parse_noise_model;
 
 /// Plan an excitation trajectory that makes x as identifiable as possible.
 ///
@@ -66,7 +66,7 @@ pub struct PlanCmd {
     pub imus: u32,
     /// `J=X,Y,Z`: IMU J's position on the flange, m, in the flange frame
     /// (ε_n1..3; default the robot's nominal mount); repeat for each IMU placed.
-    #[arg(long, value_name = "J=X,Y,Z", value_parser = super::input::parse_imu_position)]
+    #[arg(long, value_name = "J=X,Y,Z", value_parser = crate::input::parse_imu_position)]
     pub imu_position: Vec<(usize, [f64; 3])>,
     /// Plan directory to write (created if needed).
     #[arg(long, value_name = "PLAN_DIR")]
@@ -83,7 +83,7 @@ impl PlanCmd {
             bail!("--duration must be in (0, 86400] s (got {})", self.duration);
         }
         let (robot, _) = resolve_robot(&self.robot, None)?;
-        let robot = super::input::place_imus(robot, self.imus as usize, &self.imu_position)?;
+        let robot = crate::input::place_imus(robot, self.imus as usize, &self.imu_position)?;
         let noise = parse_noise_model(&self.noise_model, robot.sigma_z(), self.imu_rate)?;
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("cannot create the plan directory {}", self.out.display()))?;

@@ -7,11 +7,12 @@ use robimu_protocol::{SensorConfig, SensorTiming};
 use robimu_record::controller::RobotSpec;
 use robimu_record::motion::Plan;
 use robimu_record::RecordOptions;
+/// Moved to [`robimu_report::recording::imu_lines`].
 use robimu_report::recording::RecordSummaryText;
 
 use robimu_workflows::plan::files::read_plan_table;
 
-use super::input::{imu_progress_line, record_with_progress, resolve_robot};
+use crate::input::{record_with_progress, resolve_robot};
 
 /// Record a session: stream the IMU board, poll the robot's joints, and
 /// execute a plan on the robot.
@@ -140,33 +141,7 @@ impl RecordCmd {
         }
         let summary = record_with_progress(&opts)?;
         print!("{}", RecordSummaryText(&summary));
-        print!("{}", imu_lines(&summary));
+        print!("{}", robimu_report::recording::imu_lines(&summary));
         Ok(())
     }
-}
-
-/// With several IMUs (docs/model.md §9): a line per IMU and the clock fit
-/// of every board after the first (whose fit the summary shows); empty for one.
-pub fn imu_lines(summary: &robimu_record::RecordSummary) -> String {
-    let p = &summary.progress;
-    if p.imus.len() < 2 {
-        return String::new();
-    }
-    let mut out = String::new();
-    for (j, imu) in p.imus.iter().enumerate() {
-        out += &imu_progress_line(j, imu);
-        out.push('\n');
-    }
-    for board in summary.boards.iter().skip(1) {
-        for (segment, c) in &board.clock {
-            out += &format!(
-                "board {} clock segment {segment}: device = session + {:.6} s, drift {:+.2} ppm, fit residual {:.1} µs\n",
-                board.port,
-                c.offset,
-                c.drift_ppm(),
-                c.residual_rms * 1e6
-            );
-        }
-    }
-    out
 }

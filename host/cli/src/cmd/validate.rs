@@ -2,21 +2,11 @@
 //! (paper §9, Fig. 10–11), with the classical calibrations for comparison.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::{bail, Context};
-use robimu_model::ParamLayout;
 use robimu_report::html::{tracker_alignment_text, validation_report_with};
 use robimu_report::validation::{write_validation_json, ImuAccuracyTable, RobotAccuracyTable};
-use robimu_session::poses::read_pose_file;
-use robimu_session::result::CalibrationResult;
-use robimu_session::{files, Session};
-use robimu_workflows::motion_accuracy::{align_tracker, motion_imu_accuracy};
-use robimu_workflows::tracker::{tracked_poses, TrackedPose};
-use robimu_workflows::tracker_offset::TrackerAlignment;
-use robimu_workflows::validate::robot_accuracy;
-
-use super::input::load_session;
+use robimu_workflows::validate::session::{validate_session, ValidateRequest};
 
 /// Validate a calibration against an external tracker.
 ///
@@ -76,126 +66,31 @@ pub struct ValidateCmd {
 impl ValidateCmd {
     /// Validate, print and write the report.
     pub fn run(self) -> anyhow::Result<()> {
-        let (session, robot) = load_session(&self.session)?;
-        let result = CalibrationResult::read(&self.calibration)?;
-        // IMU J of a multi-IMU session and result, as a one-IMU pair
-        let j = self.which_imu.unwrap_or(0);
-        let result = result
-            .imu(j)
-            .map_err(anyhow::Error::msg)
-            .with_context(|| format!("--calibration {}", self.calibration.display()))?;
-        let k = session.n_imus();
-        let session = session.only_imu(j).with_context(|| {
-            format!(
-                "--imu {j}: the session {} has {k} IMU(s)",
-                self.session.display()
-            )
+        let v = validate_session(&ValidateRequest {
+            session: self.session.clone(),
+            calibration: self.calibration,
+            tracker: self.tracker,
+            train: self.train,
+            motion: self.motion,
+            tracker_offset: self.tracker_offset,
+            imu: self.which_imu,
         })?;
-        let robot = robot.with_mount(0, *robot.mount_of(j))?;
-        let layout = ParamLayout::new(&robot);
-        let x = result
-            .values(&layout)
-            .with_context(|| format!("--calibration {}", self.calibration.display()))?;
-        let frozen = result.frozen(&layout);
-        let poses = read_poses(&self.tracker, &session, robot.dof())
-            .with_context(|| format!("--tracker {}", self.tracker.display()))?;
-        let train = self
-            .train
-            .unwrap_or_else(|| (poses.len() as f64 * 0.6).round() as usize);
-        if train < 3 || train >= poses.len() {
-            bail!(
-                "--train {train}: {} poses; need at least 3 to fit and 1 to hold out",
-                poses.len()
-            );
-        }
-        let acc = robot_accuracy(&robot, &layout, &x, &poses, train, &frozen)
-            .context("cannot compute the robot accuracy")?;
-        let motion_dir = self
-            .motion
-            .clone()
-            .or_else(|| session.tracker.is_some().then(|| self.session.clone()));
-        let (alignment, imu) = match motion_dir {
-            None => (None, None),
-            Some(dir) => {
-                let motion = if dir == self.session {
-                    session.clone()
-                } else {
-                    let m = Session::load(&dir)
-                        .with_context(|| format!("--motion: cannot load {}", dir.display()))?;
-                    m.only_imu(j).with_context(|| {
-                        format!(
-                            "--imu {j}: the --motion session {} has no IMU {j}",
-                            dir.display()
-                        )
-                    })?
-                };
-                let a = self.alignment(&robot, &layout, &x, &motion, &dir)?;
-                let registration = &acc.baseline.registration;
-                let imu =
-                    motion_imu_accuracy(&robot, &layout, &x, registration, &motion, &dir, a.delta)?;
-                (Some(a), Some(imu))
-            }
-        };
         let mut out = std::io::stdout().lock();
-        write!(out, "{}", RobotAccuracyTable(&acc))?;
-        if let Some(a) = &alignment {
+        write!(out, "{}", RobotAccuracyTable(&v.robot))?;
+        if let Some(a) = &v.alignment {
             writeln!(out, "{}", tracker_alignment_text(a))?;
         }
-        if let Some(imu) = &imu {
+        if let Some(imu) = &v.imu {
             write!(out, "{}", ImuAccuracyTable(imu))?;
         }
         let dir = self
             .report
-            .clone()
             .unwrap_or_else(|| self.session.join("validation"));
-        let (imu, alignment) = (imu.as_ref(), alignment.as_ref());
-        let path = validation_report_with(&dir, &layout, &result, &acc, imu, alignment)?;
+        let (imu, alignment) = (v.imu.as_ref(), v.alignment.as_ref());
+        let path = validation_report_with(&dir, &v.layout, &v.result, &v.robot, imu, alignment)?;
         writeln!(out, "wrote {}", path.display())?;
-        let json_path = write_validation_json(&dir, &acc, imu, alignment)?;
+        let json_path = write_validation_json(&dir, &v.robot, imu, alignment)?;
         writeln!(out, "wrote {}", json_path.display())?;
         Ok(())
     }
-
-    /// The tracker clock's offset δ of the tracked `motion` (directory
-    /// `dir`): --tracker-offset, else estimated.
-    fn alignment(
-        &self,
-        robot: &robimu_model::Robot,
-        layout: &ParamLayout,
-        x: &[f64],
-        motion: &Session,
-        dir: &Path,
-    ) -> anyhow::Result<TrackerAlignment> {
-        if motion.tracker.is_none() {
-            bail!("--motion {}: no tracker.csv", dir.display());
-        }
-        match self.tracker_offset {
-            Some(delta) if !delta.is_finite() => {
-                bail!("--tracker-offset must be a number of seconds (got {delta})")
-            }
-            Some(delta) => Ok(TrackerAlignment {
-                delta,
-                estimate: None,
-            }),
-            None => align_tracker(robot, layout, x, motion).with_context(|| {
-                format!(
-                    "cannot find the time offset of {} against its joint samples (give it with --tracker-offset SECONDS)",
-                    dir.join(files::TRACKER).display()
-                )
-            }),
-        }
-    }
-}
-
-/// The poses of `path`, with joint angles from its `q1..qn` columns or the
-/// session's joints.csv.
-fn read_poses(path: &Path, session: &Session, n: usize) -> anyhow::Result<Vec<TrackedPose>> {
-    let file = read_pose_file(path, n)?;
-    tracked_poses(
-        &file.table,
-        file.joints.as_deref(),
-        Some(&session.joints),
-        n,
-    )
-    .with_context(|| format!("{}", path.display()))
 }

@@ -22,6 +22,7 @@
 //! (gx, gy, gz), exact at every M.
 
 use super::{Effect, EffectConstant, EffectParam, SampleContext, SessionSpan};
+use crate::IMU_CHANNELS;
 
 /// Segments when none is given (a linear drift).
 pub const DEFAULT_SEGMENTS: usize = 1;
@@ -80,7 +81,6 @@ impl BiasDrift {
     }
 }
 
-const CHANNELS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 impl Effect for BiasDrift {
@@ -92,7 +92,7 @@ impl Effect for BiasDrift {
     }
     fn params(&self) -> Vec<EffectParam> {
         let mut out = Vec::new();
-        for (c, ch) in CHANNELS.iter().enumerate() {
+        for (c, ch) in IMU_CHANNELS.iter().enumerate() {
             for k in 1..=self.segments {
                 let (unit, display, prior_sigma) = if c < 3 {
                     ("m/s^2", ("m/s^2", 1.0), PRIOR_ACCEL)

@@ -24,7 +24,7 @@
 use std::sync::Arc;
 
 use super::{Effect, EffectConstant, EffectParam, SampleContext};
-use crate::{JointState, Knots, Spline};
+use crate::{JointState, Knots, Spline, IMU_CHANNELS};
 
 /// What a session needs for the effect (the message of an unavailable one).
 pub const REQUIRES: &str = "an IMU temperature column that varies by at least half a degree \
@@ -137,7 +137,6 @@ impl TemperatureBias {
     }
 }
 
-const CHANNELS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
 const DEG: f64 = std::f64::consts::PI / 180.0;
 /// One milli-g, m/s².
 const MG: f64 = 9.80665e-3;
@@ -152,7 +151,7 @@ impl Effect for TemperatureBias {
         "biases linear in the smoothed sensor temperature, per channel"
     }
     fn params(&self) -> Vec<EffectParam> {
-        CHANNELS
+        IMU_CHANNELS
             .iter()
             .enumerate()
             .map(|(c, ch)| {

@@ -14,17 +14,16 @@
 //!
 //! [`JointPoller`] polls `getJointPositions` at a fixed rate in a thread.
 
-use std::io::{ErrorKind, Write};
+use std::io::Write;
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver};
-use std::sync::Arc;
-use std::thread::{self, JoinHandle};
+use std::thread;
 use std::time::{Duration, Instant};
 
+use robimu_controller_wire::{Pacer, StreamParser};
 use serde_json::{json, Value};
 
-use super::{read_some, ReadOutcome};
+use super::poller::{Poller, Source};
+use super::{connect_any, read_some, ReadFailure};
 
 /// The ARCS controller's JSON-RPC port.
 pub const DEFAULT_PORT: u16 = 30004;
@@ -101,7 +100,7 @@ pub fn status_message(code: i64) -> &'static str {
 pub struct AuboClient {
     stream: TcpStream,
     peer: SocketAddr,
-    buf: Vec<u8>,
+    replies: StreamParser,
     next_id: u64,
     timeout: Duration,
 }
@@ -109,36 +108,16 @@ pub struct AuboClient {
 impl AuboClient {
     /// Connects; every call then waits at most `timeout` for its reply.
     pub fn connect(addr: impl ToSocketAddrs, timeout: Duration) -> Result<AuboClient, AuboError> {
-        let addrs: Vec<SocketAddr> = addr
-            .to_socket_addrs()
-            .map_err(|source| AuboError::Connect {
-                addr: "(unresolved)".into(),
-                source,
-            })?
-            .collect();
-        let mut last = std::io::Error::new(ErrorKind::NotFound, "no address");
-        for a in &addrs {
-            match TcpStream::connect_timeout(a, timeout) {
-                Ok(stream) => {
-                    let _ = stream.set_nodelay(true);
-                    return Ok(AuboClient {
-                        stream,
-                        peer: *a,
-                        buf: Vec::new(),
-                        next_id: 1,
-                        timeout,
-                    });
-                }
-                Err(e) => last = e,
-            }
-        }
-        Err(AuboError::Connect {
-            addr: addrs
-                .iter()
-                .map(|a| a.to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
-            source: last,
+        let (stream, peer) = connect_any(addr, timeout).map_err(|f| AuboError::Connect {
+            addr: f.addr,
+            source: f.source,
+        })?;
+        Ok(AuboClient {
+            stream,
+            peer,
+            replies: StreamParser::default(),
+            next_id: 1,
+            timeout,
         })
     }
 
@@ -167,46 +146,26 @@ impl AuboClient {
                 }
                 // A late reply to an earlier, timed-out request: skip.
             }
-            match read_some(&mut self.stream, &mut self.buf, deadline).map_err(lost)? {
-                ReadOutcome::Deadline => {
-                    return Err(AuboError::Timeout {
-                        method: method.to_string(),
-                        timeout: self.timeout,
-                    })
-                }
-                ReadOutcome::Closed => {
-                    return Err(AuboError::Disconnected {
-                        method: method.to_string(),
-                        detail: "the controller closed the connection".into(),
-                    })
-                }
-                ReadOutcome::Continue => {}
-            }
+            let replies = &mut self.replies;
+            read_some(&mut self.stream, deadline, |b| replies.push(b)).map_err(|f| match f {
+                ReadFailure::Deadline => AuboError::Timeout {
+                    method: method.to_string(),
+                    timeout: self.timeout,
+                },
+                ReadFailure::Lost(detail) => AuboError::Disconnected {
+                    method: method.to_string(),
+                    detail,
+                },
+            })?;
         }
     }
 
-    /// The next complete JSON value in the receive buffer.
+    /// The next complete JSON value received.
     fn next_value(&mut self, method: &str) -> Result<Option<Value>, AuboError> {
-        let mut it = serde_json::Deserializer::from_slice(&self.buf).into_iter::<Value>();
-        match it.next() {
-            None => {
-                self.buf.clear();
-                Ok(None)
-            }
-            Some(Ok(v)) => {
-                let used = it.byte_offset();
-                self.buf.drain(..used);
-                Ok(Some(v))
-            }
-            Some(Err(e)) if e.is_eof() => Ok(None),
-            Some(Err(e)) => {
-                self.buf.clear();
-                Err(AuboError::Protocol {
-                    method: method.to_string(),
-                    detail: format!("reply is not JSON: {e}"),
-                })
-            }
-        }
+        self.replies.next_value().map_err(|e| AuboError::Protocol {
+            method: method.to_string(),
+            detail: format!("reply is not JSON: {e}"),
+        })
     }
 
     /// Calls a method that returns an ARCS status code; non-zero is refused.
@@ -371,95 +330,61 @@ fn reply_result(method: &str, mut reply: Value) -> Result<Value, AuboError> {
 }
 
 /// Polls `getJointPositions` at a fixed rate in a thread; samples, then at
-/// most one error (after which polling stops), arrive on [`JointPoller::samples`].
-pub struct JointPoller {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Option<AuboClient>>>,
-    rx: Receiver<Result<JointSample, AuboError>>,
-}
+/// most one error (after which polling stops), arrive on
+/// [`Poller::samples`]; [`Poller::stop`] returns the client unless polling
+/// had failed.
+pub type JointPoller = Poller<AuboClient, AuboError>;
 
 impl JointPoller {
     /// Starts polling at `rate_hz`; times are seconds since `epoch`.
     pub fn spawn(
-        mut client: AuboClient,
+        client: AuboClient,
         rate_hz: f64,
         epoch: Instant,
     ) -> Result<JointPoller, AuboError> {
-        let (tx, rx) = mpsc::channel();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let period = Duration::from_secs_f64(1.0 / rate_hz.max(1e-3));
-        let thread = thread::Builder::new()
-            .name("aubo-poller".into())
-            .spawn(move || {
-                let mut next = Instant::now();
-                while !flag.load(Ordering::SeqCst) {
-                    let sent = Instant::now();
-                    let reading = client.joint_positions();
-                    let received = Instant::now();
-                    let t = (sent.duration_since(epoch).as_secs_f64()
-                        + received.duration_since(epoch).as_secs_f64())
-                        / 2.0;
-                    match reading {
-                        Ok(q) => {
-                            if tx
-                                .send(Ok(JointSample {
-                                    t,
-                                    q,
-                                    robot_t: None,
-                                }))
-                                .is_err()
-                            {
-                                break;
-                            }
-                        }
-                        Err(e) => {
-                            let _ = tx.send(Err(e));
-                            return None;
-                        }
-                    }
-                    next += period;
-                    let now = Instant::now();
-                    if next > now {
-                        thread::sleep(next - now);
-                    } else {
-                        next = now;
-                    }
-                }
-                Some(client)
-            })
-            .map_err(|e| AuboError::Disconnected {
-                method: "rob1.RobotState.getJointPositions".into(),
-                detail: format!("cannot start the polling thread: {e}"),
-            })?;
-        Ok(JointPoller {
-            stop,
-            thread: Some(thread),
-            rx,
+        let source = Polling {
+            client,
+            epoch,
+            pacer: Pacer::new(Duration::from_secs_f64(1.0 / rate_hz.max(1e-3))),
+        };
+        Poller::start("aubo-poller", source).map_err(|e| AuboError::Disconnected {
+            method: "rob1.RobotState.getJointPositions".into(),
+            detail: format!("cannot start the polling thread: {e}"),
         })
-    }
-
-    /// The samples (and a final error, if polling failed).
-    pub fn samples(&self) -> &Receiver<Result<JointSample, AuboError>> {
-        &self.rx
-    }
-
-    /// Stops polling; returns the client (unless polling had failed) and
-    /// the channel, which still holds the samples not yet received.
-    #[allow(clippy::type_complexity)]
-    pub fn stop(mut self) -> (Option<AuboClient>, Receiver<Result<JointSample, AuboError>>) {
-        self.stop.store(true, Ordering::SeqCst);
-        let client = self.thread.take().and_then(|t| t.join().ok()).flatten();
-        let (_, empty) = mpsc::channel();
-        (client, std::mem::replace(&mut self.rx, empty))
     }
 }
 
-impl Drop for JointPoller {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+/// The AUBO side of a [`JointPoller`].
+struct Polling {
+    client: AuboClient,
+    epoch: Instant,
+    pacer: Pacer,
+}
+
+impl Source for Polling {
+    type Client = AuboClient;
+    type Error = AuboError;
+
+    /// One `getJointPositions`, timed at the midpoint of request and reply.
+    fn read(&mut self) -> Result<JointSample, AuboError> {
+        let sent = Instant::now();
+        let reading = self.client.joint_positions();
+        let received = Instant::now();
+        let t = (sent.duration_since(self.epoch).as_secs_f64()
+            + received.duration_since(self.epoch).as_secs_f64())
+            / 2.0;
+        reading.map(|q| JointSample {
+            t,
+            q,
+            robot_t: None,
+        })
+    }
+
+    fn after_sample(&mut self) {
+        self.pacer.wait();
+    }
+
+    fn finish(self) -> Option<AuboClient> {
+        Some(self.client)
     }
 }

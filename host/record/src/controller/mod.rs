@@ -5,12 +5,15 @@
 //!   URScript on the secondary interface (port 30002) for motion.
 
 pub mod aubo;
+mod poller;
 pub mod ur;
+
+pub use poller::Poller;
 
 use std::fmt;
 use std::io::{ErrorKind, Read};
-use std::net::TcpStream;
-use std::time::Instant;
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::time::{Duration, Instant};
 
 /// A joint vector of a six-joint arm, rad.
 pub type Joints = [f64; 6];
@@ -93,77 +96,73 @@ impl RobotSpec {
                 kind: kind.to_string(),
             });
         }
-        let (host, port) = if let Some(bracketed) = rest.strip_prefix('[') {
-            match bracketed.split_once(']') {
-                Some((h, tail)) => (h, tail.strip_prefix(':')),
-                None => (bracketed, None),
-            }
-        } else {
-            match rest.rsplit_once(':') {
-                Some((h, p)) => (h, Some(p)),
-                None => (rest, None),
-            }
-        };
+        let (host, port) = split_host(rest, true);
         if host.is_empty() {
-            return Err(RobotSpecError::NoHost {
-                spec: spec.to_string(),
-            });
+            return Err(no_host(spec));
         }
         let port = match port {
             None => aubo::DEFAULT_PORT,
-            Some(p) => match p.parse::<u16>() {
-                Ok(n) if n > 0 => n,
-                _ => {
-                    return Err(RobotSpecError::BadPort {
-                        spec: spec.to_string(),
-                        port: p.to_string(),
-                    })
-                }
-            },
+            Some(p) => parse_port(spec, p)?,
         };
         Ok(RobotSpec::Aubo {
             host: host.to_string(),
             port,
         })
     }
-}
 
-impl RobotSpec {
     /// `HOST[:RTDE_PORT[:SCRIPT_PORT]]` after `ur:`.
     fn parse_ur(spec: &str, rest: &str) -> Result<RobotSpec, RobotSpecError> {
-        let (host, ports) = if let Some(bracketed) = rest.strip_prefix('[') {
-            match bracketed.split_once(']') {
-                Some((h, tail)) => (h, tail.strip_prefix(':')),
-                None => (bracketed, None),
-            }
-        } else {
-            match rest.split_once(':') {
-                Some((h, p)) => (h, Some(p)),
-                None => (rest, None),
-            }
-        };
+        let (host, ports) = split_host(rest, false);
         if host.is_empty() {
-            return Err(RobotSpecError::NoHost {
-                spec: spec.to_string(),
-            });
+            return Err(no_host(spec));
         }
-        let port = |p: &str| match p.parse::<u16>() {
-            Ok(n) if n > 0 => Ok(n),
-            _ => Err(RobotSpecError::BadPort {
-                spec: spec.to_string(),
-                port: p.to_string(),
-            }),
-        };
         let (rtde_port, script_port) = match ports.map(|p| p.split_once(':').unwrap_or((p, ""))) {
             None => (ur::RTDE_PORT, ur::SCRIPT_PORT),
-            Some((r, "")) => (port(r)?, ur::SCRIPT_PORT),
-            Some((r, s)) => (port(r)?, port(s)?),
+            Some((r, "")) => (parse_port(spec, r)?, ur::SCRIPT_PORT),
+            Some((r, s)) => (parse_port(spec, r)?, parse_port(spec, s)?),
         };
         Ok(RobotSpec::Ur {
             host: host.to_string(),
             rtde_port,
             script_port,
         })
+    }
+}
+
+/// `HOST[:PORTS]` (an IPv6 host in brackets): the host and what follows
+/// its `:`, at the last `:` of a bare host if `last`, else at its first.
+fn split_host(rest: &str, last: bool) -> (&str, Option<&str>) {
+    if let Some(bracketed) = rest.strip_prefix('[') {
+        return match bracketed.split_once(']') {
+            Some((h, tail)) => (h, tail.strip_prefix(':')),
+            None => (bracketed, None),
+        };
+    }
+    let split = if last {
+        rest.rsplit_once(':')
+    } else {
+        rest.split_once(':')
+    };
+    match split {
+        Some((h, p)) => (h, Some(p)),
+        None => (rest, None),
+    }
+}
+
+fn no_host(spec: &str) -> RobotSpecError {
+    RobotSpecError::NoHost {
+        spec: spec.to_string(),
+    }
+}
+
+/// A port in 1..=65535.
+fn parse_port(spec: &str, p: &str) -> Result<u16, RobotSpecError> {
+    match p.parse::<u16>() {
+        Ok(n) if n > 0 => Ok(n),
+        _ => Err(RobotSpecError::BadPort {
+            spec: spec.to_string(),
+            port: p.to_string(),
+        }),
     }
 }
 
@@ -188,34 +187,39 @@ impl fmt::Display for RobotSpec {
     }
 }
 
-/// What one bounded read from a controller's socket gave.
-pub(crate) enum ReadOutcome {
+/// Why one bounded read from a controller's socket gave nothing.
+pub(crate) enum ReadFailure {
     /// The deadline had passed: nothing was read.
     Deadline,
-    /// The controller closed the connection.
-    Closed,
-    /// Bytes were appended (or the wait ended early): look at the buffer.
-    Continue,
+    /// The connection closed or broke: what the socket said.
+    Lost(String),
 }
 
-/// Reads once from `stream` into `buf`, waiting at most until `deadline`;
-/// `Err` for a broken socket. The drivers' receive loops share it.
+/// Reads once from `stream`, handing what arrived to `received`, waiting
+/// at most until `deadline`. `Ok` also when the wait ended early with
+/// nothing: look at what was received, then read again. The drivers'
+/// receive loops share it.
 pub(crate) fn read_some(
     stream: &mut TcpStream,
-    buf: &mut Vec<u8>,
     deadline: Instant,
-) -> std::io::Result<ReadOutcome> {
+    received: impl FnOnce(&[u8]),
+) -> Result<(), ReadFailure> {
     let now = Instant::now();
     if now >= deadline {
-        return Ok(ReadOutcome::Deadline);
+        return Err(ReadFailure::Deadline);
     }
-    stream.set_read_timeout(Some(deadline - now))?;
+    let lost = |e: std::io::Error| ReadFailure::Lost(e.to_string());
+    stream
+        .set_read_timeout(Some(deadline - now))
+        .map_err(lost)?;
     let mut chunk = [0u8; 4096];
     match stream.read(&mut chunk) {
-        Ok(0) => Ok(ReadOutcome::Closed),
+        Ok(0) => Err(ReadFailure::Lost(
+            "the controller closed the connection".into(),
+        )),
         Ok(n) => {
-            buf.extend_from_slice(&chunk[..n]);
-            Ok(ReadOutcome::Continue)
+            received(&chunk[..n]);
+            Ok(())
         }
         Err(e)
             if matches!(
@@ -223,10 +227,50 @@ pub(crate) fn read_some(
                 ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
             ) =>
         {
-            Ok(ReadOutcome::Continue)
+            Ok(())
         }
-        Err(e) => Err(e),
+        Err(e) => Err(lost(e)),
     }
+}
+
+/// Why [`connect_any`] failed: the addresses tried (`(unresolved)` if the
+/// name did not resolve) and the last cause.
+pub(crate) struct ConnectFailure {
+    pub(crate) addr: String,
+    pub(crate) source: std::io::Error,
+}
+
+/// Connects (no Nagle delay) to the first address of `addr` that answers
+/// within `timeout`.
+pub(crate) fn connect_any(
+    addr: impl ToSocketAddrs,
+    timeout: Duration,
+) -> Result<(TcpStream, SocketAddr), ConnectFailure> {
+    let addrs: Vec<SocketAddr> = addr
+        .to_socket_addrs()
+        .map_err(|source| ConnectFailure {
+            addr: "(unresolved)".into(),
+            source,
+        })?
+        .collect();
+    let mut last = std::io::Error::new(ErrorKind::NotFound, "no address");
+    for a in &addrs {
+        match TcpStream::connect_timeout(a, timeout) {
+            Ok(stream) => {
+                let _ = stream.set_nodelay(true);
+                return Ok((stream, *a));
+            }
+            Err(e) => last = e,
+        }
+    }
+    Err(ConnectFailure {
+        addr: addrs
+            .iter()
+            .map(|a| a.to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        source: last,
+    })
 }
 
 #[cfg(test)]

@@ -22,15 +22,14 @@
 //! of `(t, q)` rows into `movej` to the first row and one `servoj` per
 //! later row, with `t` the row's interval.
 
-use std::io::{ErrorKind, Write};
+use std::io::Write;
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver};
-use std::sync::Arc;
-use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-use super::{read_some, JointSample, Joints, ReadOutcome};
+use robimu_controller_wire::rtde::{self, BadSize, PackageParser, TooLong};
+
+use super::poller::{Poller, Source};
+use super::{read_some, JointSample, Joints, ReadFailure};
 
 /// RTDE's TCP port.
 pub const RTDE_PORT: u16 = 30004;
@@ -42,20 +41,7 @@ pub const PROTOCOL_VERSION: u16 = 2;
 pub const SAMPLE_OUTPUTS: [&str; 2] = ["timestamp", "actual_q"];
 
 /// RTDE package types.
-pub mod package {
-    /// Request protocol version.
-    pub const REQUEST_PROTOCOL_VERSION: u8 = b'V';
-    /// Text message from the controller.
-    pub const TEXT_MESSAGE: u8 = b'M';
-    /// Data package.
-    pub const DATA_PACKAGE: u8 = b'U';
-    /// Control package: setup outputs.
-    pub const SETUP_OUTPUTS: u8 = b'O';
-    /// Control package: start.
-    pub const START: u8 = b'S';
-    /// Control package: pause.
-    pub const PAUSE: u8 = b'P';
-}
+pub use robimu_controller_wire::rtde::package;
 
 /// Why a UR call failed.
 #[derive(Debug, thiserror::Error)]
@@ -242,7 +228,7 @@ impl UrSample {
 pub struct UrClient {
     stream: TcpStream,
     peer: SocketAddr,
-    buf: Vec<u8>,
+    packages: PackageParser,
     timeout: Duration,
     recipe: Option<Recipe>,
 }
@@ -252,30 +238,9 @@ fn connect_any(
     addr: impl ToSocketAddrs,
     timeout: Duration,
 ) -> Result<(TcpStream, SocketAddr), UrError> {
-    let addrs: Vec<SocketAddr> = addr
-        .to_socket_addrs()
-        .map_err(|source| UrError::Connect {
-            addr: "(unresolved)".into(),
-            source,
-        })?
-        .collect();
-    let mut last = std::io::Error::new(ErrorKind::NotFound, "no address");
-    for a in &addrs {
-        match TcpStream::connect_timeout(a, timeout) {
-            Ok(stream) => {
-                let _ = stream.set_nodelay(true);
-                return Ok((stream, *a));
-            }
-            Err(e) => last = e,
-        }
-    }
-    Err(UrError::Connect {
-        addr: addrs
-            .iter()
-            .map(|a| a.to_string())
-            .collect::<Vec<_>>()
-            .join(", "),
-        source: last,
+    super::connect_any(addr, timeout).map_err(|f| UrError::Connect {
+        addr: f.addr,
+        source: f.source,
     })
 }
 
@@ -286,7 +251,7 @@ impl UrClient {
         Ok(UrClient {
             stream,
             peer,
-            buf: Vec::new(),
+            packages: PackageParser::default(),
             timeout,
             recipe: None,
         })
@@ -317,15 +282,10 @@ impl UrClient {
     }
 
     fn send(&mut self, kind: u8, payload: &[u8], during: &str) -> Result<(), UrError> {
-        let size = payload.len() + 3;
-        let size = u16::try_from(size).map_err(|_| UrError::Protocol {
+        let out = rtde::encode(kind, payload).map_err(|TooLong(size)| UrError::Protocol {
             during: during.into(),
             detail: format!("package of {size} bytes is too long"),
         })?;
-        let mut out = Vec::with_capacity(size as usize);
-        out.extend_from_slice(&size.to_be_bytes());
-        out.push(kind);
-        out.extend_from_slice(payload);
         self.stream
             .write_all(&out)
             .map_err(|e| UrError::Disconnected {
@@ -343,45 +303,31 @@ impl UrClient {
         deadline: Instant,
     ) -> Result<(u8, Vec<u8>), UrError> {
         loop {
-            while self.buf.len() >= 3 {
-                let size = u16::from_be_bytes([self.buf[0], self.buf[1]]) as usize;
-                if size < 3 {
-                    self.buf.clear();
-                    return Err(UrError::Protocol {
-                        during: during.into(),
-                        detail: format!("package size {size} is less than its header"),
-                    });
-                }
-                if self.buf.len() < size {
-                    break;
-                }
-                let kind = self.buf[2];
-                let payload = self.buf[3..size].to_vec();
-                self.buf.drain(..size);
+            let next = self
+                .packages
+                .next_package()
+                .map_err(|BadSize(size)| UrError::Protocol {
+                    during: during.into(),
+                    detail: format!("package size {size} is less than its header"),
+                })?;
+            if let Some((kind, payload)) = next {
                 if kinds.contains(&kind) {
                     return Ok((kind, payload));
                 }
                 // Text messages and packages of other requests: skipped.
+                continue;
             }
-            let lost = |e: std::io::Error| UrError::Disconnected {
-                during: during.into(),
-                detail: e.to_string(),
-            };
-            match read_some(&mut self.stream, &mut self.buf, deadline).map_err(lost)? {
-                ReadOutcome::Deadline => {
-                    return Err(UrError::Timeout {
-                        during: during.into(),
-                        timeout: self.timeout,
-                    })
-                }
-                ReadOutcome::Closed => {
-                    return Err(UrError::Disconnected {
-                        during: during.into(),
-                        detail: "the controller closed the connection".into(),
-                    })
-                }
-                ReadOutcome::Continue => {}
-            }
+            let packages = &mut self.packages;
+            read_some(&mut self.stream, deadline, |b| packages.push(b)).map_err(|f| match f {
+                ReadFailure::Deadline => UrError::Timeout {
+                    during: during.into(),
+                    timeout: self.timeout,
+                },
+                ReadFailure::Lost(detail) => UrError::Disconnected {
+                    during: during.into(),
+                    detail,
+                },
+            })?;
         }
     }
 
@@ -551,74 +497,42 @@ impl UrClient {
 }
 
 /// Reads data packages in a thread; samples, then at most one error (after
-/// which reading stops), arrive on [`UrPoller::samples`]. The same shape as
+/// which reading stops), arrive on [`Poller::samples`]. The same poller as
 /// [`super::aubo::JointPoller`]; each sample carries the controller's
-/// timestamp in [`JointSample::robot_t`].
-pub struct UrPoller {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Option<UrClient>>>,
-    rx: Receiver<Result<JointSample, UrError>>,
-}
+/// timestamp in [`JointSample::robot_t`]. [`Poller::stop`] pauses the
+/// stream and returns the client unless reading or pausing failed.
+pub type UrPoller = Poller<UrClient, UrError>;
 
 impl UrPoller {
     /// Starts reading from a client whose data stream is started (see
     /// [`UrClient::open_stream`]); host times are seconds since `epoch`.
-    pub fn spawn(mut client: UrClient, epoch: Instant) -> Result<UrPoller, UrError> {
-        let (tx, rx) = mpsc::channel();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = Arc::clone(&stop);
-        let thread = thread::Builder::new()
-            .name("ur-rtde".into())
-            .spawn(move || {
-                while !flag.load(Ordering::SeqCst) {
-                    match client.read_sample(epoch) {
-                        Ok(s) => {
-                            if tx.send(Ok(s.joint_sample())).is_err() {
-                                break;
-                            }
-                        }
-                        Err(e) => {
-                            let _ = tx.send(Err(e));
-                            return None;
-                        }
-                    }
-                }
-                client.pause().ok().map(|_| client)
-            })
-            .map_err(|e| UrError::Disconnected {
-                during: "starting the RTDE reader".into(),
-                detail: format!("cannot start the thread: {e}"),
-            })?;
-        Ok(UrPoller {
-            stop,
-            thread: Some(thread),
-            rx,
+    pub fn spawn(client: UrClient, epoch: Instant) -> Result<UrPoller, UrError> {
+        Poller::start("ur-rtde", Streaming { client, epoch }).map_err(|e| UrError::Disconnected {
+            during: "starting the RTDE reader".into(),
+            detail: format!("cannot start the thread: {e}"),
         })
-    }
-
-    /// The samples (and a final error, if reading failed).
-    pub fn samples(&self) -> &Receiver<Result<JointSample, UrError>> {
-        &self.rx
-    }
-
-    /// Stops reading and pauses the stream; returns the client (unless
-    /// reading or pausing failed) and the channel, which still holds the
-    /// samples not yet received.
-    #[allow(clippy::type_complexity)]
-    pub fn stop(mut self) -> (Option<UrClient>, Receiver<Result<JointSample, UrError>>) {
-        self.stop.store(true, Ordering::SeqCst);
-        let client = self.thread.take().and_then(|t| t.join().ok()).flatten();
-        let (_, empty) = mpsc::channel();
-        (client, std::mem::replace(&mut self.rx, empty))
     }
 }
 
-impl Drop for UrPoller {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+/// The UR side of a [`UrPoller`].
+struct Streaming {
+    client: UrClient,
+    epoch: Instant,
+}
+
+impl Source for Streaming {
+    type Client = UrClient;
+    type Error = UrError;
+
+    fn read(&mut self) -> Result<JointSample, UrError> {
+        self.client
+            .read_sample(self.epoch)
+            .map(|s| s.joint_sample())
+    }
+
+    /// Pauses the stream.
+    fn finish(mut self) -> Option<UrClient> {
+        self.client.pause().ok().map(|_| self.client)
     }
 }
 

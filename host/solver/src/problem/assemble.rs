@@ -847,6 +847,17 @@ fn lane_state(js: &JointState<F64x4>, l: usize) -> JointState {
     }
 }
 
+/// Where a whitened row is made: sample `i` of the knot-span group
+/// starting at basis function `group`, the ring of raw rows, each sensor's
+/// row width.
+#[derive(Clone, Copy)]
+struct WhitenAt<'a> {
+    i: usize,
+    group: usize,
+    ring: &'a [RawSample],
+    widths: &'a [usize; 2],
+}
+
 /// The raw (unwhitened) residual and Jacobian rows of one sample, kept in a
 /// ring of the last P+1 samples for the whitening of the next ones.
 struct RawSample {
@@ -945,8 +956,7 @@ impl Problem<'_> {
         let mut cost = 0.0;
         let nx = self.imu_layout.len();
         let n = self.n;
-        let deg = self.knots.degree();
-        let nl = (deg + 1) * n;
+        let nl = (self.knots.degree() + 1) * n;
         let extra = self.extra_spans;
         let widths = [0, 1].map(|s| nl + st.sensor_columns[s].len());
         // a quad's four samples and the P before the first of them
@@ -958,7 +968,6 @@ impl Problem<'_> {
                 rows: widths.map(|w| vec![0.0; 3 * w]),
             })
             .collect();
-        let len = ring.len();
         let mut jac = MeasurementJacobians::<F64x4>::zeros(nx);
         let mut lanes = LaneEffects::new(self, st);
         let mut quads = Quads::new(self.warm_start(st, &range)..range.end, 1);
@@ -970,46 +979,14 @@ impl Problem<'_> {
         // arithmetic: the bits of one sample at a time), then each sample's
         // whitened rows in order
         while quads.next(self, st, ev.spline, ev.tau, &mut quad)? {
-            let basis = &quad.basis;
             model.jacobians_x4(&quad.js, &mut jac);
             let z4 = lanes.predictions(self, st, model, &quad, &jac, ev.theta_e);
-            let idx = &quad.idx[..quad.len];
-            for (&i, z) in idx.iter().zip(&z4) {
-                let zm = &st.z[i];
-                let slot = &mut ring[i % len];
-                slot.first = basis.first;
-                slot.r = std::array::from_fn(|c| zm[c] - z[c]);
-                slot.inv_level = self.inv_level(st, i);
-            }
-            let slots: [usize; 4] = std::array::from_fn(|l| quad.idx[l] % len);
-            let slots = &slots[..quad.len];
-            for (sensor, &w) in widths.iter().enumerate() {
-                for c in 0..3 {
-                    let ch = 3 * sensor + c;
-                    let at = c * w;
-                    // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)
-                    let minus = F64x4::splat(-1.0);
-                    for a in 0..=deg {
-                        for j in 0..n {
-                            let v = if a < basis.count {
-                                minus * dz_dc(&jac, basis, a, j, ch)
-                            } else {
-                                F64x4::splat(0.0)
-                            };
-                            put_lanes(&mut ring, slots, sensor, at + a * n + j, v);
-                        }
-                    }
-                    for (a, &(k, _)) in st.sensor_columns[sensor].iter().enumerate() {
-                        let v = minus * lanes.dz_dx(&jac, k, ch);
-                        put_lanes(&mut ring, slots, sensor, at + nl + a, v);
-                    }
-                }
-            }
-            for &i in idx {
+            self.raw_rows(st, &quad, &z4, &jac, &lanes, &widths, &mut ring);
+            for &i in &quad.idx[..quad.len] {
                 if i < range.start {
                     continue;
                 }
-                let g = basis.first;
+                let g = quad.basis.first;
                 if (g != group_first && blocks[0].rows > 0) || blocks[0].full() {
                     for b in &mut blocks {
                         b.flush(out);
@@ -1021,47 +998,130 @@ impl Problem<'_> {
                     }
                     group_first = g;
                 }
-                let pos = st.seg_pos[i - st.imu_range.start] as usize;
-                for (sensor, block) in blocks.iter_mut().enumerate() {
-                    let w = widths[sensor];
-                    for c in 0..3 {
-                        let ch = 3 * sensor + c;
-                        let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
-                        let row = block.row(c);
-                        let (b0, nl_cur) = (block.b0, block.nl_cur);
-                        let col = &mut row_buf[..nl_cur + block.columns.len()];
-                        col.fill(0.0);
-                        let mut u = 0.0;
-                        for k in 0..=a.len() {
-                            let s = &ring[(i - k) % len];
-                            let coef =
-                                scale * s.inv_level[ch] * if k == 0 { 1.0 } else { -a[k - 1] };
-                            u += coef * s.r[ch];
-                            assert!(
-                                s.first >= b0 && s.first <= g,
-                                "a whitened row reaches beyond the widened band"
-                            );
-                            let off = (s.first - b0) * n;
-                            let raw = &s.rows[sensor][c * w..(c + 1) * w];
-                            for (d, v) in col[off..off + nl].iter_mut().zip(&raw[..nl]) {
-                                *d += coef * v;
-                            }
-                            for (d, v) in col[nl_cur..].iter_mut().zip(&raw[nl..]) {
-                                *d += coef * v;
-                            }
-                        }
-                        cost += 0.5 * u * u;
-                        block.set_row(row, col);
-                        block.r[row] = u;
-                    }
-                    block.rows += 1;
-                }
+                let at = WhitenAt {
+                    i,
+                    group: g,
+                    ring: &ring,
+                    widths: &widths,
+                };
+                self.whitened_rows(st, at, &mut blocks, &mut row_buf, &mut cost);
             }
         }
         for b in &mut blocks {
             b.flush(out);
         }
         Ok(cost)
+    }
+
+    /// A quad's raw residuals, levels and Jacobian rows ∂r/∂θ into their
+    /// ring slots (`ring[i % len]`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn raw_rows(
+        &self,
+        st: &Stream<'_>,
+        quad: &Quad,
+        z4: &[[f64; 6]; 4],
+        jac: &MeasurementJacobians<F64x4>,
+        lanes: &LaneEffects,
+        widths: &[usize; 2],
+        ring: &mut [RawSample],
+    ) {
+        let n = self.n;
+        let deg = self.knots.degree();
+        let nl = (deg + 1) * n;
+        let len = ring.len();
+        let basis = &quad.basis;
+        let idx = &quad.idx[..quad.len];
+        for (&i, z) in idx.iter().zip(z4) {
+            let zm = &st.z[i];
+            let slot = &mut ring[i % len];
+            slot.first = basis.first;
+            slot.r = std::array::from_fn(|c| zm[c] - z[c]);
+            slot.inv_level = self.inv_level(st, i);
+        }
+        let slots: [usize; 4] = std::array::from_fn(|l| quad.idx[l] % len);
+        let slots = &slots[..quad.len];
+        for (sensor, &w) in widths.iter().enumerate() {
+            for c in 0..3 {
+                let ch = 3 * sensor + c;
+                let at = c * w;
+                // ∂r/∂c_{first+a, j} = −(∂h/∂q_j N_a + ∂h/∂q̇_j N'_a + ∂h/∂q̈_j N''_a)
+                let minus = F64x4::splat(-1.0);
+                for a in 0..=deg {
+                    for j in 0..n {
+                        let v = if a < basis.count {
+                            minus * dz_dc(jac, basis, a, j, ch)
+                        } else {
+                            F64x4::splat(0.0)
+                        };
+                        put_lanes(ring, slots, sensor, at + a * n + j, v);
+                    }
+                }
+                for (a, &(k, _)) in st.sensor_columns[sensor].iter().enumerate() {
+                    let v = minus * lanes.dz_dx(jac, k, ch);
+                    put_lanes(ring, slots, sensor, at + nl + a, v);
+                }
+            }
+        }
+    }
+
+    /// Sample `at.i`'s whitened rows (each the raw rows of it and the P
+    /// before it, weighted by the AR whitening at its place in its
+    /// segment) into the row stacks `blocks`; ½u² of each added to `cost`
+    /// in order.
+    #[inline(always)]
+    fn whitened_rows(
+        &self,
+        st: &Stream<'_>,
+        at: WhitenAt<'_>,
+        blocks: &mut [Stack; 2],
+        row_buf: &mut [f64],
+        cost: &mut f64,
+    ) {
+        let WhitenAt {
+            i,
+            group: g,
+            ring,
+            widths,
+        } = at;
+        let n = self.n;
+        let nl = (self.knots.degree() + 1) * n;
+        let len = ring.len();
+        let pos = st.seg_pos[i - st.imu_range.start] as usize;
+        for (sensor, block) in blocks.iter_mut().enumerate() {
+            let w = widths[sensor];
+            for c in 0..3 {
+                let ch = 3 * sensor + c;
+                let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
+                let row = block.row(c);
+                let (b0, nl_cur) = (block.b0, block.nl_cur);
+                let col = &mut row_buf[..nl_cur + block.columns.len()];
+                col.fill(0.0);
+                let mut u = 0.0;
+                for k in 0..=a.len() {
+                    let s = &ring[(i - k) % len];
+                    let coef = scale * s.inv_level[ch] * if k == 0 { 1.0 } else { -a[k - 1] };
+                    u += coef * s.r[ch];
+                    assert!(
+                        s.first >= b0 && s.first <= g,
+                        "a whitened row reaches beyond the widened band"
+                    );
+                    let off = (s.first - b0) * n;
+                    let raw = &s.rows[sensor][c * w..(c + 1) * w];
+                    for (d, v) in col[off..off + nl].iter_mut().zip(&raw[..nl]) {
+                        *d += coef * v;
+                    }
+                    for (d, v) in col[nl_cur..].iter_mut().zip(&raw[nl..]) {
+                        *d += coef * v;
+                    }
+                }
+                *cost += 0.5 * u * u;
+                block.set_row(row, col);
+                block.r[row] = u;
+            }
+            block.rows += 1;
+        }
     }
 }
 

@@ -181,62 +181,8 @@ pub fn fit(
     let n_imus = data.n_imus();
     let layout = ParamLayout::with_imus(robot, n_imus);
     let initial = match start {
-        Start::Refit(f) => {
-            let names = effects.names();
-            assert!(
-                f.effects.len() <= names.len() && f.effects.iter().zip(&names).all(|(a, b)| a == b),
-                "a refit extends the effects {:?} of its start, not {names:?}",
-                f.effects
-            );
-            Initial {
-                spline: f.trajectory.clone(),
-                x: f.x.clone(),
-                theta: Some(&f.theta),
-                tau_initial: vec![None; n_imus],
-                knot_spacing: f.knot_spacing,
-                joint_fit_rms: f.joint_fit_rms.clone(),
-            }
-        }
-        Start::Nominal | Start::At(_) => {
-            let tf = choose_knots(
-                data,
-                robot.dof(),
-                &opts.sigma_q,
-                opts.degree,
-                opts.knot_spacing,
-            )?;
-            let mut x = match start {
-                Start::At(x) => x.to_vec(),
-                _ => layout.nominal(),
-            };
-            let tau_own = layout.imu_layout().offsets().tau;
-            let mut tau_initial = vec![None; n_imus];
-            for (j, found) in tau_initial.iter_mut().enumerate() {
-                let tau_at = layout.imu_map(j)[tau_own];
-                *found = match (&opts.tau_search, start) {
-                    (Some(search), Start::Nominal) if !opts.frozen.contains(&tau_at) => {
-                        let own = layout.imu_x(j, &x);
-                        let model = MeasurementModel::new(robot, layout.imu_layout(), &own)?;
-                        let imu = data.imu(j);
-                        let gyro: Vec<[f64; 3]> =
-                            imu.z.iter().map(|z| [z[3], z[4], z[5]]).collect();
-                        let rate = BodyRate::new(robot, &model);
-                        let est = find_tau(&rate, &tf.spline, imu.t, &gyro, search)?;
-                        x[tau_at] = est.tau;
-                        Some(est)
-                    }
-                    _ => None,
-                };
-            }
-            Initial {
-                spline: tf.spline,
-                x,
-                theta: None,
-                tau_initial,
-                knot_spacing: tf.spacing,
-                joint_fit_rms: tf.rms,
-            }
-        }
+        Start::Refit(f) => Initial::of_refit(f, effects, n_imus),
+        Start::Nominal | Start::At(_) => Initial::of_joints(robot, data, opts, &layout, start)?,
     };
     let mut problem = Problem::new(
         robot,
@@ -267,6 +213,18 @@ pub fn fit(
             summary: Box::new(sol.summary),
         });
     }
+    fit_at_solution(&mut problem, sol, effects, (&layout, n_imus), initial)
+}
+
+/// The fit at the solver's solution `sol` of `problem`: x, its posterior
+/// σ and covariance, θ_E, the residuals, the trajectory.
+fn fit_at_solution(
+    problem: &mut Problem,
+    sol: solver::LmSolution,
+    effects: &EffectSet,
+    (layout, n_imus): (&ParamLayout, usize),
+    initial: Initial<'_>,
+) -> Result<Fit, CalibrateError> {
     // the solver ends with the problem set up at its final θ (samples
     // selected, levels) and its cost there
     let cost = sol.summary.final_cost;
@@ -318,4 +276,73 @@ struct Initial<'f> {
     tau_initial: Vec<Option<TauEstimate>>,
     knot_spacing: f64,
     joint_fit_rms: Vec<f64>,
+}
+impl<'f> Initial<'f> {
+    /// The start of a refit: the previous fit's trajectory, x and θ.
+    #[track_caller]
+    fn of_refit(f: &'f Fit, effects: &EffectSet, n_imus: usize) -> Self {
+        let names = effects.names();
+        assert!(
+            f.effects.len() <= names.len() && f.effects.iter().zip(&names).all(|(a, b)| a == b),
+            "a refit extends the effects {:?} of its start, not {names:?}",
+            f.effects
+        );
+        Initial {
+            spline: f.trajectory.clone(),
+            x: f.x.clone(),
+            theta: Some(&f.theta),
+            tau_initial: vec![None; n_imus],
+            knot_spacing: f.knot_spacing,
+            joint_fit_rms: f.joint_fit_rms.clone(),
+        }
+    }
+
+    /// The start from the nominal or a given x (`start`): the trajectory
+    /// spline fitted to the joint samples, and (from the nominal x) each
+    /// IMU's τ found from the data when searched for and estimated.
+    fn of_joints(
+        robot: &Robot,
+        data: &Measurements,
+        opts: &CalibrateOptions,
+        layout: &ParamLayout,
+        start: Start<'_>,
+    ) -> Result<Self, CalibrateError> {
+        let tf = choose_knots(
+            data,
+            robot.dof(),
+            &opts.sigma_q,
+            opts.degree,
+            opts.knot_spacing,
+        )?;
+        let mut x = match start {
+            Start::At(x) => x.to_vec(),
+            _ => layout.nominal(),
+        };
+        let tau_own = layout.imu_layout().offsets().tau;
+        let mut tau_initial = vec![None; data.n_imus()];
+        for (j, found) in tau_initial.iter_mut().enumerate() {
+            let tau_at = layout.imu_map(j)[tau_own];
+            *found = match (&opts.tau_search, start) {
+                (Some(search), Start::Nominal) if !opts.frozen.contains(&tau_at) => {
+                    let own = layout.imu_x(j, &x);
+                    let model = MeasurementModel::new(robot, layout.imu_layout(), &own)?;
+                    let imu = data.imu(j);
+                    let gyro: Vec<[f64; 3]> = imu.z.iter().map(|z| [z[3], z[4], z[5]]).collect();
+                    let rate = BodyRate::new(robot, &model);
+                    let est = find_tau(&rate, &tf.spline, imu.t, &gyro, search)?;
+                    x[tau_at] = est.tau;
+                    Some(est)
+                }
+                _ => None,
+            };
+        }
+        Ok(Initial {
+            spline: tf.spline,
+            x,
+            theta: None,
+            tau_initial,
+            knot_spacing: tf.spacing,
+            joint_fit_rms: tf.rms,
+        })
+    }
 }

@@ -53,7 +53,9 @@ use faer::Mat;
 use robimu_model::effects::EffectSet;
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
-use robimu_model::{Basis, JointState, MeasurementJacobians, ParamLayout, Robot};
+use robimu_model::{
+    Basis, JointState, Knots, MeasurementJacobians, MeasurementModel, ParamLayout, Robot, Spline,
+};
 use robimu_solver::problem::Problem;
 use robimu_solver::LeastSquares;
 
@@ -116,6 +118,47 @@ pub fn sandwich(
         EffectSet::none(),
     )?;
     let theta = &f.theta;
+    let r = influence_rows(&mut problem, theta)?;
+    let x = problem.x_of(theta);
+    let inf = Influence {
+        r: &r,
+        nc: problem.n_coeffs(),
+        spline: problem.spline_of(theta),
+        knots: problem.knots(),
+        n: robot.dof(),
+        active: problem.active().to_vec(),
+    };
+    let tau = x[layout.offsets().tau];
+    let model = problem.model(&x)?;
+    let psi = inf.imu_scores(
+        data,
+        &model,
+        tau,
+        &opts.sigma_z,
+        problem.imu_range(),
+        &layout,
+    )?;
+    let mut b = bartlett(&psi, bandwidth);
+    // joint samples: white, lag 0
+    inf.add_joint_scores(data, &opts.sigma_q, &mut b)?;
+    // the prior: R_x P R_xᵀ
+    if opts.use_prior {
+        inf.add_prior(&layout, &mut b);
+    }
+    let mut sigma = vec![0.0; layout.len()];
+    for (c, &k) in inf.active.iter().enumerate() {
+        sigma[k] = b[(c, c)].max(0.0).sqrt();
+    }
+    Ok(Sandwich {
+        covariance: b,
+        sigma,
+        bandwidth,
+    })
+}
+
+/// R = [A⁻¹]_{x,·} (active × all unknowns) of the normal matrix A at θ:
+/// row a is A⁻¹ e_{nc+a} (A symmetric).
+fn influence_rows(problem: &mut Problem, theta: &[f64]) -> Result<Mat<f64>, CalibrateError> {
     problem.begin_iteration(theta)?;
     let (nc, na) = (problem.n_coeffs(), problem.active().len());
     let mut a = problem.new_matrix();
@@ -124,7 +167,6 @@ pub fn sandwich(
     let factor = a
         .factor()
         .map_err(|e| CalibrateError::Input(format!("the normal matrix: {e}")))?;
-    // R = [A⁻¹]_{x,·}: row a is A⁻¹ e_{nc+a} (A symmetric)
     let mut r = Mat::<f64>::zeros(na, nc + na);
     let mut col = vec![0.0; nc + na];
     for i in 0..na {
@@ -135,16 +177,27 @@ pub fn sandwich(
             r[(i, j)] = *v;
         }
     }
-    let x = problem.x_of(theta);
-    let model = problem.model(&x)?;
-    let spline = problem.spline_of(theta);
-    let knots = problem.knots();
-    let n = robot.dof();
-    let active = problem.active().to_vec();
-    let tau = x[layout.offsets().tau];
-    let sz = opts.sigma_z;
-    // ψ = R g for a sparse g: band entries from `first·n`, then x_a
-    let influence = |first: usize, band: &[f64], gx: &[f64], out: &mut [f64]| {
+    Ok(r)
+}
+
+/// The influence ψ = R g of each sample's gradient g on x, at the fit.
+struct Influence<'a> {
+    /// [`influence_rows`].
+    r: &'a Mat<f64>,
+    /// Spline coefficients (the first unknowns).
+    nc: usize,
+    spline: Spline,
+    knots: &'a Knots,
+    /// Joints.
+    n: usize,
+    /// The active entries of x.
+    active: Vec<usize>,
+}
+
+impl Influence<'_> {
+    /// ψ = R g for a sparse g: band entries from `first·n`, then x_a.
+    fn apply(&self, first: usize, band: &[f64], gx: &[f64], out: &mut [f64]) {
+        let (r, nc) = (self.r, self.nc);
         for (i, o) in out.iter_mut().enumerate() {
             let mut s = 0.0;
             for (j, v) in band.iter().enumerate() {
@@ -155,72 +208,99 @@ pub fn sandwich(
             }
             *o = s;
         }
-    };
-    let range = problem.imu_range();
-    let len = range.len();
-    let mut psi = Mat::<f64>::zeros(len, na);
-    let (mut basis, mut js) = (Basis::default(), JointState::default());
-    let mut jac = MeasurementJacobians::new(layout.len());
-    let nl = (knots.degree() + 1) * n;
-    let (mut band, mut gx, mut out) = (vec![0.0; nl], vec![0.0; na], vec![0.0; na]);
-    for (row, i) in range.enumerate() {
-        knots.basis(data.imu_t[i] + tau, &mut basis)?;
-        spline.evaluate_basis(&basis, &mut js);
-        model.jacobians(&js, &mut jac);
-        band.fill(0.0);
-        gx.fill(0.0);
-        for ch in 0..6 {
-            let w = 1.0 / sz[ch];
-            let e = (data.imu_z[i][ch] - jac.z[ch]) * w;
-            // J = −∂h/∂θ / σ
-            for a in 0..basis.count {
-                let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
-                for j in 0..n {
-                    band[a * n + j] -= w
-                        * e
-                        * (jac.dz_dq[j][ch] * n0
-                            + jac.dz_dqd[j][ch] * n1
-                            + jac.dz_dqdd[j][ch] * n2);
+    }
+
+    /// Ψ: one row ψ_t per IMU sample of `range` (white residuals with σ
+    /// `sz`, under `model` with time offset `tau`).
+    fn imu_scores(
+        &self,
+        data: &Measurements,
+        model: &MeasurementModel,
+        tau: f64,
+        sz: &[f64; 6],
+        range: std::ops::Range<usize>,
+        layout: &ParamLayout,
+    ) -> Result<Mat<f64>, CalibrateError> {
+        let (n, na, knots) = (self.n, self.active.len(), self.knots);
+        let len = range.len();
+        let mut psi = Mat::<f64>::zeros(len, na);
+        let (mut basis, mut js) = (Basis::default(), JointState::default());
+        let mut jac = MeasurementJacobians::new(layout.len());
+        let nl = (knots.degree() + 1) * n;
+        let (mut band, mut gx, mut out) = (vec![0.0; nl], vec![0.0; na], vec![0.0; na]);
+        for (row, i) in range.enumerate() {
+            knots.basis(data.imu_t[i] + tau, &mut basis)?;
+            self.spline.evaluate_basis(&basis, &mut js);
+            model.jacobians(&js, &mut jac);
+            band.fill(0.0);
+            gx.fill(0.0);
+            for ch in 0..6 {
+                let w = 1.0 / sz[ch];
+                let e = (data.imu_z[i][ch] - jac.z[ch]) * w;
+                // J = −∂h/∂θ / σ
+                for a in 0..basis.count {
+                    let (n0, n1, n2) = (basis.d[0][a], basis.d[1][a], basis.d[2][a]);
+                    for j in 0..n {
+                        band[a * n + j] -= w
+                            * e
+                            * (jac.dz_dq[j][ch] * n0
+                                + jac.dz_dqd[j][ch] * n1
+                                + jac.dz_dqdd[j][ch] * n2);
+                    }
+                }
+                for (ga, &k) in gx.iter_mut().zip(&self.active) {
+                    *ga -= w * e * jac.dz_dx[k][ch];
                 }
             }
-            for (ga, &k) in gx.iter_mut().zip(&active) {
-                *ga -= w * e * jac.dz_dx[k][ch];
+            self.apply(basis.first * n, &band[..basis.count * n], &gx, &mut out);
+            for (c, v) in out.iter().enumerate() {
+                psi[(row, c)] = *v;
             }
         }
-        influence(basis.first * n, &band[..basis.count * n], &gx, &mut out);
-        for (c, v) in out.iter().enumerate() {
-            psi[(row, c)] = *v;
-        }
+        Ok(psi)
     }
-    let mut b = bartlett(&psi, bandwidth);
-    // joint samples: white, lag 0
-    let coeffs = spline.coeffs();
-    gx.fill(0.0);
-    for (s, &t) in data.joint_t.iter().enumerate() {
-        knots.basis(t, &mut basis)?;
-        band.fill(0.0);
-        for j in 0..n {
-            let mut q = 0.0;
-            for a in 0..basis.count {
-                q += basis.d[0][a] * coeffs[(basis.first + a) * n + j];
+
+    /// Adds ψ_s ψ_sᵀ of every joint sample (white, lag 0; σ `sigma_q`) to `b`.
+    fn add_joint_scores(
+        &self,
+        data: &Measurements,
+        sigma_q: &[f64],
+        b: &mut Mat<f64>,
+    ) -> Result<(), CalibrateError> {
+        let (n, na, knots) = (self.n, self.active.len(), self.knots);
+        let coeffs = self.spline.coeffs();
+        let mut basis = Basis::default();
+        let nl = (knots.degree() + 1) * n;
+        let (mut band, gx, mut out) = (vec![0.0; nl], vec![0.0; na], vec![0.0; na]);
+        for (s, &t) in data.joint_t.iter().enumerate() {
+            knots.basis(t, &mut basis)?;
+            band.fill(0.0);
+            for j in 0..n {
+                let mut q = 0.0;
+                for a in 0..basis.count {
+                    q += basis.d[0][a] * coeffs[(basis.first + a) * n + j];
+                }
+                let w = 1.0 / sigma_q[j];
+                let e = (data.joint_q[s * n + j] - q) * w;
+                for a in 0..basis.count {
+                    band[a * n + j] -= w * e * basis.d[0][a];
+                }
             }
-            let w = 1.0 / opts.sigma_q[j];
-            let e = (data.joint_q[s * n + j] - q) * w;
-            for a in 0..basis.count {
-                band[a * n + j] -= w * e * basis.d[0][a];
+            self.apply(basis.first * n, &band[..basis.count * n], &gx, &mut out);
+            for p in 0..na {
+                for q in 0..na {
+                    b[(p, q)] += out[p] * out[q];
+                }
             }
         }
-        influence(basis.first * n, &band[..basis.count * n], &gx, &mut out);
-        for p in 0..na {
-            for q in 0..na {
-                b[(p, q)] += out[p] * out[q];
-            }
-        }
+        Ok(())
     }
-    // the prior: R_x P R_xᵀ
-    if opts.use_prior {
+
+    /// Adds the prior's part R_x P R_xᵀ to `b`.
+    fn add_prior(&self, layout: &ParamLayout, b: &mut Mat<f64>) {
+        let (r, nc, na) = (self.r, self.nc, self.active.len());
         let specs = layout.specs();
-        for (c, &k) in active.iter().enumerate() {
+        for (c, &k) in self.active.iter().enumerate() {
             let info = 1.0 / (specs[k].sigma * specs[k].sigma);
             for p in 0..na {
                 for q in 0..na {
@@ -229,15 +309,6 @@ pub fn sandwich(
             }
         }
     }
-    let mut sigma = vec![0.0; layout.len()];
-    for (c, &k) in active.iter().enumerate() {
-        sigma[k] = b[(c, c)].max(0.0).sqrt();
-    }
-    Ok(Sandwich {
-        covariance: b,
-        sigma,
-        bandwidth,
-    })
 }
 
 /// Σ_{t,s} w(t − s) ψ_t ψ_sᵀ over the rows ψ_t of `psi`, w the Bartlett

@@ -99,130 +99,43 @@ pub fn check(
     predicted: impl FnOnce() -> Option<f64>,
 ) -> Vec<Finding> {
     let mut out = Vec::new();
-    // joints in degrees: the gyroscope's comparison with the joint speeds
-    // would then blame the gyroscope
-    if session.joint_count() == robot.dof() {
-        if let Some(v) = joint_outside_limits(robot, &session.joints.values) {
-            out.push(Finding::new(
-                "joint_units",
-                Severity::Fatal,
-                files::JOINTS,
-                v.q,
-                v.to_string(),
-                "give joints.csv's q1..qn in rad: multiply degrees by π/180 = 0.017453",
-            ));
-            return out;
-        }
+    if let Some(f) = joint_units(session, robot) {
+        out.push(f);
+        return out;
     }
     let layout = ParamLayout::new(robot);
-    let qd = joint_speeds(session);
-    let stretches = static_stretches(session, &qd);
-    let imu = &session.imu;
-    let at_rest: Vec<usize> = (0..imu.len())
-        .filter(|&i| {
-            let t = imu.t[i];
-            stretches
-                .iter()
-                .any(|&(a, b)| t >= a + STATIC_MARGIN && t <= b - STATIC_MARGIN)
-        })
-        .collect();
-    let (rows, where_) = if at_rest.len() >= 10 {
-        (at_rest.clone(), "at rest")
-    } else {
-        (
-            (0..imu.len()).collect(),
-            "over all samples (no static stretch)",
-        )
-    };
-    let norm = |i: usize, c: usize| {
-        let r = imu.row(i);
-        (r[c] * r[c] + r[c + 1] * r[c + 1] + r[c + 2] * r[c + 2]).sqrt()
-    };
-    let accel = median_of(&mut rows.iter().map(|&i| norm(i, 0)).collect::<Vec<_>>());
-    let gyro = median_of(&mut rows.iter().map(|&i| norm(i, 3)).collect::<Vec<_>>());
-    let g0 = robot.gravity();
     let sigma = |name: &str| {
         layout
             .index_of(name)
             .map_or(0.1, |k| layout.specs()[k].sigma)
     };
-    let k_a = 3.0 * sigma("k_a_x");
-    let (lo, hi) = (g0 * (1.0 - k_a), g0 * (1.0 + k_a));
-    // swapped columns: the gyroscope's carry gravity
-    if (0.5 * g0..=2.5 * g0).contains(&gyro) && accel < 0.3 * g0 {
-        out.push(Finding::new(
-            "swapped_columns",
-            Severity::Fatal,
-            files::IMU,
-            gyro,
-            format!(
-                "accelerometer and gyroscope columns swapped? (|gx,gy,gz| {where_} = {gyro:.2} ≈ g0 = {g0:.2}, |ax,ay,az| = {accel:.3})"
-            ),
-            "imu.csv's columns are t,ax,ay,az,gx,gy,gz: put the accelerometer first",
-        ));
+    let levels = Levels::of(session);
+    let g0 = robot.gravity();
+    if let Some(f) = swapped_columns(&levels, g0) {
+        out.push(f);
         return out;
     }
-    let b_a = 3.0 * sigma("b_a_x") * 3f64.sqrt();
-    let sphere = sphere_radius(imu);
-    let (radius, what, lo, hi) = match sphere {
-        Some(r) => (r, "|a - b| (a sphere fitted to the samples, the bias b its centre)".to_string(), lo, hi),
-        None => (
-            accel,
-            format!("|a| {where_} (too few orientations for a sphere fit: range widened by the bias prior)"),
-            (lo - b_a).max(0.0),
-            hi + b_a,
-        ),
-    };
-    if (lo..=hi).contains(&radius) {
-        out.push(Finding::new(
-            "accel_units",
-            Severity::Info,
-            "accelerometer",
-            radius,
-            format!(
-                "{what} = {radius:.3} m/s² (expected {g0:.2} within the gains' prior, {lo:.2}..{hi:.2})"
-            ),
-            "",
-        ));
-    } else {
-        let hint = if (0.7..=1.3).contains(&radius) {
-            format!(" — in g: multiply ax, ay, az by {g0}")
-        } else if (700.0..=1300.0).contains(&radius) {
-            format!(" — in mg: multiply ax, ay, az by {}", g0 / 1000.0)
-        } else {
-            String::new()
-        };
-        out.push(Finding::new(
-            "accel_units",
-            Severity::Fatal,
-            "accelerometer",
-            radius,
-            format!(
-                "accelerometer not in m/s²? ({what} = {radius:.2}, expected {g0:.2}, {lo:.2}..{hi:.2}){hint}"
-            ),
-            "give imu.csv's ax, ay, az in m/s² (docs/model.md §7.4)",
-        ));
-    }
+    out.push(accel_units(
+        session,
+        &levels,
+        g0,
+        3.0 * sigma("k_a_x"),
+        3.0 * sigma("b_a_x") * 3f64.sqrt(),
+    ));
     // the gyroscope at rest: its bias only
     let b_w = 3.0 * sigma("b_w_x") * 3f64.sqrt();
     let mut bias = [0.0; 3];
-    if at_rest.len() >= 10 {
-        for (c, b) in bias.iter_mut().enumerate() {
-            *b = median_of(
-                &mut at_rest
-                    .iter()
-                    .map(|&i| imu.row(i)[3 + c])
-                    .collect::<Vec<_>>(),
-            );
-        }
-        if gyro > b_w {
+    if levels.at_rest.len() >= 10 {
+        bias = levels.gyro_bias(session);
+        if levels.gyro > b_w {
             out.push(Finding::new(
                 "gyro_at_rest",
                 Severity::Warning,
                 "gyroscope",
-                gyro,
+                levels.gyro,
                 format!(
-                    "|ω| at rest = {gyro:.4}, beyond the bias prior ({b_w:.4} rad/s, 3σ per axis)"
+                    "|ω| at rest = {:.4}, beyond the bias prior ({b_w:.4} rad/s, 3σ per axis)",
+                    levels.gyro
                 ),
                 "check the gyroscope's unit (rad/s) and that the arm was still",
             ));
@@ -235,6 +148,160 @@ pub fn check(
         out.push(f);
     }
     out
+}
+
+/// Joints in degrees (a joint outside its limits), fatal: the gyroscope's
+/// comparison with the joint speeds would then blame the gyroscope.
+fn joint_units(session: &Session, robot: &Robot) -> Option<Finding> {
+    if session.joint_count() != robot.dof() {
+        return None;
+    }
+    let v = joint_outside_limits(robot, &session.joints.values)?;
+    Some(Finding::new(
+        "joint_units",
+        Severity::Fatal,
+        files::JOINTS,
+        v.q,
+        v.to_string(),
+        "give joints.csv's q1..qn in rad: multiply degrees by π/180 = 0.017453",
+    ))
+}
+
+/// The IMU's levels: the median |accelerometer| and |gyroscope| at rest
+/// (over all samples without static stretches).
+struct Levels {
+    /// The IMU rows inside the static stretches (margins left out).
+    at_rest: Vec<usize>,
+    /// Where the medians come from, for the messages.
+    where_: &'static str,
+    /// Median |ax, ay, az| and |gx, gy, gz|.
+    accel: f64,
+    gyro: f64,
+}
+
+impl Levels {
+    fn of(session: &Session) -> Self {
+        let qd = joint_speeds(session);
+        let stretches = static_stretches(session, &qd);
+        let imu = &session.imu;
+        let at_rest: Vec<usize> = (0..imu.len())
+            .filter(|&i| {
+                let t = imu.t[i];
+                stretches
+                    .iter()
+                    .any(|&(a, b)| t >= a + STATIC_MARGIN && t <= b - STATIC_MARGIN)
+            })
+            .collect();
+        let (rows, where_) = if at_rest.len() >= 10 {
+            (at_rest.clone(), "at rest")
+        } else {
+            (
+                (0..imu.len()).collect(),
+                "over all samples (no static stretch)",
+            )
+        };
+        let norm = |i: usize, c: usize| {
+            let r = imu.row(i);
+            (r[c] * r[c] + r[c + 1] * r[c + 1] + r[c + 2] * r[c + 2]).sqrt()
+        };
+        let accel = median_of(&mut rows.iter().map(|&i| norm(i, 0)).collect::<Vec<_>>());
+        let gyro = median_of(&mut rows.iter().map(|&i| norm(i, 3)).collect::<Vec<_>>());
+        Self {
+            at_rest,
+            where_,
+            accel,
+            gyro,
+        }
+    }
+
+    /// The median gyroscope vector at rest.
+    fn gyro_bias(&self, session: &Session) -> [f64; 3] {
+        let mut bias = [0.0; 3];
+        for (c, b) in bias.iter_mut().enumerate() {
+            *b = median_of(
+                &mut self
+                    .at_rest
+                    .iter()
+                    .map(|&i| session.imu.row(i)[3 + c])
+                    .collect::<Vec<_>>(),
+            );
+        }
+        bias
+    }
+}
+
+/// Swapped columns, fatal: the gyroscope's carry gravity (and the
+/// accelerometer's do not).
+fn swapped_columns(levels: &Levels, g0: f64) -> Option<Finding> {
+    let (gyro, accel, where_) = (levels.gyro, levels.accel, levels.where_);
+    if !((0.5 * g0..=2.5 * g0).contains(&gyro) && accel < 0.3 * g0) {
+        return None;
+    }
+    Some(Finding::new(
+        "swapped_columns",
+        Severity::Fatal,
+        files::IMU,
+        gyro,
+        format!(
+            "accelerometer and gyroscope columns swapped? (|gx,gy,gz| {where_} = {gyro:.2} ≈ g0 = {g0:.2}, |ax,ay,az| = {accel:.3})"
+        ),
+        "imu.csv's columns are t,ax,ay,az,gx,gy,gz: put the accelerometer first",
+    ))
+}
+
+/// The accelerometer's scale: the radius of a sphere fitted to the
+/// samples (or the median |a|, the range widened by the bias prior `b_a`)
+/// against g₀ within the gains' prior (±`k_a`); fatal outside, with a hint
+/// for g and mg.
+fn accel_units(session: &Session, levels: &Levels, g0: f64, k_a: f64, b_a: f64) -> Finding {
+    let (lo, hi) = (g0 * (1.0 - k_a), g0 * (1.0 + k_a));
+    let sphere = sphere_radius(&session.imu);
+    let (radius, what, lo, hi) = match sphere {
+        Some(r) => (
+            r,
+            "|a - b| (a sphere fitted to the samples, the bias b its centre)".to_string(),
+            lo,
+            hi,
+        ),
+        None => (
+            levels.accel,
+            format!(
+                "|a| {} (too few orientations for a sphere fit: range widened by the bias prior)",
+                levels.where_
+            ),
+            (lo - b_a).max(0.0),
+            hi + b_a,
+        ),
+    };
+    if (lo..=hi).contains(&radius) {
+        return Finding::new(
+            "accel_units",
+            Severity::Info,
+            "accelerometer",
+            radius,
+            format!(
+                "{what} = {radius:.3} m/s² (expected {g0:.2} within the gains' prior, {lo:.2}..{hi:.2})"
+            ),
+            "",
+        );
+    }
+    let hint = if (0.7..=1.3).contains(&radius) {
+        format!(" — in g: multiply ax, ay, az by {g0}")
+    } else if (700.0..=1300.0).contains(&radius) {
+        format!(" — in mg: multiply ax, ay, az by {}", g0 / 1000.0)
+    } else {
+        String::new()
+    };
+    Finding::new(
+        "accel_units",
+        Severity::Fatal,
+        "accelerometer",
+        radius,
+        format!(
+            "accelerometer not in m/s²? ({what} = {radius:.2}, expected {g0:.2}, {lo:.2}..{hi:.2}){hint}"
+        ),
+        "give imu.csv's ax, ay, az in m/s² (docs/model.md §7.4)",
+    )
 }
 
 /// The gyroscope's RMS |ω̃ − b| against the RMS |ω̃| the nominal
@@ -353,7 +420,7 @@ mod tests {
 
     fn table(rows: &[[f64; 3]]) -> Table {
         Table {
-            columns: robimu_session::IMU_COLUMNS
+            columns: robimu_model::IMU_CHANNELS
                 .iter()
                 .map(|c| c.to_string())
                 .collect(),

@@ -68,6 +68,7 @@ mod ranking;
 mod residuals;
 pub mod resolution;
 mod score;
+mod search;
 
 pub use ranking::{determination, Alternative, Determination, MAX_ALIASING};
 
@@ -75,7 +76,6 @@ pub use residuals::{
     peak_p_value, regressor_p_value, residual_stats, welch, welch_segments, windowed_rms,
     ResidualStats,
 };
-use score::scores_at;
 pub use score::{score_all, Score};
 
 use serde::Serialize;
@@ -93,7 +93,7 @@ use robimu_solver::problem::Problem;
 use robimu_solver::LeastSquares;
 
 /// Channel names in z order.
-pub const CHANNELS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
+pub use robimu_model::IMU_CHANNELS as CHANNELS;
 
 /// Why a diagnosis failed.
 #[derive(Debug, thiserror::Error)]
@@ -224,11 +224,10 @@ pub struct FoundEffect {
     pub rms_before: [f64; 6],
     /// After.
     pub rms_after: [f64; 6],
-    /// Its parameters: (name, SI unit, value, σ) right after it was added.
-    pub parameters: Vec<(String, String, f64, f64)>,
-    /// Baseline parameters that moved by more than 1 σ when it was added:
-    /// (name, before, after, σ after).
-    pub baseline_moves: Vec<(String, f64, f64, f64)>,
+    /// Its parameters right after it was added.
+    pub parameters: Vec<AddedParameter>,
+    /// Baseline parameters that moved by more than 1 σ when it was added.
+    pub baseline_moves: Vec<ParameterMove>,
     /// All scores of that round, best first.
     pub scores: Vec<Score>,
     /// For an effect with a time resolution (`bias_drift`): the one chosen
@@ -243,6 +242,63 @@ pub struct FoundEffect {
     /// ρ²_max of its parameters against the effects added before it
     /// ([`Determination`]; 0 for the first).
     pub aliasing: f64,
+}
+
+/// An effect parameter's estimate right after its effect was added
+/// (diagnosis.json: `[name, unit, value, sigma]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AddedParameter {
+    /// Parameter name.
+    pub name: String,
+    /// Its SI unit.
+    pub unit: String,
+    /// Its estimate, SI.
+    pub value: f64,
+    /// Its posterior σ.
+    pub sigma: f64,
+}
+
+/// A baseline parameter that moved by more than its σ when an effect was
+/// added (diagnosis.json: `[name, before, after, sigma]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParameterMove {
+    /// Parameter name.
+    pub name: String,
+    /// Its estimate before, SI.
+    pub before: f64,
+    /// Its estimate after.
+    pub after: f64,
+    /// Its posterior σ after.
+    pub sigma: f64,
+}
+
+/// The earlier effect a candidate is most aliased with (diagnosis.json:
+/// `[name, rho2]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AliasedWith {
+    /// The effect's name.
+    pub name: String,
+    /// ρ²_max of the candidate's parameters against it.
+    pub rho2: f64,
+}
+
+// The records above keep diagnosis.json's arrays (robimu-diagnosis/1).
+impl Serialize for AddedParameter {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        (&self.name, &self.unit, self.value, self.sigma).serialize(s)
+    }
+}
+
+impl Serialize for ParameterMove {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        (&self.name, self.before, self.after, self.sigma).serialize(s)
+    }
+}
+
+impl Serialize for AliasedWith {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        (&self.name, self.rho2).serialize(s)
+    }
 }
 
 /// A candidate significant against the current model whose refit was not
@@ -264,7 +320,7 @@ pub struct Rejected {
     /// ρ²_max against the effects already added.
     pub aliasing: f64,
     /// The effect it is most aliased with, and that ρ²_max.
-    pub aliased_with: Option<(String, f64)>,
+    pub aliased_with: Option<AliasedWith>,
     /// Why, in words.
     pub reason: String,
 }
@@ -723,20 +779,23 @@ pub fn diagnose(
     let stats_setup = setup.clone();
     let (stats_before, search) = std::thread::scope(|scope| {
         let before = scope.spawn(|| residual_stats(robot, data, &stats_setup, &baseline));
-        let search = search_effects(
+        let problem = search::SearchProblem {
             robot,
             data,
             opts,
-            setup,
             dopts,
-            &offered,
-            &baseline,
-            noise,
-            &mut progress,
-        );
+            offered: &offered,
+        };
+        let search = search::search_effects(&problem, setup, &baseline, noise, &mut progress);
         (before.join().expect("residual statistics panicked"), search)
     });
-    let (current, found, rejected, last_scores, noise) = search?;
+    let search::Search {
+        fit: current,
+        found,
+        rejected,
+        last_scores,
+        noise,
+    } = search?;
     // with no effect added the final fit is the baseline itself
     let stats_after = if found.is_empty() {
         stats_before.clone()
@@ -757,199 +816,6 @@ pub fn diagnose(
         noise,
         setup: setup.clone(),
     })
-}
-
-/// What [`search_effects`] ends with: the final fit, the effects found,
-/// the candidates rejected, the last round's scores and the noise use.
-type Search = (Fit, Vec<FoundEffect>, Vec<Rejected>, Vec<Score>, NoiseUse);
-
-/// Steps 3–4 of the module doc from the baseline fit: add significant
-/// effects one at a time from `offered` (Bonferroni threshold α/|offered|).
-#[allow(clippy::too_many_arguments)]
-fn search_effects(
-    robot: &Robot,
-    data: &Measurements,
-    opts: &CalibrateOptions,
-    setup: &mut CatalogueSetup,
-    dopts: &DiagnoseOptions,
-    offered: &[String],
-    baseline: &Fit,
-    mut noise: NoiseUse,
-    mut progress: impl FnMut(&str),
-) -> Result<Search, DiagnoseError> {
-    let layout = ParamLayout::with_imus(robot, data.n_imus());
-    let threshold = dopts.alpha / offered.len().max(1) as f64;
-    let auto = matches!(dopts.noise, NoiseChoice::Auto);
-    let mut current = baseline.clone();
-    let mut found: Vec<FoundEffect> = Vec::new();
-    let mut rejected: Vec<Rejected> = Vec::new();
-    let n_res = 6.0 * baseline.residuals.len() as f64;
-    let last_scores = loop {
-        let candidates: Vec<String> = offered
-            .iter()
-            .filter(|c| !current.effects.contains(c) && !rejected.iter().any(|r| &r.name == *c))
-            .cloned()
-            .collect();
-        if candidates.is_empty() || found.len() >= dopts.max_effects {
-            break Vec::new();
-        }
-        // scores, refit and LR under the current fit's noise model
-        let ropts = with_noise_of(opts, &current);
-        progress("scoring the candidate effects");
-        let (base_q, scores, set) = scores_at(robot, data, &ropts, setup, &current, &candidates)?;
-        let mut best = scores[0].clone();
-        if best.p_value >= threshold {
-            break scores;
-        }
-        let resolution = resolution::choose(robot, data, &ropts, setup, &current, &best)?.map(
-            |(choice, score)| {
-                progress(&format!(
-                    "{}: resolution {} chosen",
-                    best.name, choice.chosen
-                ));
-                best = score;
-                choice
-            },
-        );
-        progress(&format!("refitting with {}", best.name));
-        let mut names = current.effects.clone();
-        names.push(best.name.clone());
-        let mut next = match fit_effects(robot, data, &ropts, setup, &names, Start::Refit(&current))
-        {
-            Ok(f) => f,
-            // a candidate whose refit fails is not confirmed; the diagnosis goes on
-            Err(DiagnoseError::Calibrate(
-                e @ (CalibrateError::NotConverged { .. } | CalibrateError::Solver(_)),
-            )) => {
-                progress(&format!("{}: its refit failed ({e}); not added", best.name));
-                rejected.push(Rejected {
-                    name: best.name.clone(),
-                    statistic: best.statistic,
-                    dof: best.dof,
-                    p_value: best.p_value,
-                    lr_statistic: f64::NAN,
-                    aliasing: f64::NAN,
-                    aliased_with: None,
-                    reason: format!("its refit failed: {e}"),
-                });
-                continue;
-            }
-            Err(e) => return Err(e),
-        };
-        let lr = 2.0 * (current.cost - next.cost);
-        let lr_p = chi2_sf(lr, best.dof as f64);
-        if lr_p >= threshold {
-            break scores;
-        }
-        // a follow-up must be determined apart from the effects already added
-        let det = match found.is_empty() {
-            true => None,
-            false => Some(determination(setup, &next)?),
-        };
-        if let Some(det) = det.as_ref().filter(|d| d.aliasing > dopts.max_aliasing) {
-            let with = det.most_with.as_ref().map_or(String::new(), |(n, a)| {
-                format!(" (most with {n}: ρ² {a:.3})")
-            });
-            rejected.push(Rejected {
-                name: best.name.clone(),
-                statistic: best.statistic,
-                dof: best.dof,
-                p_value: best.p_value,
-                lr_statistic: lr,
-                aliasing: det.aliasing,
-                aliased_with: det.most_with.clone(),
-                reason: format!(
-                    "not determined apart from the effects already added: ρ²_max {:.3} > {}{with}",
-                    det.aliasing, dopts.max_aliasing
-                ),
-            });
-            continue;
-        }
-        // the winner at its chosen resolution (the setup has it now)
-        let mut ranked = scores.clone();
-        ranked[0] = best.clone();
-        let alternatives = ranking::alternatives(
-            robot, data, &ropts, setup, &current, base_q, &set, &ranked, threshold,
-        )?;
-        let ambiguous_with = alternatives
-            .iter()
-            .filter(|a| a.ambiguous)
-            .map(|a| a.name.clone())
-            .collect();
-        let aliasing = det.map_or(0.0, |d| d.aliasing);
-        if auto {
-            // the effect's signal was in the residuals the noise was
-            // identified from: identify again without it
-            progress("identifying the noise again");
-            let settledfit = identify_at(robot, data, opts, setup, &next, &dopts.noise_id)
-                .and_then(|id| {
-                    settle_noise(
-                        robot,
-                        data,
-                        opts,
-                        setup,
-                        &next,
-                        id,
-                        &dopts.noise_id,
-                        &mut progress,
-                    )
-                });
-            match settledfit {
-                Ok((f, refits)) => {
-                    if refits > 0 {
-                        noise.reidentified_after.push(best.name.clone());
-                    }
-                    next = f;
-                }
-                Err(e) => noise.warnings.push(format!(
-                    "after adding {}: {e}; its noise model kept",
-                    best.name
-                )),
-            }
-        }
-        let ne_prev = current.theta_e.len();
-        let parameters = (ne_prev..next.theta_e.len())
-            .map(|e| {
-                let p = &next.effect_params[e];
-                (
-                    p.name.clone(),
-                    p.unit.to_string(),
-                    next.theta_e[e],
-                    next.sigma_e[e],
-                )
-            })
-            .collect();
-        let baseline_moves = layout
-            .specs()
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| {
-                next.sigma_x[*k] > 0.0 && (next.x[*k] - current.x[*k]).abs() > next.sigma_x[*k]
-            })
-            .map(|(k, s)| (s.name.clone(), current.x[k], next.x[k], next.sigma_x[k]))
-            .collect();
-        found.push(FoundEffect {
-            name: best.name.clone(),
-            imu: effect_imu(&best.name),
-            statistic: best.statistic,
-            dof: best.dof,
-            p_value: best.p_value,
-            lr_statistic: lr,
-            lr_p_value: lr_p,
-            delta_bic: -lr + best.dof as f64 * n_res.ln(),
-            rms_before: current.residual_rms(),
-            rms_after: next.residual_rms(),
-            parameters,
-            baseline_moves,
-            scores,
-            resolution,
-            alternatives,
-            ambiguous_with,
-            aliasing,
-        });
-        current = next;
-    };
-    Ok((current, found, rejected, last_scores, noise))
 }
 
 /// Add the exact effect terms of `injected` to simulated IMU samples (each

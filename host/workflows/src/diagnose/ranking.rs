@@ -41,7 +41,7 @@ use faer::{Mat, Side};
 use serde::Serialize;
 
 use super::score::{quadratic_score, Score, ScoreSet};
-use super::DiagnoseError;
+use super::{AliasedWith, DiagnoseError};
 use crate::calibrate::fit::Fit;
 use crate::calibrate::CalibrateOptions;
 use crate::stats::chi2_sf;
@@ -133,7 +133,7 @@ pub struct Determination {
     /// ρ²_max against all of them together (0 with none).
     pub aliasing: f64,
     /// The single earlier effect with the largest ρ²_max, and that ρ²_max.
-    pub most_with: Option<(String, f64)>,
+    pub most_with: Option<AliasedWith>,
 }
 
 /// The [`Determination`] of `f`'s last effect.
@@ -156,12 +156,15 @@ pub fn determination(setup: &CatalogueSetup, f: &Fit) -> Result<Determination, D
         || DiagnoseError::Singular(format!("the information of {}", f.effects.join("+")));
     let all: Vec<_> = ranges.iter().map(|(_, r)| r.clone()).collect();
     let total = aliasing(&f.information, &f.covariance, &all, &b).ok_or_else(singular)?;
-    let mut most_with: Option<(String, f64)> = None;
+    let mut most_with: Option<AliasedWith> = None;
     for (name, r) in &ranges {
         let a = aliasing(&f.information, &f.covariance, std::slice::from_ref(r), &b)
             .ok_or_else(singular)?;
-        if most_with.as_ref().is_none_or(|(_, m)| a > *m) {
-            most_with = Some((name.clone(), a));
+        if most_with.as_ref().is_none_or(|m| a > m.rho2) {
+            most_with = Some(AliasedWith {
+                name: name.clone(),
+                rho2: a,
+            });
         }
     }
     Ok(Determination {

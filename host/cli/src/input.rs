@@ -1,5 +1,5 @@
-//! What the commands share: naming a robot, turning a loaded session into the
-//! calibrator's inputs, recording with a progress bar, and printing progress.
+//! What the commands share (not a command): naming a robot, output paths,
+//! IMU positions, recording with a progress bar, and printing progress.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -7,95 +7,16 @@ use std::time::Duration;
 
 use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
-use robimu_model::error_selection::{identifiable_errors, IdentifiableOptions};
-use robimu_model::urdf::{robot_from_urdf_file, UrdfOptions};
 use robimu_model::Robot;
 use robimu_record::{record, RecordOptions, RecordProgress, RecordSummary};
-use robimu_session::Session;
+pub use robimu_workflows::pipeline::{session_robot, RobotSource};
 
-/// Robots built into the program (`--robot NAME`, `robot = "NAME"`).
-pub const BUILTIN_ROBOTS: &[&str] = &["aubo_i5"];
-
-/// Where a robot description comes from.
-pub enum RobotSource {
-    /// A built-in robot.
-    Builtin,
-    /// A TOML robot description at this path.
-    File(PathBuf),
-}
-
-impl RobotSource {
-    /// `robot = …` in the session.toml of a session made for the robot
-    /// `spec` names: the built-in name, or the file's absolute path (the
-    /// session must find it from its own directory).
-    pub fn session_field(self, spec: &str) -> String {
-        match self {
-            RobotSource::Builtin => spec.to_string(),
-            RobotSource::File(path) => std::path::absolute(&path)
-                .unwrap_or(path)
-                .display()
-                .to_string(),
-        }
-    }
-}
+use crate::args::UrdfLinks;
 
 /// The robot `spec` names: a built-in name, or a path to a TOML robot
 /// description or a URDF (relative paths are taken relative to `base` when given).
 pub fn resolve_robot(spec: &str, base: Option<&Path>) -> anyhow::Result<(Robot, RobotSource)> {
     resolve_robot_with(spec, base, &UrdfLinks::default())
-}
-
-/// Base and tip link of a URDF robot (`--base`, `--tip`); `None`: the URDF's
-/// root link, and its only leaf link.
-#[derive(Debug, Clone, Default, clap::Args)]
-pub struct UrdfLinks {
-    /// URDF robots: the base link of the chain [default: the root link].
-    #[arg(long = "base", value_name = "LINK")]
-    pub base: Option<String>,
-    /// URDF robots: the tip (flange) link of the chain [default: the only leaf link].
-    #[arg(long = "tip", value_name = "LINK")]
-    pub tip: Option<String>,
-}
-
-/// The `resonance` effect's mode (`--resonance-hz`, `--resonance-zeta`).
-#[derive(Debug, Clone, clap::Args)]
-pub struct ResonanceMode {
-    /// Natural frequency of the `resonance` effect's mode, Hz (0.5–50).
-    #[arg(long, value_name = "HZ", default_value_t = 10.0)]
-    pub resonance_hz: f64,
-    /// Damping ratio of the `resonance` effect's mode (0–1, exclusive).
-    #[arg(long, value_name = "ZETA", default_value_t = 0.05)]
-    pub resonance_zeta: f64,
-}
-
-impl Default for ResonanceMode {
-    fn default() -> Self {
-        let m = robimu_model::effects::resonance::Mode::default();
-        Self {
-            resonance_hz: m.f_hz,
-            resonance_zeta: m.zeta,
-        }
-    }
-}
-
-impl ResonanceMode {
-    /// The checked mode.
-    pub fn mode(&self) -> anyhow::Result<robimu_model::effects::resonance::Mode> {
-        let (f, z) = (self.resonance_hz, self.resonance_zeta);
-        if !(0.5..=50.0).contains(&f) {
-            anyhow::bail!("--resonance-hz must be between 0.5 and 50 Hz (got {f})");
-        }
-        if !(z > 0.0 && z < 1.0) {
-            anyhow::bail!("--resonance-zeta must be between 0 and 1, exclusive (got {z})");
-        }
-        Ok(robimu_model::effects::resonance::Mode { f_hz: f, zeta: z })
-    }
-}
-
-/// Whether `path` names a URDF file (by its extension).
-pub fn is_urdf(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("urdf"))
 }
 
 /// [`resolve_robot`] with the chain of a URDF robot chosen by `links`.
@@ -104,94 +25,11 @@ pub fn resolve_robot_with(
     base: Option<&Path>,
     links: &UrdfLinks,
 ) -> anyhow::Result<(Robot, RobotSource)> {
-    if let Some(robot) = Robot::builtin(spec) {
-        return Ok((robot, RobotSource::Builtin));
-    }
-    let path = match base {
-        Some(base) if Path::new(spec).is_relative() => base.join(spec),
-        _ => PathBuf::from(spec),
+    let links = robimu_workflows::pipeline::ChainLinks {
+        base: links.base.clone(),
+        tip: links.tip.clone(),
     };
-    if !path.is_file() {
-        bail!(
-            "unknown robot `{spec}`: not a built-in robot ({}) and no robot description file {}",
-            BUILTIN_ROBOTS.join(", "),
-            path.display()
-        );
-    }
-    let robot = if is_urdf(&path) {
-        let opts = UrdfOptions {
-            base: links.base.clone(),
-            tip: links.tip.clone(),
-            ..UrdfOptions::default()
-        };
-        robot_from_urdf_file(&path, &opts)
-            .with_context(|| format!("cannot use the URDF {}", path.display()))?
-            .0
-    } else {
-        Robot::from_toml_file(&path)
-            .with_context(|| format!("cannot use the robot description {}", path.display()))?
-    };
-    // docs/model.md §1: without an explicit `[errors]` table the estimated
-    // generalized errors are found numerically, never hand-listed.
-    let robot = if robot.description().errors.is_none() {
-        let set = identifiable_errors(&robot, &IdentifiableOptions::default()).with_context(|| {
-            format!(
-                "{}: cannot determine which generalized errors are identifiable (list them in an [errors] table)",
-                path.display()
-            )
-        })?;
-        robot.with_estimated_errors(set.errors)?
-    } else {
-        robot
-    };
-    Ok((robot, RobotSource::File(path)))
-}
-
-/// The session's robot, with the session's gravity magnitude when it sets one
-/// and each IMU's mount prior from its `[imu.mount]` / `[imu<j>.mount]`
-/// table (docs/model.md §9: IMU 0's missing keys keep the robot's
-/// `[imu_mount]`, IMU j ≥ 1's keep IMU 0's).
-pub fn session_robot(session: &Session) -> anyhow::Result<Robot> {
-    let toml = session.dir.join("session.toml");
-    let (mut robot, _) = resolve_robot(&session.meta.robot, Some(&session.dir))
-        .with_context(|| format!("{}: `robot`", toml.display()))?;
-    if let Some(g0) = session.meta.gravity {
-        robot = robot
-            .with_gravity(g0)
-            .context("session.toml: `gravity` is not usable")?;
-    }
-    for (&j, m) in &session.meta.mounts {
-        // in order: IMU 0 first, so that IMU j ≥ 1 builds on IMU 0's prior
-        let base = *robot.mount();
-        let name = if j == 0 {
-            "imu".into()
-        } else {
-            format!("imu{j}")
-        };
-        robot = robot
-            .with_mount(j, m.over(&base))
-            .with_context(|| format!("{}: [{name}.mount] is not usable", toml.display()))?;
-    }
-    Ok(robot)
-}
-
-/// Loads the session at `dir` with its robot, checking that they have the
-/// same joint count.
-pub fn load_session(dir: &Path) -> anyhow::Result<(Session, Robot)> {
-    let session =
-        Session::load(dir).with_context(|| format!("cannot load the session {}", dir.display()))?;
-    let robot = session_robot(&session)?;
-    if session.joint_count() != robot.dof() {
-        bail!(
-            "{}: {} joint columns (q1..q{}), but robot `{}` has {} joints",
-            dir.join("joints.csv").display(),
-            session.joint_count(),
-            session.joint_count(),
-            robot.name(),
-            robot.dof()
-        );
-    }
-    Ok((session, robot))
+    robimu_workflows::resolve_robot(spec, base, &links)
 }
 
 /// Where a command writes its output file: `--out` if given, else `default`;
@@ -285,7 +123,7 @@ fn record_showing_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummary
                     lines.push(line);
                 }
                 for (j, (line, imu)) in lines.iter().zip(&p.imus).enumerate() {
-                    line.set_message(imu_progress_line(j, imu));
+                    line.set_message(robimu_report::recording::imu_progress_line(j, imu));
                 }
             }
         }
@@ -298,16 +136,6 @@ fn record_showing_progress(opts: &RecordOptions) -> anyhow::Result<RecordSummary
         bar.finish_and_clear();
     }
     Ok(result?)
-}
-
-/// IMU `j`'s progress line: its board and sensor, samples, rate, gaps and
-/// the board's drops.
-pub fn imu_progress_line(j: usize, p: &robimu_record::ImuProgress) -> String {
-    let file = robimu_session::files::imu_csv(j);
-    format!(
-        "IMU {j} ({file}, {} sensor {}): {} samples, {:.0}/s, {} gaps, {} dropped by the board",
-        p.port, p.sensor, p.samples, p.rate, p.seq_gaps, p.device_dropped
-    )
 }
 
 /// A spinner on stderr with a message, and log lines above it; when stderr

@@ -14,11 +14,11 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::calibrate::noise_choice::NoiseChoice;
+use crate::noise::NoiseFile;
 use anyhow::{bail, Context};
 use robimu_model::noise::NoiseModel;
 use robimu_session::{check_ar_order_for_data, NoiseShape, Session};
-use robimu_workflows::calibrate::noise_choice::NoiseChoice;
-use robimu_workflows::noise::NoiseFile;
 
 /// What SPEC accepts, for error messages.
 const EXPECTED: &str =
@@ -88,8 +88,7 @@ pub fn parse_noise_model(
     if !path.is_file() {
         bail!("{}: {EXPECTED} (no such file)", what());
     }
-    let (table, shape) =
-        robimu_workflows::noise::NoiseFile::read_with_shape(path).with_context(what)?;
+    let (table, shape) = NoiseFile::read_with_shape(path).with_context(what)?;
     let sigma_z = table.noise.sigma_z.unwrap_or(sigma_z);
     shape
         .unwrap_or_default()

@@ -1,0 +1,235 @@
+//! A calibration as the program shows it (`robimu calibrate`, `robimu
+//! demo`): the library's pipeline ([`robimu_workflows::Prepared`]) with a
+//! progress line, the verdict, the parameter table, the files it wrote, and
+//! the HTML report, the effects and the time windows when asked for.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use robimu_model::{ParamLayout, Robot};
+use robimu_report::convergence::ConvergenceLog;
+use robimu_report::figures::NoiseBand;
+use robimu_report::fit_summary::{
+    EffectEstimates, FitReport, RepeatabilityGroups, WeakDirectionsWarning,
+};
+use robimu_report::html::{calibration_report_imus, Convergence};
+use robimu_report::noise::NoiseSummary;
+use robimu_report::verdict::{trust_line, VerdictText};
+use robimu_report::ParameterTable;
+use robimu_session::Session;
+use robimu_solver::IterationRecord;
+use robimu_workflows::calibrate::CalibrateOptions;
+use robimu_workflows::repeatability::{self, Window};
+use robimu_workflows::{load_session, Fitted, Prepared};
+
+use crate::args::CalibrateFlags;
+use crate::input::{output_path, Progress};
+
+/// What to calibrate and what to write besides the result file.
+pub struct CalibrateRun<'a> {
+    /// The session directory.
+    pub session: &'a Path,
+    /// The result file [default: result.json in the session directory].
+    pub out: Option<&'a Path>,
+    /// Time windows of a repeatability study.
+    pub windows: Option<usize>,
+    /// Directory of the HTML report.
+    pub report: Option<&'a Path>,
+    /// The calibration's settings.
+    pub flags: &'a CalibrateFlags,
+}
+
+impl CalibrateRun<'_> {
+    /// Calibrate, print the table and write the result file (and what else
+    /// was asked for).
+    pub fn run(&self) -> anyhow::Result<()> {
+        let dir = self.session;
+        let (session, robot) = load_session(dir)?;
+        let file = self.flags.noise_file()?;
+        let path = output_path(self.out, dir.join("result.json"))?;
+        let settings = self.flags.settings()?;
+        let p = Prepared::new(session, robot, &settings, file.as_ref(), |w| {
+            eprintln!("warning: {w}")
+        })?;
+        let windows = self.windows.map(|k| p.windows(k)).transpose()?;
+        let mut out = std::io::stdout().lock();
+        write_header(&mut out, dir, &p.session, &p.layout, &p.opts)?;
+        let fitted = fit_with_progress(&p)?;
+        self.print_fit(&mut out, &p, &fitted)?;
+        let history = fitted.write(&path)?;
+        writeln!(out, "wrote {}", path.display())?;
+        writeln!(out, "wrote {}", history.display())?;
+        if let Some(report_dir) = self.report {
+            let html = html_report(report_dir, &p, &fitted)?;
+            writeln!(out, "wrote {}", html.display())?;
+        }
+        if let Some(set) = &p.effects {
+            let progress = Progress::start(format!("fitting with {}", set.names().join(", ")));
+            let f = p.fit_effects(&fitted.cal, &path);
+            progress.finish();
+            if let Some((f, epath)) = f? {
+                writeln!(out)?;
+                write!(out, "{}", EffectEstimates(&f))?;
+                writeln!(out, "wrote {}", epath.display())?;
+            }
+        }
+        if let Some(windows) = windows {
+            repeatability_study(&mut out, &p, fitted, windows, &path)?;
+        }
+        Ok(())
+    }
+
+    /// The verdict, the fit's summary, the noise model and the parameter
+    /// table (warnings on stderr).
+    fn print_fit(&self, out: &mut impl Write, p: &Prepared, fitted: &Fitted) -> anyhow::Result<()> {
+        let Fitted {
+            cal, noise, result, ..
+        } = fitted;
+        if let Some(v) = &result.verdict {
+            write!(out, "{}", VerdictText(v))?;
+        }
+        let chosen = self.flags.knot_spacing.is_none();
+        write!(out, "{}", FitReport::brief(cal, chosen))?;
+        write!(
+            out,
+            "{}",
+            NoiseSummary::new(&p.choice, noise, &cal.noise_model)
+        )?;
+        if let Some(w) = &noise.warning {
+            eprintln!("warning: {w}");
+        }
+        writeln!(out)?;
+        write!(
+            out,
+            "{}",
+            ParameterTable::new(result, p.session.truth.as_ref())
+        )?;
+        out.flush()?;
+        eprint!(
+            "{}",
+            WeakDirectionsWarning::new(&cal.weak_directions, &p.layout)
+        );
+        Ok(())
+    }
+}
+
+/// The fit with a spinner and the solver's iterations on stderr.
+fn fit_with_progress(p: &Prepared) -> anyhow::Result<Fitted> {
+    let progress = Progress::start("fitting the trajectory and finding the time offset tau");
+    progress.println(IterationRecord::HEADER);
+    let fitted = p.fit(|r| {
+        progress.println(r.to_string());
+        progress.set_message(format!(
+            "iteration {}: cost {:.6e}, lambda {:.1e}",
+            r.iteration, r.cost, r.lambda
+        ));
+    });
+    progress.finish();
+    Ok(fitted?)
+}
+
+/// `--windows`: each window calibrated and compared with the full
+/// calibration, repeatability.csv, and the result file again with the
+/// verdict that includes the windows.
+fn repeatability_study(
+    out: &mut impl Write,
+    p: &Prepared,
+    fitted: Fitted,
+    windows: Vec<Window>,
+    path: &Path,
+) -> anyhow::Result<()> {
+    let count = windows.len();
+    let progress = Progress::start(format!("calibrating {count} windows"));
+    let study = p.repeatability(fitted, windows, |w, r| {
+        progress.set_message(format!(
+            "window {} of {count}: iteration {}, cost {:.6e}",
+            w + 1,
+            r.iteration,
+            r.cost
+        ));
+    });
+    progress.finish();
+    let (study, result) = study?;
+    writeln!(out)?;
+    write!(out, "{}", RepeatabilityGroups(&study))?;
+    let csv = path.with_file_name("repeatability.csv");
+    repeatability::write_csv(&csv, &p.layout, &study)
+        .with_context(|| format!("cannot write {}", csv.display()))?;
+    writeln!(out, "wrote {}", csv.display())?;
+    if let Some(verdict) = &result.verdict {
+        if let Some(c) = verdict.checks.iter().find(|c| c.topic == "repeatability") {
+            let mark = if c.ok { "ok" } else { "FAIL" };
+            writeln!(
+                out,
+                "verdict with the windows:\n  {mark:<4} {:<13} {}",
+                c.topic, c.text
+            )?;
+        }
+        writeln!(out, "{}", trust_line(verdict))?;
+    }
+    result.write(path)?;
+    writeln!(
+        out,
+        "wrote {} (its verdict with the windows)",
+        path.display()
+    )?;
+    Ok(())
+}
+
+/// The first line: the session, its samples and what is estimated.
+fn write_header(
+    out: &mut impl Write,
+    dir: &Path,
+    session: &Session,
+    layout: &ParamLayout,
+    opts: &CalibrateOptions,
+) -> std::io::Result<()> {
+    let (ta, tb) = session.joints.span().unwrap_or_default();
+    writeln!(
+        out,
+        "session {}: robot {}, {} joint samples, {} IMU samples{}, {:.1} s; estimating {} of {} parameters{}",
+        dir.display(),
+        session.meta.robot,
+        session.joints.len(),
+        session.imu.len(),
+        match layout.n_imus() {
+            1 => String::new(),
+            k => format!(" (IMU 0; {k} IMUs fitted jointly)"),
+        },
+        tb - ta,
+        layout.len() - opts.frozen.len(),
+        layout.len(),
+        if opts.use_prior { "" } else { " without priors" }
+    )?;
+    out.flush()
+}
+
+/// `--report`: the HTML report of the calibration, one series per IMU, each
+/// under its own parameters (docs/model.md §9).
+fn html_report(report_dir: &Path, p: &Prepared, fitted: &Fitted) -> anyhow::Result<PathBuf> {
+    let (robot, opts, cal, result): (&Robot, _, _, _) =
+        (&p.robot, &p.opts, &fitted.cal, &fitted.result);
+    let noise = NoiseBand::of_fit(result.noise_model.as_ref(), &opts.sigma_z);
+    let layout = cal.layout(robot);
+    let series = (0..layout.n_imus())
+        .map(|j| {
+            robimu_report::result_report::session_series(
+                robot,
+                &p.data.only_imu(j),
+                &layout.imu_x(j, &cal.x),
+                &opts.sigma_q,
+                Some(cal.knot_spacing),
+                &noise,
+            )
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let costs = ConvergenceLog::from_summary(&cal.summary).costs();
+    Ok(calibration_report_imus(
+        report_dir,
+        result,
+        p.session.truth.as_ref(),
+        Convergence::Costs(&costs),
+        &series,
+    )?)
+}

@@ -1,0 +1,438 @@
+//! Exporting a calibration result for other tools (`robimu export`): the
+//! corrected robot (URDF or robot TOML) or the IMU intrinsics (Kalibr
+//! imu.yaml or a correction file), one file per IMU where the format needs
+//! it (docs/model.md §9).
+//!
+//! [`robot_spec`] names the robot a result was computed for; [`export`]
+//! builds the files from the result and the resolved robot and writes them,
+//! telling its caller what it wrote and what it noted ([`Notice`]).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use robimu_model::urdf::UrdfOptions;
+use robimu_model::{ModelParams, Robot};
+use robimu_session::export::imu::{
+    kalibr_imu_input_yaml, kalibr_imu_list_yaml, kalibr_imu_yaml, Correction, KalibrImu,
+    KalibrOptions, KalibrPlacement, DEFAULT_RANDOM_WALK,
+};
+use robimu_session::export::robot::{corrected_toml, corrected_urdf};
+use robimu_session::export::{calibrated_params, imu_effects};
+use robimu_session::result::CalibrationResult;
+use robimu_session::Session;
+
+use crate::pipeline::{is_urdf, ChainLinks};
+
+/// What [`export`] writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExportFormat {
+    /// The calibrated robot as a URDF (needs a URDF robot).
+    Urdf,
+    /// The calibrated robot as robot TOML.
+    Toml,
+    /// The IMU as a Kalibr imu.yaml (several IMUs: Kalibr's IMU list and
+    /// one file per IMU beside it).
+    Kalibr,
+    /// The IMU correction (per sensor M, M⁻¹ and b of z = M·v + b; TOML).
+    Correction,
+}
+
+/// What [`export`] tells its caller as it goes.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Notice {
+    /// A remark for the user (`note: …`).
+    Note(String),
+    /// A file was written.
+    Wrote(PathBuf),
+}
+
+/// An export of the result in `calibration` (`robimu export`'s flags).
+#[derive(Debug, Clone)]
+pub struct ExportRequest {
+    /// The result file (result.json), named in messages.
+    pub calibration: PathBuf,
+    /// What to write.
+    pub format: ExportFormat,
+    /// The robot as named ([`robot_spec`]): a built-in name or a file.
+    pub spec: String,
+    /// The directory a relative `spec` is relative to.
+    pub spec_base: Option<PathBuf>,
+    /// A URDF robot's base and tip links.
+    pub links: ChainLinks,
+    /// Kalibr: the IMU sample rate, Hz [default: the session's imu.csv].
+    pub rate: Option<f64>,
+    /// Kalibr: the `rostopic` keys, one per IMU [default: `/imu<j>`].
+    pub rostopic: Vec<String>,
+    /// Export IMU J alone.
+    pub imu: Option<usize>,
+    /// Kalibr: accelerometer and gyroscope random walks (two numbers).
+    pub random_walk: Vec<f64>,
+    /// Kalibr: an allan.csv of `robimu allan` or a noise.toml of `robimu noise`.
+    pub noise: Option<PathBuf>,
+    /// The file to write.
+    pub out: PathBuf,
+}
+
+/// The robot `result` (read from `calibration`) was computed for: `given`
+/// (`--robot`) as is, else the result's robot relative to its session
+/// directory (or to the result file's directory).
+pub fn robot_spec(
+    result: &CalibrationResult,
+    calibration: &Path,
+    given: Option<&str>,
+) -> anyhow::Result<(String, Option<PathBuf>)> {
+    let session_dir = result.session.as_ref().map(PathBuf::from);
+    let result_dir = calibration.parent().map(Path::to_path_buf);
+    Ok(match (given, &result.robot) {
+        (Some(r), _) => (r.to_string(), None),
+        (None, Some(r)) => (r.clone(), session_dir.or(result_dir)),
+        (None, None) => bail!("{} names no robot: give --robot", calibration.display()),
+    })
+}
+
+/// Build the export `req` asks for from `result` and `robot` (the robot
+/// `req.spec` names) and write it, with [`Notice`]s to `notify`.
+pub fn export(
+    req: &ExportRequest,
+    result: &CalibrationResult,
+    robot: &Robot,
+    notify: &mut dyn FnMut(Notice),
+) -> anyhow::Result<()> {
+    let ex = Exporter { req, result, robot };
+    let k = result.imu_count();
+    if let Some(j) = req.imu {
+        ex.view(j)?;
+    }
+    let chosen: Vec<usize> = match req.imu {
+        Some(j) => vec![j],
+        None => (0..k).collect(),
+    };
+    let rostopics = rostopics(req, k)?;
+    let session = match req.format {
+        ExportFormat::Kalibr => result
+            .session
+            .as_deref()
+            .and_then(|d| Session::load(Path::new(d)).ok()),
+        _ => None,
+    };
+    let session = session.as_ref();
+    let text = match req.format {
+        ExportFormat::Kalibr if k > 1 => {
+            let mut views = Vec::new();
+            for (j, topic) in rostopics.iter().enumerate() {
+                let (view, params) = ex.imu_params(j)?;
+                let opts = ex.kalibr_options(&view, session, j, topic, notify)?;
+                views.push((params, opts));
+            }
+            let imus: Vec<KalibrImu<'_>> = views
+                .iter()
+                .map(|(p, o)| KalibrImu {
+                    params: p,
+                    opts: o,
+                    placement: KalibrPlacement::relative(&views[0].0, p),
+                })
+                .collect();
+            if let Some(j) = req.imu {
+                kalibr_imu_input_yaml(j, &imus)
+            } else {
+                for j in 0..k {
+                    let path = per_imu_path(&req.out, j);
+                    write_file(&path, &kalibr_imu_input_yaml(j, &imus), notify)?;
+                }
+                kalibr_imu_list_yaml(&imus)
+            }
+        }
+        ExportFormat::Correction if chosen.len() > 1 => {
+            for &j in &chosen {
+                let (_, params) = ex.imu_params(j)?;
+                let text = Correction::new(&params)
+                    .with_context(|| format!("IMU {j}"))?
+                    .to_toml()?;
+                write_file(&per_imu_path(&req.out, j), &text, notify)?;
+            }
+            return Ok(());
+        }
+        format => {
+            let j = req.imu.unwrap_or(0);
+            if k > 1 && req.imu.is_none() {
+                notify(Notice::Note(format!(
+                    "the result has {k} IMUs: the robot carries IMU 0's position (--imu J for another)"
+                )));
+            }
+            let (view, params) = ex.imu_params(j)?;
+            ex.one(format, &view, &params, session, &rostopics[j], notify)?
+        }
+    };
+    write_file(&req.out, &text, notify)
+}
+
+/// The `rostopic` of each of `k` IMUs: the request's (one per IMU, or one
+/// with `imu`), else `/imu<j>`.
+fn rostopics(req: &ExportRequest, k: usize) -> anyhow::Result<Vec<String>> {
+    match req.rostopic.len() {
+        0 => Ok((0..k).map(|j| format!("/imu{j}")).collect()),
+        n if n == k => Ok(req.rostopic.clone()),
+        1 if req.imu.is_some() => Ok(vec![req.rostopic[0].clone(); k]),
+        n => bail!(
+            "--rostopic: {n} topics for {k} IMUs (give one per IMU, comma-separated{})",
+            if k > 1 { ", or one with --imu J" } else { "" }
+        ),
+    }
+}
+
+/// One export's inputs.
+struct Exporter<'a> {
+    req: &'a ExportRequest,
+    result: &'a CalibrationResult,
+    robot: &'a Robot,
+}
+
+impl Exporter<'_> {
+    /// IMU `j`'s one-IMU view of the result (docs/model.md §9).
+    fn view(&self, j: usize) -> anyhow::Result<CalibrationResult> {
+        self.result
+            .imu(j)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", self.req.calibration.display()))
+    }
+
+    /// IMU `j`'s parameters, with its one-IMU view.
+    fn imu_params(&self, j: usize) -> anyhow::Result<(CalibrationResult, ModelParams)> {
+        let view = self.view(j)?;
+        let params = calibrated_params(self.robot, &view).with_context(|| {
+            format!(
+                "{} does not fit robot `{}`",
+                self.req.calibration.display(),
+                self.req.spec
+            )
+        })?;
+        Ok((view, params))
+    }
+
+    /// The export of one IMU's parameters (`view`, `params`).
+    fn one(
+        &self,
+        format: ExportFormat,
+        view: &CalibrationResult,
+        params: &ModelParams,
+        session: Option<&Session>,
+        rostopic: &str,
+        notify: &mut dyn FnMut(Notice),
+    ) -> anyhow::Result<String> {
+        let (req, spec) = (self.req, self.req.spec.as_str());
+        Ok(match format {
+            ExportFormat::Toml => corrected_toml(self.robot, params)?,
+            ExportFormat::Correction => Correction::new(params)?.to_toml()?,
+            ExportFormat::Urdf => {
+                let path = match &req.spec_base {
+                    Some(b) if Path::new(spec).is_relative() => b.join(spec),
+                    _ => PathBuf::from(spec),
+                };
+                if !is_urdf(&path) {
+                    bail!("--format urdf needs a URDF robot; the robot is `{spec}` (use --format toml, or --robot FILE.urdf)");
+                }
+                let urdf = std::fs::read_to_string(&path)
+                    .with_context(|| format!("cannot read {}", path.display()))?;
+                let opts = UrdfOptions {
+                    base: req.links.base.clone(),
+                    tip: req.links.tip.clone(),
+                    ..UrdfOptions::default()
+                };
+                corrected_urdf(&urdf, &opts, params)?
+            }
+            ExportFormat::Kalibr => {
+                let j = req.imu.unwrap_or(0);
+                let opts = self.kalibr_options(view, session, j, rostopic, notify)?;
+                kalibr_imu_yaml(params, &opts)
+            }
+        })
+    }
+
+    /// The Kalibr options of IMU `j` (its one-IMU view `view`): the sample
+    /// rate from the request or the session's `imu.csv` / `imu<j>.csv`, the
+    /// noise from the request's noise file or the session, the fitted effects.
+    fn kalibr_options(
+        &self,
+        view: &CalibrationResult,
+        session: Option<&Session>,
+        j: usize,
+        rostopic: &str,
+        notify: &mut dyn FnMut(Notice),
+    ) -> anyhow::Result<KalibrOptions> {
+        let rate = sample_rate(self.req.rate, session, j)?;
+        let (sigma_z, noise_source) = match session {
+            Some(s) => (
+                s.noise(self.robot)?.0,
+                "largest per-sample σ of the session's noise / √rate".to_string(),
+            ),
+            None => (
+                self.robot.sigma_z(),
+                "largest per-sample σ of the robot's noise / √rate".to_string(),
+            ),
+        };
+        let mut noise = KalibrNoise {
+            sigma_z,
+            noise_source,
+            noise_density: None,
+            random_walk: DEFAULT_RANDOM_WALK,
+            random_walk_source: None,
+        };
+        if let Some(path) = &self.req.noise {
+            noise.read(path, notify)?;
+        }
+        match self.req.random_walk.as_slice() {
+            [] => {}
+            &[a, g] if [a, g].iter().all(|v| v.is_finite() && *v > 0.0) => {
+                noise.random_walk = [a, g];
+                noise.random_walk_source = Some("given with --random-walk".into());
+            }
+            other => bail!(
+                "--random-walk {other:?}: give two positive numbers, ACCEL,GYRO (Kalibr divides by them)"
+            ),
+        }
+        if noise.random_walk_source.is_none() {
+            notify(Notice::Note(format!(
+                "the random walks in the imu.yaml are placeholders ({}, {}): give --noise allan.csv of a long static recording, or --random-walk",
+                noise.random_walk[0], noise.random_walk[1]
+            )));
+        }
+        let (g_sensitivity, size_effect) = imu_effects(view)?;
+        Ok(KalibrOptions {
+            rate,
+            sigma_z: noise.sigma_z,
+            noise_density: noise.noise_density,
+            noise_source: noise.noise_source,
+            rostopic: rostopic.to_string(),
+            random_walk: noise.random_walk,
+            random_walk_source: noise.random_walk_source,
+            g_sensitivity,
+            size_effect,
+        })
+    }
+}
+
+/// IMU `j`'s sample rate: `given`, else the median rate of the session's
+/// `imu.csv` / `imu<j>.csv`.
+fn sample_rate(given: Option<f64>, session: Option<&Session>, j: usize) -> anyhow::Result<f64> {
+    let file = robimu_session::files::imu_csv(j);
+    let imu_table = session.and_then(|s| {
+        if j == 0 {
+            Some(&s.imu)
+        } else {
+            s.extra_imus.get(j - 1).map(|t| &t.samples)
+        }
+    });
+    let rate = match (given, imu_table) {
+        (Some(r), _) => r,
+        (None, Some(t)) => t
+            .median_rate()
+            .with_context(|| format!("the session's {file} has no sample interval: give --rate"))?,
+        (None, None) if session.is_some() => {
+            bail!("the result's session has no {file}: give --rate")
+        }
+        (None, None) => bail!(
+            "the IMU sample rate is unknown (the result's session is not readable): give --rate"
+        ),
+    };
+    if !(rate.is_finite() && rate > 0.0) {
+        bail!("--rate {rate}: must be a positive number of Hz");
+    }
+    Ok(rate)
+}
+
+/// The noise parts of [`KalibrOptions`].
+struct KalibrNoise {
+    sigma_z: [f64; 6],
+    noise_source: String,
+    noise_density: Option<[f64; 2]>,
+    random_walk: [f64; 2],
+    random_walk_source: Option<String>,
+}
+
+impl KalibrNoise {
+    /// The noise of `path`: an allan.csv (densities N and, where measurable,
+    /// random walks K) or a noise.toml (its `sigma_z`).
+    fn read(&mut self, path: &Path, notify: &mut dyn FnMut(Notice)) -> anyhow::Result<()> {
+        let shown = path.display();
+        let is_csv = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+        if !is_csv {
+            let file =
+                crate::noise::NoiseFile::read(path).with_context(|| format!("--noise {shown}"))?;
+            let Some(s) = file.noise.sigma_z else {
+                bail!("--noise {shown}: its [noise] table has no sigma_z");
+            };
+            self.sigma_z = s;
+            self.noise_source = format!("largest per-sample σ of {shown} / √rate");
+            return Ok(());
+        }
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read --noise {shown}"))?;
+        let curves = crate::allan::curves_from_csv(&text).map_err(|e| {
+            anyhow::anyhow!("--noise {shown}: not an allan.csv of `robimu allan`: {e}")
+        })?;
+        let largest = |r: std::ops::Range<usize>, f: &dyn Fn(usize) -> Option<f64>| {
+            r.map(f).try_fold(0.0f64, |m, v| v.map(|v| m.max(v)))
+        };
+        let density = |c: usize| Some(curves[c].terms.density).filter(|d| d.is_finite());
+        let walk =
+            |c: usize| crate::allan::rate_random_walk(&curves[c].curve, curves[c].terms.density);
+        let (Some(na), Some(ng)) = (largest(0..3, &density), largest(3..6, &density)) else {
+            bail!("--noise {shown}: no noise density on every channel");
+        };
+        self.noise_density = Some([na, ng]);
+        self.noise_source =
+            format!("the Allan deviation's N (largest of each sensor's axes) in {shown}");
+        match (largest(0..3, &walk), largest(3..6, &walk)) {
+            (Some(a), Some(g)) => {
+                self.random_walk = [a, g];
+                self.random_walk_source = Some(format!(
+                    "the Allan deviation's rate random walk K (σ = K·√(τ/3), largest of each sensor's axes) in {shown}"
+                ));
+            }
+            _ => notify(Notice::Note(format!(
+                "{shown}: the Allan curves do not rise as √τ on every axis (record longer at rest): the random walks stay placeholders"
+            ))),
+        }
+        Ok(())
+    }
+}
+
+/// IMU `j`'s file beside `out`: its stem followed by j (`imu.yaml` →
+/// `imu1.yaml`; `_` between a stem ending in a digit and j).
+pub fn per_imu_path(out: &Path, j: usize) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let sep = if stem.ends_with(|c: char| c.is_ascii_digit()) {
+        "_"
+    } else {
+        ""
+    };
+    let name = match out.extension() {
+        Some(e) => format!("{stem}{sep}{j}.{}", e.to_string_lossy()),
+        None => format!("{stem}{sep}{j}"),
+    };
+    out.with_file_name(name)
+}
+
+/// Write `text` to `path` and say so.
+fn write_file(path: &Path, text: &str, notify: &mut dyn FnMut(Notice)) -> anyhow::Result<()> {
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    notify(Notice::Wrote(path.to_path_buf()));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn per_imu_paths() {
+        let p = |s: &str, j| per_imu_path(Path::new(s), j);
+        assert_eq!(p("out/imu.yaml", 1), Path::new("out/imu1.yaml"));
+        assert_eq!(p("out/imu0.yaml", 2), Path::new("out/imu0_2.yaml"));
+        assert_eq!(p("corr", 0), Path::new("corr0"));
+    }
+}
