@@ -111,7 +111,6 @@ impl fmt::Display for RepairText<'_> {
     }
 }
 
-
 /// IMU `j`'s progress line: its board and sensor, samples, rate, gaps and
 /// the board's drops.
 pub fn imu_progress_line(j: usize, p: &robimu_record::ImuProgress) -> String {

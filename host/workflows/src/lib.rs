@@ -82,6 +82,6 @@ pub mod validate;
 pub mod verdict;
 
 pub use pipeline::{
-    calibrate_job, diagnose_session, load_session, resolve_robot, session_robot,
-    DiagnoseSettings, Diagnosed, Fitted, PipelineError, Prepared, Settings,
+    calibrate_job, diagnose_session, load_session, resolve_robot, session_robot, DiagnoseSettings,
+    Diagnosed, Fitted, PipelineError, Prepared, Settings,
 };
