@@ -310,7 +310,7 @@ fn null_false_alarms(seed: u64, duration: f64, rate_hz: u16) -> Vec<String> {
     found.into_iter().filter(|n| n != "sensor_delay").collect()
 }
 
-/// Seeds of the null-session test in CI (the README's figure runs 20:
+/// Seeds of the null-session test in CI (docs/performance.md's twin figure runs 20:
 /// `cargo test -p robimu --release --test twin -- --ignored twenty`).
 const NULL_SEEDS_CI: u64 = 3;
 
@@ -345,7 +345,7 @@ fn null_sessions_of_the_realistic_twin_raise_no_false_alarm() {
 /// default rate (`ROBIMU_TWIN_RATE=120` or `=100` runs them at an aliasing
 /// rate, for contrast; `ROBIMU_TWIN_CHIP_PPM=0` with an exact chip clock).
 #[test]
-#[ignore = "20 sessions of 60 s with a full diagnosis each (about 3 min in release); the README's figure"]
+#[ignore = "20 sessions of 60 s with a full diagnosis each (about 3 min in release); docs/performance.md's twin figure"]
 fn twenty_null_sessions_of_the_realistic_twin_raise_at_most_one_false_alarm() {
     let rate = std::env::var("ROBIMU_TWIN_RATE").map_or(RATE_HZ, |r| r.parse().unwrap());
     assert!(null_sessions(20, rate) <= 1);

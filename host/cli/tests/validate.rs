@@ -160,7 +160,7 @@ fn with_correct_frozen_lengths_the_classical_calibration_reaches_tracker_noise()
 /// — frozen as the paper froze them, by a near-zero prior, so the truth drawn
 /// from the priors has them at nominal — and the IMU calibration run on a
 /// planned excitation (the paper's optimal trajectory), 600 s (at the
-/// paper's 300 s the ratio is 1.0–1.4, 1.15 on average: see README).
+/// paper's 300 s the ratio is 1.0–1.4, 1.15 on average: see docs/guide/validation.md).
 /// Held-out position error at least 3× below nominal and within 20 % of the
 /// classical tracker calibration, on each of five drawn robots and on average.
 #[test]

@@ -257,7 +257,7 @@ pub const REALISTIC_CHIP_CLOCK_PPM: f64 = 8_000.0;
 /// The realistic twin's accelerometer noise (φ, c) of
 /// [`SimRigConfig::with_vibration_noise`]: AR(1) with a 30 ms correlation
 /// time per internal update at 125 Hz (φ = e^(−8/30) ≈ 0.77) and a level
-/// σ² + 0.3‖q̈‖² (the motion case of the README's Monte Carlo).
+/// σ² + 0.3‖q̈‖² (the motion case of the Monte Carlo of docs/guide/calibrating.md).
 pub const REALISTIC_VIBRATION: (f64, f64) = (0.766, 0.3);
 
 /// The realistic twin's warm-up: 300 s from 30 °C to 40 °C, the biases

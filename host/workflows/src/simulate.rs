@@ -8,8 +8,6 @@
 //! t + τ falls outside the motion are still physical (the estimator leaves
 //! them out, docs/model.md §4).
 
-pub mod session;
-
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robimu_model::params::draw_truth;

@@ -19,8 +19,6 @@
 //! the IMU output corrected by the inverse of eq. (6) with nominal, calibrated
 //! and standard-calibration intrinsics is compared against them.
 
-pub mod session;
-
 use crate::baseline::{self, ImuBaseline, RobotBaseline};
 use crate::tracker::{
     flange_eps, flange_pose, pose_from_row, register, Registration, TrackedPose, ValidateError,

@@ -1,6 +1,6 @@
 //! `robimu calibrate-batch`: production batches — many sessions calibrated
 //! in parallel as `robimu calibrate` does, one summary CSV, pass/fail
-//! against a limits file (README "Production batches").
+//! against a limits file (docs/guide/calibrating.md "Production batches").
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -32,7 +32,7 @@ pub struct CalibrateBatchCmd {
     #[arg(required = true, value_name = "DIR")]
     pub dirs: Vec<PathBuf>,
     /// Limits every unit must meet: a TOML file with one `[limits]` table
-    /// (README "Production batches").
+    /// (docs/guide/calibrating.md "Production batches").
     #[arg(long, value_name = "FILE")]
     pub limits: Option<PathBuf>,
     /// The summary CSV to write.

@@ -4,7 +4,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::bail;
-use robimu_workflows::simulate::session::{check_rates, simulate_session, SessionSpec};
+use robimu_workflows::pipeline::simulate::{check_rates, simulate_session, SessionSpec};
 
 use crate::args::UrdfLinks;
 use crate::input::{place_imus, resolve_robot_with};

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use robimu_report::html::{tracker_alignment_text, validation_report_with};
 use robimu_report::validation::{write_validation_json, ImuAccuracyTable, RobotAccuracyTable};
-use robimu_workflows::validate::session::{validate_session, ValidateRequest};
+use robimu_workflows::pipeline::validate::{validate_session, ValidateRequest};
 
 /// Validate a calibration against an external tracker.
 ///

@@ -1,5 +1,5 @@
 //! The pass/fail limits of a production batch: a TOML file with one
-//! `[limits]` table (README "Production batches"). Parameter limits are
+//! `[limits]` table (docs/guide/calibrating.md "Production batches"). Parameter limits are
 //! on result.json's values and σ (SI units, docs/model.md §5); the
 //! residual limits on the whitened residual RMS (1 = as modelled).
 //!

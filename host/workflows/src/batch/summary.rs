@@ -1,4 +1,4 @@
-//! The summary of a batch: one row per session and IMU (README "Production
+//! The summary of a batch: one row per session and IMU (docs/guide/calibrating.md "Production
 //! batches" lists the columns), written as CSV.
 
 use std::path::{Path, PathBuf};

@@ -151,7 +151,7 @@ fn stream(name: &str, table: &Table, nominal: Option<f64>) -> Vec<Finding> {
 /// a poll's round trip (the AUBO driver stamps a joint reply at the
 /// midpoint of its request and reply) a stalled host puts errors into them,
 /// the trajectory spline follows them and the knot choice takes finer knots
-/// (README, Recording: the real-time demo's sessions, where dropping these
+/// (docs/guide/recording.md: the real-time demo's sessions, where dropping these
 /// rows restored the 125 ms knots).
 fn stamps_off(name: &str, t: &[f64], period: f64) -> Option<Finding> {
     let (mut off, mut count, mut worst) = (0usize, 0usize, (0.0f64, 0usize));

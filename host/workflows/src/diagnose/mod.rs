@@ -1,66 +1,14 @@
 //! Model-discrepancy diagnosis: where the calibrated model and the
 //! measurement disagree, which catalogued effect ([`robimu_model::effects`]) explains
-//! it, and how much the gap shrinks when it is added.
-//!
-//! 1. Fit the baseline (the [`fit`](crate::calibrate::fit) of every
-//!    calibration) and predict every IMU sample; refits with effects are the
-//!    same fit with the effects' parameter blocks added.
-//! 2. Residual analysis ([`ResidualStats`]): whitened RMS and χ² per channel,
-//!    Ljung–Box whiteness, the largest spectral peak, the time window where
-//!    residuals concentrate, the regressor they correlate with most.
-//! 3. Score every candidate effect at the current fit without refitting: the
-//!    Rao score (Lagrange-multiplier) statistic
-//!
-//!    ```text
-//!    S = gᵀ A⁻¹ g |augmented − gᵀ A⁻¹ g |current      ~ χ²(k) under H0
-//!    ```
-//!
-//!    g the gradient of the negative log-posterior and A its Gauss–Newton
-//!    information, over all unknowns θ = [c, x_a, θ_E] (spline, baseline
-//!    parameters, effects already added). With the candidate's parameters at
-//!    0 this is u_eᵀ (I_ee − I_eθ I_θθ⁻¹ I_θe)⁻¹ u_e, the *efficient* score
-//!    (baseline information partialled out); the subtraction removes the
-//!    tiny non-zero gradient a converged fit leaves on θ.
-//! 4. Rank by p-value; the winner is significant when p < α/K (Bonferroni
-//!    over the K catalogue effects). Confirm by refitting the augmented model:
-//!    likelihood-ratio statistic LR = 2 (J_before − J_after) (also Bonferroni)
-//!    and ΔBIC = −LR + k ln N (reported). Add it, and repeat until no
-//!    candidate is significant.
-//!
-//! **Noise** ([`DiagnoseOptions::noise`], docs/model.md §4.6). `White` is
-//! the paper's model; `Given` fits and tests with that model; `Auto` (the
-//! default) fits the white baseline, tests its raw residuals' whiteness and,
-//! when they fail, identifies the noise from them ([`identify_at`]: Burg AR,
-//! order by BIC, motion level; calibrate's rule) and refits until the model
-//! settles (calibrate's loop [`noise_choice::settle_noise`], at most
-//! [`noise_choice::MAX_REFITS`] refits; else the white fit with a warning). Every score, refit, LR and residual
-//! statistic then uses the prewhitened (GLS) residuals, so correlated
-//! samples are not counted as independent. The signal of a missing effect
-//! is in the residuals the noise is identified from; after each effect is
-//! added the noise is identified again from the augmented fit's residuals
-//! and, when it changed, the fit is redone with it (the next round's tests
-//! use it). The AR order is capped at [`NOISE_MAX_ORDER`] = 1: an AR(1)
-//! spectrum is monotone, so it cannot take up a narrow peak, which then
-//! stays in the prewhitened residuals and is reported. Measured
-//! (`host/cli/tests/diagnose.rs` sessions, AR(1) accelerometer noise of
-//! 30 ms, a sinusoid at 17 Hz in az): with calibrate's limit (8) BIC picks
-//! AR(8) from a 0.6σ sinusoid on and the whitening flattens the line (peak
-//! over median 10, 7, 2.6 at 0.6, 1, 2σ), with the cap it stays (33, 93,
-//! 371); `bias_drift` (0.2 °/s, white noise) makes the white baseline's
-//! gyroscope residuals fail the whiteness test, and its score is 727 with
-//! the limit 8, 1438 with the cap (1796 diagnosed as white; measured with
-//! the former Legendre form of bias_drift, docs/model.md §4.6); the other
-//! effects at their test magnitudes (and resonance at 3×) are not absorbed
-//! either way (φ moves by < 0.002 when one is added). The
-//! re-identification makes the final fit's noise white again once such an
-//! effect is added. A noise with correlation beyond AR(1) is
-//! better given (`--noise-model FILE`, e.g. from calibrate's identification).
-//!
-//! **Unexplained structure** ([`unexplained`]): a channel of the final fit
-//! whose prewhitened residuals keep a narrow spectral peak — the largest
-//! Welch bin exceeds the channel's median power by more than a flat
-//! spectrum allows ([`peak_p_value`] < [`UNEXPLAINED_ALPHA`]/6, Bonferroni
-//! over the bins and the six channels) — with the regressor it follows.
+//! it, and how much the gap shrinks when it is added. The algorithm is
+//! docs/model.md §4.10 (ranking and stopping §4.9): the baseline
+//! [`fit`](crate::calibrate::fit), the residual analysis ([`ResidualStats`]),
+//! every candidate's Rao score at the current fit ([`score_all`]), the
+//! winner added when significant (Bonferroni over the candidates) and
+//! confirmed by a refit's likelihood ratio (the `search` module), under the noise
+//! model of [`DiagnoseOptions::noise`] (identified again after each effect,
+//! AR order capped at [`NOISE_MAX_ORDER`]), and the structure left
+//! ([`unexplained`]).
 
 pub use crate::stats::{chi2_sf, ljung_box, ln_gamma, LJUNG_BOX_LAGS};
 

@@ -7,6 +7,8 @@
 //! * [`diagnose_session`]: `robimu diagnose` (docs/model.md §7) with its
 //!   [`DiagnoseSettings`];
 //! * [`jobs`] and [`calibrate_job`]: `robimu calibrate-batch`;
+//! * [`simulate::simulate_session`]: `robimu simulate`; [`validate::validate_session`]:
+//!   `robimu validate`;
 //! * [`load_session`] and [`resolve_robot`]: a session and the robot it names.
 //!
 //! Errors are [`PipelineError`]s whose kind says whose fault it was (the
@@ -29,6 +31,8 @@ mod calibration;
 mod diagnosis;
 mod input;
 pub mod noise_spec;
+pub mod simulate;
+pub mod validate;
 
 pub use batch::{calibrate_job, jobs, Job};
 pub use calibration::{write_result, Fitted, Prepared, Settings};

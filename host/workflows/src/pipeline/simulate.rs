@@ -20,10 +20,12 @@ use robimu_session::{
     NoiseOverride, NoiseShape, SessionMeta, SessionWriter, Truth, IMU_TEMP_COLUMN,
 };
 
-use super::{add_bias_walk, simulate, tracker_recording, SimulateOptions, WarmUpTemperature};
-use crate::pipeline::checked_mode;
-use crate::pipeline::noise_spec::parse_noise_model;
+use super::checked_mode;
+use super::noise_spec::parse_noise_model;
 use crate::plan::files::read_plan;
+use crate::simulate::{
+    add_bias_walk, simulate, tracker_recording, SimulateOptions, WarmUpTemperature,
+};
 
 /// What to simulate and where to write it (`robimu simulate`'s flags).
 #[derive(Debug, Clone)]

@@ -11,11 +11,11 @@ use robimu_session::poses::read_pose_file;
 use robimu_session::result::CalibrationResult;
 use robimu_session::{files, Session};
 
-use super::{robot_accuracy, ImuAccuracy, RobotAccuracy};
+use super::load_session;
 use crate::motion_accuracy::{align_tracker, motion_imu_accuracy};
-use crate::pipeline::load_session;
 use crate::tracker::{tracked_poses, TrackedPose};
 use crate::tracker_offset::TrackerAlignment;
+use crate::validate::{robot_accuracy, ImuAccuracy, RobotAccuracy};
 
 /// What to validate (`robimu validate`'s flags).
 #[derive(Debug, Clone, Default)]
