@@ -11,8 +11,9 @@ public from the crate's root (a chain of `pub mod`), and the names that
 
 * "root"    when the crate root (src/lib.rs) lists it: `pub use` of it or
             `pub mod` of it, each with its doc line (the entry points);
-* "outside" when another package of the workspace names it (word match
-            in its .rs files, tests and benches included);
+* "outside" when another package of the workspace, or the crate's own
+            tests/, benches/ or examples/ (crates of their own), names it
+            (word match in the .rs files);
 * "unused"  otherwise: public, but neither an entry point nor used by
             another package (a candidate for `pub(crate)`).
 
@@ -160,7 +161,14 @@ def main():
                     names.setdefault(n, path)
                     if path == lib:
                         root_listed.add(n)
-        outside_text = "\n".join(t for d, t in texts.items() if d != pkg)
+        # other packages, and this package's own tests, benches and examples
+        # (each a crate of its own that uses the library's public API)
+        own = "\n".join(
+            f.read_text(errors="replace")
+            for sub in ("tests", "benches", "examples")
+            for f in (pkg / sub).rglob("*.rs")
+        )
+        outside_text = "\n".join(t for d, t in texts.items() if d != pkg) + own
         counts = {"root": 0, "outside": 0, "unused": 0}
         unused = []
         for n, path in sorted(names.items()):

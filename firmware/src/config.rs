@@ -7,7 +7,7 @@ use robimu_protocol::SensorConfig;
 pub const BNO055_ADDRESSES: [u8; 2] = [0x28, 0x29];
 
 /// Highest accepted sample rate, Hz (the BNO055 AMG data rate limits what is useful).
-pub const MAX_SAMPLE_RATE_HZ: u16 = 1000;
+pub(crate) const MAX_SAMPLE_RATE_HZ: u16 = 1000;
 
 /// How the acquisition core runs. `Default` is the paper's rig on an
 /// Adafruit-style board; change fields with struct update syntax:
@@ -68,6 +68,6 @@ impl Config {
 
 /// Whether `sensor` can be applied (the enums are always valid; the rate must
 /// be 1..=[`MAX_SAMPLE_RATE_HZ`]).
-pub fn sensor_config_valid(sensor: &SensorConfig) -> bool {
+pub(crate) fn sensor_config_valid(sensor: &SensorConfig) -> bool {
     (1..=MAX_SAMPLE_RATE_HZ).contains(&sensor.sample_rate_hz)
 }

@@ -42,6 +42,8 @@ pub use config::Config;
 pub use error::Error;
 pub use sensor::Identity;
 
+pub use crate::sensor::AmgReading;
+
 /// Firmware version `[major, minor, patch]`, from the crate version.
 pub const FIRMWARE_VERSION: [u8; 3] = [
     parse_u8(env!("CARGO_PKG_VERSION_MAJOR")),

@@ -7,50 +7,50 @@
 use robimu_protocol::{AccelBandwidth, AccelRange, GyroBandwidth, GyroRange, SensorConfig};
 
 /// `PAGE_ID` (both pages).
-pub const PAGE_ID: u8 = 0x07;
+pub(crate) const PAGE_ID: u8 = 0x07;
 /// Page 0: `ACC_DATA_X_LSB`; the 18 bytes from here are accelerometer,
 /// magnetometer and gyroscope x, y, z as little-endian `i16`.
-pub const ACC_DATA_X_LSB: u8 = 0x08;
+pub(crate) const ACC_DATA_X_LSB: u8 = 0x08;
 /// Length of the accelerometer + magnetometer + gyroscope burst, bytes (0x08..=0x19).
-pub const AMG_DATA_LEN: usize = 18;
+pub(crate) const AMG_DATA_LEN: usize = 18;
 /// Offset of the gyroscope x LSB within the burst (`GYR_DATA_X_LSB` = 0x14).
-pub const GYR_OFFSET_IN_BURST: usize = 12;
+pub(crate) const GYR_OFFSET_IN_BURST: usize = 12;
 /// Page 0: `TEMP`.
 pub const TEMP: u8 = 0x34;
 /// Page 0: `UNIT_SEL`.
 pub const UNIT_SEL: u8 = 0x3B;
 /// Page 0: `OPR_MODE`.
-pub const OPR_MODE: u8 = 0x3D;
+pub(crate) const OPR_MODE: u8 = 0x3D;
 /// Page 1: `ACC_Config`.
-pub const ACC_CONFIG: u8 = 0x08;
+pub(crate) const ACC_CONFIG: u8 = 0x08;
 /// Page 1: `GYR_Config_0` (range bits 2:0, bandwidth bits 5:3).
-pub const GYR_CONFIG_0: u8 = 0x0A;
+pub(crate) const GYR_CONFIG_0: u8 = 0x0A;
 /// Page 1: `GYR_Config_1` (power mode bits 2:0).
-pub const GYR_CONFIG_1: u8 = 0x0B;
+pub(crate) const GYR_CONFIG_1: u8 = 0x0B;
 
 /// `OPR_MODE` operation mode AMG (accelerometer, magnetometer, gyroscope; no fusion).
-pub const MODE_AMG: u8 = 0x07;
+pub(crate) const MODE_AMG: u8 = 0x07;
 
 /// `UNIT_SEL`: acceleration in m/s² (bit 0 clear), angular rate in rad/s
 /// (bit 1 set), Euler angles in degrees, temperature in °C, Windows
 /// orientation (bit 7 clear).
-pub const UNIT_SEL_MPS2_RADS_CELSIUS: u8 = 0b0000_0010;
+pub(crate) const UNIT_SEL_MPS2_RADS_CELSIUS: u8 = 0b0000_0010;
 
 /// `GYR_Config_1`: normal power mode.
-pub const GYR_CONFIG_1_NORMAL: u8 = 0x00;
+pub(crate) const GYR_CONFIG_1_NORMAL: u8 = 0x00;
 
 /// m/s² per accelerometer count with `UNIT_SEL` in m/s² (1 m/s² = 100 LSB,
 /// datasheet table 3-17; independent of the range).
-pub const ACCEL_SCALE_MPS2_PER_LSB: f32 = 0.01;
+pub(crate) const ACCEL_SCALE_MPS2_PER_LSB: f32 = 0.01;
 /// rad/s per gyroscope count with `UNIT_SEL` in rad/s (1 rad/s = 900 LSB,
 /// datasheet table 3-22; independent of the range).
-pub const GYRO_SCALE_RADS_PER_LSB: f32 = 1.0 / 900.0;
+pub(crate) const GYRO_SCALE_RADS_PER_LSB: f32 = 1.0 / 900.0;
 /// °C per temperature count (1 °C = 1 LSB, table 3-37).
-pub const TEMP_SCALE_C_PER_LSB: f32 = 1.0;
+pub(crate) const TEMP_SCALE_C_PER_LSB: f32 = 1.0;
 
 /// `ACC_Config` for `config`: range bits 1:0, bandwidth bits 4:2, normal
 /// power mode (bits 7:5 clear).
-pub fn acc_config(config: &SensorConfig) -> u8 {
+pub(crate) fn acc_config(config: &SensorConfig) -> u8 {
     let range = match config.accel_range {
         AccelRange::G2 => 0b00,
         AccelRange::G4 => 0b01,
@@ -71,7 +71,7 @@ pub fn acc_config(config: &SensorConfig) -> u8 {
 }
 
 /// `GYR_Config_0` for `config`: range bits 2:0, bandwidth bits 5:3.
-pub fn gyr_config_0(config: &SensorConfig) -> u8 {
+pub(crate) fn gyr_config_0(config: &SensorConfig) -> u8 {
     let range = match config.gyro_range {
         GyroRange::Dps2000 => 0b000,
         GyroRange::Dps1000 => 0b001,

@@ -20,7 +20,7 @@ const US_PER_S: u64 = 1_000_000;
 
 /// The deadline sequence of one streaming run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Schedule {
+pub(crate) struct Schedule {
     rate_hz: u32,
     /// Device time of deadline 0 of the current second, µs (wrapping).
     base_us: u32,

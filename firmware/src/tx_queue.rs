@@ -7,7 +7,7 @@
 
 /// A byte ring buffer of `N` bytes.
 #[derive(Debug, Clone)]
-pub struct TxQueue<const N: usize> {
+pub(crate) struct TxQueue<const N: usize> {
     buf: [u8; N],
     head: usize,
     len: usize,

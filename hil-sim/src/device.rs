@@ -157,7 +157,7 @@ impl Clock for DriftingClock {
 
 /// `DelayNs` by sleeping the thread.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct SleepDelay;
+pub(crate) struct SleepDelay;
 
 impl DelayNs for SleepDelay {
     fn delay_ns(&mut self, ns: u32) {
@@ -206,7 +206,7 @@ impl SplitMix {
 
 /// A failed read or write on the pseudo-terminal master.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct PtyError(pub Errno);
+pub(crate) struct PtyError(pub Errno);
 
 impl embedded_io::Error for PtyError {
     fn kind(&self) -> embedded_io::ErrorKind {
@@ -220,7 +220,7 @@ impl embedded_io::Error for PtyError {
 /// With no host attached the master cannot be read (`EIO`): that reads as
 /// "no data". Writes go to the pty buffer until it is full (`EAGAIN`: not
 /// ready), like a USB serial adapter nobody reads.
-pub struct PtySerial {
+pub(crate) struct PtySerial {
     master: TTYPort,
     control: Arc<Control>,
     rng: SplitMix,
@@ -318,10 +318,10 @@ impl embedded_io::Write for PtySerial {
 }
 
 /// The simulated chips' bus.
-pub type SimBus = Bno055Bus<Box<dyn SampleSource + Send>>;
+pub(crate) type SimBus = Bno055Bus<Box<dyn SampleSource + Send>>;
 
 /// The acquisition core as the simulated device runs it.
-pub type SimCore = Acquisition<SimBus, SleepDelay, PtySerial, DriftingClock>;
+pub(crate) type SimCore = Acquisition<SimBus, SleepDelay, PtySerial, DriftingClock>;
 
 /// A running simulated device; stopped on [`stop`](Self::stop) or drop.
 pub struct SimDevice {

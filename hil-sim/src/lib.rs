@@ -17,3 +17,8 @@ pub mod aubo;
 pub mod device;
 mod server;
 pub mod ur;
+
+pub use crate::arm::TrueSample;
+pub use crate::aubo::StateProbe;
+pub use crate::device::DriftingClock;
+pub use crate::ur::UrStateProbe;

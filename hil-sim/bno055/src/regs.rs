@@ -18,15 +18,15 @@ pub const SW_REV_ID_MSB: u8 = 0x05;
 /// Page 0: `BL_REV_ID`.
 pub const BL_REV_ID: u8 = 0x06;
 /// Page 0: `ACC_DATA_X_LSB`, first of 6 accelerometer bytes (x, y, z little-endian i16).
-pub const ACC_DATA: u8 = 0x08;
+pub(crate) const ACC_DATA: u8 = 0x08;
 /// Page 0: `MAG_DATA_X_LSB`, first of 6 magnetometer bytes.
-pub const MAG_DATA: u8 = 0x0E;
+pub(crate) const MAG_DATA: u8 = 0x0E;
 /// Page 0: `GYR_DATA_X_LSB`, first of 6 gyroscope bytes.
-pub const GYR_DATA: u8 = 0x14;
+pub(crate) const GYR_DATA: u8 = 0x14;
 /// Page 0: `TEMP` (signed byte).
 pub const TEMP: u8 = 0x34;
 /// Page 0: `SYS_STATUS`.
-pub const SYS_STATUS: u8 = 0x39;
+pub(crate) const SYS_STATUS: u8 = 0x39;
 /// Page 0: `UNIT_SEL`.
 pub const UNIT_SEL: u8 = 0x3B;
 /// Page 0: `OPR_MODE`.
@@ -36,45 +36,43 @@ pub const PWR_MODE: u8 = 0x3E;
 /// Page 0: `SYS_TRIGGER`.
 pub const SYS_TRIGGER: u8 = 0x3F;
 /// `SYS_TRIGGER` bit 5: system reset.
-pub const SYS_TRIGGER_RST_SYS: u8 = 0x20;
+pub(crate) const SYS_TRIGGER_RST_SYS: u8 = 0x20;
 /// Page 0: `AXIS_MAP_CONFIG`.
-pub const AXIS_MAP_CONFIG: u8 = 0x41;
-/// Page 0: `AXIS_MAP_SIGN`.
-pub const AXIS_MAP_SIGN: u8 = 0x42;
+pub(crate) const AXIS_MAP_CONFIG: u8 = 0x41;
 
 /// Page 1: `ACC_Config` (range bits 1:0, bandwidth bits 4:2, power mode bits 7:5).
 pub const ACC_CONFIG: u8 = 0x08;
 /// Page 1: `MAG_Config`.
-pub const MAG_CONFIG: u8 = 0x09;
+pub(crate) const MAG_CONFIG: u8 = 0x09;
 /// Page 1: `GYR_Config_0` (range bits 2:0, bandwidth bits 5:3).
 pub const GYR_CONFIG_0: u8 = 0x0A;
 /// Page 1: `GYR_Config_1` (power mode bits 2:0).
 pub const GYR_CONFIG_1: u8 = 0x0B;
 /// Page 1: `INT_MSK`.
-pub const INT_MSK: u8 = 0x0F;
+pub(crate) const INT_MSK: u8 = 0x0F;
 /// Page 1: `INT_EN`.
-pub const INT_EN: u8 = 0x10;
+pub(crate) const INT_EN: u8 = 0x10;
 
 /// `OPR_MODE` value of CONFIG mode.
-pub const MODE_CONFIG: u8 = 0x00;
+pub(crate) const MODE_CONFIG: u8 = 0x00;
 /// `OPR_MODE` value of AMG mode (accelerometer, magnetometer, gyroscope; no fusion).
 pub const MODE_AMG: u8 = 0x07;
 
 /// Datasheet identity values.
-pub const CHIP_ID_VALUE: u8 = 0xA0;
+pub(crate) const CHIP_ID_VALUE: u8 = 0xA0;
 /// Accelerometer id.
-pub const ACC_ID_VALUE: u8 = 0xFB;
+pub(crate) const ACC_ID_VALUE: u8 = 0xFB;
 /// Magnetometer id.
-pub const MAG_ID_VALUE: u8 = 0x32;
+pub(crate) const MAG_ID_VALUE: u8 = 0x32;
 /// Gyroscope id.
-pub const GYR_ID_VALUE: u8 = 0x0F;
+pub(crate) const GYR_ID_VALUE: u8 = 0x0F;
 /// Software revision simulated (3.11, i.e. `SW_REV_ID` = 0x0311).
-pub const SW_REV_VALUE: u16 = 0x0311;
+pub(crate) const SW_REV_VALUE: u16 = 0x0311;
 /// Bootloader revision simulated.
-pub const BL_REV_VALUE: u8 = 0x15;
+pub(crate) const BL_REV_VALUE: u8 = 0x15;
 
 /// Page 0 reset values that are not zero (register, value).
-pub const PAGE0_RESET: &[(u8, u8)] = &[
+pub(crate) const PAGE0_RESET: &[(u8, u8)] = &[
     (CHIP_ID, CHIP_ID_VALUE),
     (ACC_ID, ACC_ID_VALUE),
     (MAG_ID, MAG_ID_VALUE),
@@ -87,7 +85,7 @@ pub const PAGE0_RESET: &[(u8, u8)] = &[
 ];
 
 /// Page 1 reset values that are not zero (register, value).
-pub const PAGE1_RESET: &[(u8, u8)] = &[
+pub(crate) const PAGE1_RESET: &[(u8, u8)] = &[
     (PAGE_ID, 0x01),
     (ACC_CONFIG, 0x0D),
     (MAG_CONFIG, 0x6D),

@@ -112,7 +112,7 @@ impl Timing {
 }
 
 /// Accelerometer full scale for an `ACC_Config` value (bits 1:0), m/s².
-pub fn accel_full_scale_mps2(acc_config: u8) -> f64 {
+pub(crate) fn accel_full_scale_mps2(acc_config: u8) -> f64 {
     let g = match acc_config & 0x03 {
         0 => 2.0,
         1 => 4.0,
@@ -124,7 +124,7 @@ pub fn accel_full_scale_mps2(acc_config: u8) -> f64 {
 
 /// Gyroscope full scale for a `GYR_Config_0` value (bits 2:0; 5..7 read as
 /// 125 °/s), rad/s.
-pub fn gyro_full_scale_rads(gyr_config_0: u8) -> f64 {
+pub(crate) fn gyro_full_scale_rads(gyr_config_0: u8) -> f64 {
     let dps = match gyr_config_0 & 0x07 {
         0 => 2000.0,
         1 => 1000.0,
@@ -136,10 +136,10 @@ pub fn gyro_full_scale_rads(gyr_config_0: u8) -> f64 {
 }
 
 /// Standard gravity, m/s² (the mg unit).
-pub const STANDARD_GRAVITY: f64 = 9.80665;
+pub(crate) const STANDARD_GRAVITY: f64 = 9.80665;
 
 /// Counts per SI unit for `UNIT_SEL`: (accelerometer per m/s², gyroscope per rad/s).
-pub fn counts_per_unit(unit_sel: u8) -> (f64, f64) {
+pub(crate) fn counts_per_unit(unit_sel: u8) -> (f64, f64) {
     let accel = if unit_sel & 0x01 == 0 {
         100.0
     } else {
@@ -154,7 +154,7 @@ pub fn counts_per_unit(unit_sel: u8) -> (f64, f64) {
 }
 
 /// The `TEMP` register for a die temperature (`UNIT_SEL` bit 4: °F at 2 LSB).
-pub fn temp_counts(unit_sel: u8, temp_c: f64) -> i8 {
+pub(crate) fn temp_counts(unit_sel: u8, temp_c: f64) -> i8 {
     let value = if unit_sel & 0x10 == 0 {
         temp_c
     } else {

@@ -66,7 +66,8 @@ mod robot;
 mod rpc;
 mod virtual_arm;
 
-pub use crate::arm::{Joints, TrueMotion, TrueSample, TrueState, JOINTS};
+use crate::arm::TrueSample;
+pub use crate::arm::{Joints, TrueMotion, TrueState, JOINTS};
 pub use robimu_controller_wire::StreamParser;
 pub use robot::JointLimits;
 pub use virtual_arm::VirtualAubo;

@@ -51,7 +51,7 @@ mod robot;
 mod rtde;
 mod script;
 
-pub use script::{parse_program, Command};
+pub use script::Command;
 
 use robot::Robot;
 

@@ -63,7 +63,7 @@ pub enum ArmPhysicsError {
 
 /// A URDF `<origin>`: `Trans(xyz)·Rz(yaw)·Ry(pitch)·Rx(roll)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct UrdfOrigin {
+pub(crate) struct UrdfOrigin {
     /// Translation, m.
     pub xyz: [f64; 3],
     /// Roll, pitch, yaw, rad.
@@ -90,7 +90,7 @@ impl UrdfOrigin {
 
 /// One revolute joint: its origin in the parent link and its axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct UrdfRevolute {
+pub(crate) struct UrdfRevolute {
     /// `<origin>`.
     pub origin: UrdfOrigin,
     /// `<axis xyz>`, unit length.
@@ -99,7 +99,7 @@ pub struct UrdfRevolute {
 
 /// The arm as a URDF chain with the IMU on its tip (see the module doc).
 #[derive(Clone, Debug, PartialEq)]
-pub struct UrdfArm {
+pub(crate) struct UrdfArm {
     /// Joints, base to flange.
     pub joints: Vec<UrdfRevolute>,
     /// The IMU frame in the last link.
@@ -114,7 +114,7 @@ pub struct UrdfArm {
 
 /// What the forward pass gives at the IMU.
 #[derive(Clone, Copy, Debug)]
-pub struct ImuKinematics {
+pub(crate) struct ImuKinematics {
     /// IMU frame rotation in the base frame.
     pub r: Matrix3<f64>,
     /// ω, IMU frame.
@@ -284,7 +284,7 @@ struct ModeState {
 
 /// The arm with its hidden effects, evaluated sample by sample.
 #[derive(Clone, Debug)]
-pub struct ArmPhysics {
+pub(crate) struct ArmPhysics {
     arm: UrdfArm,
     effects: ArmEffects,
     g0: f64,
@@ -317,11 +317,6 @@ impl ArmPhysics {
             g0,
             mode: None,
         })
-    }
-
-    /// The chain.
-    pub fn arm(&self) -> &UrdfArm {
-        &self.arm
     }
 
     /// Number of joints.
@@ -422,6 +417,7 @@ impl ArmPhysics {
     }
 
     /// The mode's displacement (d, φ) now (zeros before the first sample).
+    #[cfg(test)]
     pub fn mode_displacement(&self) -> [f64; 6] {
         self.mode
             .map_or([0.0; 6], |m| std::array::from_fn(|c| m.x[c]))

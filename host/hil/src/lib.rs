@@ -41,3 +41,8 @@ pub mod rig;
 pub mod truth;
 pub mod truth_check;
 pub mod twin;
+
+pub use crate::arm_physics::{ArmPhysicsError, StructuralMode};
+pub use crate::rig::RigError;
+pub use crate::rig::SecondImu;
+pub use crate::twin::TwinError;

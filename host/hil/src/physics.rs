@@ -42,9 +42,9 @@ use robimu_model::noise::{NoiseModel, NoiseModelError, NoiseSampler};
 use robimu_model::{JointState, MeasurementModel};
 
 /// m/s² per accelerometer count (`UNIT_SEL` m/s²: 100 LSB per m/s²).
-pub const ACCEL_LSB: f64 = 0.01;
+pub(crate) const ACCEL_LSB: f64 = 0.01;
 /// rad/s per gyroscope count (`UNIT_SEL` rad/s: 900 LSB per rad/s).
-pub const GYRO_LSB: f64 = 1.0 / 900.0;
+pub(crate) const GYRO_LSB: f64 = 1.0 / 900.0;
 
 /// A warm-up after power-up: with f(t) = exp(−t/τ) (t from power-up), the
 /// die temperature is `temp_end_c + (temp_start_c − temp_end_c)·f(t)` and
@@ -84,7 +84,7 @@ impl WarmUp {
 /// docs/model.md §4.6): channels `ax, ay, az` AR(1) with coefficient `phi`
 /// and marginal σ at rest from `sigma_z`, variance σ² + `motion`·‖q̈‖²; the
 /// gyroscope white with `sigma_z`.
-pub fn vibration_noise(
+pub(crate) fn vibration_noise(
     sigma_z: [f64; 6],
     phi: f64,
     motion: f64,
@@ -96,7 +96,7 @@ pub fn vibration_noise(
 const TEMPERATURE_C: f64 = 25.0;
 
 /// IMU readings computed from the simulated arm's true motion.
-pub struct ModelSource {
+pub(crate) struct ModelSource {
     probe: Box<dyn TrueMotion>,
     model: MeasurementModel,
     /// The independent chain with hidden effects instead of `model`.
@@ -192,14 +192,9 @@ impl ModelSource {
     }
 
     /// How many readings (ideal chip) or stimuli (datasheet mode) were taken so far.
+    #[cfg(test)]
     pub fn latched(&self) -> u64 {
         self.latched
-    }
-
-    /// The noise-free sensor output now (m/s², rad/s), before quantisation.
-    pub fn ideal_now(&mut self) -> [f64; 6] {
-        let state = self.probe.now();
-        self.ideal_at(&state)
     }
 
     fn ideal_at(&mut self, state: &TrueState) -> [f64; 6] {
@@ -218,7 +213,7 @@ impl ModelSource {
 }
 
 /// Rounds `value` to counts of `lsb`, saturated at ±`full_scale`.
-pub fn to_counts(value: f64, lsb: f64, full_scale: f64) -> i16 {
+pub(crate) fn to_counts(value: f64, lsb: f64, full_scale: f64) -> i16 {
     let limit = (full_scale / lsb).floor().min(f64::from(i16::MAX));
     (value / lsb).round().clamp(-limit, limit) as i16
 }

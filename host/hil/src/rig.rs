@@ -29,7 +29,8 @@ use robimu_hil_sim::ur::{SimUr, SimUrConfig, SimUrError};
 
 pub use robimu_bno055_sim::ChipModel;
 
-pub use super::arm_physics::{ArmEffects, Elasticity, StructuralMode};
+use super::arm_physics::StructuralMode;
+pub use super::arm_physics::{ArmEffects, Elasticity};
 use super::arm_physics::{ArmPhysics, ArmPhysicsError, UrdfArm};
 pub use super::physics::WarmUp;
 use super::physics::{vibration_noise, ModelSource};
@@ -156,7 +157,7 @@ impl ExtraBoard {
 
 /// The indices in x of one IMU's own parameters (docs/model.md §9): its
 /// flange position ε_n1..3, τ and the 24 sensor parameters.
-pub fn per_imu_indices(robot: &Robot, layout: &ParamLayout) -> Vec<usize> {
+pub(crate) fn per_imu_indices(robot: &Robot, layout: &ParamLayout) -> Vec<usize> {
     let n = robot.dof();
     let mount: Vec<String> = (1..=3).map(|k| format!("eps_{n}_{k}")).collect();
     let tau = layout.offsets().tau;
@@ -252,7 +253,7 @@ impl SimRigConfig {
 /// allows for, `robimu_protocol::alias`; the datasheet gives no figure for
 /// AMG mode that we know of), so that the twin's reads beat against the
 /// chip's updates as on a real board.
-pub const REALISTIC_CHIP_CLOCK_PPM: f64 = 8_000.0;
+pub(crate) const REALISTIC_CHIP_CLOCK_PPM: f64 = 8_000.0;
 
 /// The realistic twin's accelerometer noise (φ, c) of
 /// [`SimRigConfig::with_vibration_noise`]: AR(1) with a 30 ms correlation
@@ -274,13 +275,13 @@ const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// Compliance of the realistic twin's elastic joints (2 and 3), rad/(N·m):
 /// 50 °/(kN·m).
-pub const REALISTIC_COMPLIANCE: f64 = 50.0 * DEG * 1e-3;
+pub(crate) const REALISTIC_COMPLIANCE: f64 = 50.0 * DEG * 1e-3;
 
 /// The realistic twin's arm: joints 2 and 3 deflecting under their gravity
 /// load by [`REALISTIC_COMPLIANCE`] (the catalogue's mass model, so
 /// `joint_elasticity` can represent it exactly) and the default 12 Hz
 /// structural mode of the IMU mount ([`StructuralMode::default`]).
-pub fn realistic_arm_effects(robot: &Robot) -> ArmEffects {
+pub(crate) fn realistic_arm_effects(robot: &Robot) -> ArmEffects {
     let compliance = (0..robot.dof())
         .map(|j| {
             if j == 1 || j == 2 {

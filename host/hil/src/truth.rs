@@ -37,7 +37,7 @@ use crate::arm_physics::{ArmEffects, ArmPhysics, UrdfArm};
 use crate::rig::{ChipModel, SimRigConfig};
 
 /// Effect names whose parameters have no truth in the twin.
-pub const NOT_COMPARABLE: [(&str, &str); 2] = [
+pub(crate) const NOT_COMPARABLE: [(&str, &str); 2] = [
     (
         "resonance",
         "the twin's structural mode moves the IMU mount; the catalogue's deflects the joints",
@@ -93,7 +93,7 @@ pub fn signal_delay(bandwidth_hz: f64, odr_hz: f64) -> f64 {
 /// ([`mode_signal`]), `imu_time_error_s` the IMU samples' true session
 /// times minus the session's (its clock mapping's error, when known:
 /// [`crate::twin::TwinSummary::imu_time_error_s`]; τ absorbs it).
-pub fn twin_truth(
+pub(crate) fn twin_truth(
     config: &SimRigConfig,
     truth: &Truth,
     timing: Option<&ImuTiming>,
@@ -177,7 +177,7 @@ const BIAS_NAMES: [&str; 6] = ["b_a_x", "b_a_y", "b_a_z", "b_w_x", "b_w_y", "b_w
 
 /// The IMU's joint state at one sample: arm time t (s) and q, q̇, q̈.
 #[derive(Clone, Debug)]
-pub struct MotionSample {
+pub(crate) struct MotionSample {
     /// Arm time, s (the mode integrates along it).
     pub t: f64,
     /// q, rad.
@@ -200,7 +200,7 @@ pub struct MotionSample {
 /// absorbs is the truth's share of the mode: the difference between the
 /// fits of the session with and without this signal (the demo's
 /// `ModeShare`).
-pub fn mode_signal(
+pub(crate) fn mode_signal(
     config: &SimRigConfig,
     motion: &[MotionSample],
 ) -> Result<Option<Vec<[f64; 6]>>, TruthError> {
@@ -234,7 +234,7 @@ pub fn mode_signal(
 
 /// Why [`mode_signal`] could not be computed.
 #[derive(Debug, thiserror::Error)]
-pub enum TruthError {
+pub(crate) enum TruthError {
     /// The truth does not fit the robot.
     #[error(transparent)]
     Model(#[from] robimu_model::ModelError),

@@ -142,7 +142,7 @@ pub fn candidate_errors(n: usize) -> Vec<ErrorIndex> {
 }
 
 /// The preference order of the selection (see the module doc).
-pub fn preference_order(n: usize) -> Vec<ErrorIndex> {
+pub(crate) fn preference_order(n: usize) -> Vec<ErrorIndex> {
     let next_axis = |e: &ErrorIndex| e.link < n && (e.k == 3 || e.k == 5);
     let mut all = candidate_errors(n);
     all.sort_by_key(|e| (std::cmp::Reverse(e.link), e.k));

@@ -10,7 +10,7 @@ pub type M3<S = f64> = [[S; 3]; 3];
 
 /// The zero vector.
 #[inline(always)]
-pub fn zero3<S: Scalar>() -> V3<S> {
+pub(crate) fn zero3<S: Scalar>() -> V3<S> {
     [S::cst(0.0); 3]
 }
 
@@ -125,7 +125,7 @@ pub fn rot_z<S: Scalar>(t: S) -> M3<S> {
 
 /// Z–Y–X Euler rotation `Rz(r[0])·Ry(r[1])·Rx(r[2])` for `r = (r_z, r_y, r_x)`.
 #[inline(always)]
-pub fn rot_zyx<S: Scalar>(r: V3<S>) -> M3<S> {
+pub(crate) fn rot_zyx<S: Scalar>(r: V3<S>) -> M3<S> {
     mul_mm(&mul_mm(&rot_z(r[0]), &rot_y(r[1])), &rot_x(r[2]))
 }
 

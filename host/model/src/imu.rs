@@ -132,7 +132,7 @@ impl<S: Scalar> ImuIntrinsics<S> {
 }
 
 /// The predicted sensor output `[s̃; ω̃]` = `[ax, ay, az, gx, gy, gz]` from ω and s.
-pub fn sensor_output<S: Scalar>(
+pub(crate) fn sensor_output<S: Scalar>(
     accel: &ImuIntrinsics<S>,
     gyro: &ImuIntrinsics<S>,
     omega: V3<S>,

@@ -82,7 +82,7 @@ impl JointState {
 }
 
 /// The DH link transform T_i(q) (eq. (1)).
-pub fn link_transform<S: Scalar>(dh: &DhLink, q: S) -> Iso<S> {
+pub(crate) fn link_transform<S: Scalar>(dh: &DhLink, q: S) -> Iso<S> {
     let (st, ct) = (q + dh.theta0).sin_cos();
     let (sa, ca) = (dh.alpha.sin(), dh.alpha.cos());
     let z = S::cst(0.0);
@@ -154,7 +154,7 @@ pub struct ImuMotion<S = f64> {
 /// # Panics
 /// If `eps`, `q`, `qd` or `qdd` do not have one entry per link.
 #[track_caller]
-pub fn imu_motion<S: Scalar, L: LinkTransform>(
+pub(crate) fn imu_motion<S: Scalar, L: LinkTransform>(
     links: &[L],
     eps: &[[S; 6]],
     q: &[S],

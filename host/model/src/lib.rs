@@ -83,3 +83,18 @@ pub use observations::Measurements;
 pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
 pub use robot::{ErrorIndex, Robot, RobotDescription, RobotError};
 pub use spline::{Basis, Basis4, Knots, SpanPolynomials, Spline, SplineError};
+
+pub use crate::effects::mass::MassError;
+pub use crate::effects::resonance::ModeResponse;
+pub use crate::effects::temperature_bias::TemperatureTrack;
+pub use crate::effects::Inertial;
+pub use crate::kinematics::LinkTransform;
+pub use crate::observations::ImuView;
+pub use crate::params::UnknownParameter;
+pub use crate::robot::ChainLink;
+pub use crate::robot::DhLink;
+pub use crate::robot::JointDescription;
+pub use crate::robot::NoiseDescription;
+pub use crate::robot::Priors;
+pub use crate::urdf::UrdfChain;
+pub use crate::urdf::UrdfJoint;

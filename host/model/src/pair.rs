@@ -29,7 +29,7 @@ use std::thread::{self, Thread};
 use std::time::{Duration, Instant};
 
 /// How long the helper polls for a next job before it parks.
-pub const SPIN: Duration = Duration::from_millis(4);
+pub(crate) const SPIN: Duration = Duration::from_millis(4);
 
 /// `(a(), b())`, `b` on the helper thread (module doc).
 pub fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)

@@ -84,7 +84,7 @@ pub struct ParamLengthError {
 
 /// The groups [`ParamLayout::select`] understands besides parameter names:
 /// `lengths`, the robot length errors ([`ParamLayout::lengths`]).
-pub const PARAM_GROUPS: &[&str] = &["lengths"];
+pub(crate) const PARAM_GROUPS: &[&str] = &["lengths"];
 
 /// An item of a parameter selection that is neither a group nor a parameter.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -145,7 +145,7 @@ impl Origin {
 }
 
 /// `Rz(yaw)·Ry(pitch)·Rx(roll)` for `rpy = [roll, pitch, yaw]` (URDF).
-pub fn rpy_matrix(rpy: [f64; 3]) -> M3 {
+pub(crate) fn rpy_matrix(rpy: [f64; 3]) -> M3 {
     geom::rot_zyx([rpy[2], rpy[1], rpy[0]])
 }
 
@@ -153,7 +153,7 @@ pub fn rpy_matrix(rpy: [f64; 3]) -> M3 {
 /// pitch ±90° (where only roll ∓ yaw is defined) yaw is set to 0. Of the
 /// general and the gimbal-lock solution, the one that reproduces `r` best is
 /// returned, so the result is exact to rounding everywhere.
-pub fn matrix_rpy(r: &M3) -> [f64; 3] {
+pub(crate) fn matrix_rpy(r: &M3) -> [f64; 3] {
     let pitch = (-r[2][0]).atan2(r[2][1].hypot(r[2][2]));
     let general = [r[2][1].atan2(r[2][2]), pitch, r[1][0].atan2(r[0][0])];
     // yaw = 0: Rx(roll) = Ry(pitch)ᵀ·R.

@@ -22,7 +22,7 @@ mod fit;
 /// Largest supported degree.
 pub const MAX_DEGREE: usize = 5;
 /// Highest derivative evaluated (q⃛).
-pub const MAX_DERIV: usize = 3;
+pub(crate) const MAX_DERIV: usize = 3;
 
 /// Why a spline could not be built or evaluated.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]

@@ -78,7 +78,7 @@ pub fn random_walk<R: Rng>(
 
 /// Shrink each joint's motion about its mean until its densely sampled speed
 /// and acceleration respect the limits (with a 2 % margin).
-pub fn enforce_limits(robot: &Robot, spline: &mut Spline) {
+pub(crate) fn enforce_limits(robot: &Robot, spline: &mut Spline) {
     let n = spline.dim();
     let (vmax, amax) = max_rates(spline, 200.0);
     let m = spline.knots().num_coeffs();

@@ -44,7 +44,7 @@ impl Real for f64 {
 }
 
 /// Largest |x| reduced here (|n| < 2¹⁷, well inside the 2²⁰ of exact products).
-pub const LIMIT: f64 = 1.0e5;
+pub(crate) const LIMIT: f64 = 1.0e5;
 
 const TOINT: f64 = 1.5 / f64::EPSILON;
 const INV_PIO2: f64 = std::f64::consts::FRAC_2_PI;
@@ -116,14 +116,14 @@ pub fn reduced<S: Real>(x: S) -> (S, S, S) {
 /// Whether x is reduced here (|x| ≤ [`LIMIT`], not NaN); else [`sin_cos`]
 /// takes the C library's values.
 #[inline(always)]
-pub fn reducible(x: f64) -> bool {
+pub(crate) fn reducible(x: f64) -> bool {
     x.abs() <= LIMIT
 }
 
 /// (sin x, cos x) from the kernels' values in quadrant n mod 4 (x = ±0
 /// keeps its sign in sin x, which the reduction's sums lose).
 #[inline(always)]
-pub fn quadrant(x: f64, n: f64, s: f64, c: f64) -> (f64, f64) {
+pub(crate) fn quadrant(x: f64, n: f64, s: f64, c: f64) -> (f64, f64) {
     if x == 0.0 {
         return (x, 1.0);
     }

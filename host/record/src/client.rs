@@ -17,7 +17,7 @@ use robimu_protocol::{
 use crate::link::{LinkError, LinkReader, LinkWriter};
 
 /// How long a command (`Configure`, `Start`, `Stop`) may take to be answered.
-pub const COMMAND_TIMEOUT: Duration = Duration::from_secs(3);
+pub(crate) const COMMAND_TIMEOUT: Duration = Duration::from_secs(3);
 
 /// How long a configured board may take to report its new `DeviceInfo`.
 const INFO_AFTER_CONFIGURE: Duration = Duration::from_millis(500);
@@ -129,7 +129,7 @@ pub enum ClientError {
 }
 
 /// A serial port, as the client reads and writes it.
-pub type Port = Box<dyn serialport::SerialPort>;
+pub(crate) type Port = Box<dyn serialport::SerialPort>;
 
 /// The host side of the link to one IMU board.
 pub struct ImuClient<R = Port, W = Port> {

@@ -63,7 +63,7 @@ pub enum ImuEvent {
 }
 
 /// A streaming board: events arrive on [`ImuStream::events`].
-pub struct ImuStream {
+pub(crate) struct ImuStream {
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
     rx: Receiver<ImuEvent>,

@@ -80,6 +80,14 @@ pub mod motion;
 pub mod repair;
 pub mod robot_clock;
 
+pub use crate::client::ImuClient;
+pub use crate::controller::ur::Recipe;
+pub use crate::controller::ur::UrSample;
+pub use crate::controller::RobotSpecError;
+pub use crate::motion::MotionPlanError;
+pub use crate::robot_clock::Remapped;
+pub use crate::robot_clock::RobotClockFit;
+
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -90,8 +98,9 @@ use std::time::{Duration, Instant};
 
 use robimu_protocol::{DecoderStats, DeviceInfo, SensorConfig};
 
-use self::arm::{Arm, ArmError, ArmRun};
-use self::client::{ClientError, ImuClient};
+use self::arm::Arm;
+pub use self::arm::{ArmError, ArmRun};
+use self::client::ClientError;
 use self::clock_fit::{ClockFit, Echo};
 use self::imu::{ImuEvent, ImuStream};
 use self::motion::Plan;

@@ -16,12 +16,12 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 
 /// Bytes asked of the underlying reader per `read` call.
-pub const READ_CHUNK: usize = 4096;
+pub(crate) const READ_CHUNK: usize = 4096;
 
 /// Frame buffer of a [`LinkReader`], in encoded bytes. Larger than the
 /// protocol's longest frame so that frames of a newer, larger protocol are
 /// reported as [`WireError::WrongVersion`] rather than as over-long.
-pub const LINK_FRAME_CAPACITY: usize = 256;
+pub(crate) const LINK_FRAME_CAPACITY: usize = 256;
 
 /// Failure of the serial link itself (protocol faults in single frames are
 /// [`WireError`]s, counted in [`DecoderStats`] and not fatal).

@@ -108,7 +108,11 @@ impl Plan {
 const APPEND_CHUNK: usize = 200;
 
 /// Moves to the plan's start and waits until the arm is there.
-pub fn move_to_start(client: &mut AuboClient, robot: &Robot, plan: &Plan) -> Result<(), AuboError> {
+pub(crate) fn move_to_start(
+    client: &mut AuboClient,
+    robot: &Robot,
+    plan: &Plan,
+) -> Result<(), AuboError> {
     let (v, a) = slowest(robot);
     client.move_joint(&plan.q[0], 0.5 * a, 0.5 * v)?;
     client.wait_idle(Duration::from_secs(120))

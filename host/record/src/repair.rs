@@ -25,10 +25,10 @@ use super::robot_clock::{self, RobotClockFit};
 use robimu_session::{files, SessionError, SessionMeta};
 
 /// Name of the ping log in a recorded session.
-pub const PINGS: &str = "pings.csv";
+pub(crate) const PINGS: &str = "pings.csv";
 /// The ping log of board `b` of a recording: [`PINGS`] for the first,
 /// `pings<b>.csv` for the others.
-pub fn pings_file(b: usize) -> String {
+pub(crate) fn pings_file(b: usize) -> String {
     if b == 0 {
         PINGS.to_string()
     } else {
@@ -37,10 +37,10 @@ pub fn pings_file(b: usize) -> String {
 }
 
 /// Header of [`PINGS`].
-pub const PINGS_HEADER: &str = "host_send,host_recv,device,segment";
+pub(crate) const PINGS_HEADER: &str = "host_send,host_recv,device,segment";
 /// The extra `joints.csv` columns of a recording from a controller with a
 /// clock (UR): its timestamp and the host's arrival time, s.
-pub const JOINT_CLOCK_COLUMNS: [&str; 2] = ["t_robot", "t_arrival"];
+pub(crate) const JOINT_CLOCK_COLUMNS: [&str; 2] = ["t_robot", "t_arrival"];
 
 /// What [`remap_joint_times`] did.
 #[derive(Debug, Clone, PartialEq)]
@@ -133,7 +133,7 @@ fn drop_cut_line(path: &Path) -> Result<Option<usize>, SessionError> {
 }
 
 /// Reads `pings.csv`: echoes by segment.
-pub fn read_pings(path: &Path) -> Result<BTreeMap<u32, Vec<Echo>>, SessionError> {
+pub(crate) fn read_pings(path: &Path) -> Result<BTreeMap<u32, Vec<Echo>>, SessionError> {
     let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
     let mut out: BTreeMap<u32, Vec<Echo>> = BTreeMap::new();
     for (i, line) in text.lines().enumerate().skip(1) {
@@ -185,12 +185,12 @@ pub fn remap_imu_times(dir: &Path) -> Result<(Vec<(u32, ClockFit)>, usize), Sess
 
 /// What [`remap_all_imu_times`] did to one IMU's file: `(j, the clock
 /// fits of its board by segment, rows left as they were)`.
-pub type ImuRemap = (usize, Vec<(u32, ClockFit)>, usize);
+pub(crate) type ImuRemap = (usize, Vec<(u32, ClockFit)>, usize);
 
 /// [`remap_imu_times`] for each IMU of the session (docs/model.md §9),
 /// each from its board's ping log: `(j, fits, rows left as they were)`,
 /// IMU 0 first.
-pub fn remap_all_imu_times(dir: &Path) -> Result<Vec<ImuRemap>, SessionError> {
+pub(crate) fn remap_all_imu_times(dir: &Path) -> Result<Vec<ImuRemap>, SessionError> {
     let meta_path = dir.join(files::META);
     let meta = if meta_path.is_file() {
         Some(SessionMeta::read(&meta_path)?)
@@ -289,7 +289,7 @@ fn remap_file(path: &Path, fits: &BTreeMap<u32, ClockFit>) -> Result<usize, Sess
 /// the controller clock's fit through `(t_robot, t_arrival)`
 /// ([`robot_clock::remap`]); when that is refused, `t` is set back to
 /// `t_arrival`. `None` (nothing changed) without those columns (AUBO).
-pub fn remap_joint_times(dir: &Path) -> Result<Option<JointClock>, SessionError> {
+pub(crate) fn remap_joint_times(dir: &Path) -> Result<Option<JointClock>, SessionError> {
     let path = dir.join(files::JOINTS);
     let text = std::fs::read_to_string(&path).map_err(|e| SessionError::io(&path, e))?;
     let mut lines = text.lines();
@@ -340,7 +340,7 @@ pub fn remap_joint_times(dir: &Path) -> Result<Option<JointClock>, SessionError>
 /// Keeps the joint clock mapping in session.toml's `[controller]` table:
 /// `clock = [{segment, offset_s, drift_ppm, jitter_us, windows_used,
 /// windows, samples}, …]`, or `clock_note` when the arrival times were kept.
-pub fn write_controller_clock(dir: &Path, clock: &JointClock) -> Result<(), SessionError> {
+pub(crate) fn write_controller_clock(dir: &Path, clock: &JointClock) -> Result<(), SessionError> {
     update_meta(dir, |meta| {
         let table = meta.controller.get_or_insert_with(toml::Table::new);
         table.remove("clock");

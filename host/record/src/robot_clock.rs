@@ -27,7 +27,7 @@ use super::clock_fit::robust_line;
 
 /// Width of the windows whose minima make the lower envelope, s of
 /// controller time.
-pub const WINDOW_S: f64 = 1.0;
+pub(crate) const WINDOW_S: f64 = 1.0;
 
 /// The mapping of one clock segment, in [`super::clock_fit::ClockFit`]'s
 /// convention:

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use crate::html::ReportError;
 
 /// A CSV file being written.
-pub struct CsvFile {
+pub(crate) struct CsvFile {
     path: PathBuf,
     out: BufWriter<File>,
 }
@@ -57,7 +57,7 @@ fn io(path: &Path, source: std::io::Error) -> ReportError {
 }
 
 /// `values` in Rust's `{:e}` form, comma-separated.
-pub fn exp_row(values: &[f64]) -> String {
+pub(crate) fn exp_row(values: &[f64]) -> String {
     let cols: Vec<String> = values.iter().map(|v| format!("{v:e}")).collect();
     cols.join(",")
 }

@@ -8,7 +8,7 @@ use crate::plot::{banded_line_panels, log_bars, Band, Bar, BarGroup, LinePanel, 
 use robimu_session::result::{CalibrationResult, NoiseModelRecord, ParameterResult};
 
 /// The groups of the σ-reduction figure, in x order (docs/model.md §5).
-pub const GROUPS: [&str; 5] = [
+pub(crate) const GROUPS: [&str; 5] = [
     "robot",
     "IMU position, gravity, time offset",
     "accelerometer",
@@ -25,7 +25,7 @@ fn error_indices(name: &str) -> Option<(usize, usize)> {
 
 /// The group (index into [`GROUPS`]) of parameter `name`; `imu_link` is the
 /// last link n, whose errors k = 1..3 are the IMU position (§1.4).
-pub fn parameter_group(name: &str, imu_link: usize) -> usize {
+pub(crate) fn parameter_group(name: &str, imu_link: usize) -> usize {
     if let Some((i, k)) = error_indices(name) {
         return if i == imu_link && k <= 3 { 1 } else { 0 };
     }
@@ -61,7 +61,7 @@ fn sigma_bar(p: &ParameterResult) -> Bar {
 /// The bars of the σ-reduction figure: every parameter of `result` by name
 /// with its posterior σ / prior σ, grouped as [`GROUPS`] (empty groups left
 /// out); frozen parameters and those without a σ are listed without a bar.
-pub fn sigma_reduction_groups(result: &CalibrationResult) -> Vec<BarGroup> {
+pub(crate) fn sigma_reduction_groups(result: &CalibrationResult) -> Vec<BarGroup> {
     let imu_link = result
         .parameters
         .iter()
@@ -88,7 +88,7 @@ pub fn sigma_reduction_groups(result: &CalibrationResult) -> Vec<BarGroup> {
 /// §9): the shared robot errors, gravity and shared effects, then per IMU
 /// j its position and time offset, accelerometer, gyroscope and effects
 /// (`IMU j: …`), empty groups left out. `None` for a one-IMU result.
-pub fn sigma_reduction_groups_by_imu(result: &CalibrationResult) -> Option<Vec<BarGroup>> {
+pub(crate) fn sigma_reduction_groups_by_imu(result: &CalibrationResult) -> Option<Vec<BarGroup>> {
     let sets = result.imu_sets().ok().filter(|s| s.len() > 1)?;
     let bar = |i: usize| sigma_bar(&result.parameters[i]);
     let base = |i: usize| {
@@ -144,7 +144,7 @@ pub fn sigma_reduction_groups_by_imu(result: &CalibrationResult) -> Option<Vec<B
 }
 
 /// `stem.{png,svg}`: the σ-reduction figure of `result`.
-pub fn sigma_reduction_figure(
+pub(crate) fn sigma_reduction_figure(
     stem: &Path,
     result: &CalibrationResult,
 ) -> Result<Vec<PathBuf>, PlotError> {
@@ -220,7 +220,7 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 /// `stem.{png,svg}`: one panel per IMU channel, the residuals (t, r) with
 /// the ±σ(t) band (t, σ) around zero, both in display units (m/s², °/s);
 /// the title states τ in ms.
-pub fn residual_figure(
+pub(crate) fn residual_figure(
     stem: &Path,
     residuals: &[Vec<(f64, f64)>],
     band: &[Vec<(f64, f64)>],

@@ -14,7 +14,7 @@ use robimu_workflows::calibrate::{Calibration, WeakDirection};
 use robimu_workflows::repeatability::Repeatability;
 
 /// Whitened residual RMS per IMU channel: `ax 1.00 ay 0.99 … gz 1.01`.
-pub struct ResidualRms(pub [f64; 6]);
+pub(crate) struct ResidualRms(pub [f64; 6]);
 
 impl fmt::Display for ResidualRms {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -160,7 +160,7 @@ impl fmt::Display for WeakDirectionsWarning<'_> {
 
 /// One fitted effect parameter in its display unit:
 /// `name                               +0.1234 ± 0.0100 ppm`.
-pub struct EffectValue<'a> {
+pub(crate) struct EffectValue<'a> {
     /// Parameter name.
     pub name: &'a str,
     /// Value, SI.

@@ -5,7 +5,7 @@
 //! * [`calibration_report`] — parameter table (paper Table II), posterior σ
 //!   against the prior σ, convergence, and, when the session is at hand, the
 //!   joint trajectory and the IMU residuals over time;
-//! * [`validation_report`] — robot accuracy (Fig. 10), IMU accuracy
+//! * [`validation_report_with`] — robot accuracy (Fig. 10), IMU accuracy
 //!   (Fig. 11) and the calibrated against the classical parameters.
 
 use std::fmt::Write as _;
@@ -49,7 +49,7 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> ReportError + '_ {
 }
 
 /// `s` with `& < > " '` escaped for HTML text and attributes.
-pub fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
@@ -75,7 +75,7 @@ figure{margin:1em 0}figure svg{max-width:100%;height:auto}figcaption{font-size:.
 
 /// One HTML page built section by section.
 #[derive(Debug, Clone)]
-pub struct HtmlPage {
+pub(crate) struct HtmlPage {
     title: String,
     body: String,
 }
@@ -551,19 +551,9 @@ fn series_sections(
 
 /// Write `dir/validation.html` (and the Fig. 10 / Fig. 11 histograms, PNG +
 /// SVG): robot accuracy, IMU accuracy when given, and the calibrated
-/// against the classical robot parameters.
-pub fn validation_report(
-    dir: &Path,
-    layout: &ParamLayout,
-    result: &CalibrationResult,
-    robot: &RobotAccuracy,
-    imu: Option<&ImuAccuracy>,
-) -> Result<PathBuf, ReportError> {
-    validation_report_with(dir, layout, result, robot, imu, None)
-}
-
-/// [`validation_report`] stating the tracker/robot time offset δ applied to
-/// the tracked motion (`alignment`, with the IMU accuracy).
+/// against the classical robot parameters, stating the tracker/robot time
+/// offset δ applied to the tracked motion (`alignment`, with the IMU
+/// accuracy).
 pub fn validation_report_with(
     dir: &Path,
     layout: &ParamLayout,

@@ -70,3 +70,7 @@ pub mod verdict;
 
 pub use robimu_model::units::DisplayUnit;
 pub use table::{ParameterTable, TableRow, TableSection, TruthSummary};
+
+pub use crate::html::SessionSeries;
+pub use crate::html::{calibration_report, ReportError};
+pub use crate::plot::PlotError;

@@ -15,7 +15,7 @@ use crate::plot::{histogram_grid, HistogramPanel, PlotError};
 
 /// runs.csv: per run and parameter (x order) truth, estimate, σ and
 /// error/σ, SI units.
-pub fn write_runs_csv(
+pub(crate) fn write_runs_csv(
     path: &Path,
     layout: &ParamLayout,
     result: &MonteCarloResult,
@@ -45,7 +45,7 @@ pub fn write_runs_csv(
 }
 
 /// summary.csv: per estimated parameter the mean and standard deviation of error/σ.
-pub fn write_summary_csv(path: &Path, result: &MonteCarloResult) -> std::io::Result<()> {
+pub(crate) fn write_summary_csv(path: &Path, result: &MonteCarloResult) -> std::io::Result<()> {
     let mut s = String::from("parameter,mean_error_over_sigma,std_error_over_sigma\n");
     for st in &result.stats {
         s.push_str(&format!("{},{:?},{:?}\n", st.name, st.mean, st.std));

@@ -7,7 +7,7 @@ use robimu_model::IMU_CHANNELS;
 use robimu_workflows::noise::{ChannelNoise, NoiseEstimate};
 
 /// The σ assumed without the estimate: `(Σ_z, Σ_q)`.
-pub type AssumedNoise = ([f64; 6], Vec<f64>);
+pub(crate) type AssumedNoise = ([f64; 6], Vec<f64>);
 
 /// The noise estimate as a table, one row a channel.
 pub struct NoiseTable<'a> {

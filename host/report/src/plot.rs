@@ -14,7 +14,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor;
 
 /// The embedded font (DejaVu Sans subset), as registered for every figure.
-pub const FONT: &[u8] = include_bytes!("../assets/DejaVuSans-subset.ttf");
+pub(crate) const FONT: &[u8] = include_bytes!("../assets/DejaVuSans-subset.ttf");
 const FAMILY: &str = "sans-serif";
 
 /// A figure could not be written.
@@ -37,7 +37,7 @@ fn register_font() {
 
 /// One histogram panel with an optional predicted density drawn over it.
 #[derive(Debug, Clone)]
-pub struct HistogramPanel {
+pub(crate) struct HistogramPanel {
     /// Title (e.g. the parameter name).
     pub title: String,
     /// Values to histogram.
@@ -48,7 +48,7 @@ pub struct HistogramPanel {
 
 /// A grid of histogram panels (paper Fig. 7), written to `stem.png` and
 /// `stem.svg`. Returns the paths written.
-pub fn histogram_grid(
+pub(crate) fn histogram_grid(
     stem: &Path,
     title: &str,
     panels: &[HistogramPanel],
@@ -341,7 +341,7 @@ pub fn line_panels(
 
 /// [`line_panels`] with an optional shaded [`Band`] behind each panel's
 /// curves (in the legend).
-pub fn banded_line_panels(
+pub(crate) fn banded_line_panels(
     stem: &Path,
     title: &str,
     panels: &[(&LinePanel, Option<&Band>)],
@@ -489,7 +489,7 @@ where
 
 /// One bar of [`log_bars`].
 #[derive(Debug, Clone)]
-pub struct Bar {
+pub(crate) struct Bar {
     /// The name on the axis.
     pub label: String,
     /// The bar's value (> 0); `None` (or not positive): no bar, `note` instead.
@@ -500,7 +500,7 @@ pub struct Bar {
 
 /// A group of bars under a heading.
 #[derive(Debug, Clone)]
-pub struct BarGroup {
+pub(crate) struct BarGroup {
     /// The heading.
     pub name: String,
     /// Its bars, top to bottom.
@@ -523,7 +523,7 @@ const BAR_ROW: u32 = 17;
 /// axis, in groups under a heading (coloured per group), each bar drawn from
 /// `reference` (e.g. 1 = the prior) to its value. Written to `stem.png` and
 /// `stem.svg`; returns the paths written.
-pub fn log_bars(
+pub(crate) fn log_bars(
     stem: &Path,
     title: &str,
     x_label: &str,

@@ -54,7 +54,7 @@ impl fmt::Display for RecordSummaryText<'_> {
 }
 
 /// The joint times' controller clock mapping (UR), one line a segment.
-pub struct JointClockText<'a>(pub &'a JointClock);
+pub(crate) struct JointClockText<'a>(pub &'a JointClock);
 
 impl fmt::Display for JointClockText<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {

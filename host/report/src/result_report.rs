@@ -86,7 +86,7 @@ pub fn session_series(
 /// The session's trajectory and residual series under `result`: one per
 /// IMU of the result (docs/model.md §9), IMU j's residuals of `imu<j>.csv`
 /// under its own parameters ([`CalibrationResult::imu`]).
-pub fn series_for(
+pub(crate) fn series_for(
     session: &Session,
     result: &CalibrationResult,
 ) -> anyhow::Result<Vec<SessionSeries>> {
@@ -134,7 +134,7 @@ pub fn series_for(
 
 /// The costs of the solver's iteration history written next to `result`
 /// (NAME.convergence.csv), or why the report has none (`Ok(Err(why))`).
-pub fn convergence_history(result: &Path) -> anyhow::Result<Result<Vec<f64>, String>> {
+pub(crate) fn convergence_history(result: &Path) -> anyhow::Result<Result<Vec<f64>, String>> {
     let path = convergence_path(result);
     if path.is_file() {
         return Ok(Ok(ConvergenceLog::read(&path)?.costs()));

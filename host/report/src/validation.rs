@@ -80,7 +80,7 @@ impl fmt::Display for ImuAccuracyTable<'_> {
 }
 
 /// validation.json's contents.
-pub fn validation_json(
+pub(crate) fn validation_json(
     acc: &RobotAccuracy,
     imu: Option<&ImuAccuracy>,
     alignment: Option<&TrackerAlignment>,

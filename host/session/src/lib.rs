@@ -78,6 +78,13 @@ pub use table::{
 pub use truth::{Truth, TruthMismatch, TruthRow};
 pub use writer::SessionWriter;
 
+pub use export::imu::{ImuCsvError, SensorCorrection};
+pub use export::ExportError;
+pub use import::cdr::CdrError;
+pub use import::ImportError;
+pub use poses::{PoseFile, PoseFileError};
+pub use result::ImuSets;
+
 /// `imu.csv` value columns.
 pub use robimu_model::IMU_CHANNELS as IMU_COLUMNS;
 /// The optional `imu.csv` column of the sensor temperature, °C (an extra
@@ -90,6 +97,15 @@ pub const TRACKER_COLUMNS: [&str; 7] = ["px", "py", "pz", "qw", "qx", "qy", "qz"
 pub mod files {
     /// Metadata.
     pub const META: &str = "session.toml";
+
+    pub use crate::export::imu::ImuCsvError;
+    pub use crate::export::imu::SensorCorrection;
+    pub use crate::export::ExportError;
+    pub use crate::import::cdr::CdrError;
+    pub use crate::import::ImportError;
+    pub use crate::poses::PoseFile;
+    pub use crate::poses::PoseFileError;
+    pub use crate::result::ImuSets;
     /// Joint samples.
     pub const JOINTS: &str = "joints.csv";
     /// IMU samples.

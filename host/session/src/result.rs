@@ -449,7 +449,7 @@ impl CalibrationResult {
 /// The parameters each IMU has (docs/model.md §9): its flange position
 /// `eps_<n>_1..3` (`imu_link` = n, the last link), `tau` and the 24 sensor
 /// parameters, by their §5 names in x order.
-pub fn imu_base_names(imu_link: usize) -> Vec<String> {
+pub(crate) fn imu_base_names(imu_link: usize) -> Vec<String> {
     let mut names: Vec<String> = (1..=3).map(|k| format!("eps_{imu_link}_{k}")).collect();
     names.push("tau".into());
     for s in ["a", "w"] {
@@ -467,7 +467,7 @@ pub fn imu_base_names(imu_link: usize) -> Vec<String> {
 
 /// The name of parameter `base` (a §5 name) of IMU `j`: `base` itself for
 /// IMU 0, `imu<j>/base` for j ≥ 1 (docs/model.md §9).
-pub fn imu_parameter_name(j: usize, base: &str) -> String {
+pub(crate) fn imu_parameter_name(j: usize, base: &str) -> String {
     if j == 0 {
         base.to_string()
     } else {

@@ -25,7 +25,7 @@ pub enum DenseError {
 }
 
 /// A dense problem given by its residual closure `f(θ)` (θ of length `n`).
-pub struct DenseProblem<F> {
+pub(crate) struct DenseProblem<F> {
     f: F,
     n: usize,
 }

@@ -8,7 +8,7 @@ use faer::{Accum, MatMut, MatRef, Par};
 /// below 48 rows (where a product's fixed cost weighs more than the
 /// diagonal blocks' wasted half; measured at w = 72: k = 20 in 3.6 µs
 /// instead of 4.4, k = 120 in 13.8 instead of 14.9).
-pub fn panel_height(k: usize) -> usize {
+pub(crate) fn panel_height(k: usize) -> usize {
     if k < 48 {
         16
     } else {
@@ -31,7 +31,7 @@ pub fn panel_height(k: usize) -> usize {
 /// # Panics
 /// If `dst` is not w × w.
 #[track_caller]
-pub fn lower_gram(mut dst: MatMut<'_, f64>, accum: Accum, j: MatRef<'_, f64>) {
+pub(crate) fn lower_gram(mut dst: MatMut<'_, f64>, accum: Accum, j: MatRef<'_, f64>) {
     let w = j.ncols();
     assert!(dst.nrows() == w && dst.ncols() == w, "Gram block shape");
     let h = panel_height(j.nrows());

@@ -65,3 +65,6 @@ pub use arrow::{ArrowFactor, ArrowMatrix, FactorError};
 pub use lm::{
     solve, IterationRecord, LeastSquares, LmError, LmOptions, LmSolution, LmSummary, Termination,
 };
+
+pub use crate::dense::DenseError;
+pub use crate::problem::ImuResiduals;

@@ -253,7 +253,7 @@ pub struct LmSolution {
 /// deterministic, not random) δJ = Σ r_i δr_i reaches ~2·10³ ε · J/|r|_rms
 /// ≈ 4·10⁻¹³ J at |r|_rms ≈ 1, plus the summation's own O(ε log N) J.
 /// Costs closer than 10⁻¹² J are therefore equal to rounding.
-pub const COST_ROUNDING: f64 = 1e-12;
+pub(crate) const COST_ROUNDING: f64 = 1e-12;
 
 /// Largest whitened gradient max_k |g_k|/√A_kk at which a step lost in the
 /// cost's rounding counts as convergence ([`at_rounding_floor`]).
@@ -263,7 +263,7 @@ pub const COST_ROUNDING: f64 = 1e-12;
 /// coordinate step to its optimum in σ: below anything a test statistic or
 /// a covariance resolves. A larger gradient with no acceptable step is a
 /// wrong Jacobian or a real non-minimum, reported as `NoProgress`.
-pub const ROUNDING_GRADIENT: f64 = 0.1;
+pub(crate) const ROUNDING_GRADIENT: f64 = 0.1;
 
 /// Stop when the gradient is below `gradient_tolerance`: max_k |g_k|/√D_k
 /// (the gradient in whitened units, `gnorm`) at the start of an iteration,

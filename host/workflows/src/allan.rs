@@ -72,7 +72,7 @@ pub const MIN_SAMPLES: usize = 18;
 
 /// The overlapping Allan deviation of `y` sampled every `tau0` s, at
 /// octave-spaced τ up to a ninth of the record.
-pub fn allan_deviation(y: &[f64], tau0: f64) -> Result<Vec<AllanPoint>, AllanError> {
+pub(crate) fn allan_deviation(y: &[f64], tau0: f64) -> Result<Vec<AllanPoint>, AllanError> {
     if !(tau0.is_finite() && tau0 > 0.0) {
         return Err(AllanError::BadPeriod(tau0));
     }
@@ -124,7 +124,7 @@ const SLOPE_TOLERANCE: f64 = 0.2;
 /// points from the shortest τ whose segments keep a slope within ±0.2 of −½;
 /// log N is the mean of log σ + ½ log τ over it, weighted by 1/m (the number
 /// of independent clusters, so long τ with few clusters counts little).
-pub fn noise_terms(curve: &[AllanPoint]) -> NoiseTerms {
+pub(crate) fn noise_terms(curve: &[AllanPoint]) -> NoiseTerms {
     let mut region = 0;
     if curve.len() >= 2 {
         for w in curve.windows(2) {
@@ -167,7 +167,7 @@ pub fn noise_terms(curve: &[AllanPoint]) -> NoiseTerms {
 /// +½, K the mean of log √(3·(σ² − N²/τ)/τ) over them weighted by 1/m.
 /// `None` when the curve does not rise so (a recording too short to show
 /// the bias wander).
-pub fn rate_random_walk(curve: &[AllanPoint], density: f64) -> Option<f64> {
+pub(crate) fn rate_random_walk(curve: &[AllanPoint], density: f64) -> Option<f64> {
     let start = curve
         .iter()
         .enumerate()
@@ -202,7 +202,7 @@ pub fn rate_random_walk(curve: &[AllanPoint], density: f64) -> Option<f64> {
 
 /// The curves of an `allan.csv` (`tau,ax,ay,az,gx,gy,gz`, as `robimu allan`
 /// writes it), with their noise terms; m is τ over the first τ.
-pub fn curves_from_csv(text: &str) -> Result<Vec<ChannelAllan>, String> {
+pub(crate) fn curves_from_csv(text: &str) -> Result<Vec<ChannelAllan>, String> {
     let mut lines = text.lines().filter(|l| !l.trim().is_empty());
     let header: Vec<&str> = lines
         .next()
@@ -255,7 +255,7 @@ pub fn curves_from_csv(text: &str) -> Result<Vec<ChannelAllan>, String> {
 }
 
 /// The sample period of `t`: the median interval.
-pub fn sample_period(t: &[f64]) -> Result<f64, AllanError> {
+pub(crate) fn sample_period(t: &[f64]) -> Result<f64, AllanError> {
     let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     if dt.is_empty() {
         return Err(AllanError::TooFewSamples {

@@ -27,7 +27,7 @@ use robimu_model::geom::{mul_mv, sub, M3, V3};
 use robimu_model::{ParamLayout, Robot};
 use robimu_solver::{dense, LmOptions};
 
-pub use crate::tracker::TRACKER_SIGMA;
+pub(crate) use crate::tracker::TRACKER_SIGMA;
 
 /// The outcome of the standard robot calibration.
 #[derive(Debug, Clone)]
@@ -47,7 +47,7 @@ pub struct RobotBaseline {
 /// poses: the generalized errors of `layout`'s estimated set on links
 /// 1..n−1 (those of link n are redundant with T_flange←marker), except the
 /// indices in `frozen`, plus both constant transforms.
-pub fn robot_calibration(
+pub(crate) fn robot_calibration(
     robot: &Robot,
     layout: &ParamLayout,
     poses: &[TrackedPose],
@@ -143,7 +143,10 @@ pub struct ImuBaseline {
 /// Standard IMU calibration (paper §9, ref. \[7\]) from ground-truth
 /// `(ω, s)` (IMU frame) and the raw outputs `[ax, ay, az, gx, gy, gz]` at the
 /// same instants: each sensor's `M`, `b` by linear least squares.
-pub fn imu_calibration(truth: &[(V3, V3)], raw: &[[f64; 6]]) -> Result<ImuBaseline, ValidateError> {
+pub(crate) fn imu_calibration(
+    truth: &[(V3, V3)],
+    raw: &[[f64; 6]],
+) -> Result<ImuBaseline, ValidateError> {
     if truth.len() != raw.len() || truth.len() < 8 {
         return Err(ValidateError::Input(format!(
             "the IMU calibration needs at least 8 samples with ground truth (got {})",

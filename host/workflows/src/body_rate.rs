@@ -32,7 +32,7 @@ struct LinkRotation {
 /// The chain's rotations and the gyroscope's intrinsics at the parameters
 /// of a measurement model.
 #[derive(Debug, Clone)]
-pub struct BodyRate {
+pub(crate) struct BodyRate {
     links: Vec<LinkRotation>,
     /// K Γ R of the gyroscope (eq. (6)), as the model forms it.
     gyro_m: M3,

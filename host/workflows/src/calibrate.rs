@@ -14,7 +14,8 @@ mod gls_montecarlo;
 #[cfg(test)]
 mod newton_stop_tests;
 pub mod noise_choice;
-pub mod sandwich;
+#[cfg(test)]
+mod sandwich;
 #[cfg(test)]
 mod sandwich_montecarlo;
 #[cfg(test)]
@@ -190,7 +191,7 @@ pub enum CalibrateError {
 }
 
 /// Check that a session fits the robot before any numerics.
-pub fn check_measurements(robot: &Robot, data: &Measurements) -> Result<(), CalibrateError> {
+pub(crate) fn check_measurements(robot: &Robot, data: &Measurements) -> Result<(), CalibrateError> {
     let n = robot.dof();
     let bad = |m: String| Err(CalibrateError::Input(m));
     if data.joint_t.is_empty() || data.imu_t.is_empty() {
@@ -228,7 +229,7 @@ pub fn check_measurements(robot: &Robot, data: &Measurements) -> Result<(), Cali
 /// A joint sample far outside the robot's limits (docs/model.md §7.8): the
 /// sign of joints recorded in degrees.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JointLimitViolation {
+pub(crate) struct JointLimitViolation {
     /// Joint index (0-based).
     pub joint: usize,
     /// Sample index (0-based).
@@ -257,7 +258,7 @@ impl std::fmt::Display for JointLimitViolation {
 /// the robot's limits by more than 0.2 rad (recorded positions may overshoot
 /// a planning limit a little), the joints in order: found by a search when
 /// a first pass over the rows finds some sample beyond them.
-pub fn joint_outside_limits(robot: &Robot, joint_q: &[f64]) -> Option<JointLimitViolation> {
+pub(crate) fn joint_outside_limits(robot: &Robot, joint_q: &[f64]) -> Option<JointLimitViolation> {
     const SLACK: f64 = 0.2;
     // a robot has 1..=MAX_JOINTS joints
     let n = robot.dof();
@@ -304,7 +305,7 @@ pub fn calibrate(
 
 /// The calibration of a finished baseline fit `f` made with `opts`: the
 /// check of the data's information for weak directions (module doc, step 2).
-pub fn calibration_of(
+pub(crate) fn calibration_of(
     robot: &Robot,
     opts: &CalibrateOptions,
     f: &fit::Fit,
@@ -352,9 +353,9 @@ pub struct TrajectoryFit {
 }
 
 /// Coarsest spacing tried when choosing automatically, s.
-pub const AUTO_SPACING_START: f64 = 1.0;
+pub(crate) const AUTO_SPACING_START: f64 = 1.0;
 /// Finest spacing tried when choosing automatically, s.
-pub const AUTO_SPACING_MIN: f64 = 0.05;
+pub(crate) const AUTO_SPACING_MIN: f64 = 0.05;
 
 /// Fit the trajectory spline to the joint samples ([`Spline::fit_on`] the
 /// knots' span polynomials, which also give the residuals' basis).
@@ -464,7 +465,7 @@ fn whitened_squares(
 /// numerically undetermined (rounding level for 48 parameters; weakly but
 /// truly determined directions, such as the robot lengths at low speed, sit
 /// near 1e-11).
-pub const SINGULAR: f64 = 1e-13;
+pub(crate) const SINGULAR: f64 = 1e-13;
 
 /// Directions in which the data's information (prior-σ units) is negligible:
 /// below [`SINGULAR`] of the largest (numerically singular), or — with priors — below

@@ -44,7 +44,7 @@ pub enum ConvergenceError {
 }
 
 /// Column names of the convergence file.
-pub const CONVERGENCE_COLUMNS: [&str; 6] = [
+pub(crate) const CONVERGENCE_COLUMNS: [&str; 6] = [
     "iteration",
     "cost",
     "step_norm",

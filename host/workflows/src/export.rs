@@ -400,7 +400,7 @@ impl KalibrNoise {
 
 /// IMU `j`'s file beside `out`: its stem followed by j (`imu.yaml` →
 /// `imu1.yaml`; `_` between a stem ending in a digit and j).
-pub fn per_imu_path(out: &Path, j: usize) -> PathBuf {
+pub(crate) fn per_imu_path(out: &Path, j: usize) -> PathBuf {
     let stem = out
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())

@@ -45,7 +45,11 @@ pub fn sigma_vs_time(info: &Information, spline: &Spline, step: f64) -> (Vec<f64
 }
 
 /// λ_max(Σ_x) (all parameters, and robot lengths known) at every `step` s.
-pub fn lambda_vs_time(info: &Information, spline: &Spline, step: f64) -> Vec<(f64, f64, f64)> {
+pub(crate) fn lambda_vs_time(
+    info: &Information,
+    spline: &Spline,
+    step: f64,
+) -> Vec<(f64, f64, f64)> {
     let (t0, t1) = (spline.knots().start(), spline.knots().end());
     let all: Vec<usize> = (0..info.dim()).collect();
     let nl = without_robot_lengths(info.layout());
@@ -64,7 +68,7 @@ pub fn lambda_vs_time(info: &Information, spline: &Spline, step: f64) -> Vec<(f6
 /// Posterior σ of the robot length parameters (names, then one row per
 /// speed) for copies of the trajectory played `speed` times faster, sampled
 /// `speed` times faster (equal sample count; paper Fig. 8).
-pub fn length_sigma_vs_speed(
+pub(crate) fn length_sigma_vs_speed(
     info: &Information,
     spline: &Spline,
     speeds: &[f64],
@@ -159,7 +163,7 @@ pub enum CheckError {
 /// calibrated with the trajectory knots every `knot_spacing` s under the IMU
 /// noise model `noise` (generalised least squares unless white); its Σ_x
 /// against (26) with that noise at the same rate.
-pub fn check_approximation(
+pub(crate) fn check_approximation(
     robot: &Robot,
     spline: &Spline,
     rate: f64,
@@ -216,7 +220,7 @@ fn fit_options(robot: &Robot, noise: &NoiseModel) -> CalibrateOptions {
 /// priors, a simulated session on `spline` (120 Hz, IMU noise `noise`), a
 /// calibration under that noise ([`fit_options`]); returns the errors
 /// x̂ − x per run (SI).
-pub fn monte_carlo_errors(
+pub(crate) fn monte_carlo_errors(
     robot: &Robot,
     spline: &Spline,
     noise: &NoiseModel,
@@ -243,7 +247,7 @@ pub fn monte_carlo_errors(
 }
 
 /// Mean squared error along the unit vector `v` and in total, over runs.
-pub fn error_moments(errors: &[Vec<f64>], v: &[f64]) -> (f64, f64) {
+pub(crate) fn error_moments(errors: &[Vec<f64>], v: &[f64]) -> (f64, f64) {
     let n = errors.len().max(1) as f64;
     let along = errors
         .iter()
@@ -259,7 +263,7 @@ pub fn error_moments(errors: &[Vec<f64>], v: &[f64]) -> (f64, f64) {
 }
 
 /// The eigenvector of Σ = Λ⁻¹ with the largest eigenvalue (that of Λ's smallest).
-pub fn worst_direction(info: &Mat<f64>) -> Vec<f64> {
+pub(crate) fn worst_direction(info: &Mat<f64>) -> Vec<f64> {
     match info.self_adjoint_eigen(faer::Side::Lower) {
         Ok(evd) => {
             let s = evd.S();
@@ -321,7 +325,7 @@ pub fn speed_study(info: &Information, spline: &Spline, speeds: &[f64]) -> Speed
 }
 
 /// λ_max(Σ_x) against time, `(t, λ_max, λ_max without the robot lengths)`.
-pub type LambdaCurve = Vec<(f64, f64, f64)>;
+pub(crate) type LambdaCurve = Vec<(f64, f64, f64)>;
 
 /// A plan against random trajectories of equal length under the same limits
 /// (paper Fig. 5).

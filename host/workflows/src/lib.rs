@@ -82,6 +82,54 @@ pub mod validate;
 pub mod verdict;
 
 pub use pipeline::{
-    calibrate_job, diagnose_session, load_session, resolve_robot, session_robot, DiagnoseSettings,
-    Diagnosed, Fitted, PipelineError, Prepared, Settings,
+    calibrate_job, diagnose_session, is_urdf, load_session, resolve_robot, session_robot,
+    DiagnoseSettings, Diagnosed, Fitted, Job, PipelineError, Prepared, Settings, BUILTIN_ROBOTS,
 };
+
+pub use diagnose::{Alternative, Determination, Score};
+
+pub use crate::allan::AllanError;
+pub use crate::allan::AllanPoint;
+pub use crate::allan::NoiseTerms;
+pub use crate::baseline::ImuBaseline;
+pub use crate::baseline::LinearSensor;
+pub use crate::baseline::RobotBaseline;
+pub use crate::batch::limits::LimitsError;
+pub use crate::batch::summary::SessionOutcome;
+pub use crate::calibrate::fit::FitSpec;
+pub use crate::calibrate::TrajectoryFit;
+pub use crate::check::Finding;
+pub use crate::convergence::ConvergenceError;
+pub use crate::diagnose::resolution::ResolutionChoice;
+pub use crate::diagnose::resolution::ResolutionScore;
+pub use crate::diagnose::AliasedWith;
+pub use crate::diagnose::DiagnoseError;
+pub use crate::diagnose::NoiseUse;
+pub use crate::diagnose::ParameterMove;
+pub use crate::diagnose::Unexplained;
+pub use crate::identifiability::BaselineMedians;
+pub use crate::identifiability::CheckError;
+pub use crate::identifiability::ErrorMoments;
+pub use crate::identifiability::GainError;
+pub use crate::montecarlo::MonteCarloError;
+pub use crate::montecarlo::ParamStats;
+pub use crate::montecarlo::RunOutcome;
+pub use crate::noise::NoiseError;
+pub use crate::noise_id::ChannelIdentification;
+pub use crate::noise_id::NoiseIdError;
+pub use crate::pipeline::validate::Validation;
+pub use crate::plan::files::PlanFileError;
+pub use crate::plan::information::InformationError;
+pub use crate::plan::PlanError;
+pub use crate::repeatability::GroupSpread;
+pub use crate::repeatability::ParameterSpread;
+pub use crate::repeatability::RepeatabilityError;
+pub use crate::repeatability::WindowResult;
+pub use crate::simulate::SimulateError;
+pub use crate::time_offset::TauError;
+pub use crate::time_offset::TauSearch;
+pub use crate::tracker::Registration;
+pub use crate::tracker::TrackedPose;
+pub use crate::tracker::ValidateError;
+pub use crate::tracker_offset::TrackerOffset;
+pub use crate::verdict::VerdictInput;

@@ -157,7 +157,7 @@ pub enum MonteCarloError {
 
 /// The p-quantile of χ²(k) by the Wilson–Hilferty approximation (relative
 /// error below 1e-4 for k ≥ 100, which is where it is used here).
-pub fn chi2_quantile(k: f64, p: f64) -> f64 {
+pub(crate) fn chi2_quantile(k: f64, p: f64) -> f64 {
     let z = normal_quantile(p);
     let a = 2.0 / (9.0 * k);
     k * (1.0 - a + z * a.sqrt()).powi(3)
@@ -166,7 +166,7 @@ pub fn chi2_quantile(k: f64, p: f64) -> f64 {
 /// The p-quantile of the standard normal (Acklam's rational approximation,
 /// relative error below 1.2e-9).
 #[allow(clippy::excessive_precision)] // the published coefficients, verbatim
-pub fn normal_quantile(p: f64) -> f64 {
+pub(crate) fn normal_quantile(p: f64) -> f64 {
     const A: [f64; 6] = [
         -3.969683028665376e1,
         2.209460984245205e2,

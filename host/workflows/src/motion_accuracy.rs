@@ -18,7 +18,7 @@ const SAMPLES_PER_KNOT: usize = 30;
 
 /// Why the IMU accuracy of a tracked motion could not be computed.
 #[derive(Debug, thiserror::Error)]
-pub enum MotionAccuracyError {
+pub(crate) enum MotionAccuracyError {
     /// The tracked motion (its file named) is not usable.
     #[error("{}", path.display())]
     Tracker {
@@ -45,7 +45,7 @@ pub enum MotionAccuracyError {
 }
 
 /// δ of `motion`'s tracker.csv against its own joint samples under `x`.
-pub fn align_tracker(
+pub(crate) fn align_tracker(
     robot: &Robot,
     layout: &ParamLayout,
     x: &[f64],
@@ -76,7 +76,7 @@ fn no_motion() -> ValidateError {
 /// The IMU accuracy of the tracked `motion` (session directory `dir`, with
 /// a tracker.csv) whose tracker clock is `delta` s ahead of the session's;
 /// `registration` places the tracker against the robot base.
-pub fn motion_imu_accuracy(
+pub(crate) fn motion_imu_accuracy(
     robot: &Robot,
     layout: &ParamLayout,
     x: &[f64],

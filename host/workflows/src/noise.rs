@@ -172,7 +172,7 @@ fn fit_rss(
 }
 
 /// σ of one channel `y` sampled at `t` (see the module doc for the rule).
-pub fn channel_noise(
+pub(crate) fn channel_noise(
     channel: &str,
     t: &[f64],
     y: &[f64],

@@ -103,7 +103,7 @@ pub enum NoiseIdError {
 
 /// Burg's estimates of every order 0..=p_max, pooled over segments.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Burg {
+pub(crate) struct Burg {
     /// Reflection coefficients k_1…k_pmax.
     pub reflection: Vec<f64>,
     /// Prediction-error variances v_0 (the mean square) … v_pmax.
@@ -142,7 +142,7 @@ impl Burg {
 
 /// Burg's method over `segments` (each a run of equally spaced samples,
 /// taken as zero-mean), orders 0..=`max_order`.
-pub fn burg(segments: &[&[f64]], max_order: usize) -> Burg {
+pub(crate) fn burg(segments: &[&[f64]], max_order: usize) -> Burg {
     let samples: usize = segments.iter().map(|s| s.len()).sum();
     let mut f: Vec<Vec<f64>> = segments.iter().map(|s| s.to_vec()).collect();
     let mut b = f.clone();
@@ -386,7 +386,8 @@ fn ljung_box_p(r: &[f64], lags: usize, dof: usize) -> f64 {
 /// Identify the noise of one channel from its residuals `r` at times `t`
 /// (with the motion regressor `qdd2` = ‖q̈‖² per sample, when given); see
 /// the module doc.
-pub fn identify_channel(
+#[cfg(test)]
+pub(crate) fn identify_channel(
     channel: &str,
     t: &[f64],
     r: &[f64],
@@ -498,7 +499,7 @@ fn ljung_box_corrected(r: &[f64], lags: usize, dof: usize, imprint: Option<&[f64
 /// fitted to autocovariances corrected by S(0)·imprint_k — valid when the
 /// fit varies slowly on the noise's correlation time — and Ljung–Box tests
 /// the corrected autocorrelations.
-pub fn identify_channel_with(
+pub(crate) fn identify_channel_with(
     channel: &str,
     t: &[f64],
     r: &[f64],
@@ -634,7 +635,7 @@ fn identify_channel_timed(
 
 /// Whether each channel is white under a family-wise test at level `alpha`
 /// (Bonferroni: white unless p < α / number of channels).
-pub fn white_by_bonferroni(p_values: &[f64], alpha: f64) -> Vec<bool> {
+pub(crate) fn white_by_bonferroni(p_values: &[f64], alpha: f64) -> Vec<bool> {
     let m = p_values.len().max(1) as f64;
     p_values.iter().map(|&p| p >= alpha / m).collect()
 }

@@ -53,7 +53,7 @@ use robimu_model::noise::NoiseModel;
 use robimu_model::{JointState, Knots, ParamLayout, Robot, Spline, SplineError};
 
 /// Spline degree of a plan.
-pub const DEGREE: usize = 3;
+pub(crate) const DEGREE: usize = 3;
 
 /// Planner settings.
 #[derive(Clone, Debug, PartialEq)]
@@ -521,7 +521,7 @@ pub fn check_limits(robot: &Robot, spline: &Spline, per_second: f64) -> Result<(
 /// position limits (at rest at both ends, p + 1 equal coefficients), then the
 /// motion about mid-range shrunk until the densely sampled velocity and
 /// acceleration are within the limits.
-pub fn random_uniform<R: Rng>(
+pub(crate) fn random_uniform<R: Rng>(
     robot: &Robot,
     duration: f64,
     knot_spacing: f64,

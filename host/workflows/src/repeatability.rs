@@ -16,7 +16,7 @@ use robimu_model::{ParamLayout, Robot};
 use robimu_solver::IterationRecord;
 
 /// Shortest window that is calibrated, s.
-pub const MIN_WINDOW: f64 = 10.0;
+pub(crate) const MIN_WINDOW: f64 = 10.0;
 
 /// One window of a session.
 #[derive(Debug, Clone)]
@@ -32,7 +32,7 @@ pub struct Window {
 /// Split `data` into `k` equal spans of its joint time range. Each window
 /// gets the joint and IMU samples with t in [t0, t1) (the last one also
 /// those at t1). Empty when `k` is 0 or there are no joint samples.
-pub fn split_windows(data: &Measurements, k: usize) -> Vec<Window> {
+pub(crate) fn split_windows(data: &Measurements, k: usize) -> Vec<Window> {
     let (Some(&a), Some(&b)) = (data.joint_t.first(), data.joint_t.last()) else {
         return Vec::new();
     };
@@ -168,7 +168,7 @@ pub struct Repeatability {
 
 /// The group of parameter `k` (robot lengths ε_i1..3 and angles ε_i4..6 for
 /// i < n, IMU position ε_n1..3, gravity, τ, accelerometer, gyroscope).
-pub fn group_of(layout: &ParamLayout, k: usize) -> &'static str {
+pub(crate) fn group_of(layout: &ParamLayout, k: usize) -> &'static str {
     let o = layout.offsets();
     if let Some(e) = layout.estimated_errors().get(k) {
         return match (e.link == layout.n_links(), e.is_translation()) {
@@ -187,7 +187,10 @@ pub fn group_of(layout: &ParamLayout, k: usize) -> &'static str {
 }
 
 /// Check that `k` windows of `data` are long enough, before any calibration.
-pub fn check_windows(data: &Measurements, k: usize) -> Result<Vec<Window>, RepeatabilityError> {
+pub(crate) fn check_windows(
+    data: &Measurements,
+    k: usize,
+) -> Result<Vec<Window>, RepeatabilityError> {
     if k < 2 {
         return Err(RepeatabilityError::TooFewWindows(k));
     }
@@ -224,7 +227,7 @@ pub fn repeatability(
 }
 
 /// Calibrate each window; `report` sees (0-based window, solver iteration).
-pub fn calibrate_windows(
+pub(crate) fn calibrate_windows(
     robot: &Robot,
     windows: Vec<Window>,
     opts: &CalibrateOptions,

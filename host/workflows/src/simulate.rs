@@ -97,7 +97,7 @@ pub struct WarmUpTemperature {
 }
 
 /// The BNO055's temperature LSB, °C (`TEMP` register, datasheet §3.6.5.8).
-pub const TEMPERATURE_LSB: f64 = 1.0;
+pub(crate) const TEMPERATURE_LSB: f64 = 1.0;
 
 impl WarmUpTemperature {
     /// A warm-up, refused unless the temperatures are finite and τ > 0.
@@ -265,7 +265,7 @@ pub fn simulate(
 /// The bias drift the paper observed over [`PAPER_DRIFT_TIME`] (25 min),
 /// per channel: 0.017 m/s² on each accelerometer axis, 0.025 °/s on each
 /// gyroscope axis (docs/model.md §4.7).
-pub const PAPER_DRIFT: [f64; 6] = [
+pub(crate) const PAPER_DRIFT: [f64; 6] = [
     0.017,
     0.017,
     0.017,
@@ -275,7 +275,7 @@ pub const PAPER_DRIFT: [f64; 6] = [
 ];
 
 /// The time over which the paper observed [`PAPER_DRIFT`], s.
-pub const PAPER_DRIFT_TIME: f64 = 1500.0;
+pub(crate) const PAPER_DRIFT_TIME: f64 = 1500.0;
 
 /// A seeded Brownian bias per IMU channel at the samples `t` (ascending):
 /// independent random walks whose standard deviation after
@@ -340,11 +340,11 @@ pub fn simulated_registration() -> crate::tracker::Registration {
 }
 
 /// σ of the simulated tracker: 0.1 mm per position axis, 0.05° per rotation axis.
-pub const TRACKER_NOISE: (f64, f64) = (1e-4, 0.05 * std::f64::consts::PI / 180.0);
+pub(crate) const TRACKER_NOISE: (f64, f64) = (1e-4, 0.05 * std::f64::consts::PI / 180.0);
 
 /// The tracker's measurement of the marker body with the robot at `q` and
 /// true parameters `truth` (noise added when `noise`).
-pub fn tracker_pose<R: Rng>(
+pub(crate) fn tracker_pose<R: Rng>(
     robot: &Robot,
     flange_eps: &[[f64; 6]],
     q: &[f64],
@@ -443,7 +443,7 @@ fn true_flange_eps(layout: &ParamLayout, truth: &[f64]) -> Result<Vec<[f64; 6]>,
 
 /// What a simulated tracker records for `robimu validate`.
 #[derive(Debug, Clone)]
-pub struct TrackerRecording {
+pub(crate) struct TrackerRecording {
     /// The marker pose at every joint sample of the motion (tracker.csv).
     pub motion: Vec<(f64, [f64; 7])>,
     /// Static poses with their joint readings (poses.csv).
@@ -453,7 +453,7 @@ pub struct TrackerRecording {
 /// [`tracked_motion`] at the joint sample times of `data` and `count`
 /// [`static_poses`], as the rows of their files.
 #[allow(clippy::too_many_arguments)]
-pub fn tracker_recording(
+pub(crate) fn tracker_recording(
     robot: &Robot,
     layout: &ParamLayout,
     truth: &[f64],

@@ -3,7 +3,7 @@
 //! whiteness test.
 
 /// Ljung–Box lags.
-pub const LJUNG_BOX_LAGS: usize = 20;
+pub(crate) const LJUNG_BOX_LAGS: usize = 20;
 
 /// Ljung–Box Q over `lags` lags and its p-value (χ² with `lags` dof).
 pub fn ljung_box(r: &[f64], lags: usize) -> (f64, f64) {
@@ -92,7 +92,7 @@ fn lagged_products_of(d: &[f64], k0: usize, count: usize) -> Vec<f64> {
 /// P(χ²_k > x): the regularised upper incomplete gamma Q(k/2, x/2)
 /// (series for x < a+1, Lentz continued fraction otherwise; Numerical
 /// Recipes §6.2), evaluated in log space so tiny p-values do not underflow early.
-pub fn chi2_sf(x: f64, k: f64) -> f64 {
+pub(crate) fn chi2_sf(x: f64, k: f64) -> f64 {
     if x <= 0.0 {
         return 1.0;
     }
@@ -139,7 +139,7 @@ pub fn chi2_sf(x: f64, k: f64) -> f64 {
 
 /// ln Γ(a), a > 0 (Lanczos, g = 7, n = 9; relative error ~1e-15).
 #[allow(clippy::excessive_precision)] // the published coefficients, verbatim
-pub fn ln_gamma(a: f64) -> f64 {
+pub(crate) fn ln_gamma(a: f64) -> f64 {
     const G: [f64; 9] = [
         0.99999999999980993,
         676.5203681218851,

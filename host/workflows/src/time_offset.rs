@@ -138,11 +138,11 @@ fn coarse_best(lags: &[f64], all: &Samples, coarse: &Samples, grid: &RateGrid) -
 }
 
 /// Local minima of the thinned coarse scan fitted again with all samples.
-pub const COARSE_CANDIDATES: usize = 8;
+pub(crate) const COARSE_CANDIDATES: usize = 8;
 
 /// Find τ: see the module doc. `rate` is the nominal model's body rate
 /// ([`BodyRate`]), `trajectory` the spline fitted to the joint samples.
-pub fn find_tau(
+pub(crate) fn find_tau(
     rate: &BodyRate,
     trajectory: &Spline,
     imu_t: &[f64],
@@ -205,7 +205,7 @@ pub fn find_tau(
 
 /// Where the parabola through (−h, y_m), (0, y_0), (h, y_p) has its minimum,
 /// relative to the middle point; 0 when it opens downwards (no refinement).
-pub fn parabola_vertex(ym: f64, y0: f64, yp: f64, h: f64) -> f64 {
+pub(crate) fn parabola_vertex(ym: f64, y0: f64, yp: f64, h: f64) -> f64 {
     let denom = ym - 2.0 * y0 + yp;
     if denom > 0.0 {
         0.5 * h * (ym - yp) / denom

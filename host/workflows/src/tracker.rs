@@ -30,7 +30,7 @@ fn input(m: impl Into<String>) -> ValidateError {
 
 /// σ of the tracker's position (m) and rotation (rad) used to weight pose
 /// residuals: 0.1 mm and 0.05°.
-pub const TRACKER_SIGMA: (f64, f64) = (1e-4, 0.05 * std::f64::consts::PI / 180.0);
+pub(crate) const TRACKER_SIGMA: (f64, f64) = (1e-4, 0.05 * std::f64::consts::PI / 180.0);
 
 fn too_little_rotation() -> ValidateError {
     input("the poses do not determine the tracker and marker rotations (too little rotation between poses)")
@@ -50,7 +50,7 @@ pub struct TrackedPose {
 }
 
 /// The pose of one tracker row `[px, py, pz, qw, qx, qy, qz]`.
-pub fn pose_from_row(row: &[f64]) -> Result<Iso, ValidateError> {
+pub(crate) fn pose_from_row(row: &[f64]) -> Result<Iso, ValidateError> {
     let q = [row[3], row[4], row[5], row[6]];
     let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
     if !(n > 0.5 && n < 1.5) {
@@ -75,7 +75,7 @@ pub fn row_from_pose(t: &Iso) -> [f64; 7] {
 /// come from its extra columns `q1..qn` when the file has them (`extra`:
 /// those values, row-major), otherwise from `joints` linearly interpolated
 /// at each pose's time.
-pub fn tracked_poses(
+pub(crate) fn tracked_poses(
     tracker: &Table,
     extra: Option<&[f64]>,
     joints: Option<&Table>,
@@ -139,7 +139,7 @@ fn interpolate(j: &Table, t: f64) -> Option<Vec<f64>> {
 
 /// The generalized errors of `x` with the last link's (the IMU mount) zeroed:
 /// the flange, to which the marker body is attached.
-pub fn flange_eps(layout: &ParamLayout, x: &[f64]) -> Result<Vec<[f64; 6]>, ValidateError> {
+pub(crate) fn flange_eps(layout: &ParamLayout, x: &[f64]) -> Result<Vec<[f64; 6]>, ValidateError> {
     let mut eps = layout.unpack(x).map_err(|e| input(e.to_string()))?.eps;
     if let Some(last) = eps.last_mut() {
         *last = [0.0; 6];
@@ -148,7 +148,7 @@ pub fn flange_eps(layout: &ParamLayout, x: &[f64]) -> Result<Vec<[f64; 6]>, Vali
 }
 
 /// Flange pose F(q; ε) in the base frame (eq. (3)).
-pub fn flange_pose(robot: &Robot, eps: &[[f64; 6]], q: &[f64]) -> Iso {
+pub(crate) fn flange_pose(robot: &Robot, eps: &[[f64; 6]], q: &[f64]) -> Iso {
     forward_kinematics(robot.links(), eps, q)
 }
 

@@ -90,7 +90,7 @@ pub struct TrackerAlignment {
 
 /// An angular speed |ω| (rad/s) on a uniform time grid.
 #[derive(Debug, Clone, PartialEq)]
-pub struct AngularSpeed {
+pub(crate) struct AngularSpeed {
     /// Time of the first value, s.
     pub t0: f64,
     /// Grid step, s.
@@ -191,7 +191,7 @@ impl AngularSpeed {
 }
 
 /// |ω| of the tracked marker body, from the tracker table (tracker clock).
-pub fn tracker_angular_speed(
+pub(crate) fn tracker_angular_speed(
     tracker: &Table,
     search: &OffsetSearch,
 ) -> Result<AngularSpeed, ValidateError> {
@@ -223,7 +223,7 @@ pub fn tracker_angular_speed(
 
 /// |ω| of the flange from the joint samples (session clock), by forward
 /// kinematics F(q; ε) with the generalized errors of `x`.
-pub fn flange_angular_speed(
+pub(crate) fn flange_angular_speed(
     robot: &Robot,
     layout: &ParamLayout,
     x: &[f64],
@@ -297,7 +297,7 @@ fn mismatch(
 }
 
 /// Find δ (see the module doc) from the two angular speeds.
-pub fn find_tracker_offset(
+pub(crate) fn find_tracker_offset(
     tracker: &AngularSpeed,
     robot: &AngularSpeed,
     search: &OffsetSearch,

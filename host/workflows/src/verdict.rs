@@ -35,17 +35,17 @@ use crate::plan::information::robot_lengths;
 use crate::repeatability::Repeatability;
 
 /// σ / prior σ above which a parameter is undetermined.
-pub const UNDETERMINED: f64 = 0.9;
+pub(crate) const UNDETERMINED: f64 = 0.9;
 /// Prior σ from the prior mean beyond which an estimate is implausible.
-pub const IMPLAUSIBLE: f64 = 4.0;
+pub(crate) const IMPLAUSIBLE: f64 = 4.0;
 /// Standard gravity and the tolerance of g₀ (m/s²).
-pub const G0: f64 = 9.81;
+pub(crate) const G0: f64 = 9.81;
 /// See [`G0`].
-pub const G0_TOLERANCE: f64 = 0.05;
+pub(crate) const G0_TOLERANCE: f64 = 0.05;
 /// Whitened residual RMS outside this range: the σ_z do not fit.
-pub const RMS_RANGE: (f64, f64) = (0.67, 1.5);
+pub(crate) const RMS_RANGE: (f64, f64) = (0.67, 1.5);
 /// |window − full| / σ_window beyond which the windows disagree.
-pub const WINDOW_LIMIT: f64 = 4.0;
+pub(crate) const WINDOW_LIMIT: f64 = 4.0;
 
 /// What the verdict looks at besides the calibration.
 pub struct VerdictInput<'a> {

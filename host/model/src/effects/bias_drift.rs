@@ -25,21 +25,21 @@ use super::{Effect, EffectConstant, EffectParam, SampleContext, SessionSpan};
 use crate::IMU_CHANNELS;
 
 /// Segments when none is given (a linear drift).
-pub const DEFAULT_SEGMENTS: usize = 1;
+pub(crate) const DEFAULT_SEGMENTS: usize = 1;
 
 /// Most segments accepted (6 parameters each).
-pub const MAX_SEGMENTS: usize = 64;
+pub(crate) const MAX_SEGMENTS: usize = 64;
 
 /// Broad prior σ of β, accelerometer, m/s²: 60× the drift the paper
 /// observed over 25 min (0.017 m/s²).
-pub const PRIOR_ACCEL: f64 = 1.0;
+pub(crate) const PRIOR_ACCEL: f64 = 1.0;
 
 /// Broad prior σ of β, gyroscope, rad/s: 100× the drift the paper observed
 /// over 25 min (0.025 °/s).
-pub const PRIOR_GYRO: f64 = 2.5 * DEG;
+pub(crate) const PRIOR_GYRO: f64 = 2.5 * DEG;
 
 /// See the module doc.
-pub struct BiasDrift {
+pub(crate) struct BiasDrift {
     span: SessionSpan,
     segments: usize,
 }

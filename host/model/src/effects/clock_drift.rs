@@ -14,7 +14,7 @@ use super::{Effect, EffectConstant, EffectParam, ExactContext, SampleContext, Se
 use crate::ParamLayout;
 
 /// See the module doc.
-pub struct ClockDrift {
+pub(crate) struct ClockDrift {
     span: SessionSpan,
 }
 

@@ -19,7 +19,7 @@ use super::{shifted, Effect, EffectParam, ExactContext, MassModel, SampleContext
 use crate::{JointState, ParamLayout, MAX_JOINTS};
 
 /// See the module doc.
-pub struct JointElasticity {
+pub(crate) struct JointElasticity {
     mass: MassModel,
     g0: f64,
     /// Joints with a parameter.
@@ -61,10 +61,6 @@ impl JointElasticity {
         }
         let loaded = (0..n).filter(|&j| max[j] > 0.1).collect();
         Self { mass, g0, loaded }
-    }
-    /// The joints (0-based) with a compliance parameter.
-    pub fn loaded(&self) -> &[usize] {
-        &self.loaded
     }
 }
 

@@ -107,7 +107,7 @@ pub struct Inertial {
 }
 
 /// Step of the central differences in time, s.
-pub const TIME_STEP: f64 = 1e-3;
+pub(crate) const TIME_STEP: f64 = 1e-3;
 
 /// The joint state `h` seconds later by the Taylor expansion of
 /// (q, q̇, q̈, q⃛) (exact inside a span of a cubic trajectory).
@@ -748,7 +748,7 @@ impl EffectSet {
 
 /// [ω̇]× r + ω × (ω × r): the acceleration of a point at r (IMU frame)
 /// relative to the IMU origin, in the IMU frame.
-pub fn lever_acceleration(inertial: &Inertial, r: V3) -> V3 {
+pub(crate) fn lever_acceleration(inertial: &Inertial, r: V3) -> V3 {
     let a = cross(inertial.omega_dot, r);
     let b = cross(inertial.omega, cross(inertial.omega, r));
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]

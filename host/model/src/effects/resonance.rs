@@ -345,7 +345,7 @@ impl<'s> SpanAccelerations<'s> {
 
 /// See the module doc. One instance simulates one trajectory: the exact
 /// form's response is integrated on its first use and kept.
-pub struct Resonance {
+pub(crate) struct Resonance {
     mode: Mode,
     n: usize,
     /// Response to the recorded joints (the estimator's columns).

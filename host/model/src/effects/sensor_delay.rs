@@ -17,7 +17,7 @@ use super::{Effect, EffectParam, ExactContext, SampleContext};
 use crate::ParamLayout;
 
 /// See the module doc.
-pub struct SensorDelay;
+pub(crate) struct SensorDelay;
 
 impl Effect for SensorDelay {
     fn name(&self) -> &'static str {

@@ -16,7 +16,7 @@ use super::{lever_acceleration, Effect, EffectParam, SampleContext};
 use crate::geom::dot;
 
 /// See the module doc.
-pub struct SizeEffect;
+pub(crate) struct SizeEffect;
 
 const PATTERN: [f64; 6] = [0.8, -0.5, 0.3, -0.4, 0.7, 0.6];
 

@@ -27,15 +27,16 @@ use super::{Effect, EffectConstant, EffectParam, SampleContext};
 use crate::{JointState, Knots, Spline, IMU_CHANNELS};
 
 /// What a session needs for the effect (the message of an unavailable one).
-pub const REQUIRES: &str = "an IMU temperature column that varies by at least half a degree \
+pub(crate) const REQUIRES: &str =
+    "an IMU temperature column that varies by at least half a degree \
      (temp_c in imu.csv; `simulate --temperature` writes one)";
 
 /// Smallest knot spacing of the smoothing spline, s.
-pub const MIN_KNOT_SPACING: f64 = 20.0;
+pub(crate) const MIN_KNOT_SPACING: f64 = 20.0;
 
 /// Smallest range of the smoothed temperature over the session for the
 /// effect to be offered, K (half the BNO055's 1 °C LSB).
-pub const MIN_RANGE: f64 = 0.5;
+pub(crate) const MIN_RANGE: f64 = 0.5;
 
 /// The recorded temperature smoothed in time: a least-squares cubic
 /// B-spline with uniform knots spaced `max(`[`MIN_KNOT_SPACING`]`, 2·span /
@@ -126,7 +127,7 @@ impl TemperatureTrack {
 }
 
 /// See the module doc.
-pub struct TemperatureBias {
+pub(crate) struct TemperatureBias {
     track: Arc<TemperatureTrack>,
 }
 

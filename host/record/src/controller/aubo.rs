@@ -26,7 +26,7 @@ use super::poller::{Poller, Source};
 use super::{connect_any, read_some, ReadFailure};
 
 /// The ARCS controller's JSON-RPC port.
-pub const DEFAULT_PORT: u16 = 30004;
+pub(crate) const DEFAULT_PORT: u16 = 30004;
 
 pub use super::{JointSample, Joints};
 
@@ -78,7 +78,7 @@ pub enum AuboError {
 }
 
 /// The meaning of an ARCS status code (from the SDK's comments).
-pub fn status_message(code: i64) -> &'static str {
+pub(crate) fn status_message(code: i64) -> &'static str {
     match code {
         1 => "AUBO_BAD_STATE: safety mode is not Normal, Reduced or Recovery",
         2 => "AUBO_QUEUE_FULL: the trajectory queue is full",

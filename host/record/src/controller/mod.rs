@@ -8,8 +8,6 @@ pub mod aubo;
 mod poller;
 pub mod ur;
 
-pub use poller::Poller;
-
 use std::fmt;
 use std::io::{ErrorKind, Read};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};

@@ -501,7 +501,7 @@ impl UrClient {
 /// [`super::aubo::JointPoller`]; each sample carries the controller's
 /// timestamp in [`JointSample::robot_t`]. [`Poller::stop`] pauses the
 /// stream and returns the client unless reading or pausing failed.
-pub type UrPoller = Poller<UrClient, UrError>;
+pub(crate) type UrPoller = Poller<UrClient, UrError>;
 
 impl UrPoller {
     /// Starts reading from a client whose data stream is started (see
@@ -549,7 +549,7 @@ impl Source for Streaming {
 /// end
 /// robimu_plan()
 /// ```
-pub fn plan_script(plan: &[(f64, Vec<f64>)]) -> Result<String, UrError> {
+pub(crate) fn plan_script(plan: &[(f64, Vec<f64>)]) -> Result<String, UrError> {
     if plan.len() < 2 {
         return Err(UrError::Plan(format!(
             "{} rows; a plan needs at least 2",

@@ -72,7 +72,7 @@ pub struct Correction {
 }
 
 /// The `format` string of a correction file.
-pub const CORRECTION_FORMAT: &str = "robimu-imu-correction/1";
+pub(crate) const CORRECTION_FORMAT: &str = "robimu-imu-correction/1";
 
 impl Correction {
     /// From calibrated parameters.
@@ -210,7 +210,7 @@ fn yaml_vector(v: &[f64; 3]) -> String {
 /// accelerometers.rx_i = 0, ry_i = R_a·r_y, rz_i = R_a·r_z
 /// ```
 #[derive(Clone, Debug, PartialEq)]
-pub struct KalibrIntrinsics {
+pub(crate) struct KalibrIntrinsics {
     /// `T_i_b`'s rotation C_i_b.
     pub c_i_b: M3,
     /// `accelerometers.M`.

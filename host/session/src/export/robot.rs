@@ -27,7 +27,7 @@ use super::ExportError;
 /// The calibrated robot's description: `C'_i = C_i·E_i` for i < n, the IMU
 /// mount prior centred on the estimated mount (position ε_n1..3, sensor
 /// rotations r_a, r_ω), the same estimated-error set, limits, noise and priors.
-pub fn corrected_description(robot: &Robot, params: &ModelParams) -> RobotDescription {
+pub(crate) fn corrected_description(robot: &Robot, params: &ModelParams) -> RobotDescription {
     let mut desc = robot.description().clone();
     let n = desc.joints.len();
     for (i, (j, link)) in desc.joints.iter_mut().zip(robot.chain()).enumerate() {

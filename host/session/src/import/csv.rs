@@ -169,7 +169,7 @@ fn sensor_of(name: &str) -> Option<Sensor> {
 }
 
 /// Reads an EuRoC/Kalibr IMU CSV into IMU samples (ns, session order).
-pub fn read_imu_csv(path: &Path) -> Result<Vec<(i64, [f64; 6])>, ImportError> {
+pub(crate) fn read_imu_csv(path: &Path) -> Result<Vec<(i64, [f64; 6])>, ImportError> {
     let raw = read_raw(path)?;
     let (gyro_first, scales, tscale) = match &raw.header {
         None => (true, [1.0; 6], 1),
@@ -222,7 +222,7 @@ pub fn read_imu_csv(path: &Path) -> Result<Vec<(i64, [f64; 6])>, ImportError> {
 
 /// Reads a joints CSV (`timestamp,q1,…,qn`; ns and rad unless the header
 /// says otherwise); returns the samples and the joint names of the header.
-pub fn read_joints_csv(path: &Path) -> Result<(JointRows, Vec<String>), ImportError> {
+pub(crate) fn read_joints_csv(path: &Path) -> Result<(JointRows, Vec<String>), ImportError> {
     let raw = read_raw(path)?;
     let width = match &raw.header {
         Some(h) => h.len() - 1,

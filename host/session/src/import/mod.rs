@@ -136,7 +136,7 @@ pub enum ImportError {
 }
 
 /// Joint samples: time (ns), positions (rad).
-pub type JointRows = Vec<(i64, Vec<f64>)>;
+pub(crate) type JointRows = Vec<(i64, Vec<f64>)>;
 
 /// The two sample streams of a recording, on one clock in integer ns.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -211,7 +211,7 @@ impl Streams {
 
 /// An IMU sample in the session's order from the sensor's gyro and
 /// accelerometer vectors.
-pub fn imu_row(gyro: [f64; 3], acc: [f64; 3]) -> [f64; 6] {
+pub(crate) fn imu_row(gyro: [f64; 3], acc: [f64; 3]) -> [f64; 6] {
     [acc[0], acc[1], acc[2], gyro[0], gyro[1], gyro[2]]
 }
 

@@ -31,7 +31,9 @@ use super::collect::compression_refused;
 use super::collect::{
     check_topic, unzstd, Collector, TopicDecl, MCAP_MAGIC, SQLITE_MAGIC, ZSTD_MAGIC,
 };
-pub use super::collect::{Ros2Options, TimeSource, COMPRESSION_FEATURE, IMU, JOINT_STATE};
+pub use super::collect::{Ros2Options, TimeSource, IMU};
+#[allow(unused_imports)]
+pub(crate) use super::collect::{COMPRESSION_FEATURE, JOINT_STATE};
 use super::ImportError;
 use super::Streams;
 

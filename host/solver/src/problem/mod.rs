@@ -724,7 +724,7 @@ fn shortest_interval(knots: &Knots) -> f64 {
 /// on `x[k]` (docs/model.md §1–3): the gyroscope sees only rotations — no robot
 /// length errors ε_i{1,2,3}, no gravity, no accelerometer intrinsics — and the
 /// accelerometer sees no gyroscope intrinsics.
-pub fn sensor_depends_on(layout: &ParamLayout, sensor: usize, k: usize) -> bool {
+pub(crate) fn sensor_depends_on(layout: &ParamLayout, sensor: usize, k: usize) -> bool {
     let o = layout.offsets();
     let gyro_intrinsics = k >= o.gamma_w;
     if sensor == 0 {

@@ -249,7 +249,7 @@ impl Limits {
 
 /// The whitened residual RMS of the accelerometer and the gyroscope from
 /// the six channels' `[ax, ay, az, gx, gy, gz]`: √(mean of the squares).
-pub fn sensor_rms(rms: &[f64; 6]) -> [f64; 2] {
+pub(crate) fn sensor_rms(rms: &[f64; 6]) -> [f64; 2] {
     let m = |c: &[f64]| (c.iter().map(|v| v * v).sum::<f64>() / 3.0).sqrt();
     [m(&rms[..3]), m(&rms[3..])]
 }
@@ -265,7 +265,7 @@ fn sig(v: f64) -> String {
 
 /// Whether `name` matches the glob `pattern` (`*`: any run of characters,
 /// `?`: one character, everything else literally).
-pub fn glob_match(pattern: &str, name: &str) -> bool {
+pub(crate) fn glob_match(pattern: &str, name: &str) -> bool {
     let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
     // the classic two-pointer match with backtracking to the last `*`
     let (mut i, mut j, mut star, mut mark) = (0, 0, None, 0);

@@ -14,7 +14,7 @@ use std::sync::Mutex;
 use robimu_session::result::CalibrationResult;
 
 /// The files whose presence makes a directory a session directory.
-pub const SESSION_FILES: [&str; 3] = ["session.toml", "joints.csv", "imu.csv"];
+pub(crate) const SESSION_FILES: [&str; 3] = ["session.toml", "joints.csv", "imu.csv"];
 
 /// One session of a batch as the command line names it.
 #[derive(Debug, Clone, PartialEq, Eq)]

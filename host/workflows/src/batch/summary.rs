@@ -11,7 +11,7 @@ use super::Outcome;
 /// The names of the IMU's own parameters in x (docs/model.md §5, MODEL.md
 /// §9): its position (the estimated translations of the last link's ε),
 /// τ and its 24 intrinsics.
-pub fn imu_parameter_names(layout: &ParamLayout) -> Vec<String> {
+pub(crate) fn imu_parameter_names(layout: &ParamLayout) -> Vec<String> {
     let specs = layout.specs();
     let n = layout.n_links();
     let position = layout

@@ -34,13 +34,13 @@ use crate::noise_id::{identify, IdOptions, Identification};
 /// Most GLS refits of `Auto`.
 pub const MAX_REFITS: usize = 4;
 /// φ change below which the identified model has settled.
-pub const SETTLE_PHI: f64 = 0.02;
+pub(crate) const SETTLE_PHI: f64 = 0.02;
 /// Relative σ change below which the identified model has settled.
-pub const SETTLE_SIGMA: f64 = 0.02;
+pub(crate) const SETTLE_SIGMA: f64 = 0.02;
 /// Gradient tolerance of a refit (max |g_k|/√A_kk, [`robimu_solver::LmOptions`]):
 /// every parameter's remaining Newton step below 1 % of its conditional σ
 /// (the white fit ends about there, by its cost change).
-pub const REFIT_GRADIENT: f64 = 1e-2;
+pub(crate) const REFIT_GRADIENT: f64 = 1e-2;
 
 /// The noise model to calibrate with.
 #[derive(Debug, Clone, PartialEq)]
@@ -104,7 +104,7 @@ pub fn calibrate_with_noise(
 /// Each refit starts from the previous fit ([`Start::Refit`]: its knots,
 /// trajectory and x; no τ search, no knot choice), so that a refit costs
 /// the few Gauss–Newton steps from the white optimum to the GLS one.
-pub fn calibrate_with_noise_settle(
+pub(crate) fn calibrate_with_noise_settle(
     robot: &Robot,
     data: &Measurements,
     opts: &CalibrateOptions,
@@ -197,7 +197,7 @@ pub fn wanted(id: &Identification) -> Option<NoiseModel> {
 
 /// The outcome of [`settle_noise`].
 #[derive(Debug, Clone)]
-pub struct Settled {
+pub(crate) struct Settled {
     /// The settled fit (`start` itself when no refit was needed).
     pub fit: Fit,
     /// Refits made.
@@ -212,7 +212,7 @@ pub struct Settled {
 /// model [`wanted`] asks for and identify again (`identify`), until the
 /// wanted model is the one the fit used ([`settled`], or both white) or
 /// `settle.max_refits` refits; else why not.
-pub fn settle_noise(
+pub(crate) fn settle_noise(
     start: Fit,
     mut id: Identification,
     settle: &Settle,
@@ -263,7 +263,7 @@ pub fn settled(a: &NoiseModel, b: &NoiseModel, settle: &Settle) -> bool {
 
 /// The noise identified from the raw IMU residuals of `cal`, with ‖q̈‖² of
 /// its trajectory as the motion regressor.
-pub fn residual_identification(
+pub(crate) fn residual_identification(
     robot: &Robot,
     data: &Measurements,
     cal: &Calibration,
@@ -277,7 +277,7 @@ pub fn residual_identification(
 /// `(j, identification or why none)`. The noise choice looks at IMU 0's
 /// residuals ([`residual_identification`]); the verdict checks these
 /// against the model the fit used (one model serves every IMU).
-pub fn other_imu_identifications(
+pub(crate) fn other_imu_identifications(
     robot: &Robot,
     data: &Measurements,
     cal: &Calibration,
@@ -302,7 +302,7 @@ pub fn other_imu_identifications(
 /// effects hands over its residuals for the samples it used: whitened by
 /// σ_z (docs/model.md §4.4), times σ_z they are the raw ones, so that only
 /// the samples in its end margins are predicted again.
-pub fn fit_identification(
+pub(crate) fn fit_identification(
     robot: &Robot,
     data: &Measurements,
     f: &Fit,

@@ -64,13 +64,9 @@ use super::{CalibrateError, CalibrateOptions};
 
 /// The sandwich covariance of a white fit's x.
 #[derive(Debug, Clone)]
-pub struct Sandwich {
-    /// Σ_x over the fit's active parameters (active × active).
-    pub covariance: Mat<f64>,
-    /// √diag per entry of x (0 when frozen).
+pub(crate) struct Sandwich {
+    /// √diag of Σ_x per entry of x (0 when frozen).
     pub sigma: Vec<f64>,
-    /// The Bartlett bandwidth L used, IMU samples.
-    pub bandwidth: usize,
 }
 
 /// The bandwidth L for `samples` IMU samples `dt` apart whose noise is
@@ -149,11 +145,7 @@ pub fn sandwich(
     for (c, &k) in inf.active.iter().enumerate() {
         sigma[k] = b[(c, c)].max(0.0).sqrt();
     }
-    Ok(Sandwich {
-        covariance: b,
-        sigma,
-        bandwidth,
-    })
+    Ok(Sandwich { sigma })
 }
 
 /// R = [A⁻¹]_{x,·} (active × all unknowns) of the normal matrix A at θ:

@@ -9,13 +9,13 @@ use robimu_session::{files, Session, Table, IMU_COLUMNS};
 
 /// A run of identical values over at least this share of the rows is a
 /// stuck channel (fatal); over [`STUCK_RUN_S`] a warning.
-pub const STUCK_SHARE: f64 = 0.5;
+pub(crate) const STUCK_SHARE: f64 = 0.5;
 /// Seconds of identical consecutive values that make a warning.
-pub const STUCK_RUN_S: f64 = 1.0;
+pub(crate) const STUCK_RUN_S: f64 = 1.0;
 /// A sample within this fraction of the range is saturated.
-pub const SATURATION: f64 = 0.98;
+pub(crate) const SATURATION: f64 = 0.98;
 /// Standard gravity, m/s² (the BNO055's g).
-pub const G_STANDARD: f64 = 9.80665;
+pub(crate) const G_STANDARD: f64 = 9.80665;
 
 /// The channel findings of `session`.
 pub fn check(session: &Session) -> Vec<Finding> {

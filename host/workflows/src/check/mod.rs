@@ -21,7 +21,7 @@
 
 pub mod channels;
 pub mod motion;
-pub mod predicted_rate;
+pub(crate) mod predicted_rate;
 pub mod streams;
 pub mod units;
 

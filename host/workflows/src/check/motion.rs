@@ -13,11 +13,11 @@ use super::{Finding, Severity};
 use crate::plan::information::{posterior_sigma, robot_lengths, Information, Sampling};
 
 /// The largest joint range (rad) of a recording that does not move.
-pub const MOTIONLESS: f64 = 0.01;
+pub(crate) const MOTIONLESS: f64 = 0.01;
 /// σ / prior σ above which a parameter is not determined.
-pub const UNDETERMINED: f64 = 0.9;
+pub(crate) const UNDETERMINED: f64 = 0.9;
 /// Midpoint-rule points per second of the excitation measure.
-pub const QUADRATURE: f64 = 20.0;
+pub(crate) const QUADRATURE: f64 = 20.0;
 
 /// A fatal finding when no joint moves by more than [`MOTIONLESS`].
 pub fn motionless(session: &Session) -> Vec<Finding> {
@@ -70,7 +70,7 @@ pub fn excitation(session: &Session, robot: &Robot) -> Vec<Finding> {
 }
 
 /// Each parameter's name and σ / prior σ under the recorded motion.
-pub fn sigma_ratios(session: &Session, robot: &Robot) -> Result<Vec<(String, f64)>, String> {
+pub(crate) fn sigma_ratios(session: &Session, robot: &Robot) -> Result<Vec<(String, f64)>, String> {
     let noise = session.noise_model(robot).map_err(|e| e.to_string())?;
     let rate = session
         .imu

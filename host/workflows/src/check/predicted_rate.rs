@@ -23,7 +23,7 @@ use crate::body_rate::BodyRate;
 const CHUNK: usize = 2048;
 
 /// The predicted |ω̃|² of every joint row, chunk by chunk.
-pub struct PredictedRate<'s> {
+pub(crate) struct PredictedRate<'s> {
     session: &'s Session,
     /// The nominal model's rotations (`None` when the model cannot be built).
     rate: Option<BodyRate>,

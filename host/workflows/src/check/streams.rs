@@ -9,18 +9,18 @@ use super::{median_of, Finding, Severity};
 use robimu_session::{files, Session, Table};
 
 /// A gap is an interval longer than this many median periods.
-pub const GAP_FACTOR: f64 = 3.0;
+pub(crate) const GAP_FACTOR: f64 = 3.0;
 /// A gap at least this long (s) is a dropout or a clock jump.
-pub const JUMP: f64 = 1.0;
+pub(crate) const JUMP: f64 = 1.0;
 /// A row's time stamp is off when it lies more than this part of the median
 /// period from the midpoint of its neighbours' (the two periods around it
 /// summing to two periods within half of one: no row lost or added).
-pub const STAMP_OFF: f64 = 0.125;
+pub(crate) const STAMP_OFF: f64 = 0.125;
 /// Plausible sample rates of a recording, Hz.
-pub const RATES: (f64, f64) = (5.0, 10_000.0);
+pub(crate) const RATES: (f64, f64) = (5.0, 10_000.0);
 /// The IMU samples may lie outside the joint span by this much (s): the time
 /// offset τ between the clocks (as `calibrate`'s input check allows).
-pub const CLOCK_SLACK: f64 = 10.0;
+pub(crate) const CLOCK_SLACK: f64 = 10.0;
 
 /// The stream findings of `session`.
 pub fn check(session: &Session) -> Vec<Finding> {
@@ -33,7 +33,7 @@ pub fn check(session: &Session) -> Vec<Finding> {
 }
 
 /// `[imu] sample_rate_hz` of session.toml, when recorded.
-pub fn nominal_rate(session: &Session) -> Option<f64> {
+pub(crate) fn nominal_rate(session: &Session) -> Option<f64> {
     let v = session.meta.imu.as_ref()?.get("sample_rate_hz")?;
     v.as_float()
         .or_else(|| v.as_integer().map(|i| i as f64))

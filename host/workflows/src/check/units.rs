@@ -21,21 +21,21 @@ use super::{median_of, Finding, Severity};
 use crate::calibrate::joint_outside_limits;
 
 /// A joint row is static when every |q̇| is below this, rad/s.
-pub const STATIC_SPEED: f64 = 0.01;
+pub(crate) const STATIC_SPEED: f64 = 0.01;
 /// A static stretch lasts at least this long, s.
-pub const STATIC_MIN: f64 = 2.0;
+pub(crate) const STATIC_MIN: f64 = 2.0;
 /// IMU samples this close to either end of a static stretch are left out
 /// (the clocks differ by τ), s.
-pub const STATIC_MARGIN: f64 = 0.5;
+pub(crate) const STATIC_MARGIN: f64 = 0.5;
 /// RMS |ω| (rad/s) the joints must predict for the gyroscope's scale to
 /// be checked (finite differences of joint noise alone give a few 0.01).
-pub const MOVING: f64 = 0.05;
+pub(crate) const MOVING: f64 = 0.05;
 /// Plausible ratios of the gyroscope's RMS to the prediction.
-pub const GYRO_RATIO: (f64, f64) = (0.6, 1.6);
+pub(crate) const GYRO_RATIO: (f64, f64) = (0.6, 1.6);
 
 /// q̇ at every joint row by central differences (one-sided at the ends,
 /// 0 across repeated times).
-pub fn joint_speeds(session: &Session) -> Vec<f64> {
+pub(crate) fn joint_speeds(session: &Session) -> Vec<f64> {
     let n = session.joint_count();
     let mut qd = vec![0.0; session.joints.len() * n];
     for (i, row) in qd.chunks_exact_mut(n.max(1)).enumerate() {
@@ -64,7 +64,7 @@ pub(super) fn speeds_at(joints: &Table, i: usize, out: &mut [f64]) {
 
 /// The static stretches of the joints, `(t0, t1)` of at least
 /// [`STATIC_MIN`] s with every |q̇| < [`STATIC_SPEED`].
-pub fn static_stretches(session: &Session, qd: &[f64]) -> Vec<(f64, f64)> {
+pub(crate) fn static_stretches(session: &Session, qd: &[f64]) -> Vec<(f64, f64)> {
     let n = session.joint_count();
     let t = &session.joints.t;
     let mut out = Vec::new();
@@ -364,7 +364,7 @@ fn gyro_scale(
 /// when the samples do not spread in every direction (the spread along the
 /// narrowest axis below a tenth of the RMS |a|: a sensor at rest, or one
 /// that turned about one axis only).
-pub fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
+pub(crate) fn sphere_radius(imu: &robimu_session::Table) -> Option<f64> {
     let n = imu.len();
     if n < 10 {
         return None;

@@ -10,8 +10,6 @@
 //! AR order capped at [`NOISE_MAX_ORDER`]), and the structure left
 //! ([`unexplained`]).
 
-pub use crate::stats::{chi2_sf, ljung_box, ln_gamma, LJUNG_BOX_LAGS};
-
 mod ranking;
 mod residuals;
 pub mod resolution;
@@ -20,10 +18,7 @@ mod search;
 
 pub use ranking::{determination, Alternative, Determination, MAX_ALIASING};
 
-pub use residuals::{
-    peak_p_value, regressor_p_value, residual_stats, welch, welch_segments, windowed_rms,
-    ResidualStats,
-};
+pub use residuals::{regressor_p_value, residual_stats, welch, windowed_rms, ResidualStats};
 pub use score::{score_all, Score};
 
 use serde::Serialize;
@@ -72,7 +67,7 @@ pub fn setup_for(robot: &Robot, data: &Measurements, mass: Option<MassModel>) ->
 }
 
 /// [`setup_for`] with the resonance effect's mode.
-pub fn setup_with(
+pub(crate) fn setup_with(
     robot: &Robot,
     data: &Measurements,
     mass: Option<MassModel>,
@@ -275,7 +270,7 @@ pub struct Rejected {
 
 /// Largest AR order `Auto` identifies (see the module doc: an AR(1)
 /// spectrum is monotone and cannot take up a narrow peak).
-pub const NOISE_MAX_ORDER: usize = 1;
+pub(crate) const NOISE_MAX_ORDER: usize = 1;
 
 /// Diagnosis settings.
 #[derive(Debug, Clone)]
@@ -515,7 +510,7 @@ fn with_noise(opts: &CalibrateOptions, noise: Option<NoiseModel>) -> CalibrateOp
 /// effects included), with ‖q̈‖² of its trajectory as the motion regressor.
 /// A fit under white noise has them already (its residuals, whitened by
 /// σ_z: the same problem's at the same θ); another's are evaluated anew.
-pub fn identify_at(
+pub(crate) fn identify_at(
     robot: &Robot,
     data: &Measurements,
     opts: &CalibrateOptions,
@@ -830,7 +825,7 @@ pub fn inject_effects_on(
 }
 
 /// The JSON of a fit: every parameter of x and every effect parameter (SI, with σ).
-pub fn fit_json(layout: &ParamLayout, f: &Fit) -> serde_json::Value {
+pub(crate) fn fit_json(layout: &ParamLayout, f: &Fit) -> serde_json::Value {
     let params: Vec<serde_json::Value> = layout
         .specs()
         .iter()
@@ -859,6 +854,8 @@ pub fn fit_json(layout: &ParamLayout, f: &Fit) -> serde_json::Value {
 mod tests {
     use super::residuals::correlation;
     use super::*;
+    use super::residuals::{peak_p_value, welch_segments};
+    use crate::stats::{chi2_sf, ljung_box, ln_gamma};
 
     /// χ² upper-tail probabilities against tabulated quantiles.
     #[test]

@@ -44,13 +44,13 @@ use robimu_model::Robot;
 /// (`host/cli/tests/drift.rs`): with 10 s (at most 16 segments in 300 s)
 /// a 20× random walk left enough slow structure for g_sensitivity to be
 /// added after it (score 29, 9 dof, p 6e-4); with 5 s (32) nothing was.
-pub const MIN_SEGMENT_S: f64 = 5.0;
+pub(crate) const MIN_SEGMENT_S: f64 = 5.0;
 
 /// Shortest segment in noise correlation times.
-pub const CORRELATION_SEGMENT: f64 = 100.0;
+pub(crate) const CORRELATION_SEGMENT: f64 = 100.0;
 
 /// Finest resolution diagnose considers (6 parameters per segment).
-pub const MAX_CHOSEN: usize = 32;
+pub(crate) const MAX_CHOSEN: usize = 32;
 
 /// One resolution's score.
 #[derive(Debug, Clone, Serialize)]
@@ -80,7 +80,7 @@ pub struct ResolutionChoice {
 
 /// M_max for a session over `span_s` seconds whose noise has the integral
 /// correlation time `corr_s` (see the module doc).
-pub fn max_resolution(span_s: f64, corr_s: f64) -> usize {
+pub(crate) fn max_resolution(span_s: f64, corr_s: f64) -> usize {
     let shortest = MIN_SEGMENT_S.max(CORRELATION_SEGMENT * corr_s);
     let mut m = 1;
     while 2 * m <= MAX_CHOSEN && span_s / (2 * m) as f64 >= shortest {

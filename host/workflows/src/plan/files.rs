@@ -151,7 +151,7 @@ pub fn read_plan_table(robot: &Robot, dir: &Path) -> Result<Table, PlanFileError
 }
 
 /// The trajectory of `dir/plan.csv` ([`read_plan_table`]).
-pub fn read_plan(robot: &Robot, dir: &Path) -> Result<Spline, PlanFileError> {
+pub(crate) fn read_plan(robot: &Robot, dir: &Path) -> Result<Spline, PlanFileError> {
     let table = read_plan_table(robot, dir)?;
     from_samples(robot.dof(), &table.t, &table.values).map_err(|source| {
         PlanFileError::Unrepresentable {

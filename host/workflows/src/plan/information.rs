@@ -361,7 +361,7 @@ pub fn covariance(info: &Mat<f64>, keep: &[usize]) -> Option<Mat<f64>> {
 
 /// Indices of x except the robot length parameters ε_ik, k ≤ 3, i < n (the
 /// paper's nine for the AUBO i5; the IMU position ε_n1..3 stays).
-pub fn without_robot_lengths(layout: &ParamLayout) -> Vec<usize> {
+pub(crate) fn without_robot_lengths(layout: &ParamLayout) -> Vec<usize> {
     let n = layout.n_links();
     (0..layout.len())
         .filter(|&i| {
@@ -374,7 +374,7 @@ pub fn without_robot_lengths(layout: &ParamLayout) -> Vec<usize> {
 }
 
 /// The robot length parameters (see [`without_robot_lengths`]).
-pub fn robot_lengths(layout: &ParamLayout) -> Vec<usize> {
+pub(crate) fn robot_lengths(layout: &ParamLayout) -> Vec<usize> {
     let keep = without_robot_lengths(layout);
     (0..layout.len()).filter(|i| !keep.contains(i)).collect()
 }
