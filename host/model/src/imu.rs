@@ -16,6 +16,71 @@ use super::jet::Scalar;
 /// per-channel parameters and statistics.
 pub const IMU_CHANNELS: [&str; 6] = ["ax", "ay", "az", "gx", "gy", "gz"];
 
+/// One value per IMU channel, in [`IMU_CHANNELS`] order; indexed by position
+/// or by channel name, serialized as an object keyed by channel name
+/// ([`PerChannel::serialize_present`] leaves out the `None` entries).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PerChannel<T>(pub [T; 6]);
+
+impl<T> PerChannel<T> {
+    /// (channel name, value) in channel order.
+    pub fn iter(&self) -> impl Iterator<Item = (&'static str, &T)> {
+        IMU_CHANNELS.iter().copied().zip(&self.0)
+    }
+
+    /// The value of `channel` (`ax` … `gz`), if it is one.
+    pub fn get(&self, channel: &str) -> Option<&T> {
+        IMU_CHANNELS
+            .iter()
+            .position(|c| *c == channel)
+            .map(|k| &self.0[k])
+    }
+}
+
+impl<T> std::ops::Index<usize> for PerChannel<T> {
+    type Output = T;
+    fn index(&self, k: usize) -> &T {
+        &self.0[k]
+    }
+}
+
+impl<T> std::ops::Index<&str> for PerChannel<T> {
+    type Output = T;
+    /// # Panics
+    /// When `channel` is not one of [`IMU_CHANNELS`].
+    #[track_caller]
+    fn index(&self, channel: &str) -> &T {
+        self.get(channel)
+            .unwrap_or_else(|| panic!("`{channel}` is not an IMU channel"))
+    }
+}
+
+impl<T: serde::Serialize> serde::Serialize for PerChannel<T> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(Some(6))?;
+        for (c, v) in IMU_CHANNELS.iter().zip(&self.0) {
+            m.serialize_entry(c, v)?;
+        }
+        m.end()
+    }
+}
+
+impl<T: serde::Serialize> PerChannel<Option<T>> {
+    /// Serializes the channels that have a value (`#[serde(serialize_with =
+    /// "PerChannel::serialize_present")]`).
+    pub fn serialize_present<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(None)?;
+        for (c, v) in IMU_CHANNELS.iter().zip(&self.0) {
+            if let Some(v) = v {
+                m.serialize_entry(c, v)?;
+            }
+        }
+        m.end()
+    }
+}
+
 /// Why an inertial computation is undefined.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum ImuError {

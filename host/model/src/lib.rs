@@ -74,7 +74,7 @@ pub mod urdf;
 /// Largest number of joints the model supports (fixed-size, allocation-free hot path).
 pub const MAX_JOINTS: usize = 8;
 
-pub use imu::{ImuError, ImuIntrinsics, IMU_CHANNELS};
+pub use imu::{ImuError, ImuIntrinsics, PerChannel, IMU_CHANNELS};
 pub use jet::{Jet, Scalar};
 pub use kinematics::{ImuMotion, JointState};
 pub use lanes::F64x4;

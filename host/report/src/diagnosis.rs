@@ -336,7 +336,7 @@ fn write_structure_left(out: &mut fmt::Formatter<'_>, d: &Diagnosis) -> fmt::Res
         .iter()
         .filter(|(_, (_, p))| *p < lb_threshold)
         .map(|(c, _)| {
-            let (f, pk) = d.stats_after.spectral_peak.get(c).copied().unwrap_or_default();
+            let (f, pk) = d.stats_after.spectral_peak[c].unwrap_or_default();
             let (r, corr, z) = d
                 .stats_after
                 .top_regressor
@@ -406,7 +406,7 @@ fn write_stats(out: &mut fmt::Formatter<'_>, s: &ResidualStats) -> fmt::Result {
     )?;
     for c in CHANNELS {
         let (q, p) = s.ljung_box[c];
-        let (f, pk) = s.spectral_peak.get(c).copied().unwrap_or_default();
+        let (f, pk) = s.spectral_peak[c].unwrap_or_default();
         let (r, corr, _) = s.top_regressor.get(c).cloned().unwrap_or_default();
         writeln!(
             out,

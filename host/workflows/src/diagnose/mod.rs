@@ -31,7 +31,7 @@ use robimu_model::effects::resonance::Mode;
 use robimu_model::effects::{self, CatalogueSetup, Effect, EffectSet, MassModel, SessionSpan};
 use robimu_model::noise::NoiseModel;
 use robimu_model::observations::Measurements;
-use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot, Spline};
+use robimu_model::{JointState, MeasurementModel, ParamLayout, PerChannel, Robot, Spline};
 use robimu_solver::problem::Problem;
 use robimu_solver::LeastSquares;
 
@@ -370,8 +370,8 @@ pub fn unexplained(s: &ResidualStats) -> Vec<Unexplained> {
     CHANNELS
         .iter()
         .filter_map(|&c| {
-            let p = s.spectral_peak_p.get(c).copied().unwrap_or(1.0);
-            let (frequency_hz, peak_ratio) = s.spectral_peak.get(c).copied().unwrap_or_default();
+            let p = s.spectral_peak_p[c].unwrap_or(1.0);
+            let (frequency_hz, peak_ratio) = s.spectral_peak[c].unwrap_or_default();
             let (regressor, r, z) = s.top_regressor.get(c).cloned().unwrap_or_default();
             let regressor_p = regressor_p_value(z, s.regressors);
             let (narrow_peak, follows_regressor) = (p < level, regressor_p < level);
@@ -434,20 +434,11 @@ impl Diagnosis {
     }
     /// The `diagnosis.json` document (format `robimu-diagnosis/1`).
     pub fn to_json(&self, layout: &ParamLayout) -> serde_json::Value {
-        let rms_map = |rms: [f64; 6]| -> serde_json::Value {
-            let mut m = serde_json::Map::new();
-            for (c, v) in CHANNELS.iter().zip(rms) {
-                m.insert(c.to_string(), v.into());
-            }
-            m.into()
-        };
-        let whiteness = self.noise.white_test.as_ref().map(|id| {
-            let mut m = serde_json::Map::new();
-            for (c, ch) in CHANNELS.iter().zip(&id.channels) {
-                m.insert(c.to_string(), ch.ljung_box_p.into());
-            }
-            serde_json::Value::from(m)
-        });
+        let whiteness = self
+            .noise
+            .white_test
+            .as_ref()
+            .map(|id| PerChannel(std::array::from_fn(|c| id.channels[c].ljung_box_p)));
         serde_json::json!({
             "format": "robimu-diagnosis/1",
             "threshold": self.threshold,
@@ -461,8 +452,8 @@ impl Diagnosis {
             "effects_found": self.found,
             "final_effect_specs": self.final_specs(),
             "last_scores": self.last_scores,
-            "residual_rms_before": rms_map(self.baseline.residual_rms()),
-            "residual_rms_after": rms_map(self.final_fit.residual_rms()),
+            "residual_rms_before": PerChannel(self.baseline.residual_rms()),
+            "residual_rms_after": PerChannel(self.final_fit.residual_rms()),
             "residual_stats_before": self.stats_before,
             "residual_stats_after": self.stats_after,
             "unexplained": self.unexplained,
@@ -853,8 +844,8 @@ pub(crate) fn fit_json(layout: &ParamLayout, f: &Fit) -> serde_json::Value {
 #[cfg(test)]
 mod tests {
     use super::residuals::correlation;
-    use super::*;
     use super::residuals::{peak_p_value, welch_segments};
+    use super::*;
     use crate::stats::{chi2_sf, ljung_box, ln_gamma};
 
     /// χ² upper-tail probabilities against tabulated quantiles.

@@ -3,16 +3,13 @@
 //! whiteness, the Welch spectrum and its largest peak, the worst time
 //! window and the regressor the residuals follow most.
 
-use std::collections::BTreeMap;
-
 use serde::Serialize;
 
-use super::CHANNELS;
 use crate::calibrate::fit::Fit;
 use crate::stats::{chi2_sf, ljung_box, LJUNG_BOX_LAGS};
 use robimu_model::effects::CatalogueSetup;
 use robimu_model::observations::Measurements;
-use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot};
+use robimu_model::{JointState, MeasurementModel, ParamLayout, PerChannel, Robot};
 
 /// Residual statistics of one fit (whitened residuals; see the module doc).
 #[derive(Debug, Clone, Serialize)]
@@ -20,23 +17,25 @@ pub struct ResidualStats {
     /// IMU samples.
     pub samples: usize,
     /// RMS per channel (1 = at the noise model).
-    pub rms: BTreeMap<String, f64>,
+    pub rms: PerChannel<f64>,
     /// Σ r² per channel.
-    pub chi2: BTreeMap<String, f64>,
+    pub chi2: PerChannel<f64>,
     /// Σ r² over all channels, and its degrees of freedom (6 × samples).
     pub chi2_total: (f64, usize),
     /// Ljung–Box statistic (20 lags) and its p-value per channel.
-    pub ljung_box: BTreeMap<String, (f64, f64)>,
+    pub ljung_box: PerChannel<(f64, f64)>,
     /// Largest Welch-periodogram peak per channel: (frequency Hz, power
     /// relative to the channel's median).
-    pub spectral_peak: BTreeMap<String, (f64, f64)>,
+    #[serde(serialize_with = "PerChannel::serialize_present")]
+    pub spectral_peak: PerChannel<Option<(f64, f64)>>,
     /// P-value of that peak under a flat spectrum ([`peak_p_value`]).
-    pub spectral_peak_p: BTreeMap<String, f64>,
+    #[serde(serialize_with = "PerChannel::serialize_present")]
+    pub spectral_peak_p: PerChannel<Option<f64>>,
     /// Per channel: the tenth of the session with the largest RMS (start s,
     /// RMS relative to the channel's).
-    pub worst_window: BTreeMap<String, (f64, f64)>,
+    pub worst_window: PerChannel<(f64, f64)>,
     /// Per channel: the regressor with the largest |correlation| (name, r, z = r√N).
-    pub top_regressor: BTreeMap<String, (String, f64, f64)>,
+    pub top_regressor: PerChannel<(String, f64, f64)>,
     /// How many regressors were searched (the Bonferroni factor of
     /// [`regressor_p_value`]).
     pub regressors: usize,
@@ -150,18 +149,6 @@ pub fn residual_stats(
         col.extend(more);
     }
     let regs: Vec<Centred> = regs.iter().map(|x| Centred::new(x)).collect();
-    let mut out = ResidualStats {
-        samples: res.len(),
-        rms: BTreeMap::new(),
-        chi2: BTreeMap::new(),
-        chi2_total: (0.0, 6 * res.len()),
-        ljung_box: BTreeMap::new(),
-        spectral_peak: BTreeMap::new(),
-        spectral_peak_p: BTreeMap::new(),
-        worst_window: BTreeMap::new(),
-        top_regressor: BTreeMap::new(),
-        regressors: reg_names.len(),
-    };
     // the channels' statistics, three per thread, gathered in channel order
     let channel = |c: usize| channel_stats(res, c, &ts, rate, &regs, &reg_names);
     let (mut per_channel, rest) = robimu_model::pair::join(
@@ -169,20 +156,26 @@ pub fn residual_stats(
         || (3..6).map(channel).collect::<Vec<_>>(),
     );
     per_channel.extend(rest);
-    for (name, st) in CHANNELS.iter().zip(per_channel) {
-        let name = name.to_string();
-        out.chi2_total.0 += st.ss;
-        out.rms.insert(name.clone(), st.rms);
-        out.chi2.insert(name.clone(), st.ss);
-        out.ljung_box.insert(name.clone(), st.ljung_box);
-        if let Some((peak, p)) = st.peak {
-            out.spectral_peak.insert(name.clone(), peak);
-            out.spectral_peak_p.insert(name.clone(), p);
-        }
-        out.worst_window.insert(name.clone(), st.worst_window);
-        out.top_regressor.insert(name, st.top_regressor);
+    let st: [ChannelStats; 6] = match per_channel.try_into() {
+        Ok(st) => st,
+        Err(_) => unreachable!("six channels"),
+    };
+    let mut chi2_total = 0.0;
+    for c in &st {
+        chi2_total += c.ss;
     }
-    out
+    ResidualStats {
+        samples: res.len(),
+        rms: PerChannel(std::array::from_fn(|k| st[k].rms)),
+        chi2: PerChannel(std::array::from_fn(|k| st[k].ss)),
+        chi2_total: (chi2_total, 6 * res.len()),
+        ljung_box: PerChannel(std::array::from_fn(|k| st[k].ljung_box)),
+        spectral_peak: PerChannel(std::array::from_fn(|k| st[k].peak.map(|(peak, _)| peak))),
+        spectral_peak_p: PerChannel(std::array::from_fn(|k| st[k].peak.map(|(_, p)| p))),
+        worst_window: PerChannel(std::array::from_fn(|k| st[k].worst_window)),
+        top_regressor: PerChannel(std::array::from_fn(|k| st[k].top_regressor.clone())),
+        regressors: reg_names.len(),
+    }
 }
 
 /// One channel's part of [`ResidualStats`].
