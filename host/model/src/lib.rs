@@ -52,6 +52,7 @@
 // Index loops mirror the matrix formulas of the paper.
 #![allow(clippy::needless_range_loop)]
 
+pub mod catalogue;
 pub mod effects;
 pub mod error_selection;
 pub mod geom;
@@ -74,6 +75,7 @@ pub mod urdf;
 /// Largest number of joints the model supports (fixed-size, allocation-free hot path).
 pub const MAX_JOINTS: usize = 8;
 
+pub use catalogue::BUILTIN_ROBOTS;
 pub use imu::{ImuError, ImuIntrinsics, PerChannel, IMU_CHANNELS};
 pub use jet::{Jet, Scalar};
 pub use kinematics::{ImuMotion, JointState};
@@ -81,7 +83,7 @@ pub use lanes::F64x4;
 pub use measurement::{MeasurementJacobians, MeasurementModel, ModelError};
 pub use observations::Measurements;
 pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
-pub use robot::{ErrorIndex, Robot, RobotDescription, RobotError};
+pub use robot::{ErrorIndex, Frames, Robot, RobotDescription, RobotError};
 pub use spline::{Basis, Basis4, Knots, SpanPolynomials, Spline, SplineError};
 
 pub use crate::effects::mass::MassError;

@@ -356,6 +356,17 @@ pub struct RobotDescription {
     /// Gravity magnitude g0 (m/s²).
     #[serde(default = "default_gravity")]
     pub gravity: f64,
+    /// Where the numbers come from (a built-in robot: the maker's
+    /// description package and version).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
+    /// Joint names, base to flange, as the robot's driver publishes them
+    /// (empty: unnamed; then joint readings are taken in chain order).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub joint_names: Vec<String>,
+    /// The maker's base and flange frames (absent: the model's own).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames: Option<Frames>,
     /// Joints, base to flange.
     #[serde(rename = "joint")]
     pub joints: Vec<JointDescription>,
@@ -375,6 +386,21 @@ pub struct RobotDescription {
     /// robot TOML).
     #[serde(skip)]
     pub imu_mounts: std::collections::BTreeMap<usize, ImuMount>,
+}
+
+/// The maker's base and flange frames of a robot description: the model's
+/// flange frame is the maker's flange frame `flange`; the model's base frame
+/// (joint 1's frame, in which gravity is expressed) sits at `base_to_model`
+/// in the maker's base frame `base`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Frames {
+    /// Name of the maker's base frame (e.g. UR's `base`, Franka's `link0`).
+    pub base: String,
+    /// Name of the maker's flange frame (e.g. UR's `tool0`, Franka's `link8`).
+    pub flange: String,
+    /// The model's base frame in the maker's base frame.
+    pub base_to_model: Origin,
 }
 
 /// Why a robot description was rejected.
@@ -436,6 +462,9 @@ pub enum RobotError {
         /// Why it is rejected.
         reason: &'static str,
     },
+    /// `joint_names` is neither empty nor one unique name per joint.
+    #[error("joint_names: {0}")]
+    BadJointNames(String),
     /// The same ε listed twice.
     #[error("estimated error eps_{link}_{k} is listed twice")]
     DuplicateErrorIndex {
@@ -524,6 +553,18 @@ impl Robot {
         }
         positive(|| "gravity".into(), desc.gravity)?;
         check_joints(&desc.joints)?;
+        check_joint_names(&desc.joint_names, n)?;
+        if let Some(f) = &desc.frames {
+            for (k, v) in f
+                .base_to_model
+                .xyz
+                .iter()
+                .chain(&f.base_to_model.rpy)
+                .enumerate()
+            {
+                finite(|| format!("frames.base_to_model component {}", k + 1), *v)?;
+            }
+        }
         check_noise_mounts_priors(&desc)?;
         let estimated = estimated_errors(&desc, n)?;
         let links: Vec<DhLink> = desc
@@ -581,12 +622,10 @@ impl Robot {
         Self::from_toml_str(&text)
     }
 
-    /// A built-in robot by name (`"aubo_i5"`), or `None`.
+    /// A built-in robot by name (one of [`crate::catalogue::BUILTIN_ROBOTS`]),
+    /// or `None`.
     pub fn builtin(name: &str) -> Option<Self> {
-        match name {
-            "aubo_i5" => Some(Self::aubo_i5()),
-            _ => None,
-        }
+        crate::catalogue::builtin(name)
     }
 
     /// The AUBO i5 reference setup of docs/model.md §6 (paper §8), in SI.
@@ -624,6 +663,9 @@ impl Robot {
         let desc = RobotDescription {
             name: "aubo_i5".into(),
             gravity: 9.81,
+            source: None,
+            joint_names: Vec::new(),
+            frames: None,
             joints,
             noise: NoiseDescription {
                 sigma_z: [0.38, 0.21, 0.19, 0.32 * DEG, 0.47 * DEG, 0.57 * DEG],
@@ -725,6 +767,30 @@ impl Robot {
 }
 
 /// Checks every joint's DH parameters, limits, σ and fixed origin.
+fn check_joint_names(names: &[String], n: usize) -> Result<(), RobotError> {
+    if names.is_empty() {
+        return Ok(());
+    }
+    if names.len() != n {
+        return Err(RobotError::BadJointNames(format!(
+            "{} names for {n} joints",
+            names.len()
+        )));
+    }
+    for (i, a) in names.iter().enumerate() {
+        if a.is_empty() {
+            return Err(RobotError::BadJointNames(format!(
+                "joint {} has an empty name",
+                i + 1
+            )));
+        }
+        if names[..i].contains(a) {
+            return Err(RobotError::BadJointNames(format!("`{a}` is listed twice")));
+        }
+    }
+    Ok(())
+}
+
 fn check_joints(joints: &[JointDescription]) -> Result<(), RobotError> {
     for (i, j) in joints.iter().enumerate() {
         let f = |name: &str| format!("joint {} {name}", i + 1);

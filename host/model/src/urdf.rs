@@ -34,7 +34,7 @@ use std::path::Path;
 
 use super::geom::{self, Iso, M3, V3};
 use super::robot::{
-    ImuMount, JointDescription, NoiseDescription, Origin, Priors, Robot, RobotDescription,
+    Frames, ImuMount, JointDescription, NoiseDescription, Origin, Priors, Robot, RobotDescription,
     RobotError,
 };
 
@@ -362,6 +362,7 @@ pub fn robot_from_urdf_str(
     let mut align = Vec::new();
     let mut pending = Iso::identity();
     let mut prev_align: Option<M3> = None;
+    let mut base_to_model = Iso::identity();
     let push_c = |descs: &mut Vec<JointDescription>, a_prev: &M3, p: &Iso, a_next: &M3| {
         let c = Iso::rotation(geom::transpose(a_prev))
             .compose(p)
@@ -377,8 +378,10 @@ pub fn robot_from_urdf_str(
             "revolute" | "continuous" => {
                 let p = pending.compose(&o);
                 let a = align_z(j.axis);
-                if let Some(ap) = &prev_align {
-                    push_c(&mut descs, ap, &p, &a);
+                match &prev_align {
+                    Some(ap) => push_c(&mut descs, ap, &p, &a),
+                    // model base = L_base·P_1·A_1
+                    None => base_to_model = p.compose(&Iso::rotation(a)),
                 }
                 let (q_min, q_max) = match j.position {
                     Some(r) => r,
@@ -434,6 +437,17 @@ pub fn robot_from_urdf_str(
     let desc = RobotDescription {
         name: robot_name.clone(),
         gravity: opts.gravity,
+        source: None,
+        joint_names: chain
+            .iter()
+            .filter(|j| is_revolute(&j.kind))
+            .map(|j| j.name.clone())
+            .collect(),
+        frames: Some(Frames {
+            base: base.clone(),
+            flange: tip.clone(),
+            base_to_model: Origin::from_iso(&base_to_model),
+        }),
         joints: descs,
         noise: opts.noise,
         imu_mount: opts.imu_mount,
