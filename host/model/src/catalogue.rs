@@ -34,20 +34,24 @@ pub const BUILTIN_ROBOTS: &[&str] = &[
     "panda", "iiwa14", "gen3",
 ];
 
-/// The description file of a built-in robot (`None` for `aubo_i5`, which is
-/// defined in code, and for unknown names).
+/// The description file of a built-in robot, as committed (its header cites
+/// the source); `None` for `aubo_i5`, which is defined in code, and for
+/// unknown names.
 pub fn builtin_file(name: &str) -> Option<&'static str> {
     FILES.iter().find(|(n, _)| *n == name).map(|(_, f)| *f)
 }
 
-/// A built-in robot by name, or `None`.
-pub(crate) fn builtin(name: &str) -> Option<Robot> {
-    if name == "aubo_i5" {
-        return Some(Robot::aubo_i5());
+impl Robot {
+    /// A built-in robot by name (one of [`BUILTIN_ROBOTS`]), or `None`.
+    pub fn builtin(name: &str) -> Option<Self> {
+        if name == "aubo_i5" {
+            return Some(Robot::aubo_i5());
+        }
+        // Every file is parsed by the tests; a failure here cannot happen in
+        // a tested build, and is reported as an unknown robot rather than a
+        // panic.
+        Robot::from_toml_str(builtin_file(name)?).ok()
     }
-    // Every file is parsed by the tests; a failure here cannot happen in a
-    // tested build, and is reported as an unknown robot rather than a panic.
-    Robot::from_toml_str(builtin_file(name)?).ok()
 }
 
 #[cfg(test)]
@@ -248,6 +252,48 @@ mod tests {
         d.joint_names.push("shoulder_pan_joint".into());
         let e = Robot::new(d).unwrap_err().to_string();
         assert!(e.contains("`shoulder_pan_joint` is listed twice"), "{e}");
+    }
+
+    /// `robot_to_urdf` written and read back (robimu's URDF reader) gives the
+    /// same flange pose in the maker's base frame, for every built-in.
+    #[test]
+    fn urdf_written_for_each_builtin_reads_back_to_the_same_flange_pose() {
+        use crate::urdf::robot_to_urdf;
+        let qs = [
+            [0.0; 7],
+            [0.3, -0.5, 1.2, 0.7, -1.1, 2.0, 0.4],
+            [-1.4, 1.0, 0.6, -2.9, 0.2, -0.4, 1.9],
+        ];
+        for name in BUILTIN_ROBOTS {
+            let b = Robot::builtin(name).unwrap();
+            let text = robot_to_urdf(&b);
+            let (u, _) = robot_from_urdf_str(&text, &UrdfOptions::default()).unwrap();
+            let frames = |r: &Robot| {
+                r.description()
+                    .frames
+                    .as_ref()
+                    .map(|f| f.base_to_model.to_iso())
+                    .unwrap_or_else(Iso::identity)
+            };
+            let n = b.dof();
+            assert_eq!(u.dof(), n);
+            for (lb, lu) in b.limits().iter().zip(u.limits()) {
+                assert_eq!(
+                    (lb.q_min, lb.q_max, lb.qd_max),
+                    (lu.q_min, lu.q_max, lu.qd_max)
+                );
+            }
+            if !b.description().joint_names.is_empty() {
+                assert_eq!(b.description().joint_names, u.description().joint_names);
+            }
+            let eps = vec![[0.0; 6]; n];
+            for q in &qs {
+                let pb = frames(&b).compose(&forward_kinematics(b.chain(), &eps, &q[..n]));
+                let pu = frames(&u).compose(&forward_kinematics(u.chain(), &eps, &q[..n]));
+                let (dp, dr) = pose_err(&pb, &pu);
+                assert!(dp < 1e-12 && dr < 1e-12, "{name}: {dp:e} m, {dr:e} rad");
+            }
+        }
     }
 
     /// Each built-in's nominal flange pose in the maker's base frame equals

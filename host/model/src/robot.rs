@@ -622,12 +622,6 @@ impl Robot {
         Self::from_toml_str(&text)
     }
 
-    /// A built-in robot by name (one of [`crate::catalogue::BUILTIN_ROBOTS`]),
-    /// or `None`.
-    pub fn builtin(name: &str) -> Option<Self> {
-        crate::catalogue::builtin(name)
-    }
-
     /// The AUBO i5 reference setup of docs/model.md §6 (paper §8), in SI.
     pub fn aubo_i5() -> Self {
         use std::f64::consts::{FRAC_PI_2, PI};

@@ -481,6 +481,90 @@ pub fn robot_from_urdf_file(
     robot_from_urdf_str(&text, opts)
 }
 
+/// The robot's nominal kinematics as a plain URDF (links and joints only):
+/// the maker's base frame (`[frames] base`, else `base`), a fixed joint to
+/// the model base (`base_to_model`), one revolute joint about z per joint
+/// (named as `joint_names`, else `joint1`…; limits and speed from the
+/// description) whose `<origin>` is the previous link's fixed part
+/// `Rz(θ0)·Tz(d)·Tx(a)·Rx(α)·C`, and a fixed joint to the flange link
+/// (`[frames] flange`, else `flange`). The URDF joint angle is the model's
+/// q. Reading it back with [`robot_from_urdf_str`] gives the same flange
+/// pose.
+pub fn robot_to_urdf(robot: &Robot) -> String {
+    use std::fmt::Write;
+    let d = robot.description();
+    let (base, flange, b2m) = match &d.frames {
+        Some(f) => (f.base.clone(), f.flange.clone(), f.base_to_model),
+        None => ("base".to_string(), "flange".to_string(), Origin::IDENTITY),
+    };
+    let name = |i: usize| {
+        d.joint_names
+            .get(i)
+            .cloned()
+            .unwrap_or_else(|| format!("joint{}", i + 1))
+    };
+    // Frame i of the model (after joint i); a name no maker uses.
+    let link = |i: usize| format!("robimu_frame{i}");
+    let origin = |o: &Origin| {
+        format!(
+            r#"<origin xyz="{:?} {:?} {:?}" rpy="{:?} {:?} {:?}"/>"#,
+            o.xyz[0], o.xyz[1], o.xyz[2], o.rpy[0], o.rpy[1], o.rpy[2]
+        )
+    };
+    let mut out = String::new();
+    let _ = writeln!(out, r#"<?xml version="1.0"?>"#);
+    let _ = writeln!(
+        out,
+        "<!-- robimu nominal description of `{}` (links and joints only){} -->",
+        d.name,
+        d.source
+            .as_ref()
+            .map(|s| format!("; source: {}", s.replace("--", "- -")))
+            .unwrap_or_default()
+    );
+    let _ = writeln!(out, r#"<robot name="{}">"#, d.name);
+    let _ = writeln!(out, r#"  <link name="{base}"/>"#);
+    for i in 0..=robot.dof() {
+        let _ = writeln!(out, r#"  <link name="{}"/>"#, link(i));
+    }
+    let _ = writeln!(out, r#"  <link name="{flange}"/>"#);
+    let _ = writeln!(
+        out,
+        r#"  <joint name="{base}-model_base" type="fixed"><parent link="{base}"/><child link="{}"/>{}</joint>"#,
+        link(0),
+        origin(&b2m)
+    );
+    let mut prev = Origin::IDENTITY;
+    for (i, (c, l)) in robot.chain().iter().zip(robot.limits()).enumerate() {
+        let _ = writeln!(
+            out,
+            r#"  <joint name="{}" type="revolute"><parent link="{}"/><child link="{}"/>{}<axis xyz="0 0 1"/><limit lower="{:?}" upper="{:?}" velocity="{:?}" effort="0"/></joint>"#,
+            name(i),
+            link(i),
+            link(i + 1),
+            origin(&prev),
+            l.q_min,
+            l.q_max,
+            l.qd_max
+        );
+        let mut dh = c.dh;
+        dh.theta0 = 0.0;
+        let fixed = Iso::rotation(geom::rot_z(c.dh.theta0))
+            .compose(&crate::kinematics::link_transform(&dh, 0.0))
+            .compose(&c.fixed.unwrap_or_else(Iso::identity));
+        prev = Origin::from_iso(&fixed);
+    }
+    let _ = writeln!(
+        out,
+        r#"  <joint name="{}-{flange}" type="fixed"><parent link="{}"/><child link="{flange}"/>{}</joint>"#,
+        link(robot.dof()),
+        link(robot.dof()),
+        origin(&prev)
+    );
+    out.push_str("</robot>\n");
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -40,7 +40,8 @@ pub struct IdentifiabilityCmd {
     /// The plan directory.
     #[arg(long, value_name = "PLAN_DIR")]
     pub plan: PathBuf,
-    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description.
+    /// Robot: a built-in name (`robimu robots` lists them) or the path of a
+    /// TOML robot description.
     #[arg(long, default_value = "aubo_i5")]
     pub robot: String,
     /// Speed-up factors of the length study.

@@ -38,8 +38,9 @@ pub struct SessionArgs {
     /// Session directory to write (created if needed; session files in it are replaced).
     #[arg(long)]
     pub out: PathBuf,
-    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot
-    /// description; its joint count must match the joints imported.
+    /// Robot: a built-in name (`robimu robots` lists them) or the path of a
+    /// TOML robot description or a URDF; its joint count must match the
+    /// joints imported.
     #[arg(long, default_value = "aubo_i5")]
     pub robot: String,
 }

@@ -17,6 +17,7 @@ pub mod plan;
 pub mod record;
 pub mod repair;
 pub mod report;
+pub mod robots;
 pub mod simulate;
 pub mod validate;
 
@@ -38,6 +39,7 @@ pub enum Command {
     Export(export::ExportCmd),
     Correct(correct::CorrectCmd),
     Identifiability(identifiability::IdentifiabilityCmd),
+    Robots(robots::RobotsCmd),
     #[command(name = "montecarlo")]
     MonteCarlo(montecarlo::MonteCarloCmd),
     Noise(noise::NoiseCmd),
@@ -66,6 +68,7 @@ impl Command {
             Command::Diagnose(c) => c.run(),
             Command::Plan(c) => c.run(),
             Command::Identifiability(c) => c.run(),
+            Command::Robots(c) => c.run(),
         }
     }
 }

@@ -25,7 +25,8 @@ use crate::input::resolve_robot_with;
 /// against its 95 % χ² interval.
 #[derive(Debug, Clone, clap::Args)]
 pub struct MonteCarloCmd {
-    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description or a URDF.
+    /// Robot: a built-in name (`robimu robots` lists them) or the path of a
+    /// TOML robot description or a URDF.
     #[arg(long, default_value = "aubo_i5")]
     pub robot: String,
     #[command(flatten)]

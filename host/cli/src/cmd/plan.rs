@@ -31,7 +31,8 @@ use robimu_workflows::pipeline::noise_spec::parse_noise_model;
 /// IMU sits at the robot's nominal mount unless `--imu-position` places it.
 #[derive(Debug, Clone, clap::Args)]
 pub struct PlanCmd {
-    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description.
+    /// Robot: a built-in name (`robimu robots` lists them) or the path of a
+    /// TOML robot description.
     #[arg(long, default_value = "aubo_i5")]
     pub robot: String,
     /// Length of the trajectory, s.

@@ -32,7 +32,8 @@ pub struct RecordCmd {
     /// The robot controller: aubo:HOST[:PORT].
     #[arg(long)]
     pub robot: String,
-    /// The robot's description: a built-in name or a TOML file.
+    /// The robot's description: a built-in name (`robimu robots` lists
+    /// them) or a TOML file.
     #[arg(long, default_value = "aubo_i5")]
     pub model: String,
     /// Plan directory with plan.csv (from `robimu plan`).

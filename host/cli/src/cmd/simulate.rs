@@ -17,7 +17,8 @@ use crate::input::{place_imus, resolve_robot_with};
 /// imu.csv, and truth.toml with the true parameters.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateCmd {
-    /// Robot: a built-in name (aubo_i5) or the path of a TOML robot description or a URDF.
+    /// Robot: a built-in name (`robimu robots` lists them) or the path of a
+    /// TOML robot description or a URDF.
     #[arg(long, default_value = "aubo_i5")]
     pub robot: String,
     #[command(flatten)]

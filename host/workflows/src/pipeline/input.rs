@@ -12,8 +12,9 @@ use robimu_session::Session;
 
 use crate::check::{CheckReport, Severity};
 
-/// Robots built into the program (`--robot NAME`, `robot = "NAME"`).
-pub const BUILTIN_ROBOTS: &[&str] = &["aubo_i5"];
+/// Robots built into the program (`--robot NAME`, `robot = "NAME"`): the
+/// catalogue of `robimu_model::catalogue`.
+pub use robimu_model::BUILTIN_ROBOTS;
 
 /// Where a robot description comes from.
 pub enum RobotSource {

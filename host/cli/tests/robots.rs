@@ -1,0 +1,166 @@
+//! `robimu robots`: the built-in catalogue listed, printed and written as a
+//! plain URDF, and the written URDF checked two ways — read back by
+//! robimu's URDF reader (same flange pose as the built-in) and, for the
+//! robots of issue 38's must-show list, by `tests/makers_fk.py --written`,
+//! an independent numpy reader comparing it with the maker's own URDF
+//! (tests/fixtures/makers/, whose header names the maker's file and commit).
+
+use std::path::Path;
+use std::process::Command;
+
+use robimu_model::geom::Iso;
+use robimu_model::kinematics::forward_kinematics;
+use robimu_model::urdf::{robot_from_urdf_file, UrdfOptions};
+use robimu_model::{Robot, BUILTIN_ROBOTS};
+
+mod common;
+use common::{robimu, robimu_ok, s};
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+/// Pose of the maker's flange frame in the maker's base frame.
+fn flange(r: &Robot, q: &[f64]) -> Iso {
+    let base = r
+        .description()
+        .frames
+        .as_ref()
+        .map(|f| f.base_to_model.to_iso())
+        .unwrap_or_else(Iso::identity);
+    base.compose(&forward_kinematics(r.chain(), &vec![[0.0; 6]; r.dof()], q))
+}
+
+#[test]
+fn robots_lists_every_builtin_with_its_joints_and_source() {
+    let run = robimu_ok(["robots"]);
+    for name in BUILTIN_ROBOTS {
+        let r = Robot::builtin(name).unwrap();
+        let line = run
+            .stdout
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap_or_else(|| panic!("{name} not listed:\n{}", run.stdout));
+        let cols: Vec<&str> = line.split_whitespace().collect();
+        assert_eq!(cols[1], r.dof().to_string(), "{line}");
+        if let Some(src) = &r.description().source {
+            assert!(line.ends_with(src.as_str()), "{line}");
+        }
+    }
+    let ur5e = run.stdout.lines().find(|l| l.starts_with("ur5e ")).unwrap();
+    assert!(
+        ur5e.contains("Universal_Robots_ROS2_Description 2.4.5"),
+        "{ur5e}"
+    );
+}
+
+#[test]
+fn robots_show_prints_a_description_that_loads_as_the_builtin() {
+    for name in ["ur5e", "fr3", "aubo_i5"] {
+        let run = robimu_ok(["robots", "show", name]);
+        let r = Robot::from_toml_str(&run.stdout).unwrap();
+        assert_eq!(
+            r.description(),
+            Robot::builtin(name).unwrap().description(),
+            "{name}"
+        );
+    }
+    robimu(["robots", "show", "ur6"]).assert_fails(&["unknown robot `ur6`", "ur5e", "fr3"]);
+}
+
+#[test]
+fn written_urdf_gives_the_builtins_flange_pose() {
+    let dir = tempfile::tempdir().unwrap();
+    let qs = [
+        [0.0; 7],
+        [0.3, -0.5, 1.2, 0.7, -1.1, 2.0, 0.4],
+        [-1.4, 1.0, 0.6, -2.9, 0.2, -0.4, 1.9],
+    ];
+    for name in BUILTIN_ROBOTS {
+        let path = dir.path().join(format!("{name}.urdf"));
+        robimu_ok(["robots", "show", name, "--urdf", s(&path)]);
+        let b = Robot::builtin(name).unwrap();
+        let flange_link = b
+            .description()
+            .frames
+            .as_ref()
+            .map_or("flange".to_string(), |f| f.flange.clone());
+        let opts = UrdfOptions {
+            tip: Some(flange_link),
+            ..UrdfOptions::default()
+        };
+        let (u, _) = robot_from_urdf_file(&path, &opts).unwrap();
+        assert_eq!(u.dof(), b.dof(), "{name}");
+        for q in &qs {
+            let (pb, pu) = (flange(&b, &q[..b.dof()]), flange(&u, &q[..b.dof()]));
+            let dp = (0..3)
+                .map(|k| (pb.p[k] - pu.p[k]).abs())
+                .fold(0.0, f64::max);
+            let dr = (0..3)
+                .flat_map(|i| (0..3).map(move |j| (i, j)))
+                .map(|(i, j)| (pb.r[i][j] - pu.r[i][j]).abs())
+                .fold(0.0, f64::max);
+            assert!(dp < 1e-12 && dr < 1e-12, "{name}: {dp:e} m, {dr:e}");
+        }
+    }
+}
+
+/// The written URDF against the maker's, both read by the independent
+/// numpy reader of tests/makers_fk.py. Skipped, with a message, without
+/// python3 ≥ 3.11 and numpy (`.ci/run` installs numpy).
+#[test]
+fn written_urdf_equals_the_makers_by_an_independent_reader() {
+    let probe = Command::new("python3")
+        .args(["-c", "import numpy, tomllib"])
+        .output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        eprintln!("SKIPPED: python3 >= 3.11 with numpy is needed (pip install numpy)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["ur5e", "ur10e", "fr3", "panda", "iiwa14", "gen3"] {
+        let path = dir.path().join(format!("{name}.urdf"));
+        robimu_ok(["robots", "show", name, "--urdf", s(&path)]);
+        let out = Command::new("python3")
+            .arg(root().join("tests/makers_fk.py"))
+            .args(["--written", name, s(&path), s(root())])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        println!("{text}{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success() && text.trim_end().ends_with(" ok"),
+            "{name}:\n{text}"
+        );
+    }
+}
+
+/// Every command that takes `--robot` takes a catalogue name: a short
+/// simulated UR5e session names the robot, and `check` loads it.
+#[test]
+fn robot_flag_takes_catalogue_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s");
+    robimu_ok([
+        "simulate",
+        "--robot",
+        "ur5e",
+        "--duration",
+        "5",
+        "--seed",
+        "3",
+        "--out",
+        s(&out),
+    ]);
+    let toml = std::fs::read_to_string(out.join("session.toml")).unwrap();
+    assert!(toml.contains("robot = \"ur5e\""), "{toml}");
+    robimu_ok(["check", s(&out)]);
+    robimu([
+        "simulate",
+        "--robot",
+        "ur6",
+        "--out",
+        s(&dir.path().join("x")),
+    ])
+    .assert_fails(&["unknown robot `ur6`", "ur5e", "iiwa14"]);
+}
