@@ -35,7 +35,10 @@ fn ns(t: f64) -> i64 {
 }
 
 fn simulated(duration: f64) -> (Robot, Vec<f64>, Measurements) {
-    let robot = Robot::aubo_i5();
+    simulated_on(Robot::aubo_i5(), duration)
+}
+
+fn simulated_on(robot: Robot, duration: f64) -> (Robot, Vec<f64>, Measurements) {
     let layout = ParamLayout::new(&robot);
     let mut rng = rand::rngs::StdRng::seed_from_u64(21);
     let truth = draw_truth(&layout, &mut rng);
@@ -53,8 +56,11 @@ struct McapSpec<'a> {
     joint_topic: &'a str,
     joint_schema: &'a str,
     message_encoding: &'a str,
-    /// Joint names in the messages, a permutation of [`JOINTS`].
-    order: [usize; 6],
+    /// The joints of each arm message, indices into [`JOINTS`] (a
+    /// permutation, or fewer).
+    order: &'a [usize],
+    /// Further joints in each arm message (name, position), after the arm's.
+    extra: &'a [(&'a str, f64)],
 }
 
 impl Default for McapSpec<'_> {
@@ -63,7 +69,8 @@ impl Default for McapSpec<'_> {
             joint_topic: "/joint_states",
             joint_schema: "sensor_msgs/msg/JointState",
             message_encoding: "cdr",
-            order: [0, 1, 2, 3, 4, 5],
+            order: &[0, 1, 2, 3, 4, 5],
+            extra: &[],
         }
     }
 }
@@ -103,8 +110,18 @@ fn write_mcap(path: &Path, data: &Measurements, spec: &McapSpec) {
         let m = JointStateMsg {
             stamp: Stamp(ns(data.joint_t[k])),
             frame_id: String::new(),
-            name: spec.order.iter().map(|&j| JOINTS[j].to_string()).collect(),
-            position: spec.order.iter().map(|&j| q[j]).collect(),
+            name: spec
+                .order
+                .iter()
+                .map(|&j| JOINTS[j].to_string())
+                .chain(spec.extra.iter().map(|e| e.0.to_string()))
+                .collect(),
+            position: spec
+                .order
+                .iter()
+                .map(|&j| q[j])
+                .chain(spec.extra.iter().map(|e| e.1))
+                .collect(),
         };
         msgs.push((m.stamp.0, jc, encode::joint_state(&m)));
         if k % 50 == 0 {
@@ -188,7 +205,7 @@ fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
         &bag,
         &data,
         &McapSpec {
-            order: [5, 4, 3, 2, 1, 0],
+            order: &[5, 4, 3, 2, 1, 0],
             ..McapSpec::default()
         },
     );
@@ -258,6 +275,91 @@ fn mcap_and_csv_imports_match_and_calibrate_like_the_original() {
         worst_truth < 4.5,
         "imported calibration is {worst_truth} σ from the truth"
     );
+}
+
+/// The order in which the UR ROS 2 driver's joint_state_broadcaster
+/// publishes the UR joints on /joint_states (the order of the state
+/// interfaces in ros2_control's resource manager, not the chain's; reported
+/// by its users, e.g. a `ros2 topic echo /joint_states` of a UR5e:
+/// shoulder_lift, elbow, wrist 1–3, shoulder_pan).
+const UR_DRIVER_ORDER: [usize; 6] = [1, 2, 3, 4, 5, 0];
+
+/// Joint names decide the order: with a built-in robot (`ur5e`) or a URDF
+/// robot, a bag listing UR's joints in the driver's order plus a gripper
+/// joint imports to the same session as one in chain order, without
+/// `--joint-names`; a missing joint is named in the error.
+#[test]
+fn ros2_joints_are_mapped_onto_the_chain_by_name() {
+    let (_, _, data) = simulated_on(Robot::builtin("ur5e").unwrap(), 6.0);
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (chain, driver, missing) = (
+        d.join("chain.mcap"),
+        d.join("driver.mcap"),
+        d.join("missing.mcap"),
+    );
+    write_mcap(&chain, &data, &McapSpec::default());
+    let gripper = [("robotiq_85_left_knuckle_joint", 0.37)];
+    write_mcap(
+        &driver,
+        &data,
+        &McapSpec {
+            order: &UR_DRIVER_ORDER,
+            extra: &gripper,
+            ..McapSpec::default()
+        },
+    );
+    write_mcap(
+        &missing,
+        &data,
+        &McapSpec {
+            order: &[1, 2, 3, 4, 0],
+            extra: &gripper,
+            ..McapSpec::default()
+        },
+    );
+    let urdf = d.join("ur5e.urdf");
+    robimu_ok(["robots", "show", "ur5e", "--urdf", s(&urdf)]);
+    let import = |bag: &Path, robot: &str, out: &str| {
+        let out = d.join(out);
+        let run = robimu(["import", "ros2", s(bag), "--robot", robot, "--out", s(&out)]);
+        (run, out)
+    };
+    let (run, a) = import(&chain, "ur5e", "chain");
+    assert!(run.success(), "{}", run.text());
+    for (robot, name) in [("ur5e", "driver"), (s(&urdf), "driver_urdf")] {
+        let (run, b) = import(&driver, robot, name);
+        assert!(run.success(), "{}", run.text());
+        assert!(
+            run.stdout.contains(&format!(
+                "{} joint samples (joints {})",
+                data.joint_t.len(),
+                JOINTS.join(", ")
+            )),
+            "{}",
+            run.stdout
+        );
+        let (sa, sb) = (Session::load(&a).unwrap(), Session::load(&b).unwrap());
+        assert_eq!(sa.joints.t, sb.joints.t, "{name}");
+        assert_eq!(sa.joints.values, sb.joints.values, "{name}");
+        assert_eq!(sa.imu.t, sb.imu.t, "{name}");
+        assert_eq!(sa.imu.values, sb.imu.values, "{name}");
+        assert_eq!(sb.measurements().joint_q, data.joint_q, "{name}");
+        robimu_ok(["check", s(&b)]);
+    }
+    let toml = std::fs::read_to_string(a.join("session.toml")).unwrap();
+    assert!(toml.contains("robot = \"ur5e\""), "{toml}");
+    // wrist_3_joint missing: named, with the joints the messages have.
+    import(&missing, "ur5e", "missing").0.assert_fails(&[
+        "robot `ur5e`'s joints",
+        "lacks `wrist_3_joint`",
+        "robotiq_85_left_knuckle_joint",
+    ]);
+    // Without the robot's names (aubo_i5 names none) the driver's order
+    // and the gripper come through and are refused.
+    import(&driver, "aubo_i5", "aubo")
+        .0
+        .assert_fails(&["7 joints imported (shoulder_lift_joint,", "--joint-names"]);
 }
 
 #[test]

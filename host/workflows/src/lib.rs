@@ -111,6 +111,7 @@ pub use crate::identifiability::BaselineMedians;
 pub use crate::identifiability::CheckError;
 pub use crate::identifiability::ErrorMoments;
 pub use crate::identifiability::GainError;
+pub use crate::import::JointsByName;
 pub use crate::montecarlo::MonteCarloError;
 pub use crate::montecarlo::ParamStats;
 pub use crate::montecarlo::RunOutcome;

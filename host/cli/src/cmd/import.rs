@@ -7,7 +7,7 @@ use anyhow::Context;
 use robimu_session::import::csv::read_csv_pair;
 use robimu_session::import::ros2::{read_ros2, Ros2Options, TimeSource};
 use robimu_session::import::Imported;
-use robimu_workflows::import::write_imported;
+use robimu_workflows::import::{write_imported, ImportRobot};
 
 /// Import a recording made with other tools as a session directory.
 ///
@@ -58,8 +58,10 @@ pub struct Ros2Cmd {
     /// Topic of sensor_msgs/msg/Imu.
     #[arg(long, default_value = "/imu/data_raw")]
     pub imu: String,
-    /// Joints to import, in order (comma-separated names) [default: those
-    /// of the first joint message].
+    /// Joints to import, in chain order (comma-separated names) [default:
+    /// the robot's joint names, picked by name from each message whatever
+    /// the driver's order, other joints such as a gripper's ignored; for a
+    /// robot without joint names, those of the first joint message].
     #[arg(long, value_delimiter = ',')]
     pub joint_names: Option<Vec<String>>,
     /// Sample times: `header` (the messages' header.stamp) or `log` (when
@@ -104,8 +106,14 @@ impl ImportCmd {
 
     /// Import; what was written.
     pub fn write(&self) -> anyhow::Result<Imported> {
-        let (streams, session, source) = match &self.format {
+        let session = match &self.format {
+            ImportFormat::Ros2(c) => &c.session,
+            ImportFormat::Csv(c) => &c.session,
+        };
+        let robot = ImportRobot::resolve(&session.robot)?;
+        let (streams, source) = match &self.format {
             ImportFormat::Ros2(c) => {
+                let joints = robot.joints_by_name(c.joint_names.clone());
                 let opts = Ros2Options {
                     joints_topic: c.joints.clone(),
                     imu_topic: c.imu.clone(),
@@ -114,11 +122,18 @@ impl ImportCmd {
                     } else {
                         TimeSource::Header
                     },
-                    joint_names: c.joint_names.clone(),
+                    joint_names: joints.names.clone(),
+                    names_required: joints.given,
                 };
-                let s = read_ros2(&c.file, &opts)
-                    .with_context(|| format!("cannot import {}", c.file.display()))?;
-                (s, &c.session, c.file.display().to_string())
+                let s = read_ros2(&c.file, &opts).with_context(|| match &joints.names {
+                    Some(_) if !joints.given => format!(
+                        "cannot import {}: robot `{}`'s joints are picked by name from each JointState (choose others with --joint-names)",
+                        c.file.display(),
+                        robot.robot.name(),
+                    ),
+                    _ => format!("cannot import {}", c.file.display()),
+                })?;
+                (s, c.file.display().to_string())
             }
             ImportFormat::Csv(c) => {
                 let s = read_csv_pair(&c.imu, &c.joints).with_context(|| {
@@ -128,13 +143,9 @@ impl ImportCmd {
                         c.joints.display()
                     )
                 })?;
-                (
-                    s,
-                    &c.session,
-                    format!("{} + {}", c.imu.display(), c.joints.display()),
-                )
+                (s, format!("{} + {}", c.imu.display(), c.joints.display()))
             }
         };
-        write_imported(streams, &session.out, &session.robot, &source)
+        write_imported(streams, &session.out, robot, &source)
     }
 }

@@ -36,9 +36,15 @@ pub struct Ros2Options {
     pub imu_topic: String,
     /// Which timestamp to use.
     pub time: TimeSource,
-    /// The joints to import, in this order (default: the names of the first
-    /// joint message, in its order).
+    /// The joints to import, in this order, picked from each message by
+    /// name (other joints, such as a gripper's, are ignored); default: the
+    /// names of the first joint message, in its order.
     pub joint_names: Option<Vec<String>>,
+    /// Whether a message without joint names is refused when `joint_names`
+    /// is set (the user chose the joints) or taken as it is (`joint_names`
+    /// are the robot's chain, and an unnamed message is taken to be in
+    /// chain order).
+    pub names_required: bool,
 }
 
 /// A topic as a storage declares it.
@@ -88,7 +94,7 @@ impl<'o> Collector<'o> {
             file: file.to_path_buf(),
             message_zstd: false,
             topics: BTreeMap::new(),
-            joints: JointPicker::new(opts.joint_names.clone()),
+            joints: JointPicker::new(opts.joint_names.clone(), opts.names_required),
             out: Streams::default(),
             stamps: [(None, false); 2],
         }
@@ -257,10 +263,11 @@ impl<'o> Collector<'o> {
                 ImportError::Joints {
                     path: source.to_path_buf(),
                     detail: format!(
-                        "no message on {} has all of the joints {:?} ({} skipped)",
+                        "no message on {} has all of the joints {:?} ({} skipped){}",
                         opts.joints_topic,
                         self.joints.names.clone().unwrap_or_default(),
-                        self.joints.skipped
+                        self.joints.skipped,
+                        self.joints.closest_miss()
                     ),
                 }
             });
@@ -315,17 +322,40 @@ pub(crate) fn check_topic(
 struct JointPicker {
     /// The joints to import (`None` until the first message when not given).
     names: Option<Vec<String>>,
+    /// Whether unnamed messages are refused when `names` was given.
+    names_required: bool,
     /// Width of positional (unnamed) messages.
     width: Option<usize>,
     skipped: usize,
+    /// Of the skipped messages, the one lacking the fewest of the joints:
+    /// (the joints it lacks, the names it has).
+    closest: Option<(Vec<String>, Vec<String>)>,
 }
 
 impl JointPicker {
-    fn new(names: Option<Vec<String>>) -> Self {
+    fn new(names: Option<Vec<String>>, names_required: bool) -> Self {
         Self {
             names,
+            names_required,
             width: None,
             skipped: 0,
+            closest: None,
+        }
+    }
+
+    /// The joints the closest skipped message lacks, for the error.
+    fn closest_miss(&self) -> String {
+        match &self.closest {
+            None => String::new(),
+            Some((missing, has)) => format!(
+                ": the closest message lacks {} (its joints: {})",
+                missing
+                    .iter()
+                    .map(|n| format!("`{n}`"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                has.join(", ")
+            ),
         }
     }
 
@@ -341,7 +371,7 @@ impl JointPicker {
         }
         if m.name.is_empty() {
             // Positional: every message must have the same width.
-            if let Some(names) = &self.names {
+            if let Some(names) = self.names.as_ref().filter(|_| self.names_required) {
                 return Err(format!(
                     "joint message {index} has no joint names, so joints {names:?} cannot be picked"
                 ));
@@ -355,16 +385,25 @@ impl JointPicker {
         }
         let names = self.names.get_or_insert_with(|| m.name.clone());
         let mut q = Vec::with_capacity(names.len());
+        let mut missing = Vec::new();
         for n in names.iter() {
             match m.name.iter().position(|x| x == n) {
                 Some(i) => q.push(m.position[i]),
-                None => {
-                    self.skipped += 1;
-                    return Ok(None);
-                }
+                None => missing.push(n.clone()),
             }
         }
-        Ok(Some(q))
+        if missing.is_empty() {
+            return Ok(Some(q));
+        }
+        self.skipped += 1;
+        if self
+            .closest
+            .as_ref()
+            .is_none_or(|(fewest, _)| missing.len() < fewest.len())
+        {
+            self.closest = Some((missing, m.name.clone()));
+        }
+        Ok(None)
     }
 }
 
@@ -401,5 +440,50 @@ pub(crate) fn compression_refused(path: &Path, what: &str) -> ImportError {
              `{COMPRESSION_FEATURE}` feature: build it with `cargo build --release --features \
              {COMPRESSION_FEATURE}`, or decompress the bag (`ros2 bag convert`)"
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::import::cdr::Stamp;
+
+    fn msg(names: &[&str], q: &[f64]) -> JointStateMsg {
+        JointStateMsg {
+            stamp: Stamp(0),
+            frame_id: String::new(),
+            name: names.iter().map(|n| n.to_string()).collect(),
+            position: q.to_vec(),
+        }
+    }
+
+    fn chain() -> Option<Vec<String>> {
+        Some(["a", "b", "c"].iter().map(|n| n.to_string()).collect())
+    }
+
+    #[test]
+    fn joints_are_picked_by_name_in_chain_order_extra_ones_ignored() {
+        let mut p = JointPicker::new(chain(), false);
+        let m = msg(&["b", "grip", "c", "a"], &[2.0, 9.0, 3.0, 1.0]);
+        assert_eq!(p.pick(&m, 0).unwrap(), Some(vec![1.0, 2.0, 3.0]));
+        // A gripper-only message on the same topic is skipped.
+        assert_eq!(p.pick(&msg(&["grip"], &[9.0]), 1).unwrap(), None);
+        // The closest skipped message is the one reported.
+        assert_eq!(p.pick(&msg(&["b", "a", "x"], &[0.0; 3]), 2).unwrap(), None);
+        assert_eq!(
+            p.closest_miss(),
+            ": the closest message lacks `c` (its joints: b, a, x)"
+        );
+        assert_eq!(p.skipped, 2);
+    }
+
+    #[test]
+    fn unnamed_messages_follow_the_chain_unless_names_were_given() {
+        let m = msg(&[], &[1.0, 2.0, 3.0]);
+        let mut robot = JointPicker::new(chain(), false);
+        assert_eq!(robot.pick(&m, 0).unwrap(), Some(vec![1.0, 2.0, 3.0]));
+        let mut given = JointPicker::new(chain(), true);
+        let e = given.pick(&m, 0).unwrap_err();
+        assert!(e.contains("has no joint names"), "{e}");
     }
 }
