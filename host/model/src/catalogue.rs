@@ -201,6 +201,11 @@ mod tests {
             let f = d.frames.as_mut().unwrap();
             f.base = spec.base_frame.into();
             f.base_to_model = crate::robot::Origin::from_iso(&base);
+            // UR: the default kinematics' `hash` (scripts/ur_urdf.py writes
+            // it into the fixture's header).
+            d.calibration_hash = fixture(spec.name)
+                .split_once("(hash ")
+                .map(|(_, rest)| rest.split(')').next().unwrap().to_string());
             let robot = Robot::new(d).unwrap();
             let set = identifiable_errors(&robot, &IdentifiableOptions::default()).unwrap();
             let robot = robot.with_estimated_errors(set.errors).unwrap();

@@ -367,6 +367,12 @@ pub struct RobotDescription {
     /// The maker's base and flange frames (absent: the model's own).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frames: Option<Frames>,
+    /// The maker's identifier of the calibration these kinematics are (UR:
+    /// the `hash` of the kinematics YAML, `calib_…`, which the UR driver
+    /// compares with the controller's), kept so that an export names the
+    /// calibration it refines.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration_hash: Option<String>,
     /// Joints, base to flange.
     #[serde(rename = "joint")]
     pub joints: Vec<JointDescription>,
@@ -660,6 +666,7 @@ impl Robot {
             source: None,
             joint_names: Vec::new(),
             frames: None,
+            calibration_hash: None,
             joints,
             noise: NoiseDescription {
                 sigma_z: [0.38, 0.21, 0.19, 0.32 * DEG, 0.47 * DEG, 0.57 * DEG],

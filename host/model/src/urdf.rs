@@ -448,6 +448,7 @@ pub fn robot_from_urdf_str(
             flange: tip.clone(),
             base_to_model: Origin::from_iso(&base_to_model),
         }),
+        calibration_hash: None,
         joints: descs,
         noise: opts.noise,
         imu_mount: opts.imu_mount,

@@ -79,6 +79,7 @@ pub use truth::{Truth, TruthMismatch, TruthRow};
 pub use writer::SessionWriter;
 
 pub use export::imu::{ImuCsvError, SensorCorrection};
+pub use export::ur::UrKinematicsError;
 pub use export::ExportError;
 pub use import::cdr::CdrError;
 pub use import::ImportError;

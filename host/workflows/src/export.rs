@@ -17,6 +17,7 @@ use robimu_session::export::imu::{
     KalibrOptions, KalibrPlacement, DEFAULT_RANDOM_WALK,
 };
 use robimu_session::export::robot::{corrected_toml, corrected_urdf};
+use robimu_session::export::ur::calibrated_ur_yaml;
 use robimu_session::export::{calibrated_params, imu_effects};
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
@@ -35,7 +36,15 @@ pub enum ExportFormat {
     Kalibr,
     /// The IMU correction (per sensor M, M⁻¹ and b of z = M·v + b; TOML).
     Correction,
+    /// The calibrated robot as Universal Robots' kinematics YAML (the UR
+    /// ROS 2 description's `kinematics_params`; needs a robot of UR's
+    /// structure).
+    UrKinematics,
 }
+
+/// The `hash` of a UR kinematics export whose robot names no factory
+/// calibration.
+const UNKNOWN_UR_HASH: &str = "robimu_no_factory_calibration";
 
 /// What [`export`] tells its caller as it goes.
 #[derive(Debug, Clone, PartialEq)]
@@ -221,6 +230,19 @@ impl Exporter<'_> {
         let (req, spec) = (self.req, self.req.spec.as_str());
         Ok(match format {
             ExportFormat::Toml => corrected_toml(self.robot, params)?,
+            ExportFormat::UrKinematics => {
+                let text = calibrated_ur_yaml(self.robot, params, UNKNOWN_UR_HASH)
+                    .with_context(|| format!("--format ur-kinematics: robot `{spec}`"))?;
+                notify(Notice::Note(
+                    "the UR kinematics YAML carries the joint geometry only (base to tool0): not the IMU's mount and intrinsics, the time offset, nor effects such as joint elasticity".into(),
+                ));
+                if self.robot.description().calibration_hash.is_none() {
+                    notify(Notice::Note(format!(
+                        "the robot names no factory calibration: hash `{UNKNOWN_UR_HASH}` (read the robot's calibration as the nominal with `robimu robots show MODEL --ur-kinematics FILE`)"
+                    )));
+                }
+                text
+            }
             ExportFormat::Correction => Correction::new(params)?.to_toml()?,
             ExportFormat::Urdf => {
                 let path = match &req.spec_base {

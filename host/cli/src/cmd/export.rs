@@ -22,6 +22,10 @@ pub enum ExportFormat {
     /// The IMU correction for firmware or drivers: per sensor the matrix M,
     /// M⁻¹ and bias b of z = M·v + b (TOML); apply v = M⁻¹·(z − b).
     Correction,
+    /// The calibrated robot as Universal Robots' kinematics YAML: pass it
+    /// to the UR ROS 2 description as `kinematics_params` (needs a UR robot:
+    /// a built-in `ur*`, or one read with `robots show --ur-kinematics`).
+    UrKinematics,
 }
 
 /// Export a calibration for other tools: the corrected robot (URDF or
@@ -94,6 +98,7 @@ impl ExportCmd {
                 ExportFormat::Toml => Format::Toml,
                 ExportFormat::Kalibr => Format::Kalibr,
                 ExportFormat::Correction => Format::Correction,
+                ExportFormat::UrKinematics => Format::UrKinematics,
             },
             spec,
             spec_base,

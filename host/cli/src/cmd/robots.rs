@@ -6,6 +6,7 @@ use anyhow::{bail, Context};
 use robimu_model::catalogue::builtin_file;
 use robimu_model::urdf::robot_to_urdf;
 use robimu_model::{Robot, BUILTIN_ROBOTS};
+use robimu_session::export::ur::UrKinematics;
 
 /// The built-in robots: list them, print one, or write one as URDF.
 ///
@@ -25,6 +26,15 @@ pub enum RobotsAction {
     Show {
         /// The built-in robot's name (`robimu robots` lists them).
         name: String,
+        /// A Universal Robots arm's own factory calibration as its nominal
+        /// kinematics: the kinematics YAML that `ur_calibration` extracts
+        /// from the controller (the UR ROS 2 description's
+        /// `kinematics_params`), over the built-in NAME's joint names,
+        /// limits and noise. Save the printed description and pass it as
+        /// `--robot`; `export --format ur-kinematics` writes the
+        /// calibrated file back.
+        #[arg(long, value_name = "FILE")]
+        ur_kinematics: Option<PathBuf>,
         /// Instead, write its nominal kinematics as a plain URDF (links and
         /// joints only) to this file.
         #[arg(long, value_name = "FILE")]
@@ -45,38 +55,47 @@ fn builtin(name: &str) -> anyhow::Result<Robot> {
 impl RobotsCmd {
     /// Run the command.
     pub fn run(self) -> anyhow::Result<()> {
-        match self.action {
-            None => {
-                println!("{:<8} {:>6}  source", "name", "joints");
-                for name in BUILTIN_ROBOTS {
-                    let r = builtin(name)?;
-                    let source = r
-                        .description()
-                        .source
-                        .clone()
-                        .unwrap_or_else(|| "docs/model.md §6 (the paper's AUBO i5, §8)".into());
-                    println!("{name:<8} {:>6}  {source}", r.dof());
-                }
-                Ok(())
+        let Some(RobotsAction::Show {
+            name,
+            ur_kinematics,
+            urdf,
+        }) = self.action
+        else {
+            println!("{:<8} {:>6}  source", "name", "joints");
+            for name in BUILTIN_ROBOTS {
+                let r = builtin(name)?;
+                let source = r
+                    .description()
+                    .source
+                    .clone()
+                    .unwrap_or_else(|| "docs/model.md §6 (the paper's AUBO i5, §8)".into());
+                println!("{name:<8} {:>6}  {source}", r.dof());
             }
-            Some(RobotsAction::Show { name, urdf: None }) => {
-                let r = builtin(&name)?;
-                match builtin_file(&name) {
-                    Some(file) => print!("{file}"),
-                    None => print!("{}", toml::to_string(r.description())?),
-                }
-                Ok(())
-            }
-            Some(RobotsAction::Show {
-                name,
-                urdf: Some(path),
-            }) => {
-                let r = builtin(&name)?;
-                std::fs::write(&path, robot_to_urdf(&r))
-                    .with_context(|| format!("cannot write {}", path.display()))?;
-                eprintln!("wrote {} ({name}, {} joints)", path.display(), r.dof());
-                Ok(())
-            }
+            return Ok(());
+        };
+        let mut robot = builtin(&name)?;
+        if let Some(file) = &ur_kinematics {
+            let k = UrKinematics::from_yaml_file(file)?;
+            robot = k
+                .nominal_robot(&robot, &file.display().to_string())
+                .with_context(|| format!("--ur-kinematics {}", file.display()))?;
         }
+        match (urdf, &ur_kinematics) {
+            (Some(path), _) => {
+                std::fs::write(&path, robot_to_urdf(&robot))
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+                eprintln!("wrote {} ({name}, {} joints)", path.display(), robot.dof());
+            }
+            (None, Some(file)) => print!(
+                "# Robot `{name}` with the kinematics of {} (robimu robots show {name} --ur-kinematics).\n{}",
+                file.display(),
+                toml::to_string(robot.description())?
+            ),
+            (None, None) => match builtin_file(&name) {
+                Some(file) => print!("{file}"),
+                None => print!("{}", toml::to_string(robot.description())?),
+            },
+        }
+        Ok(())
     }
 }

@@ -1,5 +1,6 @@
 //! A calibration in the formats other tools read: the corrected robot as a
-//! URDF or robot TOML ([`robot`]), the IMU intrinsics as a Kalibr `imu.yaml`
+//! URDF or robot TOML ([`robot`]) or Universal Robots' kinematics YAML
+//! ([`ur`], which also reads a factory calibration), the IMU intrinsics as a Kalibr `imu.yaml`
 //! or a correction file for firmware and drivers, and the inverse sensor
 //! model applied to a raw IMU CSV ([`imu`]).
 //!
@@ -8,6 +9,7 @@
 
 pub mod imu;
 pub mod robot;
+pub mod ur;
 
 use crate::result::CalibrationResult;
 use robimu_model::{ImuIntrinsics, ModelParams, ParamLayout, Robot};
