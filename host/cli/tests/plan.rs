@@ -737,3 +737,61 @@ fn a_two_imu_plan_predicts_the_joint_fit_sigma() {
     }
     assert!(best_gain > 1.2, "shared angles gain at most {best_gain}");
 }
+
+/// `plan --robot ur5e` plans at the UR5e's published limits (180°/s on
+/// every joint; 100°/s², UR publishing none): the default knot spacing
+/// widens to the least those limits allow, every limit holds at 1 kHz, and
+/// the joints turn several times faster than the AUBO setup's 10–25°/s.
+#[test]
+fn plan_for_a_ur5e_uses_its_published_limits() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("p");
+    robimu_ok([
+        "plan",
+        "--robot",
+        "ur5e",
+        "--duration",
+        "60",
+        "--evaluations",
+        "60",
+        "--out",
+        s(&dir),
+    ]);
+    let robot = Robot::builtin("ur5e").unwrap();
+    assert!(robot
+        .limits()
+        .iter()
+        .all(|l| (l.qd_max - std::f64::consts::PI).abs() < 1e-12));
+    let text = std::fs::read_to_string(dir.join("spline.toml")).unwrap();
+    let spline = toml::from_str::<SplineFile>(&text)
+        .unwrap()
+        .spline()
+        .unwrap();
+    check_limits(&robot, &spline, 1000.0).unwrap();
+    let mut js = JointState::default();
+    let mut fastest = [0.0f64; 6];
+    for k in 0..=60_000 {
+        spline.evaluate(k as f64 * 1e-3, &mut js).unwrap();
+        for (f, v) in fastest.iter_mut().zip(&js.qd[..6]) {
+            *f = f.max(v.abs().to_degrees());
+        }
+    }
+    eprintln!("fastest joint speeds, °/s: {fastest:.0?}");
+    assert!(
+        fastest.iter().all(|&v| v > 50.0 && v <= 180.0),
+        "{fastest:?}"
+    );
+    // A spacing finer than the limits allow is refused, naming the least.
+    robimu([
+        "plan",
+        "--robot",
+        "ur5e",
+        "--duration",
+        "20",
+        "--knot-spacing",
+        "0.5",
+        "--out",
+        s(&tmp.path().join("q")),
+    ])
+    .assert_fails(&["below 2·qd_max/qdd_max = 3.56"]);
+}

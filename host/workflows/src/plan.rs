@@ -217,6 +217,20 @@ impl Box6 {
     }
 }
 
+/// The knot spacing for a plan of `duration` s: `wanted`, or the least the
+/// robot's limits allow (`2·margin·q̇_max/q̈_max` of its slowest-accelerating
+/// joint: the UR arms' 180°/s at 100°/s² need 3.6 s) when that is larger,
+/// rounded up so that whole segments fill the duration.
+pub fn knot_spacing_for(robot: &Robot, duration: f64, wanted: f64, margin: f64) -> f64 {
+    let least = robot
+        .limits()
+        .iter()
+        .map(|l| 2.0 * margin * l.qd_max / l.qdd_max)
+        .fold(wanted, f64::max);
+    let segments = (duration / least).floor().max(1.0);
+    duration / segments
+}
+
 /// Plans a trajectory for `robot` (see the module doc). `progress(block,
 /// blocks, λ_max)` is called after each block with the quadrature estimate.
 pub fn plan(

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use robimu_report::plan::{write_plan_files, write_sigma_csv, PlanSummary};
 use robimu_workflows::plan::information::posterior_sigma;
-use robimu_workflows::plan::{plan, PlanOptions};
+use robimu_workflows::plan::{knot_spacing_for, plan, PlanOptions};
 
 use crate::input::{resolve_robot, Progress};
 use robimu_workflows::pipeline::noise_spec::parse_noise_model;
@@ -38,9 +38,11 @@ pub struct PlanCmd {
     /// Length of the trajectory, s.
     #[arg(long, default_value_t = 300.0)]
     pub duration: f64,
-    /// Knot spacing of the spline, s (at least 2·qd_max/qdd_max of every joint).
-    #[arg(long, default_value_t = 0.5)]
-    pub knot_spacing: f64,
+    /// Knot spacing of the spline, s (at least 2·qd_max/qdd_max of every
+    /// joint) [default: 0.5, or that least spacing when larger, as for the
+    /// UR arms at their published speed limits].
+    #[arg(long)]
+    pub knot_spacing: Option<f64>,
     /// Coefficient columns per block.
     #[arg(long, default_value_t = 8)]
     pub block: usize,
@@ -90,7 +92,9 @@ impl PlanCmd {
             .with_context(|| format!("cannot create the plan directory {}", self.out.display()))?;
         let opts = PlanOptions {
             duration: self.duration,
-            knot_spacing: self.knot_spacing,
+            knot_spacing: self.knot_spacing.unwrap_or_else(|| {
+                knot_spacing_for(&robot, self.duration, 0.5, PlanOptions::default().margin)
+            }),
             block: self.block,
             sample_rate: self.imu_rate,
             evaluations: self.evaluations,
