@@ -379,18 +379,21 @@ fn imu_stream_outside_the_joint_stream_is_rejected() {
 fn unknown_robot_is_rejected() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("x");
-    robimu(&["simulate", "--robot", "ur5e", "--out", s(&out)])
-        .assert_fails(&["unknown robot `ur5e`", "aubo_i5"]);
+    robimu(&["simulate", "--robot", "ur6", "--out", s(&out)]).assert_fails(&[
+        "unknown robot `ur6`",
+        "aubo_i5",
+        "ur5e",
+    ]);
     assert!(!out.exists());
     let dir = session(tmp.path());
     edit(&dir.join("session.toml"), |_, l| {
         Some(if l.starts_with("robot") {
-            "robot = \"ur5e\"".into()
+            "robot = \"ur6\"".into()
         } else {
             l.into()
         })
     });
-    calibrate(&dir, &[]).assert_fails(&["session.toml", "unknown robot `ur5e`", "aubo_i5"]);
+    calibrate(&dir, &[]).assert_fails(&["session.toml", "unknown robot `ur6`", "aubo_i5"]);
     // a robot description file that is not one
     std::fs::write(dir.join("robot.toml"), "name = 3\n").unwrap();
     edit(&dir.join("session.toml"), |_, l| {
