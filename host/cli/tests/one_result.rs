@@ -259,6 +259,18 @@ fn the_paper_model_is_unchanged_and_the_default_keeps_it_when_nothing_is_missing
         .iter()
         .map(|p| p["value"].as_f64().unwrap())
         .collect();
+    let settings = Settings {
+        model: robimu_workflows::ModelChoice::Paper,
+        ..Settings::default()
+    };
+    let (session2, robot2) = load_session(&s).unwrap();
+    let prepared = Prepared::new(session2, robot2, &settings, None, |_| {}).unwrap();
+    let fitted = prepared.fit(|_| {}).unwrap();
+    assert_eq!(
+        fitted.cal.x, cal.x,
+        "the pipeline's --model paper, bit for bit"
+    );
+    // (result.json read back exactly: serde_json's float_roundtrip)
     assert_eq!(values, cal.x, "bit for bit");
 }
 

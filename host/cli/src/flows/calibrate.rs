@@ -119,8 +119,6 @@ impl CalibrateRun<'_> {
     }
 }
 
-thread_local!(static T0: std::time::Instant = std::time::Instant::now());
-
 /// The fit with a spinner and the solver's iterations on stderr.
 fn fit_with_progress(p: &Prepared) -> anyhow::Result<Fitted> {
     let progress = Progress::start("fitting the trajectory and finding the time offset tau");
@@ -134,9 +132,7 @@ fn fit_with_progress(p: &Prepared) -> anyhow::Result<Fitted> {
             ));
         }
         FitEvent::Stage(s) => {
-            if std::env::var_os("ROBIMU_TRACE").is_some() {
-                eprintln!("[{:.2} s] {s}", T0.with(|t| t.elapsed().as_secs_f64()));
-            }
+            progress.println(format!("-- {s}"));
             progress.set_message(s.to_string())
         }
     });

@@ -228,6 +228,7 @@ impl Prepared {
         )
         .with_context(|| self.cannot())
         .map_err(PipelineError::fit)?;
+        let mut searched = None;
         if self.model == ModelChoice::Select {
             // the search's first round is the model's test (at its own
             // baseline, under the search's noise model); the paper's fit
@@ -239,6 +240,7 @@ impl Prepared {
             if !d.found.is_empty() {
                 return self.fitted_with_effects(d, "selected");
             }
+            searched = Some(d);
         }
         let mut iteration = |r: &IterationRecord| progress(FitEvent::Iteration(r));
         let (cal, noise, fit, _) = start
@@ -251,12 +253,6 @@ impl Prepared {
             )
             .with_context(|| self.cannot())
             .map_err(PipelineError::fit)?;
-        progress(FitEvent::Stage(
-            "testing the model against the catalogue's effects",
-        ));
-        let tests = test_model(&self.robot, &self.data, &self.opts, &self.setup, &fit)
-            .with_context(|| format!("{}: the model's tests failed", self.cannot()))
-            .map_err(PipelineError::fit)?;
         let (selection, reason) = match self.model {
             ModelChoice::Paper => (
                 "paper",
@@ -267,7 +263,21 @@ impl Prepared {
                 "significant at the paper's fit, but diagnose's search did not add it (`robimu diagnose` shows why)",
             ),
         };
-        let tests = tests.record(selection, reason);
+        // the search's baseline is the paper's fit when both kept white
+        // noise: its scores are the tests; else the tests at the paper's fit
+        let tests = match searched.filter(|d| d.baseline.noise.is_white() && d.baseline.x == fit.x)
+        {
+            Some(d) => selection_tests(&d, selection),
+            None => {
+                progress(FitEvent::Stage(
+                    "testing the model against the catalogue's effects",
+                ));
+                test_model(&self.robot, &self.data, &self.opts, &self.setup, &fit)
+                    .with_context(|| format!("{}: the model's tests failed", self.cannot()))
+                    .map_err(PipelineError::fit)?
+                    .record(selection, reason)
+            }
+        };
         let effects = (self.model == ModelChoice::Select).then(Vec::new);
         Ok(self.fitted(cal, noise, fit, None, effects, tests))
     }
