@@ -7,7 +7,7 @@ use robimu_model::effects::resonance::Mode;
 use robimu_workflows::calibrate::noise_choice::{Settle, MAX_REFITS};
 use robimu_workflows::pipeline::checked_mode;
 use robimu_workflows::pipeline::noise_spec::NoiseFileArg;
-use robimu_workflows::Settings;
+use robimu_workflows::{ModelChoice, Settings};
 
 /// The flags that set how a session is calibrated (`robimu calibrate`,
 /// `robimu calibrate-batch`, docs/guide/calibrating.md).
@@ -34,11 +34,19 @@ pub struct CalibrateFlags {
     /// `--noise-model auto` then fits as given (docs/model.md §4.6, §7.2).
     #[arg(long, value_name = "FILE")]
     pub noise: Option<PathBuf>,
-    /// Also fit these catalogue effects with the baseline (comma-separated:
-    /// g_sensitivity, size_effect, clock_drift, sensor_delay, bias_drift,
-    /// joint_elasticity, encoder_scale, resonance, temperature_bias where imu.csv
-    /// has a varying temp_c); prints their estimates and writes
-    /// effects.json (the augmented model's parameters) next to the result file.
+    /// Which model to fit: `select` (the paper's model, tested against every
+    /// catalogue effect as `robimu diagnose` tests it; the effects the data
+    /// show are added and the final model is the result) or `paper` (the
+    /// paper's model alone; its tests still go into the verdict)
+    /// (docs/model.md §8.6).
+    #[arg(long, value_name = "select|paper", default_value = "select")]
+    pub model: String,
+    /// Fit exactly these catalogue effects with the paper's model, no
+    /// search (comma-separated: g_sensitivity, size_effect, clock_drift,
+    /// sensor_delay, bias_drift, joint_elasticity, encoder_scale,
+    /// resonance, temperature_bias where imu.csv has a varying temp_c); the
+    /// result is that model, its effects in result.json's `effects`, and
+    /// effects.json (the fit's JSON) next to the result file.
     /// With several IMUs a per-sensor effect of IMU j ≥ 1 is `imu<j>/NAME`
     /// (docs/model.md §9). `bias_drift:M` sets its spline's M segments over the session (default
     /// 1, a linear drift; `robimu diagnose` chooses M and prints the spec).
@@ -86,6 +94,7 @@ impl Default for CalibrateFlags {
             effects: Vec::new(),
             resonance: Default::default(),
             noise_model: "auto".into(),
+            model: "select".into(),
             noise_refits: MAX_REFITS,
             noise_settle: None,
             imu: None,
@@ -107,7 +116,22 @@ impl CalibrateFlags {
             noise_model: self.noise_model.clone(),
             settle: self.settle()?,
             imu: self.imu,
+            model: self.model_choice()?,
         })
+    }
+
+    /// `--model`, checked against `--effects`.
+    fn model_choice(&self) -> anyhow::Result<ModelChoice> {
+        let model = match self.model.trim() {
+            "select" => ModelChoice::Select,
+            "paper" => ModelChoice::Paper,
+            other => anyhow::bail!("--model `{other}`: expected `select` or `paper`"),
+        };
+        let effects = self.effects.iter().any(|e| !e.trim().is_empty());
+        if effects && model == ModelChoice::Paper {
+            anyhow::bail!("--model paper and --effects contradict each other: --effects fits the paper's model with those effects");
+        }
+        Ok(model)
     }
 
     /// The noise file of `--noise FILE` or `--noise-model FILE`, read once:

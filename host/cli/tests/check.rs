@@ -398,7 +398,8 @@ fn calibrate_stops_on_a_fatal_finding_and_gives_a_verdict() {
             "--out",
             s(&dir),
         ]);
-        let run = robimu_ok(["calibrate", s(&dir)]);
+        // the paper's model alone: its residuals and its tests reject it
+        let run = robimu_ok(["calibrate", s(&dir), "--model", "paper"]);
         let line = run
             .stdout
             .lines()
@@ -411,10 +412,50 @@ fn calibrate_stops_on_a_fatal_finding_and_gives_a_verdict() {
             "{name}: {line}"
         );
         assert!(line.contains("robimu diagnose"), "{line}");
+        assert!(line.contains("model: the data reject the model"), "{line}");
+        assert!(
+            run.stdout.contains(&format!(
+                "next: let the calibration add the effects the data show: robimu calibrate {}",
+                s(&dir)
+            )),
+            "{}",
+            run.stdout
+        );
         let result: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap())
                 .unwrap();
         assert_eq!(result["verdict"]["trust"], "doubtful");
+        assert!(
+            result.get("effects").is_none(),
+            "--model paper has no effects list"
+        );
+        // by default the calibration adds what the tests find: the delay
+        if name == "delay" {
+            let run = robimu_ok(["calibrate", s(&dir)]);
+            let result: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap())
+                    .unwrap();
+            let effects: Vec<&str> = result["effects"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|e| e["name"].as_str().unwrap())
+                .collect();
+            assert_eq!(effects, ["sensor_delay"], "{}", run.stdout);
+            let delay = &result["effects"][0]["parameters"][0];
+            let (v, sd) = (
+                delay["value"].as_f64().unwrap(),
+                delay["sigma"].as_f64().unwrap(),
+            );
+            assert!((v - 0.1).abs() < 4.0 * sd, "delay {v} ± {sd}");
+            assert!(
+                result["effects"][0]["evidence"]["p_value"]
+                    .as_f64()
+                    .unwrap()
+                    < 1e-6
+            );
+            assert_eq!(result["verdict"]["trust"], "good", "{}", run.stdout);
+        }
     }
     // correlated sensor noise (AR(1), recorded in session.toml) is modelled: good
     let ar = tmp.path().join("ar");

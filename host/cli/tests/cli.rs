@@ -1196,7 +1196,8 @@ fn calibrate_identifies_correlated_noise_and_keeps_white_noise_white() {
 }
 
 /// `calibrate --noise-model auto` whose identification cannot settle
-/// (`--noise-settle 0`) keeps the white result, bit for bit, with a warning
+/// (`--noise-settle 0`) keeps the paper's white result (`--model paper`: the
+/// model search is another matter), bit for bit, with a warning
 /// on stderr and in result.json (`noise_warning`, `noise_model` white); and
 /// the `[noise]` tables calibrate refuses, with the reason: an explosive AR
 /// model in session.toml, a negative motion level and an AR order beyond
@@ -1227,6 +1228,8 @@ fn calibrate_noise_that_does_not_settle_keeps_white_with_a_warning() {
         "0",
         "--noise-refits",
         "2",
+        "--model",
+        "paper",
         "--out",
         s(&auto),
     ]);
@@ -1248,6 +1251,8 @@ fn calibrate_noise_that_does_not_settle_keeps_white_with_a_warning() {
         s(&ar),
         "--noise-model",
         "white",
+        "--model",
+        "paper",
         "--out",
         s(&white),
     ]);

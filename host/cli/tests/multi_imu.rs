@@ -302,7 +302,9 @@ fn an_imu_mounted_elsewhere_takes_its_own_mount_prior() {
 
 /// A one-IMU result's exports are byte for byte those written before the
 /// multi-IMU work (goldens of d3fc17f in fixtures/multi_imu/one_imu_golden:
-/// Kalibr imu.yaml, correction file, robot TOML, corrected CSV).
+/// Kalibr imu.yaml, correction file, robot TOML, corrected CSV; rewritten
+/// once since, when result files came to be read to the bit — serde_json's
+/// float_roundtrip — which moved a few last digits).
 #[test]
 fn one_imu_exports_are_unchanged() {
     let fixtures =

@@ -386,6 +386,78 @@ fn cli_reports_render_in_headless_chromium() {
     }
 }
 
+/// A calibration whose model gained an effect (a 100 ms accelerometer
+/// delay the paper's model lacks): its page shows the pose accuracy, the
+/// model with the effect's test and parameters, and the residuals and
+/// their spectra before and after, every figure loading in Chromium.
+#[test]
+fn a_calibration_with_an_effect_shows_the_evidence_before_and_after() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = dir.path().join("s");
+    let s = s.to_str().unwrap();
+    robimu_ok(&[
+        "simulate",
+        "--duration",
+        "40",
+        "--seed",
+        "5",
+        "--effect",
+        "sensor_delay=100",
+        "--out",
+        s,
+    ]);
+    let rep = dir.path().join("rep");
+    let run = robimu_ok(&["calibrate", s, "--report", rep.to_str().unwrap()]);
+    assert!(
+        run.stdout.contains("model: the paper's + sensor_delay"),
+        "{}",
+        run.stdout
+    );
+    let page = rep.join("report.html");
+    let marks = [
+        "<table id=\"pose-accuracy\"",
+        "<table id=\"effects\"",
+        "<table id=\"effect-parameters\"",
+        "sensor_delay",
+        "RMS over time before",
+        "spectra before and after the effects",
+    ];
+    let browser = chromium();
+    assert_renders(browser.as_deref(), &page, &marks);
+    for f in ["model_residuals.svg", "model_spectra.svg", "residuals.svg"] {
+        assert!(rep.join(f).is_file(), "{f}");
+    }
+    assert_figure_glyphs(&rep);
+    if let Some(b) = browser.as_deref() {
+        assert_figures_load(b, &page);
+    }
+    // exports and corrections take the final model and say what they
+    // cannot carry of it
+    let result = format!("{s}/result.json");
+    let robot = dir.path().join("robot.toml");
+    let run = robimu_ok(&[
+        "export",
+        "--calibration",
+        &result,
+        "--format",
+        "toml",
+        "--out",
+        robot.to_str().unwrap(),
+    ]);
+    assert!(
+        run.stderr.contains("includes sensor_delay")
+            && run.stderr.contains("a robot TOML cannot carry"),
+        "{}",
+        run.stderr
+    );
+    let run = robimu_ok(&["correct", "--calibration", &result, &format!("{s}/imu.csv")]);
+    assert!(
+        run.stderr.contains("includes sensor_delay"),
+        "{}",
+        run.stderr
+    );
+}
+
 #[test]
 fn validate_rejects_bad_inputs_with_clear_errors() {
     let dir = tempfile::tempdir().unwrap();

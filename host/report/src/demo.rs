@@ -109,6 +109,10 @@ pub struct DemoFiles<'a> {
     pub report: &'a Path,
     /// How long the demo took, s.
     pub seconds: f64,
+    /// The result calibrate wrote.
+    pub result: &'a robimu_session::CalibrationResult,
+    /// What to do next.
+    pub next: &'a str,
 }
 
 impl fmt::Display for DemoFiles<'_> {
@@ -121,15 +125,27 @@ impl fmt::Display for DemoFiles<'_> {
         )?;
         writeln!(
             f,
-            "report: {} (open it in a browser; the figures are beside it as PNG and SVG; truth_check.json: diagnose's final model against the truth)",
+            "report: {} (open it in a browser; the figures are beside it as PNG and SVG; truth_check.json: calibrate's result against the truth)",
             self.report.join("report.html").display()
         )?;
-        writeln!(
-            f,
-            "demo took {:.1} s; next: robimu calibrate {} --freeze lengths",
-            self.seconds,
-            self.session.display()
-        )
+        if let Some(v) = &self.result.verdict {
+            writeln!(f, "calibrate's result: {}", crate::verdict::trust_line(v))?;
+        }
+        if let Some(p) = &self.result.pose_accuracy {
+            writeln!(
+                f,
+                "flange pose error over the workspace: {:.2} mm, {:.3}° before calibration → {:.2} mm, {:.3}° after (mean, predicted{})",
+                p.before.position_mean_mm,
+                p.before.rotation_mean_deg,
+                p.after.position_mean_mm,
+                p.after.rotation_mean_deg,
+                p.actual_after.map_or(String::new(), |a| format!(
+                    "; actual against the truth {:.2} mm, {:.3}°",
+                    a.stats.position_mean_mm, a.stats.rotation_mean_deg
+                ))
+            )?;
+        }
+        writeln!(f, "demo took {:.1} s; next: {}", self.seconds, self.next)
     }
 }
 

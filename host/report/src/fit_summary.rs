@@ -197,24 +197,6 @@ impl fmt::Display for EffectValue<'_> {
     }
 }
 
-/// The effects fitted with the baseline and the residual RMS with them.
-pub struct EffectEstimates<'a>(pub &'a Fit);
-
-impl fmt::Display for EffectEstimates<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let fit = self.0;
-        writeln!(f, "effects (fitted with the baseline):")?;
-        for e in 0..fit.effect_params.len() {
-            writeln!(f, "  {}", EffectValue::of(fit, e))?;
-        }
-        writeln!(
-            f,
-            "whitened residual rms with the effects: {}",
-            ResidualRms(fit.residual_rms())
-        )
-    }
-}
-
 /// Each parameter group's largest difference from the full calibration.
 pub struct RepeatabilityGroups<'a>(pub &'a Repeatability);
 

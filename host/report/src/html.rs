@@ -2,9 +2,11 @@
 //! inline SVG (no scripts, no external URLs), written next to the figures'
 //! PNG and SVG files.
 //!
-//! * [`calibration_report`] — parameter table (paper Table II), posterior σ
-//!   against the prior σ, convergence, and, when the session is at hand, the
-//!   joint trajectory and the IMU residuals over time;
+//! * [`calibration_report`] — the verdict, the pose accuracy before and
+//!   after, the model and the evidence for its effects
+//!   ([`calibration_report_with`]), parameter table (paper Table II),
+//!   posterior σ against the prior σ, convergence, and, when the session is
+//!   at hand, the joint trajectory and the IMU residuals over time;
 //! * [`validation_report_with`] — robot accuracy (Fig. 10), IMU accuracy
 //!   (Fig. 11) and the calibrated against the classical parameters.
 
@@ -12,12 +14,15 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::{DisplayUnit, ParameterTable};
+use crate::diagnosis_figures::{residuals_plot, spectra_plot};
 use crate::figures::{residual_figure, sigma_reduction_figure, NoiseBand};
 use crate::plot::{histogram_grid, line_panels, HistogramPanel, LinePanel, PlotError};
 use robimu_model::observations::Measurements;
 use robimu_model::{JointState, MeasurementModel, ParamLayout, Robot, Spline};
+use robimu_session::result::{ActualPoseErrors, PoseErrorStats};
 use robimu_session::CalibrationResult;
 use robimu_session::Truth;
+use robimu_workflows::diagnose::Diagnosis;
 use robimu_workflows::tracker_offset::TrackerAlignment;
 use robimu_workflows::validate::{ImuAccuracy, RobotAccuracy};
 
@@ -318,9 +323,36 @@ pub fn calibration_report_imus(
     convergence: Convergence<'_>,
     series: &[SessionSeries],
 ) -> Result<PathBuf, ReportError> {
+    calibration_report_with(dir, result, truth, convergence, series, None)
+}
+
+/// The search that gave a calibration's model its effects, for the
+/// report's evidence: the session's samples and the diagnosis.
+pub struct ModelEvidence<'a> {
+    /// The session's measurements.
+    pub data: &'a Measurements,
+    /// The search (its baseline and final fits).
+    pub diagnosis: &'a Diagnosis,
+    /// Show every candidate's score in every round (`diagnose --report`).
+    pub every_candidate: bool,
+}
+
+/// [`calibration_report_imus`] with the evidence for the effects the model
+/// gained (docs/model.md §8.6): the residuals' RMS over time and their
+/// spectra before and after, beside each effect's test and parameters.
+pub fn calibration_report_with(
+    dir: &Path,
+    result: &CalibrationResult,
+    truth: Option<&Truth>,
+    convergence: Convergence<'_>,
+    series: &[SessionSeries],
+    evidence: Option<&ModelEvidence<'_>>,
+) -> Result<PathBuf, ReportError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut page = HtmlPage::new("robimu calibration report");
     overview_section(&mut page, result);
+    pose_accuracy_section(&mut page, result);
+    model_section(&mut page, dir, result, evidence)?;
     parameters_section(&mut page, dir, result, truth)?;
     convergence_section(&mut page, dir, result, convergence)?;
     series_sections(&mut page, dir, series)?;
@@ -760,6 +792,211 @@ pub fn tracker_alignment_text(a: &TrackerAlignment) -> String {
     }
 }
 
+/// The flange pose accuracy before and after (docs/model.md §8.7).
+fn pose_accuracy_section(page: &mut HtmlPage, result: &CalibrationResult) {
+    let Some(a) = &result.pose_accuracy else {
+        return;
+    };
+    page.heading("Pose accuracy");
+    page.paragraph(&format!(
+        "The flange's position and orientation error over {} random configurations within the joint limits: predicted before calibration (the prior: the nominal model) and after (the posterior); the undetermined row is what the parameters the data left at their prior contribute. Where the truth is known (simulation), the actual errors beside.",
+        a.configurations
+    ));
+    let row = |label: &str, s: &PoseErrorStats, band: String| {
+        vec![
+            label.to_string(),
+            format!("{:.3}", s.position_mean_mm),
+            format!("{:.3}", s.position_p95_mm),
+            format!("{:.4}", s.rotation_mean_deg),
+            format!("{:.4}", s.rotation_p95_deg),
+            band,
+        ]
+    };
+    let band = |e: &ActualPoseErrors| {
+        format!(
+            "{:.0} % / {:.0} %",
+            100.0 * e.position_inside_band,
+            100.0 * e.rotation_inside_band
+        )
+    };
+    let mut rows = vec![
+        row("before calibration (predicted)", &a.before, String::new()),
+        row("after calibration (predicted)", &a.after, String::new()),
+        row(
+            "  of which undetermined",
+            &a.after_undetermined,
+            String::new(),
+        ),
+    ];
+    if let Some(e) = &a.actual_before {
+        rows.push(row("before, actual (truth)", &e.stats, band(e)));
+    }
+    if let Some(e) = &a.actual_after {
+        rows.push(row("after, actual (truth)", &e.stats, band(e)));
+    }
+    page.table(
+        "pose-accuracy",
+        &[
+            "",
+            "position mean [mm]",
+            "position p95 [mm]",
+            "rotation mean [deg]",
+            "rotation p95 [deg]",
+            "inside the predicted 95 % band",
+        ],
+        &rows,
+    );
+}
+
+/// The model written and why: each effect added with its score test, the
+/// refit's likelihood ratio, the residual RMS before and after and its
+/// parameters; the figures of the residuals before and after when the
+/// evidence is given.
+fn model_section(
+    page: &mut HtmlPage,
+    dir: &Path,
+    result: &CalibrationResult,
+    evidence: Option<&ModelEvidence<'_>>,
+) -> Result<(), ReportError> {
+    let Some(tests) = &result.model_tests else {
+        return Ok(());
+    };
+    page.heading("Model");
+    let effects = result.effects.as_deref().unwrap_or_default();
+    let names: Vec<&str> = effects.iter().map(|e| e.name.as_str()).collect();
+    page.paragraph(&format!(
+        "{} ({}; score tests of {} catalogue effects at family-wise α = {}, docs/model.md §8.6).",
+        match names.is_empty() {
+            true => "The paper's model".to_string(),
+            false => format!("The paper's model + {}", names.join(", ")),
+        },
+        match tests.selection.as_str() {
+            "paper" => "asked for with --model paper",
+            "given" => "the effects given with --effects",
+            _ => "chosen by the tests",
+        },
+        tests.candidates,
+        tests.alpha
+    ));
+    let mut rows = Vec::new();
+    for e in effects {
+        let ev = e.evidence.as_ref();
+        let rms = |v: Option<&[f64; 6]>| {
+            v.map_or(String::new(), |v| {
+                v.iter()
+                    .map(|x| format!("{x:.3}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            })
+        };
+        rows.push(vec![
+            e.name.clone(),
+            ev.map_or("given".into(), |v| {
+                format!("{:.1} ({} dof), p = {:.2e}", v.statistic, v.dof, v.p_value)
+            }),
+            ev.map_or(String::new(), |v| {
+                format!("{:.1}, p = {:.2e}", v.lr_statistic, v.lr_p_value)
+            }),
+            rms(ev.map(|v| &v.rms_before)),
+            rms(ev.map(|v| &v.rms_after)),
+        ]);
+    }
+    if !rows.is_empty() {
+        page.table(
+            "effects",
+            &[
+                "effect",
+                "score test",
+                "refit's likelihood ratio",
+                "whitened RMS before (ax…gz)",
+                "after",
+            ],
+            &rows,
+        );
+        let params: Vec<Vec<String>> = effects
+            .iter()
+            .flat_map(|e| &e.parameters)
+            .map(|p| {
+                vec![
+                    p.name.clone(),
+                    p.unit.clone(),
+                    format!("{:.6e}", p.value),
+                    format!("{:.3e}", p.sigma),
+                ]
+            })
+            .collect();
+        page.table(
+            "effect-parameters",
+            &["parameter", "unit (SI)", "estimate", "σ"],
+            &params,
+        );
+    }
+    if let Some(ev) = evidence.filter(|e| e.every_candidate) {
+        candidates_table(page, ev.diagnosis);
+    }
+    if let Some(ev) = evidence.filter(|_| !effects.is_empty()) {
+        let rms = residuals_plot(&dir.join("model_residuals"), ev.data, ev.diagnosis)
+            .map_err(ReportError::from)?;
+        page.figure(
+            &rms[1],
+            "Whitened residuals' RMS over time before (the paper's model) and after the effects: the gap the effects close (1 = the noise model's level).",
+        )?;
+        let spectra = spectra_plot(&dir.join("model_spectra"), ev.data, ev.diagnosis)
+            .map_err(ReportError::from)?;
+        page.figure(
+            &spectra[1],
+            "Whitened residual spectra before and after the effects: a peak or slope the effects take away was structure the paper's model lacked.",
+        )?;
+    }
+    Ok(())
+}
+
+/// Every candidate's score test in every round of the search, and the
+/// candidates rejected.
+fn candidates_table(page: &mut HtmlPage, d: &Diagnosis) {
+    let mut rows = Vec::new();
+    let rounds = d
+        .found
+        .iter()
+        .map(|f| (format!("added {}", f.name), &f.scores))
+        .chain(std::iter::once(("last".to_string(), &d.last_scores)));
+    for (k, (what, scores)) in rounds.enumerate() {
+        for s in scores {
+            rows.push(vec![
+                format!("{} ({what})", k + 1),
+                s.name.clone(),
+                format!("{:.1}", s.statistic),
+                s.dof.to_string(),
+                format!("{:.2e}", s.p_value),
+                if s.p_value < d.threshold {
+                    "significant"
+                } else {
+                    ""
+                }
+                .into(),
+            ]);
+        }
+    }
+    page.paragraph(&format!(
+        "Every candidate's Rao score in every round (Bonferroni threshold {:.1e}); rejected: {}.",
+        d.threshold,
+        match d.rejected.is_empty() {
+            true => "none".to_string(),
+            false => d
+                .rejected
+                .iter()
+                .map(|r| format!("{} ({})", r.name, r.reason))
+                .collect::<Vec<_>>()
+                .join("; "),
+        }
+    ));
+    page.table(
+        "candidates",
+        &["round", "candidate", "score", "dof", "p", ""],
+        &rows,
+    );
+}
+
 /// The verdict of result.json (when it has one): the trust line, then
 /// one row per check (`robimu_workflows::verdict`).
 fn verdict_block(page: &mut HtmlPage, result: &CalibrationResult) {
@@ -783,6 +1020,10 @@ fn verdict_block(page: &mut HtmlPage, result: &CalibrationResult) {
         })
         .collect();
     page.table("verdict", &["check", "", "finding"], &rows);
+    if !v.next_steps.is_empty() {
+        let items: Vec<Vec<String>> = v.next_steps.iter().map(|s| vec![s.clone()]).collect();
+        page.table("next-steps", &["what to do next"], &items);
+    }
 }
 
 #[cfg(test)]

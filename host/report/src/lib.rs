@@ -11,6 +11,7 @@
 //! * [`montecarlo`] — the files, table and histograms of a Monte Carlo study;
 //! * [`convergence`] — the solver's iteration history next to a result file;
 //! * [`diagnosis`] — the text summary of a model-discrepancy diagnosis;
+//! * [`diagnosis_figures`] — its residual and spectrum figures, before and after;
 //! * [`fit_summary`] — brief and full text reports of a fit, the
 //!   weak-direction warning, fitted effects, the repeatability table;
 //! * [`plot`] — line, bar and histogram figures as PNG and SVG (embedded font);
@@ -19,6 +20,7 @@
 //! * [`csvfile`] — CSV tables written beside the figures;
 //! * [`demo`] — the text of `robimu demo` between its stages;
 //! * [`identifiability`] — the identifiability studies' tables, figures and text;
+//! * [`model_summary`] — the model a calibration wrote and why, and its pose accuracy;
 //! * [`noise`] — the table of `robimu noise`;
 //! * [`plan`] — the plan directory and the summary of `robimu plan`;
 //! * [`recording`] — the summaries of a recording and of a repair;
@@ -54,10 +56,12 @@ pub mod convergence;
 pub mod csvfile;
 pub mod demo;
 pub mod diagnosis;
+pub mod diagnosis_figures;
 pub mod figures;
 pub mod fit_summary;
 pub mod html;
 pub mod identifiability;
+pub mod model_summary;
 pub mod montecarlo;
 pub mod noise;
 pub mod plan;
@@ -72,5 +76,8 @@ pub use robimu_model::units::DisplayUnit;
 pub use table::{ParameterTable, TableRow, TableSection, TruthSummary};
 
 pub use crate::html::SessionSeries;
-pub use crate::html::{calibration_report, ReportError};
+pub use crate::html::{
+    calibration_report, calibration_report_imus, calibration_report_with, ModelEvidence,
+    ReportError,
+};
 pub use crate::plot::PlotError;

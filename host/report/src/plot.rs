@@ -201,7 +201,7 @@ where
 
 /// One panel of log-log curves (e.g. Allan deviations).
 #[derive(Debug, Clone)]
-pub struct LogLogPanel {
+pub(crate) struct LogLogPanel {
     /// Panel title.
     pub title: String,
     /// x axis label.
@@ -214,7 +214,7 @@ pub struct LogLogPanel {
 
 /// Panels of log-log line plots side by side, written to `stem.png` and
 /// `stem.svg`. Returns the paths written.
-pub fn loglog_panels(
+pub(crate) fn loglog_panels(
     stem: &Path,
     title: &str,
     panels: &[LogLogPanel],
@@ -306,7 +306,7 @@ where
 
 /// One panel of line curves on linear axes (time series, convergence).
 #[derive(Debug, Clone)]
-pub struct LinePanel {
+pub(crate) struct LinePanel {
     /// Panel title.
     pub title: String,
     /// x axis label.
@@ -329,7 +329,7 @@ pub struct Band {
 
 /// A grid of line-plot panels, written to `stem.png` and `stem.svg`.
 /// Returns the paths written.
-pub fn line_panels(
+pub(crate) fn line_panels(
     stem: &Path,
     title: &str,
     panels: &[LinePanel],

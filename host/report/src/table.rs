@@ -396,6 +396,9 @@ mod tests {
             noise_model: None,
             noise_warning: None,
             verdict: None,
+            effects: None,
+            model_tests: None,
+            pose_accuracy: None,
         };
         r.validate().unwrap();
         r

@@ -24,7 +24,11 @@ impl fmt::Display for VerdictText<'_> {
             let mark = if c.ok { "ok" } else { "FAIL" };
             writeln!(f, "  {mark:<4} {:<13} {}", c.topic, c.text)?;
         }
-        writeln!(f, "{}", trust_line(self.0))
+        writeln!(f, "{}", trust_line(self.0))?;
+        for step in &self.0.next_steps {
+            writeln!(f, "  next: {step}")?;
+        }
+        Ok(())
     }
 }
 
@@ -43,6 +47,7 @@ mod tests {
                 ok: true,
                 text: "converged".into(),
             }],
+            next_steps: vec![],
         };
         assert_eq!(trust_line(&v), "trust: good");
         v.trust = Trust::Doubtful;

@@ -53,6 +53,7 @@ pub mod import;
 mod meta;
 pub mod poses;
 pub mod result;
+mod result_model;
 mod table;
 mod truth;
 mod writer;

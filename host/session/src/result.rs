@@ -23,6 +23,11 @@ use std::path::{Path, PathBuf};
 use robimu_model::ParamLayout;
 use serde::{Deserialize, Serialize};
 
+pub use crate::result_model::{
+    ActualPoseErrors, EffectEvidence, EffectParameterRecord, EffectRecord, ModelTestsRecord,
+    PoseAccuracyRecord, PoseErrorStats, SignificantEffect,
+};
+
 /// The format string this version reads and writes.
 pub const RESULT_FORMAT: &str = "robimu-result/1";
 
@@ -131,6 +136,18 @@ pub struct CalibrationResult {
     /// (robimu extension, docs/model.md §8.2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub verdict: Option<VerdictRecord>,
+    /// The catalogue effects in the fitted model besides the paper's
+    /// (docs/model.md §8.6): empty when the tests kept the paper's model,
+    /// absent with `--model paper` (robimu extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub effects: Option<Vec<EffectRecord>>,
+    /// The tests the written model passed or failed (robimu extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model_tests: Option<ModelTestsRecord>,
+    /// The flange pose accuracy before and after (docs/model.md §8.7;
+    /// robimu extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose_accuracy: Option<PoseAccuracyRecord>,
 }
 
 /// How far a calibration can be trusted.
@@ -165,6 +182,9 @@ pub struct VerdictRecord {
     pub reasons: Vec<String>,
     /// Every check, in order.
     pub checks: Vec<VerdictCheck>,
+    /// What to do next when the trust is not good: commands to paste.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub next_steps: Vec<String>,
 }
 
 /// One check of a [`VerdictRecord`].
@@ -254,6 +274,25 @@ pub enum ResultError {
 pub struct MissingParameter(pub String);
 
 impl CalibrationResult {
+    /// What `target` (an export format, a correction) cannot carry of
+    /// this result: the catalogue effects of its model (docs/model.md
+    /// §8.6), or `None` when it has none.
+    pub fn effects_not_carried(&self, target: &str) -> Option<String> {
+        let names: Vec<&str> = self
+            .effects
+            .iter()
+            .flatten()
+            .map(|e| e.name.as_str())
+            .collect();
+        (!names.is_empty()).then(|| {
+            format!(
+                "the calibration's model includes {} beyond the paper's, which {target} cannot carry: the parameters written were fitted with {}, but a reader of it gets the paper's model alone (result.json's `effects` has their parameters and σ)",
+                names.join(", "),
+                if names.len() == 1 { "it" } else { "them" }
+            )
+        })
+    }
+
     /// x in `layout` order, every parameter taken by name.
     pub fn values(&self, layout: &ParamLayout) -> Result<Vec<f64>, MissingParameter> {
         layout
@@ -765,6 +804,9 @@ mod tests {
             }),
             noise_warning: Some("kept".into()),
             verdict: None,
+            effects: None,
+            model_tests: None,
+            pose_accuracy: None,
             weak_directions: vec![WeakDirectionRecord {
                 relative_information: 1e-3,
                 parameters: vec![DirectionShare {

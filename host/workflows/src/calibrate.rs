@@ -633,6 +633,9 @@ impl Calibration {
             noise_model: Some(noise_model_record(&calibration.noise_model)),
             noise_warning: None,
             verdict: None,
+            effects: None,
+            model_tests: None,
+            pose_accuracy: None,
             weak_directions: calibration
                 .weak_directions
                 .iter()

@@ -108,6 +108,15 @@ pub fn export(
     notify: &mut dyn FnMut(Notice),
 ) -> anyhow::Result<()> {
     let ex = Exporter { req, result, robot };
+    let format = match req.format {
+        ExportFormat::Urdf => "a URDF",
+        ExportFormat::Toml => "a robot TOML",
+        ExportFormat::Kalibr => "Kalibr's imu.yaml",
+        ExportFormat::Correction => "the correction file",
+    };
+    if let Some(note) = result.effects_not_carried(format) {
+        notify(Notice::Note(note));
+    }
     let k = result.imu_count();
     if let Some(j) = req.imu {
         ex.view(j)?;

@@ -72,6 +72,7 @@ pub mod noise;
 pub mod noise_id;
 pub mod pipeline;
 pub mod plan;
+pub mod pose_accuracy;
 pub mod repeatability;
 pub mod simulate;
 pub mod stats;
@@ -83,7 +84,8 @@ pub mod verdict;
 
 pub use pipeline::{
     calibrate_job, diagnose_session, is_urdf, load_session, resolve_robot, session_robot,
-    DiagnoseSettings, Diagnosed, Fitted, Job, PipelineError, Prepared, Settings, BUILTIN_ROBOTS,
+    DiagnoseSettings, Diagnosed, FitEvent, Fitted, Job, ModelChoice, PipelineError, Prepared,
+    Settings, BUILTIN_ROBOTS,
 };
 
 pub use diagnose::{Alternative, Determination, Score};
@@ -114,6 +116,7 @@ pub use crate::identifiability::GainError;
 pub use crate::import::JointsByName;
 pub use crate::montecarlo::MonteCarloError;
 pub use crate::montecarlo::ParamStats;
+pub use crate::montecarlo::PoseCoverage;
 pub use crate::montecarlo::RunOutcome;
 pub use crate::noise::NoiseError;
 pub use crate::noise_id::ChannelIdentification;

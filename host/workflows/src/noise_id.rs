@@ -307,6 +307,12 @@ pub struct ChannelIdentification {
     pub ljung_box_p: f64,
     /// Ljung–Box p-value of the whitened residuals (H0: the AR is adequate).
     pub ljung_box_whitened_p: f64,
+    /// Factor by which the correlation left in the whitened residuals
+    /// still understates the σ of a slowly determined parameter (√ of
+    /// their low-frequency ratio, from an AR fitted to them by BIC; 1 when
+    /// the model captures the correlation): how much a failed
+    /// `ljung_box_whitened_p` matters.
+    pub whitened_understatement: f64,
     /// Samples and segments used.
     pub samples: usize,
     /// Segments (runs without a gap).
@@ -608,7 +614,14 @@ fn identify_channel_timed(
     let u: Vec<f64> = r.iter().zip(&level).map(|(v, s)| v / s).collect();
     let w = whiten(&ar, &u, segs);
     let p = ar.order();
+    let whitened_understatement = match fit(&w) {
+        (phi_w, ms_w) if ms_w > 0.0 => {
+            ArNoise::new(phi_w, ms_w.sqrt()).map_or(1.0, |a| a.low_frequency_ratio().sqrt())
+        }
+        _ => 1.0,
+    };
     Ok(ChannelIdentification {
+        whitened_understatement,
         channel: channel.to_string(),
         order: p,
         phi_std_error: phi_std_errors(&ar, n),

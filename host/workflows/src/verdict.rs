@@ -10,7 +10,9 @@
 //!   modelled (white kept), or a whitened RMS far from 1, are *doubtful*:
 //!   something the model lacks (`robimu diagnose`) or wrong σ_z
 //!   (`robimu noise`). Correlated noise the fit identified and modelled
-//!   (GLS) passes, named. In a multi-IMU fit (one noise model, chosen on
+//!   (GLS) passes, named; so do whitened residuals that still fail the
+//!   test by a correlation that understates σ by at most
+//!   [`WHITENED_TOLERANCE`] (noted). In a multi-IMU fit (one noise model, chosen on
 //!   IMU 0's residuals) an IMU j ≥ 1 whose own residuals ask for another
 //!   model is *doubtful*, named (its σ are not those of its noise);
 //! * **undetermined** — parameters whose posterior σ is above
@@ -23,10 +25,14 @@
 //!   ± 10 mm, τ's 0 ± 1 s, …: the priors are the plausible ranges, Table II),
 //!   and g₀ against 9.81 ± [`G0_TOLERANCE`]: *doubtful*;
 //! * **repeatability** (`calibrate --windows N`) — a window's estimate more
-//!   than [`WINDOW_LIMIT`] of its σ from the full calibration: *doubtful*.
+//!   than [`WINDOW_LIMIT`] of its σ from the full calibration: *doubtful*;
+//! * **model** — the score test of every catalogue effect the written model
+//!   lacks (Bonferroni over the candidates, docs/model.md §8.6): one that
+//!   is significant (the model is rejected) is *doubtful*, named with why
+//!   it is not in the model.
 
 use robimu_model::{ParamLayout, Robot};
-use robimu_session::result::{Trust, VerdictCheck, VerdictRecord};
+use robimu_session::result::{ModelTestsRecord, Trust, VerdictCheck, VerdictRecord};
 
 use crate::calibrate::noise_choice::{settled, wanted, NoiseOutcome, Settle};
 use crate::calibrate::Calibration;
@@ -64,6 +70,8 @@ pub struct VerdictInput<'a> {
     /// A multi-IMU calibration's IMUs j ≥ 1: the identification from each
     /// one's raw residuals ([`crate::calibrate::noise_choice::other_imu_identifications`]).
     pub other_imus: &'a [(usize, Identification)],
+    /// The tests of the model written against the catalogue's effects.
+    pub model_tests: Option<&'a ModelTestsRecord>,
 }
 
 /// The verdict (module doc).
@@ -86,6 +94,9 @@ pub fn verdict(input: &VerdictInput<'_>) -> VerdictRecord {
     if let Some(study) = input.repeatability {
         checks.push(repeatability(&layout, study));
     }
+    if let Some(tests) = input.model_tests {
+        checks.push(model(tests));
+    }
     let reasons: Vec<String> = checks
         .iter()
         .filter(|c| !c.ok)
@@ -102,6 +113,7 @@ pub fn verdict(input: &VerdictInput<'_>) -> VerdictRecord {
         trust,
         reasons,
         checks,
+        next_steps: Vec::new(),
     }
 }
 
@@ -117,28 +129,37 @@ fn p_values(id: &Identification) -> String {
         .join(", ")
 }
 
+/// Factor of σ understatement the correlation left in the whitened
+/// residuals may cause before the noise model counts as inadequate: 10 %.
+pub(crate) const WHITENED_TOLERANCE: f64 = 1.1;
+
 /// The channels whose identified AR model is at the largest order tried,
-/// or whose whitened residuals still fail the whiteness test: correlation
-/// longer than a sensor's filter makes (docs/model.md §4.6).
-fn beyond_ar(id: &Identification) -> Option<String> {
+/// or whose whitened residuals still fail the whiteness test by a
+/// correlation that understates σ by more than [`WHITENED_TOLERANCE`]:
+/// correlation longer than a sensor's filter makes (docs/model.md §4.6).
+/// The second: the channels that fail the test by less (a note).
+fn beyond_ar(id: &Identification) -> (Option<String>, Option<String>) {
     let max = IdOptions::default().max_order;
     let alpha = WHITENESS_ALPHA / 6.0;
-    let bad: Vec<String> = id
-        .channels
-        .iter()
-        .zip(robimu_session::IMU_COLUMNS)
-        .filter_map(|(c, n)| {
-            let order = c.noise.ar.order();
-            if order >= max {
-                Some(format!("{n}: AR({order}), the largest order tried"))
-            } else if c.ljung_box_whitened_p < alpha {
-                Some(format!("{n}: whitened p = {:.1e}", c.ljung_box_whitened_p))
-            } else {
-                None
-            }
-        })
-        .collect();
-    (!bad.is_empty()).then(|| bad.join(", "))
+    let (mut bad, mut small) = (Vec::new(), Vec::new());
+    for (c, n) in id.channels.iter().zip(robimu_session::IMU_COLUMNS) {
+        let order = c.noise.ar.order();
+        let p = c.ljung_box_whitened_p;
+        let factor = c.whitened_understatement;
+        if order >= max {
+            bad.push(format!("{n}: AR({order}), the largest order tried"));
+        } else if p < alpha && factor > WHITENED_TOLERANCE {
+            bad.push(format!(
+                "{n}: whitened p = {p:.1e}, σ understated ×{factor:.2}"
+            ));
+        } else if p < alpha {
+            small.push(format!(
+                "{n}: whitened p = {p:.1e}, σ understated ×{factor:.3}"
+            ));
+        }
+    }
+    let join = |v: Vec<String>| (!v.is_empty()).then(|| v.join(", "));
+    (join(bad), join(small))
 }
 
 fn min_p(id: &Identification) -> f64 {
@@ -192,11 +213,17 @@ fn residuals(input: &VerdictInput<'_>) -> VerdictCheck {
         (Some(id), None) if !cal.noise_model.is_white() => {
             let used = identified.unwrap_or(id);
             match beyond_ar(used) {
-                None => (
+                (None, small) => (
                     true,
-                    format!("correlated ({}), modelled: noise model {model}", p_values(id)),
+                    format!(
+                        "correlated ({}), modelled: noise model {model}{}",
+                        p_values(id),
+                        small.map_or(String::new(), |s| format!(
+                            "; the whitened residuals keep a small correlation ({s}, within ×{WHITENED_TOLERANCE})"
+                        ))
+                    ),
                 ),
-                Some(why) => (
+                (Some(why), _) => (
                     false,
                     format!(
                         "correlated beyond what the AR noise model captures ({why}): a slow discrepancy — bias drift or an effect the model lacks? (robimu diagnose); noise model {model}"
@@ -250,6 +277,44 @@ fn other_imus(input: &VerdictInput<'_>) -> String {
         "; the residuals of {} ask for another noise model than the one chosen on IMU 0's: their σ are not those of their noise (calibrate each alone with --imu J, or give --noise-model)",
         off.join(", ")
     )
+}
+
+/// The written model against the catalogue: an effect it lacks that the
+/// score test finds significant rejects it.
+fn model(t: &ModelTestsRecord) -> VerdictCheck {
+    let level = t.alpha / t.candidates.max(1) as f64;
+    let text = if t.significant.is_empty() {
+        let largest = t.largest_remaining.as_ref().map_or(String::new(), |s| {
+            format!("; largest {} p = {:.2e}", s.name, s.p_value)
+        });
+        format!(
+            "no catalogue effect is missing (score tests of {} candidates, p ≥ {level:.1e} each{largest})",
+            t.candidates
+        )
+    } else {
+        // the candidates grouped by why the model lacks them, in order
+        let mut groups: Vec<(&str, Vec<String>)> = Vec::new();
+        for s in &t.significant {
+            let item = format!("{} (p = {:.1e})", s.name, s.p_value);
+            match groups.iter_mut().find(|(r, _)| *r == s.reason) {
+                Some((_, v)) => v.push(item),
+                None => groups.push((&s.reason, vec![item])),
+            }
+        }
+        let missing: Vec<String> = groups
+            .iter()
+            .map(|(reason, items)| format!("{}: {reason}", items.join(", ")))
+            .collect();
+        format!(
+            "the data reject the model (score p < {level:.1e}): {}",
+            missing.join("; ")
+        )
+    };
+    VerdictCheck {
+        topic: "model".into(),
+        ok: t.significant.is_empty(),
+        text,
+    }
 }
 
 /// Parameters whose σ stayed at the prior's.

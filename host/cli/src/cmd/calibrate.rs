@@ -45,5 +45,6 @@ impl CalibrateCmd {
             flags: &self.fit,
         }
         .run()
+        .map(drop)
     }
 }

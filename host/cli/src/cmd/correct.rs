@@ -50,6 +50,9 @@ impl CorrectCmd {
             bail!("--out {}: would overwrite the input", out.display());
         }
         let result = CalibrationResult::read(&self.calibration)?;
+        if let Some(note) = result.effects_not_carried("the sensor model's inverse") {
+            eprintln!("note: {note}");
+        }
         let k = result.imu_count();
         let j = match (self.which_imu, imu_of_file(&self.imu)) {
             (Some(j), _) => j,

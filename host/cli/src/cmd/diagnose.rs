@@ -54,6 +54,12 @@ pub struct DiagnoseCmd {
     /// (docs/model.md §4.6).
     #[arg(long, value_name = "white|auto|FILE", default_value = "auto")]
     pub noise_model: String,
+    /// Also write the HTML report of the final model into DIR (report.html:
+    /// calibrate's page — verdict, pose accuracy, the model and the
+    /// evidence for its effects, the parameters — with every candidate's
+    /// score in every round).
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
 }
 
 impl DiagnoseCmd {
@@ -68,6 +74,11 @@ impl DiagnoseCmd {
             resonance: self.resonance.unchecked(),
             noise_model: self.noise_model,
         };
-        crate::flows::diagnose::run(&self.session, &settings).map(|_| ())
+        let d = crate::flows::diagnose::run(&self.session, &settings)?;
+        if let Some(dir) = &self.report {
+            let page = crate::flows::calibrate::diagnosis_report(&self.session, dir, d)?;
+            println!("wrote {}", page.display());
+        }
+        Ok(())
     }
 }

@@ -10,18 +10,18 @@ use anyhow::Context;
 use robimu_model::{ParamLayout, Robot};
 use robimu_report::convergence::ConvergenceLog;
 use robimu_report::figures::NoiseBand;
-use robimu_report::fit_summary::{
-    EffectEstimates, FitReport, RepeatabilityGroups, WeakDirectionsWarning,
-};
-use robimu_report::html::{calibration_report_imus, Convergence};
+use robimu_report::fit_summary::{FitReport, RepeatabilityGroups, WeakDirectionsWarning};
+use robimu_report::html::{calibration_report_with, Convergence, ModelEvidence};
+use robimu_report::model_summary::{ModelSummary, PoseAccuracyText};
 use robimu_report::noise::NoiseSummary;
 use robimu_report::verdict::{trust_line, VerdictText};
 use robimu_report::ParameterTable;
 use robimu_session::Session;
 use robimu_solver::IterationRecord;
 use robimu_workflows::calibrate::CalibrateOptions;
+use robimu_workflows::diagnose::Diagnosis;
 use robimu_workflows::repeatability::{self, Window};
-use robimu_workflows::{load_session, Fitted, Prepared};
+use robimu_workflows::{load_session, FitEvent, Fitted, Prepared, Settings};
 
 use crate::args::CalibrateFlags;
 use crate::input::{output_path, Progress};
@@ -42,8 +42,9 @@ pub struct CalibrateRun<'a> {
 
 impl CalibrateRun<'_> {
     /// Calibrate, print the table and write the result file (and what else
-    /// was asked for).
-    pub fn run(&self) -> anyhow::Result<()> {
+    /// was asked for); returns the calibration written (before a
+    /// repeatability study's verdict).
+    pub fn run(&self) -> anyhow::Result<Fitted> {
         let dir = self.session;
         let (session, robot) = load_session(dir)?;
         let file = self.flags.noise_file()?;
@@ -64,20 +65,13 @@ impl CalibrateRun<'_> {
             let html = html_report(report_dir, &p, &fitted)?;
             writeln!(out, "wrote {}", html.display())?;
         }
-        if let Some(set) = &p.effects {
-            let progress = Progress::start(format!("fitting with {}", set.names().join(", ")));
-            let f = p.fit_effects(&fitted.cal, &path);
-            progress.finish();
-            if let Some((f, epath)) = f? {
-                writeln!(out)?;
-                write!(out, "{}", EffectEstimates(&f))?;
-                writeln!(out, "wrote {}", epath.display())?;
-            }
+        if let Some(epath) = p.write_effects(&fitted, &path)? {
+            writeln!(out, "wrote {}", epath.display())?;
         }
-        if let Some(windows) = windows {
-            repeatability_study(&mut out, &p, fitted, windows, &path)?;
+        match windows {
+            Some(windows) => repeatability_study(&mut out, &p, fitted, windows, &path),
+            None => Ok(fitted),
         }
-        Ok(())
     }
 
     /// The verdict, the fit's summary, the noise model and the parameter
@@ -88,6 +82,17 @@ impl CalibrateRun<'_> {
         } = fitted;
         if let Some(v) = &result.verdict {
             write!(out, "{}", VerdictText(v))?;
+        }
+        write!(
+            out,
+            "{}",
+            ModelSummary {
+                result,
+                fit: &fitted.fit
+            }
+        )?;
+        if let Some(pose) = &result.pose_accuracy {
+            write!(out, "{}", PoseAccuracyText(pose))?;
         }
         let chosen = self.flags.knot_spacing.is_none();
         write!(out, "{}", FitReport::brief(cal, chosen))?;
@@ -118,12 +123,18 @@ impl CalibrateRun<'_> {
 fn fit_with_progress(p: &Prepared) -> anyhow::Result<Fitted> {
     let progress = Progress::start("fitting the trajectory and finding the time offset tau");
     progress.println(IterationRecord::HEADER);
-    let fitted = p.fit(|r| {
-        progress.println(r.to_string());
-        progress.set_message(format!(
-            "iteration {}: cost {:.6e}, lambda {:.1e}",
-            r.iteration, r.cost, r.lambda
-        ));
+    let fitted = p.fit(|e| match e {
+        FitEvent::Iteration(r) => {
+            progress.println(r.to_string());
+            progress.set_message(format!(
+                "iteration {}: cost {:.6e}, lambda {:.1e}",
+                r.iteration, r.cost, r.lambda
+            ));
+        }
+        FitEvent::Stage(s) => {
+            progress.println(format!("-- {s}"));
+            progress.set_message(s.to_string())
+        }
     });
     progress.finish();
     Ok(fitted?)
@@ -131,17 +142,17 @@ fn fit_with_progress(p: &Prepared) -> anyhow::Result<Fitted> {
 
 /// `--windows`: each window calibrated and compared with the full
 /// calibration, repeatability.csv, and the result file again with the
-/// verdict that includes the windows.
+/// verdict that includes the windows; returns the calibration with it.
 fn repeatability_study(
     out: &mut impl Write,
     p: &Prepared,
-    fitted: Fitted,
+    mut fitted: Fitted,
     windows: Vec<Window>,
     path: &Path,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Fitted> {
     let count = windows.len();
     let progress = Progress::start(format!("calibrating {count} windows"));
-    let study = p.repeatability(fitted, windows, |w, r| {
+    let study = p.repeatability(&fitted, windows, |w, r| {
         progress.set_message(format!(
             "window {} of {count}: iteration {}, cost {:.6e}",
             w + 1,
@@ -174,7 +185,8 @@ fn repeatability_study(
         "wrote {} (its verdict with the windows)",
         path.display()
     )?;
-    Ok(())
+    fitted.result = result;
+    Ok(fitted)
 }
 
 /// The first line: the session, its samples and what is estimated.
@@ -205,9 +217,29 @@ fn write_header(
     out.flush()
 }
 
+/// `diagnose --report DIR`: the calibration page of diagnose's final model
+/// `d` (its verdict, pose accuracy, evidence), with every candidate's score.
+pub fn diagnosis_report(session: &Path, dir: &Path, d: Diagnosis) -> anyhow::Result<PathBuf> {
+    let (s, robot) = load_session(session)?;
+    let p = Prepared::new(s, robot, &Settings::default(), None, |_| {})?;
+    let fitted = p.fitted_from(d)?;
+    html_report_with(dir, &p, &fitted, true)
+}
+
 /// `--report`: the HTML report of the calibration, one series per IMU, each
 /// under its own parameters (docs/model.md §9).
 fn html_report(report_dir: &Path, p: &Prepared, fitted: &Fitted) -> anyhow::Result<PathBuf> {
+    html_report_with(report_dir, p, fitted, false)
+}
+
+/// [`html_report`], with every candidate's score in every round of the
+/// search when `every_candidate`.
+fn html_report_with(
+    report_dir: &Path,
+    p: &Prepared,
+    fitted: &Fitted,
+    every_candidate: bool,
+) -> anyhow::Result<PathBuf> {
     let (robot, opts, cal, result): (&Robot, _, _, _) =
         (&p.robot, &p.opts, &fitted.cal, &fitted.result);
     let noise = NoiseBand::of_fit(result.noise_model.as_ref(), &opts.sigma_z);
@@ -225,11 +257,17 @@ fn html_report(report_dir: &Path, p: &Prepared, fitted: &Fitted) -> anyhow::Resu
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     let costs = ConvergenceLog::from_summary(&cal.summary).costs();
-    Ok(calibration_report_imus(
+    let evidence = fitted.selection.as_ref().map(|d| ModelEvidence {
+        data: &p.data,
+        diagnosis: d,
+        every_candidate,
+    });
+    Ok(calibration_report_with(
         report_dir,
         result,
         p.session.truth.as_ref(),
         Convergence::Costs(&costs),
         &series,
+        evidence.as_ref(),
     )?)
 }

@@ -22,9 +22,10 @@ use robimu_report::demo::{DemoFiles, DemoHardware, DemoPlanned, DemoRecordComman
 use robimu_report::recording::RecordSummaryText;
 use robimu_session::files;
 use robimu_session::result::CalibrationResult;
-use robimu_session::Truth;
+use robimu_session::{Truth, TruthRow};
 use robimu_workflows::diagnose::Diagnosis;
 use robimu_workflows::plan::PlanOptions;
+use robimu_workflows::Fitted;
 
 use crate::input::{record_with_progress, Progress};
 
@@ -140,7 +141,7 @@ impl DemoArgs {
         out.flush()?;
         let t0 = Instant::now();
         let report = dir.join("report");
-        self.calibrate(session, &report)?;
+        let fitted = self.calibrate(session, &report)?;
         writeln!(out, "calibration took {:.1} s", t0.elapsed().as_secs_f64())?;
 
         let check = if self.imus > 1 {
@@ -149,25 +150,40 @@ impl DemoArgs {
             writeln!(out, "\n== 5. diagnose ==")?;
             out.flush()?;
             let t0 = Instant::now();
-            let d = self.diagnose(session, &dir.join("diagnosis"))?;
+            self.diagnose(session, &dir.join("diagnosis"))?;
             writeln!(out, "diagnosis took {:.1} s", t0.elapsed().as_secs_f64())?;
 
             writeln!(out, "\n== 6. against the truth ==")?;
-            let names: Vec<String> = d
-                .final_fit
-                .effect_params
-                .iter()
-                .map(|p| p.name.clone())
-                .collect();
-            let share = match &mode {
-                Some(m) => Some(m.of_final(&robot, &d)?),
-                None => None,
+            let share = |d: &Diagnosis| match &mode {
+                Some(m) => m.of_final(&robot, d).map(Some),
+                None => Ok(None),
             };
-            self.truth_check(&robot, &d, &truth_for(&names, share.as_deref())?)
+            match &fitted.selection {
+                Some(d) => {
+                    let names: Vec<String> = d
+                        .final_fit
+                        .effect_params
+                        .iter()
+                        .map(|p| p.name.clone())
+                        .collect();
+                    let truth = truth_for(&names, share(d)?.as_deref())?;
+                    self.truth_check(
+                        d.final_fit.effects.clone(),
+                        final_model_rows(&robot, d, &truth),
+                        &truth,
+                    )
+                }
+                None => self.truth_check(
+                    Vec::new(),
+                    result_rows(&fitted.result, &baseline),
+                    &baseline,
+                ),
+            }
         };
         write_check(&mut out, &check, &report)?;
         let seconds = start.elapsed().as_secs_f64();
         let report = report.as_path();
+        let next = next_step(&fitted, session);
         write!(
             out,
             "{}",
@@ -175,7 +191,9 @@ impl DemoArgs {
                 plan_dir,
                 session,
                 report,
-                seconds
+                seconds,
+                result: &fitted.result,
+                next: &next,
             }
         )?;
         Ok(())
@@ -285,20 +303,26 @@ impl DemoArgs {
         })
     }
 
-    /// Every estimated parameter of diagnose's final model against `truth`.
-    fn truth_check(&self, robot: &Robot, d: &Diagnosis, truth: &TwinTruth) -> DemoTruthCheck {
+    /// The result calibrate wrote (its model's `effects` and `rows`)
+    /// against the truth of that model.
+    fn truth_check(
+        &self,
+        effects: Vec<String>,
+        rows: Vec<TruthRow>,
+        truth: &TwinTruth,
+    ) -> DemoTruthCheck {
         DemoTruthCheck {
-            model: "diagnose's final model".into(),
+            model: "calibrate's result".into(),
             twin: if self.ideal { "ideal" } else { "realistic" }.into(),
-            effects: d.final_fit.effects.clone(),
-            rows: final_model_rows(robot, d, truth),
+            effects,
+            rows,
             not_comparable: truth.not_comparable.clone(),
             limit: TRUTH_LIMIT,
         }
     }
 
     /// `robimu calibrate SESSION --report REPORT`.
-    fn calibrate(&self, session: &Path, report: &Path) -> anyhow::Result<()> {
+    fn calibrate(&self, session: &Path, report: &Path) -> anyhow::Result<Fitted> {
         crate::flows::calibrate::CalibrateRun {
             session,
             out: None,
@@ -457,6 +481,23 @@ impl DemoArgs {
         let at = summary.epoch + std::time::Duration::from_secs_f64(middle);
         let device = rig.device.clock().device_us_at(at) * 1e-6;
         Ok(clock_mapping_error(&summary.clock, middle, device))
+    }
+}
+
+/// What to do after the demo: the verdict's first step when it is not
+/// good, else export the calibrated robot.
+fn next_step(fitted: &Fitted, session: &Path) -> String {
+    let steps = fitted
+        .result
+        .verdict
+        .as_ref()
+        .map(|v| v.next_steps.as_slice());
+    match steps.and_then(|s| s.first()) {
+        Some(step) => step.clone(),
+        None => format!(
+            "robimu export --calibration {} --format toml --out robot.toml (the calibrated robot), then calibrate your own robot: docs/guide/getting-started.md",
+            session.join("result.json").display()
+        ),
     }
 }
 

@@ -3,11 +3,11 @@
 //! progress line, the summary, diagnosis.json and the residual figures.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use robimu_report::diagnosis::DiagnosisSummary;
-use robimu_report::plot::{line_panels, loglog_panels, LinePanel, LogLogPanel};
-use robimu_workflows::diagnose::{welch, windowed_rms, Diagnosis, CHANNELS};
+use robimu_report::diagnosis_figures::{residuals_plot, spectra_plot};
+use robimu_workflows::diagnose::Diagnosis;
 use robimu_workflows::{diagnose_session, DiagnoseSettings, Diagnosed};
 
 use crate::input::Progress;
@@ -23,8 +23,10 @@ pub fn run(dir: &Path, settings: &DiagnoseSettings) -> anyhow::Result<Diagnosis>
     // the two figures on their own threads while the summary and the
     // JSON are written (each is independent of the others)
     let (written, residuals, spectra) = std::thread::scope(|s| {
-        let residuals = s.spawn(|| residuals_plot(out_dir, &d.data, &d.diagnosis));
-        let spectra = s.spawn(|| spectra_plot(out_dir, &d.data, &d.diagnosis));
+        let residuals =
+            s.spawn(|| residuals_plot(&out_dir.join("residuals"), &d.data, &d.diagnosis));
+        let spectra =
+            s.spawn(|| spectra_plot(&out_dir.join("residual_spectra"), &d.data, &d.diagnosis));
         let written = write_summary(out_dir, &d);
         (
             written,
@@ -47,108 +49,4 @@ fn write_summary(out_dir: &Path, d: &Diagnosed) -> anyhow::Result<()> {
     let path = d.write_json(out_dir)?;
     writeln!(out, "wrote {}", path.display())?;
     Ok(())
-}
-
-/// Whether the final fit is the baseline itself (no effect added): its
-/// residual curves are then the baseline's, computed once.
-fn same_fits(d: &Diagnosis) -> bool {
-    d.found.is_empty() && d.final_fit.effects.is_empty()
-}
-
-/// Window of the residual plot, s.
-const RMS_WINDOW: f64 = 1.0;
-
-/// Whitened residuals over time before and after the effects, one panel per
-/// channel, as their RMS over consecutive windows of about 1 s (a tenth of
-/// the session when shorter than 10 s): a sample-by-sample plot of 10⁵–10⁶
-/// points would be an unreadable band and a multi-megabyte SVG, while the
-/// windowed RMS keeps one point per second and shows where and when the
-/// residuals rise above the noise model's level of 1 (drawn as a line).
-fn residuals_plot(
-    dir: &std::path::Path,
-    data: &robimu_model::observations::Measurements,
-    d: &Diagnosis,
-) -> anyhow::Result<Vec<PathBuf>> {
-    let span = match (data.imu_t.first(), data.imu_t.last()) {
-        (Some(a), Some(b)) => (*a, *b),
-        _ => (0.0, 1.0),
-    };
-    let window = RMS_WINDOW.min((span.1 - span.0) / 10.0);
-    let panels: Vec<LinePanel> = CHANNELS
-        .iter()
-        .enumerate()
-        .map(|(c, name)| {
-            let rms = |fit: &robimu_workflows::calibrate::fit::Fit| {
-                let t: Vec<f64> = fit.residuals.iter().map(|(i, _)| data.imu_t[*i]).collect();
-                let r: Vec<f64> = fit.residuals.iter().map(|(_, v)| v[c]).collect();
-                windowed_rms(&t, &r, window)
-            };
-            let before = rms(&d.baseline);
-            let after = same_fits(d).then(|| before.clone());
-            let after = after.unwrap_or_else(|| rms(&d.final_fit));
-            let mut series = vec![("before".to_string(), before), ("after".to_string(), after)];
-            series.push(("noise model".into(), vec![(span.0, 1.0), (span.1, 1.0)]));
-            LinePanel {
-                title: format!("{name} residual"),
-                x_label: "session time [s]".into(),
-                y_label: format!("RMS per ~{window:.2} s [σ]"),
-                series,
-            }
-        })
-        .collect();
-    Ok(line_panels(
-        &dir.join("residuals"),
-        "whitened residuals (windowed RMS), before and after the effects",
-        &panels,
-        3,
-    )?)
-}
-
-/// Residual spectra before and after, one panel per sensor.
-fn spectra_plot(
-    dir: &std::path::Path,
-    data: &robimu_model::observations::Measurements,
-    d: &Diagnosis,
-) -> anyhow::Result<Vec<PathBuf>> {
-    let rate = {
-        let t = &data.imu_t;
-        if t.len() > 1 {
-            (t.len() - 1) as f64 / (t[t.len() - 1] - t[0]).max(1e-9)
-        } else {
-            1.0
-        }
-    };
-    let spectrum = |fit: &robimu_workflows::calibrate::fit::Fit, c: usize| {
-        let r: Vec<f64> = fit.residuals.iter().map(|(_, v)| v[c]).collect();
-        welch(&r, rate)
-    };
-    let mut panels = Vec::new();
-    for (sensor, title) in [(0, "accelerometer"), (1, "gyroscope")] {
-        let before: Vec<_> = (3 * sensor..3 * sensor + 3)
-            .map(|c| spectrum(&d.baseline, c))
-            .collect();
-        let after: Vec<_> = match same_fits(d) {
-            true => before.clone(),
-            false => (3 * sensor..3 * sensor + 3)
-                .map(|c| spectrum(&d.final_fit, c))
-                .collect(),
-        };
-        let mut series = Vec::new();
-        for (label, spectra) in [("before", before), ("after", after)] {
-            for (c, p) in (3 * sensor..).zip(spectra) {
-                series.push((format!("{} {label}", CHANNELS[c]), p));
-            }
-        }
-        panels.push(LogLogPanel {
-            title: format!("{title} residual spectra"),
-            x_label: "frequency [Hz]".into(),
-            y_label: "PSD [whitened²/Hz]".into(),
-            series,
-        });
-    }
-    Ok(loglog_panels(
-        &dir.join("residual_spectra"),
-        "whitened residual spectra, before and after the effects",
-        &panels,
-    )?)
 }

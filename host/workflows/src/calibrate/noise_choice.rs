@@ -28,7 +28,7 @@ use robimu_model::{
 use robimu_solver::IterationRecord;
 
 use super::fit::{fit, Fit, FitSpec, Start};
-use super::{calibrate, calibration_of, CalibrateError, CalibrateOptions, Calibration};
+use super::{calibration_of, CalibrateError, CalibrateOptions, Calibration};
 use crate::noise_id::{identify, IdOptions, Identification};
 
 /// Most GLS refits of `Auto`.
@@ -110,80 +110,140 @@ pub(crate) fn calibrate_with_noise_settle(
     opts: &CalibrateOptions,
     choice: &NoiseChoice,
     settle: &Settle,
-    mut report: impl FnMut(&IterationRecord),
+    report: impl FnMut(&IterationRecord),
 ) -> Result<(Calibration, NoiseOutcome), CalibrateError> {
-    let mut outcome = NoiseOutcome {
+    let mut report = report;
+    PaperFit::start(robot, data, opts, choice, &mut report)?
+        .settle(robot, data, opts, settle, &mut report)
+        .map(|(c, n, _, _)| (c, n))
+}
+
+/// The paper's calibration under a noise choice, in two stages: the first
+/// fit ([`PaperFit::start`]: the white fit of `Auto`, or the fit with the
+/// given model), then `Auto`'s settling ([`PaperFit::settle`]).
+pub(crate) enum PaperFit {
+    /// `White` or `Given`: the fit is final.
+    Done(Box<(Calibration, Fit)>),
+    /// `Auto`: the white fit, to settle.
+    White(Box<(Calibration, Fit)>),
+}
+
+/// A calibration of the paper's model: its result, what the noise choice
+/// did, the final fit and (`Auto`) the white fit it started from.
+pub(crate) type PaperResult = (Calibration, NoiseOutcome, Fit, Option<Fit>);
+
+fn no_outcome() -> NoiseOutcome {
+    NoiseOutcome {
         white_test: None,
         identified: None,
         refits: 0,
         warning: None,
-    };
-    let with = |m: Option<NoiseModel>| CalibrateOptions {
-        noise: m,
-        ..opts.clone()
-    };
-    match choice {
-        NoiseChoice::White => {
-            return Ok((calibrate(robot, data, &with(None), &mut report)?, outcome))
-        }
-        NoiseChoice::Given(m) => {
-            return Ok((
-                calibrate(robot, data, &with(Some((**m).clone())), &mut report)?,
-                outcome,
-            ))
-        }
-        NoiseChoice::Auto => {}
     }
-    let white_opts = with(None);
-    let white_fit = fit(&FitSpec::baseline(robot, data), &white_opts, &mut report)?;
-    let white = calibration_of(robot, &white_opts, &white_fit)?;
-    let id_opts = IdOptions::default();
-    let first = match fit_identification(robot, data, &white_fit, &id_opts) {
-        Ok(id) => id,
-        Err(e) => {
-            outcome.warning = Some(format!("noise not identified ({e}); white noise kept"));
-            return Ok((white, outcome));
+}
+
+impl PaperFit {
+    /// The first fit of `choice`.
+    pub(crate) fn start(
+        robot: &Robot,
+        data: &Measurements,
+        opts: &CalibrateOptions,
+        choice: &NoiseChoice,
+        mut report: impl FnMut(&IterationRecord),
+    ) -> Result<Self, CalibrateError> {
+        let with = |m: Option<NoiseModel>| CalibrateOptions {
+            noise: m,
+            ..opts.clone()
+        };
+        let (o, done) = match choice {
+            NoiseChoice::White => (with(None), true),
+            NoiseChoice::Given(m) => (with(Some((**m).clone())), true),
+            NoiseChoice::Auto => (with(None), false),
+        };
+        let f = fit(&FitSpec::baseline(robot, data), &o, &mut report)?;
+        let cal = calibration_of(robot, &o, &f)?;
+        Ok(match done {
+            true => Self::Done(Box::new((cal, f))),
+            false => Self::White(Box::new((cal, f))),
+        })
+    }
+
+    /// The white fit of `Auto` (`None` for a given model).
+    pub(crate) fn white(&self) -> Option<&Fit> {
+        match self {
+            Self::White(w) => Some(&w.1),
+            Self::Done(_) => None,
         }
-    };
-    outcome.white_test = Some(first.clone());
-    let gls = |m: Option<NoiseModel>| {
-        let mut o = with(m);
-        o.lm.gradient_tolerance = o.lm.gradient_tolerance.max(REFIT_GRADIENT);
-        o
-    };
-    let refits = std::cell::Cell::new(0);
-    let settledfit = settle_noise(
-        white_fit,
-        first,
-        settle,
-        |previous, m| {
-            refits.set(refits.get() + 1);
-            let spec = FitSpec {
-                start: Start::Refit(previous),
-                ..FitSpec::baseline(robot, data)
+    }
+
+    /// `Auto`'s settling from the white fit (see the module doc); a given
+    /// model's fit as it is.
+    pub(crate) fn settle(
+        self,
+        robot: &Robot,
+        data: &Measurements,
+        opts: &CalibrateOptions,
+        settle: &Settle,
+        mut report: impl FnMut(&IterationRecord),
+    ) -> Result<PaperResult, CalibrateError> {
+        let mut outcome = no_outcome();
+        let (white, white_fit) = match self {
+            Self::Done(d) => {
+                let (cal, f) = *d;
+                return Ok((cal, outcome, f, None));
+            }
+            Self::White(w) => *w,
+        };
+        let id_opts = IdOptions::default();
+        let first = match fit_identification(robot, data, &white_fit, &id_opts) {
+            Ok(id) => id,
+            Err(e) => {
+                outcome.warning = Some(format!("noise not identified ({e}); white noise kept"));
+                return Ok((white, outcome, white_fit.clone(), Some(white_fit)));
+            }
+        };
+        outcome.white_test = Some(first.clone());
+        let gls = |m: Option<NoiseModel>| {
+            let mut o = CalibrateOptions {
+                noise: m,
+                ..opts.clone()
             };
-            fit(&spec, &gls(m), &mut report).map_err(|e| e.to_string())
-        },
-        |f| fit_identification(robot, data, f, &id_opts),
-    );
-    outcome.refits = refits.get();
-    match settledfit {
-        Ok(s) if s.refits == 0 => Ok((white, outcome)),
-        Ok(s) => {
-            let model = (!s.fit.noise.is_white()).then(|| s.fit.noise.clone());
-            let mut cal = calibration_of(robot, &gls(model), &s.fit)?;
-            cal.tau_initial = white.tau_initial;
-            outcome.identified = s.used;
-            Ok((cal, outcome))
-        }
-        Err(e) => {
-            let kept = if e.starts_with("the identified noise model did not settle") {
-                "the white-noise result is kept and its σ are too small where the residuals are correlated"
-            } else {
-                "white noise kept"
-            };
-            outcome.warning = Some(format!("{e}; {kept}"));
-            Ok((white, outcome))
+            o.lm.gradient_tolerance = o.lm.gradient_tolerance.max(REFIT_GRADIENT);
+            o
+        };
+        let refits = std::cell::Cell::new(0);
+        let settledfit = settle_noise(
+            white_fit.clone(),
+            first,
+            settle,
+            |previous, m| {
+                refits.set(refits.get() + 1);
+                let spec = FitSpec {
+                    start: Start::Refit(previous),
+                    ..FitSpec::baseline(robot, data)
+                };
+                fit(&spec, &gls(m), &mut report).map_err(|e| e.to_string())
+            },
+            |f| fit_identification(robot, data, f, &id_opts),
+        );
+        outcome.refits = refits.get();
+        match settledfit {
+            Ok(s) if s.refits == 0 => Ok((white, outcome, white_fit.clone(), Some(white_fit))),
+            Ok(s) => {
+                let model = (!s.fit.noise.is_white()).then(|| s.fit.noise.clone());
+                let mut cal = calibration_of(robot, &gls(model), &s.fit)?;
+                cal.tau_initial = white.tau_initial;
+                outcome.identified = s.used;
+                Ok((cal, outcome, s.fit, Some(white_fit)))
+            }
+            Err(e) => {
+                let kept = if e.starts_with("the identified noise model did not settle") {
+                    "the white-noise result is kept and its σ are too small where the residuals are correlated"
+                } else {
+                    "white noise kept"
+                };
+                outcome.warning = Some(format!("{e}; {kept}"));
+                Ok((white, outcome, white_fit.clone(), Some(white_fit)))
+            }
         }
     }
 }

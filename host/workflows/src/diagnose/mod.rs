@@ -294,6 +294,20 @@ pub struct DiagnoseOptions {
     /// Largest ρ² of a follow-up effect against the effects already added
     /// ([`Determination`]; default [`MAX_ALIASING`]).
     pub max_aliasing: f64,
+    /// Effects in the baseline model besides the paper's (labels, e.g.
+    /// `calibrate --effects`; default none): fitted from the start, never
+    /// tested.
+    pub base_effects: Vec<String>,
+    /// How `Auto` settles the noise model after each fit.
+    pub settle: Settle,
+    /// `Auto`: the baseline's white fit when it is already made (the same
+    /// fit from the nominal x, e.g. calibrate's): not fitted again.
+    pub white_start: Option<Fit>,
+    /// Compute the residual statistics before and after (the spectra,
+    /// regressors and unexplained structure of diagnosis.json; default
+    /// true); without, [`Diagnosis::stats_before`] and `stats_after` are
+    /// empty and nothing is unexplained.
+    pub residual_stats: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -309,6 +323,10 @@ impl Default for DiagnoseOptions {
                 ..IdOptions::default()
             },
             max_aliasing: MAX_ALIASING,
+            base_effects: Vec::new(),
+            settle: Settle::default(),
+            white_start: None,
+            residual_stats: true,
         }
     }
 }
@@ -404,6 +422,8 @@ pub struct Diagnosis {
     pub last_scores: Vec<Score>,
     /// Bonferroni threshold α/K used.
     pub threshold: f64,
+    /// The candidates K offered.
+    pub candidates: usize,
     /// Residual statistics before and after.
     pub stats_before: ResidualStats,
     /// After.
@@ -586,13 +606,13 @@ fn settle_noise(
     setup: &CatalogueSetup,
     start: &Fit,
     id: Identification,
-    id_opts: &IdOptions,
+    (id_opts, settle): (&IdOptions, &Settle),
     progress: &mut impl FnMut(&str),
 ) -> Result<(Fit, usize), String> {
     let s = noise_choice::settle_noise(
         start.clone(),
         id,
-        &Settle::default(),
+        settle,
         |current, want| {
             progress("refitting with the identified noise model");
             fit_effects(
@@ -620,6 +640,7 @@ fn baseline_fit(
     progress: &mut impl FnMut(&str),
 ) -> Result<(Fit, NoiseUse), DiagnoseError> {
     let start = dopts.x_start.as_deref().map_or(Start::Nominal, Start::At);
+    let base = &dopts.base_effects;
     let mut noise = NoiseUse {
         choice: "auto",
         white_test: None,
@@ -634,10 +655,13 @@ fn baseline_fit(
     };
     if let Some(model) = given {
         noise.choice = if model.is_some() { "given" } else { "white" };
-        let f = fit_effects(robot, data, &with_noise(opts, model), setup, &[], start)?;
+        let f = fit_effects(robot, data, &with_noise(opts, model), setup, base, start)?;
         return Ok((f, noise));
     }
-    let white = fit_effects(robot, data, &with_noise(opts, None), setup, &[], start)?;
+    let white = match &dopts.white_start {
+        Some(f) => f.clone(),
+        None => fit_effects(robot, data, &with_noise(opts, None), setup, base, start)?,
+    };
     progress("identifying the noise from the residuals");
     let id = match identify_at(robot, data, opts, setup, &white, &dopts.noise_id) {
         Ok(id) => id,
@@ -656,7 +680,7 @@ fn baseline_fit(
         setup,
         &white,
         id,
-        &dopts.noise_id,
+        (&dopts.noise_id, &dopts.settle),
         progress,
     ) {
         Ok((f, _)) => {
@@ -672,6 +696,27 @@ fn baseline_fit(
     }
 }
 
+/// The candidates of `requested` this session's catalogue has
+/// (temperature_bias needs a recorded temperature, resonance a
+/// trajectory), each per-sensor effect once per IMU (docs/model.md §9),
+/// without those in the model already (`base`): the Bonferroni count.
+pub(crate) fn offered_candidates(
+    setup: &CatalogueSetup,
+    requested: &[String],
+    base: &[String],
+) -> Vec<String> {
+    let all = setup.candidates();
+    let mut offered: Vec<String> = Vec::new();
+    for r in requested {
+        for c in all.iter().filter(|c| is_requested(r, c)) {
+            if !offered.contains(c) && !base.contains(c) {
+                offered.push(c.clone());
+            }
+        }
+    }
+    offered
+}
+
 /// Diagnose `data`: baseline fit, then add significant effects one at a time
 /// (see the module doc).
 pub fn diagnose(
@@ -682,18 +727,7 @@ pub fn diagnose(
     dopts: &DiagnoseOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<Diagnosis, DiagnoseError> {
-    // the candidates this session's catalogue has (temperature_bias needs a
-    // recorded temperature, resonance a trajectory), each per-sensor effect
-    // once per IMU (docs/model.md §9); Bonferroni over them
-    let all = setup.candidates();
-    let mut offered: Vec<String> = Vec::new();
-    for r in &dopts.candidates {
-        for c in all.iter().filter(|c| is_requested(r, c)) {
-            if !offered.contains(c) {
-                offered.push(c.clone());
-            }
-        }
-    }
+    let offered = offered_candidates(setup, &dopts.candidates, &dopts.base_effects);
     let threshold = dopts.alpha / offered.len().max(1) as f64;
     // resolutions chosen below are set in this copy
     let mut setup = setup.clone();
@@ -712,7 +746,13 @@ pub fn diagnose(
     // effects are searched (they need only the baseline fit)
     let stats_setup = setup.clone();
     let (stats_before, search) = std::thread::scope(|scope| {
-        let before = scope.spawn(|| residual_stats(robot, data, &stats_setup, &baseline));
+        let before = scope.spawn(|| {
+            if dopts.residual_stats {
+                residual_stats(robot, data, &stats_setup, &baseline)
+            } else {
+                ResidualStats::default()
+            }
+        });
         let problem = search::SearchProblem {
             robot,
             data,
@@ -731,7 +771,7 @@ pub fn diagnose(
         noise,
     } = search?;
     // with no effect added the final fit is the baseline itself
-    let stats_after = if found.is_empty() {
+    let stats_after = if found.is_empty() || !dopts.residual_stats {
         stats_before.clone()
     } else {
         residual_stats(robot, data, setup, &current)
@@ -744,6 +784,7 @@ pub fn diagnose(
         found,
         last_scores,
         threshold,
+        candidates: offered.len(),
         stats_before,
         stats_after,
         sigma_z: opts.sigma_z,

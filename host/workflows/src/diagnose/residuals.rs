@@ -12,7 +12,7 @@ use robimu_model::observations::Measurements;
 use robimu_model::{JointState, MeasurementModel, ParamLayout, PerChannel, Robot};
 
 /// Residual statistics of one fit (whitened residuals; see the module doc).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Default, Serialize)]
 pub struct ResidualStats {
     /// IMU samples.
     pub samples: usize,

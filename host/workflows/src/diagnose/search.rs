@@ -120,7 +120,10 @@ fn round(
         .filter(|c| !current.effects.contains(c) && !s.rejected.iter().any(|r| &r.name == *c))
         .cloned()
         .collect();
-    if candidates.is_empty() || s.found.len() >= p.dopts.max_effects {
+    // at the limit the candidates are still scored (the tests of the
+    // final model) unless the limit is 0 effects and none were asked for
+    let at_limit = s.found.len() >= p.dopts.max_effects;
+    if candidates.is_empty() || (at_limit && p.dopts.max_effects > 0) {
         return Ok(Round::Done(Vec::new()));
     }
     // scores, refit and LR under the current fit's noise model
@@ -129,7 +132,7 @@ fn round(
     progress("scoring the candidate effects");
     let (base_q, scores, set) = scores_at(robot, data, &ropts, setup, current, &candidates)?;
     let mut best = scores[0].clone();
-    if best.p_value >= threshold {
+    if best.p_value >= threshold || at_limit {
         return Ok(Round::Done(scores));
     }
     let resolution =
@@ -229,8 +232,9 @@ fn reidentified(
 ) -> Fit {
     let (robot, data, opts, id_opts) = (p.robot, p.data, p.opts, &p.dopts.noise_id);
     progress("identifying the noise again");
+    let settle = (id_opts, &p.dopts.settle);
     let settled = identify_at(robot, data, opts, setup, &next, id_opts)
-        .and_then(|id| settle_noise(robot, data, opts, setup, &next, id, id_opts, progress));
+        .and_then(|id| settle_noise(robot, data, opts, setup, &next, id, settle, progress));
     match settled {
         Ok((f, refits)) => {
             if refits > 0 {

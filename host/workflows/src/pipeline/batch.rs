@@ -123,7 +123,7 @@ fn calibrate_one(
                 .with_context(|| format!("cannot create {}", parent.display()))?;
         }
         fitted.write(&job.result)?;
-        p.fit_effects(&fitted.cal, &job.result)?;
+        p.write_effects(&fitted, &job.result)?;
         Ok(Outcome::Calibrated(Box::new(fitted.result)))
     })()
     .unwrap_or_else(|e| Outcome::Failed(format!("{e:#}")));

@@ -18,20 +18,26 @@ use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
 use robimu_solver::IterationRecord;
 
+use robimu_model::effects::CatalogueSetup;
+use robimu_session::result::{ModelTestsRecord, VerdictRecord};
+
+use super::model_choice::{effect_records, selection_tests, test_model, ModelChoice, MODEL_ALPHA};
+use super::next_steps::next_steps;
 use super::noise_spec::{noise_choice, NoiseFileArg};
 use super::{checked_mode, fatal_findings, PipelineError};
-use crate::calibrate::fit::{fit, Fit, FitSpec, Start};
+use crate::calibrate::fit::Fit;
 use crate::calibrate::noise_choice::{
-    calibrate_with_noise_settle, other_imu_identifications, residual_identification, NoiseChoice,
-    NoiseOutcome, Settle, MAX_REFITS,
+    other_imu_identifications, residual_identification, NoiseChoice, NoiseOutcome, PaperFit,
+    Settle, MAX_REFITS, REFIT_GRADIENT,
 };
-use crate::calibrate::{check_measurements, CalibrateOptions, Calibration};
+use crate::calibrate::{calibration_of, check_measurements, CalibrateOptions, Calibration};
 use crate::check::{check_session, CheckOptions, Severity};
-use crate::diagnose::{effect_set, fit_json, setup_with};
+use crate::diagnose::{diagnose, effect_set, fit_json, identify_at, setup_with};
+use crate::diagnose::{DiagnoseOptions, Diagnosis};
 use crate::noise_id::{IdOptions, Identification};
+use crate::pose_accuracy::{pose_accuracy, Posterior};
 use crate::repeatability::{self, check_windows, Repeatability, Window};
 use crate::verdict::{self, VerdictInput};
-use robimu_session::result::VerdictRecord;
 
 /// How a session is calibrated: `robimu calibrate`'s flags, by the same
 /// names. [`Default`] is `robimu calibrate`'s defaults.
@@ -54,6 +60,9 @@ pub struct Settings {
     pub settle: Settle,
     /// Calibrate IMU J of a multi-IMU session alone.
     pub imu: Option<usize>,
+    /// The model: the paper's, tested and extended by the effects the
+    /// data show (default), or the paper's alone. `effects` fixes the set.
+    pub model: ModelChoice,
 }
 
 impl Default for Settings {
@@ -70,6 +79,7 @@ impl Default for Settings {
                 ..Settle::default()
             },
             imu: None,
+            model: ModelChoice::default(),
         }
     }
 }
@@ -88,10 +98,25 @@ pub struct Prepared {
     pub data: Measurements,
     /// The `effects` set, when given.
     pub effects: Option<EffectSet>,
+    /// The catalogue's set-up for this session (the model's tests and
+    /// effects).
+    pub setup: CatalogueSetup,
+    /// The labels of the `effects` set (empty without).
+    pub effect_labels: Vec<String>,
+    /// The model choice.
+    pub model: ModelChoice,
     /// The noise model choice.
     pub choice: NoiseChoice,
     /// `auto`'s settling rule.
     pub settle: Settle,
+}
+
+/// What a calibration reports while it runs.
+pub enum FitEvent<'a> {
+    /// A solver iteration of the paper's model's fit.
+    Iteration(&'a IterationRecord),
+    /// A stage begins (the model's tests, the search for effects).
+    Stage(&'a str),
 }
 
 /// A finished calibration ([`Prepared::fit`]).
@@ -107,6 +132,12 @@ pub struct Fitted {
     pub whiteness: Option<Identification>,
     /// A multi-IMU fit's IMUs j ≥ 1: the identification from each one's residuals.
     pub other_imus: Vec<(usize, Identification)>,
+    /// The fit of the model written (with its effects, residuals and
+    /// trajectory).
+    pub fit: Fit,
+    /// The search that chose the model's effects, when it ran and added
+    /// one, or the fit of a given `effects` set: the evidence.
+    pub selection: Option<Diagnosis>,
 }
 
 impl Prepared {
@@ -152,7 +183,7 @@ impl Prepared {
         let opts = options(settings, &session, &robot, &layout, file)?;
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-        let effects = effect_set_of(settings, &robot, &data)?;
+        let (effects, setup, effect_labels) = effect_set_of(settings, &robot, &data)?;
         let choice = noise_choice(
             &settings.noise_model,
             &session,
@@ -167,84 +198,272 @@ impl Prepared {
             opts,
             data,
             effects,
+            setup,
+            effect_labels,
+            model: settings.model,
             choice,
             settle: settings.settle,
         })
     }
 
-    /// The calibration with the noise choice (docs/model.md §4.6), its
-    /// verdict and its result file's contents (not written); `report`
-    /// sees each solver iteration.
-    pub fn fit(&self, report: impl FnMut(&IterationRecord)) -> Result<Fitted, PipelineError> {
-        let dir = &self.session.dir;
-        let (cal, noise) = calibrate_with_noise_settle(
+    /// The calibration (docs/model.md §8.6): the paper's model with the
+    /// noise choice (§4.6), tested against the catalogue's effects; with
+    /// [`ModelChoice::Select`] and a significant one, the diagnosis's search
+    /// adds what the data show and its final model is the result (a given
+    /// `effects` set is fitted from the start instead). Then its verdict,
+    /// pose accuracy and result file's contents (not written); `progress`
+    /// sees each solver iteration and stage.
+    pub fn fit(&self, mut progress: impl FnMut(FitEvent<'_>)) -> Result<Fitted, PipelineError> {
+        if !self.effect_labels.is_empty() {
+            let d = self.search(None, &mut progress)?;
+            return self.fitted_with_effects(d, "given");
+        }
+        let mut iteration = |r: &IterationRecord| progress(FitEvent::Iteration(r));
+        let start = PaperFit::start(
             &self.robot,
             &self.data,
             &self.opts,
             &self.choice,
-            &self.settle,
-            report,
+            &mut iteration,
         )
-        .with_context(|| format!("cannot calibrate the session {}", dir.display()))
+        .with_context(|| self.cannot())
         .map_err(PipelineError::fit)?;
-        let whiteness = (self.choice != NoiseChoice::Auto)
+        let mut searched = None;
+        if self.model == ModelChoice::Select {
+            // the search's first round is the model's test (at its own
+            // baseline, under the search's noise model); the paper's fit
+            // is settled only when the search adds nothing
+            progress(FitEvent::Stage(
+                "testing the model and adding the effects the data show",
+            ));
+            let d = self.search(start.white().cloned(), &mut progress)?;
+            if !d.found.is_empty() {
+                return self.fitted_with_effects(d, "selected");
+            }
+            searched = Some(d);
+        }
+        let mut iteration = |r: &IterationRecord| progress(FitEvent::Iteration(r));
+        let (cal, noise, fit, _) = start
+            .settle(
+                &self.robot,
+                &self.data,
+                &self.opts,
+                &self.settle,
+                &mut iteration,
+            )
+            .with_context(|| self.cannot())
+            .map_err(PipelineError::fit)?;
+        let (selection, reason) = match self.model {
+            ModelChoice::Paper => (
+                "paper",
+                "not in the paper's model (--model paper): `robimu calibrate` without --model adds what the data show",
+            ),
+            ModelChoice::Select => (
+                "selected",
+                "significant at the paper's fit, but diagnose's search did not add it (`robimu diagnose` shows why)",
+            ),
+        };
+        // the search's baseline is the paper's fit when both kept white
+        // noise: its scores are the tests; else the tests at the paper's fit
+        let tests = match searched.filter(|d| d.baseline.noise.is_white() && d.baseline.x == fit.x)
+        {
+            Some(d) => selection_tests(&d, selection),
+            None => {
+                progress(FitEvent::Stage(
+                    "testing the model against the catalogue's effects",
+                ));
+                test_model(&self.robot, &self.data, &self.opts, &self.setup, &fit)
+                    .with_context(|| format!("{}: the model's tests failed", self.cannot()))
+                    .map_err(PipelineError::fit)?
+                    .record(selection, reason)
+            }
+        };
+        let effects = (self.model == ModelChoice::Select).then(Vec::new);
+        Ok(self.fitted(cal, noise, fit, None, effects, tests))
+    }
+
+    /// "cannot calibrate the session DIR".
+    fn cannot(&self) -> String {
+        format!(
+            "cannot calibrate the session {}",
+            self.session.dir.display()
+        )
+    }
+
+    /// The diagnosis's search for effects (docs/model.md §4.10) from the
+    /// paper's model (`white`: its white fit, made already, with `auto`),
+    /// or the fit of the given `effects` set and the tests of the others;
+    /// without the residual statistics, which only diagnose reports.
+    fn search(
+        &self,
+        white: Option<Fit>,
+        progress: &mut impl FnMut(FitEvent<'_>),
+    ) -> Result<Diagnosis, PipelineError> {
+        let given = !self.effect_labels.is_empty();
+        let dopts = DiagnoseOptions {
+            alpha: MODEL_ALPHA,
+            noise: self.choice.clone(),
+            settle: self.settle,
+            base_effects: self.effect_labels.clone(),
+            white_start: white,
+            residual_stats: false,
+            max_effects: if given {
+                0
+            } else {
+                DiagnoseOptions::default().max_effects
+            },
+            ..DiagnoseOptions::default()
+        };
+        // every fit of the search starts from a converged one (the white
+        // fit, the previous model): it stops, as calibrate's GLS refits do,
+        // when each parameter's remaining Newton step is below 1 % of its σ
+        let mut opts = self.opts.clone();
+        opts.lm.gradient_tolerance = opts.lm.gradient_tolerance.max(REFIT_GRADIENT);
+        diagnose(&self.robot, &self.data, &opts, &self.setup, &dopts, |s| {
+            progress(FitEvent::Stage(s))
+        })
+        .with_context(|| self.cannot())
+        .map_err(PipelineError::fit)
+    }
+
+    /// The result of diagnose's final model `d` of this session (`robimu
+    /// diagnose --report`): its verdict, pose accuracy and result record.
+    pub fn fitted_from(&self, d: Diagnosis) -> Result<Fitted, PipelineError> {
+        self.fitted_with_effects(d, "selected")
+    }
+
+    /// The result of the model `d` ended with (its effects added by the
+    /// search, or given).
+    fn fitted_with_effects(&self, d: Diagnosis, selection: &str) -> Result<Fitted, PipelineError> {
+        let f = d.final_fit.clone();
+        let opts = CalibrateOptions {
+            noise: (!f.noise.is_white()).then(|| f.noise.clone()),
+            ..self.opts.clone()
+        };
+        let mut cal = calibration_of(&self.robot, &opts, &f)
+            .with_context(|| self.cannot())
+            .map_err(PipelineError::fit)?;
+        cal.tau_initial = d.baseline.tau_initial;
+        let noise = self.final_noise(&d);
+        let tests = selection_tests(&d, selection);
+        let effects = effect_records(&f, &d.setup, Some(&d));
+        Ok(self.fitted(cal, noise, f, Some(d), Some(effects), tests))
+    }
+
+    /// What the noise choice did for the final model of `d`: its raw
+    /// residuals tested and identified as the search identifies them (AR
+    /// order ≤ 1, docs/model.md §4.10), the model its fit used when not
+    /// white, the search's warnings.
+    fn final_noise(&self, d: &Diagnosis) -> NoiseOutcome {
+        let ids = &DiagnoseOptions::default().noise_id;
+        let f = &d.final_fit;
+        let id = identify_at(&self.robot, &self.data, &self.opts, &d.setup, f, ids);
+        let mut warnings = d.noise.warnings.clone();
+        if let Err(e) = &id {
+            warnings.push(format!(
+                "the final model's residuals could not be tested ({e})"
+            ));
+        }
+        let id = id.ok();
+        NoiseOutcome {
+            identified: id.clone().filter(|_| !f.noise.is_white()),
+            white_test: id,
+            refits: d.noise.reidentified_after.len(),
+            warning: (!warnings.is_empty()).then(|| warnings.join("; ")),
+        }
+    }
+
+    /// The verdict, pose accuracy and result record of `cal` (the fit of
+    /// the model written: `fit`, chosen by `selection` when it has
+    /// effects), `effects` its effects (`None`: `--model paper`), `tests`
+    /// its tests. With effects the whiteness identification, which does not
+    /// take effects into account, is left out (the final model's own test
+    /// is `noise.white_test`).
+    fn fitted(
+        &self,
+        cal: Calibration,
+        noise: NoiseOutcome,
+        fit: Fit,
+        selection: Option<Diagnosis>,
+        effects: Option<Vec<robimu_session::result::EffectRecord>>,
+        tests: ModelTestsRecord,
+    ) -> Fitted {
+        let paper = selection.is_none();
+        let whiteness = (paper && self.choice != NoiseChoice::Auto)
             .then(|| {
                 residual_identification(&self.robot, &self.data, &cal, &IdOptions::default()).ok()
             })
             .flatten();
+        // (with effects, their signal is in these residuals too: an IMU
+        // whose residuals look correlated is named, never missed)
         let other_imus: Vec<(usize, Identification)> =
             other_imu_identifications(&self.robot, &self.data, &cal, &IdOptions::default())
                 .into_iter()
                 .filter_map(|(j, id)| id.ok().map(|id| (j, id)))
                 .collect();
-        let verdict = verdict::verdict(&VerdictInput {
+        let mut verdict = verdict::verdict(&VerdictInput {
             robot: &self.robot,
             calibration: &cal,
             noise: Some(&noise),
             whiteness: whiteness.as_ref(),
             repeatability: None,
             other_imus: &other_imus,
+            model_tests: Some(&tests),
         });
+        verdict.next_steps = next_steps(&verdict, &self.session, &tests);
         let mut result = result_record(&cal, &self.layout, &self.session, self.opts.use_prior);
         result.noise_warning = noise.warning.clone();
         result.verdict = Some(verdict);
-        Ok(Fitted {
+        result.effects = effects;
+        result.model_tests = Some(tests);
+        result.pose_accuracy = Some(self.pose_accuracy(&cal));
+        Fitted {
             cal,
             noise,
             result,
             whiteness,
             other_imus,
-        })
+            fit,
+            selection,
+        }
     }
 
-    /// The fit of the `effects` set from the calibration's x, written to
-    /// effects.json next to the result file `path`; returns the fit and
-    /// effects.json's path (`None` without effects).
-    pub fn fit_effects(
+    /// The pose accuracy of `cal` (against the session's truth when it has one).
+    fn pose_accuracy(&self, cal: &Calibration) -> robimu_session::result::PoseAccuracyRecord {
+        let truth = self
+            .session
+            .truth
+            .as_ref()
+            .and_then(|t| t.vector(&self.layout).ok());
+        let posterior = Posterior {
+            x: &cal.x,
+            sigma: &cal.sigma,
+            active: &cal.active,
+            covariance: &cal.covariance,
+        };
+        pose_accuracy(&self.robot, &self.layout, &posterior, truth.as_deref())
+    }
+
+    /// effects.json (the fit's JSON, as diagnosis.json's final model) next
+    /// to the result file `path` when an `effects` set was given; returns
+    /// its path.
+    pub fn write_effects(
         &self,
-        cal: &Calibration,
+        fitted: &Fitted,
         path: &Path,
-    ) -> Result<Option<(Fit, PathBuf)>, PipelineError> {
-        let Some(set) = &self.effects else {
+    ) -> Result<Option<PathBuf>, PipelineError> {
+        if self.effect_labels.is_empty() {
             return Ok(None);
-        };
-        let spec = FitSpec {
-            robot: &self.robot,
-            data: &self.data,
-            effects: set,
-            start: Start::At(&cal.x),
-        };
-        let f = fit(&spec, &self.opts, |_| {})
-            .with_context(|| format!("--effects: cannot fit {}", set.names().join(", ")))
-            .map_err(PipelineError::fit)?;
+        }
+        let f = &fitted.fit;
         let epath = path.with_file_name("effects.json");
-        let json = fit_json(&ParamLayout::with_imus(&self.robot, f.n_imus), &f);
+        let json = fit_json(&ParamLayout::with_imus(&self.robot, f.n_imus), f);
         let text =
             serde_json::to_string_pretty(&json).map_err(|e| PipelineError::write(e.into()))?;
         std::fs::write(&epath, text)
             .with_context(|| format!("cannot write {}", epath.display()))
             .map_err(PipelineError::write)?;
-        Ok(Some((f, epath)))
+        Ok(Some(epath))
     }
 
     /// The session cut into `k` equal time windows for a repeatability
@@ -260,30 +479,29 @@ impl Prepared {
     /// verdict with it, which replaces `full`'s in its result record.
     pub fn repeatability(
         &self,
-        full: Fitted,
+        full: &Fitted,
         windows: Vec<Window>,
         report: impl FnMut(usize, &IterationRecord),
     ) -> Result<(Repeatability, CalibrationResult), PipelineError> {
         let count = windows.len();
-        let Fitted {
-            cal,
-            noise,
-            mut result,
-            whiteness,
-            other_imus,
-        } = full;
         let results = repeatability::calibrate_windows(&self.robot, windows, &self.opts, report)
             .with_context(|| format!("--windows {count}: {}", self.session.dir.display()))
             .map_err(PipelineError::fit)?;
-        let study = repeatability::compare(&ParamLayout::new(&self.robot), cal, results);
-        let verdict: VerdictRecord = verdict::verdict(&VerdictInput {
+        let study =
+            repeatability::compare(&ParamLayout::new(&self.robot), full.cal.clone(), results);
+        let mut result = full.result.clone();
+        let mut verdict: VerdictRecord = verdict::verdict(&VerdictInput {
             robot: &self.robot,
             calibration: &study.full,
-            noise: Some(&noise),
-            whiteness: whiteness.as_ref(),
+            noise: Some(&full.noise),
+            whiteness: full.whiteness.as_ref(),
             repeatability: Some(&study),
-            other_imus: &other_imus,
+            other_imus: &full.other_imus,
+            model_tests: result.model_tests.as_ref(),
         });
+        if let Some(tests) = &result.model_tests {
+            verdict.next_steps = next_steps(&verdict, &self.session, tests);
+        }
         result.verdict = Some(verdict);
         Ok((study, result))
     }
@@ -372,29 +590,35 @@ fn options(
     Ok(opts)
 }
 
-/// The `effects` set (`None` without effects: then the catalogue, and its
-/// resonance response to the joint trajectory, is never set up).
+/// The catalogue's set-up for the session (the resonance mode checked
+/// when `effects` are given), the `effects` set (`None` without) and its
+/// labels.
 fn effect_set_of(
     settings: &Settings,
     robot: &Robot,
     data: &Measurements,
-) -> anyhow::Result<Option<EffectSet>> {
+) -> anyhow::Result<(Option<EffectSet>, CatalogueSetup, Vec<String>)> {
     let specs: Vec<&str> = settings
         .effects
         .iter()
         .map(|s| s.trim())
         .filter(|s| !s.is_empty())
         .collect();
+    let mode = match specs.is_empty() {
+        true => settings.resonance,
+        false => checked_mode(settings.resonance)?,
+    };
+    let mut setup = setup_with(robot, data, None, mode);
     if specs.is_empty() {
-        return Ok(None);
+        return Ok((None, setup, Vec::new()));
     }
-    let mut setup = setup_with(robot, data, None, checked_mode(settings.resonance)?);
     let names = specs
         .iter()
         .map(|s| setup.apply_spec(s))
         .collect::<Result<Vec<_>, _>>()
         .context("--effects")?;
-    Ok(Some(effect_set(&setup, &names).context("--effects")?))
+    let set = effect_set(&setup, &names).context("--effects")?;
+    Ok((Some(set), setup, names))
 }
 
 /// The result record of `cal`, with the session's robot and path.

@@ -21,6 +21,10 @@
 //! let (session, robot) = load_session(dir)?;
 //! let prepared = Prepared::new(session, robot, &Settings::default(), None, |w| eprintln!("{w}"))?;
 //! let fitted = prepared.fit(|_| {})?;
+//! if let Some(pose) = &fitted.result.pose_accuracy {
+//!     let (before, after) = (pose.before.position_mean_mm, pose.after.position_mean_mm);
+//!     println!("flange position error {before:.2} mm → {after:.2} mm");
+//! }
 //! println!("{:?}", fitted.result.verdict);
 //! fitted.write(&dir.join("result.json"))?;
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -30,17 +34,20 @@ mod batch;
 mod calibration;
 mod diagnosis;
 mod input;
+mod model_choice;
+mod next_steps;
 pub mod noise_spec;
 pub mod simulate;
 pub mod validate;
 
 pub use batch::{calibrate_job, jobs, Job};
-pub use calibration::{write_result, Fitted, Prepared, Settings};
+pub use calibration::{write_result, FitEvent, Fitted, Prepared, Settings};
 pub use diagnosis::{diagnose_session, DiagnoseSettings, Diagnosed};
 pub use input::{
     fatal_findings, is_urdf, load_session, resolve_robot, session_robot, ChainLinks, RobotSource,
     BUILTIN_ROBOTS,
 };
+pub use model_choice::ModelChoice;
 
 use robimu_model::effects::resonance::Mode;
 
