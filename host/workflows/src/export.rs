@@ -113,6 +113,7 @@ pub fn export(
         ExportFormat::Toml => "a robot TOML",
         ExportFormat::Kalibr => "Kalibr's imu.yaml",
         ExportFormat::Correction => "the correction file",
+        ExportFormat::UrKinematics => "UR's kinematics YAML",
     };
     if let Some(note) = result.effects_not_carried(format) {
         notify(Notice::Note(note));
