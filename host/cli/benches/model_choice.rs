@@ -9,7 +9,7 @@
 //! wall time, CPU and peak memory (GNU time), the ratio of the medians and
 //! the run-by-run ratios, and the effects the default run added.
 //!
-//! `cargo bench -p robimu --bench model_choice [-- --runs 7 --stiffness 3e4 --duration 300]`
+//! `cargo bench -p robimu --bench model_choice [-- --runs 7 --stiffness 3e4 --duration 300 --keep DIR]`
 
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -115,7 +115,8 @@ fn main() {
     assert!(runs > 0, "--runs must be at least 1");
     let bin = Path::new(env!("CARGO_BIN_EXE_robimu"));
     let work = tempfile::tempdir().expect("temporary directory");
-    let dir = work.path().join("session");
+    // --keep DIR: record the session there and leave it (to look into)
+    let dir = value("--keep").map_or_else(|| work.path().join("session"), |d| d.into());
     let t0 = Instant::now();
     record(&dir, duration, stiffness);
     println!(
