@@ -51,7 +51,7 @@ pub fn session_truth(
 }
 
 /// Every estimated parameter of diagnose's final model against `truth`.
-pub fn final_model_rows(robot: &Robot, d: &Diagnosis, truth: &TwinTruth) -> Vec<TruthRow> {
+fn final_model_rows(robot: &Robot, d: &Diagnosis, truth: &TwinTruth) -> Vec<TruthRow> {
     let fit = &d.final_fit;
     let layout = ParamLayout::new(robot);
     let mut rows = Vec::new();
