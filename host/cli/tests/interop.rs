@@ -591,6 +591,8 @@ fn cli_export_and_correct() {
         err.contains("bad.csv") && !err.contains("panicked"),
         "{err}"
     );
+    // a built-in robot exports its plain URDF, corrected
+    let plain = dir.path().join("x.urdf");
     let run = robimu(&[
         "export",
         "--calibration",
@@ -600,10 +602,13 @@ fn cli_export_and_correct() {
         "--robot",
         "aubo_i5",
         "--out",
-        dir.path().join("x.urdf").to_str().unwrap(),
+        plain.to_str().unwrap(),
     ]);
-    assert!(!run.success());
-    assert!(run.stderr.contains("needs a URDF robot"));
+    assert!(run.success(), "{}", run.stderr);
+    assert!(run.stderr.contains("is not a URDF"), "{}", run.stderr);
+    assert!(std::fs::read_to_string(&plain)
+        .unwrap()
+        .contains("imu_link"));
 }
 
 /// `export --format kalibr` of a result with g_sensitivity and size_effect

@@ -224,3 +224,108 @@ fn three_hundred_runs_per_robot_have_honest_uncertainties() {
         robot_monte_carlo(name, 300, 300.0, 1, (0.85, 1.15));
     }
 }
+
+/// `export --format urdf` of a calibration of a built-in robot (UR5e, FR3:
+/// 6 and 7 joints) writes its plain URDF with the calibrated kinematics: an
+/// independent reader (`tests/makers_fk.py --poses`, numpy) gives the
+/// calibrated model's flange pose in the maker's base frame to 1e-9 at 50
+/// random configurations. The calibration moves every ε by up to 2 prior σ
+/// (a few mm and mrad), far above the tolerance.
+#[test]
+fn a_built_in_robots_calibration_exports_as_a_urdf_with_its_kinematics() {
+    use rand::{Rng, SeedableRng};
+    use robimu_model::ParamLayout;
+    use robimu_session::export::calibrated_params;
+    use robimu_session::result::CalibrationResult;
+    let probe = Command::new("python3")
+        .args(["-c", "import numpy"])
+        .output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        eprintln!("SKIPPED: python3 with numpy is needed (pip install numpy)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["ur5e", "fr3"] {
+        let robot = Robot::builtin(name).unwrap();
+        let layout = ParamLayout::new(&robot);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(38);
+        let params: Vec<_> = layout
+            .specs()
+            .iter()
+            .map(|p| {
+                let v = p.nominal + p.sigma * rng.random_range(-2.0..2.0);
+                serde_json::json!({"name": p.name, "unit": p.unit, "value": v, "prior": p.nominal,
+                    "prior_sigma": p.sigma, "sigma": 0.0, "frozen": true})
+            })
+            .collect();
+        let result = dir.path().join(format!("{name}.json"));
+        let json = serde_json::json!({"format": "robimu-result/1", "parameters": params,
+            "covariance": {"names": [], "matrix": []}, "robot": name});
+        std::fs::write(&result, json.to_string()).unwrap();
+        let urdf = dir.path().join(format!("{name}.urdf"));
+        let run = robimu_ok([
+            "export",
+            "--calibration",
+            s(&result),
+            "--format",
+            "urdf",
+            "--out",
+            s(&urdf),
+        ]);
+        assert!(run.stderr.contains("is not a URDF"), "{}", run.stderr);
+        // the calibrated flange (the IMU's ε_n is the imu_link, not the flange)
+        let cal = CalibrationResult::read(&result).unwrap();
+        let mut eps = calibrated_params(&robot, &cal).unwrap().eps;
+        *eps.last_mut().unwrap() = [0.0; 6];
+        let frames = robot.description().frames.clone().unwrap();
+        let mut csv = String::from("# q, flange position in base, rotation row by row\n");
+        for _ in 0..50 {
+            let q: Vec<f64> = robot
+                .limits()
+                .iter()
+                .map(|l| rng.random_range(l.q_min..l.q_max))
+                .collect();
+            let t =
+                frames
+                    .base_to_model
+                    .to_iso()
+                    .compose(&forward_kinematics(robot.chain(), &eps, &q));
+            let mut row: Vec<String> = q.iter().map(|v| format!("{v:?}")).collect();
+            row.extend(t.p.iter().map(|v| format!("{v:?}")));
+            row.extend(t.r.iter().flatten().map(|v| format!("{v:?}")));
+            csv.push_str(&(row.join(",") + "\n"));
+        }
+        let poses = dir.path().join(format!("{name}-poses.csv"));
+        std::fs::write(&poses, csv).unwrap();
+        let out = Command::new("python3")
+            .arg(root().join("tests/makers_fk.py"))
+            .args([
+                "--poses",
+                s(&urdf),
+                &frames.base,
+                &frames.flange,
+                s(&poses),
+                "1e-9",
+            ])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        eprintln!("{text}{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success() && text.contains("50 configurations"),
+            "{text}"
+        );
+        // and the nominal's pose differs from it by far more than that
+        let q = vec![0.3; robot.dof()];
+        let zero = vec![[0.0; 6]; robot.dof()];
+        let (a, b) = (
+            forward_kinematics(robot.chain(), &zero, &q),
+            forward_kinematics(robot.chain(), &eps, &q),
+        );
+        let moved = (0..3).map(|i| (a.p[i] - b.p[i]).abs()).fold(0.0, f64::max);
+        assert!(
+            moved > 1e-4,
+            "{name}: the calibration moved the flange by {moved} m"
+        );
+    }
+}
