@@ -40,6 +40,22 @@ use super::Streams;
 /// Reads the joint and IMU streams of the recording at `path`: a rosbag2
 /// directory, or one MCAP or sqlite3 file (zstd-compressed or not).
 pub fn read_ros2(path: &Path, opts: &Ros2Options) -> Result<Streams, ImportError> {
+    if let Some(names) = &opts.joint_names {
+        if let Some((i, n)) = names
+            .iter()
+            .enumerate()
+            .find(|(i, n)| names[..*i].contains(n))
+        {
+            return Err(ImportError::Joints {
+                path: path.to_path_buf(),
+                detail: format!(
+                    "joint `{n}` is named twice in the joints to import (names {} and {}): each joint once",
+                    names.iter().position(|x| x == n).unwrap_or(0) + 1,
+                    i + 1
+                ),
+            });
+        }
+    }
     let mut c = Collector::new(path, opts);
     if path.is_dir() {
         read_bag_dir(path, &mut c)?;
@@ -194,6 +210,9 @@ fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
         path: meta_path.clone(),
         source,
     })?;
+    if let Err(e) = check_yaml_nesting(&text) {
+        return Err(bag_error(e));
+    }
     let meta: MetadataFile =
         serde_yaml::from_str(&text).map_err(|e| bag_error(format!("not rosbag2 metadata: {e}")))?;
     let info = meta.rosbag2_bagfile_information;
@@ -264,6 +283,7 @@ fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
     if info.relative_file_paths.is_empty() {
         return Err(bag_error("relative_file_paths lists no file".into()));
     }
+    let mut seen: Vec<PathBuf> = Vec::new();
     for rel in &info.relative_file_paths {
         let mut file = dir.join(rel);
         // Older rosbag2 versions wrote paths relative to the bag's parent.
@@ -278,7 +298,52 @@ fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
                 dir.display()
             )));
         }
+        let canonical = file.canonicalize().unwrap_or_else(|_| file.clone());
+        if seen.contains(&canonical) {
+            return Err(bag_error(format!(
+                "relative_file_paths lists {rel} twice: each storage file once"
+            )));
+        }
+        seen.push(canonical);
         read_storage_file(&file, c)?;
+    }
+    Ok(())
+}
+
+/// The deepest nesting of YAML flow collections (`[`, `{`) or indentation
+/// levels metadata.yaml may have (rosbag2 writes 6).
+const MAX_YAML_DEPTH: usize = 64;
+
+/// Refuses YAML nested deeper than [`MAX_YAML_DEPTH`] before the parser
+/// sees it (its time grows with the square of the depth).
+fn check_yaml_nesting(text: &str) -> Result<(), String> {
+    let (mut depth, mut deepest) = (0usize, 0usize);
+    let mut quote: Option<char> = None;
+    for (line_no, line) in text.lines().enumerate() {
+        let indent = line.len() - line.trim_start_matches([' ', '-']).len();
+        let mut line_deepest = indent / 2;
+        for ch in line.chars() {
+            match (quote, ch) {
+                (Some(q), c) if c == q => quote = None,
+                (Some(_), _) => {}
+                (None, '"' | '\'') => quote = Some(ch),
+                (None, '#') => break,
+                (None, '[' | '{') => {
+                    depth += 1;
+                    line_deepest = line_deepest.max(indent / 2 + depth);
+                }
+                (None, ']' | '}') => depth = depth.saturating_sub(1),
+                _ => {}
+            }
+        }
+        deepest = deepest.max(line_deepest);
+        if deepest > MAX_YAML_DEPTH {
+            return Err(format!(
+                "line {}: nested more than {MAX_YAML_DEPTH} levels deep (rosbag2 metadata \
+                 nests 6): not rosbag2 metadata",
+                line_no + 1
+            ));
+        }
     }
     Ok(())
 }
