@@ -152,10 +152,12 @@ pub enum ImportError {
 
 /// The longest recording imported: 24 h, in ns (a longer span means a
 /// stamp is corrupted).
+#[cfg(feature = "ros2")]
 pub(crate) const MAX_SPAN_NS: i64 = 24 * 3600 * 1_000_000_000;
 
 /// How far (ns) a topic's stamps may step back: 1 s (more is a corrupted
 /// or zeroed stamp, not publishers' jitter).
+#[cfg(feature = "ros2")]
 pub(crate) const MAX_BACKSTEP_NS: i64 = 1_000_000_000;
 
 /// Joint samples: time (ns), positions (rad).
