@@ -116,7 +116,11 @@ pub struct CalibrationResult {
     pub termination: Option<String>,
     /// RMS of the whitened IMU residuals per channel `[ax, ay, az, gx, gy, gz]`
     /// (about 1 when the noise model fits).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "robimu_model::arity::option"
+    )]
     pub residual_rms: Option<[f64; 6]>,
     /// IMU samples used in the fit.
     #[serde(default, skip_serializing_if = "Option::is_none")]
