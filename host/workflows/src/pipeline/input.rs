@@ -139,10 +139,18 @@ pub fn session_robot(session: &Session) -> anyhow::Result<Robot> {
 }
 
 /// Loads the session at `dir` with its robot, checking that they have the
-/// same joint count.
+/// same joint count and that the streams' times pass the check's fatal
+/// tests (a time unit off by 10³ᵏ, no rate, no overlap) before any command
+/// lays a spline over them.
 pub fn load_session(dir: &Path) -> anyhow::Result<(Session, Robot)> {
     let session =
         Session::load(dir).with_context(|| format!("cannot load the session {}", dir.display()))?;
+    let report = CheckReport {
+        findings: crate::check::streams::check(&session),
+    };
+    fatal_findings(&report, dir).map_err(|e| {
+        anyhow::anyhow!("{e}; `robimu check {}` lists every finding", dir.display())
+    })?;
     let robot = session_robot(&session)?;
     if session.joint_count() != robot.dof() {
         bail!(
