@@ -385,3 +385,92 @@ fn read_dir_without_metadata(dir: &Path, c: &mut Collector<'_>) -> Result<(), Im
     }
     Ok(())
 }
+
+/// rosbag2 sqlite3 files written here (rusqlite), read through [`read_ros2`].
+#[cfg(all(test, feature = "sqlite3"))]
+mod db3_tests {
+    use super::super::cdr::{encode, ImuMsg, JointStateMsg, Stamp};
+    use super::{read_ros2, Ros2Options, TimeSource};
+
+    const T0: i64 = 1_700_000_000_000_000_000;
+
+    /// A rosbag2 sqlite3 file with 5 joint and 5 IMU messages every 10 ms,
+    /// `tweak` applied to the messages (topic id, timestamp, data) first.
+    fn db3(path: &std::path::Path, tweak: impl Fn(&mut Vec<(i64, i64, Vec<u8>)>)) {
+        let c = rusqlite::Connection::open(path).unwrap();
+        c.execute_batch(
+            "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT, type TEXT, serialization_format TEXT);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, data BLOB);
+             INSERT INTO topics VALUES (1, '/joint_states', 'sensor_msgs/msg/JointState', 'cdr');
+             INSERT INTO topics VALUES (2, '/imu/data_raw', 'sensor_msgs/msg/Imu', 'cdr');",
+        )
+        .unwrap();
+        let mut rows = Vec::new();
+        for k in 0..5 {
+            let t = T0 + k * 10_000_000;
+            let js = encode::joint_state(&JointStateMsg {
+                stamp: Stamp(t),
+                frame_id: String::new(),
+                name: vec![],
+                position: vec![0.1 * k as f64; 6],
+            });
+            let imu = encode::imu(&ImuMsg {
+                stamp: Stamp(t),
+                frame_id: String::new(),
+                angular_velocity: [0.0; 3],
+                linear_acceleration: [0.0, 0.0, 9.81],
+            });
+            rows.push((1, t, js));
+            rows.push((2, t, imu));
+        }
+        tweak(&mut rows);
+        for (topic, t, data) in rows {
+            c.execute(
+                "INSERT INTO messages(topic_id, timestamp, data) VALUES (?1, ?2, ?3)",
+                rusqlite::params![topic, t, data],
+            )
+            .unwrap();
+        }
+    }
+
+    fn read(path: &std::path::Path, time: TimeSource) -> Result<(), String> {
+        let opts = Ros2Options {
+            joints_topic: "/joint_states".into(),
+            imu_topic: "/imu/data_raw".into(),
+            time,
+            joint_names: None,
+            names_required: false,
+        };
+        read_ros2(path, &opts)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+
+    /// Issue 41: a zeroed message and a negative log time are refused.
+    #[test]
+    fn zeroed_messages_and_negative_log_times_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let good = dir.path().join("good.db3");
+        db3(&good, |_| {});
+        read(&good, TimeSource::Header).unwrap();
+        // The IMU message 2's bytes zeroed (its length kept).
+        let zeroed = dir.path().join("zeroed.db3");
+        db3(&zeroed, |rows| rows[5].2.fill(0));
+        let e = read(&zeroed, TimeSource::Header).unwrap_err();
+        assert!(
+            e.contains("topic /imu/data_raw, message 2")
+                && e.contains("time 0 ns: a zeroed or unset stamp"),
+            "{e}"
+        );
+        // A negative log time, read by either time source.
+        let negative = dir.path().join("negative.db3");
+        db3(&negative, |rows| rows[4].1 = -5);
+        for time in [TimeSource::Header, TimeSource::Log] {
+            let e = read(&negative, time).unwrap_err();
+            assert!(
+                e.contains("has timestamp -5 ns: a log time cannot be negative"),
+                "{e}"
+            );
+        }
+    }
+}
