@@ -29,7 +29,35 @@ const PRIVATE_OPCODES: u8 = 0x80;
 /// crate, whose arithmetic would otherwise overflow on a corrupted length),
 /// and a record of an unknown opcode — a corrupted chunk or message header,
 /// which the crate would skip with every message in it — is refused.
+///
+/// As a last resort the mcap crate is isolated: a panic inside it (a bug
+/// on bytes not foreseen here) becomes an error naming the file.
 pub(crate) fn feed(path: &Path, bytes: &[u8], c: &mut Collector<'_>) -> Result<(), ImportError> {
+    isolated(path, || feed_records(path, bytes, c))
+}
+
+/// `read()`, a panic in it turned into an error naming `path`.
+fn isolated(
+    path: &Path,
+    read: impl FnOnce() -> Result<(), ImportError>,
+) -> Result<(), ImportError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(read)).unwrap_or_else(|panic| {
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        Err(ImportError::Bag {
+            path: path.to_path_buf(),
+            detail: format!(
+                "not a readable MCAP file: the MCAP reader failed on it ({why}): the file is \
+                 corrupted"
+            ),
+        })
+    })
+}
+
+fn feed_records(path: &Path, bytes: &[u8], c: &mut Collector<'_>) -> Result<(), ImportError> {
     let mcap_error = |source: McapError| {
         let hint = match &source {
             McapError::UnsupportedCompression(c) => format!(
@@ -116,4 +144,23 @@ pub(crate) fn feed(path: &Path, bytes: &[u8], c: &mut Collector<'_>) -> Result<(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panic_in_the_reader_becomes_an_error_naming_the_file() {
+        let e = isolated(Path::new("bag/x.mcap"), || {
+            panic!("attempt to add with overflow")
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("bag/x.mcap: not a readable MCAP file: the MCAP reader failed on it (attempt to add with overflow)"),
+            "{e}"
+        );
+        assert!(isolated(Path::new("x.mcap"), || Ok(())).is_ok());
+    }
 }
