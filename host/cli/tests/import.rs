@@ -772,12 +772,14 @@ fn damaged_mcap_records_are_refused_not_a_panic() {
         .iter()
         .find(|r| r.1 == 0x06)
         .expect("a chunk");
-    split[chunk] = 0x46;
-    std::fs::write(&second, &split).unwrap();
-    import(&bag).assert_fails(&[
-        "run_split_1.mcap: not a readable MCAP file",
-        "unknown opcode 0x46",
-    ]);
+    for opcode in [0x46, 0xc6] {
+        split[chunk] = opcode;
+        std::fs::write(&second, &split).unwrap();
+        import(&bag).assert_fails(&[
+            "run_split_1.mcap: not a readable MCAP file",
+            &format!("unknown opcode 0x{opcode:02x}"),
+        ]);
+    }
 }
 
 #[test]

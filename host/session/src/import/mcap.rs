@@ -19,10 +19,6 @@ use ::mcap::{parse_record, McapError};
 use super::collect::{Collector, TopicDecl, COMPRESSION_FEATURE};
 use super::ImportError;
 
-/// The first opcode the MCAP specification leaves to private records; the
-/// ones below it that this reader does not know are refused.
-const PRIVATE_OPCODES: u8 = 0x80;
-
 /// Feeds every message of the MCAP file `bytes` (read from `path`) to `c`.
 ///
 /// No record may be longer than the file (the limit is handed to the mcap
@@ -108,7 +104,9 @@ fn feed_records(path: &Path, bytes: &[u8], c: &mut Collector<'_>) -> Result<(), 
             continue;
         }
         match parse_record(opcode, data).map_err(mcap_error)? {
-            Record::Unknown { opcode, .. } if opcode < PRIVATE_OPCODES => {
+            // rosbag2 writes no private records (opcodes 0x80 and up): an
+            // unknown opcode is a corrupted record, its messages lost.
+            Record::Unknown { opcode, .. } => {
                 return Err(corrupted(format!(
                     "a record of unknown opcode 0x{opcode:02x} near byte {fed}"
                 )));
