@@ -245,7 +245,7 @@ impl NoiseShape {
 
     /// [`Self::parse`] of the file `path`.
     pub fn read(path: &Path) -> Result<Option<Self>, SessionError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+        let text = crate::text::read(path)?;
         Self::parse(&text, path)
     }
 }
@@ -424,7 +424,7 @@ impl SessionMeta {
 
     /// Read and validate `path`.
     pub fn read(path: &Path) -> Result<Self, SessionError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+        let text = crate::text::read(path)?;
         Self::parse(&text, path)
     }
 
@@ -619,6 +619,15 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().starts_with("s.toml:4:"), "{e}");
+        // Issue 41: bytes that are not UTF-8 are placed.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("session.toml");
+        std::fs::write(&path, b"format = \"robimu-session/1\"\nrobot = \"\xff\"\n").unwrap();
+        let e = SessionMeta::read(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("session.toml:2: not UTF-8 text: invalid byte 0xff at byte offset 37"),
+            "{e}"
+        );
         // Issue 41: seven values are refused too, not the seventh dropped.
         let e = SessionMeta::parse(
             "format = \"robimu-session/1\"\nrobot = \"x\"\n[noise]\nsigma_z = [1,2,3,4,5,6,7]\n",

@@ -14,6 +14,20 @@ pub(crate) struct NotUtf8 {
     pub column: usize,
 }
 
+/// The text of the file `path`; bytes that are not UTF-8 are refused at
+/// their line (the reader's error names the file, line and byte offset).
+pub(crate) fn read(path: &std::path::Path) -> Result<String, crate::SessionError> {
+    let bytes = std::fs::read(path).map_err(|e| crate::SessionError::io(path, e))?;
+    match utf8(&bytes) {
+        Ok(_) => Ok(String::from_utf8(bytes).unwrap_or_default()),
+        Err(e) => Err(crate::SessionError::line(
+            path,
+            e.line as u64,
+            e.to_string(),
+        )),
+    }
+}
+
 /// `bytes` as UTF-8 text, or where it is not.
 pub(crate) fn utf8(bytes: &[u8]) -> Result<&str, NotUtf8> {
     std::str::from_utf8(bytes).map_err(|e| {
