@@ -118,7 +118,10 @@ fn written_urdf_equals_the_makers_by_an_independent_reader() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    for name in ["ur5e", "ur10e", "fr3", "panda", "iiwa14", "gen3"] {
+    for name in [
+        "ur5e", "ur10e", "fr3", "panda", "iiwa14", "gen3", "iiwa7", "xarm6", "xarm7", "aubo_i3",
+        "aubo_i10",
+    ] {
         let path = dir.path().join(format!("{name}.urdf"));
         robimu_ok(["robots", "show", name, "--urdf", s(&path)]);
         let out = Command::new("python3")
