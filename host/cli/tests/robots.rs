@@ -252,19 +252,10 @@ fn a_built_in_robots_calibration_exports_as_a_urdf_with_its_kinematics() {
         let robot = Robot::builtin(name).unwrap();
         let layout = ParamLayout::new(&robot);
         let mut rng = rand::rngs::StdRng::seed_from_u64(38);
-        let params: Vec<_> = layout
-            .specs()
-            .iter()
-            .map(|p| {
-                let v = p.nominal + p.sigma * rng.random_range(-2.0..2.0);
-                serde_json::json!({"name": p.name, "unit": p.unit, "value": v, "prior": p.nominal,
-                    "prior_sigma": p.sigma, "sigma": 0.0, "frozen": true})
-            })
-            .collect();
         let result = dir.path().join(format!("{name}.json"));
-        let json = serde_json::json!({"format": "robimu-result/1", "parameters": params,
-            "covariance": {"names": [], "matrix": []}, "robot": name});
-        std::fs::write(&result, json.to_string()).unwrap();
+        common::write_result_json(&result, name, &layout, |p| {
+            p.nominal + p.sigma * rng.random_range(-2.0..2.0)
+        });
         let urdf = dir.path().join(format!("{name}.urdf"));
         let run = robimu_ok([
             "export",
@@ -293,10 +284,7 @@ fn a_built_in_robots_calibration_exports_as_a_urdf_with_its_kinematics() {
                     .base_to_model
                     .to_iso()
                     .compose(&forward_kinematics(robot.chain(), &eps, &q));
-            let mut row: Vec<String> = q.iter().map(|v| format!("{v:?}")).collect();
-            row.extend(t.p.iter().map(|v| format!("{v:?}")));
-            row.extend(t.r.iter().flatten().map(|v| format!("{v:?}")));
-            csv.push_str(&(row.join(",") + "\n"));
+            csv.push_str(&common::pose_row(&q, &t));
         }
         let poses = dir.path().join(format!("{name}-poses.csv"));
         std::fs::write(&poses, csv).unwrap();

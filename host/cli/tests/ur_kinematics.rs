@@ -113,10 +113,7 @@ fn ur_kinematics_yaml_round_trips_through_a_calibration() {
         let t = base
             .to_iso()
             .compose(&forward_kinematics(robot.chain(), &eps, &q));
-        let mut row: Vec<String> = q.iter().map(|v| format!("{v:?}")).collect();
-        row.extend(t.p.iter().map(|v| format!("{v:?}")));
-        row.extend(t.r.iter().flatten().map(|v| format!("{v:?}")));
-        csv.push_str(&(row.join(",") + "\n"));
+        csv.push_str(&common::pose_row(&q, &t));
     }
     let poses = d.join("poses.csv");
     std::fs::write(&poses, csv).unwrap();
@@ -206,18 +203,8 @@ fn a_controllers_calibration_conf_is_the_corrected_dh_chain() {
     // a result that changed nothing, exported as UR's YAML
     let robot = Robot::from_toml_file(&toml).unwrap();
     let layout = robimu_model::ParamLayout::new(&robot);
-    let params: Vec<_> = layout
-        .specs()
-        .iter()
-        .map(|p| {
-            serde_json::json!({"name": p.name, "unit": p.unit, "value": p.nominal, "prior": p.nominal,
-                "prior_sigma": p.sigma, "sigma": 0.0, "frozen": true})
-        })
-        .collect();
     let result = d.join("result.json");
-    let json = serde_json::json!({"format": "robimu-result/1", "parameters": params,
-        "covariance": {"names": [], "matrix": []}, "robot": s(&toml)});
-    std::fs::write(&result, json.to_string()).unwrap();
+    common::write_result_json(&result, s(&toml), &layout, |p| p.nominal);
     let yaml = d.join("kinematics.yaml");
     robimu_ok([
         "export",
@@ -249,10 +236,7 @@ fn a_controllers_calibration_conf_is_the_corrected_dh_chain() {
                 .compose(&Iso::translation([an + da[i], 0.0, dn + dd[i]]))
                 .compose(&Iso::rotation(rot_x(aln + dal[i])));
         }
-        let mut row: Vec<String> = q.iter().map(|v| format!("{v:?}")).collect();
-        row.extend(t.p.iter().map(|v| format!("{v:?}")));
-        row.extend(t.r.iter().flatten().map(|v| format!("{v:?}")));
-        csv.push_str(&(row.join(",") + "\n"));
+        csv.push_str(&common::pose_row(&q, &t));
     }
     let poses = d.join("poses.csv");
     std::fs::write(&poses, csv).unwrap();

@@ -137,16 +137,7 @@ impl UrCalibrationConf {
 
     /// Reads the file at `path`.
     pub fn from_file(path: &Path) -> Result<Self, UrKinematicsError> {
-        let text = std::fs::read_to_string(path).map_err(|source| UrKinematicsError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
-        Self::from_text(&text).map_err(|e| match e {
-            UrKinematicsError::Yaml(m) => {
-                UrKinematicsError::Yaml(format!("{}: {m}", path.display()))
-            }
-            e => e,
-        })
+        super::ur::read_file(path, Self::from_text)
     }
 
     /// No correction: the nominal table.
