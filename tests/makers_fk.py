@@ -19,6 +19,12 @@ maker's: both read by the same independent reader, the flange frame
 ([frames] flange) in the base frame ([frames] base) at 200 random
 configurations, and the joint names and limits.
 
+With `--poses FILE.urdf BASE FLANGE POSES.csv [TOL]` it reads any URDF
+(e.g. one `robimu export --format urdf` wrote) and compares the pose of
+FLANGE in BASE with each row of POSES.csv: the angles of the chain's
+revolute joints in order, then the position (3) and the rotation matrix row
+by row (9); `#` lines are comments.
+
 Prints one line per robot with the worst errors; exits 1 if any exceeds
 1e-6 m / 1e-6 rad. Needs numpy; Python >= 3.11 (tomllib).
 """
@@ -182,8 +188,38 @@ def check_written(root, name, written, rng):
     return ok
 
 
+def check_poses(urdf, base, flange, poses, tol):
+    """The pose of `flange` in `base` of the URDF file `urdf` (its revolute
+    joints in chain order) against the rows of `poses`: q of each joint,
+    then the position (3) and the rotation matrix row by row (9)."""
+    u = Urdf(urdf)
+    names = [j["name"] for j in u.path(flange) if j["kind"] in ("revolute", "continuous")]
+    dp = dr = 0.0
+    rows = 0
+    for line in Path(poses).read_text().splitlines():
+        if not line.strip() or line.startswith("#"):
+            continue
+        v = [float(x) for x in line.split(",")]
+        n = len(names)
+        q, p, r = v[:n], np.array(v[n:n + 3]), np.array(v[n + 3:n + 12]).reshape(3, 3)
+        a = u.flange(base, flange, dict(zip(names, q)))
+        dp = max(dp, float(np.abs(a[:3, 3] - p).max()))
+        m = a[:3, :3].T @ r
+        w = [m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]]
+        dr = max(dr, math.atan2(np.linalg.norm(w), np.trace(m) - 1))
+        rows += 1
+    ok = rows > 0 and dp <= tol and dr <= tol
+    print(f"{urdf} {base}->{flange} ({len(names)} joints): {rows} configurations, "
+          f"worst |Δp| {dp:.2e} m, |Δθ| {dr:.2e} rad {'ok' if ok else 'FAIL'}")
+    return ok
+
+
 def main():
     rng = np.random.default_rng(38)
+    if len(sys.argv) > 1 and sys.argv[1] == "--poses":
+        urdf, base, flange, poses = sys.argv[2:6]
+        tol = float(sys.argv[6]) if len(sys.argv) > 6 else TOL
+        sys.exit(0 if check_poses(urdf, base, flange, poses, tol) else 1)
     rng_u = type("R", (), {"uniform": lambda self, a, b: float(rng.uniform(a, b))})()
     if len(sys.argv) > 1 and sys.argv[1] == "--written":
         name, written = sys.argv[2], Path(sys.argv[3])

@@ -5,6 +5,9 @@
 pub mod package {
     /// Request protocol version.
     pub const REQUEST_PROTOCOL_VERSION: u8 = b'V';
+    /// Get the controller's software version (reply: major, minor, bugfix,
+    /// build, each `uint32`).
+    pub const GET_URCONTROL_VERSION: u8 = b'v';
     /// Text message from the controller.
     pub const TEXT_MESSAGE: u8 = b'M';
     /// Data package.

@@ -351,3 +351,47 @@ fn dropped_connections_slow_replies_and_bad_programs_give_clear_errors() {
     assert_eq!(sim.true_joints(), [0.0; 6]);
     sim.stop();
 }
+
+/// `ur_rtde`'s `RTDEReceiveInterface` (SDU Robotics' library from PyPI, the
+/// one UR users script with) reads the simulated controller's joint
+/// positions for 10 s with no error: protocol version, controller version,
+/// output recipe and start as a real controller answers them. It connects
+/// to the real RTDE port 30004, so the simulator listens there. Skipped
+/// with a message where `ur_rtde` is not installed, except in CI
+/// (`CI=true`), which installs it.
+#[test]
+fn ur_rtde_receive_interface_reads_the_joints() {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/ur_rtde_receive.py");
+    let initial = [0.1, -1.2, 1.0, -0.5, 0.3, 0.7];
+    let sim = SimUr::spawn(SimUrConfig {
+        bind: "127.0.0.1:30004".parse().unwrap(),
+        initial,
+        ..SimUrConfig::default()
+    })
+    .expect("the simulator listens on 127.0.0.1:30004 (ur_rtde's fixed RTDE port)");
+    let out = std::process::Command::new("python3")
+        .args([script, "127.0.0.1", "10"])
+        .output()
+        .expect("run python3");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if out.status.code() == Some(3) && std::env::var("CI").is_err() {
+        eprintln!("skipped: {stderr} (pip install ur-rtde to run this test)");
+        return;
+    }
+    assert!(out.status.success(), "ur_rtde failed: {stderr}");
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("the script's JSON");
+    eprintln!("{r}");
+    // about 100 readings a second for 10 s (the script polls every 10 ms)
+    let readings = r["readings"].as_u64().unwrap();
+    assert!(readings >= 500, "{readings} readings in 10 s");
+    // the controller's clock ran 10 s, with no hole longer than 0.1 s
+    let span = r["last_timestamp"].as_f64().unwrap() - r["first_timestamp"].as_f64().unwrap();
+    assert!((9.0..11.0).contains(&span), "controller time span {span} s");
+    assert!(r["largest_gap_s"].as_f64().unwrap() < 0.1, "{r}");
+    // the robot at rest at its initial angles (encoder noise 1e-4 rad)
+    for (j, q0) in initial.iter().enumerate() {
+        let q = r["mean_q"][j].as_f64().unwrap();
+        assert!((q - q0).abs() < 1e-4, "joint {j}: {q} vs {q0}");
+    }
+    drop(sim);
+}

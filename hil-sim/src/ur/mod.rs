@@ -9,7 +9,8 @@
 //!   `double frequency` in version 2, then comma-separated names; the reply
 //!   is a recipe id and the types, `NOT_FOUND` for an unknown name, recipe
 //!   id 0 for a frequency outside `(0, control rate]`), `S` (start; refused
-//!   without a recipe), `P` (pause). After `V` the controller sends one `M`
+//!   without a recipe), `P` (pause), `v` (controller version: 5.15.0.0 at
+//!   500 Hz, 3.15.0.0 at 125 Hz; `ur_rtde` asks it). After `V` the controller sends one `M`
 //!   text message, which clients must skip. Outputs: `timestamp` (DOUBLE,
 //!   s since the controller started: [`SimUrConfig::uptime_at_epoch_s`] +
 //!   seconds since the epoch), `actual_q` (VECTOR6D, the true angles plus

@@ -188,8 +188,11 @@ fn handle_request(c: &mut Rtde, kind: u8, payload: &[u8], shared: &Shared) -> Ve
             } else {
                 (rate, payload)
             };
+            // a trailing comma (ur_rtde sends one) names nothing, as on the
+            // real controller
             let names: Vec<String> = String::from_utf8_lossy(names)
                 .split(',')
+                .filter(|n| !n.is_empty())
                 .map(str::to_string)
                 .collect();
             let types: Vec<&str> = names.iter().map(|n| output_type(n)).collect();
@@ -218,6 +221,19 @@ fn handle_request(c: &mut Rtde, kind: u8, payload: &[u8], shared: &Shared) -> Ve
         package::PAUSE => {
             c.streaming = false;
             vec![encode(package::PAUSE, &[1])]
+        }
+        package::GET_URCONTROL_VERSION => {
+            // PolyScope 5.15 on an e-Series (500 Hz), 3.15 on a CB3
+            let major = if shared.config.control_rate_hz > 125.0 {
+                5
+            } else {
+                3
+            };
+            let reply: Vec<u8> = [major, 15u32, 0, 0]
+                .iter()
+                .flat_map(|v| v.to_be_bytes())
+                .collect();
+            vec![encode(package::GET_URCONTROL_VERSION, &reply)]
         }
         _ => Vec::new(), // unknown packages are ignored
     }

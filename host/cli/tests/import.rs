@@ -659,3 +659,209 @@ fn compressed_bags_import_like_the_source() {
         assert_same_samples(&Session::load(&out).unwrap(), &source, bag);
     }
 }
+
+// ---------------------------------------------------------------------------
+// Damaged and hostile recordings (issue 41): each is refused naming the
+// cause, never a panic, a hang or a silently wrong session.
+
+/// An IMU message: `stamp` ns, `[ax, ay, az, gx, gy, gz]`.
+fn imu_msg(stamp: i64, z: [f64; 6]) -> Vec<u8> {
+    encode::imu(&ImuMsg {
+        stamp: Stamp(stamp),
+        frame_id: String::new(),
+        angular_velocity: [z[3], z[4], z[5]],
+        linear_acceleration: [z[0], z[1], z[2]],
+    })
+}
+
+/// A small MCAP recording: five unnamed 6-joint messages every 10 ms from
+/// [`BASE_NS`] on a topic of type `joint_type`, and the IMU messages `imu`
+/// (CDR bytes) every 5 ms from [`BASE_NS`] (log times).
+fn small_mcap(path: &Path, joint_type: &str, imu: &[Vec<u8>]) {
+    let mut w = mcap::Writer::new(Cursor::new(Vec::new())).unwrap();
+    let meta = BTreeMap::new();
+    let isc = w.add_schema(IMU_TYPE, "ros2msg", b"").unwrap();
+    let ich = w.add_channel(isc, "/imu/data_raw", "cdr", &meta).unwrap();
+    let jsc = w.add_schema(joint_type, "ros2msg", b"").unwrap();
+    let jch = w.add_channel(jsc, "/joint_states", "cdr", &meta).unwrap();
+    let header = |channel_id, t: i64| mcap::records::MessageHeader {
+        channel_id,
+        sequence: 0,
+        log_time: t as u64,
+        publish_time: t as u64,
+    };
+    for k in 0..5 {
+        let t = BASE_NS + k * 10_000_000;
+        let js = encode::joint_state(&JointStateMsg {
+            stamp: Stamp(t),
+            frame_id: String::new(),
+            name: vec![],
+            position: vec![0.1 * k as f64; 6],
+        });
+        w.write_to_known_channel(&header(jch, t), &js).unwrap();
+    }
+    for (k, bytes) in imu.iter().enumerate() {
+        let t = BASE_NS + k as i64 * 5_000_000;
+        w.write_to_known_channel(&header(ich, t), bytes).unwrap();
+    }
+    w.finish().unwrap();
+    std::fs::write(path, w.into_inner().into_inner()).unwrap();
+}
+
+const IMU_TYPE: &str = "sensor_msgs/msg/Imu";
+
+/// Good IMU messages every 5 ms from [`BASE_NS`], `n` of them.
+fn good_imu(n: i64) -> Vec<Vec<u8>> {
+    (0..n)
+        .map(|k| imu_msg(BASE_NS + k * 5_000_000, [0.0, 0.0, 9.81, 0.0, 0.0, 0.0]))
+        .collect()
+}
+
+/// Top-level MCAP records of `bytes`: (offset, opcode, length).
+fn mcap_records(bytes: &[u8]) -> Vec<(usize, u8, u64)> {
+    let mut out = Vec::new();
+    let mut o = 8;
+    while o + 9 <= bytes.len() - 8 {
+        let len = u64::from_le_bytes(bytes[o + 1..o + 9].try_into().unwrap());
+        out.push((o, bytes[o], len));
+        o += 9 + len as usize;
+    }
+    out
+}
+
+#[test]
+fn damaged_mcap_records_are_refused_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("out");
+    let import = |bag: &Path| robimu(["import", "ros2", s(bag), "--out", s(&out)]);
+    let good = d.join("good.mcap");
+    small_mcap(&good, "sensor_msgs/msg/JointState", &good_imu(9));
+    assert!(import(&good).success(), "{}", import(&good).text());
+    let bytes = std::fs::read(&good).unwrap();
+    let records = mcap_records(&bytes);
+    // A top-level record (the header, after the magic) of length 2^64 - 1.
+    let mut top = bytes.clone();
+    top[9..17].copy_from_slice(&u64::MAX.to_le_bytes());
+    let f = d.join("top.mcap");
+    std::fs::write(&f, &top).unwrap();
+    import(&f).assert_fails(&["top.mcap: not a readable MCAP file", "length exceeds limit"]);
+    // A record inside a chunk of length 2^64 - 1.
+    let &(chunk, _, _) = records.iter().find(|r| r.1 == 0x06).expect("a chunk");
+    let body = chunk + 9;
+    let clen = u32::from_le_bytes(bytes[body + 28..body + 32].try_into().unwrap()) as usize;
+    let first = body + 32 + clen + 8;
+    let mut inner = bytes.clone();
+    inner[first + 1..first + 9].copy_from_slice(&u64::MAX.to_le_bytes());
+    let f = d.join("inner.mcap");
+    std::fs::write(&f, &inner).unwrap();
+    import(&f).assert_fails(&[
+        "inner.mcap: not a readable MCAP file",
+        "length exceeds limit",
+    ]);
+    // A chunk whose opcode is corrupted: refused, not skipped with its
+    // messages (here the second file of a split bag).
+    let bag = d.join("bag");
+    std::fs::create_dir(&bag).unwrap();
+    for f in ["metadata.yaml", "run_split_0.mcap", "run_split_1.mcap"] {
+        std::fs::copy(ros2_fixture("run_split").join(f), bag.join(f)).unwrap();
+    }
+    let second = bag.join("run_split_1.mcap");
+    let mut split = std::fs::read(&second).unwrap();
+    let &(chunk, _, _) = mcap_records(&split)
+        .iter()
+        .find(|r| r.1 == 0x06)
+        .expect("a chunk");
+    for opcode in [0x46, 0xc6] {
+        split[chunk] = opcode;
+        std::fs::write(&second, &split).unwrap();
+        import(&bag).assert_fails(&[
+            "run_split_1.mcap: not a readable MCAP file",
+            &format!("unknown opcode 0x{opcode:02x}"),
+        ]);
+    }
+}
+
+#[test]
+fn implausible_samples_and_bag_listings_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("out");
+    let import = |bag: &Path, extra: &[&str]| {
+        let mut args = vec!["import", "ros2", s(bag), "--out", s(&out)];
+        args.extend_from_slice(extra);
+        robimu(&args)
+    };
+    let with_imu = |name: &str, k: usize, bytes: Vec<u8>| {
+        let mut imu = good_imu(9);
+        imu[k] = bytes;
+        let f = d.join(name);
+        small_mcap(&f, "sensor_msgs/msg/JointState", &imu);
+        f
+    };
+    // NaN and infinite values.
+    let t4 = BASE_NS + 20_000_000;
+    let f = with_imu(
+        "nan.mcap",
+        4,
+        imu_msg(t4, [0.0, f64::NAN, 9.81, 0.0, 0.0, 0.0]),
+    );
+    import(&f, &[]).assert_fails(&["topic /imu/data_raw, message 4", "value 1 is NaN"]);
+    let f = with_imu(
+        "inf.mcap",
+        4,
+        imu_msg(t4, [0.0, 0.0, 9.81, 0.0, 0.0, f64::NEG_INFINITY]),
+    );
+    import(&f, &[]).assert_fails(&["message 4", "value 5 is -inf"]);
+    // A zeroed stamp, one going back, one in a far future.
+    let f = with_imu("zero.mcap", 4, imu_msg(0, [0.0; 6]));
+    import(&f, &[]).assert_fails(&["message 4", "time 0 ns: a zeroed or unset stamp"]);
+    let f = with_imu("back.mcap", 4, imu_msg(BASE_NS - 5_000_000_000, [0.0; 6]));
+    import(&f, &[]).assert_fails(&["message 4", "before the topic's previous message"]);
+    let f = with_imu(
+        "far.mcap",
+        4,
+        imu_msg(BASE_NS + 100 * 86_400_000_000_000, [0.0; 6]),
+    );
+    import(&f, &[]).assert_fails(&["message 4", "more than the 24 h a recording may"]);
+    // header.stamp.nanosec of 10^9 or more (bytes 8..12 of the CDR message).
+    let mut bytes = imu_msg(t4, [0.0; 6]);
+    bytes[8..12].copy_from_slice(&1_500_000_000u32.to_le_bytes());
+    let f = with_imu("nanosec.mcap", 4, bytes);
+    import(&f, &[]).assert_fails(&["message 4", "header.stamp.nanosec is 1500000000"]);
+    // A joint named twice.
+    let good = with_imu("good.mcap", 4, imu_msg(t4, [0.0, 0.0, 9.81, 0.0, 0.0, 0.0]));
+    assert!(import(&good, &[]).success());
+    import(&good, &["--joint-names", "a,b,c,a,e,f"]).assert_fails(&["joint `a` is named twice"]);
+    // A split bag whose second file carries another type on the joint topic.
+    let split = d.join("split");
+    std::fs::create_dir(&split).unwrap();
+    std::fs::copy(&good, split.join("run_0.mcap")).unwrap();
+    small_mcap(
+        &split.join("run_1.mcap"),
+        "std_msgs/msg/String",
+        &good_imu(9),
+    );
+    import(&split, &[])
+        .assert_fails(&["run_1.mcap: topic /joint_states: carries std_msgs/msg/String"]);
+    // A storage file listed twice in metadata.yaml.
+    let bag = d.join("bag");
+    std::fs::create_dir(&bag).unwrap();
+    for f in ["metadata.yaml", "run_split_0.mcap", "run_split_1.mcap"] {
+        std::fs::copy(ros2_fixture("run_split").join(f), bag.join(f)).unwrap();
+    }
+    let meta = std::fs::read_to_string(bag.join("metadata.yaml")).unwrap();
+    let twice = meta.replace(
+        "  - run_split_1.mcap\n",
+        "  - run_split_1.mcap\n  - run_split_1.mcap\n",
+    );
+    assert_ne!(twice, meta);
+    std::fs::write(bag.join("metadata.yaml"), twice).unwrap();
+    import(&bag, &[]).assert_fails(&["relative_file_paths lists run_split_1.mcap twice"]);
+    // metadata.yaml nested 100 000 levels deep: refused at once.
+    let deep = format!("rosbag2_bagfile_information: {}\n", "[".repeat(100_000));
+    std::fs::write(bag.join("metadata.yaml"), deep).unwrap();
+    let start = std::time::Instant::now();
+    import(&bag, &[]).assert_fails(&["metadata.yaml: line 1: nested more than 64 levels deep"]);
+    assert!(start.elapsed().as_secs_f64() < 5.0, "{:?}", start.elapsed());
+}

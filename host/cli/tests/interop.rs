@@ -421,19 +421,9 @@ fn m3_from(m: &robimu_model::geom::M3) -> nalgebra::Matrix3<f64> {
 
 /// A result.json holding `x` for `robot` (the docs/model.md §8 shape).
 fn write_result(dir: &Path, robot_spec: &str, layout: &ParamLayout, x: &[f64]) -> PathBuf {
-    let params: Vec<_> = layout
-        .specs()
-        .iter()
-        .zip(x)
-        .map(|(s, v)| {
-            serde_json::json!({"name": s.name, "unit": s.unit, "value": v, "prior": s.nominal,
-                "prior_sigma": s.sigma, "sigma": 0.0, "frozen": true})
-        })
-        .collect();
-    let json = serde_json::json!({"format": "robimu-result/1", "parameters": params,
-        "covariance": {"names": [], "matrix": []}, "robot": robot_spec});
     let path = dir.join("result.json");
-    std::fs::write(&path, json.to_string()).unwrap();
+    let mut values = x.iter();
+    common::write_result_json(&path, robot_spec, layout, |_| *values.next().unwrap());
     path
 }
 
@@ -591,6 +581,8 @@ fn cli_export_and_correct() {
         err.contains("bad.csv") && !err.contains("panicked"),
         "{err}"
     );
+    // a built-in robot exports its plain URDF, corrected
+    let plain = dir.path().join("x.urdf");
     let run = robimu(&[
         "export",
         "--calibration",
@@ -600,10 +592,13 @@ fn cli_export_and_correct() {
         "--robot",
         "aubo_i5",
         "--out",
-        dir.path().join("x.urdf").to_str().unwrap(),
+        plain.to_str().unwrap(),
     ]);
-    assert!(!run.success());
-    assert!(run.stderr.contains("needs a URDF robot"));
+    assert!(run.success(), "{}", run.stderr);
+    assert!(run.stderr.contains("is not a URDF"), "{}", run.stderr);
+    assert!(std::fs::read_to_string(&plain)
+        .unwrap()
+        .contains("imu_link"));
 }
 
 /// `export --format kalibr` of a result with g_sensitivity and size_effect

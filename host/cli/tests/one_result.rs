@@ -17,7 +17,7 @@
 use std::path::Path;
 
 use robimu_hil::rig::SimRigConfig;
-use robimu_hil::truth_check::{final_model_rows, result_rows, session_truth, ModeShare};
+use robimu_hil::truth_check::{fitted_check, session_truth, ModeShare};
 use robimu_hil::twin::{record_offline, TwinOptions};
 use robimu_model::Robot;
 use robimu_record::motion::Plan;
@@ -78,22 +78,11 @@ fn run(mut config: SimRigConfig, seed: u64, duration: f64, dir: &Path) -> Outcom
         )
         .unwrap()
     };
-    let rows = match &fitted.selection {
-        Some(d) => {
-            let names: Vec<String> = d
-                .final_fit
-                .effect_params
-                .iter()
-                .map(|p| p.name.clone())
-                .collect();
-            let share = mode.as_ref().map(|m| m.of_final(&robot, d).unwrap());
-            final_model_rows(&robot, d, &truth_for(&names, share.as_deref()))
-        }
-        None => {
-            let share = mode.as_ref().map(|m| m.baseline.as_slice());
-            result_rows(&fitted.result, &truth_for(&[], share))
-        }
-    };
+    let rows = fitted_check(&robot, &fitted, mode.as_ref(), |e, share| {
+        Ok(truth_for(e, share))
+    })
+    .unwrap()
+    .rows;
     let worst = rows
         .iter()
         .map(|r| (r.z().abs(), r.name.clone()))

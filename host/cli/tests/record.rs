@@ -244,6 +244,53 @@ fn a_vanished_port_stops_with_a_clear_error_and_keeps_the_data() {
     assert!(session.measurements().joint_t.len() > 250);
 }
 
+/// A board that goes silent with no I/O error (every byte it sends lost:
+/// hung, or powered off behind a USB adapter that stays) ends the
+/// recording within 2 s with the watchdog's error naming the port, and the
+/// session recorded until then is intact and calibratable (every
+/// parameter within 4σ of the hidden truth).
+#[test]
+fn a_silent_board_ends_the_recording_within_2_s_and_keeps_the_data() {
+    let _slot = common::real_time_slot();
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(41);
+    let traj = random_walk(&robot, 30.0, 1.0, &mut rng).unwrap();
+    let rig = rig(41);
+    let dir = tempfile::tempdir().unwrap();
+    let device = &rig.device;
+    let opts = options(&rig, dir.path(), Some(Plan::from_spline(&traj, 250.0)), 0.0);
+    // silenced once 10 s of samples are in
+    let mut silenced = None;
+    let err = record(&opts, &mut |p| {
+        if silenced.is_none() && p.imu_samples > 1200 {
+            device.set_serial_faults(SerialFaults {
+                corrupt_probability: 0.0,
+                drop_probability: 1.0,
+            });
+            silenced = Some(std::time::Instant::now());
+        }
+    })
+    .unwrap_err();
+    let ended = std::time::Instant::now();
+    let silenced = silenced.expect("the board was silenced");
+    let took = ended.duration_since(silenced).as_secs_f64();
+    let text = err.to_string();
+    eprintln!("{text}\nended {took:.2} s after the board went silent");
+    assert!(
+        text.contains("went silent") && text.contains(rig.imu_port()) && text.contains("kept in"),
+        "{text}"
+    );
+    assert!(
+        took < 2.0,
+        "the recording ended {took:.2} s after the board went silent"
+    );
+    let truth = rig.truth().clone();
+    drop(rig);
+    let session = check_session(dir.path());
+    assert!(session.measurements().imu_t.len() > 1000);
+    calibrate_against_truth(dir.path(), &truth, "silent board");
+}
+
 #[test]
 fn a_dropped_robot_connection_stops_with_a_clear_error_and_keeps_the_data() {
     let _slot = common::real_time_slot();

@@ -45,4 +45,6 @@ pub mod twin;
 pub use crate::arm_physics::{ArmPhysicsError, StructuralMode};
 pub use crate::rig::RigError;
 pub use crate::rig::SecondImu;
+/// A calibration's model against the twin's truth ([`truth_check::fitted_check`]).
+pub use crate::truth_check::FittedCheck;
 pub use crate::twin::TwinError;

@@ -13,6 +13,7 @@ use robimu_session::result::CalibrationResult;
 use robimu_session::{files, Session, Truth, TruthRow};
 use robimu_workflows::calibrate::{calibrate, CalibrateOptions};
 use robimu_workflows::diagnose::{refit_final, Diagnosis};
+use robimu_workflows::Fitted;
 
 use crate::rig::SimRigConfig;
 use crate::truth::{mode_signal, twin_truth, MotionSample, TwinTruth};
@@ -50,7 +51,7 @@ pub fn session_truth(
 }
 
 /// Every estimated parameter of diagnose's final model against `truth`.
-pub fn final_model_rows(robot: &Robot, d: &Diagnosis, truth: &TwinTruth) -> Vec<TruthRow> {
+fn final_model_rows(robot: &Robot, d: &Diagnosis, truth: &TwinTruth) -> Vec<TruthRow> {
     let fit = &d.final_fit;
     let layout = ParamLayout::new(robot);
     let mut rows = Vec::new();
@@ -180,6 +181,53 @@ impl ModeShare {
             &without.theta_e,
         ))
     }
+}
+
+/// A calibration's model against the twin's truth of that model.
+pub struct FittedCheck {
+    /// The model's effects (empty: the paper's).
+    pub effects: Vec<String>,
+    /// Its estimated parameters against the truth.
+    pub rows: Vec<TruthRow>,
+    /// The truth of the model.
+    pub truth: TwinTruth,
+}
+
+/// The model `calibrate` wrote (`fitted`: the paper's, or the final model
+/// of its search or of a given effect set) against the twin's truth of
+/// that model: `truth_for(effect parameter names, the model's share of the
+/// mode)` ([`session_truth`]), the share from `mode` when the twin has one.
+pub fn fitted_check(
+    robot: &Robot,
+    fitted: &Fitted,
+    mode: Option<&ModeShare>,
+    truth_for: impl Fn(&[String], Option<&[(String, f64)]>) -> anyhow::Result<TwinTruth>,
+) -> anyhow::Result<FittedCheck> {
+    Ok(match &fitted.selection {
+        Some(d) => {
+            let names: Vec<String> = d
+                .final_fit
+                .effect_params
+                .iter()
+                .map(|p| p.name.clone())
+                .collect();
+            let share = mode.map(|m| m.of_final(robot, d)).transpose()?;
+            let truth = truth_for(&names, share.as_deref())?;
+            FittedCheck {
+                effects: d.final_fit.effects.clone(),
+                rows: final_model_rows(robot, d, &truth),
+                truth,
+            }
+        }
+        None => {
+            let truth = truth_for(&[], mode.map(|m| m.baseline.as_slice()))?;
+            FittedCheck {
+                effects: Vec::new(),
+                rows: result_rows(&fitted.result, &truth),
+                truth,
+            }
+        }
+    })
 }
 
 /// (name, a − b) of every parameter of x and every effect parameter.

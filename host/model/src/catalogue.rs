@@ -25,13 +25,18 @@ const FILES: &[(&str, &str)] = &[
     ("fr3", include_str!("../robots/fr3.toml")),
     ("panda", include_str!("../robots/panda.toml")),
     ("iiwa14", include_str!("../robots/iiwa14.toml")),
+    ("iiwa7", include_str!("../robots/iiwa7.toml")),
     ("gen3", include_str!("../robots/gen3.toml")),
+    ("xarm6", include_str!("../robots/xarm6.toml")),
+    ("xarm7", include_str!("../robots/xarm7.toml")),
+    ("aubo_i3", include_str!("../robots/aubo_i3.toml")),
+    ("aubo_i10", include_str!("../robots/aubo_i10.toml")),
 ];
 
 /// Robots built into the program (`--robot NAME`, `robot = "NAME"`).
 pub const BUILTIN_ROBOTS: &[&str] = &[
     "aubo_i5", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur16e", "ur20", "ur30", "fr3",
-    "panda", "iiwa14", "gen3",
+    "panda", "iiwa14", "iiwa7", "gen3", "xarm6", "xarm7", "aubo_i3", "aubo_i10",
 ];
 
 /// The description file of a built-in robot, as committed (its header cites
@@ -126,6 +131,52 @@ mod tests {
             sigma_q: 1e-4,
             qdd_max: vec![1.0, 1.0, 1.0, 1.0, 10.0, 10.0, 10.0],
         });
+        // KUKA LBR iiwa 7 R800: Drake carries no URDF of it (an SDF with
+        // placeholder speeds of 10 rad/s and no flange frame); lbr-stack's
+        // description has KUKA's datasheet position and speed limits and
+        // KUKA's media flange (`lbr_link_ee`, 126 mm beyond joint 6). KUKA
+        // publishes no acceleration limit: 10 rad/s² on every joint is the
+        // stack's MoveIt configuration's
+        // (lbr_moveit_config/iiwa7_moveit_config/config/joint_limits.yaml).
+        // Joint noise 1e-4 rad assumed.
+        v.push(Spec {
+            name: "iiwa7",
+            base_frame: "lbr_link_0",
+            tip: "lbr_link_ee",
+            source: "lbr-stack/lbr_fri_ros2_stack (commit 218d723f817c61314988833611effddc5333ca6c): lbr_description/urdf/iiwa7/iiwa7_description.xacro, lbr_description/urdf/iiwa7/joint_limits.yaml (KUKA's datasheet limits; KUKA publishes no ROS description); acceleration limits: lbr_moveit_config/iiwa7_moveit_config/config/joint_limits.yaml",
+            sigma_q: 1e-4,
+            qdd_max: vec![10.0; 7],
+        });
+        // UFactory xArm 6 and 7: position limits the xacro's defaults
+        // (`limited:=false`, UFactory's datasheet ranges), speed 3.14 rad/s
+        // from the URDF (UFactory's 180°/s; the MoveIt joint_limits.yaml says
+        // 2.14); acceleration 10 rad/s² from xarm_moveit_config's
+        // joint_limits.yaml. Joint noise 1e-4 rad assumed.
+        for (name, dof) in [("xarm6", 6), ("xarm7", 7)] {
+            v.push(Spec {
+                name,
+                base_frame: "link_base",
+                tip: "link_eef",
+                source: "xArm-Developer/xarm_ros2 (branch humble, commit 5109131e7870c7d6e1075042d531e659d072cdb0): xarm_description/config/kinematics/default/MODEL_default_kinematics.yaml, xarm_description/urdf/MODEL/MODEL.urdf.xacro, xarm_description/urdf/xarm_device_macro.xacro; acceleration limits: xarm_moveit_config/config/MODEL/joint_limits.yaml",
+                sigma_q: 1e-4,
+                qdd_max: vec![10.0; dof],
+            });
+        }
+        // AUBO i3 and i10: the URDF gives position limits (±3.04 rad) but
+        // speed 0; speed and acceleration limits from the maker's MoveIt
+        // configuration (aubo_iN_moveit_config/config/joint_limits.yaml:
+        // 30 rad/s² for joints 1–3, 25 for 4–6). Joint noise 1e-4 rad
+        // assumed.
+        for name in ["aubo_i3", "aubo_i10"] {
+            v.push(Spec {
+                name,
+                base_frame: "base_link",
+                tip: "wrist3_Link",
+                source: "AuboRobot/aubo_robot (branch Noetic, commit 6709931195cab90d388b34f10c00611982db3dcf): aubo_description/urdf/MODEL.urdf; speed and acceleration limits: MODEL_moveit_config/config/joint_limits.yaml",
+                sigma_q: 1e-4,
+                qdd_max: vec![30.0, 30.0, 30.0, 25.0, 25.0, 25.0],
+            });
+        }
         v
     }
 

@@ -52,6 +52,7 @@
 // Index loops mirror the matrix formulas of the paper.
 #![allow(clippy::needless_range_loop)]
 
+pub mod arity;
 pub mod catalogue;
 pub mod effects;
 pub mod error_selection;

@@ -115,8 +115,10 @@ pub struct DhLink {
 #[serde(deny_unknown_fields)]
 pub struct Origin {
     /// Translation (m).
+    #[serde(deserialize_with = "crate::arity::array")]
     pub xyz: [f64; 3],
     /// Roll, pitch, yaw (rad): fixed-axis X, then Y, then Z.
+    #[serde(deserialize_with = "crate::arity::array")]
     pub rpy: [f64; 3],
 }
 
@@ -231,6 +233,7 @@ pub struct JointDescription {
 #[serde(deny_unknown_fields)]
 pub struct NoiseDescription {
     /// σ of `[ax, ay, az, gx, gy, gz]`: m/s² ×3, rad/s ×3.
+    #[serde(deserialize_with = "crate::arity::array")]
     pub sigma_z: [f64; 6],
 }
 
@@ -239,12 +242,15 @@ pub struct NoiseDescription {
 #[serde(deny_unknown_fields)]
 pub struct ImuMount {
     /// IMU origin in the flange frame (m): prior mean of ε_n1..3.
+    #[serde(deserialize_with = "crate::arity::array")]
     pub position: [f64; 3],
     /// Prior σ of each position component (m).
     pub position_sigma: f64,
     /// Accelerometer rotation prior mean (r_a_z, r_a_y, r_a_x) (rad).
+    #[serde(deserialize_with = "crate::arity::array")]
     pub r_a: [f64; 3],
     /// Gyroscope rotation prior mean (r_w_z, r_w_y, r_w_x) (rad).
+    #[serde(deserialize_with = "crate::arity::array")]
     pub r_w: [f64; 3],
     /// Prior σ of every sensor rotation angle (rad).
     pub rotation_sigma: f64,
@@ -448,6 +454,16 @@ pub enum RobotError {
         /// The value found.
         value: f64,
     },
+    /// A number beyond the range it can physically have.
+    #[error("{field} = {value:e} is beyond its range (at most {max:e} in magnitude)")]
+    OutOfRange {
+        /// Which field.
+        field: String,
+        /// The value.
+        value: f64,
+        /// The largest magnitude allowed.
+        max: f64,
+    },
     /// `q_min >= q_max`.
     #[error("joint {joint}: q_min ({q_min}) must be below q_max ({q_max})")]
     EmptyRange {
@@ -515,11 +531,38 @@ pub struct Robot {
 }
 
 fn finite(field: impl FnOnce() -> String, v: f64) -> Result<(), RobotError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
-        Err(RobotError::NonFinite { field: field() })
+    if !v.is_finite() {
+        return Err(RobotError::NonFinite { field: field() });
     }
+    if v.abs() > MAX_MAGNITUDE {
+        return Err(RobotError::OutOfRange {
+            field: field(),
+            value: v,
+            max: MAX_MAGNITUDE,
+        });
+    }
+    Ok(())
+}
+
+/// The largest magnitude any number of a robot description may have (m,
+/// rad, rad/s, rad/s², m/s²).
+const MAX_MAGNITUDE: f64 = 1e6;
+/// The largest joint sample σ (rad): an encoder is far better.
+pub(crate) const MAX_SIGMA_Q: f64 = 0.1;
+/// The largest IMU sample σ: accelerometer (m/s²), gyroscope (rad/s).
+pub(crate) const MAX_SIGMA_Z: [f64; 2] = [10.0, 1.0];
+
+/// A σ: positive and at most `max`.
+fn sigma(field: impl Fn() -> String, v: f64, max: f64) -> Result<(), RobotError> {
+    positive(&field, v)?;
+    if v > max {
+        return Err(RobotError::OutOfRange {
+            field: field(),
+            value: v,
+            max,
+        });
+    }
+    Ok(())
 }
 
 /// Every number of a mount finite, its σ positive (`what` names it).
@@ -814,7 +857,7 @@ fn check_joints(joints: &[JointDescription]) -> Result<(), RobotError> {
         }
         positive(|| f("qd_max"), j.qd_max)?;
         positive(|| f("qdd_max"), j.qdd_max)?;
-        positive(|| f("sigma_q"), j.sigma_q)?;
+        sigma(|| f("sigma_q"), j.sigma_q, MAX_SIGMA_Q)?;
         if let Some(o) = &j.origin {
             for k in 0..3 {
                 finite(|| f(&format!("origin.xyz[{k}]")), o.xyz[k])?;
@@ -828,7 +871,7 @@ fn check_joints(joints: &[JointDescription]) -> Result<(), RobotError> {
 /// Checks the noise σ, the IMU mounts and the priors' σ.
 fn check_noise_mounts_priors(desc: &RobotDescription) -> Result<(), RobotError> {
     for (i, &s) in desc.noise.sigma_z.iter().enumerate() {
-        positive(|| format!("noise.sigma_z[{i}]"), s)?;
+        sigma(|| format!("noise.sigma_z[{i}]"), s, MAX_SIGMA_Z[i / 3])?;
     }
     check_mount("imu_mount", &desc.imu_mount)?;
     for (j, m) in &desc.imu_mounts {
@@ -1075,6 +1118,26 @@ estimated = [[1, 1], [1, 6],
         let bad = AUBO_TOML.replace("sigma_q = 8.726646259971648e-5", "sigma_q = -1.0");
         let e = Robot::from_toml_str(&bad).unwrap_err();
         assert!(e.to_string().contains("joint 2 sigma_q"), "{e}");
+        // Issue 41: numbers beyond their physical range, arrays of another
+        // length.
+        let bad = AUBO_TOML.replace("sigma_q = 8.726646259971648e-5", "sigma_q = 1e308");
+        let e = Robot::from_toml_str(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("joint 2 sigma_q = 1e308 is beyond its range"),
+            "{e}"
+        );
+        let bad = AUBO_TOML.replace("sigma_z = [0.38,", "sigma_z = [0.38, 0.1,");
+        let e = Robot::from_toml_str(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("7 values where 6 are expected (ax ay az gx gy gz)"),
+            "{e}"
+        );
+        let bad = AUBO_TOML.replace("sigma_q = 8.726646259971648e-5", "sigma_q = 0.5");
+        let e = Robot::from_toml_str(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("sigma_q = 5e-1 is beyond its range (at most 1e-1"),
+            "{e}"
+        );
         let bad = AUBO_TOML.replace("[6, 1], [6, 2], [6, 3]]", "[6, 1], [6, 2], [6, 4]]");
         let e = Robot::from_toml_str(&bad).unwrap_err();
         assert!(

@@ -21,6 +21,9 @@ mod fit;
 
 /// Largest supported degree.
 pub const MAX_DEGREE: usize = 5;
+/// Most segments a uniform knot vector may have (10⁶: hours at a fine
+/// spacing; more means times in ns or µs, and gigabytes of knots).
+pub(crate) const MAX_SEGMENTS: usize = 1_000_000;
 /// Highest derivative evaluated (q⃛).
 pub(crate) const MAX_DERIV: usize = 3;
 
@@ -66,6 +69,18 @@ pub enum SplineError {
         /// End.
         t1: f64,
     },
+    /// More than [`MAX_SEGMENTS`] knot intervals.
+    #[error("a spline over [{t0}, {t1}] s with knots every {spacing} s would have {segments:.0} segments, more than {MAX_SEGMENTS} (timestamps in ns or µs instead of seconds?)")]
+    TooManySegments {
+        /// Start.
+        t0: f64,
+        /// End.
+        t1: f64,
+        /// Knot spacing asked for.
+        spacing: f64,
+        /// Segments it would need.
+        segments: f64,
+    },
     /// Dimension outside 1..=MAX_JOINTS.
     #[error("spline dimension {0} is outside 1..={MAX_JOINTS}")]
     BadDimension(usize),
@@ -105,7 +120,16 @@ impl Knots {
         if !(spacing.is_finite() && spacing > 0.0) {
             return Err(SplineError::BadSpacing(spacing));
         }
-        let segments = (((t1 - t0) / spacing) * (1.0 - 1e-12)).ceil().max(1.0) as usize;
+        let segments = (((t1 - t0) / spacing) * (1.0 - 1e-12)).ceil().max(1.0);
+        if segments > MAX_SEGMENTS as f64 {
+            return Err(SplineError::TooManySegments {
+                t0,
+                t1,
+                spacing,
+                segments,
+            });
+        }
+        let segments = segments as usize;
         let h = (t1 - t0) / segments as f64;
         let mut y = vec![t0; degree + 1];
         y.extend((1..segments).map(|i| t0 + i as f64 * h));
@@ -928,6 +952,15 @@ mod tests {
             Knots::uniform(0.0, 1.0, 0.0, 3),
             Err(SplineError::BadSpacing(_))
         ));
+        // Issue 41: a minute in ns at 50 ms knots (1.2e12 segments, 10 TB
+        // of knots) is refused before allocating.
+        let e = Knots::uniform(0.0, 60e9, 0.05, 3).unwrap_err();
+        assert!(matches!(e, SplineError::TooManySegments { .. }));
+        assert!(
+            e.to_string()
+                .contains("more than 1000000 (timestamps in ns"),
+            "{e}"
+        );
         assert!(matches!(
             Knots::new(3, vec![0.0, 0.0, 0.0, 0.5, 1.0, 1.0, 1.0, 1.0]),
             Err(SplineError::NotClamped { .. })

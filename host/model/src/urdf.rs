@@ -172,9 +172,86 @@ fn attr_f64(node: roxmltree::Node, name: &str, what: &str) -> Result<Option<f64>
     }
 }
 
+/// The deepest element nesting a URDF may have (real ones nest 4 or 5).
+const MAX_DEPTH: usize = 256;
+/// The most XML nodes a URDF may have.
+const MAX_NODES: u32 = 1_000_000;
+
+/// How deeply `text`'s elements nest, scanning no further than
+/// [`MAX_DEPTH`] + 1 (the XML parser recurses per level: a deeper document
+/// would overflow its stack). Comments, CDATA, processing instructions and
+/// declarations are skipped; quoted attribute values may hold `>`.
+fn nesting_depth(text: &str) -> usize {
+    let b = text.as_bytes();
+    let skip_to = |from: usize, end: &str| {
+        text[from..]
+            .find(end)
+            .map_or(b.len(), |k| from + k + end.len())
+    };
+    let (mut i, mut depth, mut deepest) = (0, 0usize, 0usize);
+    while let Some(k) = memchr_lt(&b[i..]) {
+        i += k;
+        let rest = &text[i..];
+        if rest.starts_with("<!--") {
+            i = skip_to(i, "-->");
+        } else if rest.starts_with("<![CDATA[") {
+            i = skip_to(i, "]]>");
+        } else if rest.starts_with("<?") {
+            i = skip_to(i, "?>");
+        } else if rest.starts_with("<!") {
+            i = skip_to(i, ">");
+        } else if rest.starts_with("</") {
+            depth = depth.saturating_sub(1);
+            i = skip_to(i, ">");
+        } else {
+            // A start tag: to its `>` outside quotes.
+            let mut quote = None;
+            let mut j = i + 1;
+            while j < b.len() {
+                match (quote, b[j]) {
+                    (Some(q), c) if c == q => quote = None,
+                    (None, c @ (b'"' | b'\'')) => quote = Some(c),
+                    (None, b'>') => break,
+                    _ => {}
+                }
+                j += 1;
+            }
+            if b[j.min(b.len()) - 1] != b'/' {
+                depth += 1;
+                deepest = deepest.max(depth);
+                if deepest > MAX_DEPTH {
+                    break;
+                }
+            }
+            i = (j + 1).min(b.len());
+        }
+    }
+    deepest
+}
+
+/// The offset of the next `<` in `b`.
+fn memchr_lt(b: &[u8]) -> Option<usize> {
+    b.iter().position(|&c| c == b'<')
+}
+
+/// `text` as an XML document, refused when nested deeper than
+/// [`MAX_DEPTH`] or holding more than [`MAX_NODES`] nodes.
+fn parse_document(text: &str) -> Result<roxmltree::Document<'_>, UrdfError> {
+    if nesting_depth(text) > MAX_DEPTH {
+        return Err(invalid(format!(
+            "elements nested more than {MAX_DEPTH} levels deep (a URDF nests 4 or 5)"
+        )));
+    }
+    let opts = roxmltree::ParsingOptions {
+        nodes_limit: MAX_NODES,
+        ..roxmltree::ParsingOptions::default()
+    };
+    Ok(roxmltree::Document::parse_with_options(text, opts)?)
+}
+
 /// Every `<joint>` of a URDF document, and the `<robot name>`.
 pub fn parse_joints(text: &str) -> Result<(String, Vec<UrdfJoint>), UrdfError> {
-    let doc = roxmltree::Document::parse(text)?;
+    let doc = parse_document(text)?;
     let root = doc.root_element();
     if root.tag_name().name() != "robot" {
         return Err(invalid(format!(
@@ -272,12 +349,55 @@ fn align_z(a: V3) -> M3 {
     r
 }
 
+/// Refuses joints that do not form a tree of links: a link that is the
+/// child of two joints, or joints that loop back on themselves.
+fn check_tree(joints: &[UrdfJoint]) -> Result<(), UrdfError> {
+    let mut by_child: HashMap<&str, &UrdfJoint> = HashMap::new();
+    for j in joints {
+        if let Some(other) = by_child.insert(j.child.as_str(), j) {
+            return Err(invalid(format!(
+                "link `{}` is the child of joints `{}` and `{}`: the joints must form a tree",
+                j.child, other.name, j.name
+            )));
+        }
+    }
+    // Each link's walk to its root, each link walked once: 1 on the current
+    // walk, 2 known to reach a root.
+    let mut state: HashMap<&str, u8> = HashMap::new();
+    for j in joints {
+        let mut path = Vec::new();
+        let mut cur = j.child.as_str();
+        loop {
+            match state.get(cur) {
+                Some(2) => break,
+                Some(_) => {
+                    return Err(invalid(format!(
+                        "the joints loop back on themselves through link `{cur}`: they must form a tree"
+                    )))
+                }
+                None => {}
+            }
+            state.insert(cur, 1);
+            path.push(cur);
+            match by_child.get(cur) {
+                Some(parent) => cur = &parent.parent,
+                None => break,
+            }
+        }
+        for l in path {
+            state.insert(l, 2);
+        }
+    }
+    Ok(())
+}
+
 /// The joints from `base` to `tip`, in chain order.
 fn chain_joints(
     joints: &[UrdfJoint],
     base: Option<&str>,
     tip: Option<&str>,
 ) -> Result<(String, String, Vec<UrdfJoint>), UrdfError> {
+    check_tree(joints)?;
     let by_child: HashMap<&str, &UrdfJoint> =
         joints.iter().map(|j| (j.child.as_str(), j)).collect();
     let parents: std::collections::HashSet<&str> =
@@ -634,6 +754,52 @@ mod tests {
         ];
         for (text, needle) in cases {
             let e = robot_from_urdf_str(text, &UrdfOptions::default())
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle), "{text}: {e}");
+        }
+    }
+
+    /// Issue 41: hostile URDFs are refused, not a stack overflow or a hang.
+    #[test]
+    fn deep_or_looping_urdf_is_refused() {
+        let joint = |name: &str, parent: &str, child: &str| {
+            format!(
+                r#"<joint name="{name}" type="revolute"><parent link="{parent}"/><child link="{child}"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="1"/></joint>"#
+            )
+        };
+        let deep = format!(
+            r#"<robot name="r">{}{}</robot>"#,
+            "<a>".repeat(100_000),
+            "</a>".repeat(100_000)
+        );
+        let looped = format!(
+            r#"<robot name="r">{}{}{}</robot>"#,
+            joint("j0", "base", "l1"),
+            joint("j1", "l2", "l3"),
+            joint("j2", "l3", "l2")
+        );
+        let two_parents = format!(
+            r#"<robot name="r">{}{}</robot>"#,
+            joint("j0", "base", "l1"),
+            joint("j1", "l0", "l1")
+        );
+        // Comments, quoted `>` and self-closing tags do not count as depth.
+        let fine = format!(
+            r#"<?xml version="1.0"?><!-- <a><a> --><robot name="r"><link name="x>y"/>{}</robot>"#,
+            joint("j0", "base", "l1")
+        );
+        assert_eq!(nesting_depth(&fine), 2);
+        robot_from_urdf_str(&fine, &UrdfOptions::default()).unwrap();
+        for (text, needle) in [
+            (deep, "nested more than 256 levels deep"),
+            (looped, "the joints loop back on themselves through link `l"),
+            (
+                two_parents,
+                "link `l1` is the child of joints `j0` and `j1`",
+            ),
+        ] {
+            let e = robot_from_urdf_str(&text, &UrdfOptions::default())
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(needle), "{text}: {e}");

@@ -126,6 +126,21 @@ pub enum ClientError {
         /// What the system said.
         detail: String,
     },
+    /// The board went silent while streaming, with no I/O error: nothing
+    /// from it (`what` = "message") or no sample while it answers (`what`
+    /// = "sample") for longer than the watchdog allows
+    /// (`imu::silence_limits`: 1 s of nothing, or max(2 s, 20 sample periods) without a sample).
+    #[error("the IMU board on {path} went silent while streaming: no {what} for {waited:.1?} (the limit is {limit:?}) and no I/O error: it hung, lost power or its sensor stopped (check the cable and the board's LED, then record again)")]
+    Silent {
+        /// The port path.
+        path: String,
+        /// "message" or "sample".
+        what: &'static str,
+        /// How long nothing came.
+        waited: Duration,
+        /// The watchdog's limit.
+        limit: Duration,
+    },
 }
 
 /// A serial port, as the client reads and writes it.

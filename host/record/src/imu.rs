@@ -169,6 +169,21 @@ pub fn sample_event(info: &DeviceInfo, segment: u32, t_us: u64, s: &ImuSample) -
 /// Seconds between pings.
 pub const PING_PERIOD: Duration = Duration::from_millis(100);
 
+/// The streaming watchdog's limits for a board sampling at `rate_hz`:
+/// (nothing at all from the board, no sample from it). A streaming board
+/// sends a sample every period and answers every ping ([`PING_PERIOD`]),
+/// so 1 s of nothing is ten unanswered pings; a board that answers but
+/// sends no sample is given max(2 s, 20 sample periods), counted after a
+/// reboot from the request to start it again. Either ends the recording
+/// with [`ClientError::Silent`], keeping what was recorded.
+pub(crate) fn silence_limits(rate_hz: f64) -> (Duration, Duration) {
+    let period = if rate_hz > 0.0 { 1.0 / rate_hz } else { 1.0 };
+    (
+        Duration::from_secs(1),
+        Duration::from_secs_f64((20.0 * period).max(2.0)),
+    )
+}
+
 fn stream<R: Read, W: Write>(
     mut link: ImuClient<R, W>,
     mut infos: Vec<DeviceInfo>,
@@ -186,8 +201,29 @@ fn stream<R: Read, W: Write>(
     let mut next_ping = Instant::now();
     // After a reboot: when we last asked the board to start again.
     let mut restarting: Option<Instant> = None;
+    // the watchdog: when the board last sent anything, and a sample
+    let (quiet, no_sample) = silence_limits(f64::from(config.sample_rate_hz));
+    let (mut heard, mut sampled) = (Instant::now(), Instant::now());
     while !stop.load(Ordering::SeqCst) {
         let now = Instant::now();
+        let silent = if now.duration_since(heard) > quiet {
+            Some(("message", now.duration_since(heard), quiet))
+        } else if now.duration_since(sampled) > no_sample {
+            Some(("sample", now.duration_since(sampled), no_sample))
+        } else {
+            None
+        };
+        if let Some((what, waited, limit)) = silent {
+            let path = link.path().to_string();
+            let e = ClientError::Silent {
+                path,
+                what,
+                waited,
+                limit,
+            };
+            let _ = tx.send(ImuEvent::Failed(e));
+            return;
+        }
         if now >= next_ping {
             next_ping = now + PING_PERIOD;
             nonce = nonce.wrapping_add(1);
@@ -208,6 +244,10 @@ fn stream<R: Read, W: Write>(
             }
         };
         let received = Instant::now();
+        heard = received;
+        if matches!(msg, DeviceMessage::Sample(_)) {
+            sampled = received;
+        }
         let t_us = clock.observe(&msg);
         let event = match msg {
             DeviceMessage::Sample(s) => match infos.get(usize::from(s.sensor)) {
@@ -230,6 +270,8 @@ fn stream<R: Read, W: Write>(
                 if !s.streaming && restarting.is_none_or(|t| t.elapsed() > Duration::from_secs(1)) {
                     // Rebooted (or stopped by someone else): start it again.
                     restarting = Some(Instant::now());
+                    // its samples are due again from this request on
+                    sampled = received;
                     let _ = link.send(&HostMessage::Configure(config));
                     let _ = link.send(&HostMessage::Start);
                 }
@@ -247,6 +289,7 @@ fn stream<R: Read, W: Write>(
             DeviceMessage::CommandResult(r) => {
                 if r.command == CommandKind::Start && r.result.is_ok() && restarting.is_some() {
                     restarting = None;
+                    sampled = received;
                     segment += 1;
                     clock.reset();
                     pending.clear();

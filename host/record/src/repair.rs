@@ -140,21 +140,21 @@ pub(crate) fn read_pings(path: &Path) -> Result<BTreeMap<u32, Vec<Echo>>, Sessio
         if line.starts_with('#') || line.trim().is_empty() {
             continue;
         }
-        let v: Vec<f64> = line
-            .split(',')
-            .map(|f| f.trim().parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|e| SessionError::io(path, bad_data(format!("line {}: {e}", i + 1))))?;
-        if v.len() < 4 {
-            return Err(SessionError::io(
-                path,
-                bad_data(format!("line {}: expected {PINGS_HEADER}", i + 1)),
-            ));
+        let bad = |e: String| SessionError::io(path, bad_data(format!("line {}: {e}", i + 1)));
+        let fields: Vec<&str> = line.split(',').collect();
+        if fields.len() < 4 {
+            return Err(bad(format!("expected {PINGS_HEADER}")));
         }
-        out.entry(v[3] as u32).or_default().push(Echo {
-            host_send: v[0],
-            host_recv: v[1],
-            device: v[2],
+        let times: Vec<f64> = fields[..3]
+            .iter()
+            .map(|f| time_field(f))
+            .collect::<Result<_, _>>()
+            .map_err(bad)?;
+        let segment = segment_field(fields[3]).map_err(bad)?;
+        out.entry(segment).or_default().push(Echo {
+            host_send: times[0],
+            host_recv: times[1],
+            device: times[2],
         });
     }
     Ok(out)
@@ -258,14 +258,17 @@ fn remap_file(path: &Path, fits: &BTreeMap<u32, ClockFit>) -> Result<usize, Sess
     out.push_str(header);
     out.push('\n');
     let mut unmapped = 0;
-    for line in lines {
+    for (i, line) in lines.enumerate() {
         let fields: Vec<&str> = line.split(',').collect();
-        let mapped = (|| {
-            let device: f64 = fields.get(td)?.trim().parse().ok()?;
-            let segment: f64 = fields.get(sg)?.trim().parse().ok()?;
-            let fit = fits.get(&(segment as u32))?;
-            Some(fit.to_session(device))
-        })();
+        let given = |k: usize| fields.get(k).map(|f| f.trim()).filter(|f| !f.is_empty());
+        let mut mapped = None;
+        if let (Some(device), Some(segment), false) = (given(td), given(sg), line.starts_with('#'))
+        {
+            let bad = |e: String| SessionError::io(&path, bad_data(format!("line {}: {e}", i + 2)));
+            let device = time_field(device).map_err(bad)?;
+            let segment = segment_field(segment).map_err(bad)?;
+            mapped = fits.get(&segment).map(|fit| fit.to_session(device));
+        }
         match mapped {
             Some(t) if !line.starts_with('#') => {
                 out.push_str(&format!("{t:?}"));
@@ -414,6 +417,39 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), SessionError> {
     std::fs::rename(&tmp, path).map_err(|e| SessionError::io(path, e))
 }
 
+/// The largest magnitude of a time (s) in the recorder's files: 10¹⁰ s
+/// (three centuries; epoch times are 1.7·10⁹ s).
+const MAX_TIME: f64 = 1e10;
+
+/// A time field (s): a finite number within ±[`MAX_TIME`].
+fn time_field(text: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .trim()
+        .parse()
+        .map_err(|e| format!("time {:?}: {e}", text.trim()))?;
+    if !(v.is_finite() && v.abs() <= MAX_TIME) {
+        return Err(format!(
+            "time {:?} is not a finite number within ±{MAX_TIME:e} s",
+            text.trim()
+        ));
+    }
+    Ok(v)
+}
+
+/// A clock segment: a whole number from 0 (`3.0` is read as 3).
+fn segment_field(text: &str) -> Result<u32, String> {
+    let t = text.trim();
+    let v: f64 = t
+        .parse()
+        .map_err(|_| format!("segment {t:?} is not a number"))?;
+    if !(v.is_finite() && v >= 0.0 && v.fract() == 0.0 && v <= f64::from(u32::MAX)) {
+        return Err(format!(
+            "segment {t:?} is not a whole number from 0 (the recorder counts clock segments 0, 1, 2, …)"
+        ));
+    }
+    Ok(v as u32)
+}
+
 fn bad_data(msg: String) -> std::io::Error {
     std::io::Error::new(std::io::ErrorKind::InvalidData, msg)
 }
@@ -559,5 +595,57 @@ mod tests {
             .collect();
         assert_eq!(temps, ["20", "21", "22", "23", "24"]);
         assert!((report.clock[0].1.drift_ppm() - 100.0).abs() < 1e-3);
+    }
+
+    /// Issue 41: numbers a recorder cannot have written are refused, naming
+    /// the file and line, before any clock fit.
+    #[test]
+    fn impossible_times_and_segments_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let good = format!("{PINGS_HEADER}\n0.1,0.2,3.1,0\n0.3,0.4,3.3,0\n");
+        for (row, want) in [
+            (
+                "NaN,0.6,3.5,0",
+                "line 4: time \"NaN\" is not a finite number",
+            ),
+            (
+                "0.5,inf,3.5,0",
+                "line 4: time \"inf\" is not a finite number",
+            ),
+            (
+                "0.5,0.6,1e309,0",
+                "line 4: time \"1e309\" is not a finite number",
+            ),
+            (
+                "0.5,0.6,3.5,1.5",
+                "line 4: segment \"1.5\" is not a whole number",
+            ),
+            (
+                "0.5,0.6,3.5,-1",
+                "line 4: segment \"-1\" is not a whole number",
+            ),
+        ] {
+            let path = dir.path().join(PINGS);
+            std::fs::write(&path, format!("{good}{row}\n")).unwrap();
+            let e = read_pings(&path).unwrap_err().to_string();
+            assert!(e.contains(PINGS) && e.contains(want), "{row}: {e}");
+        }
+        // imu.csv's device time and segment, with a good ping log.
+        std::fs::write(dir.path().join(PINGS), &good).unwrap();
+        for (row, want) in [
+            (
+                "0,1,2,3,4,5,6,nan,0",
+                "line 3: time \"nan\" is not a finite number",
+            ),
+            (
+                "0,1,2,3,4,5,6,3.2,0.5",
+                "line 3: segment \"0.5\" is not a whole number",
+            ),
+        ] {
+            let imu = format!("t,ax,ay,az,gx,gy,gz,t_device,segment\n0,1,2,3,4,5,6,3.1,0\n{row}\n");
+            std::fs::write(dir.path().join("imu.csv"), imu).unwrap();
+            let e = repair(dir.path()).unwrap_err().to_string();
+            assert!(e.contains("imu.csv") && e.contains(want), "{row}: {e}");
+        }
     }
 }

@@ -27,6 +27,32 @@ pub struct PlotError {
     pub message: String,
 }
 
+/// The largest magnitude an axis may reach, and the smallest span it may
+/// have relative to its magnitude: beyond either, plotters' tick search
+/// does not end (a value of 1e308, times in ns next to seconds).
+const AXIS_MAX: f64 = 1e100;
+const AXIS_MIN_SPAN: f64 = 1e-10;
+
+/// Refuses an axis `lo..hi` that cannot be drawn (`log`: a log scale, so
+/// `lo > 0` and at most 100 decades).
+fn axis(what: &str, lo: f64, hi: f64, log: bool) -> Result<std::ops::Range<f64>, String> {
+    let span = hi - lo;
+    let magnitude = lo.abs().max(hi.abs());
+    let drawable = lo.is_finite()
+        && hi.is_finite()
+        && span.is_finite()
+        && span > AXIS_MIN_SPAN * magnitude
+        && magnitude <= AXIS_MAX
+        && (!log || (lo > 0.0 && hi / lo <= 1e100));
+    if drawable {
+        Ok(lo..hi)
+    } else {
+        Err(format!(
+            "the {what} axis would run from {lo:e} to {hi:e}, which cannot be drawn (a value out of its range in the input?)"
+        ))
+    }
+}
+
 fn register_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
@@ -145,7 +171,9 @@ where
         lo = lo.min(m - 3.5 * s);
         hi = hi.max(m + 3.5 * s);
     }
-    if !(lo.is_finite() && hi.is_finite()) || hi <= lo {
+    if !(lo.is_finite() && hi.is_finite()) {
+        (lo, hi) = (-1.0, 1.0);
+    } else if hi <= lo {
         lo -= 1.0;
         hi += 1.0;
     }
@@ -167,7 +195,15 @@ where
         .margin(6)
         .x_label_area_size(22)
         .y_label_area_size(34)
-        .build_cartesian_2d(lo..hi, 0.0..ymax * 1.1)?;
+        .build_cartesian_2d(
+            axis(&panel.title, lo, hi, false)?,
+            axis(
+                &panel.title,
+                0.0,
+                if ymax > 0.0 { ymax * 1.1 } else { 1.0 },
+                false,
+            )?,
+        )?;
     chart
         .configure_mesh()
         .x_labels(4)
@@ -270,8 +306,8 @@ where
             .x_label_area_size(36)
             .y_label_area_size(56)
             .build_cartesian_2d(
-                (x0 / 1.2..x1 * 1.2).log_scale(),
-                (y0 / 1.5..y1 * 1.5).log_scale(),
+                axis(&panel.title, x0 / 1.2, x1 * 1.2, true)?.log_scale(),
+                axis(&panel.title, y0 / 1.5, y1 * 1.5, true)?.log_scale(),
             )?;
         chart
             .configure_mesh()
@@ -424,7 +460,10 @@ where
             .margin(8)
             .x_label_area_size(34)
             .y_label_area_size(54)
-            .build_cartesian_2d(x0..x1, y0 - pad..y1 + top)?;
+            .build_cartesian_2d(
+                axis(&panel.title, x0, x1, false)?,
+                axis(&panel.title, y0 - pad, y1 + top, false)?,
+            )?;
         chart
             .configure_mesh()
             .x_desc(panel.x_label.as_str())
@@ -596,7 +635,10 @@ where
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(label_width)
-        .build_cartesian_2d((lo..hi).log_scale(), 0f64..n.max(1) as f64)?;
+        .build_cartesian_2d(
+            axis(title, lo, hi, true)?.log_scale(),
+            0f64..n.max(1) as f64,
+        )?;
     chart
         .configure_mesh()
         .disable_y_mesh()
@@ -734,5 +776,47 @@ mod tests {
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
         let svg = std::fs::read_to_string(&files[1]).unwrap();
         assert!(svg.contains("accelerometer") && svg.contains("ax"));
+    }
+
+    /// Issue 41: an axis over 1e308 or a span lost in its magnitude is
+    /// refused at once (plotters' tick search would not end).
+    #[test]
+    fn undrawable_axes_are_refused_not_a_hang() {
+        let dir = tempfile::tempdir().unwrap();
+        let panel = |points: Vec<(f64, f64)>| LinePanel {
+            title: "residual".into(),
+            x_label: "t [s]".into(),
+            y_label: "r".into(),
+            series: vec![("r".into(), points)],
+        };
+        let start = std::time::Instant::now();
+        for (points, want) in [
+            (
+                vec![(0.0, -1e308), (1.0, 1e308)],
+                "the residual axis would run from",
+            ),
+            (
+                vec![(1.7e18, 0.0), (1.7e18 + 256.0, 1.0)],
+                "cannot be drawn",
+            ),
+        ] {
+            let e = line_panels(&dir.path().join("r"), "r", &[panel(points)], 1)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(want), "{e}");
+        }
+        let bars = [BarGroup {
+            name: "IMU".into(),
+            bars: vec![Bar {
+                label: "k_a_x".into(),
+                value: Some(1e308),
+                note: String::new(),
+            }],
+        }];
+        let e = log_bars(&dir.path().join("b"), "σ", "σ / prior σ", 1.0, &bars)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("σ axis would run from"), "{e}");
+        assert!(start.elapsed().as_secs() < 5, "{:?}", start.elapsed());
     }
 }

@@ -10,7 +10,7 @@ use robimu_model::{ParamLayout, Robot};
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
 use robimu_workflows::calibrate::choose_knots;
-use robimu_workflows::pipeline::session_robot;
+use robimu_workflows::pipeline::{load_session, session_robot};
 
 use crate::convergence::{convergence_path, ConvergenceLog};
 use crate::figures::NoiseBand;
@@ -40,10 +40,9 @@ pub fn write_result_report(
             .map(PathBuf::from)
             .filter(|d| d.is_dir())
     });
+    // loaded as every command that fits a spline loads it: times checked
     let session = match &session_dir {
-        Some(d) => Some(
-            Session::load(d).with_context(|| format!("cannot load the session {}", d.display()))?,
-        ),
+        Some(d) => Some(load_session(d)?.0),
         None => None,
     };
     let series = match &session {

@@ -55,6 +55,7 @@ pub mod poses;
 pub mod result;
 mod result_model;
 mod table;
+mod text;
 mod truth;
 mod writer;
 

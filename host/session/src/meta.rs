@@ -78,12 +78,15 @@ pub struct SessionMeta {
 #[serde(deny_unknown_fields)]
 pub struct MountPrior {
     /// Prior mean of the IMU's position ε_n1..3 on the flange (m).
+    #[serde(default, deserialize_with = "robimu_model::arity::option")]
     pub position: Option<[f64; 3]>,
     /// Prior σ of each position component (m).
     pub position_sigma: Option<f64>,
     /// Prior mean of the accelerometer rotation (r_a_z, r_a_y, r_a_x), rad.
+    #[serde(default, deserialize_with = "robimu_model::arity::option")]
     pub r_a: Option<[f64; 3]>,
     /// Prior mean of the gyroscope rotation (r_w_z, r_w_y, r_w_x), rad.
+    #[serde(default, deserialize_with = "robimu_model::arity::option")]
     pub r_w: Option<[f64; 3]>,
     /// Prior σ of every sensor rotation angle (rad).
     pub rotation_sigma: Option<f64>,
@@ -242,7 +245,7 @@ impl NoiseShape {
 
     /// [`Self::parse`] of the file `path`.
     pub fn read(path: &Path) -> Result<Option<Self>, SessionError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+        let text = crate::text::read(path)?;
         Self::parse(&text, path)
     }
 }
@@ -264,7 +267,11 @@ pub fn check_ar_order_for_data(order: usize, samples: usize) -> Result<(), Strin
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct NoiseOverride {
     /// σ of `ax, ay, az` (m/s²) and `gx, gy, gz` (rad/s).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "robimu_model::arity::option"
+    )]
     pub sigma_z: Option<[f64; 6]>,
     /// σ of each joint position, rad.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -417,7 +424,7 @@ impl SessionMeta {
 
     /// Read and validate `path`.
     pub fn read(path: &Path) -> Result<Self, SessionError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+        let text = crate::text::read(path)?;
         Self::parse(&text, path)
     }
 
@@ -612,6 +619,27 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().starts_with("s.toml:4:"), "{e}");
+        // Issue 41: bytes that are not UTF-8 are placed.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("session.toml");
+        std::fs::write(&path, b"format = \"robimu-session/1\"\nrobot = \"\xff\"\n").unwrap();
+        let e = SessionMeta::read(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("session.toml:2: not UTF-8 text: invalid byte 0xff at byte offset 37"),
+            "{e}"
+        );
+        // Issue 41: seven values are refused too, not the seventh dropped.
+        let e = SessionMeta::parse(
+            "format = \"robimu-session/1\"\nrobot = \"x\"\n[noise]\nsigma_z = [1,2,3,4,5,6,7]\n",
+            p,
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().starts_with("s.toml:4:")
+                && e.to_string()
+                    .contains("7 values where 6 are expected (ax ay az gx gy gz)"),
+            "{e}"
+        );
     }
 
     const HEAD: &str = "format = \"robimu-session/1\"\nrobot = \"x\"\n[noise]\n";

@@ -116,7 +116,11 @@ pub struct CalibrationResult {
     pub termination: Option<String>,
     /// RMS of the whitened IMU residuals per channel `[ax, ay, az, gx, gy, gz]`
     /// (about 1 when the noise model fits).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "robimu_model::arity::option"
+    )]
     pub residual_rms: Option<[f64; 6]>,
     /// IMU samples used in the fit.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -364,11 +368,33 @@ impl CalibrationResult {
                 if !v.is_finite() {
                     return Err(format!("`{}`: {field} = {v} is not finite", p.name));
                 }
+                if v.abs() > MAX_MAGNITUDE {
+                    return Err(format!(
+                        "`{}`: {field} = {v:e} is beyond ±{MAX_MAGNITUDE:e}, which no parameter \
+                         (m, rad, s, scale factor, m/s², rad/s) can be",
+                        p.name
+                    ));
+                }
             }
             if p.sigma < 0.0 || p.prior_sigma < 0.0 {
                 return Err(format!(
                     "`{}`: standard deviations must not be negative",
                     p.name
+                ));
+            }
+            if p.prior_sigma == 0.0 {
+                return Err(format!(
+                    "`{}`: prior_sigma = 0: a prior σ must be > 0 (a frozen parameter is \
+                     marked `frozen`)",
+                    p.name
+                ));
+            }
+            let base = split_imu_name(&p.name).map_or(p.name.as_str(), |(_, b)| b);
+            if base.starts_with("k_") && !(GAIN_RANGE.0..=GAIN_RANGE.1).contains(&p.value) {
+                return Err(format!(
+                    "`{}`: gain {:e} is outside [{}, {}] (a sensor's scale factor is within a \
+                     few % of 1)",
+                    p.name, p.value, GAIN_RANGE.0, GAIN_RANGE.1
                 ));
             }
         }
@@ -460,13 +486,20 @@ impl CalibrationResult {
         })
     }
 
-    /// Read and validate `path`.
+    /// Read and validate `path` (text that is not UTF-8 is refused at its
+    /// line, column and byte offset).
     pub fn read(path: &Path) -> Result<Self, ResultError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ResultError::Read {
+        let bytes = std::fs::read(path).map_err(|source| ResultError::Read {
             path: path.to_path_buf(),
             source,
         })?;
-        Self::parse(&text, path)
+        let text = crate::text::utf8(&bytes).map_err(|e| ResultError::Json {
+            path: path.to_path_buf(),
+            line: e.line,
+            column: e.column,
+            message: e.to_string(),
+        })?;
+        Self::parse(text, path)
     }
 
     /// Parse and validate; `path` only names the file in errors.
@@ -484,6 +517,11 @@ impl CalibrationResult {
         Ok(result)
     }
 }
+
+/// The largest magnitude a parameter's value, prior or σ may have.
+pub(crate) const MAX_MAGNITUDE: f64 = 1e6;
+/// The range of a sensor gain (`k_*`, a scale factor near 1).
+pub(crate) const GAIN_RANGE: (f64, f64) = (0.1, 10.0);
 
 /// The parameters each IMU has (docs/model.md §9): its flange position
 /// `eps_<n>_1..3` (`imu_link` = n, the last link), `tau` and the 24 sensor
@@ -860,6 +898,47 @@ mod tests {
         }
         assert_eq!(p["frozen"], true);
         assert_eq!(v["covariance"]["matrix"][1][1], 2.25e-2);
+    }
+
+    /// Issue 41: numbers beyond their physical range and bytes that are not
+    /// UTF-8 are refused on read, naming the parameter or the position.
+    #[test]
+    fn out_of_range_numbers_and_bad_bytes_are_refused() {
+        let refused = |edit: &dyn Fn(&mut CalibrationResult), want: &str| {
+            let mut r = sample();
+            edit(&mut r);
+            let text = serde_json::to_string_pretty(&r).unwrap();
+            let e = CalibrationResult::parse(&text, Path::new("r.json"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(want), "{e}");
+        };
+        refused(
+            &|r| r.parameters[0].value = 1e308,
+            "`eps_1_1`: value = 1e308 is beyond ±1e6",
+        );
+        refused(
+            &|r| r.parameters[1].prior_sigma = 0.0,
+            "`eps_1_6`: prior_sigma = 0: a prior σ must be > 0",
+        );
+        refused(
+            &|r| {
+                r.parameters[1].name = "k_a_x".into();
+                r.parameters[1].value = 1e-320;
+            },
+            "`k_a_x`: gain 1e-320 is outside [0.1, 10]",
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("result.json");
+        let mut bytes = sample().to_json().unwrap().into_bytes();
+        let at = bytes.iter().position(|&b| b == b'\n').unwrap() + 3;
+        bytes[at] = 0xfe;
+        std::fs::write(&path, &bytes).unwrap();
+        let e = CalibrationResult::read(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("result.json:2:3: not UTF-8 text: invalid byte 0xfe at byte offset"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -47,8 +47,10 @@ pub struct EffectEvidence {
     /// Its p-value.
     pub lr_p_value: f64,
     /// Whitened residual RMS per channel `[ax, ay, az, gx, gy, gz]` before.
+    #[serde(deserialize_with = "robimu_model::arity::array")]
     pub rms_before: [f64; 6],
     /// After.
+    #[serde(deserialize_with = "robimu_model::arity::array")]
     pub rms_after: [f64; 6],
 }
 

@@ -87,7 +87,7 @@ impl Truth {
 
     /// Read `path`.
     pub fn read(path: &Path) -> Result<Self, SessionError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+        let text = crate::text::read(path)?;
         Self::parse(&text, path)
     }
 

@@ -63,7 +63,8 @@ pub mod problem;
 
 pub use arrow::{ArrowFactor, ArrowMatrix, FactorError};
 pub use lm::{
-    solve, IterationRecord, LeastSquares, LmError, LmOptions, LmSolution, LmSummary, Termination,
+    solve, solve_from, IterationRecord, LeastSquares, Linearization, LmError, LmOptions,
+    LmSolution, LmSummary, Termination,
 };
 
 pub use crate::dense::DenseError;

@@ -400,8 +400,49 @@ pub fn solve<P: LeastSquares>(
     opts: &LmOptions,
     report: impl FnMut(&IterationRecord),
 ) -> Result<LmSolution, LmError<P::Error>> {
+    solve_from(problem, theta, None, opts, report)
+}
+
+/// The problem's linearisation at a point: what
+/// [`LeastSquares::linearize`] writes and returns there.
+#[derive(Debug, Clone)]
+pub struct Linearization {
+    /// The Gauss–Newton matrix.
+    pub a: ArrowMatrix,
+    /// The gradient.
+    pub g: Vec<f64>,
+    /// The cost.
+    pub cost: f64,
+}
+
+/// [`solve`] given the linearisation at `theta` (`at`, e.g. a restriction
+/// of a larger problem's made there already: the diagnosis's score tests,
+/// docs/model.md §4.9), which the first iteration takes instead of
+/// linearising. It must be the problem's own at `theta` (after
+/// `begin_iteration` there); one of other dimensions is refused.
+pub fn solve_from<P: LeastSquares>(
+    problem: &mut P,
+    theta: Vec<f64>,
+    at: Option<&Linearization>,
+    opts: &LmOptions,
+    report: impl FnMut(&IterationRecord),
+) -> Result<LmSolution, LmError<P::Error>> {
     opts.validate().map_err(LmError::Options)?;
     let mut run = Run::new(problem, theta, opts, report);
+    if let Some(at) = at {
+        if at.a.dims() != run.a.dims() || at.g.len() != run.theta.len() {
+            return Err(LmError::Options(format!(
+                "the given linearisation has dimensions {:?} and {} unknowns, the problem {:?} and {}",
+                at.a.dims(),
+                at.g.len(),
+                run.a.dims(),
+                run.theta.len()
+            )));
+        }
+        run.a_next.clone_from(&at.a);
+        run.g_next.clone_from(&at.g);
+        run.ahead = Some(at.cost);
+    }
     problem
         .begin_iteration(&run.theta)
         .map_err(LmError::Start)?;
@@ -1053,6 +1094,58 @@ mod tests {
             "{}",
             sol.summary
         );
+    }
+
+    /// Given the linearisation at the start, the run is the same — θ, log,
+    /// covariance — with one linearisation fewer; one of other dimensions
+    /// is refused.
+    #[test]
+    fn a_given_start_linearisation_saves_one() {
+        let start = vec![-1.2; 12];
+        let mut plain = Toy::new(11);
+        plain.keeps = true;
+        let a = solve(&mut plain, start.clone(), &LmOptions::default(), |_| {}).unwrap();
+        let mut given = Toy::new(11);
+        given.keeps = true;
+        let mut lin = Linearization {
+            a: given.new_matrix(),
+            g: vec![0.0; 12],
+            cost: 0.0,
+        };
+        lin.cost = given.linearize(&start, &mut lin.a, &mut lin.g).unwrap();
+        given.calls.set((0, 0));
+        let b = solve_from(
+            &mut given,
+            start.clone(),
+            Some(&lin),
+            &LmOptions::default(),
+            |_| {},
+        )
+        .unwrap();
+        assert_eq!(a.theta, b.theta);
+        assert_eq!(a.summary.iterations, b.summary.iterations);
+        assert_eq!(
+            a.factor.covariance_x().as_ref(),
+            b.factor.covariance_x().as_ref()
+        );
+        let (pa, pb) = (plain.calls.get(), given.calls.get());
+        assert_eq!(pb.1 + 1, pa.1, "linearisations: {pa:?} vs {pb:?}");
+        assert_eq!(pa.0, pb.0, "cost evaluations: {pa:?} vs {pb:?}");
+        // a linearisation of another problem's size is refused
+        let mut other = Toy::new(11);
+        let small = Linearization {
+            a: Toy::new(5).new_matrix(),
+            g: vec![0.0; 6],
+            cost: 0.0,
+        };
+        let err = solve_from(
+            &mut other,
+            start,
+            Some(&small),
+            &LmOptions::default(),
+            |_| {},
+        );
+        assert!(matches!(err, Err(LmError::Options(m)) if m.contains("dimensions")));
     }
 
     /// A gradient far off (10 in whitened units) at the minimum is not

@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use robimu_model::urdf::UrdfOptions;
+use robimu_model::urdf::{robot_to_urdf, UrdfOptions};
 use robimu_model::{ModelParams, Robot};
 use robimu_session::export::imu::{
     kalibr_imu_input_yaml, kalibr_imu_list_yaml, kalibr_imu_yaml, Correction, KalibrImu,
@@ -27,7 +27,8 @@ use crate::pipeline::{is_urdf, ChainLinks};
 /// What [`export`] writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ExportFormat {
-    /// The calibrated robot as a URDF (needs a URDF robot).
+    /// The calibrated robot as a URDF: the robot's own URDF corrected, or
+    /// (a built-in or TOML robot) its plain URDF corrected.
     Urdf,
     /// The calibrated robot as robot TOML.
     Toml,
@@ -259,17 +260,24 @@ impl Exporter<'_> {
                     Some(b) if Path::new(spec).is_relative() => b.join(spec),
                     _ => PathBuf::from(spec),
                 };
-                if !is_urdf(&path) {
-                    bail!("--format urdf needs a URDF robot; the robot is `{spec}` (use --format toml, or --robot FILE.urdf)");
+                if is_urdf(&path) {
+                    let urdf = std::fs::read_to_string(&path)
+                        .with_context(|| format!("cannot read {}", path.display()))?;
+                    let opts = UrdfOptions {
+                        base: req.links.base.clone(),
+                        tip: req.links.tip.clone(),
+                        ..UrdfOptions::default()
+                    };
+                    corrected_urdf(&urdf, &opts, params)?
+                } else {
+                    // a built-in or TOML robot: its plain URDF (`robots show
+                    // --urdf`: the maker's base and flange links and joint
+                    // names), corrected
+                    notify(Notice::Note(format!(
+                        "`{spec}` is not a URDF: the corrected URDF is its plain description (links and joints, as `robimu robots show --urdf` writes it; no meshes, inertias or ros2_control tags)"
+                    )));
+                    corrected_urdf(&robot_to_urdf(self.robot), &UrdfOptions::default(), params)?
                 }
-                let urdf = std::fs::read_to_string(&path)
-                    .with_context(|| format!("cannot read {}", path.display()))?;
-                let opts = UrdfOptions {
-                    base: req.links.base.clone(),
-                    tip: req.links.tip.clone(),
-                    ..UrdfOptions::default()
-                };
-                corrected_urdf(&urdf, &opts, params)?
             }
             ExportFormat::Kalibr => {
                 let j = req.imu.unwrap_or(0);

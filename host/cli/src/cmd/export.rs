@@ -13,7 +13,8 @@ use crate::input::{output_path, resolve_robot_with};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ExportFormat {
     /// The calibrated robot as a URDF: the robot's own URDF with corrected
-    /// joint origins and an `imu_link` (needs a URDF robot).
+    /// joint origins and an `imu_link` (a built-in or TOML robot: its plain
+    /// URDF, as `robots show --urdf` writes it, corrected).
     Urdf,
     /// The calibrated robot as robot TOML (`--robot FILE.toml` reads it).
     Toml,

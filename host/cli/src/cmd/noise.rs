@@ -39,6 +39,7 @@ impl NoiseCmd {
         let dir = &self.session;
         let session = Session::load(dir)
             .with_context(|| format!("cannot load the session {}", dir.display()))?;
+        robimu_workflows::pipeline::check_times(&session)?;
         let path = output_path(self.out.as_deref(), dir.join("noise.toml"))?;
         let data = session.measurements();
         let opts = NoiseOptions::default();

@@ -7,6 +7,7 @@ use robimu_model::catalogue::builtin_file;
 use robimu_model::urdf::robot_to_urdf;
 use robimu_model::{Robot, BUILTIN_ROBOTS};
 use robimu_session::export::ur::UrKinematics;
+use robimu_session::export::ur_conf::UrCalibrationConf;
 
 /// The built-in robots: list them, print one, or write one as URDF.
 ///
@@ -33,8 +34,14 @@ pub enum RobotsAction {
         /// limits and noise. Save the printed description and pass it as
         /// `--robot`; `export --format ur-kinematics` writes the
         /// calibrated file back.
-        #[arg(long, value_name = "FILE")]
+        #[arg(long, value_name = "FILE", conflicts_with = "ur_calibration_conf")]
         ur_kinematics: Option<PathBuf>,
+        /// A Universal Robots arm's factory calibration as the controller
+        /// keeps it (`/root/.urcontrol/calibration.conf`: the corrections
+        /// `delta_theta`, `delta_a`, `delta_d`, `delta_alpha` of UR's DH
+        /// table), read as its nominal kinematics like --ur-kinematics.
+        #[arg(long, value_name = "FILE")]
+        ur_calibration_conf: Option<PathBuf>,
         /// Instead, write its nominal kinematics as a plain URDF (links and
         /// joints only) to this file.
         #[arg(long, value_name = "FILE")]
@@ -58,6 +65,7 @@ impl RobotsCmd {
         let Some(RobotsAction::Show {
             name,
             ur_kinematics,
+            ur_calibration_conf,
             urdf,
         }) = self.action
         else {
@@ -80,14 +88,21 @@ impl RobotsCmd {
                 .nominal_robot(&robot, &file.display().to_string())
                 .with_context(|| format!("--ur-kinematics {}", file.display()))?;
         }
-        match (urdf, &ur_kinematics) {
+        if let Some(file) = &ur_calibration_conf {
+            let conf = UrCalibrationConf::from_file(file)?;
+            robot = UrKinematics::from_calibration_conf(&name, &conf)
+                .and_then(|k| k.nominal_robot(&robot, &file.display().to_string()))
+                .with_context(|| format!("--ur-calibration-conf {}", file.display()))?;
+        }
+        let given = ur_kinematics.as_ref().or(ur_calibration_conf.as_ref());
+        match (urdf, given) {
             (Some(path), _) => {
                 std::fs::write(&path, robot_to_urdf(&robot))
                     .with_context(|| format!("cannot write {}", path.display()))?;
                 eprintln!("wrote {} ({name}, {} joints)", path.display(), robot.dof());
             }
             (None, Some(file)) => print!(
-                "# Robot `{name}` with the kinematics of {} (robimu robots show {name} --ur-kinematics).\n{}",
+                "# Robot `{name}` with the kinematics of {} (robimu robots show {name} --ur-kinematics or --ur-calibration-conf).\n{}",
                 file.display(),
                 toml::to_string(robot.description())?
             ),

@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use robimu_hil::rig::{SimRig, SimRigConfig};
 use robimu_hil::truth::{clock_mapping_error, TwinTruth};
-use robimu_hil::truth_check::{final_model_rows, result_rows, session_truth, ModeShare};
+use robimu_hil::truth_check::{fitted_check, result_rows, session_truth, ModeShare};
 use robimu_hil::twin::{record_offline, TwinOptions};
 use robimu_model::Robot;
 use robimu_protocol::SensorConfig;
@@ -154,31 +154,8 @@ impl DemoArgs {
             writeln!(out, "diagnosis took {:.1} s", t0.elapsed().as_secs_f64())?;
 
             writeln!(out, "\n== 6. against the truth ==")?;
-            let share = |d: &Diagnosis| match &mode {
-                Some(m) => m.of_final(&robot, d).map(Some),
-                None => Ok(None),
-            };
-            match &fitted.selection {
-                Some(d) => {
-                    let names: Vec<String> = d
-                        .final_fit
-                        .effect_params
-                        .iter()
-                        .map(|p| p.name.clone())
-                        .collect();
-                    let truth = truth_for(&names, share(d)?.as_deref())?;
-                    self.truth_check(
-                        d.final_fit.effects.clone(),
-                        final_model_rows(&robot, d, &truth),
-                        &truth,
-                    )
-                }
-                None => self.truth_check(
-                    Vec::new(),
-                    result_rows(&fitted.result, &baseline),
-                    &baseline,
-                ),
-            }
+            let c = fitted_check(&robot, &fitted, mode.as_ref(), truth_for)?;
+            self.truth_check(c.effects, c.rows, &c.truth)
         };
         write_check(&mut out, &check, &report)?;
         let seconds = start.elapsed().as_secs_f64();

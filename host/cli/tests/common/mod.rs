@@ -253,3 +253,35 @@ pub fn diagnose_all(
 ) {
     diagnose_with(robot, data, &Default::default())
 }
+
+/// One row of a poses CSV as `tests/ur_kinematics_fk.py fk` and
+/// `tests/makers_fk.py --poses` read it: the joint angles `q`, then the
+/// position of `t` and its rotation matrix row by row, each to the bit.
+pub fn pose_row(q: &[f64], t: &robimu_model::geom::Iso) -> String {
+    let mut row: Vec<String> = q.iter().map(|v| format!("{v:?}")).collect();
+    row.extend(t.p.iter().map(|v| format!("{v:?}")));
+    row.extend(t.r.iter().flatten().map(|v| format!("{v:?}")));
+    row.join(",") + "\n"
+}
+
+/// A result.json (docs/model.md §8 shape, `robot` its robot spec) holding
+/// the value `value(spec)` for every parameter of `layout`, each frozen
+/// with σ 0 and no covariance: a calibration to export.
+pub fn write_result_json(
+    path: &Path,
+    robot: &str,
+    layout: &robimu_model::ParamLayout,
+    mut value: impl FnMut(&robimu_model::ParamSpec) -> f64,
+) {
+    let params: Vec<_> = layout
+        .specs()
+        .iter()
+        .map(|p| {
+            serde_json::json!({"name": p.name, "unit": p.unit, "value": value(p), "prior": p.nominal,
+                "prior_sigma": p.sigma, "sigma": 0.0, "frozen": true})
+        })
+        .collect();
+    let json = serde_json::json!({"format": "robimu-result/1", "parameters": params,
+        "covariance": {"names": [], "matrix": []}, "robot": robot});
+    std::fs::write(path, json.to_string()).unwrap();
+}

@@ -1,6 +1,7 @@
 //! A calibration in the formats other tools read: the corrected robot as a
 //! URDF or robot TOML ([`robot`]) or Universal Robots' kinematics YAML
-//! ([`ur`], which also reads a factory calibration), the IMU intrinsics as a Kalibr `imu.yaml`
+//! ([`ur`], which also reads a factory calibration; [`ur_conf`] the
+//! controller's own `calibration.conf`), the IMU intrinsics as a Kalibr `imu.yaml`
 //! or a correction file for firmware and drivers, and the inverse sensor
 //! model applied to a raw IMU CSV ([`imu`]).
 //!
@@ -10,6 +11,7 @@
 pub mod imu;
 pub mod robot;
 pub mod ur;
+pub mod ur_conf;
 
 use crate::result::CalibrationResult;
 use robimu_model::{ImuIntrinsics, ModelParams, ParamLayout, Robot};

@@ -117,6 +117,22 @@ pub struct UrKinematics {
     pub hash: String,
 }
 
+/// `parse` of the text of the file at `path`, its format errors prefixed
+/// with the path.
+pub(crate) fn read_file<T>(
+    path: &Path,
+    parse: impl FnOnce(&str) -> Result<T, UrKinematicsError>,
+) -> Result<T, UrKinematicsError> {
+    let text = std::fs::read_to_string(path).map_err(|source| UrKinematicsError::Io {
+        path: path.display().to_string(),
+        source,
+    })?;
+    parse(&text).map_err(|e| match e {
+        UrKinematicsError::Yaml(m) => UrKinematicsError::Yaml(format!("{}: {m}", path.display())),
+        e => e,
+    })
+}
+
 /// `F`: the fixed rotation from `wrist_3_link` to `tool0` in the UR
 /// description (`wrist_3 → flange`, rpy `0 −π/2 −π/2`; `flange → tool0`,
 /// rpy `π/2 0 π/2`).
@@ -214,16 +230,7 @@ impl UrKinematics {
 
     /// Reads the YAML file at `path`.
     pub fn from_yaml_file(path: &Path) -> Result<Self, UrKinematicsError> {
-        let text = std::fs::read_to_string(path).map_err(|source| UrKinematicsError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
-        Self::from_yaml_str(&text).map_err(|e| match e {
-            UrKinematicsError::Yaml(m) => {
-                UrKinematicsError::Yaml(format!("{}: {m}", path.display()))
-            }
-            e => e,
-        })
+        read_file(path, Self::from_yaml_str)
     }
 
     /// The YAML text, after `comment` (each line prefixed with `# `).

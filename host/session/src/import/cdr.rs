@@ -61,6 +61,10 @@ pub enum CdrError {
         /// The count read.
         count: u32,
     },
+    /// A `header.stamp.nanosec` of a second or more (ROS 2 keeps it below
+    /// 10⁹).
+    #[error("header.stamp.nanosec is {0}, not below 10^9 (a corrupted stamp)")]
+    BadStamp(u32),
 }
 
 /// `builtin_interfaces/Time` in nanoseconds since the epoch of its clock.
@@ -231,6 +235,9 @@ impl<'a> Reader<'a> {
     fn header(&mut self) -> Result<(Stamp, String), CdrError> {
         let sec = self.i32()?;
         let nanosec = self.u32()?;
+        if nanosec >= 1_000_000_000 {
+            return Err(CdrError::BadStamp(nanosec));
+        }
         let frame_id = self.string()?;
         Ok((Stamp(sec as i64 * 1_000_000_000 + nanosec as i64), frame_id))
     }

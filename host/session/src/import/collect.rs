@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use super::cdr::{ImuMsg, JointStateMsg};
-use super::{imu_row, ImportError, Streams};
+use super::{imu_row, ImportError, Streams, MAX_BACKSTEP_NS, MAX_SPAN_NS};
 
 /// Type name of joint states.
 pub const JOINT_STATE: &str = "sensor_msgs/msg/JointState";
@@ -85,6 +85,9 @@ pub(crate) struct Collector<'o> {
     out: Streams,
     /// Per stream (joints, IMU): the first time and whether any differs.
     stamps: [(Option<i64>, bool); 2],
+    /// Per stream: the latest time so far; over both: the earliest.
+    latest: [Option<i64>; 2],
+    earliest: Option<i64>,
 }
 
 impl<'o> Collector<'o> {
@@ -97,12 +100,55 @@ impl<'o> Collector<'o> {
             joints: JointPicker::new(opts.joint_names.clone(), opts.names_required),
             out: Streams::default(),
             stamps: [(None, false); 2],
+            latest: [None; 2],
+            earliest: None,
         }
     }
 
-    /// The file whose messages follow.
+    /// The file whose messages follow (each file's topics are checked
+    /// anew: a split bag's files need not agree).
     pub(crate) fn set_file(&mut self, file: &Path) {
         self.file = file.to_path_buf();
+        for info in self.topics.values_mut() {
+            info.checked = false;
+        }
+    }
+
+    /// Why sample `t` (ns) with `values` of stream `k` (0 joints, 1 IMU)
+    /// cannot be a measurement, if it cannot: a value not finite, a time
+    /// zero or negative, stepping back more than [`MAX_BACKSTEP_NS`] on its
+    /// topic, or the recording spanning more than [`MAX_SPAN_NS`].
+    fn check_sample(&mut self, k: usize, t: i64, values: &[f64]) -> Result<(), String> {
+        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+            return Err(format!("value {i} is {} (not a measurement)", values[i]));
+        }
+        if t <= 0 {
+            return Err(format!(
+                "time {t} ns: a zeroed or unset stamp (use --time log if the driver does not stamp)"
+            ));
+        }
+        if let Some(latest) = self.latest[k] {
+            if t < latest - MAX_BACKSTEP_NS {
+                return Err(format!(
+                    "time {t} ns is {:.3} s before the topic's previous message (stamps out of order)",
+                    (latest - t) as f64 * 1e-9
+                ));
+            }
+        }
+        let latest = self.latest[k].map_or(t, |l| l.max(t));
+        let earliest = self.earliest.map_or(t, |e| e.min(t));
+        let last = latest.max(self.latest[1 - k].unwrap_or(latest));
+        if last.saturating_sub(earliest) > MAX_SPAN_NS {
+            return Err(format!(
+                "time {t} ns makes the recording span {:.0} s, more than the {} h a recording may \
+                 (a corrupted stamp)",
+                last.saturating_sub(earliest) as f64 * 1e-9,
+                MAX_SPAN_NS / 3_600_000_000_000
+            ));
+        }
+        self.latest[k] = Some(latest);
+        self.earliest = Some(earliest);
+        Ok(())
     }
 
     /// Registers a topic (with its count, when a metadata file gives it), so
@@ -149,9 +195,9 @@ impl<'o> Collector<'o> {
             check_topic(&self.file, topic, wanted)?;
             info.checked = true;
         }
-        let file = &self.file;
+        let file = self.file.clone();
         let data: Cow<[u8]> = if self.message_zstd {
-            Cow::Owned(unzstd(data, file, "message")?)
+            Cow::Owned(unzstd(data, &file, "message")?)
         } else {
             Cow::Borrowed(data)
         };
@@ -162,15 +208,22 @@ impl<'o> Collector<'o> {
             log_time,
             source,
         };
+        let sample_error = |detail| ImportError::Sample {
+            path: file.clone(),
+            topic: topic.name.to_string(),
+            index,
+            log_time,
+            detail,
+        };
         let log_time = i64::try_from(log_time).unwrap_or(i64::MAX);
-        let pick_time = |stamp: i64| match self.opts.time {
+        let time_source = self.opts.time;
+        let pick_time = |stamp: i64| match time_source {
             TimeSource::Header => stamp,
             TimeSource::Log => log_time,
         };
         if wanted == JOINT_STATE {
             let m = JointStateMsg::decode(&data).map_err(decode_error)?;
             let t = pick_time(m.stamp.0);
-            advance(&mut self.stamps[0], t);
             let q = self
                 .joints
                 .pick(&m, index)
@@ -178,16 +231,19 @@ impl<'o> Collector<'o> {
                     path: file.clone(),
                     detail,
                 })?;
+            self.check_sample(0, t, q.as_deref().unwrap_or_default())
+                .map_err(sample_error)?;
+            advance(&mut self.stamps[0], t);
             if let Some(q) = q {
                 self.out.joints.push((t, q));
             }
         } else {
             let m = ImuMsg::decode(&data).map_err(decode_error)?;
             let t = pick_time(m.stamp.0);
+            let z = imu_row(m.angular_velocity, m.linear_acceleration);
+            self.check_sample(1, t, &z).map_err(sample_error)?;
             advance(&mut self.stamps[1], t);
-            self.out
-                .imu
-                .push((t, imu_row(m.angular_velocity, m.linear_acceleration)));
+            self.out.imu.push((t, z));
         }
         Ok(())
     }

@@ -106,6 +106,21 @@ pub enum ImportError {
         #[source]
         source: cdr::CdrError,
     },
+    /// A decoded sample that cannot be a measurement (a value not finite, a
+    /// stamp zero or negative, stepping back, or spanning more than 24 h).
+    #[error("{}: topic {topic}, message {index} (log time {log_time} ns): {detail}", path.display())]
+    Sample {
+        /// The file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// 0-based index of the message on its topic.
+        index: usize,
+        /// Its log time.
+        log_time: u64,
+        /// What is wrong.
+        detail: String,
+    },
     /// A joint message does not fit the joints chosen.
     #[error("{}: {detail}", path.display())]
     Joints {
@@ -134,6 +149,16 @@ pub enum ImportError {
     #[error(transparent)]
     Session(#[from] SessionError),
 }
+
+/// The longest recording imported: 24 h, in ns (a longer span means a
+/// stamp is corrupted).
+#[cfg(feature = "ros2")]
+pub(crate) const MAX_SPAN_NS: i64 = 24 * 3600 * 1_000_000_000;
+
+/// How far (ns) a topic's stamps may step back: 1 s (more is a corrupted
+/// or zeroed stamp, not publishers' jitter).
+#[cfg(feature = "ros2")]
+pub(crate) const MAX_BACKSTEP_NS: i64 = 1_000_000_000;
 
 /// Joint samples: time (ns), positions (rad).
 pub(crate) type JointRows = Vec<(i64, Vec<f64>)>;

@@ -40,6 +40,22 @@ use super::Streams;
 /// Reads the joint and IMU streams of the recording at `path`: a rosbag2
 /// directory, or one MCAP or sqlite3 file (zstd-compressed or not).
 pub fn read_ros2(path: &Path, opts: &Ros2Options) -> Result<Streams, ImportError> {
+    if let Some(names) = &opts.joint_names {
+        if let Some((i, n)) = names
+            .iter()
+            .enumerate()
+            .find(|(i, n)| names[..*i].contains(n))
+        {
+            return Err(ImportError::Joints {
+                path: path.to_path_buf(),
+                detail: format!(
+                    "joint `{n}` is named twice in the joints to import (names {} and {}): each joint once",
+                    names.iter().position(|x| x == n).unwrap_or(0) + 1,
+                    i + 1
+                ),
+            });
+        }
+    }
     let mut c = Collector::new(path, opts);
     if path.is_dir() {
         read_bag_dir(path, &mut c)?;
@@ -194,6 +210,9 @@ fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
         path: meta_path.clone(),
         source,
     })?;
+    if let Err(e) = check_yaml_nesting(&text) {
+        return Err(bag_error(e));
+    }
     let meta: MetadataFile =
         serde_yaml::from_str(&text).map_err(|e| bag_error(format!("not rosbag2 metadata: {e}")))?;
     let info = meta.rosbag2_bagfile_information;
@@ -264,6 +283,7 @@ fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
     if info.relative_file_paths.is_empty() {
         return Err(bag_error("relative_file_paths lists no file".into()));
     }
+    let mut seen: Vec<PathBuf> = Vec::new();
     for rel in &info.relative_file_paths {
         let mut file = dir.join(rel);
         // Older rosbag2 versions wrote paths relative to the bag's parent.
@@ -278,7 +298,52 @@ fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
                 dir.display()
             )));
         }
+        let canonical = file.canonicalize().unwrap_or_else(|_| file.clone());
+        if seen.contains(&canonical) {
+            return Err(bag_error(format!(
+                "relative_file_paths lists {rel} twice: each storage file once"
+            )));
+        }
+        seen.push(canonical);
         read_storage_file(&file, c)?;
+    }
+    Ok(())
+}
+
+/// The deepest nesting of YAML flow collections (`[`, `{`) or indentation
+/// levels metadata.yaml may have (rosbag2 writes 6).
+const MAX_YAML_DEPTH: usize = 64;
+
+/// Refuses YAML nested deeper than [`MAX_YAML_DEPTH`] before the parser
+/// sees it (its time grows with the square of the depth).
+fn check_yaml_nesting(text: &str) -> Result<(), String> {
+    let (mut depth, mut deepest) = (0usize, 0usize);
+    let mut quote: Option<char> = None;
+    for (line_no, line) in text.lines().enumerate() {
+        let indent = line.len() - line.trim_start_matches([' ', '-']).len();
+        let mut line_deepest = indent / 2;
+        for ch in line.chars() {
+            match (quote, ch) {
+                (Some(q), c) if c == q => quote = None,
+                (Some(_), _) => {}
+                (None, '"' | '\'') => quote = Some(ch),
+                (None, '#') => break,
+                (None, '[' | '{') => {
+                    depth += 1;
+                    line_deepest = line_deepest.max(indent / 2 + depth);
+                }
+                (None, ']' | '}') => depth = depth.saturating_sub(1),
+                _ => {}
+            }
+        }
+        deepest = deepest.max(line_deepest);
+        if deepest > MAX_YAML_DEPTH {
+            return Err(format!(
+                "line {}: nested more than {MAX_YAML_DEPTH} levels deep (rosbag2 metadata \
+                 nests 6): not rosbag2 metadata",
+                line_no + 1
+            ));
+        }
     }
     Ok(())
 }
@@ -319,4 +384,93 @@ fn read_dir_without_metadata(dir: &Path, c: &mut Collector<'_>) -> Result<(), Im
         read_storage_file(f, c)?;
     }
     Ok(())
+}
+
+/// rosbag2 sqlite3 files written here (rusqlite), read through [`read_ros2`].
+#[cfg(all(test, feature = "sqlite3"))]
+mod db3_tests {
+    use super::super::cdr::{encode, ImuMsg, JointStateMsg, Stamp};
+    use super::{read_ros2, Ros2Options, TimeSource};
+
+    const T0: i64 = 1_700_000_000_000_000_000;
+
+    /// A rosbag2 sqlite3 file with 5 joint and 5 IMU messages every 10 ms,
+    /// `tweak` applied to the messages (topic id, timestamp, data) first.
+    fn db3(path: &std::path::Path, tweak: impl Fn(&mut Vec<(i64, i64, Vec<u8>)>)) {
+        let c = rusqlite::Connection::open(path).unwrap();
+        c.execute_batch(
+            "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT, type TEXT, serialization_format TEXT);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, data BLOB);
+             INSERT INTO topics VALUES (1, '/joint_states', 'sensor_msgs/msg/JointState', 'cdr');
+             INSERT INTO topics VALUES (2, '/imu/data_raw', 'sensor_msgs/msg/Imu', 'cdr');",
+        )
+        .unwrap();
+        let mut rows = Vec::new();
+        for k in 0..5 {
+            let t = T0 + k * 10_000_000;
+            let js = encode::joint_state(&JointStateMsg {
+                stamp: Stamp(t),
+                frame_id: String::new(),
+                name: vec![],
+                position: vec![0.1 * k as f64; 6],
+            });
+            let imu = encode::imu(&ImuMsg {
+                stamp: Stamp(t),
+                frame_id: String::new(),
+                angular_velocity: [0.0; 3],
+                linear_acceleration: [0.0, 0.0, 9.81],
+            });
+            rows.push((1, t, js));
+            rows.push((2, t, imu));
+        }
+        tweak(&mut rows);
+        for (topic, t, data) in rows {
+            c.execute(
+                "INSERT INTO messages(topic_id, timestamp, data) VALUES (?1, ?2, ?3)",
+                rusqlite::params![topic, t, data],
+            )
+            .unwrap();
+        }
+    }
+
+    fn read(path: &std::path::Path, time: TimeSource) -> Result<(), String> {
+        let opts = Ros2Options {
+            joints_topic: "/joint_states".into(),
+            imu_topic: "/imu/data_raw".into(),
+            time,
+            joint_names: None,
+            names_required: false,
+        };
+        read_ros2(path, &opts)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+
+    /// Issue 41: a zeroed message and a negative log time are refused.
+    #[test]
+    fn zeroed_messages_and_negative_log_times_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let good = dir.path().join("good.db3");
+        db3(&good, |_| {});
+        read(&good, TimeSource::Header).unwrap();
+        // The IMU message 2's bytes zeroed (its length kept).
+        let zeroed = dir.path().join("zeroed.db3");
+        db3(&zeroed, |rows| rows[5].2.fill(0));
+        let e = read(&zeroed, TimeSource::Header).unwrap_err();
+        assert!(
+            e.contains("topic /imu/data_raw, message 2")
+                && e.contains("time 0 ns: a zeroed or unset stamp"),
+            "{e}"
+        );
+        // A negative log time, read by either time source.
+        let negative = dir.path().join("negative.db3");
+        db3(&negative, |rows| rows[4].1 = -5);
+        for time in [TimeSource::Header, TimeSource::Log] {
+            let e = read(&negative, time).unwrap_err();
+            assert!(
+                e.contains("has timestamp -5 ns: a log time cannot be negative"),
+                "{e}"
+            );
+        }
+    }
 }

@@ -73,7 +73,16 @@ pub(crate) fn feed(db: &Path, shown: &Path, c: &mut Collector<'_>) -> Result<(),
             serialization,
             schema_encoding: None,
         };
-        c.message(&decl, u64::try_from(timestamp).unwrap_or(0), data)?;
+        let Ok(log_time) = u64::try_from(timestamp) else {
+            return Err(ImportError::Bag {
+                path: shown.to_path_buf(),
+                detail: format!(
+                    "a message on {name} has timestamp {timestamp} ns: a log time cannot be \
+                     negative (a corrupted database)"
+                ),
+            });
+        };
+        c.message(&decl, log_time, data)?;
     }
     Ok(())
 }

@@ -44,7 +44,7 @@ use robimu_model::observations::Measurements;
 use robimu_model::{MeasurementModel, ParamLayout, Robot, Spline};
 use robimu_solver as solver;
 use robimu_solver::problem::Problem;
-use robimu_solver::{IterationRecord, LmError, LmSummary};
+use robimu_solver::{IterationRecord, Linearization, LmError, LmSummary};
 
 /// Where a fit starts.
 #[derive(Debug, Clone, Copy)]
@@ -59,6 +59,10 @@ pub enum Start<'a> {
     /// A previous fit whose effects are a prefix of the spec's: its knots,
     /// trajectory, x and θ (the new effect parameters at 0).
     Refit(&'a Fit),
+    /// [`Start::Refit`] with the problem's linearisation there, made
+    /// already (a restriction of the score tests', docs/model.md §4.9): the
+    /// solver's first iteration takes it instead of linearising.
+    RefitAt(&'a Fit, &'a Linearization),
 }
 
 /// What is fitted: a session, the model's effects, the starting point.
@@ -181,7 +185,7 @@ pub fn fit(
     let n_imus = data.n_imus();
     let layout = ParamLayout::with_imus(robot, n_imus);
     let initial = match start {
-        Start::Refit(f) => Initial::of_refit(f, effects, n_imus),
+        Start::Refit(f) | Start::RefitAt(f, _) => Initial::of_refit(f, effects, n_imus),
         Start::Nominal | Start::At(_) => Initial::of_joints(robot, data, opts, &layout, start)?,
     };
     let mut problem = Problem::new(
@@ -201,7 +205,11 @@ pub fn fit(
     if let Some(prev) = initial.theta {
         theta0[..prev.len()].copy_from_slice(prev);
     }
-    let sol = match solver::solve(&mut problem, theta0, &opts.lm, report) {
+    let given = match start {
+        Start::RefitAt(_, at) => Some(at),
+        _ => None,
+    };
+    let sol = match solver::solve_from(&mut problem, theta0, given, &opts.lm, report) {
         Err(LmError::Unidentified { schur, .. }) => {
             let names = unidentified_names(&schur, problem.active(), &layout, opts.use_prior);
             return Err(CalibrateError::Unidentifiable { names });

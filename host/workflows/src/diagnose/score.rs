@@ -14,7 +14,7 @@ use faer::{Mat, Side};
 use robimu_model::effects::{self, CatalogueSetup};
 use robimu_model::observations::Measurements;
 use robimu_model::Robot;
-use robimu_solver::{ArrowMatrix, FactorError};
+use robimu_solver::{ArrowMatrix, FactorError, Linearization};
 
 /// gᵀ A⁻¹ g of the problem with `names` effects at the fit `at`.
 pub(super) fn quadratic_score(
@@ -90,7 +90,7 @@ pub(super) fn scores_at(
         with_problem_at(robot, data, opts, setup, &all, at, |problem, theta| {
             let mut a = problem.new_matrix();
             let mut g = vec![0.0; theta.len()];
-            problem.linearize(theta, &mut a, &mut g)?;
+            let cost = problem.linearize(theta, &mut a, &mut g)?;
             // border unknowns: x_a and θ_at, then the candidates' θ in order
             let own =
                 problem.active().len() + (problem.n_effect_params() - dofs.iter().sum::<usize>());
@@ -113,6 +113,7 @@ pub(super) fn scores_at(
                 own,
                 effects: at.effects.clone(),
                 blocks,
+                linearized: Linearization { a, g, cost },
             };
             Ok((base, stats, set))
         })?;
@@ -152,6 +153,8 @@ pub(super) struct ScoreSet {
     /// Per candidate: its label, its spec when scored (its resolution) and
     /// its border unknowns.
     blocks: Vec<(String, String, Range<usize>)>,
+    /// The linearisation itself, unreduced (for [`Self::start_of`]).
+    linearized: Linearization,
 }
 
 impl ScoreSet {
@@ -164,17 +167,45 @@ impl ScoreSet {
         a: &str,
         b: &str,
     ) -> Option<Result<f64, DiagnoseError>> {
-        let block = |name: &str| {
-            self.blocks
-                .iter()
-                .find(|(n, spec, _)| n == name && *spec == setup.spec(name))
-                .map(|(_, _, r)| r.clone())
-        };
-        let (ra, rb) = (block(a)?, block(b)?);
+        let (ra, rb) = (self.block(setup, a)?, self.block(setup, b)?);
         let keep: Vec<usize> = (0..self.own).chain(ra).chain(rb).collect();
         let mut names = self.effects.clone();
         names.extend([a.to_string(), b.to_string()]);
         Some(self.reduced.score(&keep, &names))
+    }
+}
+
+impl ScoreSet {
+    /// The border unknowns of the candidate `name`, when it was scored here
+    /// at the resolution `setup` has now.
+    fn block(&self, setup: &CatalogueSetup, name: &str) -> Option<Range<usize>> {
+        self.blocks
+            .iter()
+            .find(|(n, spec, _)| n == name && *spec == setup.spec(name))
+            .map(|(_, _, r)| r.clone())
+    }
+
+    /// The linearisation of `at`'s model plus the candidate `name` at `at`
+    /// (its θ at 0): the restriction of this one to its block, which is
+    /// that model's own linearisation there (the effects' columns and
+    /// priors do not depend on which others are present), for the refit
+    /// that adds it ([`crate::calibrate::fit::Start::RefitAt`]). `None`
+    /// when `name` was not scored here at the resolution `setup` has now.
+    pub(super) fn start_of(&self, setup: &CatalogueSetup, name: &str) -> Option<Linearization> {
+        let block = self.block(setup, name)?;
+        let keep: Vec<usize> = (0..self.own).chain(block).collect();
+        let lin = &self.linearized;
+        let nc = lin.a.dims().0;
+        let g = lin.g[..nc]
+            .iter()
+            .copied()
+            .chain(keep.iter().map(|&k| lin.g[nc + k]))
+            .collect();
+        Some(Linearization {
+            a: lin.a.restrict_border(&keep),
+            g,
+            cost: lin.cost,
+        })
     }
 }
 

@@ -147,7 +147,13 @@ fn round(
     progress(&format!("refitting with {}", best.name));
     let mut names = current.effects.clone();
     names.push(best.name.clone());
-    let next = match fit_effects(robot, data, &ropts, setup, &names, Start::Refit(current)) {
+    // its refit starts from the scores' linearisation, restricted to it
+    let given = set.start_of(setup, &best.name);
+    let start = match &given {
+        Some(at) => Start::RefitAt(current, at),
+        None => Start::Refit(current),
+    };
+    let next = match fit_effects(robot, data, &ropts, setup, &names, start) {
         Ok(f) => f,
         // a candidate whose refit fails is not confirmed; the diagnosis goes on
         Err(DiagnoseError::Calibrate(

@@ -11,7 +11,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use robimu_model::effects::resonance::Mode;
-use robimu_model::effects::EffectSet;
 use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
 use robimu_session::result::CalibrationResult;
@@ -96,8 +95,6 @@ pub struct Prepared {
     pub opts: CalibrateOptions,
     /// The checked measurements.
     pub data: Measurements,
-    /// The `effects` set, when given.
-    pub effects: Option<EffectSet>,
     /// The catalogue's set-up for this session (the model's tests and
     /// effects).
     pub setup: CatalogueSetup,
@@ -183,7 +180,7 @@ impl Prepared {
         let opts = options(settings, &session, &robot, &layout, file)?;
         check_measurements(&robot, &data)
             .with_context(|| format!("cannot calibrate the session {}", dir.display()))?;
-        let (effects, setup, effect_labels) = effect_set_of(settings, &robot, &data)?;
+        let (setup, effect_labels) = effect_set_of(settings, &robot, &data)?;
         let choice = noise_choice(
             &settings.noise_model,
             &session,
@@ -197,7 +194,6 @@ impl Prepared {
             layout,
             opts,
             data,
-            effects,
             setup,
             effect_labels,
             model: settings.model,
@@ -401,7 +397,7 @@ impl Prepared {
                 .into_iter()
                 .filter_map(|(j, id)| id.ok().map(|id| (j, id)))
                 .collect();
-        let mut verdict = verdict::verdict(&VerdictInput {
+        let verdict = self.verdict(VerdictInput {
             robot: &self.robot,
             calibration: &cal,
             noise: Some(&noise),
@@ -410,7 +406,6 @@ impl Prepared {
             other_imus: &other_imus,
             model_tests: Some(&tests),
         });
-        verdict.next_steps = next_steps(&verdict, &self.session, &tests);
         let mut result = result_record(&cal, &self.layout, &self.session, self.opts.use_prior);
         result.noise_warning = noise.warning.clone();
         result.verdict = Some(verdict);
@@ -490,20 +485,26 @@ impl Prepared {
         let study =
             repeatability::compare(&ParamLayout::new(&self.robot), full.cal.clone(), results);
         let mut result = full.result.clone();
-        let mut verdict: VerdictRecord = verdict::verdict(&VerdictInput {
+        result.verdict = Some(self.verdict(VerdictInput {
             robot: &self.robot,
             calibration: &study.full,
             noise: Some(&full.noise),
             whiteness: full.whiteness.as_ref(),
             repeatability: Some(&study),
             other_imus: &full.other_imus,
-            model_tests: result.model_tests.as_ref(),
-        });
-        if let Some(tests) = &result.model_tests {
+            model_tests: full.result.model_tests.as_ref(),
+        }));
+        Ok((study, result))
+    }
+
+    /// The verdict on `input` (docs/model.md §8.5), with the next steps
+    /// its checks call for when the model's tests were run.
+    fn verdict(&self, input: VerdictInput<'_>) -> VerdictRecord {
+        let mut verdict = verdict::verdict(&input);
+        if let Some(tests) = input.model_tests {
             verdict.next_steps = next_steps(&verdict, &self.session, tests);
         }
-        result.verdict = Some(verdict);
-        Ok((study, result))
+        verdict
     }
 }
 
@@ -591,13 +592,13 @@ fn options(
 }
 
 /// The catalogue's set-up for the session (the resonance mode checked
-/// when `effects` are given), the `effects` set (`None` without) and its
-/// labels.
+/// when `effects` are given) and the labels of the `effects` set (empty
+/// without), checked to make a set the model can hold.
 fn effect_set_of(
     settings: &Settings,
     robot: &Robot,
     data: &Measurements,
-) -> anyhow::Result<(Option<EffectSet>, CatalogueSetup, Vec<String>)> {
+) -> anyhow::Result<(CatalogueSetup, Vec<String>)> {
     let specs: Vec<&str> = settings
         .effects
         .iter()
@@ -610,15 +611,16 @@ fn effect_set_of(
     };
     let mut setup = setup_with(robot, data, None, mode);
     if specs.is_empty() {
-        return Ok((None, setup, Vec::new()));
+        return Ok((setup, Vec::new()));
     }
     let names = specs
         .iter()
         .map(|s| setup.apply_spec(s))
         .collect::<Result<Vec<_>, _>>()
         .context("--effects")?;
-    let set = effect_set(&setup, &names).context("--effects")?;
-    Ok((Some(set), setup, names))
+    // the set must be one the model can hold (each effect once, …)
+    effect_set(&setup, &names).context("--effects")?;
+    Ok((setup, names))
 }
 
 /// The result record of `cal`, with the session's robot and path.

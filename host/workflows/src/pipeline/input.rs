@@ -139,10 +139,13 @@ pub fn session_robot(session: &Session) -> anyhow::Result<Robot> {
 }
 
 /// Loads the session at `dir` with its robot, checking that they have the
-/// same joint count.
+/// same joint count and that the streams' times pass the check's fatal
+/// tests (a time unit off by 10³ᵏ, no rate, no overlap) before any command
+/// lays a spline over them.
 pub fn load_session(dir: &Path) -> anyhow::Result<(Session, Robot)> {
     let session =
         Session::load(dir).with_context(|| format!("cannot load the session {}", dir.display()))?;
+    check_times(&session)?;
     let robot = session_robot(&session)?;
     if session.joint_count() != robot.dof() {
         bail!(
@@ -155,6 +158,21 @@ pub fn load_session(dir: &Path) -> anyhow::Result<(Session, Robot)> {
         );
     }
     Ok((session, robot))
+}
+
+/// An error when `session`'s times fail the check's fatal stream tests (a
+/// time unit off by 10³ᵏ, no rate, streams that do not overlap): before a
+/// spline is laid over them.
+pub fn check_times(session: &Session) -> anyhow::Result<()> {
+    let report = CheckReport {
+        findings: crate::check::streams::check(session),
+    };
+    fatal_findings(&report, &session.dir).map_err(|e| {
+        anyhow::anyhow!(
+            "{e}; `robimu check {}` lists every finding",
+            session.dir.display()
+        )
+    })
 }
 
 /// An error naming the check's fatal findings for the session in `dir`, if any.

@@ -44,8 +44,8 @@ pub use batch::{calibrate_job, jobs, Job};
 pub use calibration::{write_result, FitEvent, Fitted, Prepared, Settings};
 pub use diagnosis::{diagnose_session, DiagnoseSettings, Diagnosed};
 pub use input::{
-    fatal_findings, is_urdf, load_session, resolve_robot, session_robot, ChainLinks, RobotSource,
-    BUILTIN_ROBOTS,
+    check_times, fatal_findings, is_urdf, load_session, resolve_robot, session_robot, ChainLinks,
+    RobotSource, BUILTIN_ROBOTS,
 };
 pub use model_choice::ModelChoice;
 

@@ -101,6 +101,7 @@ pub fn validate_session(req: &ValidateRequest) -> anyhow::Result<Validation> {
             } else {
                 let m = Session::load(&dir)
                     .with_context(|| format!("--motion: cannot load {}", dir.display()))?;
+                super::check_times(&m)?;
                 m.only_imu(j).with_context(|| {
                     format!(
                         "--imu {j}: the --motion session {} has no IMU {j}",
