@@ -108,3 +108,55 @@ def test_robots_match_cli():
     names = [r.name for r in robimu.robots()]
     out = cli("robots").stdout
     assert names and all(n in out for n in names)
+
+
+def same_files(a, b, names):
+    for f in names:
+        assert (Path(a) / f).read_bytes() == (Path(b) / f).read_bytes(), f
+
+
+def test_plan_matches_cli(tmp_path):
+    p = robimu.plan(tmp_path / "py", duration=10, evaluations=20, seed=2)
+    assert p.path == tmp_path / "py" and "plan" in str(p).lower()
+    c = cli("plan", "--duration", "10", "--evaluations", "20", "--seed", "2", "--out", tmp_path / "cli")
+    assert c.returncode == 0, c.stderr
+    same_files(tmp_path / "py", tmp_path / "cli", ["plan.csv", "spline.toml", "identifiability.csv", "sigma.csv"])
+    # the plan drives a simulation
+    s = robimu.simulate(trajectory=p.path, seed=1)
+    assert s.joint_t[-1] > 9
+
+
+def test_diagnose_matches_cli(sim, tmp_path):
+    d, s = sim
+    dg = robimu.diagnose(s, out=tmp_path / "py", candidates="joint_elasticity,bias_drift")
+    c = cli("diagnose", d, "--out", tmp_path / "cli", "--candidates", "joint_elasticity,bias_drift")
+    assert c.returncode == 0, c.stderr
+    assert without_paths(tmp_path / "py" / "diagnosis.json") == without_paths(tmp_path / "cli" / "diagnosis.json")
+    assert dg.path == tmp_path / "py" / "diagnosis.json"
+    assert dg.data == json.loads((tmp_path / "py" / "diagnosis.json").read_text())
+
+
+@pytest.mark.parametrize("fmt,name", [("urdf", "robot.urdf"), ("toml", "robot.toml"),
+                                      ("kalibr", "imu.yaml"), ("correction", "correction.toml")])
+def test_export_matches_cli(sim, tmp_path, fmt, name):
+    d, s = sim
+    r = robimu.calibrate(s, model="paper", out=tmp_path / "result.json")
+    (tmp_path / "py").mkdir()
+    (tmp_path / "cli").mkdir()
+    wrote = robimu.export(r, fmt, tmp_path / "py" / name)
+    assert tmp_path / "py" / name in wrote
+    c = cli("export", "--calibration", tmp_path / "result.json", "--format", fmt, "--out", tmp_path / "cli" / name)
+    assert c.returncode == 0, c.stderr
+    assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes()
+
+
+def test_export_refuses_a_robot_of_another_structure(sim, tmp_path):
+    d, s = sim
+    r = robimu.calibrate(s, model="paper")
+    with pytest.raises(robimu.RobimuError):
+        robimu.export(r, "ur-kinematics", tmp_path / "k.yaml")
+    c = cli("export", "--calibration", d / "nope.json", "--format", "urdf", "--out", tmp_path / "x.urdf")
+    assert c.returncode == 1
+    with pytest.raises(robimu.BadInputError) as e:
+        robimu.export(d / "nope.json", "urdf", tmp_path / "x.urdf")
+    assert str(e.value).splitlines()[0] in c.stderr
