@@ -52,6 +52,7 @@ pub struct CalibrateFlags {
     /// 1, a linear drift; `robimu diagnose` chooses M and prints the spec).
     #[arg(long, value_delimiter = ',')]
     pub effects: Vec<String>,
+    /// The `resonance` effect's mode.
     #[command(flatten)]
     pub resonance: ResonanceMode,
     /// The IMU noise model: `auto` (white unless the residuals fail the

@@ -43,6 +43,7 @@ pub struct DiagnoseCmd {
     /// every IMU, `imu<j>/NAME` on IMU j alone (docs/model.md §9).
     #[arg(long, value_delimiter = ',')]
     pub candidates: Vec<String>,
+    /// The `resonance` candidate's mode.
     #[command(flatten)]
     pub resonance: crate::args::ResonanceMode,
     /// The IMU noise model of the fits and tests: `auto` (white unless the
@@ -65,20 +66,29 @@ pub struct DiagnoseCmd {
 impl DiagnoseCmd {
     /// Diagnose, print and write.
     pub fn run(self) -> anyhow::Result<()> {
-        let settings = DiagnoseSettings {
-            calibration: self.calibration,
-            out: self.out.unwrap_or_else(|| self.session.join("diagnosis")),
-            alpha: self.alpha,
-            mass_model: self.mass_model,
-            candidates: self.candidates,
-            resonance: self.resonance.unchecked(),
-            noise_model: self.noise_model,
-        };
+        let settings = self.settings();
         let d = crate::flows::diagnose::run(&self.session, &settings)?;
         if let Some(dir) = &self.report {
             let page = crate::flows::calibrate::diagnosis_report(&self.session, dir, d)?;
             println!("wrote {}", page.display());
         }
         Ok(())
+    }
+
+    /// The library's settings of these flags (`--out` defaults to the
+    /// session's `diagnosis` directory).
+    pub fn settings(&self) -> DiagnoseSettings {
+        DiagnoseSettings {
+            calibration: self.calibration.clone(),
+            out: self
+                .out
+                .clone()
+                .unwrap_or_else(|| self.session.join("diagnosis")),
+            alpha: self.alpha,
+            mass_model: self.mass_model.clone(),
+            candidates: self.candidates.clone(),
+            resonance: self.resonance.unchecked(),
+            noise_model: self.noise_model.clone(),
+        }
     }
 }

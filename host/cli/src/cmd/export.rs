@@ -55,6 +55,7 @@ pub struct ExportCmd {
     /// The robot (built-in name, robot TOML or URDF) [default: the result's].
     #[arg(long)]
     pub robot: Option<String>,
+    /// The chain of a URDF robot.
     #[command(flatten)]
     pub links: UrdfLinks,
     /// Kalibr: IMU sample rate, Hz [default: from the result's session imu.csv].
@@ -88,6 +89,14 @@ pub struct ExportCmd {
 impl ExportCmd {
     /// Read the result, build the export, write it.
     pub fn run(self) -> anyhow::Result<()> {
+        self.export(&mut |notice| match notice {
+            Notice::Note(text) => eprintln!("note: {text}"),
+            Notice::Wrote(path) => println!("wrote {}", path.display()),
+        })
+    }
+
+    /// Export, telling `notice` each note and each file written.
+    pub fn export(self, notice: &mut dyn FnMut(Notice)) -> anyhow::Result<()> {
         let out = output_path(Some(&self.out), self.out.clone())?;
         let result = CalibrationResult::read(&self.calibration)?;
         let (spec, spec_base) = robot_spec(&result, &self.calibration, self.robot.as_deref())?;
@@ -114,9 +123,6 @@ impl ExportCmd {
             noise: self.noise,
             out,
         };
-        export(&request, &result, &robot, &mut |notice| match notice {
-            Notice::Note(text) => eprintln!("note: {text}"),
-            Notice::Wrote(path) => println!("wrote {}", path.display()),
-        })
+        export(&request, &result, &robot, notice)
     }
 }

@@ -79,6 +79,13 @@ pub struct PlanCmd {
 impl PlanCmd {
     /// Plan, write and print the summary.
     pub fn run(self) -> anyhow::Result<()> {
+        let summary = self.plan()?;
+        write!(std::io::stdout().lock(), "{summary}")?;
+        Ok(())
+    }
+
+    /// Plan and write the plan's files; returns the summary `run` prints.
+    pub fn plan(&self) -> anyhow::Result<String> {
         if !(self.rate.is_finite() && self.rate > 0.0 && self.rate <= 100_000.0) {
             bail!("--rate must be in (0, 100000] Hz (got {})", self.rate);
         }
@@ -126,7 +133,6 @@ impl PlanCmd {
             posterior: &posterior,
             noise: (&noise, &self.noise_model),
         };
-        write!(std::io::stdout().lock(), "{summary}")?;
-        Ok(())
+        Ok(summary.to_string())
     }
 }

@@ -4,7 +4,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::bail;
-use robimu_workflows::pipeline::simulate::{check_rates, simulate_session, SessionSpec};
+use robimu_workflows::pipeline::simulate::{check_rates, simulate_session, SessionSpec, Simulated};
 
 use crate::args::UrdfLinks;
 use crate::input::{place_imus, resolve_robot_with};
@@ -21,6 +21,7 @@ pub struct SimulateCmd {
     /// TOML robot description or a URDF.
     #[arg(long, default_value = "aubo_i5")]
     pub robot: String,
+    /// The chain of a URDF robot.
     #[command(flatten)]
     pub links: UrdfLinks,
     /// Length of the trajectory, s (with --trajectory: the plan's length).
@@ -90,6 +91,7 @@ pub struct SimulateCmd {
     /// `--effect temperature_bias=M` the biases follow the unrounded curve.
     #[arg(long, value_name = "START,END,TAU")]
     pub temperature: Option<String>,
+    /// The `resonance` effect's mode.
     #[command(flatten)]
     pub resonance: crate::args::ResonanceMode,
     /// IMU noise: `white` (default), `ar1:accel=TAU_MS[,gyro=TAU_MS][,motion=C]`
@@ -115,6 +117,14 @@ pub struct SimulateCmd {
 impl SimulateCmd {
     /// Simulate and write the session, and say what was written.
     pub fn run(self) -> anyhow::Result<()> {
+        let s = self.simulate()?;
+        writeln!(std::io::stdout().lock(), "{s}")?;
+        Ok(())
+    }
+
+    /// Simulate and write the session; returns what was written (its text
+    /// is what `run` prints).
+    pub fn simulate(&self) -> anyhow::Result<Simulated> {
         check_rates(self.duration, self.rate, self.joint_rate)?;
         let (robot, source) = resolve_robot_with(&self.robot, None, &self.links)?;
         if !(1..=64).contains(&self.imus) {
@@ -142,7 +152,6 @@ impl SimulateCmd {
             imus: self.imus,
             imu_position: self.imu_position.clone(),
         })?;
-        writeln!(std::io::stdout().lock(), "{s}")?;
-        Ok(())
+        Ok(s)
     }
 }

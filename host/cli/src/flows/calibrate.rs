@@ -80,27 +80,8 @@ impl CalibrateRun<'_> {
         let Fitted {
             cal, noise, result, ..
         } = fitted;
-        if let Some(v) = &result.verdict {
-            write!(out, "{}", VerdictText(v))?;
-        }
-        write!(
-            out,
-            "{}",
-            ModelSummary {
-                result,
-                fit: &fitted.fit
-            }
-        )?;
-        if let Some(pose) = &result.pose_accuracy {
-            write!(out, "{}", PoseAccuracyText(pose))?;
-        }
         let chosen = self.flags.knot_spacing.is_none();
-        write!(out, "{}", FitReport::brief(cal, chosen))?;
-        write!(
-            out,
-            "{}",
-            NoiseSummary::new(&p.choice, noise, &cal.noise_model)
-        )?;
+        write!(out, "{}", fit_summary(p, fitted, chosen))?;
         if let Some(w) = &noise.warning {
             eprintln!("warning: {w}");
         }
@@ -117,6 +98,30 @@ impl CalibrateRun<'_> {
         );
         Ok(())
     }
+}
+
+/// The verdict, the fit's summary, the pose accuracy and the noise model
+/// as `robimu calibrate` prints them above the parameter table
+/// (`knot_chosen`: the knot spacing was chosen from the data).
+pub fn fit_summary(p: &Prepared, fitted: &Fitted, knot_chosen: bool) -> String {
+    let Fitted {
+        cal, noise, result, ..
+    } = fitted;
+    let mut text = String::new();
+    if let Some(v) = &result.verdict {
+        text += &VerdictText(v).to_string();
+    }
+    text += &ModelSummary {
+        result,
+        fit: &fitted.fit,
+    }
+    .to_string();
+    if let Some(pose) = &result.pose_accuracy {
+        text += &PoseAccuracyText(pose).to_string();
+    }
+    text += &FitReport::brief(cal, knot_chosen).to_string();
+    text += &NoiseSummary::new(&p.choice, noise, &cal.noise_model).to_string();
+    text
 }
 
 /// The fit with a spinner and the solver's iterations on stderr.
