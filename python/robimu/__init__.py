@@ -759,7 +759,7 @@ def diagnose(
 
 # -- export and robots ------------------------------------------------------
 
-EXPORT_FORMATS = ("urdf", "toml", "kalibr", "correction", "ur-kinematics")
+EXPORT_FORMATS = ("urdf", "toml", "kalibr", "correction", "ur-kinematics", "ros2-control")
 """``export``'s formats (``robimu export --format``)."""
 
 

@@ -320,3 +320,82 @@ fn a_built_in_robots_calibration_exports_as_a_urdf_with_its_kinematics() {
         );
     }
 }
+
+/// `export --format ros2-control` of a UR5e calibration: read by an
+/// independent reader (`tests/ros2_control_offsets.py`: ElementTree for
+/// the transmissions as ros2_control's SimpleTransmission applies them,
+/// joint = actuator / reduction + offset; numpy FK of the nominal and the
+/// calibrated URDFs) on its own 200 configurations, the offsets bring the
+/// nominal flange closer to the calibrated one, the opposite sign takes it
+/// further, and both means agree with the export's note to 10 %.
+#[test]
+fn ros2_control_offsets_do_what_the_export_says() {
+    use rand::{Rng, SeedableRng};
+    use robimu_model::ParamLayout;
+    let probe = Command::new("python3")
+        .args(["-c", "import numpy"])
+        .output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        eprintln!("SKIPPED: python3 with numpy is needed (pip install numpy)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let robot = Robot::builtin("ur5e").unwrap();
+    let layout = ParamLayout::new(&robot);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(40);
+    let result = dir.path().join("ur5e.json");
+    common::write_result_json(&result, "ur5e", &layout, |p| {
+        p.nominal + p.sigma * rng.random_range(-2.0..2.0)
+    });
+    let [nominal, calibrated, offsets] =
+        ["nominal.urdf", "calibrated.urdf", "offsets.xml"].map(|f| dir.path().join(f));
+    robimu_ok(["robots", "show", "ur5e", "--urdf", s(&nominal)]);
+    robimu_ok([
+        "export",
+        "--calibration",
+        s(&result),
+        "--format",
+        "urdf",
+        "--out",
+        s(&calibrated),
+    ]);
+    let run = robimu_ok([
+        "export",
+        "--calibration",
+        s(&result),
+        "--format",
+        "ros2-control",
+        "--out",
+        s(&offsets),
+    ]);
+    // the note: "... nominal A mm, ...; with these offsets B mm, ..."
+    let number_after = |text: &str, key: &str| -> f64 {
+        let rest = &text[text.find(key).unwrap_or_else(|| panic!("{key} in {text}")) + key.len()..];
+        rest.split_whitespace().next().unwrap().parse().unwrap()
+    };
+    let said_nominal = number_after(&run.stderr, "limits: nominal ");
+    let said_with = number_after(&run.stderr, "with these offsets ");
+    let out = Command::new("python3")
+        .arg(root().join("tests/ros2_control_offsets.py"))
+        .args([s(&nominal), s(&calibrated), s(&offsets), "base", "tool0"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let get = |key: &str| number_after(&text, &format!("{key}="));
+    let (none, plus, minus) = (get("nominal"), get("plus"), get("minus"));
+    eprintln!("export: {said_nominal} → {said_with} mm; independent: {none} → {plus} mm (opposite sign {minus} mm)");
+    assert!(plus < none && plus < minus, "{text}");
+    assert!(
+        (none / said_nominal - 1.0).abs() < 0.1,
+        "{none} vs {said_nominal}"
+    );
+    assert!(
+        (plus / said_with - 1.0).abs() < 0.1,
+        "{plus} vs {said_with}"
+    );
+}

@@ -17,11 +17,13 @@ use robimu_session::export::imu::{
     KalibrOptions, KalibrPlacement, DEFAULT_RANDOM_WALK,
 };
 use robimu_session::export::robot::{corrected_toml, corrected_urdf};
+use robimu_session::export::ros2_control::ros2_control_offsets;
 use robimu_session::export::ur::calibrated_ur_yaml;
 use robimu_session::export::{calibrated_params, imu_effects};
 use robimu_session::result::CalibrationResult;
 use robimu_session::Session;
 
+use crate::joint_offsets::joint_offsets;
 use crate::pipeline::{is_urdf, ChainLinks};
 
 /// What [`export`] writes.
@@ -41,6 +43,10 @@ pub enum ExportFormat {
     /// ROS 2 description's `kinematics_params`; needs a robot of UR's
     /// structure).
     UrKinematics,
+    /// Joint zero offsets for ros2_control (a `SimpleTransmission` per
+    /// joint; [`crate::joint_offsets`]): the part of the calibration that
+    /// offsets of the joint readings carry.
+    Ros2Control,
 }
 
 /// The `hash` of a UR kinematics export whose robot names no factory
@@ -115,6 +121,7 @@ pub fn export(
         ExportFormat::Kalibr => "Kalibr's imu.yaml",
         ExportFormat::Correction => "the correction file",
         ExportFormat::UrKinematics => "UR's kinematics YAML",
+        ExportFormat::Ros2Control => "ros2_control's joint offsets",
     };
     if let Some(note) = result.effects_not_carried(format) {
         notify(Notice::Note(note));
@@ -186,6 +193,61 @@ pub fn export(
     write_file(&req.out, &text, notify)
 }
 
+/// The ros2_control offsets of `params` for `robot`, with what they carry
+/// in the file's comment and in a note.
+fn ros2_control(
+    robot: &Robot,
+    params: &ModelParams,
+    notify: &mut dyn FnMut(Notice),
+) -> anyhow::Result<String> {
+    let fit = joint_offsets(robot, params).context("--format ros2-control")?;
+    let d = robot.description();
+    let names: Vec<String> = (0..robot.dof())
+        .map(|i| {
+            d.joint_names
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| format!("joint{}", i + 1))
+        })
+        .collect();
+    if d.joint_names.is_empty() {
+        notify(Notice::Note(format!(
+            "robot `{}` names no joints: the transmissions name them joint1…joint{} (rename them to your description's)",
+            robot.name(),
+            robot.dof()
+        )));
+    }
+    let (a, b) = (&fit.nominal, &fit.with_offsets);
+    let carried = format!(
+        "flange error against the calibrated model over {} configurations within the joint limits: nominal {:.3} mm, {:.4}° mean ({:.3} mm, {:.4}° 95th percentile); with these offsets {:.3} mm, {:.4}° mean ({:.3} mm, {:.4}° 95th percentile)",
+        crate::pose_accuracy::CONFIGURATIONS,
+        a.position_mean_mm, a.rotation_mean_deg, a.position_p95_mm, a.rotation_p95_deg,
+        b.position_mean_mm, b.rotation_mean_deg, b.position_p95_mm, b.rotation_p95_deg,
+    );
+    notify(Notice::Note(format!(
+        "ros2_control's offsets carry the joint zeros only: {carried}; the rest (link lengths and axis tilts, the IMU, effects such as joint elasticity) needs the corrected URDF (--format urdf)"
+    )));
+    let comment = vec![
+        format!(
+            "robimu: joint zero offsets of a calibration of `{}` for ros2_control.",
+            robot.name()
+        ),
+        "Each is a transmission_interface/SimpleTransmission: joint position =".into(),
+        "actuator position / mechanical_reduction + offset (rad), so the nominal".into(),
+        "description sees the reading plus the offset. Copy the <transmission>".into(),
+        "elements into your robot's <ros2_control> tag.".into(),
+        format!("What they carry: {carried}."),
+        "What they cannot: link lengths and axis tilts (the corrected URDF: robimu export, format urdf),".into(),
+        "the IMU, and effects such as joint elasticity.".into(),
+    ];
+    Ok(ros2_control_offsets(
+        robot.name(),
+        &names,
+        &fit.offsets,
+        &comment,
+    ))
+}
+
 /// The `rostopic` of each of `k` IMUs: the request's (one per IMU, or one
 /// with `imu`), else `/imu<j>`.
 fn rostopics(req: &ExportRequest, k: usize) -> anyhow::Result<Vec<String>> {
@@ -255,6 +317,7 @@ impl Exporter<'_> {
                 text
             }
             ExportFormat::Correction => Correction::new(params)?.to_toml()?,
+            ExportFormat::Ros2Control => ros2_control(self.robot, params, notify)?,
             ExportFormat::Urdf => {
                 let path = match &req.spec_base {
                     Some(b) if Path::new(spec).is_relative() => b.join(spec),

@@ -97,6 +97,11 @@ impl Workspace {
         }
     }
 
+    /// The configurations (joint angles, rad).
+    pub(crate) fn configurations(&self) -> &[Vec<f64>] {
+        &self.configurations
+    }
+
     /// The number of configurations.
     pub(crate) fn len(&self) -> usize {
         self.configurations.len()
@@ -332,7 +337,10 @@ fn summary(e: &Errors) -> PoseErrorStats {
 
 /// Mean and 95th percentile of position (m) and rotation (rad) errors, in
 /// mm and degrees.
-fn stats_of(p: impl Iterator<Item = f64>, r: impl Iterator<Item = f64>) -> PoseErrorStats {
+pub(crate) fn stats_of(
+    p: impl Iterator<Item = f64>,
+    r: impl Iterator<Item = f64>,
+) -> PoseErrorStats {
     let (p, r): (Vec<f64>, Vec<f64>) = (p.collect(), r.collect());
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     PoseErrorStats {

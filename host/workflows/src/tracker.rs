@@ -147,9 +147,11 @@ pub(crate) fn flange_eps(layout: &ParamLayout, x: &[f64]) -> Result<Vec<[f64; 6]
     Ok(eps)
 }
 
-/// Flange pose F(q; ε) in the base frame (eq. (3)).
+/// Flange pose F(q; ε) in the base frame (eq. (3)), over the robot's whole
+/// chain: each joint's DH part and its fixed transform C_i (the catalogue's
+/// arms are described by their makers' joint origins, with no DH part).
 pub(crate) fn flange_pose(robot: &Robot, eps: &[[f64; 6]], q: &[f64]) -> Iso {
-    forward_kinematics(robot.links(), eps, q)
+    forward_kinematics(robot.chain(), eps, q)
 }
 
 /// The constant transforms between tracker, base, flange and marker.

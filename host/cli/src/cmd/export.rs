@@ -27,6 +27,12 @@ pub enum ExportFormat {
     /// to the UR ROS 2 description as `kinematics_params` (needs a UR robot:
     /// a built-in `ur*`, or one read with `robots show --ur-kinematics`).
     UrKinematics,
+    /// Joint zero offsets for ros2_control: a `SimpleTransmission` per joint
+    /// (joint = actuator + offset) to merge into the robot's
+    /// `<ros2_control>` tag; the offsets that bring the nominal flange pose
+    /// closest to the calibrated one over the workspace, with what they
+    /// leave (the rest needs the corrected URDF).
+    Ros2Control,
 }
 
 /// Export a calibration for other tools: the corrected robot (URDF or
@@ -109,6 +115,7 @@ impl ExportCmd {
                 ExportFormat::Kalibr => Format::Kalibr,
                 ExportFormat::Correction => Format::Correction,
                 ExportFormat::UrKinematics => Format::UrKinematics,
+                ExportFormat::Ros2Control => Format::Ros2Control,
             },
             spec,
             spec_base,

@@ -10,6 +10,7 @@
 
 pub mod imu;
 pub mod robot;
+pub mod ros2_control;
 pub mod ur;
 pub mod ur_conf;
 
