@@ -6,26 +6,30 @@
 //! ```
 //!
 //! with z_{j−1}, p_{j−1} the axis and origin of joint j and c_l the centre of
-//! mass of link l (nominal DH kinematics, docs/model.md §1; frame l is the DH frame
-//! after T_l). A TOML file gives one:
+//! mass of link l (the nominal chain, docs/model.md §1: frame l is the frame
+//! after T_l and the link's fixed transform C_l, if any — for a robot
+//! described by its maker's joint origins, the next joint's frame). A TOML
+//! file gives one:
 //!
 //! ```text
 //! [[link]]            # one table per link, base to flange
 //! mass = 6.0          # kg
-//! com = [-0.2, 0, 0]  # m, in the link's DH frame
+//! com = [-0.2, 0, 0]  # m, in the link's frame
 //! ```
 
 use serde::Deserialize;
 
 use crate::geom::{add, cross, dot, mul_mv, sub, V3};
-use crate::kinematics::link_transform;
-use crate::robot::DhLink;
+use crate::kinematics::LinkTransform;
+use crate::robot::{ChainLink, DhLink};
 use crate::{geom::Iso, Robot, MAX_JOINTS};
 
 /// Link masses and centres of mass (see the module doc).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MassModel {
     links: Vec<DhLink>,
+    /// Per link: its fixed transform C_l, when not the identity.
+    fixed: Vec<Option<Iso>>,
     /// Per link: (sin α, cos α) of its twist (for [`Self::link_transform`]).
     twist: Vec<(f64, f64)>,
     mass: Vec<f64>,
@@ -65,14 +69,16 @@ struct LinkMass {
 }
 
 impl MassModel {
-    /// The model of `links` with these masses and centres of mass.
-    fn of_links(links: Vec<DhLink>, mass: Vec<f64>, com: Vec<V3>) -> Self {
+    /// The model of the chain `links` with these masses and centres of mass.
+    fn of_links(chain: &[ChainLink], mass: Vec<f64>, com: Vec<V3>) -> Self {
+        let links: Vec<DhLink> = chain.iter().map(|l| l.dh).collect();
         let twist = links
             .iter()
             .map(|l| (l.alpha.sin(), l.alpha.cos()))
             .collect();
         Self {
             links,
+            fixed: chain.iter().map(|l| l.fixed).collect(),
             twist,
             mass,
             com,
@@ -91,7 +97,7 @@ impl MassModel {
         if let Some(m) = mass.iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
             return Err(MassError::Invalid(format!("link mass {m} kg is not ≥ 0")));
         }
-        Ok(Self::of_links(robot.links().to_vec(), mass, com))
+        Ok(Self::of_links(robot.chain(), mass, com))
     }
 
     /// A built-in estimate for the AUBO i5 (24 kg arm; masses and centres of
@@ -111,7 +117,7 @@ impl MassModel {
     }
 
     /// The built-in estimate for `robot` when there is one (AUBO i5), else
-    /// a uniform 2 kg per link at the link's DH origin.
+    /// a uniform 2 kg per link at the link's frame origin.
     pub fn for_robot(robot: &Robot) -> Self {
         if robot.name() == "aubo_i5" && robot.dof() == 6 {
             if let Ok(m) = Self::aubo_i5(robot) {
@@ -119,7 +125,7 @@ impl MassModel {
             }
         }
         let n = robot.dof();
-        Self::of_links(robot.links().to_vec(), vec![2.0; n], vec![[0.0; 3]; n])
+        Self::of_links(robot.chain(), vec![2.0; n], vec![[0.0; 3]; n])
     }
 
     /// Parse a TOML mass model for `robot`.
@@ -183,19 +189,23 @@ impl MassModel {
         out
     }
 
-    /// The DH transform of link `l` at angle `q`: [`link_transform`] with
-    /// the twist's sine and cosine computed once ([`Self::twist`]).
+    /// The transform of link `l` at angle `q`, T_l(q)·C_l: the DH part
+    /// with the twist's sine and cosine computed once ([`Self::twist`]).
     fn link_transform(&self, l: usize, q: f64) -> Iso {
         let dh = &self.links[l];
         let (st, ct) = crate::trig::sin_cos(q + dh.theta0);
         let (sa, ca) = self.twist[l];
-        Iso {
+        let t = Iso {
             r: [
                 [ct, -(st * ca), st * sa],
                 [st, ct * ca, -(ct * sa)],
                 [0.0, sa, ca],
             ],
             p: [ct * dh.a, st * dh.a, dh.d],
+        };
+        match &self.fixed[l] {
+            None => t,
+            Some(c) => t.compose(c),
         }
     }
 }
@@ -206,7 +216,11 @@ impl MassModel {
         let mut f = Iso::identity();
         let mut v = 0.0;
         for (l, (dh, &qi)) in self.links.iter().zip(q).enumerate() {
-            f = f.compose(&link_transform(dh, qi));
+            let link = ChainLink {
+                dh: *dh,
+                fixed: self.fixed[l],
+            };
+            f = f.compose(&link.transform(qi));
             let c = add(f.p, mul_mv(&f.r, self.com[l]));
             v += self.mass[l] * g0 * c[2];
         }

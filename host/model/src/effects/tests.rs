@@ -343,3 +343,43 @@ fn per_sensor_effects_are_labelled_per_imu_and_shared_ones_once() {
     assert_eq!(set.imu_map(0), (24..31).collect::<Vec<_>>());
     assert_eq!(set.imu_map(1), (0..30).collect::<Vec<_>>());
 }
+
+/// The catalogue's arms are described by their makers' joint origins (C_i,
+/// no DH part): the mass model takes the whole chain (regression: it once
+/// took the DH part alone, which put every link at the base and gave a
+/// UR5e no gravity torque). τ = −∂V/∂q on each, and a stretched-out UR5e
+/// (q = 0: the upper arm and forearm horizontal, 0.425 + 0.3922 m) with the
+/// uniform 2 kg per link carries at its shoulder the moment of the links'
+/// weights about the shoulder axis: 2 kg · g0 · (0.425 + 4 · 0.8172) m.
+#[test]
+fn gravity_torques_of_the_catalogues_chains() {
+    let g0 = 9.81;
+    for name in ["ur5e", "fr3", "iiwa14"] {
+        let robot = Robot::builtin(name).unwrap();
+        let mass = MassModel::for_robot(&robot);
+        let n = robot.dof();
+        let q: Vec<f64> = (0..n).map(|j| 0.3 - 0.17 * j as f64).collect();
+        let tau = mass.gravity_torques(&q, g0);
+        for j in 0..n {
+            let h = 1e-6;
+            let (mut qp, mut qm) = (q.clone(), q.clone());
+            qp[j] += h;
+            qm[j] -= h;
+            let fd = -(mass.potential_energy(&qp, g0) - mass.potential_energy(&qm, g0)) / (2.0 * h);
+            assert!(
+                (fd - tau[j]).abs() < 1e-6 * (1.0 + fd.abs()),
+                "{name} joint {j}: {fd} vs {}",
+                tau[j]
+            );
+        }
+        assert!(tau.iter().any(|t| t.abs() > 1.0), "{name}: {tau:?}");
+    }
+    let ur = MassModel::for_robot(&Robot::builtin("ur5e").unwrap());
+    let tau = ur.gravity_torques(&[0.0; 6], g0);
+    let expected = 2.0 * g0 * (0.425 + 4.0 * (0.425 + 0.3922));
+    assert!(
+        (tau[1].abs() - expected).abs() < 1e-3 * expected,
+        "{} vs {expected}",
+        tau[1]
+    );
+}
