@@ -636,6 +636,13 @@ pub struct SessionSink {
     boards: Vec<BoardSink>,
     /// Whether `joints.csv` has the controller clock's columns.
     controller_clock: bool,
+    /// Per IMU, the last session time written: the provisional mapping
+    /// moves as the clock fit is refined (by tens of ms while it is young
+    /// or when the host is loaded), and rows are written non-decreasing so
+    /// that what is on disk stays a readable session should the recording
+    /// be killed; the final mapping ([`repair::remap_imu_times`]) places
+    /// every row again from `t_device`.
+    last_written: Vec<f64>,
     /// The counters so far.
     pub progress: RecordProgress,
 }
@@ -715,6 +722,7 @@ impl SessionSink {
             writer,
             boards,
             controller_clock,
+            last_written: vec![f64::NEG_INFINITY; first_imu],
             progress,
         })
     }
@@ -831,9 +839,11 @@ impl SessionSink {
                     None => continue,
                 };
                 for w in bs.waiting.remove(&segment).unwrap_or_default() {
+                    let t = fit.to_session(w.device).max(self.last_written[w.imu]);
+                    self.last_written[w.imu] = t;
                     self.writer.imu_extra_of(
                         w.imu,
-                        fit.to_session(w.device),
+                        t,
                         &w.z,
                         &[w.device, f64::from(segment), f64::from(w.seq), w.temp],
                     )?;
@@ -1098,5 +1108,74 @@ mod alias_tests {
         let t = device_table(&info, "virtual");
         assert_eq!(t["alias_margin_hz"].as_float(), Some(2.5));
         assert_eq!(t["sample_rate_hz"].as_integer(), Some(120));
+    }
+}
+
+#[cfg(test)]
+mod sink_tests {
+    use super::*;
+    use robimu_session::Session;
+
+    fn sample(device: f64, seq: u32) -> ImuEvent {
+        ImuEvent::Sample {
+            sensor: 0,
+            segment: 0,
+            device,
+            seq,
+            z: [0.0, 0.0, 9.81, 0.0, 0.0, 0.0],
+            temp: 25.0,
+        }
+    }
+
+    fn echo(host_send: f64, rtt: f64, device: f64) -> ImuEvent {
+        ImuEvent::Echo {
+            segment: 0,
+            echo: clock_fit::Echo {
+                host_send,
+                host_recv: host_send + rtt,
+                device,
+            },
+        }
+    }
+
+    /// A young clock fit that moves back (a loaded host's late echoes, then
+    /// prompt ones) would map later samples before earlier ones: the rows on
+    /// disk stay non-decreasing, so a recording killed then is a session
+    /// that loads (regression: `time goes backwards` after SIGKILL under
+    /// load).
+    #[test]
+    fn provisional_times_never_go_backwards() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("s");
+        let mut sink = SessionSink::create(&out, &SessionMeta::new("aubo_i5"), 6).unwrap();
+        // device = host time + 0.1 s, but the first echoes came back 80 ms
+        // late (a fit that maps 40 ms late), the later ones promptly
+        for k in 0..3 {
+            let t = 0.1 * f64::from(k);
+            sink.handle(echo(t, 0.08, t + 0.1)).unwrap();
+        }
+        let mut seq = 0;
+        let mut next = |sink: &mut SessionSink, from: f64, to: f64| {
+            let mut d = from;
+            while d < to {
+                sink.handle(sample(d, seq)).unwrap();
+                seq += 1;
+                d += 1.0 / 120.0;
+            }
+        };
+        next(&mut sink, 0.35, 0.6);
+        for k in 3..12 {
+            let t = 0.1 * f64::from(k);
+            sink.handle(echo(t, 0.001, t + 0.1)).unwrap();
+        }
+        next(&mut sink, 0.6, 1.0);
+        for j in 0..6 {
+            sink.joint(0.05 * f64::from(j), &[0.0; 6]).unwrap();
+        }
+        sink.flush().unwrap();
+        // read as a killed recording leaves it (no final remap)
+        let s = Session::load(&out).unwrap();
+        let t = &s.measurements().imu_t;
+        assert!(t.len() > 50 && t.windows(2).all(|w| w[1] >= w[0]), "{t:?}");
     }
 }
