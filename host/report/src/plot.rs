@@ -404,6 +404,28 @@ pub(crate) fn banded_line_panels(
     write_png_svg(stem, size, &Lines(title, panels, rows, columns))
 }
 
+/// The x and y ranges (x0, x1, y0, y1) of finite `points`, widened to a
+/// unit range around the data where they have none (one point, or none).
+fn data_range(points: impl Iterator<Item = (f64, f64)>) -> (f64, f64, f64, f64) {
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for (x, y) in points {
+        (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+    }
+    if !(x0.is_finite() && x1 > x0) {
+        (x0, x1) = (x0.min(0.0), x0.max(0.0) + 1.0);
+    }
+    if !(y0.is_finite() && y1 > y0) {
+        let c = if y0.is_finite() { y0 } else { 0.0 };
+        (y0, y1) = (c - 1.0, c + 1.0);
+    }
+    (x0, x1, y0, y1)
+}
+
 fn draw_lines<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     title: &str,
@@ -428,30 +450,16 @@ where
                     .collect()
             })
             .unwrap_or_default();
-        let (mut x0, mut x1, mut y0, mut y1) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        );
         let band_ends = band_points
             .iter()
             .flat_map(|&(x, lo, hi)| [(x, lo), (x, hi)]);
-        for (x, y) in panel
-            .series
-            .iter()
-            .flat_map(|(_, s)| s.iter().copied().filter(usable))
-            .chain(band_ends)
-        {
-            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
-        }
-        if !(x0.is_finite() && x1 > x0) {
-            (x0, x1) = (x0.min(0.0), x0.max(0.0) + 1.0);
-        }
-        if !(y0.is_finite() && y1 > y0) {
-            let c = if y0.is_finite() { y0 } else { 0.0 };
-            (y0, y1) = (c - 1.0, c + 1.0);
-        }
+        let (x0, x1, y0, y1) = data_range(
+            panel
+                .series
+                .iter()
+                .flat_map(|(_, s)| s.iter().copied().filter(usable))
+                .chain(band_ends),
+        );
         let pad = 0.05 * (y1 - y0);
         // room for the legend above the curves
         let top = if band.is_some() { 0.35 } else { 0.05 } * (y1 - y0);
