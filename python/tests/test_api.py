@@ -136,23 +136,31 @@ def test_diagnose_matches_cli(sim, tmp_path):
     assert dg.data == json.loads((tmp_path / "py" / "diagnosis.json").read_text())
 
 
-@pytest.mark.parametrize("fmt,name", [("urdf", "robot.urdf"), ("toml", "robot.toml"),
-                                      ("kalibr", "imu.yaml"), ("correction", "correction.toml")])
-def test_export_matches_cli(sim, tmp_path, fmt, name):
+@pytest.fixture(scope="module")
+def paper_result(sim, tmp_path_factory):
+    """One calibration (the paper's model) of the module's session, saved."""
     d, s = sim
-    r = robimu.calibrate(s, model="paper", out=tmp_path / "result.json")
+    path = tmp_path_factory.mktemp("paper") / "result.json"
+    return robimu.calibrate(s, model="paper", out=path), path
+
+
+@pytest.mark.parametrize("fmt,name", [("urdf", "robot.urdf"), ("toml", "robot.toml"),
+                                      ("kalibr", "imu.yaml"), ("correction", "correction.toml"),
+                                      ("ros2-control", "offsets.xml")])
+def test_export_matches_cli(paper_result, tmp_path, fmt, name):
+    r, result = paper_result
     (tmp_path / "py").mkdir()
     (tmp_path / "cli").mkdir()
     wrote = robimu.export(r, fmt, tmp_path / "py" / name)
     assert tmp_path / "py" / name in wrote
-    c = cli("export", "--calibration", tmp_path / "result.json", "--format", fmt, "--out", tmp_path / "cli" / name)
+    c = cli("export", "--calibration", result, "--format", fmt, "--out", tmp_path / "cli" / name)
     assert c.returncode == 0, c.stderr
     assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes()
 
 
-def test_export_refuses_a_robot_of_another_structure(sim, tmp_path):
+def test_export_refuses_a_robot_of_another_structure(sim, paper_result, tmp_path):
     d, s = sim
-    r = robimu.calibrate(s, model="paper")
+    r, _ = paper_result
     with pytest.raises(robimu.RobimuError):
         robimu.export(r, "ur-kinematics", tmp_path / "k.yaml")
     c = cli("export", "--calibration", d / "nope.json", "--format", "urdf", "--out", tmp_path / "x.urdf")
