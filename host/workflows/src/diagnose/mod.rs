@@ -512,6 +512,7 @@ fn with_noise_of(opts: &CalibrateOptions, f: &Fit) -> CalibrateOptions {
 fn with_noise(opts: &CalibrateOptions, noise: Option<NoiseModel>) -> CalibrateOptions {
     CalibrateOptions {
         noise,
+        imu_noise: Vec::new(),
         ..opts.clone()
     }
 }
@@ -609,23 +610,24 @@ fn settle_noise(
     (id_opts, settle): (&IdOptions, &Settle),
     progress: &mut impl FnMut(&str),
 ) -> Result<(Fit, usize), String> {
+    // IMU 0's residuals choose the one model of every IMU (docs/model.md §9)
     let s = noise_choice::settle_noise(
         start.clone(),
-        id,
+        vec![id],
         settle,
-        |current, want| {
+        |current, mut want| {
             progress("refitting with the identified noise model");
             fit_effects(
                 robot,
                 data,
-                &with_noise(opts, want),
+                &with_noise(opts, want.pop().flatten()),
                 setup,
                 &current.effects,
                 Start::Refit(current),
             )
             .map_err(|e| e.to_string())
         },
-        |f| identify_at(robot, data, opts, setup, f, id_opts),
+        |f| identify_at(robot, data, opts, setup, f, id_opts).map(|id| vec![id]),
     )?;
     Ok((s.fit, s.refits))
 }
