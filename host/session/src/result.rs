@@ -719,6 +719,19 @@ impl CalibrationResult {
         Ok(sets)
     }
 
+    /// The noise model the fit used for IMU `j` (docs/model.md §8.2, §9):
+    /// IMU 0's `noise_model`, IMU j ≥ 1's entry `imu<j>` of
+    /// `imu_noise_models` (a file without one: `noise_model`, the one model
+    /// every IMU had before each had its own).
+    pub fn noise_model_of(&self, j: usize) -> Option<&NoiseModelRecord> {
+        let own = format!("imu{j}");
+        self.imu_noise_models
+            .iter()
+            .find(|r| j > 0 && r.imu == own)
+            .map(|r| &r.noise_model)
+            .or(self.noise_model.as_ref())
+    }
+
     /// The number of IMUs K of the result (1 when it has no `imu<j>/`
     /// names, or when they are not a valid set).
     pub fn imu_count(&self) -> usize {
@@ -902,6 +915,10 @@ mod tests {
             serde_json::from_value::<ImuNoiseModelRecord>(v).unwrap(),
             imu
         );
+        let r = sample();
+        assert_eq!(r.noise_model_of(0), r.noise_model.as_ref());
+        assert_eq!(r.noise_model_of(1), Some(&NoiseModelRecord::White));
+        assert_eq!(r.noise_model_of(2), r.noise_model.as_ref());
         // absent for one IMU: nothing written
         let mut one = sample();
         one.imu_noise_models.clear();

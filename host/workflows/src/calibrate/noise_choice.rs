@@ -222,22 +222,8 @@ impl PaperFit {
         };
         outcome.white_test = Some(first[0].clone());
         outcome.extra_white_tests = first[1..].to_vec();
-        // one model per IMU (`None`: white of σ_z); one IMU: `noise` alone
-        let gls = |mut m: Vec<Option<NoiseModel>>| {
-            let mut o = opts.clone();
-            if m.len() == 1 {
-                o.noise = m.pop().flatten();
-                o.imu_noise = Vec::new();
-            } else {
-                o.noise = None;
-                o.imu_noise = m
-                    .into_iter()
-                    .map(|m| {
-                        m.map_or_else(|| NoiseModel::white(opts.sigma_z), Ok)
-                            .expect("positive sigma_z")
-                    })
-                    .collect();
-            }
+        let gls = |m: Vec<Option<NoiseModel>>| {
+            let mut o = options_with(opts, m);
             o.lm.gradient_tolerance = o.lm.gradient_tolerance.max(REFIT_GRADIENT);
             o
         };
@@ -260,10 +246,7 @@ impl PaperFit {
         match settledfit {
             Ok(s) if s.refits == 0 => Ok((white, outcome, white_fit.clone(), Some(white_fit))),
             Ok(s) => {
-                let models = fit_models(&s.fit)
-                    .map(|m| (!m.is_white()).then(|| m.clone()))
-                    .collect();
-                let mut cal = calibration_of(robot, &gls(models), &s.fit)?;
+                let mut cal = calibration_of(robot, &gls(fit_wants(&s.fit)), &s.fit)?;
                 cal.tau_initial = white.tau_initial;
                 if let Some(mut used) = s.used {
                     outcome.extra_identified = used.split_off(1);
@@ -301,6 +284,37 @@ pub(crate) struct Settled {
     /// The identifications (one per IMU identified) whose models the fit
     /// used (none without refit).
     pub used: Option<Vec<Identification>>,
+}
+
+/// `opts` with the noise model of each IMU (IMU j's `models[j]`, `None`:
+/// white of σ_z; [`CalibrateOptions::imu_noise`]); one model, or every IMU
+/// white, is `noise` alone (the one-IMU options exactly).
+pub(crate) fn options_with(
+    opts: &CalibrateOptions,
+    mut models: Vec<Option<NoiseModel>>,
+) -> CalibrateOptions {
+    let mut o = opts.clone();
+    o.noise = None;
+    o.imu_noise = Vec::new();
+    if models.len() == 1 {
+        o.noise = models.pop().flatten();
+    } else if models.iter().any(Option::is_some) {
+        o.imu_noise = models
+            .into_iter()
+            .map(|m| {
+                m.map_or_else(|| NoiseModel::white(opts.sigma_z), Ok)
+                    .expect("positive sigma_z")
+            })
+            .collect();
+    }
+    o
+}
+
+/// The models of the fit `f` as [`options_with`] takes them (`None`: white).
+pub(crate) fn fit_wants(f: &Fit) -> Vec<Option<NoiseModel>> {
+    fit_models(f)
+        .map(|m| (!m.is_white()).then(|| m.clone()))
+        .collect()
 }
 
 /// The noise model of each IMU of the fit `f`, IMU 0's first.
