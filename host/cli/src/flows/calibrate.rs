@@ -100,6 +100,7 @@ impl CalibrateRun<'_> {
             out,
             "{}",
             NoiseSummary::new(&p.choice, noise, &cal.noise_model)
+                .with_imus(&cal.extra_noise_models)
         )?;
         if let Some(w) = &noise.warning {
             eprintln!("warning: {w}");
@@ -242,7 +243,6 @@ fn html_report_with(
 ) -> anyhow::Result<PathBuf> {
     let (robot, opts, cal, result): (&Robot, _, _, _) =
         (&p.robot, &p.opts, &fitted.cal, &fitted.result);
-    let noise = NoiseBand::of_fit(result.noise_model.as_ref(), &opts.sigma_z);
     let layout = cal.layout(robot);
     let series = (0..layout.n_imus())
         .map(|j| {
@@ -252,7 +252,7 @@ fn html_report_with(
                 &layout.imu_x(j, &cal.x),
                 &opts.sigma_q,
                 Some(cal.knot_spacing),
-                &noise,
+                &NoiseBand::of_fit(result.noise_model_of(j), &opts.sigma_z),
             )
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
