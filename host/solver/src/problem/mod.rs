@@ -77,6 +77,11 @@
 //! θ_E ([`EffectSet::imu_map`]): a per-sensor effect of IMU j
 //! ([`EffectSet::push_on`]) enters only IMU j's rows, a shared one every
 //! IMU's rows with one parameter block (docs/model.md §9).
+//! Each IMU has its own noise model ([`ProblemOptions::noise`]: its own
+//! Σ_z of eq. (22), white or AR): its rows, levels and segments are
+//! whitened by it alone. When any IMU's model is not white every IMU's rows
+//! go through the GLS assembly (a white IMU's whitening is 1/σ alone, the
+//! white rows' values) and E is that of the largest order over the IMUs.
 //!
 //! **The first iteration** ([`Problem::thin_first_iteration`]). From a
 //! start far from the optimum (nominal x, the spline of the joint samples
