@@ -667,7 +667,7 @@ fn worst_slope(
     let popts = ProblemOptions {
         sigma_q: opts.sigma_q.clone(),
         sigma_z: opts.sigma_z,
-        noise: None,
+        noise: Vec::new(),
         use_prior: true,
         frozen: Vec::new(),
     };

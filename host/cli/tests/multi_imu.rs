@@ -84,6 +84,155 @@ fn two_imu_monte_carlo_is_consistent_and_the_shared_sigma_shrink() {
     }
 }
 
+/// The study of issue 41 item 6: two IMUs, IMU 0 white at σ_z, IMU 1's
+/// accelerometer AR(1) φ = 0.9 (75 ms at 120 Hz), simulated per IMU
+/// ([`SimulateOptions::imu_noise`]) and fitted with `--noise-model auto`:
+/// each IMU's noise identified from its own residuals and whitened by its
+/// own model. `runs` sessions of `duration` s, seeds from `seed`; returns
+/// per estimated parameter (name, mean, std of error/σ) and the runs.
+fn different_noise_study(
+    runs: usize,
+    duration: f64,
+    seed: u64,
+    noise: NoiseChoice,
+) -> robimu_workflows::montecarlo::MonteCarloResult {
+    use robimu_model::noise::NoiseModel;
+    let robot = Robot::aubo_i5();
+    let sz = robot.sigma_z();
+    let mut simulate = SimulateOptions::paper(&robot);
+    simulate.imu_noise = vec![
+        NoiseModel::white(sz).unwrap(),
+        NoiseModel::ar1(sz, [Some(0.9), None], [0.0; 2]).unwrap(),
+    ];
+    let opts = MonteCarloOptions {
+        runs,
+        duration,
+        seed,
+        simulate,
+        calibrate: CalibrateOptions::new(&robot),
+        noise,
+        n_imus: 2,
+        compare_imu0: false,
+    };
+    let t0 = std::time::Instant::now();
+    let res = monte_carlo(&robot, &opts, |_, _| {}).unwrap();
+    let (lo, hi) = res
+        .stats
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
+            (lo.min(p.std), hi.max(p.std))
+        });
+    let refits: usize = res.runs.iter().map(|r| r.refits).sum();
+    let warned = res.runs.iter().filter(|r| r.warning.is_some()).count();
+    eprintln!(
+        "{runs} runs of {duration} s ({:.0} s): std(error/σ) over {} parameters in [{lo:.3}, {hi:.3}]; NEES {:.1} in ({:.1}, {:.1}); {refits} refits, {warned} warnings",
+        t0.elapsed().as_secs_f64(),
+        res.stats.len(),
+        res.nees_mean,
+        res.nees_interval.0,
+        res.nees_interval.1
+    );
+    for p in &res.stats {
+        eprintln!("  {:<16} mean {:+.3} std {:.3}", p.name, p.mean, p.std);
+    }
+    res
+}
+
+/// std(error/σ) pooled over IMU 1's own parameters, of `res`.
+fn imu1_pooled_std(res: &robimu_workflows::montecarlo::MonteCarloResult) -> f64 {
+    let z: Vec<f64> = res
+        .runs
+        .iter()
+        .flat_map(|r| (48..76).map(move |k| (r.estimate[k] - r.truth[k]) / r.sigma[k]))
+        .collect();
+    pooled(&z).1
+}
+
+/// [`different_noise_study`] small enough for CI: 24 runs of 40 s. Every
+/// run refits with IMU 1's own AR model; pooled over the runs, error/σ of
+/// the shared, IMU 0's and IMU 1's parameters each has std within 0.15 of 1,
+/// every parameter's std is within [0.6, 1.45] (24 runs: the std of one
+/// std is ≈ 0.15) and the average NEES is in its 95 % χ² interval
+/// (measured: groups 1.001, 1.017, 0.963; parameters 0.68–1.34; NEES 75.3
+/// in (71.1, 81.0)). The same sessions fitted with one white model for
+/// both IMUs (what IMU 0's white residuals chose before each IMU had its
+/// own) give IMU 1's pooled std above 1.5 (measured 2.83, NEES 344): the
+/// bounds see the difference.
+#[test]
+fn two_imus_with_different_noise_each_whitened_by_its_own_are_consistent() {
+    let res = different_noise_study(24, 40.0, 5000, NoiseChoice::Auto);
+    assert_eq!(res.dof, 76);
+    assert!(res
+        .runs
+        .iter()
+        .all(|r| r.refits >= 1 && r.warning.is_none()));
+    let (lo, hi) = res.nees_interval;
+    assert!((lo..=hi).contains(&res.nees_mean), "NEES {}", res.nees_mean);
+    let one = ParamLayout::with_imus(&Robot::aubo_i5(), 2);
+    let per_imu = one.imu_layout();
+    let groups: [(&str, Vec<usize>); 3] = [
+        (
+            "shared",
+            (0..48).filter(|&k| !per_imu.is_per_imu(k)).collect(),
+        ),
+        (
+            "IMU 0",
+            (0..48).filter(|&k| per_imu.is_per_imu(k)).collect(),
+        ),
+        ("IMU 1", (48..76).collect()),
+    ];
+    for (name, members) in &groups {
+        let z: Vec<f64> = res
+            .runs
+            .iter()
+            .flat_map(|r| {
+                members
+                    .iter()
+                    .map(|&k| (r.estimate[k] - r.truth[k]) / r.sigma[k])
+            })
+            .collect();
+        let (mean, std) = pooled(&z);
+        eprintln!("{name}: {} values, mean {mean:+.3}, std {std:.3}", z.len());
+        assert!(mean.abs() < 0.15, "{name}: mean(error/σ) {mean:.3}");
+        assert!((std - 1.0).abs() < 0.15, "{name}: std(error/σ) {std:.3}");
+    }
+    for p in &res.stats {
+        assert!(
+            (0.6..=1.45).contains(&p.std),
+            "{}: std {:.3}",
+            p.name,
+            p.std
+        );
+    }
+    let white = different_noise_study(24, 40.0, 5000, NoiseChoice::White);
+    let std = imu1_pooled_std(&white);
+    eprintln!("one white model: IMU 1 std(error/σ) {std:.3}");
+    assert!(std > 1.5, "{std:.3}");
+}
+
+/// The full study (issue 41 item 6): 200 runs of 60 s; every parameter's
+/// std(error/σ) within [0.85, 1.15] (200 runs: the std of one std is
+/// ≈ 0.05, so the band is 3 of them) and the average NEES in its 95 %
+/// interval. Measured: 0.905–1.124 over the 76 parameters, NEES 75.9 in
+/// (74.3, 77.7), 90 s. `cargo test --release -p robimu --test multi_imu
+/// two_imus_with_different_noise_study -- --ignored --nocapture`.
+#[test]
+#[ignore = "a study: 200 two-IMU sessions (about 2 min in release)"]
+fn two_imus_with_different_noise_study() {
+    let res = different_noise_study(200, 60.0, 7000, NoiseChoice::Auto);
+    assert!(res.runs.iter().all(|r| r.warning.is_none()));
+    let (lo, hi) = (res.nees_interval.0, res.nees_interval.1);
+    assert!((lo..=hi).contains(&res.nees_mean), "NEES {}", res.nees_mean);
+    for p in &res.stats {
+        assert!(
+            (0.85..=1.15).contains(&p.std),
+            "{}: std {:.3}",
+            p.name,
+            p.std
+        );
+    }
+}
+
 #[test]
 fn simulate_and_calibrate_several_imus_and_one_alone() {
     let tmp = tempfile::tempdir().unwrap();
@@ -485,13 +634,18 @@ fn validate_takes_the_imu_asked_for() {
 
 /// Two IMUs whose noise differs: IMU 0 white, IMU 1's accelerometer AR(1)
 /// (φ = 0.9, 75 ms at 120 Hz; drawn here by its recursion, not by the
-/// library's sampler). One noise model serves both and is chosen on IMU 0's
-/// residuals (white), so IMU 1's σ are too small: the verdict names IMU 1.
-/// With both white it does not.
+/// library's sampler). `calibrate` (auto) identifies each IMU's noise from
+/// its own residuals: result.json's `noise_model` is IMU 0's (white) and
+/// `imu_noise_models` IMU 1's (AR(1), φ near 0.9), and the verdict's
+/// residuals check passes: the IMUs differ, but each is whitened by its
+/// own. Fitted with one white model (`--noise-model white`) IMU 1's
+/// residuals ask for another: the verdict names IMU 1. With both white,
+/// neither names it and the file has `imu_noise_models` white.
 #[test]
-fn an_imu_whose_noise_differs_is_named_in_the_verdict() {
+fn an_imu_whose_noise_differs_is_named_in_the_verdict_only_when_not_its_own() {
     use rand::SeedableRng;
     use rand_distr::{Distribution, StandardNormal};
+    use robimu_session::result::NoiseModelRecord;
     use robimu_session::{SessionMeta, SessionWriter};
     use robimu_workflows::simulate::random_session_imus;
 
@@ -501,7 +655,8 @@ fn an_imu_whose_noise_differs_is_named_in_the_verdict() {
     opts.noise = false;
     let clean = random_session_imus(&robot, 2, 60.0, 1.0, &opts, 11).unwrap();
     let sz = robot.sigma_z();
-    let verdict_of = |phi: f64, name: &str| {
+    let tmp = tempfile::tempdir().unwrap();
+    let result_of = |phi: f64, name: &str, model: &str| {
         let mut data = clean.data.clone();
         let mut rng = rand::rngs::StdRng::seed_from_u64(12);
         let mut e = move || -> f64 { StandardNormal.sample(&mut rng) };
@@ -527,26 +682,59 @@ fn an_imu_whose_noise_differs_is_named_in_the_verdict() {
                 *v += sz[c] * n;
             }
         }
-        let tmp = tempfile::tempdir().unwrap();
         let dir = tmp.path().join(name);
-        let mut w = SessionWriter::create(&dir, &SessionMeta::new("aubo_i5"), 6).unwrap();
-        w.measurements(&data).unwrap();
-        w.truth(&Truth::of(&layout, &clean.truth)).unwrap();
-        w.finish().unwrap();
-        let out = tmp.path().join("r.json");
-        robimu_ok(["calibrate", s(&dir), "--out", s(&out)]);
+        if !dir.exists() {
+            let mut w = SessionWriter::create(&dir, &SessionMeta::new("aubo_i5"), 6).unwrap();
+            w.measurements(&data).unwrap();
+            w.truth(&Truth::of(&layout, &clean.truth)).unwrap();
+            w.finish().unwrap();
+        }
+        let out = tmp.path().join(format!("{name}-{model}.json"));
+        robimu_ok([
+            "calibrate",
+            s(&dir),
+            "--noise-model",
+            model,
+            "--out",
+            s(&out),
+        ]);
         let r = CalibrationResult::read(&out).unwrap();
-        let v = r.verdict.unwrap();
-        v.checks
+        let check = r
+            .verdict
+            .clone()
+            .unwrap()
+            .checks
             .into_iter()
             .find(|c| c.topic == "residuals")
-            .unwrap()
+            .unwrap();
+        (r, check)
     };
-    let differs = verdict_of(0.9, "ar1");
-    assert!(
-        !differs.ok && differs.text.contains("IMU 1 ("),
-        "{differs:?}"
-    );
-    let same = verdict_of(0.0, "white");
+    // each IMU its own: not named
+    let (r, own) = result_of(0.9, "ar1", "auto");
+    assert!(own.ok && !own.text.contains("IMU 1 ("), "{own:?}");
+    assert_eq!(r.noise_model, Some(NoiseModelRecord::White));
+    assert_eq!(r.imu_noise_models.len(), 1);
+    assert_eq!(r.imu_noise_models[0].imu, "imu1");
+    let NoiseModelRecord::Ar { channels } = &r.imu_noise_models[0].noise_model else {
+        panic!("{:?}", r.imu_noise_models)
+    };
+    for (c, ch) in channels.iter().enumerate() {
+        if c < 3 {
+            assert!(
+                ch.phi.len() == 1 && (ch.phi[0] - 0.9).abs() < 0.05,
+                "{ch:?}"
+            );
+        } else {
+            assert!(ch.phi.is_empty(), "{ch:?}");
+        }
+        assert!((ch.sigma / sz[c] - 1.0).abs() < 0.15, "{ch:?}");
+    }
+    // one white model for both: IMU 1's σ are not its noise's
+    let (r, one) = result_of(0.9, "ar1", "white");
+    assert!(!one.ok && one.text.contains("IMU 1 ("), "{one:?}");
+    assert_eq!(r.imu_noise_models[0].noise_model, NoiseModelRecord::White);
+    // both white
+    let (r, same) = result_of(0.0, "white", "auto");
     assert!(same.ok, "{same:?}");
+    assert_eq!(r.imu_noise_models[0].noise_model, NoiseModelRecord::White);
 }

@@ -297,6 +297,7 @@ mod tests {
             }],
             residual_rms: [1.0; 6],
             noise_model: robimu_model::noise::NoiseModel::white([1.0; 6]).unwrap(),
+            extra_noise_models: Vec::new(),
         }
     }
 

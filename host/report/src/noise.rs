@@ -166,9 +166,19 @@ pub struct NoiseSummary<'a> {
     choice: &'a robimu_workflows::calibrate::noise_choice::NoiseChoice,
     outcome: &'a robimu_workflows::calibrate::noise_choice::NoiseOutcome,
     used: &'a robimu_model::noise::NoiseModel,
+    /// The models used for IMUs j ≥ 1 (`others[j - 1]`).
+    others: &'a [robimu_model::noise::NoiseModel],
 }
 
 impl<'a> NoiseSummary<'a> {
+    /// The same, with the models the fit used for IMUs j ≥ 1 of a
+    /// multi-IMU session (`others[j - 1]`; docs/model.md §9), each printed
+    /// after IMU 0's.
+    pub fn with_imus(mut self, others: &'a [robimu_model::noise::NoiseModel]) -> Self {
+        self.others = others;
+        self
+    }
+
     /// The summary of `outcome` under `choice`, the fit having used `used`.
     pub fn new(
         choice: &'a robimu_workflows::calibrate::noise_choice::NoiseChoice,
@@ -179,12 +189,33 @@ impl<'a> NoiseSummary<'a> {
             choice,
             outcome,
             used,
+            others: &[],
         }
     }
 }
 
 impl fmt::Display for NoiseSummary<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.imu0(f)?;
+        for (k, m) in self.others.iter().enumerate() {
+            if m.is_white() {
+                writeln!(f, "IMU {} noise model: white", k + 1)?;
+            } else {
+                writeln!(
+                    f,
+                    "IMU {} noise model: its own, generalised least squares:",
+                    k + 1
+                )?;
+                write!(f, "{}", NoiseChannels(m))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl NoiseSummary<'_> {
+    /// IMU 0's model and why (the one-IMU summary).
+    fn imu0(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         use robimu_workflows::calibrate::noise_choice::NoiseChoice;
         let channels = |f: &mut fmt::Formatter<'_>| write!(f, "{}", NoiseChannels(self.used));
         match self.choice {

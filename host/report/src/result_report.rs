@@ -114,7 +114,7 @@ pub(crate) fn series_for(
                 &x,
                 &sigma_q,
                 result.knot_spacing,
-                &NoiseBand::of_fit(result.noise_model.as_ref(), &sigma_z),
+                &NoiseBand::of_fit(result.noise_model_of(j), &sigma_z),
             )
             .with_context(|| {
                 format!(

@@ -394,6 +394,7 @@ mod tests {
             imu_samples_used: None,
             weak_directions: Vec::new(),
             noise_model: None,
+            imu_noise_models: Vec::new(),
             noise_warning: None,
             verdict: None,
             effects: None,

@@ -132,6 +132,11 @@ pub struct CalibrationResult {
     /// §4.6; absent in files from other tools or older versions).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_model: Option<NoiseModelRecord>,
+    /// The noise model the fit used for each IMU j ≥ 1 of a multi-IMU
+    /// session, in IMU order (`noise_model` is IMU 0's; docs/model.md §8.2,
+    /// §9; robimu extension, absent for one IMU).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub imu_noise_models: Vec<ImuNoiseModelRecord>,
     /// Why the fit kept `noise_model` although the residuals say otherwise
     /// (e.g. an identified model that did not settle; robimu extension).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -216,6 +221,17 @@ pub enum NoiseModelRecord {
         /// The six channels.
         channels: Vec<ChannelNoiseRecord>,
     },
+}
+
+/// The noise model of one IMU j ≥ 1 in result.json: `{"imu": "imu<j>",
+/// "noise_model": {..}}`, `imu` the prefix of the IMU's parameter names
+/// (docs/model.md §9).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ImuNoiseModelRecord {
+    /// The IMU's parameter-name prefix, `imu1`, `imu2`, ….
+    pub imu: String,
+    /// Its noise model, as [`CalibrationResult::noise_model`].
+    pub noise_model: NoiseModelRecord,
 }
 
 /// One channel of [`NoiseModelRecord::Ar`].
@@ -703,6 +719,19 @@ impl CalibrationResult {
         Ok(sets)
     }
 
+    /// The noise model the fit used for IMU `j` (docs/model.md §8.2, §9):
+    /// IMU 0's `noise_model`, IMU j ≥ 1's entry `imu<j>` of
+    /// `imu_noise_models` (a file without one: `noise_model`, the one model
+    /// every IMU had before each had its own).
+    pub fn noise_model_of(&self, j: usize) -> Option<&NoiseModelRecord> {
+        let own = format!("imu{j}");
+        self.imu_noise_models
+            .iter()
+            .find(|r| j > 0 && r.imu == own)
+            .map(|r| &r.noise_model)
+            .or(self.noise_model.as_ref())
+    }
+
     /// The number of IMUs K of the result (1 when it has no `imu<j>/`
     /// names, or when they are not a valid set).
     pub fn imu_count(&self) -> usize {
@@ -840,6 +869,10 @@ mod tests {
                     6
                 ],
             }),
+            imu_noise_models: vec![ImuNoiseModelRecord {
+                imu: "imu1".into(),
+                noise_model: NoiseModelRecord::White,
+            }],
             noise_warning: Some("kept".into()),
             verdict: None,
             effects: None,
@@ -870,6 +903,26 @@ mod tests {
         assert_eq!(v["kind"], "ar");
         assert_eq!(v["channels"][0]["phi"][1], -0.1);
         assert_eq!(serde_json::from_value::<NoiseModelRecord>(v).unwrap(), ar);
+        // an IMU j ≥ 1's: named by its parameter prefix
+        let imu = ImuNoiseModelRecord {
+            imu: "imu2".into(),
+            noise_model: ar.clone(),
+        };
+        let v = serde_json::to_value(&imu).unwrap();
+        assert_eq!(v["imu"], "imu2");
+        assert_eq!(v["noise_model"]["kind"], "ar");
+        assert_eq!(
+            serde_json::from_value::<ImuNoiseModelRecord>(v).unwrap(),
+            imu
+        );
+        let r = sample();
+        assert_eq!(r.noise_model_of(0), r.noise_model.as_ref());
+        assert_eq!(r.noise_model_of(1), Some(&NoiseModelRecord::White));
+        assert_eq!(r.noise_model_of(2), r.noise_model.as_ref());
+        // absent for one IMU: nothing written
+        let mut one = sample();
+        one.imu_noise_models.clear();
+        assert!(!one.to_json().unwrap().contains("imu_noise_models"));
     }
 
     #[test]

@@ -23,8 +23,8 @@ mod tau_search_tests;
 
 use faer::Side;
 use robimu_session::result::{
-    CalibrationResult, ChannelNoiseRecord, CovarianceMatrix, DirectionShare, NoiseModelRecord,
-    ParameterResult, WeakDirectionRecord, RESULT_FORMAT,
+    CalibrationResult, ChannelNoiseRecord, CovarianceMatrix, DirectionShare, ImuNoiseModelRecord,
+    NoiseModelRecord, ParameterResult, WeakDirectionRecord, RESULT_FORMAT,
 };
 
 use super::time_offset::{TauError, TauEstimate, TauSearch};
@@ -55,6 +55,12 @@ pub struct CalibrateOptions {
     /// paper's model; given, it replaces `sigma_z` and the fit is the
     /// generalised least squares of [`robimu_solver::problem`]).
     pub noise: Option<NoiseModel>,
+    /// Each IMU's own noise model (docs/model.md §9): IMU j's residuals are
+    /// whitened by `imu_noise[j]` (its Σ_z of the paper's eq. (22)), one
+    /// entry per IMU of the session; empty: `noise` (or white of `sigma_z`)
+    /// serves every IMU. `--noise-model auto` fills it with the model
+    /// identified from each IMU's own residuals ([`noise_choice`]).
+    pub imu_noise: Vec<NoiseModel>,
     /// σ of each joint, rad.
     pub sigma_q: Vec<f64>,
     /// The τ search (None: start from the nominal τ).
@@ -73,6 +79,7 @@ impl CalibrateOptions {
             frozen: Vec::new(),
             sigma_z: robot.sigma_z(),
             noise: None,
+            imu_noise: Vec::new(),
             sigma_q: robot.sigma_q().to_vec(),
             tau_search: Some(TauSearch::default()),
             lm: LmOptions::default(),
@@ -84,7 +91,11 @@ impl CalibrateOptions {
         ProblemOptions {
             sigma_q: self.sigma_q.clone(),
             sigma_z: self.sigma_z,
-            noise: self.noise.clone(),
+            noise: if self.imu_noise.is_empty() {
+                self.noise.clone().into_iter().collect()
+            } else {
+                self.imu_noise.clone()
+            },
             use_prior: self.use_prior,
             frozen: self.frozen.clone(),
         }
@@ -145,8 +156,12 @@ pub struct Calibration {
     pub weak_directions: Vec<WeakDirection>,
     /// Root-mean-square of the whitened residuals per IMU channel at the optimum.
     pub residual_rms: [f64; 6],
-    /// The IMU noise model the fit used.
+    /// The noise model the fit used for IMU 0 (for every IMU of a one-IMU
+    /// session).
     pub noise_model: NoiseModel,
+    /// The noise model the fit used for each IMU j ≥ 1
+    /// (`extra_noise_models[j - 1]`; empty for one IMU; docs/model.md §9).
+    pub extra_noise_models: Vec<NoiseModel>,
 }
 
 /// Why a calibration failed.
@@ -325,6 +340,7 @@ pub(crate) fn calibration_of(
     Ok(Calibration {
         residual_rms: f.residual_rms(),
         noise_model: f.noise.clone(),
+        extra_noise_models: f.extra_noise.clone(),
         imu_samples_used: f.imu_samples_used(),
         x: f.x.clone(),
         sigma: f.sigma_x.clone(),
@@ -631,6 +647,7 @@ impl Calibration {
             residual_rms: Some(calibration.residual_rms),
             imu_samples_used: Some(calibration.imu_samples_used),
             noise_model: Some(noise_model_record(&calibration.noise_model)),
+            imu_noise_models: imu_noise_records(&calibration.extra_noise_models),
             noise_warning: None,
             verdict: None,
             effects: None,
@@ -653,6 +670,20 @@ impl Calibration {
                 .collect(),
         }
     }
+}
+
+/// The result.json records of the noise models of IMUs j ≥ 1
+/// (`extra[j - 1]`), each named by its IMU's parameter prefix `imu<j>`
+/// (docs/model.md §8.2, §9); empty for one IMU.
+fn imu_noise_records(extra: &[NoiseModel]) -> Vec<ImuNoiseModelRecord> {
+    extra
+        .iter()
+        .enumerate()
+        .map(|(k, m)| ImuNoiseModelRecord {
+            imu: format!("imu{}", k + 1),
+            noise_model: noise_model_record(m),
+        })
+        .collect()
 }
 
 /// The result.json record of a noise model (`{"kind": "white"}` when white).

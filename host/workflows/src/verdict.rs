@@ -12,9 +12,11 @@
 //!   (`robimu noise`). Correlated noise the fit identified and modelled
 //!   (GLS) passes, named; so do whitened residuals that still fail the
 //!   test by a correlation that understates σ by at most
-//!   [`WHITENED_TOLERANCE`] (noted). In a multi-IMU fit (one noise model, chosen on
-//!   IMU 0's residuals) an IMU j ≥ 1 whose own residuals ask for another
-//!   model is *doubtful*, named (its σ are not those of its noise);
+//!   [`WHITENED_TOLERANCE`] (noted). In a multi-IMU fit each IMU has its
+//!   own noise model (docs/model.md §9): an IMU j ≥ 1 whose own residuals
+//!   ask for another model than the one the fit used for it (a white or a
+//!   given model that is not its noise) is *doubtful*, named (its σ are
+//!   not those of its noise); IMUs whose noise merely differs are not;
 //! * **undetermined** — parameters whose posterior σ is above
 //!   [`UNDETERMINED`] of the prior σ: their estimate is the prior's, with
 //!   the prior's σ — listed (the robot lengths apart: they need speed,
@@ -249,11 +251,17 @@ fn residuals(input: &VerdictInput<'_>) -> VerdictCheck {
 }
 
 /// The IMUs j ≥ 1 whose residuals ask for another noise model than the one
-/// the fit used (chosen on IMU 0's, docs/model.md §9): correlated under a
-/// white fit, or white or differently correlated under an AR one (orders,
-/// φ within 0.1, σ within 20 %): their σ are not those of their noise.
+/// the fit used for that IMU (docs/model.md §9: each IMU its own):
+/// correlated under a white model, or white or differently correlated
+/// under an AR one (orders, φ within 0.1, σ within 20 %): their σ are not
+/// those of their noise.
 fn other_imus(input: &VerdictInput<'_>) -> String {
-    let model = &input.calibration.noise_model;
+    let cal = input.calibration;
+    let model_of = |j: usize| {
+        cal.extra_noise_models
+            .get(j.wrapping_sub(1))
+            .unwrap_or(&cal.noise_model)
+    };
     let loose = Settle {
         max_refits: 0,
         phi: 0.1,
@@ -263,6 +271,7 @@ fn other_imus(input: &VerdictInput<'_>) -> String {
         .other_imus
         .iter()
         .filter_map(|(j, id)| {
+            let model = model_of(*j);
             let differs = match wanted(id) {
                 None => !model.is_white(),
                 Some(m) => model.is_white() || !settled(&m, model, &loose),
@@ -274,7 +283,7 @@ fn other_imus(input: &VerdictInput<'_>) -> String {
         return String::new();
     }
     format!(
-        "; the residuals of {} ask for another noise model than the one chosen on IMU 0's: their σ are not those of their noise (calibrate each alone with --imu J, or give --noise-model)",
+        "; the residuals of {} ask for another noise model than the one the fit used for it: their σ are not those of their noise (--noise-model auto identifies each IMU's own)",
         off.join(", ")
     )
 }

@@ -120,7 +120,9 @@ pub fn fit_summary(p: &Prepared, fitted: &Fitted, knot_chosen: bool) -> String {
         text += &PoseAccuracyText(pose).to_string();
     }
     text += &FitReport::brief(cal, knot_chosen).to_string();
-    text += &NoiseSummary::new(&p.choice, noise, &cal.noise_model).to_string();
+    text += &NoiseSummary::new(&p.choice, noise, &cal.noise_model)
+        .with_imus(&cal.extra_noise_models)
+        .to_string();
     text
 }
 
@@ -247,7 +249,6 @@ fn html_report_with(
 ) -> anyhow::Result<PathBuf> {
     let (robot, opts, cal, result): (&Robot, _, _, _) =
         (&p.robot, &p.opts, &fitted.cal, &fitted.result);
-    let noise = NoiseBand::of_fit(result.noise_model.as_ref(), &opts.sigma_z);
     let layout = cal.layout(robot);
     let series = (0..layout.n_imus())
         .map(|j| {
@@ -257,7 +258,7 @@ fn html_report_with(
                 &layout.imu_x(j, &cal.x),
                 &opts.sigma_q,
                 Some(cal.knot_spacing),
-                &noise,
+                &NoiseBand::of_fit(result.noise_model_of(j), &opts.sigma_z),
             )
         })
         .collect::<anyhow::Result<Vec<_>>>()?;

@@ -311,7 +311,7 @@ impl Problem<'_> {
                 let zm = &st.z[i];
                 emit(
                     i,
-                    std::array::from_fn(|c| (zm[c] - z[c].lane(l)) * self.inv_sigma_z[c]),
+                    std::array::from_fn(|c| (zm[c] - z[c].lane(l)) * st.inv_sigma_z[c]),
                 );
             }
         }
@@ -329,7 +329,7 @@ impl Problem<'_> {
         at: &mut SampleEval,
     ) -> Result<[f64; 6], ProblemError> {
         let r = self.raw_residual(ev, i, at)?;
-        Ok(std::array::from_fn(|c| r[c] * self.inv_sigma_z[c]))
+        Ok(std::array::from_fn(|c| r[c] * ev.st.inv_sigma_z[c]))
     }
 
     /// Raw residual z_i − h of IMU sample i (see [`Self::whitened_residual`]).
@@ -625,7 +625,7 @@ impl Problem<'_> {
             for (l, &i) in quad.idx[..quad.len].iter().enumerate() {
                 let zm = &st.z[i];
                 for ch in 0..6 {
-                    let r = (zm[ch] - z[l][ch]) * self.inv_sigma_z[ch];
+                    let r = (zm[ch] - z[l][ch]) * st.inv_sigma_z[ch];
                     cost += 0.5 * r * r;
                     res[l][ch] = r;
                 }
@@ -637,7 +637,7 @@ impl Problem<'_> {
                     // −w per lane, 0 on the lanes that repeat a sample
                     let w = F64x4(std::array::from_fn(|l| {
                         if l < quad.len {
-                            -self.inv_sigma_z[ch]
+                            -st.inv_sigma_z[ch]
                         } else {
                             -0.0
                         }
@@ -891,14 +891,14 @@ impl Problem<'_> {
     fn warm_start(&self, st: &Stream<'_>, range: &Range<usize>) -> usize {
         range
             .start
-            .saturating_sub(self.noise.max_order())
+            .saturating_sub(st.noise.max_order())
             .max(st.imu_range.start)
     }
 
     /// Whitened residual of channel `ch` of sample `i`, from the ring.
     fn whiten(&self, st: &Stream<'_>, ring: &[RawSample], i: usize, ch: usize) -> f64 {
         let pos = st.seg_pos[i - st.imu_range.start] as usize;
-        let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
+        let (a, scale) = st.noise.imu[ch].ar.whitening(pos);
         let len = ring.len();
         let s = &ring[i % len];
         let mut u = s.r[ch] * s.inv_level[ch];
@@ -919,7 +919,7 @@ impl Problem<'_> {
     ) -> Result<(), ProblemError> {
         let st = ev.st;
         let mut at = self.sample_eval(st);
-        let mut ring: Vec<RawSample> = (0..=self.noise.max_order())
+        let mut ring: Vec<RawSample> = (0..=st.noise.max_order())
             .map(|_| RawSample {
                 first: 0,
                 r: [0.0; 6],
@@ -960,7 +960,7 @@ impl Problem<'_> {
         let extra = self.extra_spans;
         let widths = [0, 1].map(|s| nl + st.sensor_columns[s].len());
         // a quad's four samples and the P before the first of them
-        let mut ring: Vec<RawSample> = (0..self.noise.max_order() + 4)
+        let mut ring: Vec<RawSample> = (0..st.noise.max_order() + 4)
             .map(|_| RawSample {
                 first: 0,
                 r: [0.0; 6],
@@ -1093,7 +1093,7 @@ impl Problem<'_> {
             let w = widths[sensor];
             for c in 0..3 {
                 let ch = 3 * sensor + c;
-                let (a, scale) = self.noise.imu[ch].ar.whitening(pos);
+                let (a, scale) = st.noise.imu[ch].ar.whitening(pos);
                 let row = block.row(c);
                 let (b0, nl_cur) = (block.b0, block.nl_cur);
                 let col = &mut row_buf[..nl_cur + block.columns.len()];

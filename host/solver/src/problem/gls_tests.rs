@@ -108,7 +108,7 @@ pub(super) fn options(s: &Setup, noise: Option<NoiseModel>, sigma_z: [f64; 6]) -
     ProblemOptions {
         sigma_q: vec![1e-3; s.robot.dof()],
         sigma_z,
-        noise,
+        noise: noise.into_iter().collect(),
         use_prior: true,
         frozen: Vec::new(),
     }

@@ -77,6 +77,11 @@
 //! θ_E ([`EffectSet::imu_map`]): a per-sensor effect of IMU j
 //! ([`EffectSet::push_on`]) enters only IMU j's rows, a shared one every
 //! IMU's rows with one parameter block (docs/model.md §9).
+//! Each IMU has its own noise model ([`ProblemOptions::noise`]: its own
+//! Σ_z of eq. (22), white or AR): its rows, levels and segments are
+//! whitened by it alone. When any IMU's model is not white every IMU's rows
+//! go through the GLS assembly (a white IMU's whitening is 1/σ alone, the
+//! white rows' values) and E is that of the largest order over the IMUs.
 //!
 //! **The first iteration** ([`Problem::thin_first_iteration`]). From a
 //! start far from the optimum (nominal x, the spline of the joint samples
@@ -167,9 +172,12 @@ pub struct ProblemOptions {
     pub sigma_q: Vec<f64>,
     /// σ of `[ax, ay, az, gx, gy, gz]` (white noise; ignored when `noise` is given).
     pub sigma_z: [f64; 6],
-    /// The IMU noise model (None: white of `sigma_z`, the paper's model). A
-    /// white model gives exactly the white problem.
-    pub noise: Option<NoiseModel>,
+    /// The noise model of each IMU (docs/model.md §4.6, §9): IMU j's is
+    /// `noise[j]`, an IMU beyond the list has its last (one model serves
+    /// every IMU); empty: white of `sigma_z` for every IMU, the paper's
+    /// model. Each IMU's residuals are whitened by its own model (its
+    /// Σ_z of eq. (22)); white models give exactly the white problem.
+    pub noise: Vec<NoiseModel>,
     /// Include the prior residuals (off only for identifiability checks).
     pub use_prior: bool,
     /// Indices of x that are held fixed.
@@ -194,6 +202,10 @@ struct Stream<'a> {
     map: &'a [usize],
     /// Median step of the stream (segments break at > 1.5× it).
     median_dt: f64,
+    /// The IMU's noise model ([`ProblemOptions::noise`]).
+    noise: NoiseModel,
+    /// 1/σ_z of its channels (times √thin while an iteration is thinned).
+    inv_sigma_z: [f64; 6],
     /// Position of each selected sample in its segment (index i − imu_range.start).
     seg_pos: Vec<u32>,
     /// 1/s_i per channel for every sample (empty when no channel has a
@@ -228,7 +240,6 @@ pub struct Problem<'a> {
     spans: SpanPolynomials,
     n: usize,
     inv_sigma_q: Vec<f64>,
-    inv_sigma_z: [f64; 6],
     /// Every `thin`-th selected IMU sample is used (1: all; module doc,
     /// *The first iteration*).
     thin: usize,
@@ -239,9 +250,9 @@ pub struct Problem<'a> {
     /// The θ whose trajectory gives the motion levels (the first
     /// [`Self::update_levels`]'s; module doc).
     level_theta: Option<Vec<f64>>,
-    /// The IMU noise model in use.
-    noise: NoiseModel,
-    /// Whether it is white (then the white assembly runs).
+    /// Whether every IMU's noise model is white (then the white assembly
+    /// runs; otherwise every IMU's rows go through the GLS one, a white
+    /// IMU's whitening being its 1/σ alone).
     white: bool,
     /// Extra knot spans E a whitened row reaches back (0 when white).
     extra_spans: usize,
@@ -314,12 +325,14 @@ impl<'a> Problem<'a> {
             });
         }
         let imu_layout = layout.imu_layout();
-        let noise = match &opts.noise {
+        let noise_of = |j: usize| match opts.noise.get(j).or(opts.noise.last()) {
             Some(m) => m.clone(),
             None => NoiseModel::white(opts.sigma_z).expect("positive sigma_z"),
         };
-        let white = noise.is_white();
-        let motion = noise.imu.iter().any(|c| c.motion > 0.0);
+        let noises: Vec<NoiseModel> = (0..k_imus.max(1)).map(noise_of).collect();
+        let white = noises.iter().all(NoiseModel::is_white);
+        let motion = noises.iter().any(|m| m.imu.iter().any(|c| c.motion > 0.0));
+        let max_order = noises.iter().map(NoiseModel::max_order).max().unwrap_or(0);
         let (n_own, na) = (imu_layout.len(), active.len());
         let streams: Vec<Stream> = (0..k_imus)
             .map(|j| {
@@ -345,6 +358,8 @@ impl<'a> Problem<'a> {
                     z: view.z,
                     map,
                     median_dt: median_step(view.t),
+                    inv_sigma_z: noises[j].sigma_z().map(|s| 1.0 / s),
+                    noise: noises[j].clone(),
                     seg_pos: Vec::new(),
                     inv_levels: if motion {
                         vec![[1.0; 6]; view.t.len()]
@@ -367,7 +382,7 @@ impl<'a> Problem<'a> {
             0
         } else {
             let dt = streams.iter().map(|s| s.median_dt).fold(0.0, f64::max);
-            extra_spans(&knots, noise.max_order(), 1.5 * dt)
+            extra_spans(&knots, max_order, 1.5 * dt)
         };
         let mut p = Self {
             robot,
@@ -378,12 +393,10 @@ impl<'a> Problem<'a> {
             knots,
             n,
             inv_sigma_q: opts.sigma_q.iter().map(|s| 1.0 / s).collect(),
-            inv_sigma_z: noise.sigma_z().map(|s| 1.0 / s),
             thin: 1,
             thin_first: 1,
             iterations_begun: 0,
             level_theta: None,
-            noise,
             white,
             extra_spans,
             streams,
@@ -443,7 +456,9 @@ impl<'a> Problem<'a> {
     fn set_thin(&mut self, k: usize) {
         if k != self.thin {
             let scale = (k as f64).sqrt();
-            self.inv_sigma_z = self.noise.sigma_z().map(|s| scale / s);
+            for st in &mut self.streams {
+                st.inv_sigma_z = st.noise.sigma_z().map(|s| scale / s);
+            }
             self.thin = k;
         }
     }
@@ -464,9 +479,14 @@ impl<'a> Problem<'a> {
         (self.knots.degree() + 1 + self.extra_spans) * self.n - 1
     }
 
-    /// The IMU noise model in use.
+    /// IMU 0's noise model.
     pub fn noise(&self) -> &NoiseModel {
-        &self.noise
+        &self.streams[0].noise
+    }
+
+    /// IMU `j`'s noise model ([`ProblemOptions::noise`]).
+    pub fn noise_of(&self, j: usize) -> &NoiseModel {
+        &self.streams[j].noise
     }
 
     /// Extra knot spans E a whitened IMU row reaches back (module doc).
@@ -502,7 +522,7 @@ impl<'a> Problem<'a> {
                     .evaluate(s.t[i] + tau, &mut js)
                     .map_err(|_| ProblemError::SampleOutOfSpan)?;
                 let qdd2: f64 = js.qdd[..self.n].iter().map(|v| v * v).sum();
-                s.inv_levels[i] = std::array::from_fn(|c| 1.0 / self.noise.imu[c].level(qdd2));
+                s.inv_levels[i] = std::array::from_fn(|c| 1.0 / s.noise.imu[c].level(qdd2));
                 s.level_set[i] = true;
             }
         }

@@ -40,13 +40,28 @@ fn problem_at<'a>(
     x: &[f64],
     noise: Option<robimu_model::noise::NoiseModel>,
 ) -> (Problem<'a>, Vec<f64>) {
+    problem_with(s, layout, data, x, noise.into_iter().collect())
+}
+
+/// [`problem_at`] with one noise model per IMU ([`super::ProblemOptions::noise`]).
+fn problem_with<'a>(
+    s: &'a Setup,
+    layout: &'a ParamLayout,
+    data: &'a Measurements,
+    x: &[f64],
+    noise: Vec<robimu_model::noise::NoiseModel>,
+) -> (Problem<'a>, Vec<f64>) {
+    let opts = super::ProblemOptions {
+        noise,
+        ..options(s, None, SZ)
+    };
     let mut p = Problem::new(
         &s.robot,
         layout,
         data,
         s.knots.clone(),
         x.to_vec(),
-        &options(s, noise, SZ),
+        &opts,
         EffectSet::none(),
     )
     .unwrap();
@@ -251,5 +266,96 @@ fn the_end_cost_is_the_cost_and_keeps_the_residuals() {
             .map(|j| p.imu_residuals_of(&other, j).unwrap())
             .collect();
         assert_eq!(p.take_residuals(&other).unwrap(), at_other);
+    }
+}
+
+/// Each IMU its own noise model (docs/model.md §9): IMU 0 white, IMU 1 the
+/// AR model of `gls_tests`, and the reverse. Each IMU's whitened residuals
+/// are those of the IMU alone under its own model (a one-IMU problem, an
+/// independent path), and the assembly is the Gauss–Newton of all residuals
+/// (central differences).
+#[test]
+fn each_imu_is_whitened_by_its_own_noise_model() {
+    use robimu_model::noise::NoiseModel;
+    let s = setup();
+    let (layout, x, data) = two_imus(&s);
+    let white = NoiseModel::white(SZ).unwrap();
+    for models in [
+        vec![white.clone(), noise_model()],
+        vec![noise_model(), white.clone()],
+    ] {
+        let (p, theta) = problem_with(&s, &layout, &data, &x, models.clone());
+        let xt = p.x_of(&theta);
+        for (j, model) in models.iter().enumerate() {
+            assert_eq!(p.noise_of(j), model);
+            let alone = data.only_imu(j);
+            let one = ParamLayout::new(&s.robot);
+            let xj = layout.imu_x(j, &xt);
+            // begun first at IMU j's part of θ: the motion levels are those
+            // of the first θ a problem begins at
+            let opts = super::ProblemOptions {
+                noise: vec![model.clone()],
+                ..options(&s, None, SZ)
+            };
+            let mut q = Problem::new(
+                &s.robot,
+                &one,
+                &alone,
+                s.knots.clone(),
+                xj.clone(),
+                &opts,
+                EffectSet::none(),
+            )
+            .unwrap();
+            let th1 = q.theta(&p.spline_of(&theta), &xj);
+            q.begin_iteration(&th1).unwrap();
+            let (a, b) = (
+                q.imu_residuals(&th1).unwrap(),
+                p.imu_residuals_of(&theta, j).unwrap(),
+            );
+            assert_eq!(a.len(), b.len());
+            for ((ia, ra), (ib, rb)) in a.iter().zip(&b) {
+                assert_eq!(ia, ib);
+                for c in 0..6 {
+                    assert!(
+                        (ra[c] - rb[c]).abs() <= 1e-12 * (1.0 + ra[c].abs()),
+                        "IMU {j}"
+                    );
+                }
+            }
+        }
+        // the other IMU's model would whiten IMU j's residuals otherwise
+        let (same, th) = problem_with(&s, &layout, &data, &x, vec![models[0].clone()]);
+        assert_ne!(
+            same.imu_residuals_of(&th, 1).unwrap(),
+            p.imu_residuals_of(&theta, 1).unwrap()
+        );
+        let n = s.robot.dof();
+        let resid = |th: &[f64]| -> Vec<f64> {
+            let spline = p.spline_of(th);
+            let mut js = JointState::default();
+            let mut r = Vec::new();
+            for (k, &t) in data.joint_t.iter().enumerate() {
+                spline.evaluate(t, &mut js).unwrap();
+                for j in 0..n {
+                    r.push((data.joint_q[k * n + j] - js.q[j]) / 1e-3);
+                }
+            }
+            for j in 0..2 {
+                r.extend(
+                    p.imu_residuals_of(th, j)
+                        .unwrap()
+                        .iter()
+                        .flat_map(|(_, w)| *w),
+                );
+            }
+            let xt = p.x_of(th);
+            for &k in p.active() {
+                let sp = &layout.specs()[k];
+                r.push((xt[k] - sp.nominal) / sp.sigma);
+            }
+            r
+        };
+        check_against_finite_differences(&p, &theta, resid);
     }
 }

@@ -138,9 +138,13 @@ pub struct Fit {
     pub knot_spacing: f64,
     /// Whitened residual RMS per joint of the initial spline fit.
     pub joint_fit_rms: Vec<f64>,
-    /// The IMU noise model of the fit (white of σ_z unless
-    /// [`CalibrateOptions::noise`] gave one); the residuals are whitened by it.
+    /// IMU 0's noise model in the fit (white of σ_z unless
+    /// [`CalibrateOptions::noise`] or [`CalibrateOptions::imu_noise`] gave
+    /// one); its residuals are whitened by it.
     pub noise: NoiseModel,
+    /// The same for IMU j ≥ 1 (`extra_noise[j - 1]`; empty for one IMU):
+    /// each IMU's residuals are whitened by its own (docs/model.md §9).
+    pub extra_noise: Vec<NoiseModel>,
 }
 
 impl Fit {
@@ -271,6 +275,7 @@ fn fit_at_solution(
         knot_spacing: initial.knot_spacing,
         joint_fit_rms: initial.joint_fit_rms,
         noise: problem.noise().clone(),
+        extra_noise: (1..n_imus).map(|j| problem.noise_of(j).clone()).collect(),
     })
 }
 

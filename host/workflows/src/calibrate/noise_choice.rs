@@ -18,6 +18,14 @@
 //! fails, leaves the white result, with a warning (never an error where the
 //! white fit succeeded). The loop ([`settle_noise`]) is the one diagnose
 //! runs after each effect it adds.
+//!
+//! **Several IMUs** (docs/model.md §9). Each IMU has its own noise: the
+//! test, the identification and the settling above run on every IMU's own
+//! raw residuals under its own parameters ([`fit_identifications`]), and
+//! each IMU's rows are whitened by its own model
+//! ([`CalibrateOptions::imu_noise`]; the paper's Σ_z of eq. (22) per IMU):
+//! a refit is made when any IMU asks for another model than it has, and
+//! the models have settled when every IMU's has. One IMU is the case K = 1.
 
 use robimu_model::lanes::{quads, F64x4};
 use robimu_model::noise::NoiseModel;
@@ -60,6 +68,13 @@ pub struct NoiseOutcome {
     pub white_test: Option<Identification>,
     /// The identification the final fit used (`Auto` with refits).
     pub identified: Option<Identification>,
+    /// IMU j ≥ 1 of a multi-IMU session (`Auto`): the identification from
+    /// the white fit's residuals (`extra_white_tests[j - 1]`; `white_test`
+    /// is IMU 0's).
+    pub extra_white_tests: Vec<Identification>,
+    /// IMU j ≥ 1: the identification whose model the final fit used for it
+    /// (`Auto` with refits; `identified` is IMU 0's).
+    pub extra_identified: Vec<Identification>,
     /// GLS refits made.
     pub refits: usize,
     /// Why the white result was kept although the residuals are not white.
@@ -136,6 +151,8 @@ fn no_outcome() -> NoiseOutcome {
     NoiseOutcome {
         white_test: None,
         identified: None,
+        extra_white_tests: Vec::new(),
+        extra_identified: Vec::new(),
         refits: 0,
         warning: None,
     }
@@ -150,8 +167,10 @@ impl PaperFit {
         choice: &NoiseChoice,
         mut report: impl FnMut(&IterationRecord),
     ) -> Result<Self, CalibrateError> {
+        // the choice's model for every IMU (Auto starts white)
         let with = |m: Option<NoiseModel>| CalibrateOptions {
             noise: m,
+            imu_noise: Vec::new(),
             ..opts.clone()
         };
         let (o, done) = match choice {
@@ -194,19 +213,17 @@ impl PaperFit {
             Self::White(w) => *w,
         };
         let id_opts = IdOptions::default();
-        let first = match fit_identification(robot, data, &white_fit, &id_opts) {
+        let first = match fit_identifications(robot, data, &white_fit, &id_opts) {
             Ok(id) => id,
             Err(e) => {
                 outcome.warning = Some(format!("noise not identified ({e}); white noise kept"));
                 return Ok((white, outcome, white_fit.clone(), Some(white_fit)));
             }
         };
-        outcome.white_test = Some(first.clone());
-        let gls = |m: Option<NoiseModel>| {
-            let mut o = CalibrateOptions {
-                noise: m,
-                ..opts.clone()
-            };
+        outcome.white_test = Some(first[0].clone());
+        outcome.extra_white_tests = first[1..].to_vec();
+        let gls = |m: Vec<Option<NoiseModel>>| {
+            let mut o = options_with(opts, m);
             o.lm.gradient_tolerance = o.lm.gradient_tolerance.max(REFIT_GRADIENT);
             o
         };
@@ -223,16 +240,18 @@ impl PaperFit {
                 };
                 fit(&spec, &gls(m), &mut report).map_err(|e| e.to_string())
             },
-            |f| fit_identification(robot, data, f, &id_opts),
+            |f| fit_identifications(robot, data, f, &id_opts),
         );
         outcome.refits = refits.get();
         match settledfit {
             Ok(s) if s.refits == 0 => Ok((white, outcome, white_fit.clone(), Some(white_fit))),
             Ok(s) => {
-                let model = (!s.fit.noise.is_white()).then(|| s.fit.noise.clone());
-                let mut cal = calibration_of(robot, &gls(model), &s.fit)?;
+                let mut cal = calibration_of(robot, &gls(fit_wants(&s.fit)), &s.fit)?;
                 cal.tau_initial = white.tau_initial;
-                outcome.identified = s.used;
+                if let Some(mut used) = s.used {
+                    outcome.extra_identified = used.split_off(1);
+                    outcome.identified = used.pop();
+                }
                 Ok((cal, outcome, s.fit, Some(white_fit)))
             }
             Err(e) => {
@@ -262,31 +281,72 @@ pub(crate) struct Settled {
     pub fit: Fit,
     /// Refits made.
     pub refits: usize,
-    /// The identification whose model the fit used (none without refit).
-    pub used: Option<Identification>,
+    /// The identifications (one per IMU identified) whose models the fit
+    /// used (none without refit).
+    pub used: Option<Vec<Identification>>,
+}
+
+/// `opts` with the noise model of each IMU (IMU j's `models[j]`, `None`:
+/// white of σ_z; [`CalibrateOptions::imu_noise`]); one model, or every IMU
+/// white, is `noise` alone (the one-IMU options exactly).
+pub(crate) fn options_with(
+    opts: &CalibrateOptions,
+    mut models: Vec<Option<NoiseModel>>,
+) -> CalibrateOptions {
+    let mut o = opts.clone();
+    o.noise = None;
+    o.imu_noise = Vec::new();
+    if models.len() == 1 {
+        o.noise = models.pop().flatten();
+    } else if models.iter().any(Option::is_some) {
+        o.imu_noise = models
+            .into_iter()
+            .map(|m| {
+                m.map_or_else(|| NoiseModel::white(opts.sigma_z), Ok)
+                    .expect("positive sigma_z")
+            })
+            .collect();
+    }
+    o
+}
+
+/// The models of the fit `f` as [`options_with`] takes them (`None`: white).
+pub(crate) fn fit_wants(f: &Fit) -> Vec<Option<NoiseModel>> {
+    fit_models(f)
+        .map(|m| (!m.is_white()).then(|| m.clone()))
+        .collect()
+}
+
+/// The noise model of each IMU of the fit `f`, IMU 0's first.
+pub(crate) fn fit_models(f: &Fit) -> impl Iterator<Item = &NoiseModel> {
+    std::iter::once(&f.noise).chain(&f.extra_noise)
 }
 
 /// The one settle loop of `Auto` (calibrate's, diagnose's after each
-/// effect): from the fit `start` and the identification `id` from its
-/// residuals, refit (`refit(previous, model)`, `None` for white) with the
-/// model [`wanted`] asks for and identify again (`identify`), until the
-/// wanted model is the one the fit used ([`settled`], or both white) or
-/// `settle.max_refits` refits; else why not.
+/// effect): from the fit `start` and the identifications `ids` from its
+/// residuals (IMU j's `ids[j]`; diagnose identifies IMU 0's alone), refit
+/// (`refit(previous, models)`, one per identification, `None` for white)
+/// with the models [`wanted`] asks for and identify again (`identify`),
+/// until every IMU's wanted model is the one the fit used for it
+/// ([`settled`], or both white) or `settle.max_refits` refits; else why not.
 pub(crate) fn settle_noise(
     start: Fit,
-    mut id: Identification,
+    mut ids: Vec<Identification>,
     settle: &Settle,
-    mut refit: impl FnMut(&Fit, Option<NoiseModel>) -> Result<Fit, String>,
-    mut identify: impl FnMut(&Fit) -> Result<Identification, String>,
+    mut refit: impl FnMut(&Fit, Vec<Option<NoiseModel>>) -> Result<Fit, String>,
+    mut identify: impl FnMut(&Fit) -> Result<Vec<Identification>, String>,
 ) -> Result<Settled, String> {
     let mut current = start;
     let mut used = None;
     for k in 0..=settle.max_refits {
-        let want = wanted(&id);
-        let same = match &want {
-            None => current.noise.is_white(),
-            Some(m) => !current.noise.is_white() && settled(m, &current.noise, settle),
-        };
+        let want: Vec<Option<NoiseModel>> = ids.iter().map(wanted).collect();
+        let same = want
+            .iter()
+            .zip(fit_models(&current))
+            .all(|(want, used)| match want {
+                None => used.is_white(),
+                Some(m) => !used.is_white() && settled(m, used, settle),
+            });
         if same {
             return Ok(Settled {
                 fit: current,
@@ -299,8 +359,8 @@ pub(crate) fn settle_noise(
         }
         current = refit(&current, want)
             .map_err(|e| format!("the refit with the identified noise failed ({e})"))?;
-        used = Some(id);
-        id = identify(&current)
+        used = Some(ids);
+        ids = identify(&current)
             .map_err(|e| format!("noise identification failed after refit {} ({e})", k + 1))?;
     }
     Err(format!(
@@ -334,9 +394,8 @@ pub(crate) fn residual_identification(
 
 /// The identification from the raw residuals of every IMU j ≥ 1 of a
 /// multi-IMU calibration (docs/model.md §9), each under its own parameters:
-/// `(j, identification or why none)`. The noise choice looks at IMU 0's
-/// residuals ([`residual_identification`]); the verdict checks these
-/// against the model the fit used (one model serves every IMU).
+/// `(j, identification or why none)`. The verdict checks these against the
+/// model the fit used for that IMU ([`Calibration::extra_noise_models`]).
 pub(crate) fn other_imu_identifications(
     robot: &Robot,
     data: &Measurements,
@@ -357,22 +416,38 @@ pub(crate) fn other_imu_identifications(
         .collect()
 }
 
-/// The identification from the raw residuals of the fit `f` (IMU 0): as
-/// [`residual_identification`] of its calibration. A white fit without
-/// effects hands over its residuals for the samples it used: whitened by
-/// σ_z (docs/model.md §4.4), times σ_z they are the raw ones, so that only
-/// the samples in its end margins are predicted again.
-pub(crate) fn fit_identification(
+/// The identification from the raw residuals of every IMU of the fit `f`
+/// (IMU j's `[j]`), each under its own parameters (docs/model.md §9): IMU 0's
+/// is [`residual_identification`] of its calibration. An IMU whitened by a
+/// white model, in a fit without effects, hands over its residuals for the
+/// samples it used: whitened by its σ_z (docs/model.md §4.4), times σ_z they
+/// are the raw ones, so that only the samples in its end margins are
+/// predicted again.
+pub(crate) fn fit_identifications(
     robot: &Robot,
     data: &Measurements,
     f: &Fit,
     opts: &IdOptions,
-) -> Result<Identification, String> {
-    let known = (f.noise.is_white() && f.effects.is_empty()).then(|| Known {
-        residuals: &f.residuals,
-        sigma: std::array::from_fn(|c| f.noise.imu[c].ar.sigma()),
-    });
-    identification_of(robot, data, &f.x, &f.trajectory, known, opts)
+) -> Result<Vec<Identification>, String> {
+    let layout = ParamLayout::with_imus(robot, f.n_imus);
+    let residuals = std::iter::once(&f.residuals).chain(&f.extra_residuals);
+    fit_models(f)
+        .zip(residuals)
+        .enumerate()
+        .map(|(j, (noise, residuals))| {
+            let known = (noise.is_white() && f.effects.is_empty()).then(|| Known {
+                residuals,
+                sigma: noise.sigma_z(),
+            });
+            if j == 0 {
+                identification_of(robot, data, &f.x, &f.trajectory, known, opts)
+            } else {
+                let x = layout.imu_x(j, &f.x);
+                identification_of(robot, &data.only_imu(j), &x, &f.trajectory, known, opts)
+                    .map_err(|e| format!("IMU {j}: {e}"))
+            }
+        })
+        .collect()
 }
 
 /// Whitened residuals (sample index, r/σ_z) of a white fit at the x and
@@ -383,7 +458,7 @@ struct Known<'a> {
 }
 
 /// [`residual_identification`] at `x` and the joint trajectory `trajectory`
-/// (`known`: the residuals of some samples, see [`fit_identification`]).
+/// (`known`: the residuals of some samples, see [`fit_identifications`]).
 /// The trajectory is evaluated by its span polynomials; the samples in two
 /// halves, one per thread, joined in order.
 fn identification_of(

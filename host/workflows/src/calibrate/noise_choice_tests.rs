@@ -88,9 +88,64 @@ fn fit_residuals_give_the_identification_of_predicted_ones() {
         !want.white[0] && want.channels[0].order >= 1,
         "ax correlated"
     );
-    let got = fit_identification(&robot, &s.data, &f, &IdOptions::default()).unwrap();
+    let got = fit_identifications(&robot, &s.data, &f, &IdOptions::default()).unwrap()[0].clone();
     assert_same(&got, &want);
     let cal = calibration_of(&robot, &opts, &f).unwrap();
     let again = residual_identification(&robot, &s.data, &cal, &IdOptions::default()).unwrap();
     assert_same(&again, &want);
+}
+
+/// Two IMUs whose noise differs (docs/model.md §9): IMU 0 white at σ_z,
+/// IMU 1's accelerometer AR(1) φ = 0.9 at 1.5 σ_z and its gyroscope white
+/// at 0.7 σ_z. `Auto` identifies each IMU's noise from its own residuals
+/// and whitens each by its own: IMU 0 keeps the white model of σ_z (its
+/// residuals pass the test; the σ identified from them are the truth's
+/// within 10 %), IMU 1 gets AR(1) with φ within 0.05 of 0.9 on the
+/// accelerometer, white on the gyroscope, every σ within 15 % of the
+/// truth's; IMU 1's whitened residual RMS is about 1.
+#[test]
+fn each_imu_gets_its_own_identified_noise() {
+    let robot = Robot::aubo_i5();
+    let sz = robot.sigma_z();
+    let sz1: [f64; 6] = std::array::from_fn(|c| sz[c] * if c < 3 { 1.5 } else { 0.7 });
+    let truth1 = NoiseModel::ar1(sz1, [Some(0.9), None], [0.0; 2]).unwrap();
+    let mut sim = SimulateOptions::paper(&robot);
+    sim.imu_noise = vec![NoiseModel::white(sz).unwrap(), truth1.clone()];
+    let s = crate::simulate::random_session_imus(&robot, 2, 60.0, 1.0, &sim, 4100).unwrap();
+    let opts = CalibrateOptions::new(&robot);
+    let (cal, outcome) =
+        calibrate_with_noise(&robot, &s.data, &opts, &NoiseChoice::Auto, |_| {}).unwrap();
+    assert!(outcome.warning.is_none(), "{:?}", outcome.warning);
+    assert!(outcome.refits >= 1);
+    // IMU 0: white, its own test passed, σ identified near the truth
+    assert!(cal.noise_model.is_white());
+    assert_eq!(cal.noise_model.sigma_z(), sz);
+    let id0 = outcome.white_test.as_ref().unwrap();
+    assert!(id0.white.iter().all(|&w| w), "{:?}", id0.white);
+    for c in 0..6 {
+        let r = id0.model.imu[c].ar.sigma() / sz[c];
+        assert!((r - 1.0).abs() < 0.1, "IMU 0 channel {c}: σ ratio {r:.3}");
+    }
+    // IMU 1: its own model, identified from its own residuals
+    assert_eq!(cal.extra_noise_models.len(), 1);
+    let m1 = &cal.extra_noise_models[0];
+    assert_eq!(outcome.extra_white_tests.len(), 1);
+    assert!(!outcome.extra_white_tests[0].white[..3].iter().any(|&w| w));
+    for c in 0..6 {
+        let ch = &m1.imu[c];
+        let r = ch.ar.sigma() / sz1[c];
+        eprintln!("IMU 1 channel {c}: φ {:?}, σ/truth {r:.3}", ch.ar.phi());
+        assert!((r - 1.0).abs() < 0.15, "IMU 1 channel {c}: σ ratio {r:.3}");
+        assert_eq!(ch.motion, 0.0);
+        if c < 3 {
+            assert_eq!(ch.ar.order(), 1, "channel {c}");
+            assert!((ch.ar.phi()[0] - 0.9).abs() < 0.05, "channel {c}");
+        } else {
+            assert!(ch.ar.is_white(), "channel {c}: {:?}", ch.ar.phi());
+        }
+    }
+    // the fit whitened IMU 1 by it: RMS about 1 over both IMUs
+    for (c, r) in cal.residual_rms.iter().enumerate() {
+        assert!((r - 1.0).abs() < 0.1, "channel {c}: whitened RMS {r:.3}");
+    }
 }

@@ -506,21 +506,21 @@ pub fn refit_final(
 /// The calibration options of the fits and tests under the noise of `f`
 /// (`None` when white).
 fn with_noise_of(opts: &CalibrateOptions, f: &Fit) -> CalibrateOptions {
-    with_noise(opts, (!f.noise.is_white()).then(|| f.noise.clone()))
+    noise_choice::options_with(opts, noise_choice::fit_wants(f))
 }
 
 fn with_noise(opts: &CalibrateOptions, noise: Option<NoiseModel>) -> CalibrateOptions {
     CalibrateOptions {
         noise,
+        imu_noise: Vec::new(),
         ..opts.clone()
     }
 }
 
 /// The noise identified ([`crate::noise_id::identify`]) from the raw IMU
 /// residuals z_i − h(x̂, q(t_i + τ̂)) − C_e(i) θ̂_e of the fit `at` (its
-/// effects included), with ‖q̈‖² of its trajectory as the motion regressor.
-/// A fit under white noise has them already (its residuals, whitened by
-/// σ_z: the same problem's at the same θ); another's are evaluated anew.
+/// effects included), with ‖q̈‖² of its trajectory as the motion regressor:
+/// IMU 0's ([`identify_imus_at`] for every IMU's).
 pub(crate) fn identify_at(
     robot: &Robot,
     data: &Measurements,
@@ -529,40 +529,84 @@ pub(crate) fn identify_at(
     at: &Fit,
     id_opts: &IdOptions,
 ) -> Result<Identification, String> {
+    identify_of(robot, data, opts, setup, at, id_opts, 1).map(|mut v| v.swap_remove(0))
+}
+
+/// [`identify_at`] for every IMU of the fit (IMU j's `[j]`), each from its
+/// own residuals under its own parameters (docs/model.md §9: each IMU has
+/// its own noise).
+pub(crate) fn identify_imus_at(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &CatalogueSetup,
+    at: &Fit,
+    id_opts: &IdOptions,
+) -> Result<Vec<Identification>, String> {
+    identify_of(robot, data, opts, setup, at, id_opts, at.n_imus.max(1))
+}
+
+/// The identifications of the first `k` IMUs of `at`. An IMU the fit
+/// whitened by the white model of σ_z has its residuals already (whitened
+/// by σ_z: the same problem's at the same θ); another's are evaluated anew.
+fn identify_of(
+    robot: &Robot,
+    data: &Measurements,
+    opts: &CalibrateOptions,
+    setup: &CatalogueSetup,
+    at: &Fit,
+    id_opts: &IdOptions,
+    k: usize,
+) -> Result<Vec<Identification>, String> {
     let layout = ParamLayout::with_imus(robot, data.n_imus());
+    let tau_at = ParamLayout::new(robot).offsets().tau;
     let white = with_noise(opts, None);
-    let evaluated;
-    let res = if at.noise.is_white() && at.noise.sigma_z() == opts.sigma_z {
-        &at.residuals
+    let known = |m: &NoiseModel| m.is_white() && m.sigma_z() == opts.sigma_z;
+    let models: Vec<&NoiseModel> = noise_choice::fit_models(at).take(k).collect();
+    let evaluated = if models.iter().all(|m| known(m)) {
+        Vec::new()
     } else {
-        evaluated = with_problem_at(robot, data, &white, setup, &at.effects, at, |p, theta| {
-            Ok(p.imu_residuals(theta)?)
+        with_problem_at(robot, data, &white, setup, &at.effects, at, |p, theta| {
+            (0..k)
+                .map(|j| Ok(p.imu_residuals_of(theta, j)?))
+                .collect::<Result<Vec<_>, DiagnoseError>>()
         })
-        .map_err(|e| e.to_string())?;
-        &evaluated
+        .map_err(|e| e.to_string())?
     };
-    let tau = at.x[layout.offsets().tau];
+    let residuals = std::iter::once(&at.residuals).chain(&at.extra_residuals);
     let n = robot.dof();
-    let (mut t, mut r) = (Vec::new(), Vec::new());
-    for &(i, w) in res {
-        t.push(data.imu_t[i]);
-        r.push(std::array::from_fn(|c| w[c] * opts.sigma_z[c]));
-    }
-    // ‖q̈‖² along the trajectory, the two halves of the samples on two threads
-    let qdd2_of = |part: &[(usize, [f64; 6])]| -> Vec<f64> {
-        let mut js = JointState::default();
-        part.iter()
-            .map(|(i, _)| {
-                at.trajectory
-                    .evaluate_clamped(data.imu_t[*i] + tau, &mut js);
-                js.qdd[..n].iter().map(|a| a * a).sum()
+    models
+        .iter()
+        .zip(residuals)
+        .enumerate()
+        .map(|(j, (m, own))| {
+            let res = if known(m) { own } else { &evaluated[j] };
+            let imu_t = data.imu(j).t;
+            let tau = layout.imu_x(j, &at.x)[tau_at];
+            let (mut t, mut r) = (Vec::new(), Vec::new());
+            for &(i, w) in res {
+                t.push(imu_t[i]);
+                r.push(std::array::from_fn(|c| w[c] * opts.sigma_z[c]));
+            }
+            // ‖q̈‖² along the trajectory, the two halves of the samples on two threads
+            let qdd2_of = |part: &[(usize, [f64; 6])]| -> Vec<f64> {
+                let mut js = JointState::default();
+                part.iter()
+                    .map(|(i, _)| {
+                        at.trajectory.evaluate_clamped(imu_t[*i] + tau, &mut js);
+                        js.qdd[..n].iter().map(|a| a * a).sum()
+                    })
+                    .collect()
+            };
+            let (first, second) = res.split_at(res.len() / 2);
+            let (mut qdd2, rest) = robimu_model::pair::join(|| qdd2_of(first), || qdd2_of(second));
+            qdd2.extend(rest);
+            identify(&t, &r, Some(&qdd2), id_opts).map_err(|e| match j {
+                0 => e.to_string(),
+                _ => format!("IMU {j}: {e}"),
             })
-            .collect()
-    };
-    let (first, second) = res.split_at(res.len() / 2);
-    let (mut qdd2, rest) = robimu_model::pair::join(|| qdd2_of(first), || qdd2_of(second));
-    qdd2.extend(rest);
-    identify(&t, &r, Some(&qdd2), id_opts).map_err(|e| e.to_string())
+        })
+        .collect()
 }
 
 /// The problem of the baseline plus the `names` effects (`at`'s effects
@@ -595,7 +639,7 @@ pub(crate) fn with_problem_at<T>(
 }
 
 /// Refit `start` (same effects) with the noise identified from its
-/// residuals (`id`), identify again, until the model settles (calibrate's
+/// residuals (`ids`, one per IMU), identify again, until every IMU's settles (calibrate's
 /// loop, [`noise_choice::settle_noise`]): the settled fit and the refits
 /// made, or why not.
 #[allow(clippy::too_many_arguments)]
@@ -605,27 +649,28 @@ fn settle_noise(
     opts: &CalibrateOptions,
     setup: &CatalogueSetup,
     start: &Fit,
-    id: Identification,
+    ids: Vec<Identification>,
     (id_opts, settle): (&IdOptions, &Settle),
     progress: &mut impl FnMut(&str),
 ) -> Result<(Fit, usize), String> {
+    // each IMU its own model, from its own residuals (docs/model.md §9)
     let s = noise_choice::settle_noise(
         start.clone(),
-        id,
+        ids,
         settle,
         |current, want| {
             progress("refitting with the identified noise model");
             fit_effects(
                 robot,
                 data,
-                &with_noise(opts, want),
+                &noise_choice::options_with(opts, want),
                 setup,
                 &current.effects,
                 Start::Refit(current),
             )
             .map_err(|e| e.to_string())
         },
-        |f| identify_at(robot, data, opts, setup, f, id_opts),
+        |f| identify_imus_at(robot, data, opts, setup, f, id_opts),
     )?;
     Ok((s.fit, s.refits))
 }
@@ -663,8 +708,8 @@ fn baseline_fit(
         None => fit_effects(robot, data, &with_noise(opts, None), setup, base, start)?,
     };
     progress("identifying the noise from the residuals");
-    let id = match identify_at(robot, data, opts, setup, &white, &dopts.noise_id) {
-        Ok(id) => id,
+    let ids = match identify_imus_at(robot, data, opts, setup, &white, &dopts.noise_id) {
+        Ok(ids) => ids,
         Err(e) => {
             noise
                 .warnings
@@ -672,14 +717,14 @@ fn baseline_fit(
             return Ok((white, noise));
         }
     };
-    noise.white_test = Some(id.clone());
+    noise.white_test = Some(ids[0].clone());
     match settle_noise(
         robot,
         data,
         opts,
         setup,
         &white,
-        id,
+        ids,
         (&dopts.noise_id, &dopts.settle),
         progress,
     ) {

@@ -90,7 +90,7 @@ pub(crate) fn max_resolution(span_s: f64, corr_s: f64) -> usize {
 }
 
 /// The integral time scale of the fit's noise, the largest over the
-/// channels: Δt · S(0)/(2σ²) (Δt/2 for white noise; Δt/(1 − φ) for AR(1)
+/// channels of every IMU: Δt · S(0)/(2σ²) (Δt/2 for white noise; Δt/(1 − φ) for AR(1)
 /// with φ near 1).
 fn correlation_time(data: &Measurements, at: &Fit) -> f64 {
     let t = &data.imu_t;
@@ -99,9 +99,8 @@ fn correlation_time(data: &Measurements, at: &Fit) -> f64 {
     } else {
         0.0
     };
-    at.noise
-        .imu
-        .iter()
+    crate::calibrate::noise_choice::fit_models(at)
+        .flat_map(|m| m.imu.iter())
         .map(|c| 0.5 * dt * c.ar.low_frequency_ratio())
         .fold(0.0, f64::max)
 }

@@ -12,7 +12,7 @@ use robimu_model::{ParamLayout, Robot};
 
 use super::score::{scores_at, Score};
 use super::{
-    effect_imu, fit_effects, identify_at, ranking, resolution, settle_noise, with_noise_of,
+    effect_imu, fit_effects, identify_imus_at, ranking, resolution, settle_noise, with_noise_of,
     AddedParameter, DiagnoseError, DiagnoseOptions, FoundEffect, NoiseUse, ParameterMove, Rejected,
 };
 use crate::calibrate::fit::{Fit, Start};
@@ -239,8 +239,8 @@ fn reidentified(
     let (robot, data, opts, id_opts) = (p.robot, p.data, p.opts, &p.dopts.noise_id);
     progress("identifying the noise again");
     let settle = (id_opts, &p.dopts.settle);
-    let settled = identify_at(robot, data, opts, setup, &next, id_opts)
-        .and_then(|id| settle_noise(robot, data, opts, setup, &next, id, settle, progress));
+    let settled = identify_imus_at(robot, data, opts, setup, &next, id_opts)
+        .and_then(|ids| settle_noise(robot, data, opts, setup, &next, ids, settle, progress));
     match settled {
         Ok((f, refits)) => {
             if refits > 0 {

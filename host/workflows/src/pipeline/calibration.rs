@@ -364,6 +364,8 @@ impl Prepared {
         NoiseOutcome {
             identified: id.clone().filter(|_| !f.noise.is_white()),
             white_test: id,
+            extra_white_tests: Vec::new(),
+            extra_identified: Vec::new(),
             refits: d.noise.reidentified_after.len(),
             warning: (!warnings.is_empty()).then(|| warnings.join("; ")),
         }
