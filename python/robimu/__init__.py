@@ -491,8 +491,16 @@ class Result:
 
     @property
     def noise_model(self) -> Optional[Dict[str, Any]]:
-        """The IMU noise model fitted (white, or AR coefficients per channel)."""
+        """The noise model fitted (white, or AR coefficients per channel) of
+        IMU 0 (of each other IMU: ``imu_noise_models``)."""
         return self.to_dict().get("noise_model")
+
+    @property
+    def imu_noise_models(self) -> List[Dict[str, Any]]:
+        """The noise model of each IMU j ≥ 1 of a several-IMU result
+        (``imu``: ``imu<j>``, ``noise_model``); empty for one IMU, whose
+        model is ``noise_model``."""
+        return list(self.to_dict().get("imu_noise_models", []))
 
     @property
     def pose_accuracy(self) -> Optional[Dict[str, Any]]:

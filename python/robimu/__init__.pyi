@@ -168,7 +168,13 @@ class Result:
         evidence)."""
     @property
     def noise_model(self) -> dict[str, Any] | None:
-        """The IMU noise model fitted (white, or AR coefficients per channel)."""
+        """The noise model fitted (white, or AR coefficients per channel) of
+        IMU 0 (of each other IMU: ``imu_noise_models``)."""
+    @property
+    def imu_noise_models(self) -> list[dict[str, Any]]:
+        """The noise model of each IMU j ≥ 1 of a several-IMU result
+        (``imu``: ``imu<j>``, ``noise_model``); empty for one IMU, whose
+        model is ``noise_model``."""
     @property
     def pose_accuracy(self) -> dict[str, Any] | None:
         """The flange pose accuracy before and after, when it exists."""

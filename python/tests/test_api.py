@@ -168,3 +168,11 @@ def test_export_refuses_a_robot_of_another_structure(sim, paper_result, tmp_path
     with pytest.raises(robimu.BadInputError) as e:
         robimu.export(d / "nope.json", "urdf", tmp_path / "x.urdf")
     assert str(e.value).splitlines()[0] in c.stderr
+
+
+def test_two_imus_each_with_its_noise_model():
+    s = robimu.simulate("aubo_i5", duration=30, seed=2, imus=2)
+    assert s.n_imus == 2 and s.imu(1).accel.shape[1] == 3
+    r = robimu.calibrate(s, model="paper")
+    assert [m["imu"] for m in r.imu_noise_models] == ["imu1"]
+    assert "imu1/tau" in r.parameters and r.noise_model is not None
