@@ -498,6 +498,9 @@ impl<'a> Recording<'a> {
                 }
             }
         }
+        if cause.is_none() {
+            *cause = self.arm.silence().map(|e| e.to_string());
+        }
         Ok(())
     }
 
