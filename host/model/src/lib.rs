@@ -68,6 +68,7 @@ pub mod pair;
 pub mod params;
 pub mod robot;
 pub mod spline;
+pub mod text;
 pub mod trajectory;
 pub mod trig;
 pub mod units;
