@@ -87,6 +87,7 @@ pub use observations::Measurements;
 pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
 pub use robot::{ErrorIndex, Frames, Robot, RobotDescription, RobotError};
 pub use spline::{Basis, Basis4, Knots, SpanPolynomials, Spline, SplineError};
+pub use text::NotUtf8;
 
 pub use crate::effects::mass::MassError;
 pub use crate::effects::resonance::ModeResponse;
