@@ -233,8 +233,8 @@ pub(crate) fn read_imu_csv(path: &Path) -> Result<Vec<(i64, [f64; 6])>, ImportEr
     let mut span = Span(None);
     for (line, fields) in &raw.rows {
         let t = parse_time(path, *line, &fields[0], tscale)?;
-        span.check(path, *line, t)?;
         let v = parse_values(path, *line, fields, 6)?;
+        span.check(path, *line, t)?;
         let v: Vec<f64> = v.iter().zip(scales).map(|(x, s)| x * s).collect();
         let (gyro, acc) = if gyro_first {
             ([v[0], v[1], v[2]], [v[3], v[4], v[5]])
@@ -271,8 +271,8 @@ pub(crate) fn read_joints_csv(path: &Path) -> Result<(JointRows, Vec<String>), I
     let mut span = Span(None);
     for (line, fields) in &raw.rows {
         let t = parse_time(path, *line, &fields[0], tscale)?;
-        span.check(path, *line, t)?;
         let q = parse_values(path, *line, fields, width)?;
+        span.check(path, *line, t)?;
         out.push((t, q.iter().zip(&scales).map(|(x, s)| x * s).collect()));
     }
     Ok((out, names))
