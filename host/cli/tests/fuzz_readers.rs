@@ -15,7 +15,12 @@
 //! A campaign: `ROBIMU_FUZZ_SECONDS=3600 ROBIMU_FUZZ_INPUTS=20000
 //! ROBIMU_FUZZ_SEED=<n>` (default seed: the clock, printed);
 //! `ROBIMU_FUZZ_ONLY=MCAP` fuzzes the targets whose name contains it;
-//! `ROBIMU_FUZZ_MESSAGES=1` lists each target's distinct refusals. Each
+//! `ROBIMU_FUZZ_MESSAGES=1` lists each target's distinct refusals;
+//! `ROBIMU_FUZZ_PROCESS=1` (or `=PATH` of a `robimu` program, e.g. the
+//! release build) runs the program's command for each input instead (check,
+//! simulate --robot, report, import ros2/csv, repair): a clear message and
+//! a non-zero exit, or exit 0, and no panic, signal or run over
+//! `ROBIMU_FUZZ_ABORT_SECONDS`. Each
 //! finding is kept under `target/tmp/fuzz-findings/<seed>/` with a
 //! `finding.txt`; a call still running after `ROBIMU_FUZZ_ABORT_SECONDS`
 //! (default 20) ends the run naming its input.
@@ -47,6 +52,13 @@ fn fuzz_campaign() {
         inputs: env("ROBIMU_FUZZ_INPUTS").unwrap_or(usize::MAX),
         abort_after: Duration::from_secs_f64(env("ROBIMU_FUZZ_ABORT_SECONDS").unwrap_or(20.0)),
         only: std::env::var("ROBIMU_FUZZ_ONLY").ok(),
+        process: std::env::var_os("ROBIMU_FUZZ_PROCESS").map(|b| {
+            if b == "1" {
+                std::path::PathBuf::from(env!("CARGO_BIN_EXE_robimu"))
+            } else {
+                b.into()
+            }
+        }),
     };
     println!("fuzz campaign: seed {seed} (ROBIMU_FUZZ_SEED={seed} repeats it)");
     let start = Instant::now();

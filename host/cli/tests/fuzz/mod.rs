@@ -38,6 +38,68 @@ pub struct Budget {
     pub abort_after: Duration,
     /// Only the targets whose name contains this.
     pub only: Option<String>,
+    /// The process-level mode: run this `robimu` program on each input
+    /// (the targets that have a command), instead of calling the reader.
+    /// A run still going after [`Self::abort_after`] is killed and
+    /// counted as a hang; one killed by a signal or that printed a panic
+    /// is a panic; a non-zero exit must come with an `error: ` line.
+    pub process: Option<PathBuf>,
+}
+
+/// How one input ended.
+enum Outcome {
+    /// Read (exit 0).
+    Ok,
+    /// Refused with this message (the error line of the program).
+    Refused(String),
+    /// Panicked, or the program was killed by a signal.
+    Panic(String),
+    /// The program was still running after the limit and was killed.
+    Hung,
+}
+
+/// Runs `bin` with `args`, killed after `limit`.
+fn run_command(bin: &Path, args: &[String], limit: Duration) -> Outcome {
+    use std::process::{Command, Stdio};
+    let err_path = std::env::temp_dir().join(format!("robimu-fuzz-{}.err", std::process::id()));
+    let err = std::fs::File::create(&err_path).unwrap();
+    let mut child = Command::new(bin)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(err)
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break Some(s);
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let stderr = std::fs::read(&err_path).unwrap_or_default();
+    let stderr = String::from_utf8_lossy(&stderr);
+    let Some(status) = status else {
+        return Outcome::Hung;
+    };
+    if let Some(line) = stderr.lines().find(|l| l.contains("panicked at")) {
+        return Outcome::Panic(line.to_string());
+    }
+    if status.success() {
+        return Outcome::Ok;
+    }
+    if status.code().is_none() {
+        return Outcome::Panic(format!("killed by a signal ({status})"));
+    }
+    match stderr.find("error: ") {
+        Some(k) => Outcome::Refused(stderr[k..].trim().to_string()),
+        None => Outcome::Refused(String::new()),
+    }
 }
 
 /// What happened to one target's inputs.
@@ -60,8 +122,8 @@ pub struct Counts {
     pub slow: usize,
     /// The longest call.
     pub longest: Duration,
-    /// Distinct refusal messages (their first 100 characters, the input's
-    /// directory left out), up to 1000.
+    /// Distinct refusal messages (their first 160 characters on one line,
+    /// the input's directory left out), up to 1000.
     pub messages: std::collections::BTreeSet<String>,
 }
 
@@ -109,6 +171,7 @@ pub fn campaign(budget: &Budget) -> (Vec<(&'static str, Counts)>, Vec<PathBuf>) 
                 .as_ref()
                 .is_none_or(|o| t.name.contains(o.as_str()))
         })
+        .filter(|t| budget.process.is_none() || t.command.is_some())
         .collect();
     assert!(!targets.is_empty(), "no target matches {:?}", budget.only);
     // each seed written once; an input rewrites only its mutated file
@@ -174,37 +237,60 @@ pub fn campaign(budget: &Budget) -> (Vec<(&'static str, Counts)>, Vec<PathBuf>) 
             seed.files[fi].0,
             dir.display()
         );
-        *current.lock().unwrap() = Some(Current {
-            since: Instant::now(),
-            what: what.clone(),
-        });
         let t0 = Instant::now();
-        let result = std::panic::catch_unwind(AssertUnwindSafe(|| (t.read)(&dir)));
+        let outcome = match (&budget.process, t.command) {
+            (Some(bin), Some(command)) => {
+                let out = dir.with_extension("out");
+                let o = run_command(bin, &command(&dir, &out), budget.abort_after);
+                let _ = std::fs::remove_dir_all(&out);
+                o
+            }
+            _ => {
+                *panic_message.lock().unwrap() = None;
+                *current.lock().unwrap() = Some(Current {
+                    since: Instant::now(),
+                    what: what.clone(),
+                });
+                let r = std::panic::catch_unwind(AssertUnwindSafe(|| (t.read)(&dir)));
+                *current.lock().unwrap() = None;
+                let caught = panic_message.lock().unwrap().take();
+                match (r, caught) {
+                    (Err(_), msg) => Outcome::Panic(msg.unwrap_or_default()),
+                    // a panic the library caught itself (a thread joined, a
+                    // third-party reader isolated): still a panic on stderr
+                    (Ok(_), Some(msg)) => {
+                        Outcome::Panic(format!("caught inside the reader: {msg}"))
+                    }
+                    (Ok(Ok(())), None) => Outcome::Ok,
+                    (Ok(Err(e)), None) => Outcome::Refused(e),
+                }
+            }
+        };
         let took = t0.elapsed();
-        *current.lock().unwrap() = None;
         let c = &mut counts[ti];
         c.inputs += 1;
         c.longest = c.longest.max(took);
-        let finding = match result {
-            Ok(Ok(())) => {
+        let finding = match outcome {
+            Outcome::Ok => {
                 c.ok += 1;
                 None
             }
-            Ok(Err(e)) if e.trim().is_empty() => {
+            Outcome::Refused(e) if e.trim().is_empty() => {
                 c.silent_errors += 1;
                 Some("refused with an empty message".to_string())
             }
-            Ok(Err(e)) => {
+            Outcome::Refused(e) => {
                 c.errors += 1;
                 if c.messages.len() < 1000 {
                     // the message without the input's directory
-                    let e = e.replace(&format!("{}/", dir.display()), "");
-                    c.messages.insert(e.chars().take(100).collect());
+                    let e = e
+                        .replace(&format!("{}/", dir.display()), "")
+                        .replace('\n', " | ");
+                    c.messages.insert(e.chars().take(160).collect());
                 }
                 None
             }
-            Err(_) => {
-                let msg = panic_message.lock().unwrap().take().unwrap_or_default();
+            Outcome::Panic(msg) => {
                 if msg.contains(ACCEPTED_INVALID) {
                     c.accepted_invalid += 1;
                 } else {
@@ -212,9 +298,16 @@ pub fn campaign(budget: &Budget) -> (Vec<(&'static str, Counts)>, Vec<PathBuf>) 
                 }
                 Some(format!("panic: {msg}"))
             }
+            Outcome::Hung => {
+                c.slow += 1;
+                Some(format!(
+                    "still running after {:?}: killed",
+                    budget.abort_after
+                ))
+            }
         };
         let finding = finding.or_else(|| {
-            (took > SLOW).then(|| {
+            (budget.process.is_none() && took > SLOW).then(|| {
                 c.slow += 1;
                 format!("took {took:?}")
             })

@@ -42,6 +42,14 @@ pub struct Target {
     /// The reader on the input directory: `Err` is a refusal with its
     /// message.
     pub read: fn(&Path) -> Result<(), String>,
+    /// The `robimu` command that reads the same input (the process-level
+    /// mode): its arguments for the input directory and a scratch
+    /// directory; `None` for readers no command reads alone.
+    pub command: Option<fn(&Path, &Path) -> Vec<String>>,
+}
+
+fn arg(p: &Path) -> String {
+    p.display().to_string()
 }
 
 fn cli_fixtures() -> PathBuf {
@@ -194,12 +202,24 @@ pub fn all() -> Vec<Target> {
         Target {
             name: "session (CSV, TOML)",
             seeds: sessions,
+            command: Some(|d, _| vec!["check".into(), arg(d)]),
             rewrites: false,
             read: read_session,
         },
         Target {
             name: "robot TOML",
             seeds: robots,
+            command: Some(|d, o| {
+                vec![
+                    "simulate".into(),
+                    "--robot".into(),
+                    arg(&d.join("robot.toml")),
+                    "--duration".into(),
+                    "2".into(),
+                    "--out".into(),
+                    arg(o),
+                ]
+            }),
             rewrites: false,
             read: |d| {
                 Robot::from_toml_file(d.join("robot.toml"))
@@ -210,6 +230,18 @@ pub fn all() -> Vec<Target> {
         Target {
             name: "robot URDF",
             seeds: urdfs,
+            command: Some(|d, o| {
+                let mut a = vec![
+                    "simulate".into(),
+                    "--robot".into(),
+                    arg(&d.join("robot.urdf")),
+                ];
+                if let Ok(tip) = std::fs::read_to_string(d.join("tip")) {
+                    a.extend(["--tip".into(), tip]);
+                }
+                a.extend(["--duration".into(), "2".into(), "--out".into(), arg(o)]);
+                a
+            }),
             rewrites: false,
             read: |d| {
                 let opts = UrdfOptions {
@@ -224,6 +256,14 @@ pub fn all() -> Vec<Target> {
         Target {
             name: "result.json",
             seeds: file_seeds(&f.join("multi_imu"), ".json", "result.json"),
+            command: Some(|d, o| {
+                vec![
+                    "report".into(),
+                    arg(&d.join("result.json")),
+                    "--out".into(),
+                    arg(o),
+                ]
+            }),
             rewrites: false,
             read: |d| {
                 CalibrationResult::read(&d.join("result.json"))
@@ -234,6 +274,7 @@ pub fn all() -> Vec<Target> {
         Target {
             name: "noise TOML",
             seeds: vec![file_seed("noise", "noise.toml", NOISE_TOML.into())],
+            command: None,
             rewrites: false,
             read: |d| {
                 NoiseFile::read_with_shape(&d.join("noise.toml"))
@@ -244,30 +285,69 @@ pub fn all() -> Vec<Target> {
         Target {
             name: "bag metadata.yaml",
             seeds: bag_seeds(|n| n == "metadata.yaml"),
+            command: Some(|d, o| {
+                vec![
+                    "import".into(),
+                    "ros2".into(),
+                    arg(d),
+                    "--out".into(),
+                    arg(o),
+                ]
+            }),
             rewrites: false,
             read: read_bag,
         },
         Target {
             name: "MCAP",
             seeds: bag_seeds(|n| n.ends_with(".mcap")),
+            command: Some(|d, o| {
+                vec![
+                    "import".into(),
+                    "ros2".into(),
+                    arg(d),
+                    "--out".into(),
+                    arg(o),
+                ]
+            }),
             rewrites: false,
             read: read_bag,
         },
         Target {
             name: "rosbag2 sqlite3",
             seeds: bag_seeds(|n| n.ends_with(".db3")),
+            command: Some(|d, o| {
+                vec![
+                    "import".into(),
+                    "ros2".into(),
+                    arg(d),
+                    "--out".into(),
+                    arg(o),
+                ]
+            }),
             rewrites: false,
             read: read_bag,
         },
         Target {
             name: "CDR",
             seeds: cdr_seeds(),
+            command: None,
             rewrites: false,
             read: read_cdr,
         },
         Target {
             name: "EuRoC CSV",
             seeds: vec![euroc_seed()],
+            command: Some(|d, o| {
+                vec![
+                    "import".into(),
+                    "csv".into(),
+                    arg(&d.join("imu.csv")),
+                    "--joints".into(),
+                    arg(&d.join("joints.csv")),
+                    "--out".into(),
+                    arg(o),
+                ]
+            }),
             rewrites: false,
             read: |d| {
                 read_csv_pair(&d.join("imu.csv"), &d.join("joints.csv"))
@@ -278,12 +358,14 @@ pub fn all() -> Vec<Target> {
         Target {
             name: "serial frames (COBS/postcard)",
             seeds: vec![serial_seed()],
+            command: None,
             rewrites: false,
             read: read_serial,
         },
         Target {
             name: "repair (pings.csv, joints/imu.csv)",
             seeds: vec![recording_seed()],
+            command: Some(|d, _| vec!["repair".into(), arg(d)]),
             rewrites: true,
             read: |d| {
                 robimu_record::repair::repair(d)
