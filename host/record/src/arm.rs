@@ -32,7 +32,7 @@ pub enum ArmError {
     Ur(#[from] UrError),
     /// The controller went silent while recording: its connection is open
     /// (no I/O error) but no joint sample came within the watchdog's limit
-    /// ([`silence_limit`]: max(1 s, 20 sample periods)).
+    /// (`silence_limit`: max(1 s, 20 sample periods)).
     #[error("the robot controller {robot} went silent while recording: no joint sample for {waited:.1?} (the limit is {limit:?}: max(1 s, 20 sample periods)) and no I/O error: it hung, or its network stopped with the connection open (check the controller and the cable, then record again)")]
     Silent {
         /// The controller (`aubo:HOST:PORT`, `ur:HOST:RTDE:SCRIPT`).
@@ -75,7 +75,7 @@ pub struct ArmRun {
     spec: RobotSpec,
     /// When the last joint sample was received.
     heard: Instant,
-    /// The watchdog's limit ([`silence_limit`]).
+    /// The watchdog's limit (`silence_limit`).
     limit: Duration,
     /// Set once the watchdog fired: the poller is not waited for.
     silent: bool,
@@ -230,7 +230,7 @@ impl ArmRun {
     }
 
     /// The watchdog: [`ArmError::Silent`] when no joint sample has come
-    /// for longer than [`silence_limit`] (the poller is then abandoned, not
+    /// for longer than `silence_limit` (the poller is then abandoned, not
     /// waited for, by [`Self::stop`]).
     pub fn silence(&mut self) -> Option<ArmError> {
         let waited = self.heard.elapsed();
