@@ -24,6 +24,16 @@
 //! finding is kept under `target/tmp/fuzz-findings/<seed>/` with a
 //! `finding.txt`; a call still running after `ROBIMU_FUZZ_ABORT_SECONDS`
 //! (default 20) ends the run naming its input.
+//!
+//! Campaigns on issue 41's code (debug build, 2 shared cores): in-process,
+//! 24 000 inputs (seed 1796495104896665956, 57 s): 0 panics, 0 empty
+//! errors, 0 calls over 2 s (longest 0.12 s), 20 719 refused with a
+//! message, 3 281 read; process-level, 20 000 runs of the program (seed
+//! 1796495161732416554, 344 s): 0 panics or signals, every non-zero exit
+//! with an `error: ` line (18 092), 0 runs over 20 s (longest 0.30 s),
+//! 1 908 exits 0. Earlier runs found the CSV import's `t - t0` overflow
+//! and the mcap crate's chunk underflow (regression tests in
+//! `robimu_session::import`).
 
 mod fuzz;
 
