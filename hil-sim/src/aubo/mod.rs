@@ -102,6 +102,10 @@ pub struct FaultSwitches {
     /// Refuse every motion command with `AUBO_BAD_STATE` (as a robot in
     /// protective stop does).
     pub refuse_motion: bool,
+    /// Answer nothing while set: requests are read and dropped, every
+    /// connection stays open (a hung controller: no I/O error reaches the
+    /// client).
+    pub silent: bool,
 }
 
 /// What to simulate.

@@ -44,6 +44,9 @@ pub(super) fn serve_connection(mut stream: TcpStream, shared: &Shared) {
                 let _ = stream.shutdown(std::net::Shutdown::Both);
                 return;
             }
+            if faults.silent {
+                continue;
+            }
             let reply = handle_message(&message, shared, &faults);
             if !faults.reply_delay.is_zero() {
                 thread::sleep(faults.reply_delay);

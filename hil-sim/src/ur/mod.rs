@@ -64,6 +64,10 @@ pub struct FaultSwitches {
     pub reply_delay: Duration,
     /// Close each RTDE connection after sending this many data packages.
     pub drop_connection_after: Option<usize>,
+    /// Send no data package while set, keeping every connection open and
+    /// answering control packages (a controller whose data stream hung: no
+    /// I/O error reaches the client).
+    pub stall_data: bool,
     /// Send every package in two writes 1 ms apart, cut at a varying point.
     pub split_writes: bool,
     /// Hold each data package back before sending it by a delay drawn

@@ -146,6 +146,14 @@ fn send_data(writer: &Mutex<TcpStream>, state: &Mutex<Rtde>, closed: &AtomicBool
             closed.store(true, Ordering::SeqCst);
             return;
         }
+        if faults.stall_data {
+            // the cycle passes unsent; the connection stays open
+            c.next_cycle = cycle + 1;
+            drop(w);
+            drop(c);
+            thread::sleep(Duration::from_millis(1));
+            continue;
+        }
         let data = data_package(id, &names, cycle as f64 / f, shared);
         if write_package(&mut w, &data, &faults, &mut c.writes).is_err() {
             closed.store(true, Ordering::SeqCst);

@@ -291,6 +291,112 @@ fn a_silent_board_ends_the_recording_within_2_s_and_keeps_the_data() {
     calibrate_against_truth(dir.path(), &truth, "silent board");
 }
 
+/// A UR controller whose RTDE data stream stops with the connection open
+/// (no I/O error) ends the recording within 2 s with the watchdog's error
+/// naming the controller (no joint sample for max(1 s, 20 periods)); the
+/// plan is halted, and the 10 s recorded until then are intact and
+/// calibratable (every parameter within 4σ of the hidden truth).
+#[test]
+fn a_silent_ur_controller_ends_the_recording_within_2_s_and_keeps_the_data() {
+    let _slot = common::real_time_slot();
+    use robimu_hil::rig::SimUrRig;
+    use robimu_hil_sim::ur::FaultSwitches as UrFaults;
+    let robot = Robot::aubo_i5();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(42);
+    let traj = random_walk(&robot, 30.0, 1.0, &mut rng).unwrap();
+    let plan = Plan::from_spline(&traj, 125.0);
+    let mut config = SimRigConfig::drawn(robot.clone(), 42);
+    config.initial = plan.q[0];
+    let rig = SimUrRig::spawn(&config).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let spec = rig.robot_spec();
+    let opts = options_for(rig.imu_port(), &spec, dir.path(), Some(plan), 0.0);
+    // silenced once 10 s of joint samples are in
+    let mut silenced = None;
+    let err = record(&opts, &mut |p| {
+        if silenced.is_none() && p.joint_samples > 1250 {
+            rig.ur.set_faults(UrFaults {
+                stall_data: true,
+                ..UrFaults::default()
+            });
+            silenced = Some(Instant::now());
+        }
+    })
+    .unwrap_err();
+    let took = silenced.expect("the controller was silenced").elapsed();
+    let text = err.to_string();
+    eprintln!("{text}\nended {took:.2?} after the controller went silent");
+    assert!(
+        text.contains(&format!("the robot controller {spec} went silent"))
+            && text.contains("no joint sample for")
+            && text.contains("the robot was stopped")
+            && text.contains("kept in"),
+        "{text}"
+    );
+    assert!(took < Duration::from_secs(2), "ended {took:?} after");
+    let RecordError::Aborted { summary, .. } = err else {
+        panic!("{text}")
+    };
+    assert!(
+        summary.progress.joint_samples > 1250,
+        "{:?}",
+        summary.progress
+    );
+    let truth = rig.truth().clone();
+    drop(rig);
+    let session = check_session(dir.path());
+    assert_eq!(
+        session.measurements().joint_t.len() as u64,
+        summary.progress.joint_samples
+    );
+    calibrate_against_truth(dir.path(), &truth, "silent UR controller");
+}
+
+/// An AUBO controller that stops answering its polls with the connection
+/// open ends the recording within 2 s with the watchdog's error (before
+/// the 2 s reply timeout), the session up to then intact.
+#[test]
+fn a_silent_aubo_controller_ends_the_recording_within_2_s_and_keeps_the_data() {
+    let _slot = common::real_time_slot();
+    let rig = rig(43);
+    let dir = tempfile::tempdir().unwrap();
+    let spec = rig.robot_spec();
+    let opts = options(&rig, dir.path(), None, 20.0);
+    let mut silenced = None;
+    let err = record(&opts, &mut |p| {
+        if silenced.is_none() && p.joint_samples > 375 {
+            rig.aubo.set_faults(FaultSwitches {
+                silent: true,
+                ..FaultSwitches::default()
+            });
+            silenced = Some(Instant::now());
+        }
+    })
+    .unwrap_err();
+    let took = silenced.expect("the controller was silenced").elapsed();
+    let text = err.to_string();
+    eprintln!("{text}\nended {took:.2?} after the controller went silent");
+    assert!(
+        text.contains(&format!("the robot controller {spec} went silent"))
+            && text.contains("the limit is 1s")
+            && text.contains("kept in"),
+        "{text}"
+    );
+    assert!(took < Duration::from_secs(2), "ended {took:?} after");
+    let RecordError::Aborted { summary, .. } = err else {
+        panic!("{text}")
+    };
+    assert!(summary.duration < 6.0, "{}", summary.duration);
+    let session = check_session(dir.path());
+    let m = session.measurements();
+    assert_eq!(m.joint_t.len() as u64, summary.progress.joint_samples);
+    assert!(
+        m.joint_t.len() > 375 && m.imu_t.len() > 300,
+        "{}",
+        m.imu_t.len()
+    );
+}
+
 #[test]
 fn a_dropped_robot_connection_stops_with_a_clear_error_and_keeps_the_data() {
     let _slot = common::real_time_slot();

@@ -68,6 +68,7 @@ pub mod pair;
 pub mod params;
 pub mod robot;
 pub mod spline;
+pub mod text;
 pub mod trajectory;
 pub mod trig;
 pub mod units;
@@ -86,6 +87,7 @@ pub use observations::Measurements;
 pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
 pub use robot::{ErrorIndex, Frames, Robot, RobotDescription, RobotError};
 pub use spline::{Basis, Basis4, Knots, SpanPolynomials, Spline, SplineError};
+pub use text::NotUtf8;
 
 pub use crate::effects::mass::MassError;
 pub use crate::effects::resonance::ModeResponse;

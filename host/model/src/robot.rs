@@ -664,7 +664,7 @@ impl Robot {
     /// Reads, parses and validates a TOML file.
     pub fn from_toml_file(path: impl AsRef<Path>) -> Result<Self, RobotError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|source| RobotError::Io {
+        let text = crate::text::read_to_string(path).map_err(|source| RobotError::Io {
             path: path.display().to_string(),
             source,
         })?;

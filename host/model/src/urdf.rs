@@ -595,7 +595,7 @@ pub fn robot_from_urdf_file(
     opts: &UrdfOptions,
 ) -> Result<(Robot, UrdfChain), UrdfError> {
     let path = path.as_ref();
-    let text = std::fs::read_to_string(path).map_err(|source| UrdfError::Io {
+    let text = crate::text::read_to_string(path).map_err(|source| UrdfError::Io {
         path: path.display().to_string(),
         source,
     })?;

@@ -30,6 +30,29 @@ pub enum ArmError {
     /// Universal Robots.
     #[error(transparent)]
     Ur(#[from] UrError),
+    /// The controller went silent while recording: its connection is open
+    /// (no I/O error) but no joint sample came within the watchdog's limit
+    /// (`silence_limit`: max(1 s, 20 sample periods)).
+    #[error("the robot controller {robot} went silent while recording: no joint sample for {waited:.1?} (the limit is {limit:?}: max(1 s, 20 sample periods)) and no I/O error: it hung, or its network stopped with the connection open (check the controller and the cable, then record again)")]
+    Silent {
+        /// The controller (`aubo:HOST:PORT`, `ur:HOST:RTDE:SCRIPT`).
+        robot: String,
+        /// How long no sample came.
+        waited: Duration,
+        /// The watchdog's limit.
+        limit: Duration,
+    },
+}
+
+/// The robot connection's watchdog limit for joints sampled at `rate_hz`:
+/// no joint sample for max(1 s, 20 sample periods) ends the recording with
+/// [`ArmError::Silent`], keeping what was recorded (as the IMU board's
+/// watchdog does, `crate::imu`). A polled controller (AUBO) answers each
+/// poll within a period, a streaming one (UR RTDE) sends a package every
+/// period: a second of nothing is tens of missed samples.
+pub(crate) fn silence_limit(rate_hz: f64) -> Duration {
+    let period = if rate_hz > 0.0 { 1.0 / rate_hz } else { 1.0 };
+    Duration::from_secs_f64((20.0 * period).max(1.0))
 }
 
 /// A connected robot, before recording.
@@ -50,6 +73,12 @@ pub struct ArmRun {
     poller: Poller,
     motion: Motion,
     spec: RobotSpec,
+    /// When the last joint sample was received.
+    heard: Instant,
+    /// The watchdog's limit (`silence_limit`).
+    limit: Duration,
+    /// Set once the watchdog fired: the poller is not waited for.
+    silent: bool,
 }
 
 /// Deceleration of a halt, rad/s² (the paper's joint acceleration limit).
@@ -137,6 +166,9 @@ impl Arm {
                     poller,
                     motion,
                     spec,
+                    heard: Instant::now(),
+                    limit: silence_limit(rate_hz),
+                    silent: false,
                 }
             }
             Arm::Ur(ur) => {
@@ -164,6 +196,9 @@ impl Arm {
                     poller,
                     motion,
                     spec,
+                    heard: Instant::now(),
+                    limit: silence_limit(rate_hz),
+                    silent: false,
                 }
             }
         })
@@ -188,7 +223,26 @@ impl ArmRun {
         if let (Some(Ok(s)), Motion::Ur { last, .. }) = (&next, &mut self.motion) {
             *last = Some(s.q);
         }
+        if let Some(Ok(_)) = &next {
+            self.heard = Instant::now();
+        }
         next
+    }
+
+    /// The watchdog: [`ArmError::Silent`] when no joint sample has come
+    /// for longer than `silence_limit` (the poller is then abandoned, not
+    /// waited for, by [`Self::stop`]).
+    pub fn silence(&mut self) -> Option<ArmError> {
+        let waited = self.heard.elapsed();
+        if waited <= self.limit {
+            return None;
+        }
+        self.silent = true;
+        Some(ArmError::Silent {
+            robot: self.spec.to_string(),
+            waited,
+            limit: self.limit,
+        })
     }
 
     /// Whether the plan has ended (`Ok(true)`; always with no plan: the
@@ -270,9 +324,35 @@ impl ArmRun {
 
     /// Stops polling; returns the samples still queued.
     pub fn stop(self) -> Vec<JointSample> {
-        match self.poller {
-            Poller::Aubo(p) => p.stop().1.try_iter().flatten().collect(),
-            Poller::Ur(p) => p.stop().1.try_iter().flatten().collect(),
+        match (self.poller, self.silent) {
+            (Poller::Aubo(p), false) => p.stop().1.try_iter().flatten().collect(),
+            (Poller::Ur(p), false) => p.stop().1.try_iter().flatten().collect(),
+            // a silent controller: its poller may be blocked on a read
+            (Poller::Aubo(p), true) => p.abandon().try_iter().flatten().collect(),
+            (Poller::Ur(p), true) => p.abandon().try_iter().flatten().collect(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_watchdog_allows_a_second_or_twenty_periods() {
+        // AUBO polled and UR streamed at 125 Hz: 20 periods are 0.16 s
+        assert_eq!(silence_limit(125.0), Duration::from_secs(1));
+        // a slow controller: 20 periods of 10 Hz
+        assert_eq!(silence_limit(10.0), Duration::from_secs(2));
+        // no rate stated: as 1 Hz
+        assert_eq!(silence_limit(0.0), Duration::from_secs(20));
+        let e = ArmError::Silent {
+            robot: "ur:10.0.0.2:30004:30002".into(),
+            waited: Duration::from_millis(1010),
+            limit: silence_limit(125.0),
+        };
+        assert!(e.to_string().starts_with(
+            "the robot controller ur:10.0.0.2:30004:30002 went silent while recording: no joint sample for 1.0s (the limit is 1s"
+        ));
     }
 }

@@ -29,6 +29,13 @@
 //! sensors share them. A board that fails ends the recording with its
 //! error, keeping every board's data, as for one.
 //!
+//! **Watchdogs**: a board that goes silent without an I/O error (nothing
+//! for 1 s, or no sample for max(2 s, 20 sample periods): [`imu`],
+//! [`client::ClientError::Silent`]) and a robot controller whose connection
+//! stays open but sends no joint sample for max(1 s, 20 sample periods)
+//! ([`arm::ArmError::Silent`]) each end the recording with that error,
+//! keeping what was recorded.
+//!
 //! Main types: [`RecordOptions`] (the board's port, the robot controller
 //! ([`controller::RobotSpec`]), the plan ([`motion::Plan`]), the session
 //! directory), [`record`] itself, [`RecordSummary`] (what was recorded, the
@@ -497,6 +504,9 @@ impl<'a> Recording<'a> {
                     break;
                 }
             }
+        }
+        if cause.is_none() {
+            *cause = self.arm.silence().map(|e| e.to_string());
         }
         Ok(())
     }

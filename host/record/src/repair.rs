@@ -106,7 +106,7 @@ pub fn repair(dir: &Path) -> Result<RepairReport, SessionError> {
 /// Drops the last line of `path` if it does not end in a newline or has
 /// fewer fields than the header. Returns its line number if dropped.
 fn drop_cut_line(path: &Path) -> Result<Option<usize>, SessionError> {
-    let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+    let text = robimu_model::text::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
     let Some(header) = text.lines().next() else {
         return Ok(None);
     };
@@ -134,7 +134,7 @@ fn drop_cut_line(path: &Path) -> Result<Option<usize>, SessionError> {
 
 /// Reads `pings.csv`: echoes by segment.
 pub(crate) fn read_pings(path: &Path) -> Result<BTreeMap<u32, Vec<Echo>>, SessionError> {
-    let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+    let text = robimu_model::text::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
     let mut out: BTreeMap<u32, Vec<Echo>> = BTreeMap::new();
     for (i, line) in text.lines().enumerate().skip(1) {
         if line.starts_with('#') || line.trim().is_empty() {
@@ -244,7 +244,7 @@ pub(crate) fn remap_all_imu_times(dir: &Path) -> Result<Vec<ImuRemap>, SessionEr
 /// Rewrites `path`'s `t` column with `fits`; the rows left as they were.
 fn remap_file(path: &Path, fits: &BTreeMap<u32, ClockFit>) -> Result<usize, SessionError> {
     let path = path.to_path_buf();
-    let text = std::fs::read_to_string(&path).map_err(|e| SessionError::io(&path, e))?;
+    let text = robimu_model::text::read_to_string(&path).map_err(|e| SessionError::io(&path, e))?;
     let mut lines = text.lines();
     let header = lines.next().unwrap_or_default();
     let cols: Vec<&str> = header.split(',').map(str::trim).collect();
@@ -294,7 +294,7 @@ fn remap_file(path: &Path, fits: &BTreeMap<u32, ClockFit>) -> Result<usize, Sess
 /// `t_arrival`. `None` (nothing changed) without those columns (AUBO).
 pub(crate) fn remap_joint_times(dir: &Path) -> Result<Option<JointClock>, SessionError> {
     let path = dir.join(files::JOINTS);
-    let text = std::fs::read_to_string(&path).map_err(|e| SessionError::io(&path, e))?;
+    let text = robimu_model::text::read_to_string(&path).map_err(|e| SessionError::io(&path, e))?;
     let mut lines = text.lines();
     let header = lines.next().unwrap_or_default();
     let cols: Vec<&str> = header.split(',').map(str::trim).collect();
@@ -303,24 +303,35 @@ pub(crate) fn remap_joint_times(dir: &Path) -> Result<Option<JointClock>, Sessio
         return Ok(None);
     };
     let is_row = |l: &&str| !l.starts_with('#') && !l.trim().is_empty();
-    let rows: Vec<&str> = lines.clone().filter(is_row).collect();
-    let field = |row: &str, k: usize| -> f64 {
-        row.split(',')
-            .nth(k)
-            .and_then(|f| f.trim().parse().ok())
-            .unwrap_or(f64::NAN)
-    };
-    let samples: Vec<(f64, f64)> = rows.iter().map(|r| (field(r, tr), field(r, ta))).collect();
+    // each row's (t_robot, t_arrival), range-checked as every time of the
+    // recorder's files ([`time_field`]); a t_robot the recorder left NaN
+    // (a sample without the controller's timestamp) stays NaN
+    let mut samples: Vec<(f64, f64)> = Vec::new();
+    for (i, line) in lines.clone().enumerate() {
+        if !is_row(&line) {
+            continue;
+        }
+        let bad = |e: String| SessionError::io(&path, bad_data(format!("line {}: {e}", i + 2)));
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let field = |k: usize, name: &str| {
+            fields
+                .get(k)
+                .copied()
+                .ok_or_else(|| bad(format!("no {name} field (expected {})", header.trim())))
+        };
+        let robot = field(tr, "t_robot")?;
+        let robot = if robot.is_empty() || robot.eq_ignore_ascii_case("nan") {
+            f64::NAN
+        } else {
+            time_field(robot).map_err(|e| bad(format!("t_robot: {e}")))?
+        };
+        let arrival =
+            time_field(field(ta, "t_arrival")?).map_err(|e| bad(format!("t_arrival: {e}")))?;
+        samples.push((robot, arrival));
+    }
     let (clock, times) = match robot_clock::remap(&samples) {
         Ok(r) => (JointClock::Mapped(r.fits), r.times),
-        Err(why) => {
-            let arrival: Vec<f64> = samples.iter().map(|s| s.1).collect();
-            if arrival.iter().any(|t| !t.is_finite()) {
-                // Not even arrival times to go back to: leave the file.
-                return Ok(Some(JointClock::Kept(why)));
-            }
-            (JointClock::Kept(why), arrival)
-        }
+        Err(why) => (JointClock::Kept(why), samples.iter().map(|s| s.1).collect()),
     };
     let mut out = String::with_capacity(text.len());
     out.push_str(header);
@@ -577,7 +588,7 @@ mod tests {
         let report = repair(dir.path()).unwrap();
         assert_eq!(report.clock.len(), 2);
         assert_eq!(report.unmapped_rows, 0);
-        let text = std::fs::read_to_string(dir.path().join("imu.csv")).unwrap();
+        let text = robimu_model::text::read_to_string(dir.path().join("imu.csv")).unwrap();
         let ts: Vec<f64> = text
             .lines()
             .skip(1)
@@ -647,5 +658,69 @@ mod tests {
             let e = repair(dir.path()).unwrap_err().to_string();
             assert!(e.contains("imu.csv") && e.contains(want), "{row}: {e}");
         }
+    }
+
+    /// Issue 41: joints.csv's controller clock columns are range-checked as
+    /// the other times (finite, within ±1e10 s), naming file and line,
+    /// before any fit — 1e308 or inf went into the clock fit, a t_arrival of
+    /// 1e308 became a joint time. A NaN t_robot (a sample the controller
+    /// did not stamp, as the recorder writes it) is still taken as missing.
+    #[test]
+    fn impossible_controller_clock_times_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join(files::META),
+            SessionMeta::new("ur5e").to_toml(),
+        )
+        .unwrap();
+        let joints = dir.path().join(files::JOINTS);
+        let good = "t,q1,t_robot,t_arrival\n0.1,0,1000.1,0.1\n0.2,0,1000.2,0.2\n";
+        // the row under test, then a whole last row (a short last row is a
+        // cut line, which repair drops)
+        let last = "0.4,0,1000.4,0.4\n";
+        for (row, want) in [
+            (
+                "0.3,0,1e308,0.3",
+                "line 4: t_robot: time \"1e308\" is not a finite number within ±1e10 s",
+            ),
+            (
+                "0.3,0,-inf,0.3",
+                "line 4: t_robot: time \"-inf\" is not a finite number",
+            ),
+            (
+                "0.3,0,1000.3,1e309",
+                "line 4: t_arrival: time \"1e309\" is not a finite number",
+            ),
+            (
+                "0.3,0,1000.3,NaN",
+                "line 4: t_arrival: time \"NaN\" is not a finite number",
+            ),
+            (
+                "0.3,0,1000.3,x",
+                "line 4: t_arrival: time \"x\": invalid float literal",
+            ),
+            (
+                "0.3,0,1000.3",
+                "line 4: no t_arrival field (expected t,q1,t_robot,t_arrival)",
+            ),
+        ] {
+            std::fs::write(&joints, format!("{good}{row}\n{last}")).unwrap();
+            let e = repair(dir.path()).unwrap_err().to_string();
+            assert!(e.contains("joints.csv") && e.contains(want), "{row}: {e}");
+            // refused before anything is rewritten
+            assert_eq!(
+                std::fs::read_to_string(&joints).unwrap(),
+                format!("{good}{row}\n{last}")
+            );
+        }
+        // unstamped samples: the arrival times are kept
+        std::fs::write(&joints, format!("{good}0.3,0,NaN,0.3\n{last}")).unwrap();
+        let Some(JointClock::Kept(why)) = repair(dir.path()).unwrap().joint_clock else {
+            panic!("not kept");
+        };
+        assert!(
+            why.contains("joint sample 3 has no controller timestamp"),
+            "{why}"
+        );
     }
 }

@@ -324,7 +324,7 @@ impl Exporter<'_> {
                     _ => PathBuf::from(spec),
                 };
                 if is_urdf(&path) {
-                    let urdf = std::fs::read_to_string(&path)
+                    let urdf = robimu_model::text::read_to_string(&path)
                         .with_context(|| format!("cannot read {}", path.display()))?;
                     let opts = UrdfOptions {
                         base: req.links.base.clone(),
@@ -469,7 +469,7 @@ impl KalibrNoise {
             self.noise_source = format!("largest per-sample σ of {shown} / √rate");
             return Ok(());
         }
-        let text = std::fs::read_to_string(path)
+        let text = robimu_model::text::read_to_string(path)
             .with_context(|| format!("cannot read --noise {shown}"))?;
         let curves = crate::allan::curves_from_csv(&text).map_err(|e| {
             anyhow::anyhow!("--noise {shown}: not an allan.csv of `robimu allan`: {e}")

@@ -448,7 +448,8 @@ impl NoiseFile {
     /// table's optional `ar_z`/`motion_z` ([`NoiseShape::parse`], validated;
     /// `None` when it has neither).
     pub fn read_with_shape(path: &Path) -> Result<(Self, Option<NoiseShape>), SessionError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
+        let text =
+            robimu_model::text::read_to_string(path).map_err(|e| SessionError::io(path, e))?;
         let file: Self = toml::from_str(&text).map_err(|e| toml_error(path, &text, &e))?;
         file.noise.validate(path)?;
         let shape = NoiseShape::parse(&text, path)?;

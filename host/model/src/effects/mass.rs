@@ -137,7 +137,7 @@ impl MassModel {
 
     /// Read a TOML mass model file.
     pub fn from_toml_file(robot: &Robot, path: &std::path::Path) -> Result<Self, MassError> {
-        let text = std::fs::read_to_string(path).map_err(|source| MassError::Io {
+        let text = crate::text::read_to_string(path).map_err(|source| MassError::Io {
             path: path.display().to_string(),
             source,
         })?;

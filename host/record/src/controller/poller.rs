@@ -81,6 +81,17 @@ impl<C, E> Poller<C, E> {
         let (_, empty) = mpsc::channel();
         (client, std::mem::replace(&mut self.rx, empty))
     }
+
+    /// Stops reading without waiting for the thread, which may be blocked
+    /// on a controller that no longer answers (it ends by itself once its
+    /// read times out); returns the channel, which still holds the samples
+    /// not yet received.
+    pub fn abandon(mut self) -> Receiver<Result<JointSample, E>> {
+        self.stop.store(true, Ordering::SeqCst);
+        drop(self.thread.take());
+        let (_, empty) = mpsc::channel();
+        std::mem::replace(&mut self.rx, empty)
+    }
 }
 
 impl<C, E> Drop for Poller<C, E> {

@@ -123,10 +123,11 @@ pub(crate) fn read_file<T>(
     path: &Path,
     parse: impl FnOnce(&str) -> Result<T, UrKinematicsError>,
 ) -> Result<T, UrKinematicsError> {
-    let text = std::fs::read_to_string(path).map_err(|source| UrKinematicsError::Io {
-        path: path.display().to_string(),
-        source,
-    })?;
+    let text =
+        robimu_model::text::read_to_string(path).map_err(|source| UrKinematicsError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
     parse(&text).map_err(|e| match e {
         UrKinematicsError::Yaml(m) => UrKinematicsError::Yaml(format!("{}: {m}", path.display())),
         e => e,

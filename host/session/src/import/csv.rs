@@ -18,7 +18,7 @@
 
 use std::path::Path;
 
-use super::{imu_row, ImportError, JointRows, Streams};
+use super::{imu_row, ImportError, JointRows, Streams, MAX_SPAN_NS};
 
 /// A CSV file as its header (if any) and numbered rows of fields.
 struct Raw {
@@ -110,6 +110,30 @@ fn parse_time(path: &Path, line: u64, text: &str, scale: i64) -> Result<i64, Imp
             Ok((x * scale as f64).round() as i64)
         }
         _ => Err(bad(format!("timestamp {text:?} is not a number"))),
+    }
+}
+
+/// The first timestamp of a file (its line and ns), against which every
+/// later one is checked: a file spanning more than [`MAX_SPAN_NS`] has a
+/// corrupted timestamp (a sign lost, a unit wrong, a zeroed field).
+struct Span(Option<(u64, i64)>);
+
+impl Span {
+    fn check(&mut self, path: &Path, line: u64, t: i64) -> Result<(), ImportError> {
+        let (first_line, first) = *self.0.get_or_insert((line, t));
+        if (i128::from(t) - i128::from(first)).abs() > i128::from(MAX_SPAN_NS) {
+            return Err(ImportError::Line {
+                path: path.to_path_buf(),
+                line,
+                detail: format!(
+                    "timestamp {t} ns is {:.3e} s from the first one ({first} ns, line {first_line}): \
+                     more than the {} h a recording may span (a corrupted timestamp)",
+                    (i128::from(t) - i128::from(first)) as f64 * 1e-9,
+                    MAX_SPAN_NS / 3_600_000_000_000
+                ),
+            });
+        }
+        Ok(())
     }
 }
 
@@ -206,9 +230,11 @@ pub(crate) fn read_imu_csv(path: &Path) -> Result<Vec<(i64, [f64; 6])>, ImportEr
         }
     };
     let mut out = Vec::with_capacity(raw.rows.len());
+    let mut span = Span(None);
     for (line, fields) in &raw.rows {
         let t = parse_time(path, *line, &fields[0], tscale)?;
         let v = parse_values(path, *line, fields, 6)?;
+        span.check(path, *line, t)?;
         let v: Vec<f64> = v.iter().zip(scales).map(|(x, s)| x * s).collect();
         let (gyro, acc) = if gyro_first {
             ([v[0], v[1], v[2]], [v[3], v[4], v[5]])
@@ -242,9 +268,11 @@ pub(crate) fn read_joints_csv(path: &Path) -> Result<(JointRows, Vec<String>), I
     let scales: Vec<f64> = names.iter().map(|n| angle_scale(n)).collect();
     let tscale = time_scale(raw.header.as_ref().map(|h| h[0].as_str()));
     let mut out = Vec::with_capacity(raw.rows.len());
+    let mut span = Span(None);
     for (line, fields) in &raw.rows {
         let t = parse_time(path, *line, &fields[0], tscale)?;
         let q = parse_values(path, *line, fields, width)?;
+        span.check(path, *line, t)?;
         out.push((t, q.iter().zip(&scales).map(|(x, s)| x * s).collect()));
     }
     Ok((out, names))
@@ -252,8 +280,22 @@ pub(crate) fn read_joints_csv(path: &Path) -> Result<(JointRows, Vec<String>), I
 
 /// Reads both files into [`Streams`].
 pub fn read_csv_pair(imu: &Path, joints: &Path) -> Result<Streams, ImportError> {
+    let imu_path = imu;
     let imu = read_imu_csv(imu)?;
     let (joints, joint_names) = read_joints_csv(joints)?;
+    // each file spans at most a day (`Span`); the two start within a day
+    if let (Some(&(a, _)), Some((b, _))) = (imu.first(), joints.first()) {
+        if (i128::from(*b) - i128::from(a)).abs() > i128::from(MAX_SPAN_NS) {
+            return Err(ImportError::Joints {
+                path: imu_path.to_path_buf(),
+                detail: format!(
+                    "the IMU file starts at {a} ns and the joints file at {b} ns, more than {} h apart: \
+                     they are not on one clock",
+                    MAX_SPAN_NS / 3_600_000_000_000
+                ),
+            });
+        }
+    }
     Ok(Streams {
         joints,
         imu,
@@ -351,5 +393,55 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("missing.csv"), "{e}");
+    }
+
+    /// Issue 41, found by the fuzz harness (host/cli/tests/fuzz_readers.rs):
+    /// a joints timestamp of -2⁶³ among epoch times overflowed `t - t0`
+    /// (a panic in debug builds, a wrapped session in release); a zeroed
+    /// one made a session spanning 44 years. Each is refused at its line,
+    /// as is a pair of files a day apart.
+    #[test]
+    fn timestamps_beyond_a_day_of_the_first_are_refused_at_their_line() {
+        let d = tempfile::tempdir().unwrap();
+        let imu = file(
+            d.path(),
+            "imu.csv",
+            "#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z
+             1403636579758555392,0,0,0,0,0,9.8
+1403636579768555392,0,0,0,0,0,9.8
+",
+        );
+        for (name, t) in [("min.csv", "-9223372036854775808"), ("zero.csv", "-0")] {
+            let j = file(
+                d.path(),
+                name,
+                &format!(
+                    "#timestamp [ns],q1
+1403636579758555392,0.1
+{t},0.2
+"
+                ),
+            );
+            let e = read_csv_pair(&imu, &j).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("{name}:3: timestamp "))
+                    && e.contains("from the first one (1403636579758555392 ns, line 2)")
+                    && e.contains("more than the 24 h a recording may span"),
+                "{e}"
+            );
+        }
+        let far = file(
+            d.path(),
+            "far.csv",
+            "#timestamp [ns],q1
+1000,0.1
+2000,0.2
+",
+        );
+        let e = read_csv_pair(&imu, &far).unwrap_err().to_string();
+        assert!(
+            e.contains("the IMU file starts at 1403636579758555392 ns and the joints file at 1000 ns, more than 24 h apart"),
+            "{e}"
+        );
     }
 }

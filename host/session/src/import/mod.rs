@@ -152,7 +152,6 @@ pub enum ImportError {
 
 /// The longest recording imported: 24 h, in ns (a longer span means a
 /// stamp is corrupted).
-#[cfg(feature = "ros2")]
 pub(crate) const MAX_SPAN_NS: i64 = 24 * 3600 * 1_000_000_000;
 
 /// How far (ns) a topic's stamps may step back: 1 s (more is a corrupted
@@ -213,7 +212,8 @@ impl Streams {
         self.joints.sort_by_key(|s| s.0);
         self.imu.sort_by_key(|s| s.0);
         let t0 = self.joints[0].0.min(self.imu[0].0);
-        let seconds = |ns: i64| (ns - t0) as f64 * 1e-9;
+        // (the readers bound the span; i128 keeps any pair of i64 exact)
+        let seconds = |ns: i64| (i128::from(ns) - i128::from(t0)) as f64 * 1e-9;
         let joint_count = self.joints[0].1.len();
         let mut w = SessionWriter::create(dir, meta, joint_count)?;
         for (t, q) in &self.joints {

@@ -206,10 +206,11 @@ fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
         path: meta_path.clone(),
         detail,
     };
-    let text = std::fs::read_to_string(&meta_path).map_err(|source| ImportError::Io {
-        path: meta_path.clone(),
-        source,
-    })?;
+    let text =
+        robimu_model::text::read_to_string(&meta_path).map_err(|source| ImportError::Io {
+            path: meta_path.clone(),
+            source,
+        })?;
     if let Err(e) = check_yaml_nesting(&text) {
         return Err(bag_error(e));
     }

@@ -102,10 +102,11 @@ pub enum LimitsError {
 impl Limits {
     /// The limits of the TOML file at `path`.
     pub fn from_file(path: &Path) -> Result<Self, LimitsError> {
-        let text = std::fs::read_to_string(path).map_err(|source| LimitsError::Read {
-            path: path.display().to_string(),
-            source,
-        })?;
+        let text =
+            robimu_model::text::read_to_string(path).map_err(|source| LimitsError::Read {
+                path: path.display().to_string(),
+                source,
+            })?;
         Self::from_toml(&text, &path.display().to_string())
     }
 

@@ -167,10 +167,11 @@ pub(crate) fn read_plan(robot: &Robot, dir: &Path) -> Result<Spline, PlanFileErr
 pub fn read_plan_spline(robot: &Robot, dir: &Path) -> Result<Spline, PlanFileError> {
     let path = dir.join("spline.toml");
     let spline = if path.is_file() {
-        let text = std::fs::read_to_string(&path).map_err(|source| PlanFileError::Read {
-            path: path.clone(),
-            source,
-        })?;
+        let text =
+            robimu_model::text::read_to_string(&path).map_err(|source| PlanFileError::Read {
+                path: path.clone(),
+                source,
+            })?;
         let file: SplineFile =
             toml::from_str(&text).map_err(|source| PlanFileError::NotSplineFile {
                 path: path.clone(),
