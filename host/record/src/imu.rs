@@ -184,6 +184,49 @@ pub(crate) fn silence_limits(rate_hz: f64) -> (Duration, Duration) {
     )
 }
 
+/// The board's watchdog ([`silence_limits`]): when it last sent anything,
+/// and when a sample.
+struct Watchdog {
+    quiet: Duration,
+    no_sample: Duration,
+    heard: Instant,
+    /// Also reset when samples are due again (a restart was requested).
+    sampled: Instant,
+}
+
+impl Watchdog {
+    fn new(rate_hz: f64) -> Self {
+        let (quiet, no_sample) = silence_limits(rate_hz);
+        let now = Instant::now();
+        Self {
+            quiet,
+            no_sample,
+            heard: now,
+            sampled: now,
+        }
+    }
+
+    /// A message arrived at `at` (`sample`: a sample).
+    fn heard(&mut self, at: Instant, sample: bool) {
+        self.heard = at;
+        if sample {
+            self.sampled = at;
+        }
+    }
+
+    /// What the board has been silent about at `now` beyond its limit:
+    /// (what, how long, the limit).
+    fn silent(&self, now: Instant) -> Option<(&'static str, Duration, Duration)> {
+        if now.duration_since(self.heard) > self.quiet {
+            Some(("message", now.duration_since(self.heard), self.quiet))
+        } else if now.duration_since(self.sampled) > self.no_sample {
+            Some(("sample", now.duration_since(self.sampled), self.no_sample))
+        } else {
+            None
+        }
+    }
+}
+
 fn stream<R: Read, W: Write>(
     mut link: ImuClient<R, W>,
     mut infos: Vec<DeviceInfo>,
@@ -201,19 +244,10 @@ fn stream<R: Read, W: Write>(
     let mut next_ping = Instant::now();
     // After a reboot: when we last asked the board to start again.
     let mut restarting: Option<Instant> = None;
-    // the watchdog: when the board last sent anything, and a sample
-    let (quiet, no_sample) = silence_limits(f64::from(config.sample_rate_hz));
-    let (mut heard, mut sampled) = (Instant::now(), Instant::now());
+    let mut watchdog = Watchdog::new(f64::from(config.sample_rate_hz));
     while !stop.load(Ordering::SeqCst) {
         let now = Instant::now();
-        let silent = if now.duration_since(heard) > quiet {
-            Some(("message", now.duration_since(heard), quiet))
-        } else if now.duration_since(sampled) > no_sample {
-            Some(("sample", now.duration_since(sampled), no_sample))
-        } else {
-            None
-        };
-        if let Some((what, waited, limit)) = silent {
+        if let Some((what, waited, limit)) = watchdog.silent(now) {
             let path = link.path().to_string();
             let e = ClientError::Silent {
                 path,
@@ -244,10 +278,7 @@ fn stream<R: Read, W: Write>(
             }
         };
         let received = Instant::now();
-        heard = received;
-        if matches!(msg, DeviceMessage::Sample(_)) {
-            sampled = received;
-        }
+        watchdog.heard(received, matches!(msg, DeviceMessage::Sample(_)));
         let t_us = clock.observe(&msg);
         let event = match msg {
             DeviceMessage::Sample(s) => match infos.get(usize::from(s.sensor)) {
@@ -271,7 +302,7 @@ fn stream<R: Read, W: Write>(
                     // Rebooted (or stopped by someone else): start it again.
                     restarting = Some(Instant::now());
                     // its samples are due again from this request on
-                    sampled = received;
+                    watchdog.sampled = received;
                     let _ = link.send(&HostMessage::Configure(config));
                     let _ = link.send(&HostMessage::Start);
                 }
@@ -289,7 +320,7 @@ fn stream<R: Read, W: Write>(
             DeviceMessage::CommandResult(r) => {
                 if r.command == CommandKind::Start && r.result.is_ok() && restarting.is_some() {
                     restarting = None;
-                    sampled = received;
+                    watchdog.sampled = received;
                     segment += 1;
                     clock.reset();
                     pending.clear();

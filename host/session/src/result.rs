@@ -364,6 +364,15 @@ impl CalibrationResult {
                 self.format
             ));
         }
+        self.validate_parameters()?;
+        self.validate_covariance()?;
+        self.imu_sets()?;
+        Ok(())
+    }
+
+    /// Each parameter: a unique name, finite numbers within ±[`MAX_MAGNITUDE`],
+    /// standard deviations ≥ 0 (prior σ > 0), gains within [`GAIN_RANGE`].
+    fn validate_parameters(&self) -> Result<(), String> {
         if self.parameters.is_empty() {
             return Err("`parameters` is empty".into());
         }
@@ -414,6 +423,12 @@ impl CalibrationResult {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// The covariance: one unique row and column per estimated parameter,
+    /// finite, symmetric, its diagonal the parameters' σ².
+    fn validate_covariance(&self) -> Result<(), String> {
         let estimated: Vec<&ParameterResult> =
             self.parameters.iter().filter(|p| !p.frozen).collect();
         let cov = &self.covariance;
@@ -477,7 +492,6 @@ impl CalibrationResult {
                 }
             }
         }
-        self.imu_sets()?;
         Ok(())
     }
 
