@@ -75,7 +75,7 @@ impl Normal {
                     sum -= l[i * BW + (i - k)] * l[j * BW + (j - k)];
                 }
                 if d == 0 {
-                    if !(sum > 0.0) {
+                    if sum.is_nan() || sum <= 0.0 {
                         return Err(SplineError::Singular { coeff: i / 3 });
                     }
                     l[i * BW] = sum.sqrt();

@@ -62,6 +62,11 @@ fn test_spline() -> PoseSpline {
     PoseSpline::new(knots, &positions, &rotations).unwrap()
 }
 
+/// An output of a (perturbed) spline, for finite differences.
+type Probe = Box<dyn Fn(&PoseSpline) -> V3>;
+/// A vector of a [`PoseState`].
+type StateField = fn(&PoseState) -> V3;
+
 const TIMES: [f64; 7] = [0.0, 0.13, 0.5, 0.77, 1.25, 1.61, 2.0];
 
 /// Central differences of `f` over the 12 local parameters of the control
@@ -109,7 +114,7 @@ fn pose_jacobians_match_finite_differences() {
             );
         }
         let ev = |f: fn(&PoseState) -> V3| move |x: &PoseSpline| f(&x.evaluate(t).unwrap());
-        let rot: [(&Jac3x12, Box<dyn Fn(&PoseSpline) -> V3>); 5] = [
+        let rot: [(&Jac3x12, Probe); 5] = [
             (&j.r, Box::new(rot_probe(s.r, t))),
             (&j.omega_n, Box::new(ev(|s| s.omega_n))),
             (&j.omega, Box::new(ev(|s| s.omega))),
@@ -119,8 +124,7 @@ fn pose_jacobians_match_finite_differences() {
         for (jac, f) in rot {
             worst = worst.max(rel_err(jac, &fd_jac(&sp, j.first, true, f)));
         }
-        let pos: [(&Jac3x12, fn(&PoseState) -> V3); 3] =
-            [(&j.p, |s| s.p), (&j.v, |s| s.v), (&j.a, |s| s.a)];
+        let pos: [(&Jac3x12, StateField); 3] = [(&j.p, |s| s.p), (&j.v, |s| s.v), (&j.a, |s| s.a)];
         for (jac, f) in pos {
             worst = worst.max(rel_err(jac, &fd_jac(&sp, j.first, false, ev(f))));
             // position outputs do not depend on the rotation
@@ -142,7 +146,7 @@ fn imu_point_jacobians_match_finite_differences() {
         assert!(rel3(s.a_n, s2.a_n, 1.0) < 1e-12 && rel3(s.v, s2.v, 1.0) < 1e-12);
         let ev =
             |f: fn(&ImuPointState) -> V3| move |x: &PoseSpline| f(&x.imu_point(t, p_imu).unwrap());
-        let cases: [(&Jac3x12, bool, Box<dyn Fn(&PoseSpline) -> V3>); 9] = [
+        let cases: [(&Jac3x12, bool, Probe); 9] = [
             (&j.r, true, Box::new(rot_probe(s.r, t))),
             (&j.p_rotation, true, Box::new(ev(|s| s.p))),
             (&j.v_rotation, true, Box::new(ev(|s| s.v))),
