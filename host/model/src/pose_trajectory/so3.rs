@@ -1,7 +1,7 @@
 //! The SO(3) helpers of the pose spline that [`crate::geom`] lacks: the hat
 //! and vee maps, Exp over any [`Scalar`] (for jets), the right and left
-//! Jacobians and their inverses (Sommer et al. 2020, eq. (5)–(6); Barfoot,
-//! *State Estimation for Robotics*, §7.1.3). Exp and Log of f64 rotations and
+//! Jacobians and their inverses (Sommer et al. 2020, §2; Barfoot, *State
+//! Estimation for Robotics*, §7.1.3; Solà et al. 2018, "A micro Lie theory"). Exp and Log of f64 rotations and
 //! the quaternion conversions are [`crate::geom`]'s
 //! ([`exp_so3`](crate::geom::exp_so3), [`log_so3`](crate::geom::log_so3),
 //! [`matrix_from_quat`](crate::geom::matrix_from_quat),
