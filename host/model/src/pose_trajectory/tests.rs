@@ -424,3 +424,59 @@ fn bad_samples_are_rejected() {
     let err = PoseSpline::new(knots, &[], &[]).unwrap_err();
     assert_eq!(err, PoseSplineError::Spline(SplineError::BadDegree(2)));
 }
+
+#[test]
+fn noisy_samples_in_any_order_fit_close_to_the_truth() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+    let truth = test_spline();
+    let (sigma_p, sigma_r) = (1e-3, 2e-3);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(39);
+    let mut noise = |s: f64| -> V3 {
+        std::array::from_fn(|_| {
+            let z: f64 = StandardNormal.sample(&mut rng);
+            s * z
+        })
+    };
+    let (times, mut ps, mut qs) = samples(2.0, 200.0, |t| {
+        let s = truth.evaluate(t).unwrap();
+        (s.p, s.r)
+    });
+    for (p, q) in ps.iter_mut().zip(qs.iter_mut()) {
+        // MODEL.md §10: p̃ = p + n_p, R̃ = R·Exp(n_r)
+        *p = add(*p, noise(sigma_p));
+        *q = quat_from_matrix(&mul_mm(&matrix_from_quat(*q), &exp_so3(noise(sigma_r))));
+    }
+    let (sp, rep) = PoseSpline::fit_report(&times, &ps, &qs, 0.25).unwrap();
+    // residual RMS ≈ σ·√3 (less the 3·11 fitted degrees of freedom of 3·401)
+    let (ep, er) = (
+        rep.rms_position / (sigma_p * 3f64.sqrt()),
+        rep.rms_rotation / (sigma_r * 3f64.sqrt()),
+    );
+    eprintln!("noisy fit: RMS/σ√3 = {ep:.3} (p), {er:.3} (R), {rep:?}");
+    assert!(rep.converged && (0.9..1.05).contains(&ep) && (0.9..1.05).contains(&er));
+    let mut worst = 0.0f64;
+    // away from the ends, where the clamped end control points rest on few samples
+    for k in 5..=95 {
+        let t = 0.02 * k as f64;
+        let (a, b) = (sp.rotation(t).unwrap(), truth.rotation(t).unwrap());
+        let e = norm(log_so3(&mul_mm(&transpose(&a), &b)));
+        worst = worst.max(e);
+    }
+    eprintln!("noisy fit: rotation error ≤ {worst:.2e} rad (σ_r = {sigma_r})");
+    assert!(worst < 0.5 * sigma_r, "rotation error {worst:e} rad");
+    // the same samples in reverse order: the same spline to rounding
+    let rev = |v: &[[f64; 4]]| v.iter().rev().copied().collect::<Vec<_>>();
+    let times_r: Vec<f64> = times.iter().rev().copied().collect();
+    let ps_r: Vec<V3> = ps.iter().rev().copied().collect();
+    let sp_r = PoseSpline::fit(&times_r, &ps_r, &rev(&qs), 0.25).unwrap();
+    for k in 0..sp.num_control_points() {
+        let (a, b) = (
+            &sp.rotation_control_points()[k],
+            &sp_r.rotation_control_points()[k],
+        );
+        assert!(norm(log_so3(&mul_mm(&transpose(a), b))) < 1e-10);
+        let d = sub(sp.position_control_point(k), sp_r.position_control_point(k));
+        assert!(norm(d) < 1e-10);
+    }
+}
