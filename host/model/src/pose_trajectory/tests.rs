@@ -480,3 +480,28 @@ fn noisy_samples_in_any_order_fit_close_to_the_truth() {
         assert!(norm(d) < 1e-10);
     }
 }
+
+#[test]
+#[ignore = "a timing: a 10-minute session at 100 Hz (run with --release)"]
+fn long_session_fit_time() {
+    let (times, ps, qs) = samples(600.0, 100.0, |t| {
+        let w = [0.7 * (0.3 * t).sin(), 0.5 * (0.21 * t).cos(), 0.4 * t];
+        (
+            [(0.5 * t).sin(), (0.4 * t).cos(), 0.1 * (0.9 * t).sin()],
+            exp_so3(w),
+        )
+    });
+    let start = std::time::Instant::now();
+    let (sp, rep) = PoseSpline::fit_report(&times, &ps, &qs, 0.05).unwrap();
+    let fit = start.elapsed();
+    let start = std::time::Instant::now();
+    for &t in &times {
+        std::hint::black_box(sp.imu_point_jacobians(t, [0.1, 0.0, 0.05]).unwrap());
+    }
+    eprintln!(
+        "{} samples, {} control points: fit {fit:?} ({rep:?}); IMU-point Jacobians {:?} per sample",
+        times.len(),
+        sp.num_control_points(),
+        start.elapsed() / times.len() as u32
+    );
+}
