@@ -172,6 +172,11 @@ impl PoseSpline {
     /// quaternion `quaternions[s]` = [w, x, y, z] (Hamilton, either sign) of
     /// B in W at `times[s]` (any order), on clamped cubic knots over
     /// [min t, max t] at most `knot_spacing` apart (MODEL.md §10).
+    ///
+    /// The spacing must keep the rotation between consecutive control points
+    /// well below π (the differences d_j are principal logarithms), and every
+    /// knot interval needs samples: a gap longer than about the spacing makes
+    /// the position fit singular ([`SplineError::Singular`]).
     pub fn fit(
         times: &[f64],
         positions: &[V3],

@@ -420,6 +420,18 @@ fn bad_samples_are_rejected() {
     );
     let err = PoseSpline::fit(&times, &ps, &qs, 0.0).unwrap_err();
     assert_eq!(err, PoseSplineError::Spline(SplineError::BadSpacing(0.0)));
+    // a gap of 0.5 s with knots every 0.1 s
+    let keep: Vec<usize> = (0..times.len())
+        .filter(|&k| !(5..15).contains(&k))
+        .collect();
+    let pick = |v: &[V3]| keep.iter().map(|&k| v[k]).collect::<Vec<_>>();
+    let tg: Vec<f64> = keep.iter().map(|&k| times[k]).collect();
+    let qg: Vec<[f64; 4]> = keep.iter().map(|&k| qs[k]).collect();
+    let err = PoseSpline::fit(&tg, &pick(&ps), &qg, 0.1).unwrap_err();
+    assert!(
+        matches!(err, PoseSplineError::Spline(SplineError::Singular { .. })),
+        "{err}"
+    );
     let knots = Knots::uniform(0.0, 1.0, 0.2, 2).unwrap();
     let err = PoseSpline::new(knots, &[], &[]).unwrap_err();
     assert_eq!(err, PoseSplineError::Spline(SplineError::BadDegree(2)));
