@@ -33,7 +33,7 @@
 //! so that Rᵀ Ṙ = [ω⁽³⁾]× (body rate ω), ω_n = R ω and α_n = ω̇_n = R ω̇⁽³⁾.
 //! Their Jacobians are exact by forward-mode jets ([`Jet`]) seeded with
 //! ∂d_j/∂δ_{i+j} = J_r⁻¹(d_j), ∂d_j/∂δ_{i+j−1} = −J_l⁻¹(d_j) and
-//! ∂R_i/∂δ_i = R_i[e_c]×.
+//! ∂R_i/∂δ_i = R_i·hat(e_c).
 //!
 //! # Example
 //!
@@ -369,6 +369,9 @@ impl PoseSpline {
 
     /// Apply the local update of control point k: c_k ← c_k + dc,
     /// R_k ← R_k·Exp(dr) (the parameterisation of every Jacobian here).
+    ///
+    /// # Panics
+    /// If k ≥ [`Self::num_control_points`].
     pub fn perturb(&mut self, k: usize, dc: V3, dr: V3) {
         for c in 0..3 {
             self.position.coeffs_mut()[3 * k + c] += dc[c];

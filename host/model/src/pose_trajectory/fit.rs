@@ -249,6 +249,9 @@ impl PoseSpline {
         rotations: &[M3],
         max_iterations: usize,
     ) -> Result<(usize, bool), SplineError> {
+        if times.is_empty() {
+            return Ok((0, true));
+        }
         let m = self.num_control_points();
         let mut cost = self.rotation_cost(times, rotations)?;
         let mut lambda = 1e-6;

@@ -60,7 +60,7 @@ pub fn exp_s<S: Scalar>(w: V3<S>) -> M3<S> {
 }
 
 /// The right Jacobian J_r(φ): Exp(φ + δ) ≈ Exp(φ)·Exp(J_r(φ) δ);
-/// J_r(φ) = I − (1 − cos θ)/θ² [φ]× + (θ − sin θ)/θ³ [φ]×².
+/// `J_r(φ) = I − (1 − cos θ)/θ² [φ]× + (θ − sin θ)/θ³ [φ]×²`.
 pub fn right_jacobian(phi: V3) -> M3 {
     let th2 = dot(phi, phi);
     let (a, b) = if th2 < SMALL_ANGLE2 {
@@ -77,7 +77,7 @@ pub fn left_jacobian(phi: V3) -> M3 {
     right_jacobian([-phi[0], -phi[1], -phi[2]])
 }
 
-/// J_r(φ)⁻¹ = I + ½[φ]× + (1/θ² − (1 + cos θ)/(2θ sin θ)) [φ]×², for θ < π
+/// `J_r(φ)⁻¹ = I + ½[φ]× + (1/θ² − (1 + cos θ)/(2θ sin θ)) [φ]×²`, for θ < π
 /// (it diverges as θ → 2π; near θ = π it is finite).
 pub fn right_jacobian_inv(phi: V3) -> M3 {
     let th2 = dot(phi, phi);
