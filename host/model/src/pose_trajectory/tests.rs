@@ -100,9 +100,39 @@ fn rot_probe(r0: M3, t: f64) -> impl Fn(&PoseSpline) -> V3 {
     move |s| log_so3(&mul_mm(&transpose(&r0), &s.rotation(t).unwrap()))
 }
 
+/// [`test_spline`] with rotation control points 2.6–2.9 rad apart (large
+/// differences d_j, towards Log's and J_r⁻¹'s range end at π).
+fn fast_spline() -> PoseSpline {
+    let sp = test_spline();
+    let mut r = identity();
+    let rotations: Vec<M3> = (0..sp.num_control_points())
+        .map(|k| {
+            let x = k as f64;
+            let axis = [(0.9 * x).cos(), (0.9 * x).sin(), 0.5];
+            let step = (2.6 + 0.3 * (x * 1.7).sin().abs()) / norm(axis);
+            r = mul_mm(&r, &exp_so3(axis.map(|v| v * step)));
+            r
+        })
+        .collect();
+    let positions: Vec<V3> = (0..sp.num_control_points())
+        .map(|k| sp.position_control_point(k))
+        .collect();
+    let fast = PoseSpline::new(sp.knots().clone(), &positions, &rotations).unwrap();
+    for k in 0..fast.num_control_points() - DEGREE {
+        assert!(fast.differences(k).iter().all(|&d| norm(d) > 2.5));
+    }
+    fast
+}
+
 #[test]
 fn pose_jacobians_match_finite_differences() {
-    let sp = test_spline();
+    for sp in [test_spline(), fast_spline()] {
+        pose_jacobians_of(&sp);
+    }
+}
+
+fn pose_jacobians_of(sp: &PoseSpline) {
+    let sp = sp.clone();
     let mut worst = 0.0f64;
     for t in TIMES {
         let (s, j) = sp.jacobians(t).unwrap();
