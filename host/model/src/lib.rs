@@ -17,6 +17,8 @@
 //! - [`imu`]: gravity, inertial quantities and the sensor model, eq. (5)–(6);
 //! - [`urdf`]: robots from URDF (the revolute chain from a base to a tip link);
 //! - [`spline`]: the clamped B-spline trajectory, eq. (18)–(21);
+//! - [`pose_trajectory`]: the continuous-time pose of a posed body (position
+//!   B-spline and cumulative B-spline on SO(3)) for pose sessions (MODEL.md §10);
 //! - [`measurement`]: predicted z with exact Jacobians (eq. (10));
 //! - [`jet`], [`geom`]: the scalar type (f64 or forward-mode jet) and small
 //!   geometry (3-vectors, SO(3), quaternions, rigid transforms);
@@ -66,6 +68,7 @@ pub mod noise;
 pub mod observations;
 pub mod pair;
 pub mod params;
+pub mod pose_trajectory;
 pub mod robot;
 pub mod spline;
 pub mod text;
@@ -85,6 +88,10 @@ pub use lanes::F64x4;
 pub use measurement::{MeasurementJacobians, MeasurementModel, ModelError};
 pub use observations::Measurements;
 pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
+pub use pose_trajectory::{
+    ImuPointJacobians, ImuPointState, PoseJacobians, PoseResidual, PoseSpline, PoseSplineError,
+    PoseState,
+};
 pub use robot::{ErrorIndex, Frames, Robot, RobotDescription, RobotError};
 pub use spline::{Basis, Basis4, Knots, SpanPolynomials, Spline, SplineError};
 pub use text::NotUtf8;
