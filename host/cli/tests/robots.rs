@@ -105,16 +105,26 @@ fn written_urdf_gives_the_builtins_flange_pose() {
     }
 }
 
+/// Whether python3 imports `modules` (the independent readers' numpy
+/// and tomllib); if not, says the test is skipped and why (`.ci/run`
+/// installs numpy, so CI never skips).
+fn python_has(modules: &str) -> bool {
+    let probe = Command::new("python3")
+        .args(["-c", &format!("import {modules}")])
+        .output();
+    let ok = probe.is_ok_and(|o| o.status.success());
+    if !ok {
+        eprintln!("SKIPPED: python3 (>= 3.11) importing {modules} is needed (pip install numpy)");
+    }
+    ok
+}
+
 /// The written URDF against the maker's, both read by the independent
 /// numpy reader of tests/makers_fk.py. Skipped, with a message, without
 /// python3 ≥ 3.11 and numpy (`.ci/run` installs numpy).
 #[test]
 fn written_urdf_equals_the_makers_by_an_independent_reader() {
-    let probe = Command::new("python3")
-        .args(["-c", "import numpy, tomllib"])
-        .output();
-    if !probe.is_ok_and(|o| o.status.success()) {
-        eprintln!("SKIPPED: python3 >= 3.11 with numpy is needed (pip install numpy)");
+    if !python_has("numpy, tomllib") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -240,11 +250,7 @@ fn a_built_in_robots_calibration_exports_as_a_urdf_with_its_kinematics() {
     use robimu_model::ParamLayout;
     use robimu_session::export::calibrated_params;
     use robimu_session::result::CalibrationResult;
-    let probe = Command::new("python3")
-        .args(["-c", "import numpy"])
-        .output();
-    if !probe.is_ok_and(|o| o.status.success()) {
-        eprintln!("SKIPPED: python3 with numpy is needed (pip install numpy)");
+    if !python_has("numpy") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -332,11 +338,7 @@ fn a_built_in_robots_calibration_exports_as_a_urdf_with_its_kinematics() {
 fn ros2_control_offsets_do_what_the_export_says() {
     use rand::{Rng, SeedableRng};
     use robimu_model::ParamLayout;
-    let probe = Command::new("python3")
-        .args(["-c", "import numpy"])
-        .output();
-    if !probe.is_ok_and(|o| o.status.success()) {
-        eprintln!("SKIPPED: python3 with numpy is needed (pip install numpy)");
+    if !python_has("numpy") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

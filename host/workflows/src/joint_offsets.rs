@@ -19,11 +19,11 @@
 
 use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};
-use robimu_model::geom::{self, log_so3, mul_mm, sub, Iso};
+use robimu_model::geom::{sub, Iso};
 use robimu_model::{ModelParams, ParamLayout, Robot};
 use robimu_session::result::PoseErrorStats;
 
-use crate::pose_accuracy::{stats_of, Workspace};
+use crate::pose_accuracy::{norm3, rotation_error, stats_of, Workspace};
 use crate::tracker::flange_pose;
 
 /// The length that weighs a rotation error against a position error, m/rad.
@@ -134,14 +134,6 @@ pub fn joint_offsets(robot: &Robot, params: &ModelParams) -> anyhow::Result<Join
 }
 
 /// The rotation vector of `a`ᵀ`b`, rad.
-fn rotation_error(a: &Iso, b: &Iso) -> [f64; 3] {
-    log_so3(&mul_mm(&geom::transpose(&a.r), &b.r))
-}
-
-fn norm3(v: &[f64; 3]) -> f64 {
-    v.iter().map(|a| a * a).sum::<f64>().sqrt()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -281,11 +281,13 @@ fn flange_eps(layout: &ParamLayout, x: &[f64]) -> Vec<[f64; 6]> {
 }
 
 /// The rotation vector of `a`ᵀ`b`, rad.
-fn rotation_error(a: &Iso, b: &Iso) -> [f64; 3] {
+/// The rotation vector Log(aᵀ b) from pose `a`'s orientation to `b`'s.
+pub(crate) fn rotation_error(a: &Iso, b: &Iso) -> [f64; 3] {
     log_so3(&mul_mm(&geom::transpose(&a.r), &b.r))
 }
 
-fn norm3(v: &[f64]) -> f64 {
+/// Euclidean norm.
+pub(crate) fn norm3(v: &[f64]) -> f64 {
     v.iter().map(|a| a * a).sum::<f64>().sqrt()
 }
 

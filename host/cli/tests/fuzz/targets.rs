@@ -285,45 +285,21 @@ pub fn all() -> Vec<Target> {
         Target {
             name: "bag metadata.yaml",
             seeds: bag_seeds(|n| n == "metadata.yaml"),
-            command: Some(|d, o| {
-                vec![
-                    "import".into(),
-                    "ros2".into(),
-                    arg(d),
-                    "--out".into(),
-                    arg(o),
-                ]
-            }),
+            command: Some(import_ros2),
             rewrites: false,
             read: read_bag,
         },
         Target {
             name: "MCAP",
             seeds: bag_seeds(|n| n.ends_with(".mcap")),
-            command: Some(|d, o| {
-                vec![
-                    "import".into(),
-                    "ros2".into(),
-                    arg(d),
-                    "--out".into(),
-                    arg(o),
-                ]
-            }),
+            command: Some(import_ros2),
             rewrites: false,
             read: read_bag,
         },
         Target {
             name: "rosbag2 sqlite3",
             seeds: bag_seeds(|n| n.ends_with(".db3")),
-            command: Some(|d, o| {
-                vec![
-                    "import".into(),
-                    "ros2".into(),
-                    arg(d),
-                    "--out".into(),
-                    arg(o),
-                ]
-            }),
+            command: Some(import_ros2),
             rewrites: false,
             read: read_bag,
         },
@@ -393,6 +369,17 @@ fn read_session(dir: &Path) -> Result<(), String> {
 
 /// `import ros2` of the bag in `dir`: an accepted bag must make a session
 /// that the session reader accepts (no silently invalid session).
+/// `robimu import ros2 DIR --out OUT`.
+fn import_ros2(dir: &Path, out: &Path) -> Vec<String> {
+    vec![
+        "import".into(),
+        "ros2".into(),
+        arg(dir),
+        "--out".into(),
+        arg(out),
+    ]
+}
+
 fn read_bag(dir: &Path) -> Result<(), String> {
     let streams = read_ros2(dir, &ros2_options()).map_err(|e| e.to_string())?;
     import_readable(streams, dir)
