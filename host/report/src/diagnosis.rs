@@ -372,8 +372,13 @@ fn write_unexplained(out: &mut fmt::Formatter<'_>, d: &Diagnosis) -> fmt::Result
         .map(|u| {
             let mut parts = Vec::new();
             if u.narrow_peak {
+                let band = if u.in_motion_band {
+                    ", inside the motion's band"
+                } else {
+                    ", above the motion's band"
+                };
                 parts.push(format!(
-                    "narrow peak at {:.2} Hz ({:.1}× median power, p = {:.1e})",
+                    "narrow peak at {:.2} Hz ({:.1}× median power, p = {:.1e}{band})",
                     u.frequency_hz, u.peak_ratio, u.p_value
                 ));
             }

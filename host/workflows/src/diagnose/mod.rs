@@ -366,6 +366,10 @@ pub struct Unexplained {
     pub p_value: f64,
     /// Whether the peak is significant.
     pub narrow_peak: bool,
+    /// Whether the peak lies inside the motion's band
+    /// ([`ResidualStats::motion_band_hz`]): where the regressors carry
+    /// their power, so that the discrepancy can move the parameters.
+    pub in_motion_band: bool,
     /// The regressor the channel's residuals follow most, with r and z = r√N.
     pub regressor: String,
     /// Correlation with it.
@@ -378,11 +382,26 @@ pub struct Unexplained {
     pub follows_regressor: bool,
 }
 
+impl Unexplained {
+    /// Whether this structure can move the parameters: a significant
+    /// correlation with a regressor, or a narrow peak inside the motion's
+    /// band (the regressors are functions of the motion and carry no power
+    /// far above it, where a sensor's sampling artefact may peak).
+    pub fn affects_parameters(&self) -> bool {
+        self.follows_regressor || (self.narrow_peak && self.in_motion_band)
+    }
+}
+
 /// Family-wise level of the unexplained-structure tests over the channels.
 pub const UNEXPLAINED_ALPHA: f64 = 0.01;
 
 /// The channels of `s` with a significant narrow spectral peak or
 /// regressor correlation.
+///
+/// Such structure is a discrepancy the model and noise model leave; it
+/// moves the parameters (and their σ understate the error) when it follows
+/// a regressor or peaks inside the motion's band
+/// ([`Unexplained::affects_parameters`]).
 pub fn unexplained(s: &ResidualStats) -> Vec<Unexplained> {
     let level = UNEXPLAINED_ALPHA / CHANNELS.len() as f64;
     CHANNELS
@@ -393,12 +412,14 @@ pub fn unexplained(s: &ResidualStats) -> Vec<Unexplained> {
             let (regressor, r, z) = s.top_regressor.get(c).cloned().unwrap_or_default();
             let regressor_p = regressor_p_value(z, s.regressors);
             let (narrow_peak, follows_regressor) = (p < level, regressor_p < level);
+            let in_motion_band = s.motion_band_hz.is_some_and(|b| frequency_hz <= b);
             (narrow_peak || follows_regressor).then(|| Unexplained {
                 channel: c.to_string(),
                 frequency_hz,
                 peak_ratio,
                 p_value: p,
                 narrow_peak,
+                in_motion_band,
                 regressor,
                 r,
                 z,

@@ -39,6 +39,42 @@ pub struct ResidualStats {
     /// How many regressors were searched (the Bonferroni factor of
     /// [`regressor_p_value`]).
     pub regressors: usize,
+    /// The motion's band, Hz: the frequency below which
+    /// [`MOTION_BAND_SHARE`] of the power of the angular rate ω at the IMU
+    /// lies ([`motion_band`]). The model's regressors carry their power
+    /// there, so a discrepancy inside it can move the parameters and one
+    /// far above it (a sensor's sampling artefact) cannot.
+    pub motion_band_hz: Option<f64>,
+}
+
+/// Share of the angular rate's power below [`ResidualStats::motion_band_hz`].
+pub const MOTION_BAND_SHARE: f64 = 0.999;
+
+/// The frequency below which [`MOTION_BAND_SHARE`] of the summed Welch
+/// power of `series` (sampled at `rate` Hz, each centred) lies; `None`
+/// when they are too short or carry no power.
+pub fn motion_band(series: &[&[f64]], rate: f64) -> Option<f64> {
+    let mut total: Vec<(f64, f64)> = Vec::new();
+    for x in series {
+        let n = x.len().max(1) as f64;
+        let mean = x.iter().sum::<f64>() / n;
+        let centred: Vec<f64> = x.iter().map(|v| v - mean).collect();
+        let spec = welch(&centred, rate);
+        if total.is_empty() {
+            total = spec;
+        } else {
+            total.iter_mut().zip(spec).for_each(|(a, b)| a.1 += b.1);
+        }
+    }
+    let sum: f64 = total.iter().map(|p| p.1).sum();
+    if sum.is_nan() || sum <= 0.0 {
+        return None;
+    }
+    let mut acc = 0.0;
+    total.iter().find_map(|&(f, p)| {
+        acc += p;
+        (acc >= MOTION_BAND_SHARE * sum).then_some(f)
+    })
 }
 
 /// P-value of the largest |z| = |r|√N among `regressors` correlations of
@@ -148,6 +184,8 @@ pub fn residual_stats(
     for (col, more) in regs.iter_mut().zip(rest) {
         col.extend(more);
     }
+    let w0 = 1 + 3 * dof;
+    let motion_band_hz = motion_band(&[&regs[w0][..], &regs[w0 + 1][..], &regs[w0 + 2][..]], rate);
     let regs: Vec<Centred> = regs.iter().map(|x| Centred::new(x)).collect();
     // the channels' statistics, three per thread, gathered in channel order
     let channel = |c: usize| channel_stats(res, c, &ts, rate, &regs, &reg_names);
@@ -175,6 +213,7 @@ pub fn residual_stats(
         worst_window: PerChannel(std::array::from_fn(|k| st[k].worst_window)),
         top_regressor: PerChannel(std::array::from_fn(|k| st[k].top_regressor.clone())),
         regressors: reg_names.len(),
+        motion_band_hz,
     }
 }
 
@@ -466,6 +505,40 @@ impl Dft {
 #[cfg(test)]
 mod tests {
     use super::Dft;
+
+    /// The motion's band of angular rates made of sines whose powers are
+    /// known (a sine of amplitude A carries A²/2): 99.9 % of the power lies
+    /// below the highest motion sine when a weak fast one carries less than
+    /// 0.1 % (so the band ends at the motion's edge, not at 5 Hz), and
+    /// above it when the fast one carries 1 %.
+    #[test]
+    fn the_motion_band_ends_where_the_rates_power_does() {
+        let rate = 150.0;
+        let t: Vec<f64> = (0..45_000).map(|i| i as f64 / rate).collect();
+        let sine = |a: f64, f: f64| -> Vec<f64> {
+            t.iter()
+                .map(|t| a * (2.0 * std::f64::consts::PI * f * t).sin())
+                .collect()
+        };
+        let add = |a: Vec<f64>, b: Vec<f64>| -> Vec<f64> {
+            a.iter().zip(&b).map(|(x, y)| x + y).collect()
+        };
+        // motion at 0.3, 0.6 and 1.0 Hz (power 0.5 + 0.125 + 0.02); a 5 Hz
+        // artefact of power 0.5·0.01² = 5e-5 (< 0.1 % of 0.645)
+        let motion = || add(add(sine(1.0, 0.3), sine(0.5, 0.6)), sine(0.2, 1.0));
+        let wx = add(motion(), sine(0.01, 5.0));
+        let zero = vec![0.0; t.len()];
+        let band = super::motion_band(&[&wx, &zero, &zero], rate).unwrap();
+        // the Welch bins are rate/512 = 0.29 Hz apart, and the Hann window
+        // spreads each sine over its neighbours
+        assert!((1.0..1.7).contains(&band), "band {band} Hz");
+        // the fast sine at 1 % of the power moves the band's edge to it
+        let wx = add(motion(), sine(0.114, 5.0));
+        let band = super::motion_band(&[&zero, &wx, &zero], rate).unwrap();
+        assert!((4.7..5.6).contains(&band), "band {band} Hz");
+        // no motion, no band
+        assert_eq!(super::motion_band(&[&zero], rate), None);
+    }
 
     /// The correlation through [`super::Centred`] (deviations and sums of
     /// squares computed once per series) is bit-identical to the former

@@ -32,7 +32,7 @@ use crate::calibrate::noise_choice::{
 use crate::calibrate::{calibration_of, check_measurements, CalibrateOptions, Calibration};
 use crate::check::{check_session, CheckOptions, Severity};
 use crate::diagnose::{diagnose, effect_set, fit_json, identify_at, setup_with};
-use crate::diagnose::{DiagnoseOptions, Diagnosis};
+use crate::diagnose::{residual_stats, DiagnoseOptions, Diagnosis, ResidualStats};
 use crate::noise_id::{IdOptions, Identification};
 use crate::pose_accuracy::{pose_accuracy, Posterior};
 use crate::repeatability::{self, check_windows, Repeatability, Window};
@@ -135,6 +135,9 @@ pub struct Fitted {
     /// The search that chose the model's effects, when it ran and added
     /// one, or the fit of a given `effects` set: the evidence.
     pub selection: Option<Diagnosis>,
+    /// The written model's residual statistics (IMU 0), for the verdict's
+    /// structure check.
+    pub residual_stats: ResidualStats,
 }
 
 impl Prepared {
@@ -399,6 +402,8 @@ impl Prepared {
                 .into_iter()
                 .filter_map(|(j, id)| id.ok().map(|id| (j, id)))
                 .collect();
+        let setup = selection.as_ref().map_or(&self.setup, |d| &d.setup);
+        let stats = residual_stats(&self.robot, &self.data, setup, &fit);
         let verdict = self.verdict(VerdictInput {
             robot: &self.robot,
             calibration: &cal,
@@ -407,6 +412,7 @@ impl Prepared {
             repeatability: None,
             other_imus: &other_imus,
             model_tests: Some(&tests),
+            residual_stats: Some(&stats),
         });
         let mut result = result_record(&cal, &self.layout, &self.session, self.opts.use_prior);
         result.noise_warning = noise.warning.clone();
@@ -422,6 +428,7 @@ impl Prepared {
             other_imus,
             fit,
             selection,
+            residual_stats: stats,
         }
     }
 
@@ -495,6 +502,7 @@ impl Prepared {
             repeatability: Some(&study),
             other_imus: &full.other_imus,
             model_tests: full.result.model_tests.as_ref(),
+            residual_stats: Some(&full.residual_stats),
         }));
         Ok((study, result))
     }

@@ -33,7 +33,7 @@ pub(super) fn next_steps(
                 push(format!("find what keeps the fit from converging: robimu check {dir}"));
                 push(replan.clone());
             }
-            "residuals" => {
+            "residuals" | "structure" => {
                 push(format!(
                     "see what the model lacks: robimu diagnose {dir} --out {dir}/diagnosis"
                 ));
