@@ -83,7 +83,7 @@ pub use writer::SessionWriter;
 pub use export::imu::{ImuCsvError, SensorCorrection};
 pub use export::ur::UrKinematicsError;
 pub use export::ExportError;
-pub use import::cdr::CdrError;
+pub use import::cdr::{CdrError, PoseMsg};
 pub use import::ImportError;
 pub use poses::{PoseFile, PoseFileError};
 pub use result::ImuSets;

@@ -18,6 +18,12 @@
 //!
 //! ```text
 //! Header     { Time stamp { int32 sec; uint32 nanosec }; string frame_id }
+//! PoseStamped      { Header header; Pose pose { Point position (x, y, z);
+//!                    Quaternion orientation (x, y, z, w) } }
+//! TransformStamped { Header header; string child_frame_id;
+//!                    Transform transform { Vector3 translation;
+//!                    Quaternion rotation (x, y, z, w) } }
+//! TFMessage        { TransformStamped[] transforms }   (tf2_msgs, /tf)
 //! JointState { Header header; string[] name;
 //!              float64[] position; float64[] velocity; float64[] effort }
 //! Imu        { Header header; Quaternion orientation (x, y, z, w);
@@ -96,6 +102,62 @@ pub struct ImuMsg {
     pub angular_velocity: [f64; 3],
     /// `linear_acceleration`, m/s².
     pub linear_acceleration: [f64; 3],
+}
+
+/// A pose from `geometry_msgs/msg/PoseStamped` or one transform of a
+/// `tf2_msgs/msg/TFMessage` (`geometry_msgs/msg/TransformStamped`): the pose
+/// of frame `child_frame_id` (a PoseStamped's: empty) in `frame_id`, the
+/// quaternion reordered w first as sessions store it (docs MODEL.md §10).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseMsg {
+    /// `header.stamp`.
+    pub stamp: Stamp,
+    /// `header.frame_id`: the frame the pose is given in.
+    pub frame_id: String,
+    /// A transform's `child_frame_id` (empty for a PoseStamped).
+    pub child_frame_id: String,
+    /// Position or translation, m.
+    pub position: [f64; 3],
+    /// Orientation or rotation, (w, x, y, z) (ROS sends x, y, z, w).
+    pub orientation: [f64; 4],
+}
+
+impl PoseMsg {
+    /// Decodes one CDR-serialised `geometry_msgs/msg/PoseStamped`.
+    pub fn decode_pose_stamped(data: &[u8]) -> Result<Self, CdrError> {
+        let mut r = Reader::new(data)?;
+        let (stamp, frame_id) = r.header()?;
+        let (position, orientation) = r.pose()?;
+        Ok(Self {
+            stamp,
+            frame_id,
+            child_frame_id: String::new(),
+            position,
+            orientation,
+        })
+    }
+
+    /// Decodes one CDR-serialised `tf2_msgs/msg/TFMessage`: its transforms
+    /// in order.
+    pub fn decode_tf(data: &[u8]) -> Result<Vec<Self>, CdrError> {
+        let mut r = Reader::new(data)?;
+        // a TransformStamped is at least 8 (stamp) + 4 + 4 (two strings) + 56
+        let n = r.count(72)?;
+        (0..n)
+            .map(|_| {
+                let (stamp, frame_id) = r.header()?;
+                let child_frame_id = r.string()?;
+                let (position, orientation) = r.pose()?;
+                Ok(Self {
+                    stamp,
+                    frame_id,
+                    child_frame_id,
+                    position,
+                    orientation,
+                })
+            })
+            .collect()
+    }
 }
 
 /// A cursor over one CDR message.
@@ -232,6 +294,14 @@ impl<'a> Reader<'a> {
     }
 
     /// `std_msgs/Header`: the stamp in ns and the frame id.
+    /// A Point/Vector3 then a Quaternion (x, y, z, w), the quaternion
+    /// returned w first.
+    fn pose(&mut self) -> Result<([f64; 3], [f64; 4]), CdrError> {
+        let position: [f64; 3] = self.f64s()?;
+        let [x, y, z, w]: [f64; 4] = self.f64s()?;
+        Ok((position, [w, x, y, z]))
+    }
+
     fn header(&mut self) -> Result<(Stamp, String), CdrError> {
         let sec = self.i32()?;
         let nanosec = self.u32()?;
@@ -285,7 +355,7 @@ impl ImuMsg {
 /// A CDR encoder of the same two messages, the inverse of the decoders:
 /// for writing ROS 2 recordings (tests, examples). Little-endian CDR.
 pub mod encode {
-    use super::{ImuMsg, JointStateMsg, HEADER};
+    use super::{ImuMsg, JointStateMsg, PoseMsg, HEADER};
 
     struct Writer {
         out: Vec<u8>,
@@ -339,6 +409,34 @@ pub mod encode {
         w.f64_seq(&m.position);
         w.f64_seq(&[]);
         w.f64_seq(&[]);
+        w.out
+    }
+
+    /// The position and (x, y, z, w) quaternion of `m`.
+    fn pose(w: &mut Writer, m: &PoseMsg) {
+        let [qw, qx, qy, qz] = m.orientation;
+        for x in m.position.into_iter().chain([qx, qy, qz, qw]) {
+            w.f64(x);
+        }
+    }
+
+    /// `geometry_msgs/msg/PoseStamped` (`child_frame_id` is not sent).
+    pub fn pose_stamped(m: &PoseMsg) -> Vec<u8> {
+        let mut w = Writer::new();
+        w.header(m.stamp.0, &m.frame_id);
+        pose(&mut w, m);
+        w.out
+    }
+
+    /// `tf2_msgs/msg/TFMessage` of `transforms`.
+    pub fn tf(transforms: &[PoseMsg]) -> Vec<u8> {
+        let mut w = Writer::new();
+        w.u32(transforms.len() as u32);
+        for m in transforms {
+            w.header(m.stamp.0, &m.frame_id);
+            w.string(&m.child_frame_id);
+            pose(&mut w, m);
+        }
         w.out
     }
 
@@ -427,6 +525,58 @@ mod tests {
         b.extend_from_slice(&[0, 0, 0, 0, 0, 0, 0, 0xc0]);
         b.extend_from_slice(&[0; 8]);
         b
+    }
+
+    /// A PoseStamped derived by hand, little-endian CDR: stamp 3 s + 9 ns,
+    /// frame "w", position (1, 2, 3), orientation x = 0, y = 0, z = 0.6,
+    /// w = 0.8 ("rel": offset after the header).
+    ///
+    /// ```text
+    ///  4   03 00 00 00 | 09 00 00 00   stamp (rel 0..8)
+    /// 12   02 00 00 00 77 00           "w" (rel 8..14), pad 2 (→ rel 16)
+    /// 20   1.0 2.0 3.0                 position (rel 16: aligned to 8)
+    /// 44   0.0 0.0 0.6 0.8             orientation x, y, z, w (rel 40..72)
+    /// ```
+    fn pose_stamped_le() -> Vec<u8> {
+        let mut b = vec![0x00, 0x01, 0, 0, 3, 0, 0, 0, 9, 0, 0, 0];
+        b.extend_from_slice(&[2, 0, 0, 0, b'w', 0, 0, 0]);
+        for x in [1.0f64, 2.0, 3.0, 0.0, 0.0, 0.6, 0.8] {
+            b.extend_from_slice(&x.to_le_bytes());
+        }
+        b
+    }
+
+    #[test]
+    fn decodes_a_hand_derived_pose_stamped_and_a_tf_message() {
+        let m = PoseMsg::decode_pose_stamped(&pose_stamped_le()).unwrap();
+        assert_eq!(m.stamp, Stamp(3_000_000_009));
+        assert_eq!(m.frame_id, "w");
+        assert_eq!(m.position, [1.0, 2.0, 3.0]);
+        // w first
+        assert_eq!(m.orientation, [0.8, 0.0, 0.0, 0.6]);
+        assert_eq!(encode::pose_stamped(&m), pose_stamped_le());
+        // a TFMessage of two transforms: round trip, order kept
+        let a = PoseMsg {
+            child_frame_id: "tool0".into(),
+            frame_id: "base".into(),
+            ..m.clone()
+        };
+        let b = PoseMsg {
+            stamp: Stamp(-1_500_000_000),
+            position: [-0.5, 0.25, 1e-3],
+            orientation: [0.0, 1.0, 0.0, 0.0],
+            ..a.clone()
+        };
+        let bytes = encode::tf(&[a.clone(), b.clone()]);
+        assert_eq!(PoseMsg::decode_tf(&bytes).unwrap(), vec![a, b]);
+        // truncated anywhere: an error naming it, never a panic
+        for cut in 0..bytes.len() {
+            assert!(PoseMsg::decode_tf(&bytes[..cut]).is_err(), "cut at {cut}");
+        }
+        let p = pose_stamped_le();
+        for cut in 0..p.len() {
+            assert!(PoseMsg::decode_pose_stamped(&p[..cut]).is_err());
+        }
     }
 
     #[test]
