@@ -84,6 +84,7 @@ pub use export::imu::{ImuCsvError, SensorCorrection};
 pub use export::ur::UrKinematicsError;
 pub use export::ExportError;
 pub use import::cdr::{CdrError, PoseMsg};
+pub use import::pose_csv::{read_pose_csv, Orientation, PoseCsvOptions, PoseRows, QuaternionOrder};
 pub use import::ImportError;
 pub use poses::{PoseFile, PoseFileError};
 pub use result::ImuSets;

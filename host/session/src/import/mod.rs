@@ -5,6 +5,9 @@
 //!   and `sensor_msgs/msg/Imu` in CDR, decoded by [`cdr`]): a rosbag2
 //!   directory or one storage file, MCAP (`mcap`) or sqlite3 (`sqlite3`,
 //!   feature `sqlite3`).
+//! * [`pose_csv`]: a pose stream (a controller's TCP poses, motion capture)
+//!   from a CSV with the user's columns and units, for pose sessions
+//!   (MODEL.md §10).
 //! * [`csv`]: an EuRoC/Kalibr IMU CSV (`#timestamp [ns],w_RS_S_x [rad s^-1],…,
 //!   a_RS_S_x [m s^-2],…`) with a joints CSV on the same clock.
 //!
@@ -20,6 +23,7 @@ mod collect;
 pub mod csv;
 #[cfg(feature = "ros2")]
 mod mcap;
+pub mod pose_csv;
 #[cfg(feature = "ros2")]
 pub mod ros2;
 #[cfg(feature = "sqlite3")]
