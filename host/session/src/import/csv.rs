@@ -21,12 +21,16 @@ use std::path::Path;
 use super::{imu_row, ImportError, JointRows, Streams, MAX_SPAN_NS};
 
 /// A CSV file as its header (if any) and numbered rows of fields.
-struct Raw {
-    header: Option<Vec<String>>,
-    rows: Vec<(u64, Vec<String>)>,
+pub(crate) struct Raw {
+    /// The first line when it is not numbers (a leading `#` taken off).
+    pub header: Option<Vec<String>>,
+    /// (line, fields) of every other line but comments and blank lines.
+    pub rows: Vec<(u64, Vec<String>)>,
 }
 
-fn read_raw(path: &Path) -> Result<Raw, ImportError> {
+/// `path` as a header and rows (module doc: a leading `#` allowed, later
+/// `#` lines comments); an error when no row holds data.
+pub(crate) fn read_raw(path: &Path) -> Result<Raw, ImportError> {
     let file = std::fs::File::open(path).map_err(|source| ImportError::Io {
         path: path.to_path_buf(),
         source,

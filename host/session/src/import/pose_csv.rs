@@ -27,6 +27,7 @@ use robimu_model::geom::{
     exp_so3, matrix_from_quat, mul_mm, mul_mv, quat_from_matrix, rot_x, rot_y, rot_z, transpose,
 };
 
+use super::csv::read_raw;
 use super::ImportError;
 
 /// How the orientation is written.
@@ -111,49 +112,15 @@ pub struct PoseRows {
 
 /// Reads the poses of `path` as `opts` describe them (module doc).
 pub fn read_pose_csv(path: &Path, opts: &PoseCsvOptions) -> Result<PoseRows, ImportError> {
-    let text = std::fs::read(path).map_err(|source| ImportError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let mut rdr = ::csv::ReaderBuilder::new()
-        .has_headers(false)
-        .flexible(true)
-        .trim(::csv::Trim::All)
-        .from_reader(&text[..]);
-    let mut header: Option<Vec<String>> = None;
-    let mut columns: Option<Columns> = None;
+    let raw = read_raw(path)?;
+    let columns = Columns::resolve(path, opts, raw.header.as_deref())?;
     let mut out = PoseRows::default();
-    for record in rdr.records() {
-        let record = record.map_err(|e| ImportError::Line {
-            path: path.to_path_buf(),
-            line: e.position().map_or(0, |p| p.line()),
-            detail: e.to_string(),
-        })?;
-        let line = record.position().map_or(0, |p| p.line());
-        let fields: Vec<&str> = record.iter().collect();
-        if fields.iter().all(|f| f.is_empty()) || fields[0].starts_with('#') && header.is_some() {
-            continue;
-        }
-        let first = fields[0].trim_start_matches('#').trim();
-        if header.is_none() && out.t_ns.is_empty() && first.parse::<f64>().is_err() {
-            let mut names: Vec<String> = fields.iter().map(|f| f.to_string()).collect();
-            names[0] = first.to_string();
-            header = Some(names);
-            continue;
-        }
-        let cols = match &columns {
-            Some(c) => c,
-            None => columns.insert(Columns::resolve(path, opts, header.as_deref())?),
-        };
-        let (t, p, q) = cols.row(path, line, &fields, opts)?;
+    for (line, fields) in &raw.rows {
+        let fields: Vec<&str> = fields.iter().map(String::as_str).collect();
+        let (t, p, q) = columns.row(path, *line, &fields, opts)?;
         out.t_ns.push(t);
         out.p.push(p);
         out.q.push(q);
-    }
-    if out.t_ns.is_empty() {
-        return Err(ImportError::Empty {
-            what: format!("pose stream {}", path.display()),
-        });
     }
     Ok(out)
 }
@@ -420,7 +387,7 @@ mod tests {
             ("t,px,py,pz,qw,qx,qy,qz\n0,0,0\n", "column 4 missing"),
             ("t,x,y,z,qw,qx,qy,qz\n0,0,0,0,1,0,0,0\n", "no column \"px\""),
             ("0,0,0,0,1,0,0,0\n", "must be a 0-based index"),
-            ("t,px,py,pz,qw,qx,qy,qz\n", "pose stream"),
+            ("t,px,py,pz,qw,qx,qy,qz\n", "poses.csv"),
             (
                 "t,px,py,pz,qw,qx,qy,qz\n1e300,0,0,0,1,0,0,0\n",
                 "out of range",
