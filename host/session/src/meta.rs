@@ -430,6 +430,17 @@ impl SessionMeta {
 
     /// Parse and validate; `path` only names the file in errors.
     pub fn parse(text: &str, path: &Path) -> Result<Self, SessionError> {
+        let doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
+        if crate::SessionSource::of_table(&doc, path)? == crate::SessionSource::Poses {
+            return Err(crate::source::not_joints(path));
+        }
+        if !doc.contains_key("robot") {
+            return Err(SessionError::file(
+                path,
+                "no `robot` key: a joint session names its robot (a built-in name or a path, \
+                 docs/model.md §7.2); a session with tool poses says source = \"poses\" (§7.9)",
+            ));
+        }
         let mut meta: Self = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         if meta.format != SESSION_FORMAT {
             return Err(SessionError::file(
@@ -452,7 +463,6 @@ impl SessionMeta {
             noise.validate(path)?;
         }
         meta.noise_shape = NoiseShape::parse(text, path)?;
-        let doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         for (key, value) in doc {
             let Some(j) = crate::files::imu_number(&key) else {
                 continue;
