@@ -34,7 +34,7 @@ pub(crate) fn median_period(t: &[f64]) -> f64 {
 /// [`JITTER_INFO`] of the median interval, a warning above [`JITTER_WARN`].
 pub fn jitter(name: &str, t: &[f64]) -> Option<Finding> {
     let period = median_period(t);
-    if !(period > 0.0) {
+    if period.is_nan() || period <= 0.0 {
         return None;
     }
     let (sum, n) = t
@@ -78,7 +78,7 @@ pub fn jitter(name: &str, t: &[f64]) -> Option<Finding> {
 /// the time they end (a warning).
 pub fn startup_burst(name: &str, t: &[f64]) -> Option<Finding> {
     let period = median_period(t);
-    if !(period > 0.0) {
+    if period.is_nan() || period <= 0.0 {
         return None;
     }
     let short = |i: usize| t[i + 1] - t[i] < BURST_FRACTION * period;
@@ -107,7 +107,8 @@ pub fn startup_burst(name: &str, t: &[f64]) -> Option<Finding> {
             period * 1e3
         ),
         format!(
-            "drop the rows up to t = {:.3} s (their stamps are not their sample instants), or stamp the samples on the device's clock",
+            "drop the first {} rows (up to t = {} s: their stamps are not their sample instants), or stamp the samples on the device's clock",
+            end + 1,
             t[end]
         ),
     ))
@@ -176,7 +177,7 @@ mod tests {
         assert_eq!(f.kind, "startup_burst");
         assert_eq!(f.value, 40.0);
         assert!(f.message.contains("within 19.5 ms"), "{}", f.message);
-        assert!(f.action.contains("up to t = 0.020 s"), "{}", f.action);
+        assert!(f.action.contains("drop the first 40 rows"), "{}", f.action);
         // a few short intervals are not a burst; nor is one in the middle
         let mut few = regular(1000);
         for v in few.iter_mut().skip(1).take(3) {

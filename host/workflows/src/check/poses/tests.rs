@@ -151,7 +151,7 @@ fn positions_in_mm_are_fatal_and_name_the_import_option() {
     let far = scaled(&|_, p| p[2] += 500.0);
     assert_eq!(only(&far, "pose_units").severity, Severity::Fatal);
     let fast = scaled(&|i, p| p[0] = if i % 2 == 0 { 0.0 } else { 0.15 });
-    assert!(only(&fast, "pose_units").message.contains("exceed 15.000"));
+    assert!(only(&fast, "pose_units").message.contains("exceed 15.0"));
     assert!(!kinds(&scaled(&|_, p| p[2] += 5.0)).contains(&"pose_units"));
 }
 
