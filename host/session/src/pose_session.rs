@@ -167,22 +167,25 @@ impl PoseSession {
             .collect()
     }
 
-    /// The poses and IMU 0's samples as plain data.
+    /// The poses and IMU 0's samples as plain data (no IMU samples for a
+    /// session built without IMU 0).
     pub fn measurements(&self) -> PoseMeasurements {
-        self.measurements_of_imu(0)
-            .expect("a pose session has IMU 0")
+        self.with_imu(self.imus.first().map(|f| &f.samples))
     }
 
     /// The poses and IMU `j`'s samples; `None` without an IMU `j`.
     pub fn measurements_of_imu(&self, j: usize) -> Option<PoseMeasurements> {
-        let imu = &self.imus.get(j)?.samples;
-        Some(PoseMeasurements {
+        Some(self.with_imu(Some(&self.imus.get(j)?.samples)))
+    }
+
+    fn with_imu(&self, imu: Option<&Table>) -> PoseMeasurements {
+        PoseMeasurements {
             pose_t: self.poses.t.clone(),
             pose_p: self.positions(),
             pose_q: self.quaternions(),
-            imu_t: imu.t.clone(),
-            imu_z: crate::imu_rows(imu),
-        })
+            imu_t: imu.map(|f| f.t.clone()).unwrap_or_default(),
+            imu_z: imu.map(crate::imu_rows).unwrap_or_default(),
+        }
     }
 
     /// The true parameters in [`pose_parameter_names`] order, when the
