@@ -60,7 +60,7 @@ pub fn check(name: &str, imu: &Table) -> Vec<Finding> {
             count as f64,
             format!(
                 "{name}: {channel} saturated: {count} samples ({:.2} %) in runs of ≥ {CLIP_RUN} at \
-                 its extreme {value} {unit} ({:.1} {scale_unit}{near})",
+                 its extreme {value:.4} {unit} ({:.1} {scale_unit}{near})",
                 100.0 * share,
                 value / scale
             ),

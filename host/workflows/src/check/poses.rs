@@ -93,7 +93,7 @@ fn sign_flips(session: &PoseSession) -> Option<Finding> {
             flips.len(),
             t[first]
         ),
-        "none needed (robimu takes the sign that continues the previous row)",
+        "none needed: q and −q are one rotation (a tool that interpolates the components must align their signs first)",
     ))
 }
 

@@ -238,3 +238,20 @@ fn streams_that_do_not_overlap_are_fatal() {
         f.message
     );
 }
+
+/// Sessions of one row, or of rows at one instant, are checked without a
+/// panic: the streams have no rate (fatal), nothing else is computed from
+/// intervals it does not have.
+#[test]
+fn degenerate_sessions_do_not_panic() {
+    let mut s = clean(1);
+    s.poses.t.truncate(1);
+    s.poses.values.truncate(7);
+    s.imus[0].samples.t = vec![0.0, 0.0];
+    s.imus[0].samples.values.truncate(12);
+    let r = check_pose_session(&s);
+    let rates: Vec<_> = r.findings.iter().filter(|f| f.kind == "rate").collect();
+    assert_eq!(rates.len(), 2, "{:#?}", r.findings);
+    assert!(rates.iter().all(|f| f.severity == Severity::Fatal));
+    assert!(!kinds(&r).contains(&"jitter") && !kinds(&r).contains(&"startup_burst"));
+}
