@@ -9,15 +9,15 @@ use super::streams::GAP_FACTOR;
 use super::{median_of, Finding, Severity};
 
 /// Jitter above this part of the median interval is named (information).
-pub(crate) const JITTER_INFO: f64 = 0.02;
+pub const JITTER_INFO: f64 = 0.02;
 /// Jitter above this part of the median interval is a warning.
-pub(crate) const JITTER_WARN: f64 = 0.1;
+pub const JITTER_WARN: f64 = 0.1;
 /// An interval below this part of the median is one of a burst's.
-pub(crate) const BURST_FRACTION: f64 = 0.25;
+pub const BURST_FRACTION: f64 = 0.25;
 /// A burst has at least this many such intervals in a row.
-pub(crate) const BURST_MIN: usize = 5;
+pub const BURST_MIN: usize = 5;
 /// A start-up burst begins within this many intervals of the first row.
-pub(crate) const BURST_START: usize = 3;
+pub const BURST_START: usize = 3;
 
 /// The median of the positive intervals of `t` (NaN without one).
 pub(crate) fn median_period(t: &[f64]) -> f64 {
@@ -30,7 +30,7 @@ pub(crate) fn median_period(t: &[f64]) -> f64 {
 }
 
 /// The RMS of the intervals of `t` about their median, gaps (over
-/// [`GAP_FACTOR`] periods) and repeated stamps left out: named above
+/// 3 median periods, as in [`super::streams`]) and repeated stamps left out: named above
 /// [`JITTER_INFO`] of the median interval, a warning above [`JITTER_WARN`].
 pub fn jitter(name: &str, t: &[f64]) -> Option<Finding> {
     let period = median_period(t);
