@@ -11,6 +11,7 @@
 //! sigma_r = 1e-3             # rad, rotation angle
 //! [noise]                    # optional, the IMU noise as in a joint session
 //! sigma_z = [0.38, 0.21, 0.19, 0.0056, 0.0082, 0.0099]   # m/s² ×3, rad/s ×3
+//! ar_z = [[0.9], [0.9], [0.9], [], [], []]   # optional, AR(p) φ per IMU channel
 //! [imu]                      # optional, free-form description of the device
 //! ```
 //!
@@ -23,7 +24,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::meta::toml_error;
-use super::{NoiseOverride, SessionError, SessionSource, SESSION_FORMAT, SOURCE_POSES};
+use super::{NoiseOverride, NoiseShape, SessionError, SessionSource, SESSION_FORMAT, SOURCE_POSES};
 
 /// The `[poses]` table: the pose noise of MODEL.md §10, as standard
 /// deviations.
@@ -60,6 +61,11 @@ pub struct PoseSessionMeta {
     /// Free-form notes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub notes: Option<String>,
+    /// The `[noise]` table's `ar_z` (docs/model.md §4.6), read and written
+    /// beside [`Self::noise`]'s σ (`motion_z`, which scales with the joint
+    /// accelerations, is refused).
+    #[serde(skip)]
+    pub noise_shape: Option<NoiseShape>,
     /// The `[imu<j>]` tables of IMU j ≥ 1 (docs/model.md §9).
     #[serde(skip)]
     pub imu_tables: BTreeMap<usize, toml::Table>,
@@ -75,6 +81,7 @@ impl Default for PoseSessionMeta {
             noise: None,
             imu: None,
             notes: None,
+            noise_shape: None,
             imu_tables: BTreeMap::new(),
         }
     }
@@ -114,6 +121,18 @@ impl PoseSessionMeta {
             ));
         }
         meta.validate(path)?;
+        meta.noise_shape = NoiseShape::parse(text, path)?;
+        if meta
+            .noise_shape
+            .as_ref()
+            .is_some_and(|s| s.motion_z.is_some())
+        {
+            return Err(SessionError::file(
+                path,
+                "[noise] motion_z scales the IMU noise with the joint accelerations: a pose \
+                 session has no joints (leave it out)",
+            ));
+        }
         for (key, value) in doc {
             let Some(j) = crate::files::imu_number(&key) else {
                 continue;
@@ -172,6 +191,15 @@ impl PoseSessionMeta {
     /// The TOML text of this description.
     pub fn to_toml(&self) -> String {
         let mut doc = toml::Table::try_from(self).expect("session metadata always serialises");
+        if let Some(shape) = self.noise_shape.as_ref().filter(|s| !s.is_empty()) {
+            let keys = toml::Table::try_from(shape).expect("the noise shape always serialises");
+            let table = doc
+                .entry("noise")
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            if let toml::Value::Table(t) = table {
+                t.extend(keys);
+            }
+        }
         for (j, t) in &self.imu_tables {
             doc.insert(format!("imu{j}"), toml::Value::Table(t.clone()));
         }
@@ -205,6 +233,10 @@ mod tests {
             ..Default::default()
         };
         m.imu_tables.insert(1, toml::Table::new());
+        m.noise_shape = Some(NoiseShape {
+            ar_z: Some(vec![vec![0.5], vec![], vec![], vec![], vec![], vec![0.25]]),
+            motion_z: None,
+        });
         assert_eq!(parse(&m.to_toml()).unwrap(), m);
         assert_eq!(parse(HEAD).unwrap(), PoseSessionMeta::default());
         let only_p = parse(&format!("{HEAD}[poses]\nsigma_p = 0.001\n")).unwrap();
@@ -234,6 +266,10 @@ mod tests {
         assert!(e.to_string().contains("robimu-session/1"), "{e}");
         let e = parse(&format!("{HEAD}imu1 = 3\n")).unwrap_err();
         assert!(e.to_string().contains("must be a table"), "{e}");
+        let e = parse(&format!("{HEAD}[noise]\nmotion_z = [0,0,0,0,0,0]\n")).unwrap_err();
+        assert!(e.to_string().contains("motion_z"), "{e}");
+        let e = parse(&format!("{HEAD}[noise]\nar_z = [[2.0]]\n")).unwrap_err();
+        assert!(e.to_string().contains("ar_z"), "{e}");
         let e = parse(&format!("{HEAD}gravity = 0\n")).unwrap_err();
         assert!(e.to_string().contains("gravity = 0"), "{e}");
     }
