@@ -8,8 +8,8 @@
 //! * `tracker.csv` — optional, `t,px,py,pz,qw,qx,qy,qz`
 //! * `truth.toml` — optional, simulated sessions only ([`Truth`])
 //!
-//! A session with tool poses instead of joint angles (MODEL.md §10,
-//! docs/model.md §7.9; `source = "poses"` in `session.toml`, [`SessionSource`])
+//! A session with tool poses instead of joint angles
+//! (docs/model.md §7.9; `source = "poses"` in `session.toml`, [`SessionSource`])
 //! has `poses.csv` in place of `joints.csv` and no robot: [`PoseSession`],
 //! written by [`PoseSessionWriter`]. Each reader refuses the other kind.
 //!
@@ -73,8 +73,8 @@ use std::path::{Path, PathBuf};
 use robimu_model::observations::{ImuSamples, Measurements};
 use robimu_model::Robot;
 
+pub use error::toml_error;
 pub use error::SessionError;
-pub use meta::toml_error;
 pub use meta::{
     check_ar_order_for_data, ImuTiming, MountPrior, NoiseOverride, NoiseShape, SessionMeta,
     SESSION_FORMAT,

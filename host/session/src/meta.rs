@@ -25,6 +25,7 @@ use std::path::Path;
 use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError};
 use serde::{Deserialize, Serialize};
 
+use super::error::toml_error;
 use super::SessionError;
 use crate::IMU_COLUMNS;
 
@@ -513,18 +514,6 @@ impl SessionMeta {
             doc.insert(format!("imu{j}"), toml::Value::Table(t.clone()));
         }
         toml::to_string(&doc).expect("session metadata always serialises")
-    }
-}
-
-/// A TOML parse error of `path` as a [`SessionError`] naming the line.
-pub fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> SessionError {
-    let message = e.message().to_string();
-    match e.span() {
-        Some(span) => {
-            let line = text[..span.start.min(text.len())].matches('\n').count() as u64 + 1;
-            SessionError::line(path, line, message)
-        }
-        None => SessionError::file(path, message),
     }
 }
 

@@ -1,5 +1,4 @@
-//! `session.toml` of a session with tool poses (MODEL.md §10,
-//! docs/model.md §7.9):
+//! `session.toml` of a session with tool poses (docs/model.md §7.9):
 //!
 //! ```toml
 //! format = "robimu-session/1"
@@ -23,10 +22,10 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::meta::toml_error;
+use super::error::toml_error;
 use super::{NoiseOverride, NoiseShape, SessionError, SessionSource, SESSION_FORMAT, SOURCE_POSES};
 
-/// The `[poses]` table: the pose noise of MODEL.md §10, as standard
+/// The `[poses]` table: the pose noise of docs/model.md §7.9, as standard
 /// deviations.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -1,5 +1,5 @@
-//! A session with tool poses instead of joint angles (MODEL.md §10,
-//! docs/model.md §7.9): `session.toml` ([`PoseSessionMeta`], `source =
+//! A session with tool poses instead of joint angles
+//! (docs/model.md §7.9): `session.toml` ([`PoseSessionMeta`], `source =
 //! "poses"`), `poses.csv` (`t,px,py,pz,qw,qx,qy,qz`: s, m, a unit
 //! quaternion w first of the posed body B in the world W), `imu.csv` and
 //! `imu<j>.csv` as in a joint session, and for simulations `truth.toml`
@@ -29,7 +29,7 @@ pub const MAX_POSITION: f64 = 1e4;
 /// of a tracker that lost the body, or columns that are not a quaternion).
 pub const MIN_QUATERNION_NORM: f64 = 0.1;
 
-/// The parameters of a one-IMU pose session, in MODEL.md §10's order:
+/// The parameters of a one-IMU pose session, in docs/model.md §7.9's order:
 /// the IMU's position on the posed body, gravity, τ and the 24 sensor
 /// parameters of §5.
 pub const POSE_PARAMETERS: [&str; 30] = [
@@ -67,7 +67,7 @@ pub const POSE_PARAMETERS: [&str; 30] = [
 
 /// The parameter names of a pose session with `n_imus` IMUs: IMU 0's
 /// [`POSE_PARAMETERS`], then for each IMU j ≥ 1 its own 28 (all but the
-/// shared `g_x`, `g_y`) as `imu<j>/<name>` (MODEL.md §10, §9).
+/// shared `g_x`, `g_y`) as `imu<j>/<name>` (docs/model.md §7.9, §9).
 pub fn pose_parameter_names(n_imus: usize) -> Vec<String> {
     let mut names: Vec<String> = POSE_PARAMETERS.iter().map(|n| n.to_string()).collect();
     for j in 1..n_imus {
@@ -251,8 +251,8 @@ fn check_truth(truth: &Truth, n_imus: usize, path: &Path) -> Result<(), SessionE
         return Err(SessionError::file(
             path,
             format!(
-                "`{n}` is not a parameter of a pose session with {n_imus} IMU(s) (MODEL.md \
-                 §10: p_imu_x, p_imu_y, p_imu_z, g_x, g_y, tau and the sensor parameters)"
+                "`{n}` is not a parameter of a pose session with {n_imus} IMU(s) (docs/model.md \
+                 §7.9: p_imu_x, p_imu_y, p_imu_z, g_x, g_y, tau and the sensor parameters)"
             ),
         ));
     }

@@ -1,11 +1,11 @@
 //! What a session's samples of the motion are: joint angles (`joints.csv`,
 //! docs/model.md §7) or tool poses (`poses.csv`, `source = "poses"`,
-//! MODEL.md §10). `session.toml` says which; a reader of one kind refuses
+//! docs/model.md §7.9). `session.toml` says which; a reader of one kind refuses
 //! the other with a message naming it.
 
 use std::path::Path;
 
-use super::meta::toml_error;
+use super::error::toml_error;
 use super::SessionError;
 
 /// The `source` value of a session with tool poses.
@@ -19,7 +19,7 @@ pub const SOURCE_JOINTS: &str = "joints";
 pub enum SessionSource {
     /// Joint angles, `joints.csv`, a `robot` (docs/model.md §7).
     Joints,
-    /// Tool poses, `poses.csv`, no robot (MODEL.md §10).
+    /// Tool poses, `poses.csv`, no robot (docs/model.md §7.9).
     Poses,
 }
 

@@ -1,5 +1,5 @@
-//! The check of a session with tool poses (MODEL.md §10, docs/model.md
-//! §7.9): the streams as for a joint session ([`super::streams`]: rates,
+//! The check of a session with tool poses (docs/model.md §7.9): the
+//! streams as for a joint session ([`super::streams`]: rates,
 //! gaps with their time and length, repeated stamps, time units, the
 //! overlap of `poses.csv` and each IMU's span), the timing jitter of each
 //! stream and a start-up burst of late-stamped IMU samples
