@@ -118,7 +118,7 @@ pub fn ranges(session: &Session) -> (Option<f64>, Option<f64>) {
 }
 
 /// [`ranges`] of an `[imu]` table (of a joint or a pose session).
-pub fn ranges_of(imu: Option<&toml::Table>) -> (Option<f64>, Option<f64>) {
+pub(crate) fn ranges_of(imu: Option<&toml::Table>) -> (Option<f64>, Option<f64>) {
     let Some(imu) = imu else {
         return (None, None);
     };

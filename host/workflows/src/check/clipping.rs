@@ -1,9 +1,9 @@
 //! Saturation found in the samples themselves, when no device range is
 //! recorded (a pose session's IMU, any other tool's recording): a clipped
 //! channel sits at one value, its extreme, for a run of samples. Runs of
-//! at least [`CLIP_RUN`] identical samples at the channel's largest |value|
+//! at least `CLIP_RUN` identical samples at the channel's largest |value|
 //! (within 98 % of it) are counted per channel,
-//! when that value is at least [`MIN_FULL_SCALE`] of the sensor (no device
+//! when that value is at least `MIN_FULL_SCALE` of the sensor (no device
 //! clips below 2 g or 125 °/s: an accelerometer at rest repeating 9.81 is
 //! not saturated); a value near a typical full scale is named as such.
 
@@ -12,10 +12,11 @@ use super::{Finding, Severity};
 use robimu_session::{Table, IMU_COLUMNS};
 
 /// A clipped stretch is at least this many identical samples in a row.
-pub const CLIP_RUN: usize = 5;
+pub(crate) const CLIP_RUN: usize = 5;
 /// The smallest full scale of the accelerometer (m/s²) and the gyroscope
 /// (rad/s): 2 g and 125 °/s (the BNO055's smallest ranges).
-pub const MIN_FULL_SCALE: [f64; 2] = [2.0 * G_STANDARD, 125.0 * std::f64::consts::PI / 180.0];
+pub(crate) const MIN_FULL_SCALE: [f64; 2] =
+    [2.0 * G_STANDARD, 125.0 * std::f64::consts::PI / 180.0];
 /// Typical full scales (BNO055: 2, 4, 8, 16 g; 125…2000 °/s; other MEMS
 /// parts up to 4000 °/s), in g and °/s.
 const FULL_SCALES: [&[f64]; 2] = [
@@ -69,7 +70,7 @@ pub fn check(name: &str, imu: &Table) -> Vec<Finding> {
     out
 }
 
-/// The samples of `v` in runs of at least [`CLIP_RUN`] identical values at
+/// The samples of `v` in runs of at least `CLIP_RUN` identical values at
 /// the largest |value| (within [`SATURATION`]), and that value; `None`
 /// when there are none or the extreme is below `min_full_scale`.
 fn clipped(v: &[f64], min_full_scale: f64) -> Option<(usize, f64)> {

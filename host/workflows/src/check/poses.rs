@@ -8,32 +8,32 @@
 //!
 //! * quaternion sign flips (q·q' < 0 between consecutive rows: q and −q
 //!   are the same rotation; information);
-//! * quaternions that are not unit (|q| off 1 by more than [`NON_UNIT`]:
+//! * quaternions that are not unit (|q| off 1 by more than `NON_UNIT`:
 //!   count and worst; a warning, fatal when the median is off by
-//!   [`NOT_QUATERNION`]: the columns are not a quaternion w first);
-//! * positions in mm (a range over [`MM_RANGE`] m on an axis, the 90th
-//!   percentile of the speed over [`MM_SPEED`] m/s, or a distance from the
-//!   origin over [`MM_DISTANCE`] m: fatal).
+//!   `NOT_QUATERNION`: the columns are not a quaternion w first);
+//! * positions in mm (a range over `MM_RANGE` m on an axis, the 90th
+//!   percentile of the speed over `MM_SPEED` m/s, or a distance from the
+//!   origin over `MM_DISTANCE` m: fatal).
 
 use super::streams::{nominal_rate, overlap, stream};
 use super::{clipping, median_of, timing, CheckReport, Finding, Severity};
 use robimu_session::{files, PoseSession, Table};
 
 /// A quaternion whose norm is off 1 by more than this is named.
-pub const NON_UNIT: f64 = 1e-3;
+pub(crate) const NON_UNIT: f64 = 1e-3;
 /// When the median norm is off 1 by more than this the columns are no
 /// unit quaternion at all (fatal).
-pub const NOT_QUATERNION: f64 = 0.1;
+pub(crate) const NOT_QUATERNION: f64 = 0.1;
 /// A position range (m) on one axis beyond which poses are taken for mm.
-pub const MM_RANGE: f64 = 10.0;
+pub(crate) const MM_RANGE: f64 = 10.0;
 /// A 90th-percentile speed (m/s) beyond which poses are taken for mm: no
 /// tool or tracked body moves this fast for a tenth of a recording.
-pub const MM_SPEED: f64 = 10.0;
+pub(crate) const MM_SPEED: f64 = 10.0;
 /// A distance (m) from the world origin beyond which poses are taken for
 /// mm: a robot's base or a motion-capture room is not this large (a small
-/// motion in mm has neither the range nor the speed of [`MM_RANGE`],
-/// [`MM_SPEED`], but is far from its origin).
-pub const MM_DISTANCE: f64 = 100.0;
+/// motion in mm has neither the range nor the speed of `MM_RANGE`,
+/// `MM_SPEED`, but is far from its origin).
+pub(crate) const MM_DISTANCE: f64 = 100.0;
 
 /// Check the pose session `session`; the findings in the order checked.
 pub fn check_pose_session(session: &PoseSession) -> CheckReport {
@@ -97,7 +97,7 @@ fn sign_flips(session: &PoseSession) -> Option<Finding> {
     ))
 }
 
-/// Quaternions whose norm is off 1 by more than [`NON_UNIT`]: the count
+/// Quaternions whose norm is off 1 by more than `NON_UNIT`: the count
 /// and the worst.
 fn non_unit(session: &PoseSession) -> Option<Finding> {
     let mut norms: Vec<f64> = session
@@ -137,9 +137,9 @@ fn non_unit(session: &PoseSession) -> Option<Finding> {
     ))
 }
 
-/// Positions that look like millimetres: a range over [`MM_RANGE`] m on an
-/// axis, the 90th percentile of the speed between rows over [`MM_SPEED`]
-/// m/s, or a distance from the origin over [`MM_DISTANCE`] m (fatal).
+/// Positions that look like millimetres: a range over `MM_RANGE` m on an
+/// axis, the 90th percentile of the speed between rows over `MM_SPEED`
+/// m/s, or a distance from the origin over `MM_DISTANCE` m (fatal).
 fn millimetres(poses: &Table) -> Option<Finding> {
     let p: Vec<&[f64]> = poses.values.chunks_exact(7).collect();
     let range = (0..3)

@@ -9,15 +9,15 @@ use super::streams::GAP_FACTOR;
 use super::{median_of, Finding, Severity};
 
 /// Jitter above this part of the median interval is named (information).
-pub const JITTER_INFO: f64 = 0.02;
+pub(crate) const JITTER_INFO: f64 = 0.02;
 /// Jitter above this part of the median interval is a warning.
-pub const JITTER_WARN: f64 = 0.1;
+pub(crate) const JITTER_WARN: f64 = 0.1;
 /// An interval below this part of the median is one of a burst's.
-pub const BURST_FRACTION: f64 = 0.25;
+pub(crate) const BURST_FRACTION: f64 = 0.25;
 /// A burst has at least this many such intervals in a row.
-pub const BURST_MIN: usize = 5;
+pub(crate) const BURST_MIN: usize = 5;
 /// A start-up burst begins within this many intervals of the first row.
-pub const BURST_START: usize = 3;
+pub(crate) const BURST_START: usize = 3;
 
 /// The median of the positive intervals of `t` (NaN without one).
 pub(crate) fn median_period(t: &[f64]) -> f64 {
@@ -31,7 +31,7 @@ pub(crate) fn median_period(t: &[f64]) -> f64 {
 
 /// The RMS of the intervals of `t` about their median, gaps (over
 /// 3 median periods, as in [`super::streams`]) and repeated stamps left out: named above
-/// [`JITTER_INFO`] of the median interval, a warning above [`JITTER_WARN`].
+/// `JITTER_INFO` of the median interval, a warning above `JITTER_WARN`.
 pub fn jitter(name: &str, t: &[f64]) -> Option<Finding> {
     let period = median_period(t);
     if period.is_nan() || period <= 0.0 {
@@ -71,9 +71,9 @@ pub fn jitter(name: &str, t: &[f64]) -> Option<Finding> {
     ))
 }
 
-/// A start-up burst of late-stamped samples: at least [`BURST_MIN`]
-/// intervals in a row below [`BURST_FRACTION`] of the median, beginning
-/// within [`BURST_START`] intervals of the first row and followed by normal
+/// A start-up burst of late-stamped samples: at least `BURST_MIN`
+/// intervals in a row below `BURST_FRACTION` of the median, beginning
+/// within `BURST_START` intervals of the first row and followed by normal
 /// spacing. Names the samples' count, the span they were stamped in and
 /// the time they end (a warning).
 pub fn startup_burst(name: &str, t: &[f64]) -> Option<Finding> {
