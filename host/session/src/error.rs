@@ -1,7 +1,7 @@
 //! Errors of reading or writing a session directory: each names the file and,
 //! where there is one, the line.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// What went wrong with a session file.
 #[derive(Debug, thiserror::Error)]
@@ -58,5 +58,17 @@ impl SessionError {
             path: path.into(),
             message: message.into(),
         }
+    }
+}
+
+/// A TOML parse error of `path` as a [`SessionError`] naming the line.
+pub fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> SessionError {
+    let message = e.message().to_string();
+    match e.span() {
+        Some(span) => {
+            let line = text[..span.start.min(text.len())].matches('\n').count() as u64 + 1;
+            SessionError::line(path, line, message)
+        }
+        None => SessionError::file(path, message),
     }
 }

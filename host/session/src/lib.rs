@@ -8,6 +8,11 @@
 //! * `tracker.csv` — optional, `t,px,py,pz,qw,qx,qy,qz`
 //! * `truth.toml` — optional, simulated sessions only ([`Truth`])
 //!
+//! A session with tool poses instead of joint angles
+//! (docs/model.md §7.9; `source = "poses"` in `session.toml`, [`SessionSource`])
+//! has `poses.csv` in place of `joints.csv` and no robot: [`PoseSession`],
+//! written by [`PoseSessionWriter`]. Each reader refuses the other kind.
+//!
 //! Reading validates everything a later stage relies on and names the file and
 //! line of the first problem. Writing goes through [`SessionWriter`], which
 //! appends rows and flushes, so that a recording killed mid-run leaves a
@@ -51,9 +56,13 @@ mod error;
 pub mod export;
 pub mod import;
 mod meta;
+mod pose_meta;
+mod pose_session;
+mod pose_writer;
 pub mod poses;
 pub mod result;
 mod result_model;
+mod source;
 mod table;
 mod text;
 mod truth;
@@ -64,8 +73,8 @@ use std::path::{Path, PathBuf};
 use robimu_model::observations::{ImuSamples, Measurements};
 use robimu_model::Robot;
 
+pub use error::toml_error;
 pub use error::SessionError;
-pub use meta::toml_error;
 pub use meta::{
     check_ar_order_for_data, ImuTiming, MountPrior, NoiseOverride, NoiseShape, SessionMeta,
     SESSION_FORMAT,
@@ -79,6 +88,14 @@ pub use table::{
 };
 pub use truth::{Truth, TruthMismatch, TruthRow};
 pub use writer::SessionWriter;
+
+pub use pose_meta::{PoseNoise, PoseSessionMeta};
+pub use pose_session::{
+    pose_parameter_names, PoseMeasurements, PoseSession, MAX_POSITION, MIN_QUATERNION_NORM,
+    POSE_COLUMNS, POSE_PARAMETERS,
+};
+pub use pose_writer::PoseSessionWriter;
+pub use source::{SessionSource, SOURCE_JOINTS, SOURCE_POSES};
 
 pub use export::imu::{ImuCsvError, SensorCorrection};
 pub use export::ur::UrKinematicsError;
@@ -112,6 +129,8 @@ pub mod files {
     pub use crate::result::ImuSets;
     /// Joint samples.
     pub const JOINTS: &str = "joints.csv";
+    /// Tool poses of a pose session (docs/model.md §7.9), in place of [`JOINTS`].
+    pub const POSES: &str = "poses.csv";
     /// IMU samples.
     pub const IMU: &str = "imu.csv";
     /// External tracker poses (validation only).

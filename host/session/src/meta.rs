@@ -25,6 +25,7 @@ use std::path::Path;
 use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError};
 use serde::{Deserialize, Serialize};
 
+use super::error::toml_error;
 use super::SessionError;
 use crate::IMU_COLUMNS;
 
@@ -430,6 +431,17 @@ impl SessionMeta {
 
     /// Parse and validate; `path` only names the file in errors.
     pub fn parse(text: &str, path: &Path) -> Result<Self, SessionError> {
+        let doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
+        if crate::SessionSource::of_table(&doc, path)? == crate::SessionSource::Poses {
+            return Err(crate::source::not_joints(path));
+        }
+        if !doc.contains_key("robot") {
+            return Err(SessionError::file(
+                path,
+                "no `robot` key: a joint session names its robot (a built-in name or a path, \
+                 docs/model.md §7.2); a session with tool poses says source = \"poses\" (§7.9)",
+            ));
+        }
         let mut meta: Self = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         if meta.format != SESSION_FORMAT {
             return Err(SessionError::file(
@@ -452,7 +464,6 @@ impl SessionMeta {
             noise.validate(path)?;
         }
         meta.noise_shape = NoiseShape::parse(text, path)?;
-        let doc: toml::Table = toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         for (key, value) in doc {
             let Some(j) = crate::files::imu_number(&key) else {
                 continue;
@@ -503,18 +514,6 @@ impl SessionMeta {
             doc.insert(format!("imu{j}"), toml::Value::Table(t.clone()));
         }
         toml::to_string(&doc).expect("session metadata always serialises")
-    }
-}
-
-/// A TOML parse error of `path` as a [`SessionError`] naming the line.
-pub fn toml_error(path: &Path, text: &str, e: &toml::de::Error) -> SessionError {
-    let message = e.message().to_string();
-    match e.span() {
-        Some(span) => {
-            let line = text[..span.start.min(text.len())].matches('\n').count() as u64 + 1;
-            SessionError::line(path, line, message)
-        }
-        None => SessionError::file(path, message),
     }
 }
 

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use robimu_model::ParamLayout;
 
-use super::meta::toml_error;
+use super::error::toml_error;
 use super::SessionError;
 
 /// A truth that does not list exactly the parameters of a layout.

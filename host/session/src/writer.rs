@@ -27,20 +27,21 @@ pub struct SessionWriter {
     joint_count: usize,
 }
 
-struct CsvOut {
+/// One CSV file being written (shared with the pose-session writer).
+pub(crate) struct CsvOut {
     path: PathBuf,
     out: BufWriter<File>,
 }
 
 impl CsvOut {
-    fn create(path: PathBuf, header: &str) -> Result<Self, SessionError> {
+    pub(crate) fn create(path: PathBuf, header: &str) -> Result<Self, SessionError> {
         let file = File::create(&path).map_err(|e| SessionError::io(&path, e))?;
         let mut out = BufWriter::new(file);
         writeln!(out, "{header}").map_err(|e| SessionError::io(&path, e))?;
         Ok(Self { path, out })
     }
 
-    fn row(&mut self, t: f64, values: &[f64]) -> Result<(), SessionError> {
+    pub(crate) fn row(&mut self, t: f64, values: &[f64]) -> Result<(), SessionError> {
         let mut line = String::with_capacity(24 * (values.len() + 1));
         line.push_str(&format!("{t:?}"));
         for v in values {
@@ -53,7 +54,7 @@ impl CsvOut {
             .map_err(|e| SessionError::io(&self.path, e))
     }
 
-    fn flush(&mut self) -> Result<(), SessionError> {
+    pub(crate) fn flush(&mut self) -> Result<(), SessionError> {
         self.out
             .flush()
             .map_err(|e| SessionError::io(&self.path, e))

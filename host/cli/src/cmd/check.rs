@@ -5,8 +5,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use robimu_report::check::CheckTable;
-use robimu_session::Session;
-use robimu_workflows::check::{check_session, CheckOptions, CheckReport, Severity};
+use robimu_session::{PoseSession, Session, SessionSource};
+use robimu_workflows::check::{
+    check_pose_session, check_session, CheckOptions, CheckReport, Severity,
+};
 
 use crate::input::session_robot;
 
@@ -20,9 +22,14 @@ use crate::input::session_robot;
 /// parameters the recorded motion cannot determine. Prints one row per
 /// finding with its number and what to do; exits non-zero when a finding
 /// is fatal (calibrate runs the same check first and stops there).
+///
+/// A session with tool poses (`source = "poses"`, poses.csv) is checked for
+/// its streams' rates, gaps, jitter and overlap, quaternion sign flips and
+/// norms, positions in mm, a start-up burst of late-stamped IMU samples and
+/// saturated IMU channels.
 #[derive(Debug, Clone, clap::Args)]
 pub struct CheckCmd {
-    /// Session directory (session.toml, joints.csv, imu.csv).
+    /// Session directory (session.toml, joints.csv or poses.csv, imu.csv).
     pub session: PathBuf,
     /// Also write the findings as JSON to FILE.
     #[arg(long, value_name = "FILE")]
@@ -61,7 +68,20 @@ impl CheckCmd {
 
 /// The check of the session in `dir`: a session the reader refuses is one
 /// fatal finding; a robot that cannot be resolved is an error.
+///
+/// A session with tool poses (`source = "poses"`, docs/model.md §7.9) is
+/// checked by [`check_pose_session`] (it has no robot).
 pub fn check_dir(dir: &Path, opts: &CheckOptions) -> anyhow::Result<CheckReport> {
+    match SessionSource::of_dir(dir) {
+        Err(e) => return Ok(CheckReport::unreadable(&e)),
+        Ok(SessionSource::Poses) => {
+            return Ok(match PoseSession::read(dir) {
+                Ok(s) => check_pose_session(&s),
+                Err(e) => CheckReport::unreadable(&e),
+            })
+        }
+        Ok(SessionSource::Joints) => {}
+    }
     let session = match Session::load(dir) {
         Ok(s) => s,
         Err(e) => return Ok(CheckReport::unreadable(&e)),

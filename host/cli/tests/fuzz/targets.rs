@@ -14,8 +14,10 @@ use robimu_session::import::cdr::{encode, ImuMsg, JointStateMsg, Stamp};
 use robimu_session::import::csv::read_csv_pair;
 use robimu_session::import::ros2::{read_ros2, Ros2Options, TimeSource};
 use robimu_session::import::Streams;
-use robimu_session::{CalibrationResult, Session, SessionMeta};
-use robimu_workflows::check::{check_session, CheckOptions};
+use robimu_session::{
+    CalibrationResult, PoseSession, PoseSessionMeta, PoseSessionWriter, Session, SessionMeta,
+};
+use robimu_workflows::check::{check_pose_session, check_session, CheckOptions};
 use robimu_workflows::noise::NoiseFile;
 
 /// One seed input: the files of a directory, some of which a mutation may
@@ -156,6 +158,50 @@ fn simulated() -> &'static [(String, PathBuf)] {
     })
 }
 
+/// A clean session with tool poses (docs/model.md §7.9), written once per
+/// run by `PoseSessionWriter`: 10 s of a smooth motion, poses at 100 Hz,
+/// IMU samples at 200 Hz.
+fn pose_session() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-seeds/pose-session");
+        let mut w = PoseSessionWriter::create(&dir, &PoseSessionMeta::default()).unwrap();
+        for i in 0..1000 {
+            let t = i as f64 * 0.01;
+            let (s, c) = (0.5 * t).sin_cos();
+            let (hs, hc) = (0.2 * t).sin_cos();
+            w.pose(
+                t,
+                &[0.5 + 0.3 * c, 0.3 * s, 0.4],
+                &[hc, 0.6 * hs, 0.0, 0.8 * hs],
+            )
+            .unwrap();
+        }
+        for i in 0..2000 {
+            let t = i as f64 * 0.005;
+            let z = [
+                0.3 * (1.1 * t).sin(),
+                0.2 * (0.9 * t).cos(),
+                9.81 + 0.1 * (0.7 * t).sin(),
+                0.4 * (0.5 * t).cos(),
+                0.1 * (0.8 * t).sin(),
+                0.32 + 0.05 * (0.6 * t).sin(),
+            ];
+            w.imu(t, &z).unwrap();
+        }
+        w.finish().unwrap()
+    })
+}
+
+/// A pose session read, then checked: a fatal finding is a refusal.
+fn read_pose_session(dir: &Path) -> Result<(), String> {
+    let session = PoseSession::read(dir).map_err(|e| e.to_string())?;
+    match check_pose_session(&session).fatal() {
+        Some(f) => Err(f.message.clone()),
+        None => Ok(()),
+    }
+}
+
 /// The session files a mutation may change.
 fn session_file(name: &str) -> bool {
     name.ends_with(".csv") || name.ends_with(".toml")
@@ -205,6 +251,13 @@ pub fn all() -> Vec<Target> {
             command: Some(|d, _| vec!["check".into(), arg(d)]),
             rewrites: false,
             read: read_session,
+        },
+        Target {
+            name: "pose session (CSV, TOML)",
+            seeds: vec![dir_seed("pose-session", pose_session(), session_file)],
+            command: Some(|d, _| vec!["check".into(), arg(d)]),
+            rewrites: false,
+            read: read_pose_session,
         },
         Target {
             name: "robot TOML",

@@ -114,7 +114,12 @@ fn stuck(t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
 
 /// The range of a sensor from `[imu]`: (accelerometer m/s², gyroscope rad/s).
 pub fn ranges(session: &Session) -> (Option<f64>, Option<f64>) {
-    let Some(imu) = session.meta.imu.as_ref() else {
+    ranges_of(session.meta.imu.as_ref())
+}
+
+/// [`ranges`] of an `[imu]` table (of a joint or a pose session).
+pub(crate) fn ranges_of(imu: Option<&toml::Table>) -> (Option<f64>, Option<f64>) {
+    let Some(imu) = imu else {
         return (None, None);
     };
     let text = |k: &str| imu.get(k).and_then(|v| v.as_str()).map(str::to_string);
@@ -130,16 +135,22 @@ pub fn ranges(session: &Session) -> (Option<f64>, Option<f64>) {
 /// Samples at the device's range, per sensor.
 fn saturation(session: &Session) -> Vec<Finding> {
     let (accel, gyro) = ranges(session);
+    saturation_of(&session.imu, accel, gyro)
+}
+
+/// The rows of the IMU table `imu` at the range `accel` (m/s²) or `gyro`
+/// (rad/s), per sensor (a sensor without a range is not checked).
+pub(crate) fn saturation_of(imu: &Table, accel: Option<f64>, gyro: Option<f64>) -> Vec<Finding> {
     let mut out = Vec::new();
     for (range, cols, sensor, unit) in [
         (accel, 0..3, "accelerometer", "m/s²"),
         (gyro, 3..6, "gyroscope", "rad/s"),
     ] {
         let Some(range) = range else { continue };
-        let n = session.imu.len();
+        let n = imu.len();
         let count = (0..n)
             .filter(|&i| {
-                let row = session.imu.row(i);
+                let row = imu.row(i);
                 cols.clone().any(|c| row[c].abs() >= SATURATION * range)
             })
             .count();

@@ -16,14 +16,25 @@
 //!   information of [`crate::plan::information`]) — the parameters this
 //!   recording cannot determine.
 //!
+//! A session with tool poses (`source = "poses"`, docs/model.md §7.9) is
+//! checked by [`poses::check_pose_session`]: the streams as above, the
+//! timing jitter and a start-up burst of late-stamped IMU samples
+//! ([`timing`]), saturation found in the samples ([`clipping`]), and the
+//! poses' quaternions and units ([`poses`]).
+//!
 //! Times in files that the reader refuses (NaN, time going backwards) are
 //! one fatal finding naming the file and line ([`CheckReport::unreadable`]).
 
 pub mod channels;
+pub mod clipping;
 pub mod motion;
+pub mod poses;
 pub(crate) mod predicted_rate;
 pub mod streams;
+pub mod timing;
 pub mod units;
+
+pub use poses::check_pose_session;
 
 use std::fmt;
 

@@ -24,24 +24,27 @@ pub(crate) const CLOCK_SLACK: f64 = 10.0;
 
 /// The stream findings of `session`.
 pub fn check(session: &Session) -> Vec<Finding> {
-    let nominal = nominal_rate(session);
+    let nominal = nominal_rate(session.meta.imu.as_ref());
     let mut out = Vec::new();
     out.extend(stream(files::JOINTS, &session.joints, None));
     out.extend(stream(files::IMU, &session.imu, nominal));
-    out.extend(overlap(&session.joints, &session.imu));
+    out.extend(overlap(
+        (files::JOINTS, &session.joints),
+        (files::IMU, &session.imu),
+    ));
     out
 }
 
-/// `[imu] sample_rate_hz` of session.toml, when recorded.
-pub(crate) fn nominal_rate(session: &Session) -> Option<f64> {
-    let v = session.meta.imu.as_ref()?.get("sample_rate_hz")?;
+/// `[imu] sample_rate_hz` of session.toml (the `[imu]` table), when recorded.
+pub(crate) fn nominal_rate(imu: Option<&toml::Table>) -> Option<f64> {
+    let v = imu?.get("sample_rate_hz")?;
     v.as_float()
         .or_else(|| v.as_integer().map(|i| i as f64))
         .filter(|r| *r > 0.0)
 }
 
 /// Rate, gaps, repeated times and the time unit of one stream.
-fn stream(name: &str, table: &Table, nominal: Option<f64>) -> Vec<Finding> {
+pub(crate) fn stream(name: &str, table: &Table, nominal: Option<f64>) -> Vec<Finding> {
     let mut out = Vec::new();
     let t = &table.t;
     let (Some(&t0), Some(&t1)) = (t.first(), t.last()) else {
@@ -229,14 +232,15 @@ fn time_unit(name: &str, rate: f64, duration: f64, nominal: Option<f64>) -> Opti
     None
 }
 
-/// The overlap of the joint and IMU spans.
-fn overlap(joints: &Table, imu: &Table) -> Option<Finding> {
-    let (a, b) = joints.span()?;
-    let (c, d) = imu.span()?;
+/// The overlap of the spans of the motion's stream (`joints.csv`,
+/// `poses.csv`) and the IMU's, each given with its file name.
+pub(crate) fn overlap(motion: (&str, &Table), imu: (&str, &Table)) -> Option<Finding> {
+    let (a, b) = motion.1.span()?;
+    let (c, d) = imu.1.span()?;
     let common = (b.min(d) - a.max(c)).max(0.0);
     let shorter = (b - a).min(d - c).max(f64::MIN_POSITIVE);
     let share = common / shorter;
-    let spans = format!("joints.csv {a:.3}..{b:.3} s, imu.csv {c:.3}..{d:.3} s");
+    let spans = format!("{} {a:.3}..{b:.3} s, {} {c:.3}..{d:.3} s", motion.0, imu.0);
     if d < a - CLOCK_SLACK || c > b + CLOCK_SLACK {
         return Some(Finding::new(
             "overlap",
