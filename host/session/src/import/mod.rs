@@ -23,7 +23,7 @@ mod collect;
 pub mod csv;
 #[cfg(feature = "ros2")]
 mod mcap;
-pub mod pose_csv;
+mod pose_csv;
 #[cfg(feature = "ros2")]
 pub mod ros2;
 #[cfg(feature = "sqlite3")]
