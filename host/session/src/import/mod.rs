@@ -5,7 +5,7 @@
 //!   and `sensor_msgs/msg/Imu` in CDR, decoded by [`cdr`]): a rosbag2
 //!   directory or one storage file, MCAP (`mcap`) or sqlite3 (`sqlite3`,
 //!   feature `sqlite3`).
-//! * [`pose_csv`]: a pose stream (a controller's TCP poses, motion capture)
+//! * `pose_csv` ([`crate::read_pose_csv`]): a pose stream (a controller's TCP poses, motion capture)
 //!   from a CSV with the user's columns and units, for pose sessions
 //!   (MODEL.md §10).
 //! * [`csv`]: an EuRoC/Kalibr IMU CSV (`#timestamp [ns],w_RS_S_x [rad s^-1],…,
@@ -23,7 +23,7 @@ mod collect;
 pub mod csv;
 #[cfg(feature = "ros2")]
 mod mcap;
-mod pose_csv;
+pub(crate) mod pose_csv;
 #[cfg(feature = "ros2")]
 pub mod ros2;
 #[cfg(feature = "sqlite3")]
