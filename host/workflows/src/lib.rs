@@ -74,6 +74,7 @@ pub mod noise_id;
 pub mod pipeline;
 pub mod plan;
 pub mod pose_accuracy;
+pub mod pose_calibrate;
 pub mod repeatability;
 pub mod simulate;
 pub mod stats;

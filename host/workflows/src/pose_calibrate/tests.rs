@@ -1,0 +1,146 @@
+//! Pose calibration on simulated sessions: the start-up (τ, rotations),
+//! one 60 s session within 4σ, a Monte Carlo of the normalised errors, bad input.
+
+use super::simulate::uniform_rotation;
+use super::startup::euler_zyx;
+use super::*;
+use rand::SeedableRng;
+use robimu_model::geom::{log_so3, mul_mm, transpose};
+use robimu_model::pose_measurement::{ACCEL, GYRO, ROT, TAU};
+use robimu_model::ImuIntrinsics;
+
+/// The angle between the Z–Y–X rotations of two Euler triples (rad).
+fn rotation_error(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let (ra, rb) = (
+        ImuIntrinsics::ideal(a).rotation(),
+        ImuIntrinsics::ideal(b).rotation(),
+    );
+    let e = log_so3(&mul_mm(&transpose(&ra), &rb));
+    e.iter().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+/// x error with angles wrapped to (−π, π].
+fn errors(x: &[f64], truth: &[f64]) -> Vec<f64> {
+    let pi = std::f64::consts::PI;
+    x.iter()
+        .zip(truth)
+        .enumerate()
+        .map(|(k, (a, b))| {
+            let e = a - b;
+            let is_rot = (ACCEL + ROT..ACCEL + ROT + 3).contains(&k)
+                || (GYRO + ROT..GYRO + ROT + 3).contains(&k);
+            if is_rot {
+                (e + pi).rem_euclid(2.0 * pi) - pi
+            } else {
+                e
+            }
+        })
+        .collect()
+}
+
+/// A 60 s session: poses 15 Hz with 3 ms jitter, IMU 100 Hz.
+fn session(truth: &[f64], seed: u64, duration: f64) -> PoseMeasurements {
+    let motion = random_pose_motion(duration, seed).unwrap();
+    simulate_pose_session(
+        truth,
+        &motion,
+        15.0,
+        0.003,
+        100.0,
+        &PoseNoise::default(),
+        seed + 1,
+    )
+    .unwrap()
+}
+
+#[test]
+fn startup_recovers_a_uniform_rotation_and_tau() {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+    let mut truth = draw_pose_truth(5);
+    truth[TAU] = 0.37;
+    let q = euler_zyx(&uniform_rotation(&mut rng));
+    truth[GYRO + ROT..GYRO + ROT + 3].copy_from_slice(&q);
+    truth[ACCEL + ROT..ACCEL + ROT + 3].copy_from_slice(&q);
+    let data = session(&truth, 21, 30.0);
+    let spline = PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, 2.0 / 15.0).unwrap();
+    let st = startup::startup(&spline, &data.imu_t, &data.imu_z, 5.0).unwrap();
+    assert!((st.tau - 0.37).abs() < 0.01, "τ = {}", st.tau);
+    let ew = rotation_error(st.gyro.r, q);
+    let ea = rotation_error(st.accel.r, q);
+    assert!(
+        ew < 0.02 && ea < 0.05,
+        "rotation errors: gyro {ew} rad, accel {ea} rad"
+    );
+}
+
+/// Normalised errors of one simulated calibration.
+fn run(seed: u64) -> (Vec<f64>, PoseCalibration) {
+    let truth = draw_pose_truth(1000 + seed);
+    let data = session(&truth, 2000 + seed, 60.0);
+    let cal = calibrate_poses(&data, &PoseCalibrationOptions::default()).unwrap();
+    let e = errors(&cal.x, &truth);
+    (e.iter().zip(&cal.sigma).map(|(e, s)| e / s).collect(), cal)
+}
+
+#[test]
+fn a_60_s_session_recovers_every_parameter_within_4_sigma() {
+    let (z, cal) = run(1);
+    for (k, v) in z.iter().enumerate() {
+        assert!(
+            v.abs() < 4.0,
+            "{} off by {v:.2}σ (σ = {:.3e}); rms {:?}",
+            cal.names[k],
+            cal.sigma[k],
+            cal.imu_rms
+        );
+    }
+    for c in 0..6 {
+        let sz = PoseNoise::default().sigma_z[c];
+        assert!(
+            cal.imu_rms[c] < 1.2 * sz,
+            "channel {c} rms {} vs σ {sz}",
+            cal.imu_rms[c]
+        );
+    }
+}
+
+#[test]
+#[ignore = "Monte Carlo of 30 calibrations: run in release"]
+fn monte_carlo_normalised_errors_are_standard() {
+    let runs = 30;
+    let t = std::time::Instant::now();
+    let zs: Vec<Vec<f64>> = (0..runs).map(|s| run(100 + s).0).collect();
+    let per = t.elapsed().as_secs_f64() / runs as f64;
+    let names = robimu_model::pose_measurement::pose_param_names();
+    let mut bad = Vec::new();
+    println!("{per:.2} s per calibration");
+    for k in 0..POSE_PARAMS {
+        let v: Vec<f64> = zs.iter().map(|z| z[k]).collect();
+        let mean = v.iter().sum::<f64>() / runs as f64;
+        let std = (v.iter().map(|a| (a - mean).powi(2)).sum::<f64>() / (runs - 1) as f64).sqrt();
+        println!(
+            "{:12} mean {mean:+.2} std {std:.2} max {:.2}",
+            names[k],
+            v.iter().fold(0.0f64, |m, a| m.max(a.abs()))
+        );
+        if !(0.85..=1.15).contains(&std) || mean.abs() > 0.3 {
+            bad.push(names[k].clone());
+        }
+    }
+    assert!(
+        zs.iter().all(|z| z[TAU].abs() < 4.0),
+        "τ beyond 4σ in a run"
+    );
+    assert!(bad.is_empty(), "off: {bad:?}");
+}
+
+#[test]
+fn bad_input_is_a_clear_error() {
+    let mut d = PoseMeasurements::default();
+    assert!(matches!(
+        calibrate_poses(&d, &PoseCalibrationOptions::default()),
+        Err(PoseCalibrationError::Input(_))
+    ));
+    d.pose_t = vec![0.0; 10];
+    assert!(calibrate_poses(&d, &PoseCalibrationOptions::default()).is_err());
+}
