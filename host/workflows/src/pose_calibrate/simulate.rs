@@ -16,7 +16,7 @@ use super::PoseCalibrationError;
 /// that t_i + τ stays on it for |τ| < this.
 pub const MOTION_PAD: f64 = 6.0;
 /// Knot spacing of the random motion (s).
-pub const MOTION_KNOTS: f64 = 0.4;
+pub const MOTION_KNOTS: f64 = 0.5;
 
 /// Noise of a simulated pose session.
 #[derive(Clone, Debug, PartialEq)]

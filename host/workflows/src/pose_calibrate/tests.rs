@@ -144,3 +144,65 @@ fn bad_input_is_a_clear_error() {
     d.pose_t = vec![0.0; 10];
     assert!(calibrate_poses(&d, &PoseCalibrationOptions::default()).is_err());
 }
+
+#[test]
+#[ignore = "experiment"]
+fn tau_experiment() {
+    let ks: f64 = std::env::var("KS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2.0 / 15.0);
+    let jit: f64 = std::env::var("JIT")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0.003);
+    for seed in 100..106 {
+        let truth = draw_pose_truth(1000 + seed);
+        let motion = random_pose_motion(60.0, 2000 + seed).unwrap();
+        let data = simulate_pose_session(
+            &truth,
+            &motion,
+            15.0,
+            jit,
+            100.0,
+            &PoseNoise::default(),
+            2001 + seed,
+        )
+        .unwrap();
+        let opts = PoseCalibrationOptions {
+            knot_spacing: Some(ks),
+            ..Default::default()
+        };
+        let cal = calibrate_poses(&data, &opts).unwrap();
+        let e = errors(&cal.x, &truth);
+        let w: Vec<f64> = (0..6000)
+            .map(|k| {
+                let o = motion.evaluate(k as f64 * 0.01).unwrap().omega;
+                o.iter().map(|v| v * v).sum::<f64>().sqrt().to_degrees()
+            })
+            .collect();
+        let a: Vec<f64> = (0..6000)
+            .map(|k| {
+                let o = motion.evaluate(k as f64 * 0.01).unwrap().a;
+                o.iter().map(|v| v * v).sum::<f64>().sqrt()
+            })
+            .collect();
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        println!(
+            "|ω| rms {:.0} max {:.0} °/s; |p̈| rms {:.1} max {:.1} m/s²",
+            rms(&w),
+            w.iter().fold(0.0f64, |m, v| m.max(*v)),
+            rms(&a),
+            a.iter().fold(0.0f64, |m, v| m.max(*v))
+        );
+        println!(
+            "seed {seed}: tau err {:.3e} σ {:.3e} z {:.2} it {} rms {:?} {:?}",
+            e[TAU],
+            cal.sigma[TAU],
+            e[TAU] / cal.sigma[TAU],
+            cal.iterations,
+            cal.imu_rms,
+            cal.pose_rms
+        );
+    }
+}
