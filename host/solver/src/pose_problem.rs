@@ -6,8 +6,9 @@
 //!
 //! Residuals, each whitened by its σ: pose samples (e_p = p(t_k) − p̃ with
 //! σ_p, e_r = Log(R̃ᵀR(t_k)) with σ_r), IMU samples (σ_z per channel; a
-//! sample whose t_i + τ is outside the pose span is left out, the set
-//! chosen at every iteration, §4) and the prior on x. Every residual touches
+//! sample whose t_i + τ is outside the pose span, or within
+//! [`SPAN_MARGIN`] of its ends, is left out, the set chosen at every
+//! iteration, §4) and the prior on x. Every residual touches
 //! the 4 control points at its time, so the Gauss–Newton matrix is an
 //! [`ArrowMatrix`] of half-bandwidth 23 bordered by x.
 
@@ -19,6 +20,12 @@ use robimu_model::{PoseSpline, PoseSplineError};
 
 use crate::arrow::ArrowMatrix;
 use crate::lm::LeastSquares;
+
+/// IMU samples are selected only when t_i + τ is at least this far (s)
+/// inside the pose span, so that a step in τ smaller than this keeps every
+/// selected sample on the spline (a sample pushed off it would make the
+/// step fail, and Levenberg–Marquardt stall at the span's edge).
+pub const SPAN_MARGIN: f64 = 0.1;
 
 /// Band unknowns per control point.
 pub const PER_CONTROL: usize = 6;
@@ -153,11 +160,13 @@ impl PoseProblem {
         Ok(PoseSpline::new(self.base.knots().clone(), &pos, &rot)?)
     }
 
-    /// IMU samples whose t_i + τ is inside the pose span.
+    /// IMU samples whose t_i + τ is inside the pose span, [`SPAN_MARGIN`]
+    /// from its ends.
     fn selection(&self, tau: f64) -> Vec<usize> {
         let k = self.base.knots();
+        let (t0, t1) = (k.start() + SPAN_MARGIN, k.end() - SPAN_MARGIN);
         (0..self.data.imu_t.len())
-            .filter(|&i| k.contains(self.data.imu_t[i] + tau))
+            .filter(|&i| (t0..=t1).contains(&(self.data.imu_t[i] + tau)))
             .collect()
     }
 

@@ -102,6 +102,8 @@ pub struct PoseCalibration {
     pub imu_used: usize,
     /// Levenberg–Marquardt iterations.
     pub iterations: usize,
+    /// Why Levenberg–Marquardt stopped.
+    pub termination: String,
     /// Final cost ½‖r‖².
     pub cost: f64,
     /// Knot spacing used (s).
@@ -172,8 +174,13 @@ pub fn calibrate_poses(
     let mut problem = PoseProblem::new(spline, pdata)?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
-    let sol = robimu_solver::solve(&mut problem, theta, &opts.lm, |_| {})
-        .map_err(|e| PoseCalibrationError::Solver(e.to_string()))?;
+    let verbose = std::env::var_os("ROBIMU_POSE_TRACE").is_some();
+    let sol = robimu_solver::solve(&mut problem, theta, &opts.lm, |r| {
+        if verbose {
+            eprintln!("{r}");
+        }
+    })
+    .map_err(|e| PoseCalibrationError::Solver(e.to_string()))?;
     problem.begin_iteration(&sol.theta)?;
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();
@@ -193,6 +200,7 @@ pub fn calibrate_poses(
         pose_rms,
         imu_used: problem.selected().len(),
         iterations: sol.summary.iterations.len(),
+        termination: sol.summary.termination.to_string(),
         cost: sol.summary.final_cost,
         knot_spacing: spacing,
         startup: st,

@@ -109,7 +109,23 @@ fn a_60_s_session_recovers_every_parameter_within_4_sigma() {
 fn monte_carlo_normalised_errors_are_standard() {
     let runs = 30;
     let t = std::time::Instant::now();
-    let zs: Vec<Vec<f64>> = (0..runs).map(|s| run(100 + s).0).collect();
+    let zs: Vec<Vec<f64>> = (0..runs)
+        .map(|s| {
+            let (z, cal) = run(100 + s);
+            let worst = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let rel: Vec<String> = (0..6)
+                .map(|c| format!("{:.2}", cal.imu_rms[c] / PoseNoise::default().sigma_z[c]))
+                .collect();
+            println!(
+                "run {s}: z_τ {:+.2} (σ_τ {:.1e} s), max |z| {worst:.2}, {} iterations, rms/σ [{}]",
+                z[TAU],
+                cal.sigma[TAU],
+                cal.iterations,
+                rel.join(" ")
+            );
+            z
+        })
+        .collect();
     let per = t.elapsed().as_secs_f64() / runs as f64;
     let names = robimu_model::pose_measurement::pose_param_names();
     let mut bad = Vec::new();
@@ -156,7 +172,10 @@ fn tau_experiment() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(0.003);
-    for seed in 100..106 {
+    let seeds: Vec<u64> = std::env::var("SEEDS")
+        .map(|s| s.split(',').map(|v| v.parse().unwrap()).collect())
+        .unwrap_or((100..106).collect());
+    for seed in seeds {
         let truth = draw_pose_truth(1000 + seed);
         let motion = random_pose_motion(60.0, 2000 + seed).unwrap();
         let data = simulate_pose_session(
