@@ -19,6 +19,7 @@ use robimu_model::{PoseMeasurements, PoseSpline, PoseSplineError};
 use robimu_solver::{LeastSquares, LmOptions, PoseData, PoseProblem, PoseProblemError};
 
 pub use simulate::{draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise};
+use startup::greater;
 pub use startup::Startup;
 
 /// Why a pose calibration failed.
@@ -125,8 +126,11 @@ fn checked(data: &PoseMeasurements) -> Result<Vec<robimu_model::geom::M3>, PoseC
     if n < 8 || data.imu_t.len() < 20 {
         return bad("too few pose or IMU samples (need ≥ 8 poses and ≥ 20 IMU samples)");
     }
-    if data.imu_t.windows(2).any(|w| !(w[1] >= w[0]))
-        || data.pose_t.windows(2).any(|w| !(w[1] > w[0]))
+    if data
+        .imu_t
+        .windows(2)
+        .any(|w| !(greater(w[1], w[0]) || w[1] == w[0]))
+        || data.pose_t.windows(2).any(|w| !greater(w[1], w[0]))
     {
         return bad("sample times must be finite and increasing");
     }

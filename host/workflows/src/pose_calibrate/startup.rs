@@ -39,6 +39,11 @@ pub struct Startup {
     pub p_imu: V3,
 }
 
+/// a > b, false when either is NaN.
+pub(super) fn greater(a: f64, b: f64) -> bool {
+    matches!(a.partial_cmp(&b), Some(std::cmp::Ordering::Greater))
+}
+
 fn norm(v: V3) -> f64 {
     dot(v, v).sqrt()
 }
@@ -155,7 +160,7 @@ fn solve_n<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64
     let scale = a.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     for c in 0..N {
         let p = (c..N).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
-        if !(a[p][c].abs() > 1e-12 * scale) {
+        if !greater(a[p][c].abs(), 1e-12 * scale) {
             return None;
         }
         a.swap(c, p);
@@ -192,7 +197,7 @@ pub fn split_sensor_matrix(a: &M3) -> Option<ImuIntrinsics> {
             v = sub(v, q[j].map(|x| x * l[i][j]));
         }
         l[i][i] = norm(v);
-        if !(l[i][i] > 1e-12) {
+        if !greater(l[i][i], 1e-12) {
             return None;
         }
         q[i] = v.map(|x| x / l[i][i]);
