@@ -129,10 +129,13 @@ fn mean_std(v: &[f64]) -> (f64, f64) {
 #[test]
 #[ignore = "Monte Carlo of ≥ 30 calibrations (~1 min): run in release"]
 fn monte_carlo_normalised_errors_are_standard() {
-    let runs: u64 = std::env::var("MC_RUNS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(30);
+    let env = |k: &str, d: u64| {
+        std::env::var(k)
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(d)
+    };
+    let (runs, seed0) = (env("MC_RUNS", 30), env("MC_SEED0", 100));
     let t = std::time::Instant::now();
     let zs: Vec<Vec<f64>> = (0..runs)
         .map(|s| {
