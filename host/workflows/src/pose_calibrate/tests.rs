@@ -140,10 +140,16 @@ fn monte_carlo_normalised_errors_are_standard() {
     let zs: Vec<Vec<f64>> = (0..runs)
         .map(|s| {
             let (z, cal) = run(seed0 + s);
-            let worst = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let (kw, worst) = z.iter().enumerate().fold((0, 0.0f64), |m, (k, v)| {
+                if v.abs() > m.1 {
+                    (k, v.abs())
+                } else {
+                    m
+                }
+            });
             println!(
-                "run {s}: z_τ {:+.2} (σ_τ {:.1e} s), max |z| {worst:.2}, {} iterations",
-                z[TAU], cal.sigma[TAU], cal.iterations
+                "run {s}: z_τ {:+.2} (σ_τ {:.1e} s), max |z| {worst:.2} ({}), {} iterations",
+                z[TAU], cal.sigma[TAU], cal.names[kw], cal.iterations
             );
             z
         })
