@@ -178,13 +178,8 @@ pub fn calibrate_poses(
     let mut problem = PoseProblem::new(spline, pdata)?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
-    let verbose = std::env::var_os("ROBIMU_POSE_TRACE").is_some();
-    let sol = robimu_solver::solve(&mut problem, theta, &opts.lm, |r| {
-        if verbose {
-            eprintln!("{r}");
-        }
-    })
-    .map_err(|e| PoseCalibrationError::Solver(e.to_string()))?;
+    let sol = robimu_solver::solve(&mut problem, theta, &opts.lm, |_| {})
+        .map_err(|e| PoseCalibrationError::Solver(e.to_string()))?;
     problem.begin_iteration(&sol.theta)?;
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();

@@ -8,7 +8,7 @@
 //!   problem with the §3 model's scale, misalignment and bias included),
 //!   then A = K Γ R split by an LQ decomposition (Γ unit lower triangular,
 //!   K > 0, R a rotation): R is the least-squares rotation when K Γ = I.
-//! * Accelerometer: the same with s_i = R_iᵀ(p̈_i − g) + ([α_i]× + [ω_i]×²) p_I
+//! * Accelerometer: the same with s_i = R_iᵀ(p̈_i − g) + (\[α_i\]× + \[ω_i\]×²) p_I
 //!   (g at g_xy = 0), alternated a few times with the linear solve for the
 //!   IMU position p_I given A and b.
 //! * The rotations become §3's Z–Y–X Euler angles (r_z, r_y, r_x).
