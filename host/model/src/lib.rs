@@ -19,6 +19,8 @@
 //! - [`spline`]: the clamped B-spline trajectory, eq. (18)–(21);
 //! - [`pose_trajectory`]: the continuous-time pose of a posed body (position
 //!   B-spline and cumulative B-spline on SO(3)) for pose sessions (MODEL.md §10);
+//! - [`pose_measurement`]: the 30 parameters of a pose session and its predicted
+//!   IMU sample with exact Jacobians (MODEL.md §10);
 //! - [`measurement`]: predicted z with exact Jacobians (eq. (10));
 //! - [`jet`], [`geom`]: the scalar type (f64 or forward-mode jet) and small
 //!   geometry (3-vectors, SO(3), quaternions, rigid transforms);
@@ -68,6 +70,7 @@ pub mod noise;
 pub mod observations;
 pub mod pair;
 pub mod params;
+pub mod pose_measurement;
 pub mod pose_trajectory;
 pub mod robot;
 pub mod spline;
@@ -86,7 +89,7 @@ pub use jet::{Jet, Scalar};
 pub use kinematics::{ImuMotion, JointState};
 pub use lanes::F64x4;
 pub use measurement::{MeasurementJacobians, MeasurementModel, ModelError};
-pub use observations::Measurements;
+pub use observations::{Measurements, PoseMeasurements};
 pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
 pub use pose_trajectory::{
     ImuPointJacobians, ImuPointState, PoseJacobians, PoseResidual, PoseSpline, PoseSplineError,

@@ -22,6 +22,22 @@ pub struct Measurements {
     pub extra_imus: Vec<ImuSamples>,
 }
 
+/// The observations of a pose session (MODEL.md §10), on the session clock
+/// (s), SI units: pose samples of B in W and IMU samples.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PoseMeasurements {
+    /// Pose sample times.
+    pub pose_t: Vec<f64>,
+    /// Positions p̃ of B's origin in W (m).
+    pub pose_p: Vec<[f64; 3]>,
+    /// Unit quaternions q̃ = [w, x, y, z] (Hamilton) of B in W.
+    pub pose_q: Vec<[f64; 4]>,
+    /// IMU sample times, non-decreasing.
+    pub imu_t: Vec<f64>,
+    /// IMU samples `[ax, ay, az, gx, gy, gz]`.
+    pub imu_z: Vec<[f64; 6]>,
+}
+
 /// One IMU's samples on the session clock (docs/model.md §7.4, §9).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ImuSamples {

@@ -68,9 +68,11 @@ mod fit;
 pub mod so3;
 #[cfg(test)]
 mod tests;
+mod time_jet;
 
 pub use fit::FitReport;
 use so3::{exp_s, left_jacobian_inv, right_jacobian_inv};
+pub use time_jet::{ImuPointJet, KinematicsJet};
 
 /// Degree of both parts of the pose spline (cubic).
 pub const DEGREE: usize = 3;

@@ -59,6 +59,7 @@ pub mod arrow;
 pub mod dense;
 pub mod gram;
 pub mod lm;
+pub mod pose_problem;
 pub mod problem;
 
 pub use arrow::{ArrowFactor, ArrowMatrix, FactorError};
@@ -68,4 +69,5 @@ pub use lm::{
 };
 
 pub use crate::dense::DenseError;
+pub use crate::pose_problem::{PoseData, PoseProblem, PoseProblemError};
 pub use crate::problem::ImuResiduals;

@@ -13,6 +13,7 @@
 //! * [`montecarlo`] — consistency of the estimator over many simulated runs;
 //! * [`motion_accuracy`] — the IMU accuracy of a tracked motion (paper Fig. 11);
 //! * [`noise`] — Σ_z and Σ_q of a recording by spline fitting (paper §8.1);
+//! * [`pose_calibrate`] — calibrate an IMU from a pose stream (MODEL.md §10);
 //! * [`noise_id`] — a channel's noise model (AR correlation, motion level) from its residuals;
 //! * [`plan`] — excitation trajectory planning (paper §7);
 //! * [`repeatability`] — calibrations of k time windows against the full one;
@@ -74,6 +75,7 @@ pub mod noise_id;
 pub mod pipeline;
 pub mod plan;
 pub mod pose_accuracy;
+pub mod pose_calibrate;
 pub mod repeatability;
 pub mod simulate;
 pub mod stats;

@@ -1,0 +1,349 @@
+//! The MAP problem of a pose session (MODEL.md §10; the joint-space
+//! problem's arrangement, [`crate::problem`]): unknowns θ = [c, x] with c
+//! the pose spline's control-point corrections, 6 per control point
+//! (Δc_k, then φ_k with R_k = R_k0·Exp(φ_k) about the initial fit R_k0), and
+//! x the 30 parameters ([`robimu_model::pose_measurement`]).
+//!
+//! Residuals, each whitened by its σ: pose samples (e_p = p(t_k) − p̃ with
+//! σ_p, e_r = Log(R̃ᵀR(t_k)) with σ_r), IMU samples (σ_z per channel; a
+//! sample whose t_i + τ is outside the pose span, or within
+//! [`SPAN_MARGIN`] of its ends, is left out, the set chosen at every
+//! iteration, §4) and the prior on x. Every residual touches
+//! the 4 control points at its time, so the Gauss–Newton matrix is an
+//! [`ArrowMatrix`] of half-bandwidth 23 bordered by x.
+
+use faer::Mat;
+use robimu_model::geom::{mul_mm, M3, V3};
+use robimu_model::pose_measurement::{self as pm, PoseMeasurementError, CTRL, POSE_PARAMS, TAU};
+use robimu_model::pose_trajectory::so3::{exp_s, right_jacobian};
+use robimu_model::{PoseSpline, PoseSplineError};
+
+use crate::arrow::ArrowMatrix;
+use crate::lm::LeastSquares;
+
+/// IMU samples are selected only when t_i + τ is at least this far (s)
+/// inside the pose span, so that a step in τ smaller than this keeps every
+/// selected sample on the spline (a sample pushed off it would make the
+/// step fail, and Levenberg–Marquardt stall at the span's edge).
+pub const SPAN_MARGIN: f64 = 0.1;
+
+/// Band unknowns per control point.
+pub const PER_CONTROL: usize = 6;
+
+/// Why the pose problem could not be built or evaluated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PoseProblemError {
+    /// A prediction failed (gravity out of range, …).
+    #[error(transparent)]
+    Measurement(#[from] PoseMeasurementError),
+    /// The spline could not be built.
+    #[error(transparent)]
+    Spline(#[from] PoseSplineError),
+    /// Inconsistent input.
+    #[error("pose problem: {0}")]
+    Input(String),
+}
+
+impl From<robimu_model::SplineError> for PoseProblemError {
+    fn from(e: robimu_model::SplineError) -> Self {
+        Self::Spline(e.into())
+    }
+}
+
+/// The data and weights of a pose problem.
+#[derive(Debug, Clone)]
+pub struct PoseData {
+    /// Pose sample times (s).
+    pub pose_t: Vec<f64>,
+    /// Measured positions p̃ (m).
+    pub pose_p: Vec<V3>,
+    /// Measured rotations R̃.
+    pub pose_r: Vec<M3>,
+    /// IMU sample times (s).
+    pub imu_t: Vec<f64>,
+    /// IMU samples [ax, ay, az, gx, gy, gz].
+    pub imu_z: Vec<[f64; 6]>,
+    /// σ_p (m).
+    pub sigma_p: f64,
+    /// σ_r (rad).
+    pub sigma_r: f64,
+    /// σ_z per channel.
+    pub sigma_z: [f64; 6],
+    /// Prior means of x.
+    pub prior_mean: Vec<f64>,
+    /// Prior σ of x.
+    pub prior_sigma: Vec<f64>,
+}
+
+/// The pose-session problem ([`LeastSquares`]; module doc).
+#[derive(Debug, Clone)]
+pub struct PoseProblem {
+    base: PoseSpline,
+    data: PoseData,
+    selected: Vec<usize>,
+}
+
+/// The local Jacobian block of one residual group: rows × (24 band + 30 x)
+/// and the whitened residuals.
+struct Block {
+    first: usize,
+    rows: usize,
+    j: [[f64; CTRL + POSE_PARAMS]; 6],
+    r: [f64; 6],
+}
+
+impl PoseProblem {
+    /// A problem about the initial spline `base` (θ's c = 0 is `base`).
+    pub fn new(base: PoseSpline, data: PoseData) -> Result<Self, PoseProblemError> {
+        let n = data.pose_t.len();
+        if data.pose_p.len() != n || data.pose_r.len() != n || data.imu_z.len() != data.imu_t.len()
+        {
+            return Err(PoseProblemError::Input(
+                "sample buffers of different lengths".into(),
+            ));
+        }
+        if data.prior_mean.len() != POSE_PARAMS || data.prior_sigma.len() != POSE_PARAMS {
+            return Err(PoseProblemError::Input(
+                "the prior needs 30 means and σ".into(),
+            ));
+        }
+        let bad_sigma = (data.prior_sigma.iter().chain(&data.sigma_z))
+            .chain([&data.sigma_p, &data.sigma_r])
+            .any(|s| !(s.is_finite() && *s > 0.0));
+        if bad_sigma {
+            return Err(PoseProblemError::Input(
+                "every σ must be positive and finite".into(),
+            ));
+        }
+        Ok(Self {
+            base,
+            data,
+            selected: Vec::new(),
+        })
+    }
+
+    /// Number of band unknowns (6 per control point).
+    pub fn n_band(&self) -> usize {
+        PER_CONTROL * self.base.num_control_points()
+    }
+
+    /// Number of unknowns (band + 30).
+    pub fn n_unknowns(&self) -> usize {
+        self.n_band() + POSE_PARAMS
+    }
+
+    /// The IMU samples in the current cost (those with t_i + τ in the pose span).
+    pub fn selected(&self) -> &[usize] {
+        &self.selected
+    }
+
+    /// θ's x part.
+    pub fn x<'a>(&self, theta: &'a [f64]) -> &'a [f64] {
+        &theta[self.n_band()..]
+    }
+
+    /// The pose spline at θ.
+    pub fn spline(&self, theta: &[f64]) -> Result<PoseSpline, PoseProblemError> {
+        let m = self.base.num_control_points();
+        let pos: Vec<V3> = (0..m)
+            .map(|k| {
+                let c = self.base.position_control_point(k);
+                std::array::from_fn(|i| c[i] + theta[PER_CONTROL * k + i])
+            })
+            .collect();
+        let rot: Vec<M3> = (0..m)
+            .map(|k| {
+                let phi = std::array::from_fn(|i| theta[PER_CONTROL * k + 3 + i]);
+                mul_mm(&self.base.rotation_control_points()[k], &exp_s(phi))
+            })
+            .collect();
+        Ok(PoseSpline::new(self.base.knots().clone(), &pos, &rot)?)
+    }
+
+    /// IMU samples whose t_i + τ is inside the pose span, [`SPAN_MARGIN`]
+    /// from its ends.
+    fn selection(&self, tau: f64) -> Vec<usize> {
+        let k = self.base.knots();
+        let (t0, t1) = (k.start() + SPAN_MARGIN, k.end() - SPAN_MARGIN);
+        (0..self.data.imu_t.len())
+            .filter(|&i| (t0..=t1).contains(&(self.data.imu_t[i] + tau)))
+            .collect()
+    }
+
+    /// The whitened residual vector at θ: pose samples (6 each), selected
+    /// IMU samples (6 each), prior (30).
+    pub fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>, PoseProblemError> {
+        let sp = self.spline(theta)?;
+        let x = self.x(theta);
+        let d = &self.data;
+        let mut out = Vec::with_capacity(6 * (d.pose_t.len() + self.selected.len()) + POSE_PARAMS);
+        for k in 0..d.pose_t.len() {
+            let e = sp.pose_residual_r(d.pose_t[k], d.pose_p[k], &d.pose_r[k])?;
+            out.extend(e.e_p.iter().map(|v| v / d.sigma_p));
+            out.extend(e.e_r.iter().map(|v| v / d.sigma_r));
+        }
+        for &i in &self.selected {
+            let z = pm::predict(&sp, d.imu_t[i], x)?;
+            out.extend((0..6).map(|c| (z[c] - d.imu_z[i][c]) / d.sigma_z[c]));
+        }
+        out.extend((0..POSE_PARAMS).map(|k| (x[k] - d.prior_mean[k]) / d.prior_sigma[k]));
+        Ok(out)
+    }
+
+    /// Right Jacobians J_r(φ_k) of the rotation unknowns (∂δ/∂φ).
+    fn right_jacobians(&self, theta: &[f64]) -> Vec<M3> {
+        (0..self.base.num_control_points())
+            .map(|k| right_jacobian(std::array::from_fn(|i| theta[PER_CONTROL * k + 3 + i])))
+            .collect()
+    }
+
+    /// The whitened Jacobian block of pose sample k.
+    fn pose_block(&self, sp: &PoseSpline, jr: &[M3], k: usize) -> Result<Block, PoseProblemError> {
+        let d = &self.data;
+        let e = sp.pose_residual_r(d.pose_t[k], d.pose_p[k], &d.pose_r[k])?;
+        let mut b = Block {
+            first: e.first,
+            rows: 6,
+            j: [[0.0; CTRL + POSE_PARAMS]; 6],
+            r: [0.0; 6],
+        };
+        for r in 0..3 {
+            b.r[r] = e.e_p[r] / d.sigma_p;
+            b.r[3 + r] = e.e_r[r] / d.sigma_r;
+            for j in 0..4 {
+                for c in 0..3 {
+                    b.j[r][6 * j + c] = e.e_p_position[r][3 * j + c] / d.sigma_p;
+                    let m = &jr[e.first + j];
+                    let v: f64 = (0..3).map(|l| e.e_r_rotation[r][3 * j + l] * m[l][c]).sum();
+                    b.j[3 + r][6 * j + 3 + c] = v / d.sigma_r;
+                }
+            }
+        }
+        Ok(b)
+    }
+
+    /// The whitened Jacobian block of IMU sample i.
+    fn imu_block(
+        &self,
+        sp: &PoseSpline,
+        jr: &[M3],
+        x: &[f64],
+        i: usize,
+    ) -> Result<Block, PoseProblemError> {
+        let d = &self.data;
+        let p = pm::predict_jacobians(sp, d.imu_t[i], x)?;
+        let mut b = Block {
+            first: p.first,
+            rows: 6,
+            j: [[0.0; CTRL + POSE_PARAMS]; 6],
+            r: [0.0; 6],
+        };
+        for r in 0..6 {
+            let w = 1.0 / d.sigma_z[r];
+            b.r[r] = (p.z[r] - d.imu_z[i][r]) * w;
+            for j in 0..4 {
+                let m = &jr[p.first + j];
+                for c in 0..3 {
+                    b.j[r][6 * j + c] = p.dc[r][6 * j + c] * w;
+                    let v: f64 = (0..3).map(|l| p.dc[r][6 * j + 3 + l] * m[l][c]).sum();
+                    b.j[r][6 * j + 3 + c] = v * w;
+                }
+            }
+            for k in 0..POSE_PARAMS {
+                b.j[r][CTRL + k] = p.dx[r][k] * w;
+            }
+        }
+        Ok(b)
+    }
+}
+
+/// Add a block's JᵀJ and Jᵀr (`with_x`: the block has x columns).
+fn accumulate(
+    a: &mut ArrowMatrix,
+    g: &mut [f64],
+    nc: usize,
+    b: &Block,
+    with_x: bool,
+    local: &mut Mat<f64>,
+) {
+    let n = if with_x { CTRL + POSE_PARAMS } else { CTRL };
+    let c0 = PER_CONTROL * b.first;
+    for p in 0..n {
+        for q in 0..=p {
+            local[(p, q)] = (0..b.rows).map(|r| b.j[r][p] * b.j[r][q]).sum();
+        }
+        let gp: f64 = (0..b.rows).map(|r| b.j[r][p] * b.r[r]).sum();
+        if p < CTRL {
+            g[c0 + p] += gp;
+        } else {
+            g[nc + p - CTRL] += gp;
+        }
+    }
+    let xi: Vec<usize> = if with_x {
+        (0..POSE_PARAMS).collect()
+    } else {
+        Vec::new()
+    };
+    a.add_local(c0, CTRL, &xi, local.as_ref().submatrix(0, 0, n, n));
+}
+
+impl LeastSquares for PoseProblem {
+    type Error = PoseProblemError;
+
+    fn begin_iteration(&mut self, theta: &[f64]) -> Result<(), Self::Error> {
+        self.selected = self.selection(theta[self.n_band() + TAU]);
+        Ok(())
+    }
+
+    fn cost(&self, theta: &[f64]) -> Result<f64, Self::Error> {
+        Ok(0.5 * self.residuals(theta)?.iter().map(|r| r * r).sum::<f64>())
+    }
+
+    fn linearize(
+        &self,
+        theta: &[f64],
+        a: &mut ArrowMatrix,
+        g: &mut [f64],
+    ) -> Result<f64, Self::Error> {
+        a.clear();
+        g.fill(0.0);
+        let (sp, jr, nc) = (
+            self.spline(theta)?,
+            self.right_jacobians(theta),
+            self.n_band(),
+        );
+        let x = self.x(theta);
+        let mut local = Mat::zeros(CTRL + POSE_PARAMS, CTRL + POSE_PARAMS);
+        let mut cost = 0.0;
+        for k in 0..self.data.pose_t.len() {
+            let b = self.pose_block(&sp, &jr, k)?;
+            cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
+            accumulate(a, g, nc, &b, false, &mut local);
+        }
+        for &i in &self.selected {
+            let b = self.imu_block(&sp, &jr, x, i)?;
+            cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
+            accumulate(a, g, nc, &b, true, &mut local);
+        }
+        let d = &self.data;
+        for k in 0..POSE_PARAMS {
+            let w = 1.0 / (d.prior_sigma[k] * d.prior_sigma[k]);
+            let e = x[k] - d.prior_mean[k];
+            a.add_xx(k, k, w);
+            g[nc + k] += w * e;
+            cost += 0.5 * w * e * e;
+        }
+        Ok(cost)
+    }
+
+    fn new_matrix(&self) -> ArrowMatrix {
+        ArrowMatrix::zeros(self.n_band(), CTRL - 1, POSE_PARAMS)
+    }
+
+    fn keeps_setup(&self, theta: &[f64]) -> bool {
+        self.selection(theta[self.n_band() + TAU]) == self.selected
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,239 @@
+//! Calibrate an IMU from a pose stream (MODEL.md §10): its §3 intrinsics,
+//! its position p_I on the posed body B, τ and gravity, from pose samples
+//! of B in W and IMU samples.
+//!
+//! [`calibrate_poses`]: fit the pose spline to the poses, find τ and the
+//! sensor rotations from the data ([`startup`]), then solve the MAP problem
+//! ([`robimu_solver::PoseProblem`]) by Levenberg–Marquardt; the covariance
+//! of x is the Schur complement's inverse (paper (24)). [`simulate`] makes
+//! sessions with known truth.
+
+pub mod simulate;
+pub mod startup;
+#[cfg(test)]
+mod tests;
+
+use robimu_model::geom::{matrix_from_quat, V3};
+use robimu_model::pose_measurement::{self as pm, pose_param_specs, POSE_PARAMS};
+use robimu_model::{PoseMeasurements, PoseSpline, PoseSplineError};
+use robimu_solver::{LeastSquares, LmOptions, PoseData, PoseProblem, PoseProblemError};
+
+pub use simulate::{draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise};
+use startup::greater;
+pub use startup::Startup;
+
+/// Why a pose calibration failed.
+#[derive(Debug, thiserror::Error)]
+pub enum PoseCalibrationError {
+    /// The measurements or options are unusable.
+    #[error("pose calibration input: {0}")]
+    Input(String),
+    /// The pose spline could not be fitted.
+    #[error("fitting the pose spline: {0}")]
+    Fit(#[from] PoseSplineError),
+    /// τ or the sensor rotations could not be found.
+    #[error("pose calibration start-up: {0}")]
+    Startup(String),
+    /// The problem could not be evaluated.
+    #[error(transparent)]
+    Problem(#[from] PoseProblemError),
+    /// The solver failed.
+    #[error("pose calibration solver: {0}")]
+    Solver(String),
+}
+
+/// Options of [`calibrate_poses`].
+#[derive(Debug, Clone)]
+pub struct PoseCalibrationOptions {
+    /// Pose position noise σ_p (m).
+    pub sigma_p: f64,
+    /// Pose rotation noise σ_r (rad).
+    pub sigma_r: f64,
+    /// IMU noise σ per channel [ax, ay, az (m/s²), gx, gy, gz (rad/s)].
+    pub sigma_z: [f64; 6],
+    /// Knot spacing of the pose spline (s); default max(1.5 / pose rate,
+    /// 0.05 s): fine enough that the spline's approximation of a hand-held
+    /// motion stays below the IMU noise (at 2 / pose rate, 15 Hz poses and
+    /// rates of hundreds of °/s, it biased τ by a few σ in simulation).
+    pub knot_spacing: Option<f64>,
+    /// τ is searched within ±this (s).
+    pub tau_search: f64,
+    /// Levenberg–Marquardt settings.
+    pub lm: LmOptions,
+}
+
+impl Default for PoseCalibrationOptions {
+    /// σ_p = 1 mm, σ_r = 0.005 rad, the §6 IMU noise, τ within ±5 s.
+    fn default() -> Self {
+        let d = std::f64::consts::PI / 180.0;
+        Self {
+            sigma_p: 1e-3,
+            sigma_r: 5e-3,
+            sigma_z: [0.38, 0.21, 0.19, 0.32 * d, 0.47 * d, 0.57 * d],
+            knot_spacing: None,
+            tau_search: 5.0,
+            lm: LmOptions {
+                max_iterations: 50,
+                ..LmOptions::default()
+            },
+        }
+    }
+}
+
+/// The result of [`calibrate_poses`].
+#[derive(Debug, Clone)]
+pub struct PoseCalibration {
+    /// Names of x (§10 order).
+    pub names: Vec<String>,
+    /// Units of x.
+    pub units: Vec<&'static str>,
+    /// The estimate x.
+    pub x: Vec<f64>,
+    /// Standard deviations √diag(Σ_x).
+    pub sigma: Vec<f64>,
+    /// The 30 × 30 marginal covariance of x, row-major.
+    pub covariance: Vec<Vec<f64>>,
+    /// The prior means used (the sensor rotations' from the start-up).
+    pub prior_mean: Vec<f64>,
+    /// Residual RMS of the used IMU samples per channel [ax … gz].
+    pub imu_rms: [f64; 6],
+    /// Residual RMS of the pose samples: position (m), rotation (rad).
+    pub pose_rms: [f64; 2],
+    /// IMU samples in the fit.
+    pub imu_used: usize,
+    /// Levenberg–Marquardt iterations.
+    pub iterations: usize,
+    /// Why Levenberg–Marquardt stopped.
+    pub termination: String,
+    /// Final cost ½‖r‖².
+    pub cost: f64,
+    /// Knot spacing used (s).
+    pub knot_spacing: f64,
+    /// What the start-up found.
+    pub startup: Startup,
+}
+
+/// Checks of the measurements; the rotations as matrices.
+fn checked(data: &PoseMeasurements) -> Result<Vec<robimu_model::geom::M3>, PoseCalibrationError> {
+    let bad = |m: &str| Err(PoseCalibrationError::Input(m.to_string()));
+    let n = data.pose_t.len();
+    if data.pose_p.len() != n || data.pose_q.len() != n {
+        return bad("pose_t, pose_p and pose_q differ in length");
+    }
+    if data.imu_z.len() != data.imu_t.len() {
+        return bad("imu_t and imu_z differ in length");
+    }
+    if n < 8 || data.imu_t.len() < 20 {
+        return bad("too few pose or IMU samples (need ≥ 8 poses and ≥ 20 IMU samples)");
+    }
+    if data
+        .imu_t
+        .windows(2)
+        .any(|w| !(greater(w[1], w[0]) || w[1] == w[0]))
+        || data.pose_t.windows(2).any(|w| !greater(w[1], w[0]))
+    {
+        return bad("sample times must be finite and increasing");
+    }
+    if data.imu_z.iter().flatten().any(|v| !v.is_finite()) {
+        return bad("an IMU sample is not finite");
+    }
+    Ok(data.pose_q.iter().map(|q| matrix_from_quat(*q)).collect())
+}
+
+/// Calibrate an IMU from a pose session (module doc).
+pub fn calibrate_poses(
+    data: &PoseMeasurements,
+    opts: &PoseCalibrationOptions,
+) -> Result<PoseCalibration, PoseCalibrationError> {
+    let pose_r = checked(data)?;
+    let n = data.pose_t.len();
+    let rate = (n - 1) as f64 / (data.pose_t[n - 1] - data.pose_t[0]);
+    let spacing = opts.knot_spacing.unwrap_or((1.5 / rate).max(0.05));
+    if !(spacing.is_finite() && spacing > 0.0) {
+        return Err(PoseCalibrationError::Input(format!(
+            "knot spacing {spacing} s"
+        )));
+    }
+    let spline = PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing)?;
+    let st = startup::startup(&spline, &data.imu_t, &data.imu_z, opts.tau_search)?;
+    let specs = pose_param_specs(st.accel.r, st.gyro.r);
+    let mut x0 = Vec::with_capacity(POSE_PARAMS);
+    x0.extend(st.p_imu);
+    x0.extend([0.0, 0.0, st.tau]);
+    for s in [&st.accel, &st.gyro] {
+        x0.extend(s.gamma.iter().chain(&s.r).chain(&s.k).chain(&s.b));
+    }
+    let pdata = PoseData {
+        pose_t: data.pose_t.clone(),
+        pose_p: data.pose_p.clone(),
+        pose_r,
+        imu_t: data.imu_t.clone(),
+        imu_z: data.imu_z.clone(),
+        sigma_p: opts.sigma_p,
+        sigma_r: opts.sigma_r,
+        sigma_z: opts.sigma_z,
+        prior_mean: specs.iter().map(|s| s.nominal).collect(),
+        prior_sigma: specs.iter().map(|s| s.sigma).collect(),
+    };
+    let mut problem = PoseProblem::new(spline, pdata)?;
+    let mut theta = vec![0.0; problem.n_band()];
+    theta.extend(x0);
+    let sol = robimu_solver::solve(&mut problem, theta, &opts.lm, |_| {})
+        .map_err(|e| PoseCalibrationError::Solver(e.to_string()))?;
+    problem.begin_iteration(&sol.theta)?;
+    let cov = sol.factor.covariance_x();
+    let x = problem.x(&sol.theta).to_vec();
+    let (imu_rms, pose_rms) = residual_rms(&problem, &sol.theta, data)?;
+    Ok(PoseCalibration {
+        names: specs.iter().map(|s| s.name.clone()).collect(),
+        units: specs.iter().map(|s| s.unit).collect(),
+        sigma: (0..POSE_PARAMS)
+            .map(|k| cov[(k, k)].max(0.0).sqrt())
+            .collect(),
+        covariance: (0..POSE_PARAMS)
+            .map(|k| (0..POSE_PARAMS).map(|l| cov[(k, l)]).collect())
+            .collect(),
+        prior_mean: specs.iter().map(|s| s.nominal).collect(),
+        x,
+        imu_rms,
+        pose_rms,
+        imu_used: problem.selected().len(),
+        iterations: sol.summary.iterations.len(),
+        termination: sol.summary.termination.to_string(),
+        cost: sol.summary.final_cost,
+        knot_spacing: spacing,
+        startup: st,
+    })
+}
+
+/// Residual RMS per IMU channel and of the pose samples at θ.
+fn residual_rms(
+    problem: &PoseProblem,
+    theta: &[f64],
+    data: &PoseMeasurements,
+) -> Result<([f64; 6], [f64; 2]), PoseCalibrationError> {
+    let sp = problem.spline(theta)?;
+    let x = problem.x(theta);
+    let mut sz = [0.0; 6];
+    for &i in problem.selected() {
+        let z = pm::predict(&sp, data.imu_t[i], x).map_err(PoseProblemError::from)?;
+        for c in 0..6 {
+            sz[c] += (z[c] - data.imu_z[i][c]).powi(2);
+        }
+    }
+    let ni = problem.selected().len().max(1) as f64;
+    let (mut sp2, mut sr2) = (0.0, 0.0);
+    for k in 0..data.pose_t.len() {
+        let e = sp
+            .pose_residual(data.pose_t[k], data.pose_p[k], data.pose_q[k])
+            .map_err(PoseSplineError::from)?;
+        let sq = |v: V3| v.iter().map(|a| a * a).sum::<f64>();
+        sp2 += sq(e.e_p);
+        sr2 += sq(e.e_r);
+    }
+    let np = (3 * data.pose_t.len()) as f64;
+    Ok((
+        sz.map(|s| (s / ni).sqrt()),
+        [(sp2 / np).sqrt(), (sr2 / np).sqrt()],
+    ))
+}
