@@ -77,22 +77,9 @@ pub fn pose_parameter_names(n_imus: usize) -> Vec<String> {
     names
 }
 
-/// The samples of a pose session as plain data: the shape of the pose
-/// calibration's input (`robimu_model::observations::PoseMeasurements`,
-/// which this becomes once it exists).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct PoseMeasurements {
-    /// Pose times, s.
-    pub pose_t: Vec<f64>,
-    /// Positions p of B in W, m.
-    pub pose_p: Vec<[f64; 3]>,
-    /// Orientations of B in W, Hamilton quaternions `[w, x, y, z]`.
-    pub pose_q: Vec<[f64; 4]>,
-    /// IMU times, s.
-    pub imu_t: Vec<f64>,
-    /// IMU samples `[ax, ay, az, gx, gy, gz]`, m/s² and rad/s.
-    pub imu_z: Vec<[f64; 6]>,
-}
+/// The samples of a pose session as plain data: the pose calibration's
+/// input.
+pub use robimu_model::observations::PoseMeasurements;
 
 /// A pose session loaded into memory.
 #[derive(Debug, Clone)]
