@@ -91,9 +91,10 @@ pub use lanes::F64x4;
 pub use measurement::{MeasurementJacobians, MeasurementModel, ModelError};
 pub use observations::{Measurements, PoseMeasurements};
 pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
+pub use pose_measurement::PosePrediction;
 pub use pose_trajectory::{
-    ImuPointJacobians, ImuPointState, PoseJacobians, PoseResidual, PoseSpline, PoseSplineError,
-    PoseState,
+    ImuPointJacobians, ImuPointJet, ImuPointState, Jac3x12, KinematicsJet, PoseJacobians,
+    PoseResidual, PoseSpline, PoseSplineError, PoseState,
 };
 pub use robot::{ErrorIndex, Frames, Robot, RobotDescription, RobotError};
 pub use spline::{Basis, Basis4, Knots, SpanPolynomials, Spline, SplineError};

@@ -17,9 +17,9 @@ use crate::spline::SplineError;
 /// Number of parameters of a one-IMU pose session (MODEL.md §10).
 pub const POSE_PARAMS: usize = 30;
 /// Index of `p_imu_x` (then y, z).
-pub const P_IMU: usize = 0;
+pub(crate) const P_IMU: usize = 0;
 /// Index of `g_x` (then `g_y`).
-pub const G_XY: usize = 3;
+pub(crate) const G_XY: usize = 3;
 /// Index of `tau`.
 pub const TAU: usize = 5;
 /// Index of `gamma_a_yz` (the accelerometer block: γ_a, r_a, k_a, b_a).

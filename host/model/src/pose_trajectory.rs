@@ -79,7 +79,7 @@ pub const DEGREE: usize = 3;
 /// Control points that influence one time (degree + 1).
 pub const ORDER: usize = DEGREE + 1;
 /// Local parameters of the control points at one time, per part (4 × 3).
-pub const LOCAL: usize = 3 * ORDER;
+pub(crate) const LOCAL: usize = 3 * ORDER;
 /// A 3×12 Jacobian: row r is the output's component r; column 3j + c is
 /// component c of the local parameter of control point `first + j`.
 pub type Jac3x12 = [[f64; LOCAL]; 3];

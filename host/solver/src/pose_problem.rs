@@ -25,10 +25,10 @@ use crate::lm::LeastSquares;
 /// inside the pose span, so that a step in τ smaller than this keeps every
 /// selected sample on the spline (a sample pushed off it would make the
 /// step fail, and Levenberg–Marquardt stall at the span's edge).
-pub const SPAN_MARGIN: f64 = 0.1;
+pub(crate) const SPAN_MARGIN: f64 = 0.1;
 
 /// Band unknowns per control point.
-pub const PER_CONTROL: usize = 6;
+pub(crate) const PER_CONTROL: usize = 6;
 
 /// Why the pose problem could not be built or evaluated.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

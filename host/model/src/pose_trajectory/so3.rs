@@ -20,7 +20,7 @@ pub fn hat<S: Scalar>(w: V3<S>) -> M3<S> {
 }
 
 /// The vector of the skew-symmetric part of `m` (`vee(hat(w)) = w`).
-pub fn vee(m: &M3) -> V3 {
+pub(crate) fn vee(m: &M3) -> V3 {
     [
         0.5 * (m[2][1] - m[1][2]),
         0.5 * (m[0][2] - m[2][0]),
@@ -73,13 +73,14 @@ pub fn right_jacobian(phi: V3) -> M3 {
 }
 
 /// The left Jacobian J_l(φ) = J_r(−φ) = Exp(φ)·J_r(φ).
-pub fn left_jacobian(phi: V3) -> M3 {
+#[cfg(test)]
+pub(crate) fn left_jacobian(phi: V3) -> M3 {
     right_jacobian([-phi[0], -phi[1], -phi[2]])
 }
 
 /// `J_r(φ)⁻¹ = I + ½[φ]× + (1/θ² − (1 + cos θ)/(2θ sin θ)) [φ]×²`, for θ < π
 /// (it diverges as θ → 2π; near θ = π it is finite).
-pub fn right_jacobian_inv(phi: V3) -> M3 {
+pub(crate) fn right_jacobian_inv(phi: V3) -> M3 {
     let th2 = dot(phi, phi);
     let c = if th2 < SMALL_ANGLE2 {
         1.0 / 12.0 + th2 / 720.0
@@ -91,7 +92,7 @@ pub fn right_jacobian_inv(phi: V3) -> M3 {
 }
 
 /// J_l(φ)⁻¹ = J_r(−φ)⁻¹.
-pub fn left_jacobian_inv(phi: V3) -> M3 {
+pub(crate) fn left_jacobian_inv(phi: V3) -> M3 {
     right_jacobian_inv([-phi[0], -phi[1], -phi[2]])
 }
 
