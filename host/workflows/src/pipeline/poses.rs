@@ -136,7 +136,7 @@ pub fn calibrate_pose_session(
 /// The result file of a pose calibration (docs/model.md §8): the 30
 /// parameters, their covariance, `"source": "poses"`, the solver's run,
 /// the whitened residual RMS and the verdict.
-pub fn pose_result(
+fn pose_result(
     dir: &Path,
     opts: &PoseCalibrationOptions,
     cal: &PoseCalibration,
@@ -188,7 +188,7 @@ fn whitened_imu_rms(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> [f6
 }
 
 /// The verdict on a pose calibration (module doc).
-pub fn pose_verdict(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> VerdictRecord {
+fn pose_verdict(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> VerdictRecord {
     let checks = vec![
         VerdictCheck {
             topic: "converged".into(),
