@@ -300,3 +300,38 @@ fn plausible(cal: &PoseCalibration) -> VerdictCheck {
         },
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use robimu_session::{NoiseOverride, PoseNoise};
+
+    #[test]
+    fn options_take_the_sessions_sigma_and_say_what_they_ignore() {
+        let mut warnings = Vec::new();
+        let d = PoseCalibrationOptions::default();
+        let opts = pose_options(&PoseSessionMeta::default(), |w| warnings.push(w));
+        assert_eq!(
+            (opts.sigma_p, opts.sigma_r, opts.sigma_z),
+            (d.sigma_p, d.sigma_r, d.sigma_z)
+        );
+        assert!(warnings.is_empty());
+        let meta = PoseSessionMeta {
+            gravity: Some(9.7),
+            poses: Some(PoseNoise {
+                sigma_p: Some(2e-4),
+                sigma_r: None,
+            }),
+            noise: Some(NoiseOverride {
+                sigma_z: Some([0.1, 0.2, 0.3, 0.01, 0.02, 0.03]),
+                sigma_q: None,
+            }),
+            ..Default::default()
+        };
+        let opts = pose_options(&meta, |w| warnings.push(w));
+        assert_eq!((opts.sigma_p, opts.sigma_r), (2e-4, d.sigma_r));
+        assert_eq!(opts.sigma_z[5], 0.03);
+        assert_eq!(warnings.len(), 1);
+        assert!(warnings[0].contains("gravity = 9.7"), "{warnings:?}");
+    }
+}
