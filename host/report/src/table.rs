@@ -382,6 +382,7 @@ mod tests {
             parameters,
             covariance: CovarianceMatrix { names, matrix: cov },
             robot: None,
+            source: None,
             session: None,
             priors_used: None,
             tau_initial: None,

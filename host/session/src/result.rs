@@ -90,6 +90,11 @@ pub struct CalibrationResult {
     /// Robot name or description path, as the session names it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<String>,
+    /// The session's source when it is not joint angles: `"poses"` for a
+    /// session with tool poses (docs/model.md §7.9; robimu extension, absent
+    /// for a joint session).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
     /// Session directory the result was computed from.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub session: Option<String>,
@@ -863,6 +868,7 @@ mod tests {
                 matrix: vec![vec![va, c], vec![c, vb]],
             },
             robot: Some("aubo_i5".into()),
+            source: None,
             session: Some("/tmp/s".into()),
             priors_used: Some(true),
             tau_initial: Some(-2.7),

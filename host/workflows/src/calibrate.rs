@@ -636,6 +636,7 @@ impl Calibration {
             parameters,
             covariance,
             robot: None,
+            source: None,
             session: None,
             priors_used: None,
             tau_initial: calibration.tau_initial.as_ref().map(|t| t.tau),

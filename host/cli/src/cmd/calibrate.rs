@@ -4,7 +4,10 @@
 use std::path::PathBuf;
 
 use crate::args::CalibrateFlags;
+use robimu_session::SessionSource;
+
 use crate::flows::calibrate::CalibrateRun;
+use crate::flows::poses::calibrate_pose_dir;
 
 /// Calibrate the robot and the IMU together from a session.
 ///
@@ -12,9 +15,15 @@ use crate::flows::calibrate::CalibrateRun;
 /// parameter table (against the truth when the session has a truth.toml)
 /// and writes the result file (JSON, docs/model.md §8) and, next to it, the
 /// solver's iteration history (NAME.convergence.csv for NAME.json).
+///
+/// A session with tool poses (`source = "poses"`, poses.csv; docs/model.md
+/// §7.9) calibrates the IMU alone: its position on the posed body, gravity,
+/// tau and the 24 sensor parameters, with the σ of its session.toml
+/// (`[poses]`, `[noise]`) or the defaults; it takes --out and
+/// --knot-spacing, and writes the result file (with `"source": "poses"`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct CalibrateCmd {
-    /// Session directory (session.toml, joints.csv, imu.csv).
+    /// Session directory (session.toml, joints.csv or poses.csv, imu.csv).
     pub session: PathBuf,
     /// Result file to write [default: result.json in the session directory].
     #[arg(long)]
@@ -37,6 +46,16 @@ pub struct CalibrateCmd {
 impl CalibrateCmd {
     /// Calibrate, print the table and write the result file.
     pub fn run(self) -> anyhow::Result<()> {
+        if let Ok(SessionSource::Poses) = SessionSource::of_dir(&self.session) {
+            return calibrate_pose_dir(
+                &self.session,
+                self.out.as_deref(),
+                &self.fit,
+                self.windows.is_some(),
+                self.report.is_some(),
+            )
+            .map(drop);
+        }
         CalibrateRun {
             session: &self.session,
             out: self.out.as_deref(),

@@ -4,6 +4,9 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::bail;
+use robimu_workflows::pipeline::pose_simulate::{
+    simulate_pose_dir, PoseSessionSpec, PoseSimulated,
+};
 use robimu_workflows::pipeline::simulate::{check_rates, simulate_session, SessionSpec, Simulated};
 
 use crate::args::UrdfLinks;
@@ -15,25 +18,38 @@ use crate::input::{place_imus, resolve_robot_with};
 /// drawn from the priors (or given), and the joint and IMU samples they
 /// produce, written as a session directory: session.toml, joints.csv,
 /// imu.csv, and truth.toml with the true parameters.
+///
+/// `--source poses` simulates a session with tool poses instead
+/// (docs/model.md §7.9): a random hand-held-like motion of a body carrying
+/// the IMU, its poses at --pose-rate Hz (sample times jittered by
+/// --pose-jitter s), the IMU at --rate Hz, the 30 true parameters drawn
+/// from the priors with a uniformly random mount rotation: session.toml
+/// (source = "poses"), poses.csv, imu.csv and truth.toml. The flags of the
+/// robot and its joints do not apply to it.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateCmd {
+    /// What the session records of the motion: `joints` (joint angles of a
+    /// robot, joints.csv) or `poses` (tool poses, poses.csv).
+    #[arg(long, value_enum, default_value_t = SimSource::Joints)]
+    pub source: SimSource,
     /// Robot: a built-in name (`robimu robots` lists them) or the path of a
-    /// TOML robot description or a URDF.
-    #[arg(long, default_value = "aubo_i5")]
-    pub robot: String,
+    /// TOML robot description or a URDF [default: aubo_i5].
+    #[arg(long)]
+    pub robot: Option<String>,
     /// The chain of a URDF robot.
     #[command(flatten)]
     pub links: UrdfLinks,
-    /// Length of the trajectory, s (with --trajectory: the plan's length).
-    #[arg(long, default_value_t = 300.0, conflicts_with = "trajectory")]
-    pub duration: f64,
+    /// Length of the trajectory, s (with --trajectory: the plan's length)
+    /// [default: 300; 60 with --source poses].
+    #[arg(long, conflicts_with = "trajectory")]
+    pub duration: Option<f64>,
     /// Execute this plan instead of a random trajectory: a directory with a
     /// `plan.csv` (header `t,q1,…,qn`; s, rad), as `robimu plan` writes.
     #[arg(long, value_name = "PLAN_DIR")]
     pub trajectory: Option<PathBuf>,
-    /// IMU sample rate, Hz.
-    #[arg(long, default_value_t = 120.0)]
-    pub rate: f64,
+    /// IMU sample rate, Hz [default: 120; 100 with --source poses].
+    #[arg(long)]
+    pub rate: Option<f64>,
     /// Joint sample rate, Hz [default: the IMU rate].
     #[arg(long)]
     pub joint_rate: Option<f64>,
@@ -112,6 +128,23 @@ pub struct SimulateCmd {
     /// its `[imu<J>.mount]` position prior (docs/model.md §9); repeat per IMU.
     #[arg(long, value_name = "J=X,Y,Z", value_parser = crate::input::parse_imu_position)]
     pub imu_position: Vec<(usize, [f64; 3])>,
+    /// `--source poses`: pose sample rate, Hz [default: 15].
+    #[arg(long, value_name = "HZ")]
+    pub pose_rate: Option<f64>,
+    /// `--source poses`: standard deviation of the pose sample times about
+    /// their nominal grid, s (each pose is stamped with its true time)
+    /// [default: 0.003].
+    #[arg(long, value_name = "S")]
+    pub pose_jitter: Option<f64>,
+}
+
+/// What a simulated session records of the motion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SimSource {
+    /// Joint angles of a robot (joints.csv, docs/model.md §7).
+    Joints,
+    /// Tool poses of a body carrying the IMU (poses.csv, docs/model.md §7.9).
+    Poses,
 }
 
 impl SimulateCmd {
@@ -124,18 +157,85 @@ impl SimulateCmd {
 
     /// Simulate and write the session; returns what was written (its text
     /// is what `run` prints).
-    pub fn simulate(&self) -> anyhow::Result<Simulated> {
-        check_rates(self.duration, self.rate, self.joint_rate)?;
-        let (robot, source) = resolve_robot_with(&self.robot, None, &self.links)?;
+    pub fn simulate(&self) -> anyhow::Result<Box<dyn std::fmt::Display + Send>> {
+        Ok(match self.source {
+            SimSource::Joints => Box::new(self.simulate_joints()?),
+            SimSource::Poses => Box::new(self.simulate_poses()?),
+        })
+    }
+
+    /// `--source poses`: the pose session (the joint flags refused).
+    fn simulate_poses(&self) -> anyhow::Result<PoseSimulated> {
+        let joint_only = self.joint_only_flags();
+        if !joint_only.is_empty() {
+            bail!(
+                "{}: not for --source poses (a pose session has no robot and no joints; it takes \
+                 --out, --duration, --seed, --rate, --pose-rate and --pose-jitter)",
+                joint_only.join(", ")
+            );
+        }
+        Ok(simulate_pose_dir(&PoseSessionSpec {
+            out: self.out.clone(),
+            duration: self.duration.unwrap_or(60.0),
+            seed: self.seed,
+            pose_rate: self.pose_rate.unwrap_or(15.0),
+            pose_jitter: self.pose_jitter.unwrap_or(0.003),
+            imu_rate: self.rate.unwrap_or(100.0),
+        })?)
+    }
+
+    /// The flags of joint sessions given (other than their defaults).
+    fn joint_only_flags(&self) -> Vec<&'static str> {
+        let r = crate::args::ResonanceMode::default();
+        [
+            (self.robot.is_some(), "--robot"),
+            (
+                self.links.base.is_some() || self.links.tip.is_some(),
+                "--base/--tip",
+            ),
+            (self.trajectory.is_some(), "--trajectory"),
+            (self.joint_rate.is_some(), "--joint-rate"),
+            (self.noise_free, "--noise-free"),
+            (self.truth.is_some(), "--truth"),
+            (self.tracker, "--tracker"),
+            (!self.nominal.is_empty(), "--nominal"),
+            (!self.effect.is_empty(), "--effect"),
+            (self.bias_walk.is_some(), "--bias-walk"),
+            (self.temperature.is_some(), "--temperature"),
+            (
+                self.resonance.resonance_hz != r.resonance_hz
+                    || self.resonance.resonance_zeta != r.resonance_zeta,
+                "--resonance-hz/--resonance-zeta",
+            ),
+            (self.noise_model.is_some(), "--noise-model"),
+            (self.imus != 1, "--imus"),
+            (!self.imu_position.is_empty(), "--imu-position"),
+        ]
+        .into_iter()
+        .filter_map(|(given, name)| given.then_some(name))
+        .collect()
+    }
+
+    /// `--source joints`: the joint session.
+    fn simulate_joints(&self) -> anyhow::Result<Simulated> {
+        if self.pose_rate.is_some() || self.pose_jitter.is_some() {
+            bail!(
+                "--pose-rate and --pose-jitter are for --source poses (a session with tool poses)"
+            );
+        }
+        let (duration, rate) = (self.duration.unwrap_or(300.0), self.rate.unwrap_or(120.0));
+        check_rates(duration, rate, self.joint_rate)?;
+        let robot_name = self.robot.as_deref().unwrap_or("aubo_i5");
+        let (robot, source) = resolve_robot_with(robot_name, None, &self.links)?;
         if !(1..=64).contains(&self.imus) {
             bail!("--imus must be between 1 and 64 (got {})", self.imus);
         }
         let s = simulate_session(&SessionSpec {
             robot: place_imus(robot, self.imus, &self.imu_position)?,
-            robot_field: source.session_field(&self.robot),
-            duration: self.duration,
+            robot_field: source.session_field(robot_name),
+            duration,
             trajectory: self.trajectory.clone(),
-            rate: self.rate,
+            rate,
             joint_rate: self.joint_rate,
             seed: self.seed,
             out: self.out.clone(),

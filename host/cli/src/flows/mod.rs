@@ -6,3 +6,4 @@
 pub mod calibrate;
 pub mod demo;
 pub mod diagnose;
+pub mod poses;

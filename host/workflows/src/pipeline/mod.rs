@@ -7,6 +7,9 @@
 //! * [`diagnose_session`]: `robimu diagnose` (docs/model.md §7) with its
 //!   [`DiagnoseSettings`];
 //! * [`jobs`] and [`calibrate_job`]: `robimu calibrate-batch`;
+//! * [`poses::calibrate_pose_session`]: `robimu calibrate` of a session with
+//!   tool poses; [`pose_simulate::simulate_pose_dir`]: `robimu simulate
+//!   --source poses` (docs/model.md §7.9);
 //! * [`simulate::simulate_session`]: `robimu simulate`; [`validate::validate_session`]:
 //!   `robimu validate`;
 //! * [`load_session`] and [`resolve_robot`]: a session and the robot it names.
@@ -37,6 +40,8 @@ mod input;
 mod model_choice;
 mod next_steps;
 pub mod noise_spec;
+pub mod pose_simulate;
+pub mod poses;
 pub mod simulate;
 pub mod validate;
 

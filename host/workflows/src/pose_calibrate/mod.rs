@@ -3,20 +3,22 @@
 //! of B in W and IMU samples.
 //!
 //! [`calibrate_poses`]: fit the pose spline to the poses, find τ and the
-//! sensor rotations from the data ([`startup`]), then solve the MAP problem
+//! sensor rotations from the data (the start-up, [`Startup`]), then solve the MAP problem
 //! ([`robimu_solver::PoseProblem`]) by Levenberg–Marquardt; the covariance
 //! of x is the Schur complement's inverse (paper (24)). [`simulate`] makes
 //! sessions with known truth.
 
 pub mod simulate;
-pub mod startup;
+mod startup;
 #[cfg(test)]
 mod tests;
 
 use robimu_model::geom::{matrix_from_quat, V3};
 use robimu_model::pose_measurement::{self as pm, pose_param_specs, POSE_PARAMS};
 use robimu_model::{PoseMeasurements, PoseSpline, PoseSplineError};
-use robimu_solver::{LeastSquares, LmOptions, PoseData, PoseProblem, PoseProblemError};
+use robimu_solver::{
+    IterationRecord, LeastSquares, LmOptions, PoseData, PoseProblem, PoseProblemError,
+};
 
 pub use simulate::{draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise};
 use startup::greater;
@@ -95,6 +97,9 @@ pub struct PoseCalibration {
     pub covariance: Vec<Vec<f64>>,
     /// The prior means used (the sensor rotations' from the start-up).
     pub prior_mean: Vec<f64>,
+    /// The prior standard deviations used (π for the sensor rotations: no
+    /// informative prior).
+    pub prior_sigma: Vec<f64>,
     /// Residual RMS of the used IMU samples per channel [ax … gz].
     pub imu_rms: [f64; 6],
     /// Residual RMS of the pose samples: position (m), rotation (rad).
@@ -105,6 +110,8 @@ pub struct PoseCalibration {
     pub iterations: usize,
     /// Why Levenberg–Marquardt stopped.
     pub termination: String,
+    /// Whether that is convergence.
+    pub converged: bool,
     /// Final cost ½‖r‖².
     pub cost: f64,
     /// Knot spacing used (s).
@@ -145,6 +152,18 @@ pub fn calibrate_poses(
     data: &PoseMeasurements,
     opts: &PoseCalibrationOptions,
 ) -> Result<PoseCalibration, PoseCalibrationError> {
+    calibrate_poses_with(data, opts, |_| {}, |_| {})
+}
+
+/// [`calibrate_poses`], saying what it does: `stage` at the start of each
+/// stage (the spline fit, the start-up, the solve), `iteration` after each
+/// Levenberg–Marquardt iteration.
+pub fn calibrate_poses_with(
+    data: &PoseMeasurements,
+    opts: &PoseCalibrationOptions,
+    mut stage: impl FnMut(&str),
+    iteration: impl FnMut(&IterationRecord),
+) -> Result<PoseCalibration, PoseCalibrationError> {
     let pose_r = checked(data)?;
     let n = data.pose_t.len();
     let rate = (n - 1) as f64 / (data.pose_t[n - 1] - data.pose_t[0]);
@@ -154,7 +173,11 @@ pub fn calibrate_poses(
             "knot spacing {spacing} s"
         )));
     }
+    stage(&format!(
+        "fitting the pose spline ({n} poses, knots every {spacing:.3} s)"
+    ));
     let spline = PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing)?;
+    stage("start-up: tau and the sensor rotations from the data");
     let st = startup::startup(&spline, &data.imu_t, &data.imu_z, opts.tau_search)?;
     let specs = pose_param_specs(st.accel.r, st.gyro.r);
     let mut x0 = Vec::with_capacity(POSE_PARAMS);
@@ -178,7 +201,11 @@ pub fn calibrate_poses(
     let mut problem = PoseProblem::new(spline, pdata)?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
-    let sol = robimu_solver::solve(&mut problem, theta, &opts.lm, |_| {})
+    stage(&format!(
+        "solving: tau = {:.4} s from the start-up (correlation {:.3})",
+        st.tau, st.correlation
+    ));
+    let sol = robimu_solver::solve(&mut problem, theta, &opts.lm, iteration)
         .map_err(|e| PoseCalibrationError::Solver(e.to_string()))?;
     problem.begin_iteration(&sol.theta)?;
     let cov = sol.factor.covariance_x();
@@ -194,12 +221,14 @@ pub fn calibrate_poses(
             .map(|k| (0..POSE_PARAMS).map(|l| cov[(k, l)]).collect())
             .collect(),
         prior_mean: specs.iter().map(|s| s.nominal).collect(),
+        prior_sigma: specs.iter().map(|s| s.sigma).collect(),
         x,
         imu_rms,
         pose_rms,
         imu_used: problem.selected().len(),
         iterations: sol.summary.iterations.len(),
         termination: sol.summary.termination.to_string(),
+        converged: sol.summary.termination.converged(),
         cost: sol.summary.final_cost,
         knot_spacing: spacing,
         startup: st,

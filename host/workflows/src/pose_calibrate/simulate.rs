@@ -14,9 +14,9 @@ use super::PoseCalibrationError;
 
 /// Time the random motion extends beyond the session at each end (s), so
 /// that t_i + τ stays on it for |τ| < this.
-pub const MOTION_PAD: f64 = 6.0;
+pub(crate) const MOTION_PAD: f64 = 6.0;
 /// Knot spacing of the random motion (s).
-pub const MOTION_KNOTS: f64 = 0.5;
+pub(crate) const MOTION_KNOTS: f64 = 0.5;
 
 /// Noise of a simulated pose session.
 #[derive(Clone, Debug, PartialEq)]
@@ -48,7 +48,7 @@ fn normal(rng: &mut impl Rng, sigma: f64) -> f64 {
 }
 
 /// A rotation uniform on SO(3) (a normalised 4-D Gaussian quaternion).
-pub fn uniform_rotation(rng: &mut impl Rng) -> M3 {
+pub(crate) fn uniform_rotation(rng: &mut impl Rng) -> M3 {
     loop {
         let q: [f64; 4] = std::array::from_fn(|_| normal(rng, 1.0));
         let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();

@@ -53,7 +53,7 @@ fn err(msg: impl Into<String>) -> PoseCalibrationError {
 }
 
 /// τ by cross-correlating |ω̃| with |ω_B(t + τ)| over |τ| ≤ `tau_max`.
-pub fn find_tau(
+pub(crate) fn find_tau(
     spline: &PoseSpline,
     imu_t: &[f64],
     imu_z: &[[f64; 6]],
@@ -187,7 +187,7 @@ fn solve4(a: [[f64; 4]; 4], b: [f64; 4]) -> Option<[f64; 4]> {
 
 /// A = K Γ R (LQ decomposition by Gram–Schmidt on A's rows): the §3
 /// intrinsics with zero bias, or None if A is singular or a reflection.
-pub fn split_sensor_matrix(a: &M3) -> Option<ImuIntrinsics> {
+pub(crate) fn split_sensor_matrix(a: &M3) -> Option<ImuIntrinsics> {
     let mut q = [[0.0; 3]; 3];
     let mut l = [[0.0; 3]; 3];
     for i in 0..3 {
@@ -215,13 +215,13 @@ pub fn split_sensor_matrix(a: &M3) -> Option<ImuIntrinsics> {
 }
 
 /// The Z–Y–X Euler angles (r_z, r_y, r_x) of R = Rz·Ry·Rx (§3).
-pub fn euler_zyx(r: &M3) -> [f64; 3] {
+pub(crate) fn euler_zyx(r: &M3) -> [f64; 3] {
     let ry = (-r[2][0]).clamp(-1.0, 1.0).asin();
     [r[1][0].atan2(r[0][0]), ry, r[2][1].atan2(r[2][2])]
 }
 
 /// The start-up (module doc) for IMU samples at `imu_t`, τ within ±`tau_max`.
-pub fn startup(
+pub(crate) fn startup(
     spline: &PoseSpline,
     imu_t: &[f64],
     imu_z: &[[f64; 6]],

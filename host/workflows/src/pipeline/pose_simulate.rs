@@ -1,0 +1,138 @@
+//! `robimu simulate --source poses`: a simulated session with tool poses
+//! (docs/model.md §7.9) written as a session directory: `session.toml`
+//! (`source = "poses"`, the σ it was simulated with), `poses.csv`,
+//! `imu.csv` and `truth.toml` with the 30 true parameters.
+//!
+//! The truth is drawn from the priors with a uniformly random mount
+//! rotation ([`draw_pose_truth`]), the motion is a random hand-held-like
+//! one ([`random_pose_motion`]), and the samples are
+//! [`simulate_pose_session`]'s, with the default noise of
+//! [`PoseCalibrationOptions`](crate::PoseCalibrationOptions).
+
+use std::fmt;
+use std::path::PathBuf;
+
+use robimu_session::{
+    pose_parameter_names, NoiseOverride, PoseNoise as PoseSigma, PoseSessionMeta,
+    PoseSessionWriter, Truth,
+};
+
+use super::simulate::check_rates;
+use super::PipelineError;
+use crate::pose_calibrate::{
+    draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise,
+};
+
+/// What to simulate.
+#[derive(Debug, Clone)]
+pub struct PoseSessionSpec {
+    /// Session directory to write (created if needed).
+    pub out: PathBuf,
+    /// Length, s.
+    pub duration: f64,
+    /// Seed of the truth, the motion and the noise.
+    pub seed: u64,
+    /// Pose sample rate, Hz.
+    pub pose_rate: f64,
+    /// Standard deviation of the pose sample times about the nominal grid, s
+    /// (the poses are stamped with their true times).
+    pub pose_jitter: f64,
+    /// IMU sample rate, Hz.
+    pub imu_rate: f64,
+}
+
+/// A written pose session.
+#[derive(Debug, Clone)]
+pub struct PoseSimulated {
+    /// Its directory.
+    pub dir: PathBuf,
+    /// Rows of poses.csv.
+    pub poses: usize,
+    /// Rows of imu.csv.
+    pub imu_samples: usize,
+    /// Length, s.
+    pub duration: f64,
+    /// The true τ, s.
+    pub tau: f64,
+}
+
+impl fmt::Display for PoseSimulated {
+    /// `wrote DIR: … poses, … IMU samples … (true tau = …)`, the line
+    /// `robimu simulate --source poses` prints.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "wrote {}: {} poses, {} IMU samples over {:.1} s (true tau = {:.4} s; truth in truth.toml)",
+            self.dir.display(),
+            self.poses,
+            self.imu_samples,
+            self.duration,
+            self.tau
+        )
+    }
+}
+
+/// Simulate the pose session `spec` describes and write it.
+pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, PipelineError> {
+    check_rates(spec.duration, spec.imu_rate, None).map_err(PipelineError::input)?;
+    check_rates(spec.duration, spec.pose_rate, None)
+        .map_err(|e| PipelineError::input(anyhow::anyhow!("--pose-rate: {e}")))?;
+    if !(spec.pose_jitter.is_finite()
+        && spec.pose_jitter >= 0.0
+        && spec.pose_jitter * spec.pose_rate < 0.5)
+    {
+        return Err(PipelineError::input(anyhow::anyhow!(
+            "--pose-jitter must be ≥ 0 and below half the pose period (got {} s at {} Hz)",
+            spec.pose_jitter,
+            spec.pose_rate
+        )));
+    }
+    let fit = |e: crate::PoseCalibrationError| PipelineError::fit(e.into());
+    let truth = draw_pose_truth(spec.seed);
+    let motion = random_pose_motion(spec.duration, spec.seed.wrapping_add(1)).map_err(fit)?;
+    let noise = PoseNoise::default();
+    let data = simulate_pose_session(
+        &truth,
+        &motion,
+        spec.pose_rate,
+        spec.pose_jitter,
+        spec.imu_rate,
+        &noise,
+        spec.seed.wrapping_add(2),
+    )
+    .map_err(fit)?;
+    let meta = PoseSessionMeta {
+        poses: Some(PoseSigma {
+            sigma_p: Some(noise.sigma_p),
+            sigma_r: Some(noise.sigma_r),
+        }),
+        noise: Some(NoiseOverride {
+            sigma_z: Some(noise.sigma_z),
+            sigma_q: None,
+        }),
+        notes: Some(format!(
+            "simulated by robimu simulate --source poses (seed {}, poses at {} Hz with jitter \
+             {} s, IMU at {} Hz)",
+            spec.seed, spec.pose_rate, spec.pose_jitter, spec.imu_rate
+        )),
+        ..Default::default()
+    };
+    let write = |e: robimu_session::SessionError| PipelineError::write(e.into());
+    let mut w = PoseSessionWriter::create(&spec.out, &meta).map_err(write)?;
+    w.measurements(&data).map_err(write)?;
+    w.truth(&Truth {
+        values: pose_parameter_names(1)
+            .into_iter()
+            .zip(truth.clone())
+            .collect(),
+    })
+    .map_err(write)?;
+    let dir = w.finish().map_err(write)?;
+    Ok(PoseSimulated {
+        dir,
+        poses: data.pose_t.len(),
+        imu_samples: data.imu_t.len(),
+        duration: spec.duration,
+        tau: truth[5],
+    })
+}
