@@ -115,6 +115,13 @@ pub fn verdict(input: &VerdictInput<'_>) -> VerdictRecord {
     if let Some(stats) = input.residual_stats {
         checks.push(structure(stats));
     }
+    record(checks, bad)
+}
+
+/// The verdict of `checks`: *bad* when `bad` (the fit did not converge),
+/// else *good* when every check passed, else *doubtful*, with the failed
+/// checks as the reasons.
+pub(crate) fn record(checks: Vec<VerdictCheck>, bad: bool) -> VerdictRecord {
     let reasons: Vec<String> = checks
         .iter()
         .filter(|c| !c.ok)

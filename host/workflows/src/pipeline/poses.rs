@@ -18,7 +18,7 @@
 use std::path::Path;
 
 use robimu_session::result::{
-    CalibrationResult, CovarianceMatrix, NoiseModelRecord, ParameterResult, Trust, VerdictCheck,
+    CalibrationResult, CovarianceMatrix, NoiseModelRecord, ParameterResult, VerdictCheck,
     VerdictRecord, RESULT_FORMAT,
 };
 use robimu_session::{PoseSession, PoseSessionMeta, SOURCE_POSES};
@@ -199,24 +199,7 @@ fn pose_verdict(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> Verdict
         undetermined(cal),
         plausible(cal),
     ];
-    let reasons: Vec<String> = checks
-        .iter()
-        .filter(|c| !c.ok)
-        .map(|c| format!("{}: {}", c.topic, c.text))
-        .collect();
-    let trust = if !cal.converged {
-        Trust::Bad
-    } else if reasons.is_empty() {
-        Trust::Good
-    } else {
-        Trust::Doubtful
-    };
-    VerdictRecord {
-        trust,
-        reasons,
-        checks,
-        next_steps: Vec::new(),
-    }
+    crate::verdict::record(checks, !cal.converged)
 }
 
 /// The whitened RMS of the IMU channels and the poses, within [`RMS_RANGE`].
