@@ -247,6 +247,11 @@ pub struct Problem<'a> {
     thin_first: usize,
     /// Iterations the solver has begun ([`crate::LeastSquares::begin_iteration`]).
     iterations_begun: usize,
+    /// Every IMU's selected samples before the last change of selection
+    /// (the cycle test of [`Self::reselect`]).
+    previous_ranges: Vec<Range<usize>>,
+    /// The selection is kept from now on ([`Self::reselect`]).
+    selection_frozen: bool,
     /// The θ whose trajectory gives the motion levels (the first
     /// [`Self::update_levels`]'s; module doc).
     level_theta: Option<Vec<f64>>,
@@ -396,6 +401,8 @@ impl<'a> Problem<'a> {
             thin: 1,
             thin_first: 1,
             iterations_begun: 0,
+            previous_ranges: Vec::new(),
+            selection_frozen: false,
             level_theta: None,
             white,
             extra_spans,
@@ -626,7 +633,48 @@ impl<'a> Problem<'a> {
 
     /// Choose IMU `j`'s samples whose t + τ lies in the joint span (less the margin).
     fn select_stream(&mut self, j: usize, tau: f64) -> Result<(), ProblemError> {
-        let Range { start: lo, end: hi } = self.samples_at(j, tau)?;
+        let range = self.samples_at(j, tau)?;
+        self.apply_range(j, range);
+        Ok(())
+    }
+
+    /// The solver's re-selection at the start of an iteration (x at θ):
+    /// every IMU's samples at its τ, unless that returns the selection to
+    /// the one before the last change. Then τ has stepped back and forth
+    /// across a sample's edge (each selection's optimum lies in the other's
+    /// τ range, and the solver would alternate between the two costs until
+    /// its iteration limit, seen on a recorded session): the samples both
+    /// selections hold are kept from then on (they stay inside the span
+    /// while τ moves by less than the margin).
+    fn reselect(&mut self, x: &[f64]) -> Result<(), ProblemError> {
+        if self.selection_frozen {
+            return Ok(());
+        }
+        let tau_at = self.imu_layout.offsets().tau;
+        let wanted = (0..self.streams.len())
+            .map(|j| self.samples_at(j, x[self.streams[j].map[tau_at]]))
+            .collect::<Result<Vec<_>, _>>()?;
+        let current: Vec<Range<usize>> = self.streams.iter().map(|s| s.imu_range.clone()).collect();
+        if wanted == current {
+            return Ok(());
+        }
+        let cycle = wanted == self.previous_ranges;
+        self.previous_ranges = current.clone();
+        for (j, (w, c)) in wanted.into_iter().zip(current).enumerate() {
+            let range = if cycle {
+                w.start.max(c.start)..w.end.min(c.end)
+            } else {
+                w
+            };
+            self.apply_range(j, range);
+        }
+        self.selection_frozen = cycle;
+        Ok(())
+    }
+
+    /// Selects IMU `j`'s samples `range` (their AR segment positions too).
+    fn apply_range(&mut self, j: usize, range: Range<usize>) {
+        let Range { start: lo, end: hi } = range;
         let white = self.white;
         let s = &mut self.streams[j];
         s.imu_range = lo..hi;
@@ -642,7 +690,6 @@ impl<'a> Problem<'a> {
                 pos = pos.saturating_add(1);
             }
         }
-        Ok(())
     }
 
     /// The samples of IMU `j` [`Self::select_stream`] chooses at τ.
@@ -766,7 +813,7 @@ impl crate::LeastSquares for Problem<'_> {
             1
         });
         let x = self.x_of(theta);
-        self.select_all(&x)?;
+        self.reselect(&x)?;
         self.update_levels(theta)
     }
     fn cost(&self, theta: &[f64]) -> Result<f64, ProblemError> {
@@ -794,6 +841,9 @@ impl crate::LeastSquares for Problem<'_> {
     fn keeps_setup(&self, theta: &[f64]) -> bool {
         if self.thin > 1 {
             return false;
+        }
+        if self.selection_frozen {
+            return true;
         }
         let x = self.x_of(theta);
         let tau_at = self.imu_layout.offsets().tau;
