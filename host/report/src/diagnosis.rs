@@ -366,34 +366,7 @@ fn write_unexplained(out: &mut fmt::Formatter<'_>, d: &Diagnosis) -> fmt::Result
     if d.unexplained.is_empty() {
         return Ok(());
     }
-    let items: Vec<String> = d
-        .unexplained
-        .iter()
-        .map(|u| {
-            let mut parts = Vec::new();
-            if u.narrow_peak {
-                let band = if u.in_motion_band {
-                    ", inside the motion's band"
-                } else {
-                    ", above the motion's band"
-                };
-                parts.push(format!(
-                    "narrow peak at {:.2} Hz ({:.1}× median power, p = {:.1e}{band})",
-                    u.frequency_hz, u.peak_ratio, u.p_value
-                ));
-            }
-            let p = if u.follows_regressor {
-                format!(", p = {:.1e}", u.regressor_p_value)
-            } else {
-                String::new()
-            };
-            parts.push(format!(
-                "follows {} (r = {:+.3}, z = {:.1}{p})",
-                u.regressor, u.r, u.z
-            ));
-            format!("{} {}", u.channel, parts.join("; "))
-        })
-        .collect();
+    let items: Vec<String> = d.unexplained.iter().map(|u| u.describe(true)).collect();
     writeln!(
         out,
         "unexplained structure (a narrow spectral peak the noise model does not capture, or a correlation with a regressor no effect explains; p < {:.1e} each): {}",

@@ -357,29 +357,13 @@ fn structure(stats: &ResidualStats) -> VerdictCheck {
         .map_or("the motion's band unknown".to_string(), |b| {
             format!("the motion's band below {b:.2} Hz")
         });
-    let describe = |u: &crate::diagnose::Unexplained| {
-        let mut parts = Vec::new();
-        if u.narrow_peak {
-            parts.push(format!(
-                "a narrow peak at {:.2} Hz (p = {:.1e})",
-                u.frequency_hz, u.p_value
-            ));
-        }
-        if u.follows_regressor {
-            parts.push(format!(
-                "follows {} (r = {:+.3}, p = {:.1e})",
-                u.regressor, u.r, u.regressor_p_value
-            ));
-        }
-        format!("{} {}", u.channel, parts.join(", "))
-    };
     let (moving, harmless): (Vec<_>, Vec<_>) = found.iter().partition(|u| u.affects_parameters());
     let level = UNEXPLAINED_ALPHA / 6.0;
     let (ok, text) = if moving.is_empty() {
         let note = if harmless.is_empty() {
             String::new()
         } else {
-            let items: Vec<String> = harmless.iter().map(|u| describe(u)).collect();
+            let items: Vec<String> = harmless.iter().map(|u| u.describe(false)).collect();
             format!(
                 "; above the motion's band, where no parameter's regressor has power: {}",
                 items.join("; ")
@@ -390,7 +374,7 @@ fn structure(stats: &ResidualStats) -> VerdictCheck {
             format!("no structure left that follows the motion (narrow peaks and regressor correlations, p ≥ {level:.1e} each; {band}){note}"),
         )
     } else {
-        let items: Vec<String> = moving.iter().map(|u| describe(u)).collect();
+        let items: Vec<String> = moving.iter().map(|u| u.describe(false)).collect();
         (
             false,
             format!(

@@ -390,6 +390,48 @@ impl Unexplained {
     pub fn affects_parameters(&self) -> bool {
         self.follows_regressor || (self.narrow_peak && self.in_motion_band)
     }
+
+    /// One line on this structure: the channel, its significant peak and
+    /// regressor. `detailed` adds the peak's ratio and place against the
+    /// motion's band, and names the top regressor even when it is not
+    /// significant (diagnose's report); the verdict's line is the short one.
+    pub fn describe(&self, detailed: bool) -> String {
+        let mut parts = Vec::new();
+        if self.narrow_peak && detailed {
+            let band = if self.in_motion_band {
+                "inside"
+            } else {
+                "above"
+            };
+            parts.push(format!(
+                "narrow peak at {:.2} Hz ({:.1}× median power, p = {:.1e}, {band} the motion's band)",
+                self.frequency_hz, self.peak_ratio, self.p_value
+            ));
+        } else if self.narrow_peak {
+            parts.push(format!(
+                "a narrow peak at {:.2} Hz (p = {:.1e})",
+                self.frequency_hz, self.p_value
+            ));
+        }
+        if detailed {
+            let p = if self.follows_regressor {
+                format!(", p = {:.1e}", self.regressor_p_value)
+            } else {
+                String::new()
+            };
+            parts.push(format!(
+                "follows {} (r = {:+.3}, z = {:.1}{p})",
+                self.regressor, self.r, self.z
+            ));
+        } else if self.follows_regressor {
+            parts.push(format!(
+                "follows {} (r = {:+.3}, p = {:.1e})",
+                self.regressor, self.r, self.regressor_p_value
+            ));
+        }
+        let sep = if detailed { "; " } else { ", " };
+        format!("{} {}", self.channel, parts.join(sep))
+    }
 }
 
 /// Family-wise level of the unexplained-structure tests over the channels.
