@@ -115,6 +115,8 @@ mod multi_effects_tests;
 #[cfg(test)]
 mod multi_tests;
 #[cfg(test)]
+mod select_tests;
+#[cfg(test)]
 mod thin_tests;
 
 use std::ops::Range;
