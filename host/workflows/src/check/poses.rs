@@ -13,7 +13,9 @@
 //!   `NOT_QUATERNION`: the columns are not a quaternion w first);
 //! * positions in mm (a range over `MM_RANGE` m on an axis, the 90th
 //!   percentile of the speed over `MM_SPEED` m/s, or a distance from the
-//!   origin over `MM_DISTANCE` m: fatal).
+//!   origin over `MM_DISTANCE` m: fatal);
+//! * the inverse rotation convention ([`convention`]: the gyroscope
+//!   follows the rates of the quaternions' inverse; fatal).
 
 use super::streams::{nominal_rate, overlap, stream};
 use super::{clipping, median_of, timing, CheckReport, Finding, Severity};
@@ -43,6 +45,7 @@ pub fn check_pose_session(session: &PoseSession) -> CheckReport {
     findings.extend(sign_flips(session));
     findings.extend(non_unit(session));
     findings.extend(millimetres(&session.poses));
+    findings.extend(convention::inverse_rotation(session));
     for (j, imu) in session.imus.iter().enumerate() {
         let name = files::imu_csv(j);
         let table = if j == 0 {
@@ -184,5 +187,6 @@ fn millimetres(poses: &Table) -> Option<Finding> {
     ))
 }
 
+mod convention;
 #[cfg(test)]
 mod tests;

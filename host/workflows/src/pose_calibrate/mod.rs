@@ -9,7 +9,7 @@
 //! sessions with known truth.
 
 pub mod simulate;
-mod startup;
+pub(crate) mod startup;
 #[cfg(test)]
 mod tests;
 
@@ -147,6 +147,15 @@ fn checked(data: &PoseMeasurements) -> Result<Vec<robimu_model::geom::M3>, PoseC
     Ok(data.pose_q.iter().map(|q| matrix_from_quat(*q)).collect())
 }
 
+/// The pose spline's default knot spacing (s) for poses stamped `pose_t`
+/// (at least two): max(1.5 / pose rate, 0.05 s)
+/// ([`PoseCalibrationOptions::knot_spacing`]).
+pub(crate) fn default_knot_spacing(pose_t: &[f64]) -> f64 {
+    let n = pose_t.len();
+    let rate = (n - 1) as f64 / (pose_t[n - 1] - pose_t[0]);
+    (1.5 / rate).max(0.05)
+}
+
 /// Calibrate an IMU from a pose session (module doc).
 pub fn calibrate_poses(
     data: &PoseMeasurements,
@@ -166,8 +175,9 @@ pub fn calibrate_poses_with(
 ) -> Result<PoseCalibration, PoseCalibrationError> {
     let pose_r = checked(data)?;
     let n = data.pose_t.len();
-    let rate = (n - 1) as f64 / (data.pose_t[n - 1] - data.pose_t[0]);
-    let spacing = opts.knot_spacing.unwrap_or((1.5 / rate).max(0.05));
+    let spacing = opts
+        .knot_spacing
+        .unwrap_or_else(|| default_knot_spacing(&data.pose_t));
     if !(spacing.is_finite() && spacing > 0.0) {
         return Err(PoseCalibrationError::Input(format!(
             "knot spacing {spacing} s"

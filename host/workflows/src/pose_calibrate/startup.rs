@@ -275,6 +275,46 @@ pub(crate) fn startup(
     })
 }
 
+/// RMS (rad/s) of the gyroscope's affine alignment (the start-up's
+/// regression ω̃ ≈ A u + b) at `tau` with two rates of the poses: their
+/// body rates ω (u = ω, the §10 convention R = R_WB) and their world-frame
+/// rates ω_n. If the quaternions hold the inverse rotation, the body's
+/// true rate is −ω_n: a constant A maps it onto the gyroscope's axes, and
+/// ω only when the body turns about a fixed axis (the check of the
+/// convention, `check::poses`).
+pub(crate) fn gyro_alignment_rms(
+    spline: &PoseSpline,
+    imu_t: &[f64],
+    imu_z: &[[f64; 6]],
+    tau: f64,
+) -> Result<(f64, f64), PoseCalibrationError> {
+    let (mut body, mut world, mut meas) = (Vec::new(), Vec::new(), Vec::new());
+    for (t, z) in imu_t.iter().zip(imu_z) {
+        if spline.knots().contains(t + tau) {
+            let s = spline.evaluate(t + tau).map_err(|e| err(e.to_string()))?;
+            body.push(s.omega);
+            world.push(s.omega_n);
+            meas.push([z[3], z[4], z[5]]);
+        }
+    }
+    let rms = |u: &[V3]| -> Result<f64, PoseCalibrationError> {
+        let (a, b) = affine_fit(u, &meas)?;
+        let ss: f64 = u
+            .iter()
+            .zip(&meas)
+            .map(|(ui, yi)| {
+                let e = sub(
+                    robimu_model::geom::add(robimu_model::geom::mul_mv(&a, *ui), b),
+                    *yi,
+                );
+                dot(e, e)
+            })
+            .sum();
+        Ok((ss / (3 * meas.len().max(1)) as f64).sqrt())
+    };
+    Ok((rms(&body)?, rms(&world)?))
+}
+
 /// p_I minimising Σ |A (base_i + M_i p) + b − s̃_i|².
 fn solve_lever(
     a: &M3,

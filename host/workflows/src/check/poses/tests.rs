@@ -255,3 +255,65 @@ fn degenerate_sessions_do_not_panic() {
     assert!(rates.iter().all(|f| f.severity == Severity::Fatal));
     assert!(!kinds(&r).contains(&"jitter") && !kinds(&r).contains(&"startup_burst"));
 }
+
+/// A session of the pose simulator (consistent poses and IMU samples:
+/// a hand-held-like motion about varying axes), 20 s, 15 Hz poses.
+fn simulated(seed: u64) -> PoseSession {
+    use crate::pose_calibrate::{
+        draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise,
+    };
+    let motion = random_pose_motion(20.0, seed).unwrap();
+    let m = simulate_pose_session(
+        &draw_pose_truth(seed),
+        &motion,
+        15.0,
+        0.003,
+        100.0,
+        &PoseNoise::default(),
+        seed,
+    )
+    .unwrap();
+    let pv = (0..m.pose_t.len())
+        .flat_map(|k| m.pose_p[k].into_iter().chain(m.pose_q[k]))
+        .collect();
+    let iv = m.imu_z.iter().flatten().copied().collect();
+    PoseSession {
+        dir: "mem".into(),
+        meta: PoseSessionMeta::default(),
+        poses: table(&POSE_COLUMNS, m.pose_t, pv),
+        imus: vec![ImuTable {
+            samples: table(&IMU_COLUMNS, m.imu_t, iv),
+            temp: None,
+        }],
+        truth: None,
+    }
+}
+
+/// Quaternions of the inverse rotation (conjugated: the same numbers in
+/// JPL's convention) are fatal and named with the alignments' RMS ratio;
+/// the same session as simulated (R_WB) has no such finding.
+#[test]
+fn the_inverse_rotation_convention_is_named() {
+    for seed in [1, 2] {
+        let good = simulated(seed);
+        let r = check_pose_session(&good);
+        assert!(
+            !kinds(&r).contains(&"rotation_convention"),
+            "{:#?}",
+            r.findings
+        );
+        let mut inverse = good;
+        for row in inverse.poses.values.chunks_mut(7) {
+            for v in &mut row[4..7] {
+                *v = -*v;
+            }
+        }
+        let r = check_pose_session(&inverse);
+        let f = only(&r, "rotation_convention");
+        assert_eq!(f.severity, Severity::Fatal);
+        eprintln!("seed {seed}: {}", f.message);
+        assert!(f.value < convention::INVERSE_RATIO, "{}", f.value);
+        assert!(f.message.contains("inverse rotation"), "{}", f.message);
+        assert!(f.action.contains("−qx, −qy, −qz"), "{}", f.action);
+    }
+}

@@ -1,0 +1,55 @@
+//! The rotation convention of `poses.csv` (MODEL.md §10: q is R_WB, the
+//! body's axes in W). A stream of the inverse rotation (R_BW, a "world in
+//! tool" pose, or JPL's quaternion convention for Hamilton's) has the same
+//! angular speed, so τ is found, but the body's true rate is then −ω_n of
+//! the given rotations, not their ω: the gyroscope's alignment
+//! ([`gyro_alignment_rms`]) fits the world-frame rates far better than the
+//! body rates. Named, fatal, when its RMS is under `INVERSE_RATIO` of the
+//! body rates'.
+
+use robimu_model::PoseSpline;
+use robimu_session::{files, PoseSession};
+
+use crate::check::{Finding, Severity};
+use crate::pose_calibrate::default_knot_spacing;
+use crate::pose_calibrate::startup::{find_tau, gyro_alignment_rms};
+
+/// The world-frame rates' alignment RMS under this part of the body
+/// rates' names the inverse convention. The body rates of a body turning
+/// about varying axes leave an RMS of the order of the rates themselves
+/// in the wrong convention, against the gyroscope's noise in the right one.
+pub(crate) const INVERSE_RATIO: f64 = 0.5;
+/// τ is searched within ±this (s), as the calibration's default.
+const TAU_SEARCH: f64 = 5.0;
+
+/// The finding of an inverse rotation convention (module doc); None when
+/// the convention fits or the alignment cannot be computed (the other
+/// checks name why: too few samples, no overlap, no quaternions).
+pub(crate) fn inverse_rotation(session: &PoseSession) -> Option<Finding> {
+    let data = session.measurements();
+    if data.pose_t.len() < 8 || data.imu_t.len() < 20 {
+        return None;
+    }
+    let spacing = default_knot_spacing(&data.pose_t);
+    let spline = PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing).ok()?;
+    let (tau, _) = find_tau(&spline, &data.imu_t, &data.imu_z, TAU_SEARCH).ok()?;
+    let (body, world) = gyro_alignment_rms(&spline, &data.imu_t, &data.imu_z, tau).ok()?;
+    if !(world < INVERSE_RATIO * body) {
+        return None;
+    }
+    Some(Finding::new(
+        "rotation_convention",
+        Severity::Fatal,
+        files::POSES,
+        world / body,
+        format!(
+            "poses.csv: the quaternions look like the inverse rotation (R_BW instead of R_WB, or \
+             JPL's convention): the gyroscope follows the rates of their inverse, rms \
+             {world:.4} rad/s after the alignment, against {body:.4} rad/s for the rotations as \
+             given (τ = {tau:.3} s)"
+        ),
+        "conjugate the quaternions (qx, qy, qz → −qx, −qy, −qz; poses.csv holds R_WB, the body's \
+         axes in the world, docs/model.md §7.9) and, if the positions are the world's origin in the \
+         body too, p → −Rᵀp",
+    ))
+}
