@@ -34,7 +34,8 @@ pub(crate) fn inverse_rotation(session: &PoseSession) -> Option<Finding> {
     let spline = PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing).ok()?;
     let (tau, _) = find_tau(&spline, &data.imu_t, &data.imu_z, TAU_SEARCH).ok()?;
     let (body, world) = gyro_alignment_rms(&spline, &data.imu_t, &data.imu_z, tau).ok()?;
-    if !(world < INVERSE_RATIO * body) {
+    // NaN fits name nothing
+    if world.partial_cmp(&(INVERSE_RATIO * body)) != Some(std::cmp::Ordering::Less) {
         return None;
     }
     Some(Finding::new(
