@@ -62,8 +62,15 @@ fn run(mut config: SimRigConfig, seed: u64, duration: f64, dir: &Path) -> Outcom
     let summary = record_offline(&config, &p, dir, &TwinOptions::default()).unwrap();
     let hidden = Truth::read(&dir.join(files::TRUTH)).unwrap();
     let (session, robot) = load_session(dir).unwrap();
-    let prepared =
-        Prepared::new(session, robot.clone(), &Settings::default(), None, |_| {}).unwrap();
+    // ROBIMU_ONE_RESULT_EFFECTS=a,b fixes the effects (`--effects a,b`), to
+    // compare a model the selection did not choose with the same truth
+    let settings = Settings {
+        effects: std::env::var("ROBIMU_ONE_RESULT_EFFECTS")
+            .map(|e| e.split(',').map(str::to_string).collect())
+            .unwrap_or_default(),
+        ..Settings::default()
+    };
+    let prepared = Prepared::new(session, robot.clone(), &settings, None, |_| {}).unwrap();
     let fitted: Fitted = prepared.fit(|_| {}).unwrap();
     let mode = ModeShare::of(&config, dir).unwrap();
     let truth_for = |effects: &[String], share: Option<&[(String, f64)]>| {
