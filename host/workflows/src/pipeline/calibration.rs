@@ -13,7 +13,7 @@ use anyhow::{bail, Context};
 use robimu_model::effects::resonance::Mode;
 use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
-use robimu_session::result::CalibrationResult;
+use robimu_session::result::{CalibrationResult, EffectRecord};
 use robimu_session::Session;
 use robimu_solver::IterationRecord;
 
@@ -386,7 +386,7 @@ impl Prepared {
         noise: NoiseOutcome,
         fit: Fit,
         selection: Option<Diagnosis>,
-        effects: Option<Vec<robimu_session::result::EffectRecord>>,
+        effects: Option<Vec<EffectRecord>>,
         tests: ModelTestsRecord,
     ) -> Fitted {
         let paper = selection.is_none();
@@ -404,16 +404,19 @@ impl Prepared {
                 .collect();
         let setup = selection.as_ref().map_or(&self.setup, |d| &d.setup);
         let stats = residual_stats(&self.robot, &self.data, setup, &fit);
-        let verdict = self.verdict(VerdictInput {
-            robot: &self.robot,
-            calibration: &cal,
-            noise: Some(&noise),
-            whiteness: whiteness.as_ref(),
-            repeatability: None,
-            other_imus: &other_imus,
-            model_tests: Some(&tests),
-            residual_stats: Some(&stats),
-        });
+        let verdict = self.verdict(
+            VerdictInput {
+                robot: &self.robot,
+                calibration: &cal,
+                noise: Some(&noise),
+                whiteness: whiteness.as_ref(),
+                repeatability: None,
+                other_imus: &other_imus,
+                model_tests: Some(&tests),
+                residual_stats: Some(&stats),
+            },
+            effects.as_deref(),
+        );
         let mut result = result_record(&cal, &self.layout, &self.session, self.opts.use_prior);
         result.noise_warning = noise.warning.clone();
         result.verdict = Some(verdict);
@@ -494,25 +497,33 @@ impl Prepared {
         let study =
             repeatability::compare(&ParamLayout::new(&self.robot), full.cal.clone(), results);
         let mut result = full.result.clone();
-        result.verdict = Some(self.verdict(VerdictInput {
-            robot: &self.robot,
-            calibration: &study.full,
-            noise: Some(&full.noise),
-            whiteness: full.whiteness.as_ref(),
-            repeatability: Some(&study),
-            other_imus: &full.other_imus,
-            model_tests: full.result.model_tests.as_ref(),
-            residual_stats: Some(&full.residual_stats),
-        }));
+        result.verdict = Some(self.verdict(
+            VerdictInput {
+                robot: &self.robot,
+                calibration: &study.full,
+                noise: Some(&full.noise),
+                whiteness: full.whiteness.as_ref(),
+                repeatability: Some(&study),
+                other_imus: &full.other_imus,
+                model_tests: full.result.model_tests.as_ref(),
+                residual_stats: Some(&full.residual_stats),
+            },
+            full.result.effects.as_deref(),
+        ));
         Ok((study, result))
     }
 
     /// The verdict on `input` (docs/model.md §8.5), with the next steps
     /// its checks call for when the model's tests were run.
-    fn verdict(&self, input: VerdictInput<'_>) -> VerdictRecord {
+    fn verdict(&self, input: VerdictInput<'_>, effects: Option<&[EffectRecord]>) -> VerdictRecord {
         let mut verdict = verdict::verdict(&input);
         if let Some(tests) = input.model_tests {
-            verdict.next_steps = next_steps(&verdict, &self.session, tests);
+            let names: Vec<String> = effects
+                .unwrap_or_default()
+                .iter()
+                .map(|e| e.name.clone())
+                .collect();
+            verdict.next_steps = next_steps(&verdict, &self.session, tests, &names);
         }
         verdict
     }
