@@ -187,7 +187,7 @@ pub fn bar(fraction: f64) -> String {
 /// the IMU residuals `z − ẑ(x)` (eq. (10)) with the noise model's σ.
 #[derive(Debug, Clone, Default)]
 pub struct SessionSeries {
-    /// Joint angles: per joint, (t, q in degrees).
+    /// Joint angles: per joint, (t, q in degrees); none for a pose session.
     pub joints: Vec<Vec<(f64, f64)>>,
     /// IMU residuals per channel `[ax, ay, az, gx, gy, gz]`: (t, residual in
     /// m/s² or °/s).
@@ -545,7 +545,16 @@ fn series_sections(
     dir: &Path,
     series: &[SessionSeries],
 ) -> Result<(), ReportError> {
-    if let Some(s) = series.first() {
+    let Some(first) = series.first() else {
+        return Ok(());
+    };
+    // a pose session's series have no joints (docs/model.md §7.9)
+    let refitted = if first.joints.is_empty() {
+        "the pose trajectory refitted to the pose samples"
+    } else {
+        "the trajectory refitted to the joint samples"
+    };
+    if let Some(s) = series.first().filter(|s| !s.joints.is_empty()) {
         page.heading("Trajectory");
         let panels: Vec<LinePanel> = s
             .joints
@@ -560,6 +569,8 @@ fn series_sections(
             .collect();
         let files = line_panels(&dir.join("trajectory"), "Joint trajectory", &panels, 3)?;
         page.figure(&files[1], "The joint samples of the session.")?;
+    }
+    {
         page.heading("Residuals");
         for (j, s) in series.iter().enumerate() {
             let (stem, who) = if series.len() == 1 {
@@ -571,7 +582,7 @@ fn series_sections(
             page.figure(
                 &files[1],
                 &format!(
-                    "{who}Measured minus predicted IMU output over time (the trajectory refitted to the joint samples, τ = {:.2} ms), with the ±1σ band of {}: residuals that fit the noise model stay mostly inside it.",
+                    "{who}Measured minus predicted IMU output over time ({refitted}, τ = {:.2} ms), with the ±1σ band of {}: residuals that fit the noise model stay mostly inside it.",
                     1e3 * s.tau,
                     s.noise_source
                 ),

@@ -27,8 +27,8 @@ use robimu_model::geom::{
     exp_so3, matrix_from_quat, mul_mm, mul_mv, quat_from_matrix, rot_x, rot_y, rot_z, transpose,
 };
 
-use super::csv::read_raw;
-use super::ImportError;
+use super::csv::{one_clock, read_imu_csv, read_raw, Span};
+use super::{ImportError, Streams};
 
 /// How the orientation is written.
 #[derive(Debug, Clone, PartialEq)]
@@ -115,14 +115,34 @@ pub fn read_pose_csv(path: &Path, opts: &PoseCsvOptions) -> Result<PoseRows, Imp
     let raw = read_raw(path)?;
     let columns = Columns::resolve(path, opts, raw.header.as_deref())?;
     let mut out = PoseRows::default();
+    let mut span = Span(None);
     for (line, fields) in &raw.rows {
         let fields: Vec<&str> = fields.iter().map(String::as_str).collect();
         let (t, p, q) = columns.row(path, *line, &fields, opts)?;
+        span.check(path, *line, t)?;
         out.t_ns.push(t);
         out.p.push(p);
         out.q.push(q);
     }
     Ok(out)
+}
+
+/// Reads the poses of `poses` (as `opts` describe them) and the IMU
+/// samples of `imu` (an EuRoC/Kalibr IMU CSV, [`super::csv`]), on one clock,
+/// into [`Streams`] for [`Streams::write_pose_session`].
+pub fn read_pose_csv_pair(
+    poses: &Path,
+    opts: &PoseCsvOptions,
+    imu: &Path,
+) -> Result<Streams, ImportError> {
+    let imu_samples = read_imu_csv(imu)?;
+    let rows = read_pose_csv(poses, opts)?;
+    one_clock(imu, &imu_samples, rows.t_ns.first().copied(), "poses")?;
+    Ok(Streams {
+        imu: imu_samples,
+        poses: rows,
+        ..Streams::default()
+    })
 }
 
 /// The 0-based indices of the columns `opts` names.

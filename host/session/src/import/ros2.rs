@@ -2,7 +2,10 @@
 //! `metadata.yaml` and one or more storage files), or one storage file,
 //! MCAP (`.mcap`) or sqlite3 (`.db3`, feature `sqlite3`), with
 //! `sensor_msgs/msg/JointState` and `sensor_msgs/msg/Imu` on two topics
-//! (docs/model.md §7).
+//! (docs/model.md §7), or, for a pose session ([`Ros2Options::poses`],
+//! docs/model.md §7.9), tool poses (`geometry_msgs/msg/PoseStamped`,
+//! `geometry_msgs/msg/TransformStamped` or `/tf`'s `tf2_msgs/msg/TFMessage`,
+//! one child frame taken) in place of the joint states.
 //!
 //! Every storage feeds its messages — (topic, type, log time, CDR bytes) —
 //! to one collector (`collect.rs`), which decodes the two topics ([`super::cdr`]) into
@@ -31,13 +34,13 @@ use super::collect::compression_refused;
 use super::collect::{
     check_topic, unzstd, Collector, TopicDecl, MCAP_MAGIC, SQLITE_MAGIC, ZSTD_MAGIC,
 };
-pub use super::collect::{Ros2Options, TimeSource, IMU};
+pub use super::collect::{PoseTopic, Ros2Options, TimeSource, IMU};
 #[allow(unused_imports)]
 pub(crate) use super::collect::{COMPRESSION_FEATURE, JOINT_STATE};
 use super::ImportError;
 use super::Streams;
 
-/// Reads the joint and IMU streams of the recording at `path`: a rosbag2
+/// Reads the joint (or pose) and IMU streams of the recording at `path`: a rosbag2
 /// directory, or one MCAP or sqlite3 file (zstd-compressed or not).
 pub fn read_ros2(path: &Path, opts: &Ros2Options) -> Result<Streams, ImportError> {
     if let Some(names) = &opts.joint_names {
@@ -277,7 +280,7 @@ fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
                     },
                     schema_encoding: None,
                 };
-                check_topic(&meta_path, &decl, wanted)?;
+                check_topic(&meta_path, &decl, wanted.types())?;
             }
         }
     }
@@ -441,6 +444,7 @@ mod db3_tests {
             time,
             joint_names: None,
             names_required: false,
+            poses: None,
         };
         read_ros2(path, &opts)
             .map(|_| ())
