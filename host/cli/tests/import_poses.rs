@@ -224,9 +224,15 @@ fn a_pose_csv_in_mm_with_xyzw_quaternions_imports_to_the_simulated_session() {
     assert!(!bad.exists(), "a failed import wrote {}", bad.display());
 }
 
+/// Messages of one topic: (stamp ns, CDR bytes).
+type Messages = Vec<(i64, Vec<u8>)>;
+
+/// A change made to the poses of a recording.
+type Mutation = Box<dyn Fn(&mut Vec<PoseMsg>)>;
+
 /// An MCAP recording (rosbag2 profile) with the IMU on /imu/data_raw and
-/// `poses`: (topic, type, messages of (stamp, CDR bytes)).
-fn write_bag(path: &Path, sim: &PoseSession, poses: &[(&str, &str, Vec<(i64, Vec<u8>)>)]) {
+/// `poses`: (topic, type, messages).
+fn write_bag(path: &Path, sim: &PoseSession, poses: &[(&str, &str, Messages)]) {
     let file = BufWriter::new(std::fs::File::create(path).unwrap());
     let mut w = mcap::WriteOptions::new()
         .profile("ros2")
@@ -302,7 +308,7 @@ fn ros2_pose_stamped_transform_stamped_and_tf_import_to_the_simulated_session() 
         orientation: [0.0, 1.0, 0.0, 0.0],
         ..tool[0].clone()
     };
-    let tf: Vec<(i64, Vec<u8>)> = tool
+    let tf: Messages = tool
         .iter()
         .map(|m| {
             let cam = PoseMsg {
@@ -312,11 +318,11 @@ fn ros2_pose_stamped_transform_stamped_and_tf_import_to_the_simulated_session() 
             (m.stamp.0, encode::tf(&[cam, m.clone()]))
         })
         .collect();
-    let stamped: Vec<(i64, Vec<u8>)> = tool
+    let stamped: Messages = tool
         .iter()
         .map(|m| (m.stamp.0, encode::pose_stamped(m)))
         .collect();
-    let single: Vec<(i64, Vec<u8>)> = tool
+    let single: Messages = tool
         .iter()
         .map(|m| (m.stamp.0, encode::transform_stamped(m)))
         .collect();
@@ -402,7 +408,7 @@ fn ros2_poses_that_are_not_measurements_are_refused() {
     let sim = simulated(&d.join("sim"));
     let mut tool = pose_msgs(&sim, "base", "tool0");
     let bad = d.join("bad");
-    let cases: [(&str, Box<dyn Fn(&mut Vec<PoseMsg>)>, &str); 3] = [
+    let cases: [(&str, Mutation, &str); 3] = [
         (
             "nan",
             Box::new(|m| m[4].position[1] = f64::NAN),
