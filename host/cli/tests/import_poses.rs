@@ -12,6 +12,7 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 use common::{robimu, robimu_ok, s};
+use nalgebra::{Quaternion, UnitQuaternion};
 use robimu_session::import::cdr::{encode, ImuMsg, PoseMsg, Stamp};
 use robimu_session::PoseSession;
 
@@ -21,10 +22,12 @@ use robimu_session::PoseSession;
 const BAG_BASE_NS: i64 = 1_700_000_000_123_456_789;
 const CSV_BASE_NS: i64 = 5_000_000_000;
 
-/// Positions agree to 1e-12 m, quaternions (up to sign) to 1e-12, times to
-/// 1 ns; IMU samples are bit-exact.
+/// Positions agree to 1e-12 m, quaternions (up to sign) to 1e-12 (1e-9
+/// through Euler angles in degrees), times to 1.5 ns; IMU samples are
+/// bit-exact.
 const POSITION_TOL: f64 = 1e-12;
 const QUATERNION_TOL: f64 = 1e-12;
+const EULER_QUATERNION_TOL: f64 = 1e-9;
 const TIME_TOL: f64 = 1.5e-9;
 
 fn simulated(dir: &Path) -> PoseSession {
@@ -64,6 +67,11 @@ fn quaternion_distance(a: [f64; 4], b: [f64; 4]) -> f64 {
 /// The imported session `got` has the simulated session's samples, times
 /// shifted so that the earliest is 0.
 fn assert_same_session(got: &PoseSession, sim: &PoseSession, what: &str) {
+    assert_same_session_to(got, sim, what, QUATERNION_TOL);
+}
+
+/// [`assert_same_session`] with quaternions to `quat_tol`.
+fn assert_same_session_to(got: &PoseSession, sim: &PoseSession, what: &str, quat_tol: f64) {
     let t0 = t_first(sim);
     assert_eq!(got.poses.len(), sim.poses.len(), "{what}: pose count");
     let (gp, sp) = (got.positions(), sim.positions());
@@ -76,10 +84,7 @@ fn assert_same_session(got: &PoseSession, sim: &PoseSession, what: &str) {
             .fold(0.0, f64::max);
         assert!(dp < POSITION_TOL, "{what}: pose {k} position off by {dp} m");
         let dq = quaternion_distance(gq[k], sq[k]);
-        assert!(
-            dq < QUATERNION_TOL,
-            "{what}: pose {k} quaternion off by {dq}"
-        );
+        assert!(dq < quat_tol, "{what}: pose {k} quaternion off by {dq}");
     }
     let (gi, si) = (&got.imus[0].samples, &sim.imus[0].samples);
     assert_eq!(gi.len(), si.len(), "{what}: IMU sample count");
@@ -183,6 +188,48 @@ fn a_pose_csv_in_mm_with_xyzw_quaternions_imports_to_the_simulated_session() {
     let got = PoseSession::read(&out).unwrap();
     assert_same_session(&got, &sim, "pose CSV");
     robimu_ok(["check", s(&out)]);
+    // the same poses as roll, pitch, yaw in degrees (nalgebra's Euler
+    // angles: R = Rz(yaw)·Ry(pitch)·Rx(roll)), times in s, metres
+    let euler = d.join("euler.csv");
+    let mut text = String::from("time,x,y,z,roll,pitch,yaw\n");
+    let (p, q) = (sim.positions(), sim.quaternions());
+    for k in 0..sim.poses.len() {
+        let uq =
+            UnitQuaternion::from_quaternion(Quaternion::new(q[k][0], q[k][1], q[k][2], q[k][3]));
+        let (r, pi, y) = uq.euler_angles();
+        let t = ns(CSV_BASE_NS, &sim, sim.poses.t[k]) as f64 * 1e-9;
+        let row = [
+            t,
+            p[k][0],
+            p[k][1],
+            p[k][2],
+            r.to_degrees(),
+            pi.to_degrees(),
+            y.to_degrees(),
+        ];
+        let row: Vec<String> = row.iter().map(|v| format!("{v:?}")).collect();
+        text.push_str(&(row.join(",") + "\n"));
+    }
+    std::fs::write(&euler, text).unwrap();
+    let out_e = d.join("imported_euler");
+    robimu_ok([
+        "import",
+        "poses",
+        s(&euler),
+        "--imu",
+        s(&imu),
+        "--time-col",
+        "time",
+        "--position-cols",
+        "x,y,z",
+        "--euler-cols",
+        "roll,pitch,yaw",
+        "--euler-deg",
+        "--out",
+        s(&out_e),
+    ]);
+    let got = PoseSession::read(&out_e).unwrap();
+    assert_same_session_to(&got, &sim, "Euler CSV", EULER_QUATERNION_TOL);
     let bad = d.join("bad");
     // a missing column names the columns there are
     let mut a = vec![
