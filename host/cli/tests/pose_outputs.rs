@@ -1,6 +1,6 @@
 //! `robimu report`, `robimu export` and `robimu correct` on a pose session's
 //! result (issue 39 item 2, docs/model.md §7.9): the HTML report has the
-//! verdict, the 30 parameters with σ and the residual figure; Kalibr's
+//! verdict, the 30 parameters with σ and the residuals' RMS; Kalibr's
 //! imu.yaml and the correction file carry the calibrated intrinsics (checked
 //! against the result's own numbers and by applying them to the simulated
 //! truth's sensor model); `correct` inverts the sensor model; the robot
@@ -69,9 +69,15 @@ fn report_kalibr_export_and_correct_work_on_a_pose_result() {
         assert!(html.contains(&p.name), "{} not on the page", p.name);
     }
     assert_eq!(result.parameters.len(), 30);
-    assert!(html.contains("pose trajectory refitted to the pose samples"));
+    // the calibration's whitened residual RMS, not a refitted spline's
+    let rms = result.residual_rms.unwrap();
+    assert!(
+        html.contains(&format!("gz {:.2}", rms[5])),
+        "residual RMS not on the page"
+    );
+    assert!(html.contains("A pose session has no residual figure"));
     assert!(!html.contains("Joint trajectory"));
-    assert!(report_dir.join("residuals.svg").is_file());
+    assert!(report_dir.join("posterior_sigma.svg").is_file());
 
     // Kalibr: Kalibr's equations (scale-misalignment model) with the
     // exported matrices reproduce the sensor model of the result's own

@@ -187,7 +187,7 @@ pub fn bar(fraction: f64) -> String {
 /// the IMU residuals `z − ẑ(x)` (eq. (10)) with the noise model's σ.
 #[derive(Debug, Clone, Default)]
 pub struct SessionSeries {
-    /// Joint angles: per joint, (t, q in degrees); none for a pose session.
+    /// Joint angles: per joint, (t, q in degrees).
     pub joints: Vec<Vec<(f64, f64)>>,
     /// IMU residuals per channel `[ax, ay, az, gx, gy, gz]`: (t, residual in
     /// m/s² or °/s).
@@ -324,6 +324,36 @@ pub fn calibration_report_imus(
     series: &[SessionSeries],
 ) -> Result<PathBuf, ReportError> {
     calibration_report_with(dir, result, truth, convergence, series, None)
+}
+
+/// Write `dir/report.html` for a pose session's result (docs/model.md
+/// §7.9): the overview with the verdict, the parameters against their
+/// priors (and `truth`), convergence; no joint trajectory, and the
+/// residuals as the verdict's RMS only (a pose spline refitted to the pose
+/// samples alone does not resolve the motion to the IMU's noise).
+pub(crate) fn pose_calibration_report(
+    dir: &Path,
+    result: &CalibrationResult,
+    truth: Option<&Truth>,
+    convergence: Convergence<'_>,
+) -> Result<PathBuf, ReportError> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let mut page = HtmlPage::new("robimu calibration report");
+    overview_section(&mut page, result);
+    parameters_section(&mut page, dir, result, truth)?;
+    convergence_section(&mut page, dir, result, convergence)?;
+    page.heading("Residuals");
+    page.paragraph(
+        "A pose session has no residual figure: its trajectory is estimated together with the \
+         IMU's parameters, and a pose spline refitted to the pose samples alone (a controller's \
+         or tracker's rate and noise) does not resolve the motion's rates and accelerations to \
+         the IMU's noise, so its residuals would be several times σ_z whatever the fit. The \
+         calibration's own residual RMS per IMU channel over σ_z, and of the poses over σ_p and \
+         σ_r, are the verdict's residuals check above.",
+    );
+    let path = dir.join("report.html");
+    page.write(&path)?;
+    Ok(path)
 }
 
 /// The search that gave a calibration's model its effects, for the
@@ -545,16 +575,7 @@ fn series_sections(
     dir: &Path,
     series: &[SessionSeries],
 ) -> Result<(), ReportError> {
-    let Some(first) = series.first() else {
-        return Ok(());
-    };
-    // a pose session's series have no joints (docs/model.md §7.9)
-    let refitted = if first.joints.is_empty() {
-        "the pose trajectory refitted to the pose samples"
-    } else {
-        "the trajectory refitted to the joint samples"
-    };
-    if let Some(s) = series.first().filter(|s| !s.joints.is_empty()) {
+    if let Some(s) = series.first() {
         page.heading("Trajectory");
         let panels: Vec<LinePanel> = s
             .joints
@@ -569,8 +590,6 @@ fn series_sections(
             .collect();
         let files = line_panels(&dir.join("trajectory"), "Joint trajectory", &panels, 3)?;
         page.figure(&files[1], "The joint samples of the session.")?;
-    }
-    {
         page.heading("Residuals");
         for (j, s) in series.iter().enumerate() {
             let (stem, who) = if series.len() == 1 {
@@ -582,7 +601,7 @@ fn series_sections(
             page.figure(
                 &files[1],
                 &format!(
-                    "{who}Measured minus predicted IMU output over time ({refitted}, τ = {:.2} ms), with the ±1σ band of {}: residuals that fit the noise model stay mostly inside it.",
+                    "{who}Measured minus predicted IMU output over time (the trajectory refitted to the joint samples, τ = {:.2} ms), with the ±1σ band of {}: residuals that fit the noise model stay mostly inside it.",
                     1e3 * s.tau,
                     s.noise_source
                 ),

@@ -6,19 +6,18 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use robimu_model::observations::Measurements;
-use robimu_model::pose_measurement::predict;
-use robimu_model::pose_trajectory::PoseSpline;
 use robimu_model::{ParamLayout, Robot};
 use robimu_session::result::CalibrationResult;
-use robimu_session::{PoseSession, Session, POSE_PARAMETERS};
+use robimu_session::{PoseSession, Session};
 use robimu_workflows::calibrate::choose_knots;
 use robimu_workflows::export::is_pose_result;
-use robimu_workflows::pipeline::poses::pose_options;
 use robimu_workflows::pipeline::{load_session, session_robot};
 
 use crate::convergence::{convergence_path, ConvergenceLog};
 use crate::figures::NoiseBand;
-use crate::html::{calibration_report_imus, Convergence, ReportError, SessionSeries};
+use crate::html::{
+    calibration_report_imus, pose_calibration_report, Convergence, ReportError, SessionSeries,
+};
 
 /// Write the report of the result file `result` into `out` [default:
 /// `report` next to the result file], with the series of the session in
@@ -72,8 +71,7 @@ pub fn write_result_report(
 }
 
 /// [`write_result_report`] of a pose session's result (docs/model.md
-/// §7.9): the verdict, the 30 parameters with σ, convergence and, with the
-/// session, the IMU residuals along the pose trajectory; no joints.
+/// §7.9, [`pose_calibration_report`]): the session read for its truth.
 fn pose_result_report(
     result_path: &Path,
     result: &CalibrationResult,
@@ -84,81 +82,13 @@ fn pose_result_report(
         Some(d) => Some(PoseSession::read(d)?),
         None => None,
     };
-    let series = match &session {
-        Some(s) => vec![pose_series(s, result).with_context(|| {
-            format!(
-                "cannot plot the pose session {} under this result",
-                s.dir.display()
-            )
-        })?],
-        None => Vec::new(),
-    };
     let history = convergence_history(result_path)?;
     let convergence = match &history {
         Ok(costs) => Convergence::Costs(costs),
         Err(why) => Convergence::Unavailable(why),
     };
     let truth = session.as_ref().and_then(|s| s.truth.as_ref());
-    Ok(calibration_report_imus(
-        dir,
-        result,
-        truth,
-        convergence,
-        &series,
-    )?)
-}
-
-/// IMU 0's residuals of a pose session under `result`: the pose spline
-/// refitted to the pose samples with the calibration's knot spacing, the
-/// IMU predicted by the §10 model (robimu_model::pose_measurement), with
-/// the σ_z the calibration used (white noise).
-fn pose_series(session: &PoseSession, result: &CalibrationResult) -> anyhow::Result<SessionSeries> {
-    let x: Vec<f64> = POSE_PARAMETERS
-        .iter()
-        .map(|n| {
-            result
-                .parameter(n)
-                .map(|p| p.value)
-                .with_context(|| format!("the result has no parameter {n}"))
-        })
-        .collect::<anyhow::Result<_>>()?;
-    let data = session.measurements();
-    let spacing = result
-        .knot_spacing
-        .context("the result gives no knot spacing (written by an older robimu?)")?;
-    let spline = PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing)?;
-    let sigma_z = pose_options(&session.meta, |_| {}).sigma_z;
-    let noise = NoiseBand::of_fit(None, &sigma_z);
-    let tau = x[POSE_PARAMETERS
-        .iter()
-        .position(|n| *n == "tau")
-        .unwrap_or(5)];
-    let (a, b) = (spline.knots().start(), spline.knots().end());
-    let mut residuals = vec![Vec::new(); 6];
-    let mut sigma = vec![Vec::new(); 6];
-    for (&t, z) in data.imu_t.iter().zip(&data.imu_z) {
-        if t + tau < a || t + tau > b {
-            continue;
-        }
-        let Ok(pred) = predict(&spline, t, &x) else {
-            continue;
-        };
-        for c in 0..6 {
-            let shown = |v: f64| if c < 3 { v } else { v.to_degrees() };
-            residuals[c].push((t, shown(z[c] - pred[c])));
-            sigma[c].push((t, shown(noise.sigma_at(c, 0.0))));
-        }
-    }
-    if residuals[0].is_empty() {
-        anyhow::bail!("no IMU sample lies on the pose trajectory");
-    }
-    Ok(SessionSeries {
-        joints: Vec::new(),
-        residuals,
-        sigma,
-        noise_source: noise.source,
-        tau,
-    })
+    Ok(pose_calibration_report(dir, result, truth, convergence)?)
 }
 
 /// The series of `data` under parameters `x` for the report: the IMU
