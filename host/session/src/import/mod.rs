@@ -361,4 +361,49 @@ mod tests {
             .unwrap_err();
         assert!(e.to_string().contains("joint stream: no samples"), "{e}");
     }
+
+    /// Poses sorted with their rows kept together, epoch times kept to the
+    /// ns, and positions beyond 10⁴ m refused naming --units mm.
+    #[test]
+    fn pose_streams_write_a_pose_session() {
+        use crate::{PoseSession, PoseSessionMeta};
+        let dir = tempfile::tempdir().unwrap();
+        let base = 1_700_000_000_123_456_789_i64;
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let mut streams = Streams {
+            imu: vec![(base + 3, imu_row([0.0; 3], [0.0, 0.0, 9.81]))],
+            poses: PoseRows {
+                t_ns: vec![base + 2_000_000, base + 1],
+                p: vec![[0.2, 0.0, 0.0], [0.1, 0.0, 0.0]],
+                q: vec![[h, h, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]],
+            },
+            ..Streams::default()
+        };
+        let out = streams
+            .clone()
+            .write_pose_session(dir.path(), &PoseSessionMeta::default())
+            .unwrap();
+        assert_eq!(
+            (out.pose_samples, out.imu_samples, out.t0_ns),
+            (2, 1, base + 1)
+        );
+        let s = PoseSession::read(dir.path()).unwrap();
+        assert_eq!(s.poses.t, vec![0.0, 1_999_999.0 * 1e-9]);
+        assert_eq!(s.positions(), vec![[0.1, 0.0, 0.0], [0.2, 0.0, 0.0]]);
+        assert_eq!(s.quaternions()[1], [h, h, 0.0, 0.0]);
+        assert_eq!(s.imus[0].samples.t, vec![2e-9]);
+        streams.poses.p[1][2] = 2e4;
+        let e = streams
+            .write_pose_session(dir.path(), &PoseSessionMeta::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("pose 1 has position") && e.contains("--units mm"),
+            "{e}"
+        );
+        let e = Streams::default()
+            .write_pose_session(dir.path(), &PoseSessionMeta::default())
+            .unwrap_err();
+        assert!(e.to_string().contains("pose stream: no samples"), "{e}");
+    }
 }
