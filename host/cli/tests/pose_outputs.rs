@@ -93,8 +93,13 @@ fn report_kalibr_export_and_correct_work_on_a_pose_result() {
         s(&yaml),
     ]);
     assert!(run.stdout.contains("wrote"), "{}", run.stdout);
-    let y: serde_yaml::Value =
-        serde_yaml::from_str(&std::fs::read_to_string(&yaml).unwrap()).unwrap();
+    let yaml_text = std::fs::read_to_string(&yaml).unwrap();
+    assert!(
+        yaml_text.contains("axes of the posed body B"),
+        "{yaml_text}"
+    );
+    assert!(!yaml_text.contains("flange"), "{yaml_text}");
+    let y: serde_yaml::Value = serde_yaml::from_str(&yaml_text).unwrap();
     let imu0 = &y["imu0"];
     assert_eq!(imu0["model"].as_str(), Some("scale-misalignment"));
     let pose = PoseSession::read(&session).unwrap();

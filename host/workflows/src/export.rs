@@ -17,7 +17,7 @@ use robimu_model::urdf::{robot_to_urdf, UrdfOptions};
 use robimu_model::{ModelParams, Robot};
 use robimu_session::export::imu::{
     kalibr_imu_input_yaml, kalibr_imu_list_yaml, kalibr_imu_yaml, Correction, KalibrImu,
-    KalibrOptions, KalibrPlacement, DEFAULT_RANDOM_WALK,
+    KalibrOptions, KalibrPlacement, DEFAULT_RANDOM_WALK, FLANGE_AXES, POSED_BODY_AXES,
 };
 use robimu_session::export::robot::{corrected_toml, corrected_urdf};
 use robimu_session::export::ros2_control::ros2_control_offsets;
@@ -430,6 +430,11 @@ fn kalibr_options(
         noise_density: noise.noise_density,
         noise_source: noise.noise_source,
         rostopic: rostopic.to_string(),
+        body_axes: if is_pose_result(view) {
+            POSED_BODY_AXES
+        } else {
+            FLANGE_AXES
+        },
         random_walk: noise.random_walk,
         random_walk_source: noise.random_walk_source,
         g_sensitivity,
