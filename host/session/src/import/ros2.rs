@@ -451,6 +451,74 @@ mod db3_tests {
             .map_err(|e| e.to_string())
     }
 
+    /// A pose session's topics in a sqlite3 bag: TF transforms of two
+    /// frames, the one asked for taken (stamps and values as written), the
+    /// other frame's ignored; without --frame the two are named.
+    #[test]
+    fn tf_poses_of_a_db3_bag_are_read_by_child_frame() {
+        use super::super::cdr::PoseMsg;
+        use super::PoseTopic;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("poses.db3");
+        let c = rusqlite::Connection::open(&path).unwrap();
+        c.execute_batch(
+            "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT, type TEXT, serialization_format TEXT);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, data BLOB);
+             INSERT INTO topics VALUES (1, '/tf', 'tf2_msgs/msg/TFMessage', 'cdr');
+             INSERT INTO topics VALUES (2, '/imu/data_raw', 'sensor_msgs/msg/Imu', 'cdr');",
+        )
+        .unwrap();
+        let pose = |t: i64, child: &str, x: f64| PoseMsg {
+            stamp: Stamp(t),
+            frame_id: "base".into(),
+            child_frame_id: child.into(),
+            position: [x, 0.5, -0.25],
+            orientation: [0.0, 0.6, 0.0, 0.8],
+        };
+        for k in 0..5 {
+            let t = T0 + k * 10_000_000;
+            let tf = encode::tf(&[pose(t, "camera", -1.0), pose(t, "tool0", 0.1 * k as f64)]);
+            let imu = encode::imu(&ImuMsg {
+                stamp: Stamp(t),
+                frame_id: String::new(),
+                angular_velocity: [0.0; 3],
+                linear_acceleration: [0.0, 0.0, 9.81],
+            });
+            for (topic, data) in [(1, tf), (2, imu)] {
+                c.execute(
+                    "INSERT INTO messages(topic_id, timestamp, data) VALUES (?1, ?2, ?3)",
+                    rusqlite::params![topic, t, data],
+                )
+                .unwrap();
+            }
+        }
+        let opts = |frame: Option<&str>| Ros2Options {
+            joints_topic: "/joint_states".into(),
+            imu_topic: "/imu/data_raw".into(),
+            time: TimeSource::Header,
+            joint_names: None,
+            names_required: false,
+            poses: Some(PoseTopic {
+                topic: "/tf".into(),
+                frame: frame.map(String::from),
+            }),
+        };
+        let s = read_ros2(&path, &opts(Some("tool0"))).unwrap();
+        assert_eq!(
+            s.poses.t_ns,
+            (0..5).map(|k| T0 + k * 10_000_000).collect::<Vec<_>>()
+        );
+        assert_eq!(s.poses.p[3], [0.1 * 3.0, 0.5, -0.25]);
+        assert_eq!(s.poses.q[0], [0.0, 0.6, 0.0, 0.8]);
+        assert_eq!(s.pose_frames, Some(("base".into(), "tool0".into())));
+        assert_eq!(s.imu.len(), 5);
+        let e = read_ros2(&path, &opts(None)).unwrap_err().to_string();
+        assert!(
+            e.contains("transforms of 2 frames: camera (in base, 5 transforms), tool0 (in base, 5 transforms)"),
+            "{e}"
+        );
+    }
+
     /// Issue 41: a zeroed message and a negative log time are refused.
     #[test]
     fn zeroed_messages_and_negative_log_times_are_refused() {
