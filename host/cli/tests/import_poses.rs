@@ -243,6 +243,11 @@ fn a_pose_csv_in_mm_with_xyzw_quaternions_imports_to_the_simulated_session() {
     ];
     a.extend_from_slice(&["--time-col", "stamp_ms", "--time-unit", "ms"]);
     robimu(&a).assert_fails(&["tcp.csv", "no column \"px\"", "stamp_ms, status, X, Y, Z"]);
+    // quaternion columns named in another order than --quat-order
+    let mut a1 = a.clone();
+    a1.extend_from_slice(&["--position-cols", "X,Y,Z", "--units", "mm"]);
+    a1.extend_from_slice(&["--quat-cols", "q_x,q_y,q_z,q_w"]);
+    robimu(&a1).assert_fails(&["the names say the order xyzw", "pass --quat-order xyzw"]);
     let mut a2 = a.clone();
     a2.extend_from_slice(&["--position-cols", "X,Y"]);
     robimu(&a2).assert_fails(&["--position-cols: 2 columns given, 3 needed"]);

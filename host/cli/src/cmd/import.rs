@@ -338,6 +338,7 @@ impl PosesCmd {
                 .quat_cols
                 .clone()
                 .unwrap_or_else(|| default.map(String::from).to_vec());
+            check_quaternion_names(&cols, &self.quat_order)?;
             let n = cols.len();
             Orientation::Quaternion {
                 columns: <[String; 4]>::try_from(cols)
@@ -387,6 +388,27 @@ impl PosesCmd {
         let source = format!("{} + {}", self.poses.display(), self.imu.display());
         write_poses(streams, &self.out, &source, meta)
     }
+}
+
+/// Refuses quaternion columns whose names say another order than
+/// `--quat-order` (`q_x,q_y,q_z,q_w` read as w, x, y, z would be a wrong
+/// rotation, silently): each name's last letter w, x, y or z, all four
+/// different, in another order.
+fn check_quaternion_names(cols: &[String], order: &str) -> anyhow::Result<()> {
+    let letters: String = cols
+        .iter()
+        .filter_map(|c| c.chars().last().map(|l| l.to_ascii_lowercase()))
+        .filter(|l| "wxyz".contains(*l))
+        .collect();
+    let distinct = letters.len() == 4 && "wxyz".chars().all(|l| letters.contains(l));
+    if distinct && letters != order {
+        bail!(
+            "--quat-cols {}: the names say the order {letters}, and --quat-order is {order}: \
+             pass --quat-order {letters} (or give the columns by index if the names are wrong)",
+            cols.join(",")
+        );
+    }
+    Ok(())
 }
 
 /// Write `streams`, read from `source` (named in the notes), as the pose
