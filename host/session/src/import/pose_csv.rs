@@ -222,6 +222,13 @@ impl Columns {
         if t.abs() >= 9.2e18 {
             return Err(bad(format!("time {t:e} ns is out of range")));
         }
+        // decimal times in an integer unit of ns (epoch s or ns) keep
+        // every digit to the ns
+        let scale = opts.time_ns_per_unit;
+        let exact = fields
+            .get(self.time)
+            .filter(|_| scale >= 1.0 && scale.fract() == 0.0 && scale <= 1e9)
+            .and_then(|f| decimal_ns(f, scale as i64));
         let mut p = [0.0; 3];
         for (k, &i) in self.position.iter().enumerate() {
             p[k] = value(i)? * opts.metres_per_unit;
@@ -260,8 +267,34 @@ impl Columns {
         } else {
             (r, p)
         };
-        Ok((t.round() as i64, p, quat_from_matrix(&r)))
+        Ok((exact.unwrap_or(t.round() as i64), p, quat_from_matrix(&r)))
     }
+}
+
+/// `text`, a plain decimal (`-12.345`, no exponent), times `scale` ns,
+/// rounded to the ns in integer arithmetic; `None` for anything else or out
+/// of range.
+fn decimal_ns(text: &str, scale: i64) -> Option<i64> {
+    let (negative, digits) = match text.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, text.strip_prefix('+').unwrap_or(text)),
+    };
+    let (int, frac) = digits.split_once('.').unwrap_or((digits, ""));
+    let all_digits = |s: &str| s.bytes().all(|b| b.is_ascii_digit());
+    if int.is_empty() && frac.is_empty() || !all_digits(int) || !all_digits(frac) {
+        return None;
+    }
+    let frac = &frac[..frac.len().min(18)];
+    let whole: i128 = if int.is_empty() { 0 } else { int.parse().ok()? };
+    let num: i128 = if frac.is_empty() {
+        0
+    } else {
+        frac.parse().ok()?
+    };
+    let den = 10i128.pow(frac.len() as u32);
+    let scale = i128::from(scale);
+    let ns = whole.checked_mul(scale)? + (num * scale + den / 2) / den;
+    i64::try_from(if negative { -ns } else { ns }).ok()
 }
 
 #[cfg(test)]
@@ -326,6 +359,35 @@ mod tests {
             assert!((rows_b.p[0][k] - rows.p[0][k]).abs() < 1e-15);
         }
         assert!(quat_distance(rows_b.q[0], rows.q[0]) < 1e-15);
+    }
+
+    /// Epoch times in integer ns (or s) are read to the ns; fractional
+    /// ones through f64.
+    #[test]
+    fn integer_epoch_times_keep_every_digit() {
+        let (_d, a) = write("t,px,py,pz,qw,qx,qy,qz\n1700000000123456789,0,0,0,1,0,0,0\n");
+        let ns = PoseCsvOptions {
+            time_ns_per_unit: 1.0,
+            ..PoseCsvOptions::default()
+        };
+        assert_eq!(
+            read_pose_csv(&a, &ns).unwrap().t_ns,
+            vec![1_700_000_000_123_456_789]
+        );
+        let (_d, b) =
+            write("t,px,py,pz,qw,qx,qy,qz\n1700000000,0,0,0,1,0,0,0\n0.25,0,0,0,1,0,0,0\n");
+        let s = read_pose_csv(&b, &PoseCsvOptions::default());
+        // a second row a day before the first: refused at its line
+        let e = s.unwrap_err().to_string();
+        assert!(e.contains("poses.csv:3") && e.contains("24 h"), "{e}");
+        let (_d, c) = write(
+            "t,px,py,pz,qw,qx,qy,qz\n1700000000,0,0,0,1,0,0,0\n1700000000.25,0,0,0,1,0,0,0\n",
+        );
+        let rows = read_pose_csv(&c, &PoseCsvOptions::default()).unwrap();
+        assert_eq!(
+            rows.t_ns,
+            vec![1_700_000_000_000_000_000, 1_700_000_000_250_000_000]
+        );
     }
 
     /// Euler angles (degrees) and rotation vectors against nalgebra's own
