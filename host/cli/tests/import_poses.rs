@@ -230,6 +230,27 @@ fn a_pose_csv_in_mm_with_xyzw_quaternions_imports_to_the_simulated_session() {
     ]);
     let got = PoseSession::read(&out_e).unwrap();
     assert_same_session_to(&got, &sim, "Euler CSV", EULER_QUATERNION_TOL);
+    // the inverse rotation (x, y, z negated: R_BW, JPL), read with --conjugate
+    let conj = d.join("conjugate.csv");
+    write_pose_csv(&conj, &sim, |_, row| {
+        for v in &mut row[5..8] {
+            *v = format!("{:?}", -v.parse::<f64>().unwrap());
+        }
+    });
+    let out_c = d.join("imported_conjugate");
+    let mut args = vec![
+        "import",
+        "poses",
+        s(&conj),
+        "--imu",
+        s(&imu),
+        "--out",
+        s(&out_c),
+    ];
+    args.extend_from_slice(&CSV_FLAGS);
+    args.push("--conjugate");
+    robimu_ok(&args);
+    assert_same_session(&PoseSession::read(&out_c).unwrap(), &sim, "conjugated CSV");
     let bad = d.join("bad");
     // a missing column names the columns there are
     let mut a = vec![

@@ -291,8 +291,14 @@ pub struct PosesCmd {
     pub rotvec_cols: Option<Vec<String>>,
     /// The file gives the fixed frame in the body (a camera's view of a
     /// target): each pose is inverted.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "conjugate")]
     pub inverse: bool,
+    /// The orientation is the inverse rotation (R_BW with the position of
+    /// the body in the fixed frame, or JPL quaternions): each rotation is
+    /// inverted, the position kept (what `robimu check` names as the
+    /// inverse rotation convention).
+    #[arg(long)]
+    pub conjugate: bool,
     /// Pose noise: σ of each position component, m [default: the
     /// calibration's].
     #[arg(long)]
@@ -358,6 +364,7 @@ impl PosesCmd {
             metres_per_unit: if self.units == "mm" { 1e-3 } else { 1.0 },
             orientation,
             inverse: self.inverse,
+            conjugate: self.conjugate,
         })
     }
 

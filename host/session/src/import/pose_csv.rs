@@ -14,7 +14,9 @@
 //!   as a rotation vector (axis × angle, rad: Universal Robots' TCP pose
 //!   `rx, ry, rz`);
 //! * the inverse convention (the world in the body: a camera's view of a
-//!   fixed target), inverted on reading.
+//!   fixed target), inverted on reading;
+//! * the inverse rotation alone (the orientation R_BW with the position of
+//!   B in W, or JPL quaternions): transposed on reading.
 //!
 //! Columns are named as in the header (case-insensitive) or given by their
 //! 0-based index. Every value must be finite; a quaternion must not be zero
@@ -78,6 +80,9 @@ pub struct PoseCsvOptions {
     pub orientation: Orientation,
     /// The file gives the world in the body (inverted on reading).
     pub inverse: bool,
+    /// The orientation is the inverse rotation (R_BW, or a JPL quaternion):
+    /// transposed on reading, the position kept.
+    pub conjugate: bool,
 }
 
 impl Default for PoseCsvOptions {
@@ -94,6 +99,7 @@ impl Default for PoseCsvOptions {
                 order: QuaternionOrder::Wxyz,
             },
             inverse: false,
+            conjugate: false,
         }
     }
 }
@@ -260,6 +266,7 @@ impl Columns {
             }
             Orientation::RotationVector { .. } => exp_so3([o[0], o[1], o[2]]),
         };
+        let r = if opts.conjugate { transpose(&r) } else { r };
         let (r, p) = if opts.inverse {
             let rt = transpose(&r);
             let q = mul_mv(&rt, p);
@@ -352,6 +359,7 @@ mod tests {
                 order: QuaternionOrder::Xyzw,
             },
             inverse: false,
+            conjugate: false,
         };
         let rows_b = read_pose_csv(&b, &opts).unwrap();
         assert_eq!(rows_b.t_ns, rows.t_ns);
@@ -451,6 +459,19 @@ mod tests {
             assert!((rows.p[0][k] - p[k]).abs() < 1e-14, "{:?}", rows.p[0]);
         }
         let want = UnitQuaternion::from_rotation_matrix(&r);
+        assert!(quat_distance(rows.q[0], nalgebra_wxyz(want)) < 1e-14);
+        // the inverse rotation alone (nalgebra's conjugate), position kept
+        let c = want.conjugate();
+        let (_d, g) = write(&format!(
+            "t,px,py,pz,qw,qx,qy,qz\n0,{},{},{},{},{},{},{}\n",
+            p.x, p.y, p.z, c.w, c.i, c.j, c.k
+        ));
+        let conj = PoseCsvOptions {
+            conjugate: true,
+            ..PoseCsvOptions::default()
+        };
+        let rows = read_pose_csv(&g, &conj).unwrap();
+        assert_eq!(rows.p[0], [p.x, p.y, p.z]);
         assert!(quat_distance(rows.q[0], nalgebra_wxyz(want)) < 1e-14);
     }
 
