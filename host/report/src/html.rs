@@ -326,6 +326,36 @@ pub fn calibration_report_imus(
     calibration_report_with(dir, result, truth, convergence, series, None)
 }
 
+/// Write `dir/report.html` for a pose session's result (docs/model.md
+/// §7.9): the overview with the verdict, the parameters against their
+/// priors (and `truth`), convergence; no joint trajectory, and the
+/// residuals as the verdict's RMS only (a pose spline refitted to the pose
+/// samples alone does not resolve the motion to the IMU's noise).
+pub(crate) fn pose_calibration_report(
+    dir: &Path,
+    result: &CalibrationResult,
+    truth: Option<&Truth>,
+    convergence: Convergence<'_>,
+) -> Result<PathBuf, ReportError> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let mut page = HtmlPage::new("robimu calibration report");
+    overview_section(&mut page, result);
+    parameters_section(&mut page, dir, result, truth)?;
+    convergence_section(&mut page, dir, result, convergence)?;
+    page.heading("Residuals");
+    page.paragraph(
+        "A pose session has no residual figure: its trajectory is estimated together with the \
+         IMU's parameters, and a pose spline refitted to the pose samples alone (a controller's \
+         or tracker's rate and noise) does not resolve the motion's rates and accelerations to \
+         the IMU's noise, so its residuals would be several times σ_z whatever the fit. The \
+         calibration's own residual RMS per IMU channel over σ_z, and of the poses over σ_p and \
+         σ_r, are the verdict's residuals check above.",
+    );
+    let path = dir.join("report.html");
+    page.write(&path)?;
+    Ok(path)
+}
+
 /// The search that gave a calibration's model its effects, for the
 /// report's evidence: the session's samples and the diagnosis.
 pub struct ModelEvidence<'a> {

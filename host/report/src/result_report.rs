@@ -8,13 +8,16 @@ use anyhow::Context;
 use robimu_model::observations::Measurements;
 use robimu_model::{ParamLayout, Robot};
 use robimu_session::result::CalibrationResult;
-use robimu_session::Session;
+use robimu_session::{PoseSession, Session};
 use robimu_workflows::calibrate::choose_knots;
+use robimu_workflows::export::is_pose_result;
 use robimu_workflows::pipeline::{load_session, session_robot};
 
 use crate::convergence::{convergence_path, ConvergenceLog};
 use crate::figures::NoiseBand;
-use crate::html::{calibration_report_imus, Convergence, ReportError, SessionSeries};
+use crate::html::{
+    calibration_report_imus, pose_calibration_report, Convergence, ReportError, SessionSeries,
+};
 
 /// Write the report of the result file `result` into `out` [default:
 /// `report` next to the result file], with the series of the session in
@@ -40,6 +43,9 @@ pub fn write_result_report(
             .map(PathBuf::from)
             .filter(|d| d.is_dir())
     });
+    if is_pose_result(&result) {
+        return pose_result_report(result_path, &result, &dir, session_dir.as_deref());
+    }
     // loaded as every command that fits a spline loads it: times checked
     let session = match &session_dir {
         Some(d) => Some(load_session(d)?.0),
@@ -62,6 +68,27 @@ pub fn write_result_report(
         convergence,
         &series,
     )?)
+}
+
+/// [`write_result_report`] of a pose session's result (docs/model.md
+/// §7.9, [`pose_calibration_report`]): the session read for its truth.
+fn pose_result_report(
+    result_path: &Path,
+    result: &CalibrationResult,
+    dir: &Path,
+    session_dir: Option<&Path>,
+) -> anyhow::Result<PathBuf> {
+    let session = match session_dir {
+        Some(d) => Some(PoseSession::read(d)?),
+        None => None,
+    };
+    let history = convergence_history(result_path)?;
+    let convergence = match &history {
+        Ok(costs) => Convergence::Costs(costs),
+        Err(why) => Convergence::Unavailable(why),
+    };
+    let truth = session.as_ref().and_then(|s| s.truth.as_ref());
+    Ok(pose_calibration_report(dir, result, truth, convergence)?)
 }
 
 /// The series of `data` under parameters `x` for the report: the IMU

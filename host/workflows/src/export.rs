@@ -5,7 +5,10 @@
 //!
 //! [`robot_spec`] names the robot a result was computed for; [`export`]
 //! builds the files from the result and the resolved robot and writes them,
-//! telling its caller what it wrote and what it noted ([`Notice`]).
+//! telling its caller what it wrote and what it noted ([`Notice`]). A pose
+//! session's result (docs/model.md §7.9: no robot) exports its IMU through
+//! [`export_poses`]: the same Kalibr and correction files; the robot
+//! formats are refused naming why.
 
 use std::path::{Path, PathBuf};
 
@@ -14,14 +17,14 @@ use robimu_model::urdf::{robot_to_urdf, UrdfOptions};
 use robimu_model::{ModelParams, Robot};
 use robimu_session::export::imu::{
     kalibr_imu_input_yaml, kalibr_imu_list_yaml, kalibr_imu_yaml, Correction, KalibrImu,
-    KalibrOptions, KalibrPlacement, DEFAULT_RANDOM_WALK,
+    KalibrOptions, KalibrPlacement, DEFAULT_RANDOM_WALK, FLANGE_AXES, POSED_BODY_AXES,
 };
 use robimu_session::export::robot::{corrected_toml, corrected_urdf};
 use robimu_session::export::ros2_control::ros2_control_offsets;
 use robimu_session::export::ur::calibrated_ur_yaml;
 use robimu_session::export::{calibrated_params, imu_effects};
 use robimu_session::result::CalibrationResult;
-use robimu_session::Session;
+use robimu_session::{PoseSession, Session, SOURCE_POSES};
 
 use crate::joint_offsets::joint_offsets;
 use crate::pipeline::{is_urdf, ChainLinks};
@@ -372,45 +375,191 @@ impl Exporter<'_> {
                 "largest per-sample σ of the robot's noise / √rate".to_string(),
             ),
         };
-        let mut noise = KalibrNoise {
-            sigma_z,
-            noise_source,
-            noise_density: None,
-            random_walk: DEFAULT_RANDOM_WALK,
-            random_walk_source: None,
-        };
-        if let Some(path) = &self.req.noise {
-            noise.read(path, notify)?;
-        }
-        match self.req.random_walk.as_slice() {
-            [] => {}
-            &[a, g] if [a, g].iter().all(|v| v.is_finite() && *v > 0.0) => {
-                noise.random_walk = [a, g];
-                noise.random_walk_source = Some("given with --random-walk".into());
-            }
-            other => bail!(
-                "--random-walk {other:?}: give two positive numbers, ACCEL,GYRO (Kalibr divides by them)"
-            ),
-        }
-        if noise.random_walk_source.is_none() {
-            notify(Notice::Note(format!(
-                "the random walks in the imu.yaml are placeholders ({}, {}): give --noise allan.csv of a long static recording, or --random-walk",
-                noise.random_walk[0], noise.random_walk[1]
-            )));
-        }
-        let (g_sensitivity, size_effect) = imu_effects(view)?;
-        Ok(KalibrOptions {
+        kalibr_options(
+            self.req,
+            view,
             rate,
-            sigma_z: noise.sigma_z,
-            noise_density: noise.noise_density,
-            noise_source: noise.noise_source,
-            rostopic: rostopic.to_string(),
-            random_walk: noise.random_walk,
-            random_walk_source: noise.random_walk_source,
-            g_sensitivity,
-            size_effect,
-        })
+            (sigma_z, noise_source),
+            rostopic,
+            notify,
+        )
     }
+}
+
+/// The Kalibr options of one IMU (its one-IMU view `view`) sampled at
+/// `rate` with per-sample σ `sigma_z` (and where they come from): the noise
+/// from the request's noise file where given, the fitted effects.
+fn kalibr_options(
+    req: &ExportRequest,
+    view: &CalibrationResult,
+    rate: f64,
+    (sigma_z, noise_source): ([f64; 6], String),
+    rostopic: &str,
+    notify: &mut dyn FnMut(Notice),
+) -> anyhow::Result<KalibrOptions> {
+    let mut noise = KalibrNoise {
+        sigma_z,
+        noise_source,
+        noise_density: None,
+        random_walk: DEFAULT_RANDOM_WALK,
+        random_walk_source: None,
+    };
+    if let Some(path) = &req.noise {
+        noise.read(path, notify)?;
+    }
+    match req.random_walk.as_slice() {
+        [] => {}
+        &[a, g] if [a, g].iter().all(|v| v.is_finite() && *v > 0.0) => {
+            noise.random_walk = [a, g];
+            noise.random_walk_source = Some("given with --random-walk".into());
+        }
+        other => bail!(
+            "--random-walk {other:?}: give two positive numbers, ACCEL,GYRO (Kalibr divides by them)"
+        ),
+    }
+    if noise.random_walk_source.is_none() {
+        notify(Notice::Note(format!(
+            "the random walks in the imu.yaml are placeholders ({}, {}): give --noise allan.csv of a long static recording, or --random-walk",
+            noise.random_walk[0], noise.random_walk[1]
+        )));
+    }
+    let (g_sensitivity, size_effect) = imu_effects(view)?;
+    Ok(KalibrOptions {
+        rate,
+        sigma_z: noise.sigma_z,
+        noise_density: noise.noise_density,
+        noise_source: noise.noise_source,
+        rostopic: rostopic.to_string(),
+        body_axes: if is_pose_result(view) {
+            POSED_BODY_AXES
+        } else {
+            FLANGE_AXES
+        },
+        random_walk: noise.random_walk,
+        random_walk_source: noise.random_walk_source,
+        g_sensitivity,
+        size_effect,
+    })
+}
+
+/// Whether `result` is a pose session's (docs/model.md §7.9: `"source":
+/// "poses"`, no robot).
+pub fn is_pose_result(result: &CalibrationResult) -> bool {
+    result.source.as_deref() == Some(SOURCE_POSES)
+}
+
+/// [`export`] of a pose session's result (docs/model.md §7.9): the IMU's
+/// intrinsics as Kalibr's imu.yaml or the correction file, from the same
+/// 24 sensor parameters as a joint session's; the robot formats are
+/// refused (a pose session has no robot). The sample rate and noise come
+/// from the request or the result's pose session.
+pub fn export_poses(
+    req: &ExportRequest,
+    result: &CalibrationResult,
+    notify: &mut dyn FnMut(Notice),
+) -> anyhow::Result<()> {
+    let robot_format = match req.format {
+        ExportFormat::Kalibr | ExportFormat::Correction => None,
+        ExportFormat::Urdf => Some("urdf"),
+        ExportFormat::Toml => Some("toml"),
+        ExportFormat::UrKinematics => Some("ur-kinematics"),
+        ExportFormat::Ros2Control => Some("ros2-control"),
+    };
+    if let Some(f) = robot_format {
+        bail!(
+            "{}: a pose session has no robot: --format {f} writes a calibrated robot, and this \
+             result (source = \"poses\", docs/model.md §7.9) has the IMU's parameters only; \
+             --format kalibr or --format correction export them",
+            req.calibration.display()
+        );
+    }
+    if let Some(note) = result.effects_not_carried(match req.format {
+        ExportFormat::Kalibr => "Kalibr's imu.yaml",
+        _ => "the correction file",
+    }) {
+        notify(Notice::Note(note));
+    }
+    let j = req.imu.unwrap_or(0);
+    let view = result
+        .imu(j)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", req.calibration.display()))?;
+    let params = pose_params(&view)
+        .with_context(|| format!("{}: not a pose result", req.calibration.display()))?;
+    let text = match req.format {
+        ExportFormat::Correction => Correction::new(&params)?.to_toml()?,
+        _ => {
+            let topic = rostopics(req, result.imu_count())?[j].clone();
+            let session = result
+                .session
+                .as_deref()
+                .and_then(|d| PoseSession::read(Path::new(d)).ok());
+            let rate = pose_sample_rate(req.rate, session.as_ref(), j)?;
+            let (sigma_z, source) = match &session {
+                Some(s) => (
+                    crate::pipeline::poses::pose_options(&s.meta, |_| {}).sigma_z,
+                    "largest per-sample σ of the session's noise / √rate",
+                ),
+                None => (
+                    crate::pose_calibrate::PoseCalibrationOptions::default().sigma_z,
+                    "largest per-sample σ of the pose calibration's default noise / √rate",
+                ),
+            };
+            let opts = kalibr_options(req, &view, rate, (sigma_z, source.into()), &topic, notify)?;
+            kalibr_imu_yaml(&params, &opts)
+        }
+    };
+    write_file(&req.out, &text, notify)
+}
+
+/// A pose result's IMU parameters as [`ModelParams`] of no robot: the 24
+/// sensor parameters, g, τ, and the IMU's position p_imu on the posed body
+/// as the last (here: only) link's ε_1..3.
+fn pose_params(view: &CalibrationResult) -> anyhow::Result<ModelParams> {
+    let (accel, gyro) = robimu_session::export::calibrated_intrinsics(view)?;
+    let get = |n: &str| {
+        view.parameter(n)
+            .map(|p| p.value)
+            .with_context(|| format!("no parameter {n}"))
+    };
+    Ok(ModelParams {
+        eps: vec![[
+            get("p_imu_x")?,
+            get("p_imu_y")?,
+            get("p_imu_z")?,
+            0.0,
+            0.0,
+            0.0,
+        ]],
+        g_xy: [get("g_x")?, get("g_y")?],
+        tau: get("tau")?,
+        accel,
+        gyro,
+    })
+}
+
+/// IMU `j`'s sample rate for a pose result: `given`, else the median rate
+/// of the pose session's `imu.csv` / `imu<j>.csv`.
+fn pose_sample_rate(
+    given: Option<f64>,
+    session: Option<&PoseSession>,
+    j: usize,
+) -> anyhow::Result<f64> {
+    let file = robimu_session::files::imu_csv(j);
+    let rate = match (given, session.map(|s| s.imus.get(j))) {
+        (Some(r), _) => r,
+        (None, Some(Some(t))) => t
+            .samples
+            .median_rate()
+            .with_context(|| format!("the session's {file} has no sample interval: give --rate"))?,
+        (None, Some(None)) => bail!("the result's session has no {file}: give --rate"),
+        (None, None) => bail!(
+            "the IMU sample rate is unknown (the result's pose session is not readable): give --rate"
+        ),
+    };
+    if !(rate.is_finite() && rate > 0.0) {
+        bail!("--rate {rate}: must be a positive number of Hz");
+    }
+    Ok(rate)
 }
 
 /// IMU `j`'s sample rate: `given`, else the median rate of the session's

@@ -3,7 +3,9 @@
 use std::path::PathBuf;
 
 use robimu_session::result::CalibrationResult;
-use robimu_workflows::export::{export, robot_spec, ExportFormat as Format, ExportRequest, Notice};
+use robimu_workflows::export::{
+    export, export_poses, is_pose_result, robot_spec, ExportFormat as Format, ExportRequest, Notice,
+};
 use robimu_workflows::pipeline::ChainLinks;
 
 use crate::args::UrdfLinks;
@@ -40,7 +42,8 @@ pub enum ExportFormat {
 ///
 /// The robot is the one the result names (relative to its session
 /// directory) unless --robot is given; it must be the robot the calibration
-/// was computed for.
+/// was computed for. A pose session's result (docs/model.md §7.9) has no
+/// robot: it exports its IMU (kalibr, correction) only.
 ///
 /// A result of several IMUs (docs/model.md §9): `--format kalibr` writes
 /// Kalibr's IMU list (`imu0:`, `imu1:`, … each with its T_i_b relative to
@@ -105,8 +108,18 @@ impl ExportCmd {
     pub fn export(self, notice: &mut dyn FnMut(Notice)) -> anyhow::Result<()> {
         let out = output_path(Some(&self.out), self.out.clone())?;
         let result = CalibrationResult::read(&self.calibration)?;
-        let (spec, spec_base) = robot_spec(&result, &self.calibration, self.robot.as_deref())?;
-        let (robot, _) = resolve_robot_with(&spec, spec_base.as_deref(), &self.links)?;
+        let poses = is_pose_result(&result);
+        if poses && self.robot.is_some() {
+            anyhow::bail!(
+                "--robot: a pose session has no robot ({} is a pose session's result, source = \"poses\")",
+                self.calibration.display()
+            );
+        }
+        let (spec, spec_base) = if poses {
+            (String::new(), None)
+        } else {
+            robot_spec(&result, &self.calibration, self.robot.as_deref())?
+        };
         let request = ExportRequest {
             calibration: self.calibration,
             format: match self.format {
@@ -120,8 +133,8 @@ impl ExportCmd {
             spec,
             spec_base,
             links: ChainLinks {
-                base: self.links.base,
-                tip: self.links.tip,
+                base: self.links.base.clone(),
+                tip: self.links.tip.clone(),
             },
             rate: self.rate,
             rostopic: self.rostopic,
@@ -130,6 +143,11 @@ impl ExportCmd {
             noise: self.noise,
             out,
         };
+        if poses {
+            return export_poses(&request, &result, notice);
+        }
+        let (robot, _) =
+            resolve_robot_with(&request.spec, request.spec_base.as_deref(), &self.links)?;
         export(&request, &result, &robot, notice)
     }
 }

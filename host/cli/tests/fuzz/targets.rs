@@ -214,6 +214,7 @@ fn ros2_options() -> Ros2Options {
         time: TimeSource::Header,
         joint_names: None,
         names_required: false,
+        poses: None,
     }
 }
 

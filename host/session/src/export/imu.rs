@@ -170,6 +170,10 @@ pub struct KalibrOptions {
     pub noise_source: String,
     /// `rostopic`.
     pub rostopic: String,
+    /// Whose axes body b has, for the file's comments: [`FLANGE_AXES`]
+    /// (a joint session's IMU frame) or [`POSED_BODY_AXES`] (a pose
+    /// session's, docs/model.md §7.9).
+    pub body_axes: &'static str,
     /// `accelerometer_random_walk` (m/s³/√Hz) and `gyroscope_random_walk`
     /// (rad/s²/√Hz). robimu's biases are constant, so these are not
     /// estimated by the calibration; Kalibr divides by them (its
@@ -184,6 +188,11 @@ pub struct KalibrOptions {
     /// relative to the x axis), docs/model.md §4.5.
     pub size_effect: Option<[[f64; 3]; 2]>,
 }
+
+/// [`KalibrOptions::body_axes`] of a joint session.
+pub const FLANGE_AXES: &str = "axes of the robot flange";
+/// [`KalibrOptions::body_axes`] of a pose session.
+pub const POSED_BODY_AXES: &str = "axes of the posed body B";
 
 /// Default random walks for [`KalibrOptions::random_walk`]: placeholders of
 /// the order of consumer MEMS IMUs (accelerometer 1e-3 m/s³/√Hz, gyroscope
@@ -269,9 +278,10 @@ pub fn kalibr_imu_yaml(params: &ModelParams, opts: &KalibrOptions) -> String {
     format!(
         "# Kalibr imu.yaml written by robimu. Noise densities: {noise}.\n\
          # Intrinsics from the calibration (IMU frame i = accelerometer axes; body b =\n\
-         # robimu's IMU frame, axes of the robot flange, origin at the accelerometer x axis).\n\
+         # robimu's IMU frame, {axes}, origin at the accelerometer x axis).\n\
          {walk}imu0:\n{body}",
         noise = opts.noise_source,
+        axes = opts.body_axes,
         walk = walk_note(opts),
         body = indent(&entry),
     )
@@ -344,10 +354,11 @@ fn list_header(imus: &[KalibrImu<'_>]) -> String {
         "# Kalibr IMU file written by robimu from a calibration of {k} IMUs (docs/model.md §9).\n\
          # Noise densities: {sources}.\n\
          # Intrinsics from the calibration (IMU frame i = accelerometer axes). Body b = IMU 0's\n\
-         # robimu frame (axes of the robot flange, origin at IMU 0); T_i_b's translation is\n\
+         # robimu frame ({axes}, origin at IMU 0); T_i_b's translation is\n\
          # C_i_b·(p_0 − p_j) from the IMU positions, time_offset = tau_j − tau_0 (on IMU 0's clock).\n\
          {walks}",
         k = imus.len(),
+        axes = imus[0].opts.body_axes,
         sources = sources.join("; "),
         walks = walks.concat(),
     )
@@ -533,6 +544,7 @@ mod tests {
             noise_density: None,
             noise_source: "test".into(),
             rostopic: "/imu0".into(),
+            body_axes: FLANGE_AXES,
             random_walk: DEFAULT_RANDOM_WALK,
             random_walk_source: None,
             g_sensitivity: g,

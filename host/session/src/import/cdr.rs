@@ -143,20 +143,27 @@ impl PoseMsg {
         let mut r = Reader::new(data)?;
         // a TransformStamped is at least 8 (stamp) + 4 + 4 (two strings) + 56
         let n = r.count(72)?;
-        (0..n)
-            .map(|_| {
-                let (stamp, frame_id) = r.header()?;
-                let child_frame_id = r.string()?;
-                let (position, orientation) = r.pose()?;
-                Ok(Self {
-                    stamp,
-                    frame_id,
-                    child_frame_id,
-                    position,
-                    orientation,
-                })
-            })
-            .collect()
+        (0..n).map(|_| Self::transform(&mut r)).collect()
+    }
+
+    /// Decodes one CDR-serialised `geometry_msgs/msg/TransformStamped` (a
+    /// topic of single transforms, not `/tf`'s list).
+    pub fn decode_transform_stamped(data: &[u8]) -> Result<Self, CdrError> {
+        Self::transform(&mut Reader::new(data)?)
+    }
+
+    /// A `TransformStamped` at the reader's position.
+    fn transform(r: &mut Reader<'_>) -> Result<Self, CdrError> {
+        let (stamp, frame_id) = r.header()?;
+        let child_frame_id = r.string()?;
+        let (position, orientation) = r.pose()?;
+        Ok(Self {
+            stamp,
+            frame_id,
+            child_frame_id,
+            position,
+            orientation,
+        })
     }
 }
 
@@ -433,11 +440,22 @@ pub mod encode {
         let mut w = Writer::new();
         w.u32(transforms.len() as u32);
         for m in transforms {
-            w.header(m.stamp.0, &m.frame_id);
-            w.string(&m.child_frame_id);
-            pose(&mut w, m);
+            transform(&mut w, m);
         }
         w.out
+    }
+
+    /// `geometry_msgs/msg/TransformStamped`.
+    pub fn transform_stamped(m: &PoseMsg) -> Vec<u8> {
+        let mut w = Writer::new();
+        transform(&mut w, m);
+        w.out
+    }
+
+    fn transform(w: &mut Writer, m: &PoseMsg) {
+        w.header(m.stamp.0, &m.frame_id);
+        w.string(&m.child_frame_id);
+        pose(w, m);
     }
 
     /// `sensor_msgs/msg/Imu` with identity orientation and zero covariances.
@@ -568,6 +586,10 @@ mod tests {
             ..a.clone()
         };
         let bytes = encode::tf(&[a.clone(), b.clone()]);
+        // a TFMessage is its count, then each TransformStamped's bytes
+        let one = encode::transform_stamped(&b);
+        assert_eq!(PoseMsg::decode_transform_stamped(&one).unwrap(), b);
+        assert_eq!(bytes[bytes.len() - (one.len() - 4)..], one[4..]);
         assert_eq!(PoseMsg::decode_tf(&bytes).unwrap(), vec![a, b]);
         // truncated anywhere: an error naming it, never a panic
         for cut in 0..bytes.len() {

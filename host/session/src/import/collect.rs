@@ -1,19 +1,28 @@
 //! The one decoding path of ROS 2 recordings ([`super::ros2`]): every
 //! storage (MCAP, sqlite3) hands each message — (topic, type, log time, CDR
 //! bytes) — to a [`Collector`], which decodes the two topics asked for
-//! ([`super::cdr`]) into [`Streams`] (docs/model.md §7).
+//! ([`super::cdr`]) into [`Streams`] (docs/model.md §7): joint states or
+//! tool poses (`PoseStamped`, `TransformStamped` or `/tf`'s `TFMessage`, for
+//! a pose session, docs/model.md §7.9), and IMU samples.
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use super::cdr::{ImuMsg, JointStateMsg};
+use super::cdr::{CdrError, ImuMsg, JointStateMsg, PoseMsg};
 use super::{imu_row, ImportError, Streams, MAX_BACKSTEP_NS, MAX_SPAN_NS};
+use crate::MIN_QUATERNION_NORM;
 
 /// Type name of joint states.
 pub const JOINT_STATE: &str = "sensor_msgs/msg/JointState";
 /// Type name of IMU samples.
 pub const IMU: &str = "sensor_msgs/msg/Imu";
+/// Type name of stamped poses.
+pub const POSE_STAMPED: &str = "geometry_msgs/msg/PoseStamped";
+/// Type name of one stamped transform.
+pub const TRANSFORM_STAMPED: &str = "geometry_msgs/msg/TransformStamped";
+/// Type name of `/tf`'s lists of transforms.
+pub const TF_MESSAGE: &str = "tf2_msgs/msg/TFMessage";
 /// The cargo feature that reads compressed recordings.
 pub const COMPRESSION_FEATURE: &str = "mcap-compression";
 
@@ -45,6 +54,92 @@ pub struct Ros2Options {
     /// are the robot's chain, and an unnamed message is taken to be in
     /// chain order).
     pub names_required: bool,
+    /// A pose session (docs/model.md §7.9): the motion is read from this
+    /// topic of tool poses instead of `joints_topic`.
+    pub poses: Option<PoseTopic>,
+}
+
+/// The topic of tool poses of a pose session.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PoseTopic {
+    /// Topic of `geometry_msgs/msg/PoseStamped`, `…/TransformStamped` or
+    /// `tf2_msgs/msg/TFMessage`.
+    pub topic: String,
+    /// The transform to take (its `child_frame_id`) [default: the one frame
+    /// the topic's transforms have].
+    pub frame: Option<String>,
+}
+
+/// Which stream a topic feeds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Stream {
+    Joints,
+    Poses,
+    Imu,
+}
+
+impl Stream {
+    /// The message types the stream's topic may carry.
+    pub(crate) fn types(self) -> &'static [&'static str] {
+        match self {
+            Stream::Joints => &[JOINT_STATE],
+            Stream::Poses => &[POSE_STAMPED, TRANSFORM_STAMPED, TF_MESSAGE],
+            Stream::Imu => &[IMU],
+        }
+    }
+}
+
+/// The transforms seen on the pose topic and the one taken.
+#[derive(Debug, Default)]
+struct PoseTrack {
+    /// The child frame taken: `--frame`, else the first seen.
+    frame: Option<String>,
+    /// Every child frame seen: its parent and count of transforms.
+    seen: BTreeMap<String, (String, usize)>,
+}
+
+impl PoseTrack {
+    /// The frames seen, as "child (in parent, N)".
+    fn listing(&self) -> String {
+        self.seen
+            .iter()
+            .map(|(c, (p, n))| {
+                let c = if c.is_empty() { "(none)" } else { c };
+                format!("{c} (in {p}, {n} transforms)")
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// Where a message is, for its errors.
+struct At<'a> {
+    file: &'a Path,
+    topic: &'a str,
+    index: usize,
+    log_time: u64,
+}
+
+impl At<'_> {
+    fn decode(&self, source: CdrError) -> ImportError {
+        ImportError::Message {
+            path: self.file.to_path_buf(),
+            topic: self.topic.to_string(),
+            index: self.index,
+            log_time: self.log_time,
+            source,
+        }
+    }
+
+    fn sample(&self, detail: String) -> ImportError {
+        ImportError::Sample {
+            path: self.file.to_path_buf(),
+            topic: self.topic.to_string(),
+            index: self.index,
+            log_time: self.log_time,
+            detail,
+        }
+    }
 }
 
 /// A topic as a storage declares it.
@@ -82,6 +177,7 @@ pub(crate) struct Collector<'o> {
     pub(crate) message_zstd: bool,
     topics: BTreeMap<String, TopicInfo>,
     joints: JointPicker,
+    poses: PoseTrack,
     out: Streams,
     /// Per stream (joints, IMU): the first time and whether any differs.
     stamps: [(Option<i64>, bool); 2],
@@ -98,6 +194,10 @@ impl<'o> Collector<'o> {
             message_zstd: false,
             topics: BTreeMap::new(),
             joints: JointPicker::new(opts.joint_names.clone(), opts.names_required),
+            poses: PoseTrack {
+                frame: opts.poses.as_ref().and_then(|p| p.frame.clone()),
+                seen: BTreeMap::new(),
+            },
             out: Streams::default(),
             stamps: [(None, false); 2],
             latest: [None; 2],
@@ -114,7 +214,7 @@ impl<'o> Collector<'o> {
         }
     }
 
-    /// Why sample `t` (ns) with `values` of stream `k` (0 joints, 1 IMU)
+    /// Why sample `t` (ns) with `values` of stream `k` (0 motion, 1 IMU)
     /// cannot be a measurement, if it cannot: a value not finite, a time
     /// zero or negative, stepping back more than [`MAX_BACKSTEP_NS`] on its
     /// topic, or the recording spanning more than [`MAX_SPAN_NS`].
@@ -164,13 +264,23 @@ impl<'o> Collector<'o> {
     }
 
     /// Which stream a topic feeds, if any.
-    pub(crate) fn wanted(&self, topic: &str) -> Option<&'static str> {
-        if topic == self.opts.joints_topic {
-            Some(JOINT_STATE)
+    pub(crate) fn wanted(&self, topic: &str) -> Option<Stream> {
+        if self.opts.poses.as_ref().is_some_and(|p| p.topic == topic) {
+            Some(Stream::Poses)
         } else if topic == self.opts.imu_topic {
-            Some(IMU)
+            Some(Stream::Imu)
+        } else if self.opts.poses.is_none() && topic == self.opts.joints_topic {
+            Some(Stream::Joints)
         } else {
             None
+        }
+    }
+
+    /// The motion's topic and stream: the joints' or the poses'.
+    fn motion(&self) -> (&str, Stream) {
+        match &self.opts.poses {
+            Some(p) => (&p.topic, Stream::Poses),
+            None => (&self.opts.joints_topic, Stream::Joints),
         }
     }
 
@@ -192,7 +302,7 @@ impl<'o> Collector<'o> {
             return Ok(());
         };
         if !info.checked {
-            check_topic(&self.file, topic, wanted)?;
+            check_topic(&self.file, topic, wanted.types())?;
             info.checked = true;
         }
         let file = self.file.clone();
@@ -201,19 +311,11 @@ impl<'o> Collector<'o> {
         } else {
             Cow::Borrowed(data)
         };
-        let decode_error = |source| ImportError::Message {
-            path: file.clone(),
-            topic: topic.name.to_string(),
+        let at = At {
+            file: &file,
+            topic: topic.name,
             index,
             log_time,
-            source,
-        };
-        let sample_error = |detail| ImportError::Sample {
-            path: file.clone(),
-            topic: topic.name.to_string(),
-            index,
-            log_time,
-            detail,
         };
         let log_time = i64::try_from(log_time).unwrap_or(i64::MAX);
         let time_source = self.opts.time;
@@ -221,30 +323,88 @@ impl<'o> Collector<'o> {
             TimeSource::Header => stamp,
             TimeSource::Log => log_time,
         };
-        if wanted == JOINT_STATE {
-            let m = JointStateMsg::decode(&data).map_err(decode_error)?;
-            let t = pick_time(m.stamp.0);
-            let q = self
-                .joints
-                .pick(&m, index)
-                .map_err(|detail| ImportError::Joints {
-                    path: file.clone(),
-                    detail,
-                })?;
-            self.check_sample(0, t, q.as_deref().unwrap_or_default())
-                .map_err(sample_error)?;
-            advance(&mut self.stamps[0], t);
-            if let Some(q) = q {
-                self.out.joints.push((t, q));
+        match wanted {
+            Stream::Joints => {
+                let m = JointStateMsg::decode(&data).map_err(|e| at.decode(e))?;
+                let t = pick_time(m.stamp.0);
+                let q = self
+                    .joints
+                    .pick(&m, index)
+                    .map_err(|detail| ImportError::Joints {
+                        path: file.clone(),
+                        detail,
+                    })?;
+                self.check_sample(0, t, q.as_deref().unwrap_or_default())
+                    .map_err(|d| at.sample(d))?;
+                advance(&mut self.stamps[0], t);
+                if let Some(q) = q {
+                    self.out.joints.push((t, q));
+                }
             }
-        } else {
-            let m = ImuMsg::decode(&data).map_err(decode_error)?;
-            let t = pick_time(m.stamp.0);
-            let z = imu_row(m.angular_velocity, m.linear_acceleration);
-            self.check_sample(1, t, &z).map_err(sample_error)?;
-            advance(&mut self.stamps[1], t);
-            self.out.imu.push((t, z));
+            Stream::Poses => {
+                let poses = match topic.type_name {
+                    Some(TF_MESSAGE) => PoseMsg::decode_tf(&data),
+                    Some(TRANSFORM_STAMPED) => {
+                        PoseMsg::decode_transform_stamped(&data).map(|m| vec![m])
+                    }
+                    _ => PoseMsg::decode_pose_stamped(&data).map(|m| vec![m]),
+                }
+                .map_err(|e| at.decode(e))?;
+                for m in poses {
+                    let t = pick_time(m.stamp.0);
+                    self.pose(&m, t).map_err(|d| at.sample(d))?;
+                }
+            }
+            Stream::Imu => {
+                let m = ImuMsg::decode(&data).map_err(|e| at.decode(e))?;
+                let t = pick_time(m.stamp.0);
+                let z = imu_row(m.angular_velocity, m.linear_acceleration);
+                self.check_sample(1, t, &z).map_err(|d| at.sample(d))?;
+                advance(&mut self.stamps[1], t);
+                self.out.imu.push((t, z));
+            }
         }
+        Ok(())
+    }
+
+    /// One pose (a PoseStamped's, or a transform's) at time `t` (ns): kept
+    /// when its child frame is the one taken, and checked (finite, a
+    /// rotation, in the frame of the poses before it).
+    fn pose(&mut self, m: &PoseMsg, t: i64) -> Result<(), String> {
+        let seen = self
+            .poses
+            .seen
+            .entry(m.child_frame_id.clone())
+            .or_insert_with(|| (m.frame_id.clone(), 0));
+        seen.1 += 1;
+        let parent = seen.0.clone();
+        let frame = self
+            .poses
+            .frame
+            .get_or_insert_with(|| m.child_frame_id.clone());
+        if *frame != m.child_frame_id {
+            return Ok(());
+        }
+        if m.frame_id != parent {
+            return Err(format!(
+                "the pose of {:?} is in frame {:?}, the ones before it in {parent:?}: poses must be \
+                 in one fixed frame",
+                m.child_frame_id, m.frame_id
+            ));
+        }
+        let values: Vec<f64> = m.position.iter().chain(&m.orientation).copied().collect();
+        self.check_sample(0, t, &values)?;
+        let [w, x, y, z] = m.orientation;
+        let norm = (w * w + x * x + y * y + z * z).sqrt();
+        if norm < MIN_QUATERNION_NORM {
+            return Err(format!(
+                "the orientation (x, y, z, w) = ({x}, {y}, {z}, {w}) of norm {norm} is not a rotation"
+            ));
+        }
+        advance(&mut self.stamps[0], t);
+        self.out.poses.t_ns.push(t);
+        self.out.poses.p.push(m.position);
+        self.out.poses.q.push(m.orientation);
         Ok(())
     }
 
@@ -268,12 +428,15 @@ impl<'o> Collector<'o> {
 
     /// The error for a topic asked for that the recording lacks, if any.
     pub(crate) fn missing_topic(&self, source: &Path) -> Option<ImportError> {
-        let opts = self.opts;
-        for (topic, wanted) in [(&opts.joints_topic, JOINT_STATE), (&opts.imu_topic, IMU)] {
+        let (motion, stream) = self.motion();
+        for (topic, stream) in [
+            (motion, stream),
+            (self.opts.imu_topic.as_str(), Stream::Imu),
+        ] {
             if !self.topics.contains_key(topic) {
                 return Some(ImportError::MissingTopic {
                     path: source.to_path_buf(),
-                    topic: format!("{topic} ({wanted})"),
+                    topic: format!("{topic} ({})", stream.types().join(" or ")),
                     available: self.listing(),
                 });
             }
@@ -288,22 +451,26 @@ impl<'o> Collector<'o> {
             return Err(e);
         }
         let opts = self.opts;
-        let counts = [self.out.joints.len(), self.out.imu.len()];
-        for (k, topic) in [&opts.joints_topic, &opts.imu_topic]
-            .into_iter()
-            .enumerate()
-        {
+        let (motion, _) = self.motion();
+        let counts = [
+            self.out.joints.len() + self.out.poses.t_ns.len(),
+            self.out.imu.len(),
+        ];
+        for (k, topic) in [motion, opts.imu_topic.as_str()].into_iter().enumerate() {
             let (first, moved) = self.stamps[k];
             if opts.time == TimeSource::Header && counts[k] > 1 && !moved {
                 return Err(ImportError::WrongType {
                     path: source.to_path_buf(),
-                    topic: topic.clone(),
+                    topic: topic.to_string(),
                     detail: format!(
                         "every header.stamp is {} ns: the driver does not stamp its messages (use --time log)",
                         first.unwrap_or(0)
                     ),
                 });
             }
+        }
+        if let Some(pt) = &opts.poses {
+            return self.finish_poses(source, pt);
         }
         let mut out = self.out;
         if out.joints.is_empty() {
@@ -333,6 +500,55 @@ impl<'o> Collector<'o> {
     }
 }
 
+impl Collector<'_> {
+    /// The streams of a pose session: errors for no pose, or for a topic
+    /// of transforms of several frames without `--frame`, or without the
+    /// frame asked for.
+    fn finish_poses(self, source: &Path, pt: &PoseTopic) -> Result<Streams, ImportError> {
+        let frames = &self.poses;
+        let type_name = self
+            .topics
+            .get(&pt.topic)
+            .map_or("", |i| i.type_name.as_str());
+        let wrong = |detail: String| ImportError::WrongType {
+            path: source.to_path_buf(),
+            topic: pt.topic.clone(),
+            detail,
+        };
+        if frames.seen.is_empty() {
+            return Err(ImportError::Empty {
+                what: format!("{}: topic {}", source.display(), pt.topic),
+            });
+        }
+        if let (Some(f), POSE_STAMPED) = (&pt.frame, type_name) {
+            return Err(wrong(format!(
+                "--frame {f} picks a transform by its child_frame_id, and {POSE_STAMPED} names \
+                 no child frame: leave --frame out for a PoseStamped topic"
+            )));
+        }
+        if self.out.poses.t_ns.is_empty() {
+            return Err(wrong(format!(
+                "no transform of frame {:?} (child_frame_id); the frames present: {}",
+                frames.frame.as_deref().unwrap_or_default(),
+                frames.listing()
+            )));
+        }
+        if pt.frame.is_none() && frames.seen.len() > 1 {
+            return Err(wrong(format!(
+                "transforms of {} frames: {}; choose the posed body's with --frame CHILD_FRAME_ID",
+                frames.seen.len(),
+                frames.listing()
+            )));
+        }
+        let mut out = self.out;
+        out.pose_frames = frames
+            .frame
+            .as_ref()
+            .and_then(|f| frames.seen.get(f).map(|(p, _)| (p.clone(), f.clone())));
+        Ok(out)
+    }
+}
+
 /// Tracks whether a stream's times ever change.
 fn advance(state: &mut (Option<i64>, bool), t: i64) {
     match state.0 {
@@ -345,18 +561,21 @@ fn advance(state: &mut (Option<i64>, bool), t: i64) {
 pub(crate) fn check_topic(
     file: &Path,
     topic: &TopicDecl<'_>,
-    wanted: &str,
+    wanted: &[&str],
 ) -> Result<(), ImportError> {
     let wrong = |detail: String| ImportError::WrongType {
         path: file.to_path_buf(),
         topic: topic.name.to_string(),
         detail,
     };
+    let wanted_names = wanted.join(" or ");
     let Some(type_name) = topic.type_name else {
-        return Err(wrong(format!("has no schema, expected {wanted}")));
+        return Err(wrong(format!("has no schema, expected {wanted_names}")));
     };
-    if type_name != wanted {
-        return Err(wrong(format!("carries {type_name}, expected {wanted}")));
+    if !wanted.contains(&type_name) {
+        return Err(wrong(format!(
+            "carries {type_name}, expected {wanted_names}"
+        )));
     }
     if let Some(enc) = topic.schema_encoding {
         if !matches!(enc, "ros2msg" | "ros2idl") {

@@ -120,10 +120,10 @@ fn parse_time(path: &Path, line: u64, text: &str, scale: i64) -> Result<i64, Imp
 /// The first timestamp of a file (its line and ns), against which every
 /// later one is checked: a file spanning more than [`MAX_SPAN_NS`] has a
 /// corrupted timestamp (a sign lost, a unit wrong, a zeroed field).
-struct Span(Option<(u64, i64)>);
+pub(crate) struct Span(pub(crate) Option<(u64, i64)>);
 
 impl Span {
-    fn check(&mut self, path: &Path, line: u64, t: i64) -> Result<(), ImportError> {
+    pub(crate) fn check(&mut self, path: &Path, line: u64, t: i64) -> Result<(), ImportError> {
         let (first_line, first) = *self.0.get_or_insert((line, t));
         if (i128::from(t) - i128::from(first)).abs() > i128::from(MAX_SPAN_NS) {
             return Err(ImportError::Line {
@@ -287,24 +287,36 @@ pub fn read_csv_pair(imu: &Path, joints: &Path) -> Result<Streams, ImportError> 
     let imu_path = imu;
     let imu = read_imu_csv(imu)?;
     let (joints, joint_names) = read_joints_csv(joints)?;
-    // each file spans at most a day (`Span`); the two start within a day
-    if let (Some(&(a, _)), Some((b, _))) = (imu.first(), joints.first()) {
-        if (i128::from(*b) - i128::from(a)).abs() > i128::from(MAX_SPAN_NS) {
+    one_clock(imu_path, &imu, joints.first().map(|j| j.0), "joints")?;
+    Ok(Streams {
+        joints,
+        imu,
+        joint_names,
+        ..Streams::default()
+    })
+}
+
+/// Each file spans at most a day (`Span`); the IMU file and the `other`
+/// file (first time `first`, ns) must start within a day of each other.
+pub(crate) fn one_clock(
+    imu_path: &Path,
+    imu: &[(i64, [f64; 6])],
+    first: Option<i64>,
+    other: &str,
+) -> Result<(), ImportError> {
+    if let (Some(&(a, _)), Some(b)) = (imu.first(), first) {
+        if (i128::from(b) - i128::from(a)).abs() > i128::from(MAX_SPAN_NS) {
             return Err(ImportError::Joints {
                 path: imu_path.to_path_buf(),
                 detail: format!(
-                    "the IMU file starts at {a} ns and the joints file at {b} ns, more than {} h apart: \
-                     they are not on one clock",
+                    "the IMU file starts at {a} ns and the {other} file at {b} ns, more than {} h \
+                     apart: they are not on one clock",
                     MAX_SPAN_NS / 3_600_000_000_000
                 ),
             });
         }
     }
-    Ok(Streams {
-        joints,
-        imu,
-        joint_names,
-    })
+    Ok(())
 }
 
 #[cfg(test)]

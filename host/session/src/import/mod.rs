@@ -5,17 +5,20 @@
 //!   and `sensor_msgs/msg/Imu` in CDR, decoded by [`cdr`]): a rosbag2
 //!   directory or one storage file, MCAP (`mcap`) or sqlite3 (`sqlite3`,
 //!   feature `sqlite3`).
-//! * `pose_csv` ([`crate::read_pose_csv`]): a pose stream (a controller's TCP poses, motion capture)
-//!   from a CSV with the user's columns and units, for pose sessions
-//!   (MODEL.md §10).
+//! * `pose_csv` ([`crate::read_pose_csv`], [`read_pose_csv_pair`]): a pose
+//!   stream (a controller's TCP poses, motion capture) from a CSV with the
+//!   user's columns and units, with an IMU CSV, for pose sessions
+//!   (MODEL.md §10); `ros2` reads the poses of a pose session from
+//!   `geometry_msgs` PoseStamped or TransformStamped, or `/tf`.
 //! * [`csv`]: an EuRoC/Kalibr IMU CSV (`#timestamp [ns],w_RS_S_x [rad s^-1],…,
 //!   a_RS_S_x [m s^-2],…`) with a joints CSV on the same clock.
 //!
-//! Both read integer nanosecond timestamps into [`Streams`];
+//! All read integer nanosecond timestamps into [`Streams`];
 //! [`Streams::write_session`] sorts them, takes the earliest sample of
 //! either stream as t = 0 (subtracting in integer nanoseconds, so that epoch
 //! times keep their resolution) and writes `joints.csv` and `imu.csv` with
-//! the IMU columns in the session's order `ax, ay, az, gx, gy, gz`.
+//! the IMU columns in the session's order `ax, ay, az, gx, gy, gz`;
+//! [`Streams::write_pose_session`] does the same with `poses.csv`.
 
 pub mod cdr;
 #[cfg(feature = "ros2")]
@@ -31,7 +34,12 @@ mod sqlite3;
 
 use std::path::{Path, PathBuf};
 
-use crate::{SessionError, SessionMeta, SessionWriter};
+pub use pose_csv::read_pose_csv_pair;
+
+use crate::{
+    PoseRows, PoseSessionMeta, PoseSessionWriter, SessionError, SessionMeta, SessionWriter,
+    MAX_POSITION,
+};
 
 /// Why a recording could not be imported.
 #[derive(Debug, thiserror::Error)]
@@ -133,6 +141,14 @@ pub enum ImportError {
         /// What is wrong.
         detail: String,
     },
+    /// Poses that cannot be a pose session's (docs/model.md §7.9).
+    #[error("{}: {detail}", path.display())]
+    Poses {
+        /// The file or session.
+        path: PathBuf,
+        /// What is wrong.
+        detail: String,
+    },
     /// A CSV line is malformed.
     #[error("{}:{line}: {detail}", path.display())]
     Line {
@@ -176,6 +192,11 @@ pub struct Streams {
     pub imu: Vec<(i64, [f64; 6])>,
     /// Joint names, when the source has them.
     pub joint_names: Vec<String>,
+    /// Tool poses, in place of joints (a pose session, docs/model.md §7.9).
+    pub poses: PoseRows,
+    /// The frames of the poses, when the source names them: (the fixed
+    /// frame, the posed body's frame).
+    pub pose_frames: Option<(String, String)>,
 }
 
 /// What [`Streams::write_session`] wrote.
@@ -185,6 +206,8 @@ pub struct Imported {
     pub dir: PathBuf,
     /// Joint samples written.
     pub joint_samples: usize,
+    /// Pose samples written (a pose session).
+    pub pose_samples: usize,
     /// IMU samples written.
     pub imu_samples: usize,
     /// Joints per sample.
@@ -230,10 +253,71 @@ impl Streams {
         Ok(Imported {
             dir,
             joint_samples: self.joints.len(),
+            pose_samples: 0,
             imu_samples: self.imu.len(),
             joint_count,
             t0_ns: t0,
             joint_names: self.joint_names,
+        })
+    }
+}
+
+impl Streams {
+    /// Sorts the poses and IMU samples by time and writes them as the pose
+    /// session `dir` with `meta` (docs/model.md §7.9; existing session files
+    /// in `dir` are replaced). A position beyond [`MAX_POSITION`] m is
+    /// refused (not metres).
+    pub fn write_pose_session(
+        mut self,
+        dir: &Path,
+        meta: &PoseSessionMeta,
+    ) -> Result<Imported, ImportError> {
+        let n = self.poses.t_ns.len();
+        if n == 0 {
+            return Err(ImportError::Empty {
+                what: "pose stream".into(),
+            });
+        }
+        if self.imu.is_empty() {
+            return Err(ImportError::Empty {
+                what: "IMU stream".into(),
+            });
+        }
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by_key(|&k| self.poses.t_ns[k]);
+        self.imu.sort_by_key(|s| s.0);
+        let poses = &self.poses;
+        if let Some(&k) = order
+            .iter()
+            .find(|&&k| poses.p[k].iter().any(|v| v.abs() > MAX_POSITION))
+        {
+            return Err(ImportError::Poses {
+                path: dir.to_path_buf(),
+                detail: format!(
+                    "pose {k} has position {:?} m, beyond {MAX_POSITION} m: not metres (a file in \
+                     mm needs --units mm)",
+                    poses.p[k]
+                ),
+            });
+        }
+        let t0 = poses.t_ns[order[0]].min(self.imu[0].0);
+        let seconds = |ns: i64| (i128::from(ns) - i128::from(t0)) as f64 * 1e-9;
+        let mut w = PoseSessionWriter::create(dir, meta)?;
+        for &k in &order {
+            w.pose(seconds(poses.t_ns[k]), &poses.p[k], &poses.q[k])?;
+        }
+        for (t, z) in &self.imu {
+            w.imu(seconds(*t), z)?;
+        }
+        let dir = w.finish()?;
+        Ok(Imported {
+            dir,
+            joint_samples: 0,
+            pose_samples: n,
+            imu_samples: self.imu.len(),
+            joint_count: 0,
+            t0_ns: t0,
+            joint_names: Vec::new(),
         })
     }
 }
@@ -258,6 +342,7 @@ mod tests {
             joints: vec![(base + 2_000_001, vec![0.2]), (base + 1, vec![0.1])],
             imu: vec![(base, imu_row([4.0, 5.0, 6.0], [1.0, 2.0, 3.0]))],
             joint_names: vec!["a".into()],
+            ..Streams::default()
         };
         let out = streams
             .write_session(dir.path(), &SessionMeta::new("aubo_i5"))
@@ -275,5 +360,50 @@ mod tests {
             .write_session(dir.path(), &SessionMeta::new("aubo_i5"))
             .unwrap_err();
         assert!(e.to_string().contains("joint stream: no samples"), "{e}");
+    }
+
+    /// Poses sorted with their rows kept together, epoch times kept to the
+    /// ns, and positions beyond 10⁴ m refused naming --units mm.
+    #[test]
+    fn pose_streams_write_a_pose_session() {
+        use crate::{PoseSession, PoseSessionMeta};
+        let dir = tempfile::tempdir().unwrap();
+        let base = 1_700_000_000_123_456_789_i64;
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let mut streams = Streams {
+            imu: vec![(base + 3, imu_row([0.0; 3], [0.0, 0.0, 9.81]))],
+            poses: PoseRows {
+                t_ns: vec![base + 2_000_000, base + 1],
+                p: vec![[0.2, 0.0, 0.0], [0.1, 0.0, 0.0]],
+                q: vec![[h, h, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]],
+            },
+            ..Streams::default()
+        };
+        let out = streams
+            .clone()
+            .write_pose_session(dir.path(), &PoseSessionMeta::default())
+            .unwrap();
+        assert_eq!(
+            (out.pose_samples, out.imu_samples, out.t0_ns),
+            (2, 1, base + 1)
+        );
+        let s = PoseSession::read(dir.path()).unwrap();
+        assert_eq!(s.poses.t, vec![0.0, 1_999_999.0 * 1e-9]);
+        assert_eq!(s.positions(), vec![[0.1, 0.0, 0.0], [0.2, 0.0, 0.0]]);
+        assert_eq!(s.quaternions()[1], [h, h, 0.0, 0.0]);
+        assert_eq!(s.imus[0].samples.t, vec![2e-9]);
+        streams.poses.p[1][2] = 2e4;
+        let e = streams
+            .write_pose_session(dir.path(), &PoseSessionMeta::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("pose 1 has position") && e.contains("--units mm"),
+            "{e}"
+        );
+        let e = Streams::default()
+            .write_pose_session(dir.path(), &PoseSessionMeta::default())
+            .unwrap_err();
+        assert!(e.to_string().contains("pose stream: no samples"), "{e}");
     }
 }

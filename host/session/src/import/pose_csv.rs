@@ -14,7 +14,9 @@
 //!   as a rotation vector (axis × angle, rad: Universal Robots' TCP pose
 //!   `rx, ry, rz`);
 //! * the inverse convention (the world in the body: a camera's view of a
-//!   fixed target), inverted on reading.
+//!   fixed target), inverted on reading;
+//! * the inverse rotation alone (the orientation R_BW with the position of
+//!   B in W, or JPL quaternions): transposed on reading.
 //!
 //! Columns are named as in the header (case-insensitive) or given by their
 //! 0-based index. Every value must be finite; a quaternion must not be zero
@@ -27,8 +29,8 @@ use robimu_model::geom::{
     exp_so3, matrix_from_quat, mul_mm, mul_mv, quat_from_matrix, rot_x, rot_y, rot_z, transpose,
 };
 
-use super::csv::read_raw;
-use super::ImportError;
+use super::csv::{one_clock, read_imu_csv, read_raw, Span};
+use super::{ImportError, Streams};
 
 /// How the orientation is written.
 #[derive(Debug, Clone, PartialEq)]
@@ -78,6 +80,9 @@ pub struct PoseCsvOptions {
     pub orientation: Orientation,
     /// The file gives the world in the body (inverted on reading).
     pub inverse: bool,
+    /// The orientation is the inverse rotation (R_BW, or a JPL quaternion):
+    /// transposed on reading, the position kept.
+    pub conjugate: bool,
 }
 
 impl Default for PoseCsvOptions {
@@ -94,6 +99,7 @@ impl Default for PoseCsvOptions {
                 order: QuaternionOrder::Wxyz,
             },
             inverse: false,
+            conjugate: false,
         }
     }
 }
@@ -115,14 +121,34 @@ pub fn read_pose_csv(path: &Path, opts: &PoseCsvOptions) -> Result<PoseRows, Imp
     let raw = read_raw(path)?;
     let columns = Columns::resolve(path, opts, raw.header.as_deref())?;
     let mut out = PoseRows::default();
+    let mut span = Span(None);
     for (line, fields) in &raw.rows {
         let fields: Vec<&str> = fields.iter().map(String::as_str).collect();
         let (t, p, q) = columns.row(path, *line, &fields, opts)?;
+        span.check(path, *line, t)?;
         out.t_ns.push(t);
         out.p.push(p);
         out.q.push(q);
     }
     Ok(out)
+}
+
+/// Reads the poses of `poses` (as `opts` describe them) and the IMU
+/// samples of `imu` (an EuRoC/Kalibr IMU CSV, [`super::csv`]), on one clock,
+/// into [`Streams`] for [`Streams::write_pose_session`].
+pub fn read_pose_csv_pair(
+    poses: &Path,
+    opts: &PoseCsvOptions,
+    imu: &Path,
+) -> Result<Streams, ImportError> {
+    let imu_samples = read_imu_csv(imu)?;
+    let rows = read_pose_csv(poses, opts)?;
+    one_clock(imu, &imu_samples, rows.t_ns.first().copied(), "poses")?;
+    Ok(Streams {
+        imu: imu_samples,
+        poses: rows,
+        ..Streams::default()
+    })
 }
 
 /// The 0-based indices of the columns `opts` names.
@@ -202,6 +228,13 @@ impl Columns {
         if t.abs() >= 9.2e18 {
             return Err(bad(format!("time {t:e} ns is out of range")));
         }
+        // decimal times in an integer unit of ns (epoch s or ns) keep
+        // every digit to the ns
+        let scale = opts.time_ns_per_unit;
+        let exact = fields
+            .get(self.time)
+            .filter(|_| scale >= 1.0 && scale.fract() == 0.0 && scale <= 1e9)
+            .and_then(|f| decimal_ns(f, scale as i64));
         let mut p = [0.0; 3];
         for (k, &i) in self.position.iter().enumerate() {
             p[k] = value(i)? * opts.metres_per_unit;
@@ -233,6 +266,7 @@ impl Columns {
             }
             Orientation::RotationVector { .. } => exp_so3([o[0], o[1], o[2]]),
         };
+        let r = if opts.conjugate { transpose(&r) } else { r };
         let (r, p) = if opts.inverse {
             let rt = transpose(&r);
             let q = mul_mv(&rt, p);
@@ -240,8 +274,34 @@ impl Columns {
         } else {
             (r, p)
         };
-        Ok((t.round() as i64, p, quat_from_matrix(&r)))
+        Ok((exact.unwrap_or(t.round() as i64), p, quat_from_matrix(&r)))
     }
+}
+
+/// `text`, a plain decimal (`-12.345`, no exponent), times `scale` ns,
+/// rounded to the ns in integer arithmetic; `None` for anything else or out
+/// of range.
+fn decimal_ns(text: &str, scale: i64) -> Option<i64> {
+    let (negative, digits) = match text.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, text.strip_prefix('+').unwrap_or(text)),
+    };
+    let (int, frac) = digits.split_once('.').unwrap_or((digits, ""));
+    let all_digits = |s: &str| s.bytes().all(|b| b.is_ascii_digit());
+    if int.is_empty() && frac.is_empty() || !all_digits(int) || !all_digits(frac) {
+        return None;
+    }
+    let frac = &frac[..frac.len().min(18)];
+    let whole: i128 = if int.is_empty() { 0 } else { int.parse().ok()? };
+    let num: i128 = if frac.is_empty() {
+        0
+    } else {
+        frac.parse().ok()?
+    };
+    let den = 10i128.pow(frac.len() as u32);
+    let scale = i128::from(scale);
+    let ns = whole.checked_mul(scale)? + (num * scale + den / 2) / den;
+    i64::try_from(if negative { -ns } else { ns }).ok()
 }
 
 #[cfg(test)]
@@ -299,6 +359,7 @@ mod tests {
                 order: QuaternionOrder::Xyzw,
             },
             inverse: false,
+            conjugate: false,
         };
         let rows_b = read_pose_csv(&b, &opts).unwrap();
         assert_eq!(rows_b.t_ns, rows.t_ns);
@@ -306,6 +367,35 @@ mod tests {
             assert!((rows_b.p[0][k] - rows.p[0][k]).abs() < 1e-15);
         }
         assert!(quat_distance(rows_b.q[0], rows.q[0]) < 1e-15);
+    }
+
+    /// Epoch times in integer ns (or s) are read to the ns; fractional
+    /// ones through f64.
+    #[test]
+    fn integer_epoch_times_keep_every_digit() {
+        let (_d, a) = write("t,px,py,pz,qw,qx,qy,qz\n1700000000123456789,0,0,0,1,0,0,0\n");
+        let ns = PoseCsvOptions {
+            time_ns_per_unit: 1.0,
+            ..PoseCsvOptions::default()
+        };
+        assert_eq!(
+            read_pose_csv(&a, &ns).unwrap().t_ns,
+            vec![1_700_000_000_123_456_789]
+        );
+        let (_d, b) =
+            write("t,px,py,pz,qw,qx,qy,qz\n1700000000,0,0,0,1,0,0,0\n0.25,0,0,0,1,0,0,0\n");
+        let s = read_pose_csv(&b, &PoseCsvOptions::default());
+        // a second row a day before the first: refused at its line
+        let e = s.unwrap_err().to_string();
+        assert!(e.contains("poses.csv:3") && e.contains("24 h"), "{e}");
+        let (_d, c) = write(
+            "t,px,py,pz,qw,qx,qy,qz\n1700000000,0,0,0,1,0,0,0\n1700000000.25,0,0,0,1,0,0,0\n",
+        );
+        let rows = read_pose_csv(&c, &PoseCsvOptions::default()).unwrap();
+        assert_eq!(
+            rows.t_ns,
+            vec![1_700_000_000_000_000_000, 1_700_000_000_250_000_000]
+        );
     }
 
     /// Euler angles (degrees) and rotation vectors against nalgebra's own
@@ -369,6 +459,19 @@ mod tests {
             assert!((rows.p[0][k] - p[k]).abs() < 1e-14, "{:?}", rows.p[0]);
         }
         let want = UnitQuaternion::from_rotation_matrix(&r);
+        assert!(quat_distance(rows.q[0], nalgebra_wxyz(want)) < 1e-14);
+        // the inverse rotation alone (nalgebra's conjugate), position kept
+        let c = want.conjugate();
+        let (_d, g) = write(&format!(
+            "t,px,py,pz,qw,qx,qy,qz\n0,{},{},{},{},{},{},{}\n",
+            p.x, p.y, p.z, c.w, c.i, c.j, c.k
+        ));
+        let conj = PoseCsvOptions {
+            conjugate: true,
+            ..PoseCsvOptions::default()
+        };
+        let rows = read_pose_csv(&g, &conj).unwrap();
+        assert_eq!(rows.p[0], [p.x, p.y, p.z]);
         assert!(quat_distance(rows.q[0], nalgebra_wxyz(want)) < 1e-14);
     }
 

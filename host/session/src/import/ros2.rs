@@ -2,7 +2,10 @@
 //! `metadata.yaml` and one or more storage files), or one storage file,
 //! MCAP (`.mcap`) or sqlite3 (`.db3`, feature `sqlite3`), with
 //! `sensor_msgs/msg/JointState` and `sensor_msgs/msg/Imu` on two topics
-//! (docs/model.md §7).
+//! (docs/model.md §7), or, for a pose session ([`Ros2Options::poses`],
+//! docs/model.md §7.9), tool poses (`geometry_msgs/msg/PoseStamped`,
+//! `geometry_msgs/msg/TransformStamped` or `/tf`'s `tf2_msgs/msg/TFMessage`,
+//! one child frame taken) in place of the joint states.
 //!
 //! Every storage feeds its messages — (topic, type, log time, CDR bytes) —
 //! to one collector (`collect.rs`), which decodes the two topics ([`super::cdr`]) into
@@ -31,13 +34,13 @@ use super::collect::compression_refused;
 use super::collect::{
     check_topic, unzstd, Collector, TopicDecl, MCAP_MAGIC, SQLITE_MAGIC, ZSTD_MAGIC,
 };
-pub use super::collect::{Ros2Options, TimeSource, IMU};
+pub use super::collect::{PoseTopic, Ros2Options, TimeSource, IMU};
 #[allow(unused_imports)]
 pub(crate) use super::collect::{COMPRESSION_FEATURE, JOINT_STATE};
 use super::ImportError;
 use super::Streams;
 
-/// Reads the joint and IMU streams of the recording at `path`: a rosbag2
+/// Reads the joint (or pose) and IMU streams of the recording at `path`: a rosbag2
 /// directory, or one MCAP or sqlite3 file (zstd-compressed or not).
 pub fn read_ros2(path: &Path, opts: &Ros2Options) -> Result<Streams, ImportError> {
     if let Some(names) = &opts.joint_names {
@@ -277,7 +280,7 @@ fn read_bag_dir(dir: &Path, c: &mut Collector<'_>) -> Result<(), ImportError> {
                     },
                     schema_encoding: None,
                 };
-                check_topic(&meta_path, &decl, wanted)?;
+                check_topic(&meta_path, &decl, wanted.types())?;
             }
         }
     }
@@ -441,10 +444,79 @@ mod db3_tests {
             time,
             joint_names: None,
             names_required: false,
+            poses: None,
         };
         read_ros2(path, &opts)
             .map(|_| ())
             .map_err(|e| e.to_string())
+    }
+
+    /// A pose session's topics in a sqlite3 bag: TF transforms of two
+    /// frames, the one asked for taken (stamps and values as written), the
+    /// other frame's ignored; without --frame the two are named.
+    #[test]
+    fn tf_poses_of_a_db3_bag_are_read_by_child_frame() {
+        use super::super::cdr::PoseMsg;
+        use super::PoseTopic;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("poses.db3");
+        let c = rusqlite::Connection::open(&path).unwrap();
+        c.execute_batch(
+            "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT, type TEXT, serialization_format TEXT);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, data BLOB);
+             INSERT INTO topics VALUES (1, '/tf', 'tf2_msgs/msg/TFMessage', 'cdr');
+             INSERT INTO topics VALUES (2, '/imu/data_raw', 'sensor_msgs/msg/Imu', 'cdr');",
+        )
+        .unwrap();
+        let pose = |t: i64, child: &str, x: f64| PoseMsg {
+            stamp: Stamp(t),
+            frame_id: "base".into(),
+            child_frame_id: child.into(),
+            position: [x, 0.5, -0.25],
+            orientation: [0.0, 0.6, 0.0, 0.8],
+        };
+        for k in 0..5 {
+            let t = T0 + k * 10_000_000;
+            let tf = encode::tf(&[pose(t, "camera", -1.0), pose(t, "tool0", 0.1 * k as f64)]);
+            let imu = encode::imu(&ImuMsg {
+                stamp: Stamp(t),
+                frame_id: String::new(),
+                angular_velocity: [0.0; 3],
+                linear_acceleration: [0.0, 0.0, 9.81],
+            });
+            for (topic, data) in [(1, tf), (2, imu)] {
+                c.execute(
+                    "INSERT INTO messages(topic_id, timestamp, data) VALUES (?1, ?2, ?3)",
+                    rusqlite::params![topic, t, data],
+                )
+                .unwrap();
+            }
+        }
+        let opts = |frame: Option<&str>| Ros2Options {
+            joints_topic: "/joint_states".into(),
+            imu_topic: "/imu/data_raw".into(),
+            time: TimeSource::Header,
+            joint_names: None,
+            names_required: false,
+            poses: Some(PoseTopic {
+                topic: "/tf".into(),
+                frame: frame.map(String::from),
+            }),
+        };
+        let s = read_ros2(&path, &opts(Some("tool0"))).unwrap();
+        assert_eq!(
+            s.poses.t_ns,
+            (0..5).map(|k| T0 + k * 10_000_000).collect::<Vec<_>>()
+        );
+        assert_eq!(s.poses.p[3], [0.1 * 3.0, 0.5, -0.25]);
+        assert_eq!(s.poses.q[0], [0.0, 0.6, 0.0, 0.8]);
+        assert_eq!(s.pose_frames, Some(("base".into(), "tool0".into())));
+        assert_eq!(s.imu.len(), 5);
+        let e = read_ros2(&path, &opts(None)).unwrap_err().to_string();
+        assert!(
+            e.contains("transforms of 2 frames: camera (in base, 5 transforms), tool0 (in base, 5 transforms)"),
+            "{e}"
+        );
     }
 
     /// Issue 41: a zeroed message and a negative log time are refused.
