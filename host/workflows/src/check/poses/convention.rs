@@ -49,8 +49,9 @@ pub(crate) fn inverse_rotation(session: &PoseSession) -> Option<Finding> {
              {world:.4} rad/s after the alignment, against {body:.4} rad/s for the rotations as \
              given (τ = {tau:.3} s)"
         ),
-        "conjugate the quaternions (qx, qy, qz → −qx, −qy, −qz; poses.csv holds R_WB, the body's \
-         axes in the world, docs/model.md §7.9) and, if the positions are the world's origin in the \
-         body too, p → −Rᵀp",
+        "import the poses again with --conjugate (each rotation inverted, the position kept; or \
+         --inverse when the file gives the world's frame in the body, position too), or conjugate \
+         the quaternions in poses.csv (qx, qy, qz → −qx, −qy, −qz): it holds R_WB, the body's axes \
+         in the world (docs/model.md §7.9)",
     ))
 }

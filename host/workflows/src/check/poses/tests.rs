@@ -314,6 +314,10 @@ fn the_inverse_rotation_convention_is_named() {
         eprintln!("seed {seed}: {}", f.message);
         assert!(f.value < convention::INVERSE_RATIO, "{}", f.value);
         assert!(f.message.contains("inverse rotation"), "{}", f.message);
-        assert!(f.action.contains("−qx, −qy, −qz"), "{}", f.action);
+        assert!(
+            f.action.contains("--conjugate") && f.action.contains("−qx, −qy, −qz"),
+            "{}",
+            f.action
+        );
     }
 }
