@@ -30,6 +30,14 @@ const JOINTS: [&str; 6] = [
     "wrist_3_joint",
 ];
 
+/// The bags above name UR's joints (the fixtures' independent writer did
+/// too) but hold an AUBO i5 session: the default robot, whose joints are
+/// named otherwise, takes them in chain order by `--joint-names`.
+const AS_CHAIN: [&str; 2] = [
+    "--joint-names",
+    "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint",
+];
+
 fn ns(t: f64) -> i64 {
     BASE_NS + (t * 1e9).round() as i64
 }
@@ -355,11 +363,14 @@ fn ros2_joints_are_mapped_onto_the_chain_by_name() {
         "lacks `wrist_3_joint`",
         "robotiq_85_left_knuckle_joint",
     ]);
-    // Without the robot's names (aubo_i5 names none) the driver's order
-    // and the gripper come through and are refused.
-    import(&driver, "aubo_i5", "aubo")
-        .0
-        .assert_fails(&["7 joints imported (shoulder_lift_joint,", "--joint-names"]);
+    // Another robot's names (aubo_i5's, aubo_description's) are not the
+    // UR driver's: named missing, with the joints the messages have.
+    import(&driver, "aubo_i5", "aubo").0.assert_fails(&[
+        "robot `aubo_i5`'s joints are picked by name",
+        "lacks `shoulder_joint`",
+        "its joints: shoulder_lift_joint",
+        "--joint-names",
+    ]);
 }
 
 #[test]
@@ -370,6 +381,9 @@ fn bad_recordings_fail_naming_the_cause() {
     let out = d.join("out");
     let import = |bag: &Path, extra: &[&str]| {
         let mut args = vec!["import", "mcap", s(bag), "--out", s(&out)];
+        if !extra.contains(&"--joint-names") {
+            args.extend(AS_CHAIN);
+        }
         args.extend_from_slice(extra);
         robimu(&args)
     };
@@ -433,7 +447,7 @@ fn bad_recordings_fail_naming_the_cause() {
     let js = encode::joint_state(&JointStateMsg {
         stamp: Stamp(5),
         frame_id: String::new(),
-        name: vec![],
+        name: JOINTS.map(String::from).to_vec(),
         position: vec![0.0; 6],
     });
     w.write_to_known_channel(&header(jch), &js).unwrap();
@@ -509,7 +523,16 @@ fn rosbags_bags_import_and_calibrate_like_the_source() {
     ];
     for (k, (cmd, bag)) in bags.iter().enumerate() {
         let out = dir.path().join(format!("s{k}"));
-        let text = robimu_ok(&["import", cmd, s(&ros2_fixture(bag)), "--out", s(&out)]).text();
+        let text = robimu_ok(&[
+            "import",
+            cmd,
+            s(&ros2_fixture(bag)),
+            "--out",
+            s(&out),
+            AS_CHAIN[0],
+            AS_CHAIN[1],
+        ])
+        .text();
         assert!(
             text.contains("81 joint samples (joints shoulder_pan_joint,")
                 && text.contains("161 IMU samples"),
@@ -537,7 +560,17 @@ fn split_bag_files_are_read_as_the_metadata_lists_them() {
     }
     let meta = std::fs::read_to_string(ros2_fixture("run_split/metadata.yaml")).unwrap();
     let out = dir.path().join("out");
-    let import = || robimu(&["import", "ros2", s(&bag), "--out", s(&out)]);
+    let import = || {
+        robimu(&[
+            "import",
+            "ros2",
+            s(&bag),
+            "--out",
+            s(&out),
+            AS_CHAIN[0],
+            AS_CHAIN[1],
+        ])
+    };
     // Only the first file listed: the first half of the session.
     let first_only = meta.replace("  - run_split_1.mcap\n", "");
     assert_ne!(first_only, meta);
@@ -574,6 +607,7 @@ fn bad_bags_fail_naming_the_cause() {
     let out = dir.path().join("out");
     let import = |bag: &Path, extra: &[&str]| {
         let mut args = vec!["import", "ros2", s(bag), "--out", s(&out)];
+        args.extend(AS_CHAIN);
         args.extend_from_slice(extra);
         robimu(&args)
     };
@@ -655,7 +689,15 @@ fn compressed_bags_import_like_the_source() {
         "run_zstd_message",
         "run_zstd_file/run_zstd_file.db3.zstd",
     ] {
-        robimu_ok(&["import", "ros2", s(&ros2_fixture(bag)), "--out", s(&out)]);
+        robimu_ok(&[
+            "import",
+            "ros2",
+            s(&ros2_fixture(bag)),
+            "--out",
+            s(&out),
+            AS_CHAIN[0],
+            AS_CHAIN[1],
+        ]);
         assert_same_samples(&Session::load(&out).unwrap(), &source, bag);
     }
 }
@@ -695,7 +737,7 @@ fn small_mcap(path: &Path, joint_type: &str, imu: &[Vec<u8>]) {
         let js = encode::joint_state(&JointStateMsg {
             stamp: Stamp(t),
             frame_id: String::new(),
-            name: vec![],
+            name: JOINTS.map(String::from).to_vec(),
             position: vec![0.1 * k as f64; 6],
         });
         w.write_to_known_channel(&header(jch, t), &js).unwrap();
@@ -734,7 +776,17 @@ fn damaged_mcap_records_are_refused_not_a_panic() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let out = d.join("out");
-    let import = |bag: &Path| robimu(["import", "ros2", s(bag), "--out", s(&out)]);
+    let import = |bag: &Path| {
+        robimu([
+            "import",
+            "ros2",
+            s(bag),
+            "--out",
+            s(&out),
+            AS_CHAIN[0],
+            AS_CHAIN[1],
+        ])
+    };
     let good = d.join("good.mcap");
     small_mcap(&good, "sensor_msgs/msg/JointState", &good_imu(9));
     assert!(import(&good).success(), "{}", import(&good).text());
@@ -792,6 +844,7 @@ fn implausible_samples_and_bag_listings_are_refused() {
     let out = d.join("out");
     let import = |bag: &Path, extra: &[&str]| {
         let mut args = vec!["import", "ros2", s(bag), "--out", s(&out)];
+        args.extend(AS_CHAIN);
         args.extend_from_slice(extra);
         robimu(&args)
     };

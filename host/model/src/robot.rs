@@ -707,7 +707,18 @@ impl Robot {
             name: "aubo_i5".into(),
             gravity: 9.81,
             source: None,
-            joint_names: Vec::new(),
+            // aubo_description's names (as aubo_i3's and aubo_i10's), each
+            // turning as the paper's model does
+            joint_names: [
+                "shoulder_joint",
+                "upperArm_joint",
+                "foreArm_joint",
+                "wrist1_joint",
+                "wrist2_joint",
+                "wrist3_joint",
+            ]
+            .map(String::from)
+            .to_vec(),
             frames: None,
             calibration_hash: None,
             joints,

@@ -423,7 +423,8 @@ fn read_session(dir: &Path) -> Result<(), String> {
 
 /// `import ros2` of the bag in `dir`: an accepted bag must make a session
 /// that the session reader accepts (no silently invalid session).
-/// `robimu import ros2 DIR --out OUT`.
+/// `robimu import ros2 DIR --out OUT --joint-names …` (the fixtures name
+/// UR's joints in an AUBO i5 session: taken in chain order).
 fn import_ros2(dir: &Path, out: &Path) -> Vec<String> {
     vec![
         "import".into(),
@@ -431,6 +432,9 @@ fn import_ros2(dir: &Path, out: &Path) -> Vec<String> {
         arg(dir),
         "--out".into(),
         arg(out),
+        "--joint-names".into(),
+        "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint"
+            .into(),
     ]
 }
 
