@@ -386,6 +386,31 @@ pub fn all() -> Vec<Target> {
             },
         },
         Target {
+            name: "pose CSV import",
+            seeds: vec![pose_csv_seed()],
+            command: Some(|d, o| {
+                vec![
+                    "import".into(),
+                    "poses".into(),
+                    arg(&d.join("poses.csv")),
+                    "--imu".into(),
+                    arg(&d.join("imu.csv")),
+                    "--units".into(),
+                    "mm".into(),
+                    "--quat-order".into(),
+                    "xyzw".into(),
+                    "--quat-cols".into(),
+                    "qx,qy,qz,qw".into(),
+                    "--time-unit".into(),
+                    "ns".into(),
+                    "--out".into(),
+                    arg(o),
+                ]
+            }),
+            rewrites: false,
+            read: read_pose_csv_import,
+        },
+        Target {
             name: "serial frames (COBS/postcard)",
             seeds: vec![serial_seed()],
             command: None,
@@ -624,6 +649,56 @@ fn euroc_seed() -> Seed {
         ],
         mutable: vec![0, 1],
     }
+}
+
+/// A pose CSV in the units a controller writes (ns, mm, an xyzw
+/// quaternion) beside an EuRoC IMU CSV on the same clock.
+fn pose_csv_seed() -> Seed {
+    let mut seed = euroc_seed();
+    let mut poses = String::from("t,px,py,pz,qx,qy,qz,qw\n");
+    let t0: i64 = 1_403_636_579_758_555_392;
+    for k in 0..150i64 {
+        let t = k as f64 / 15.0;
+        let (s, c) = (0.5 * 0.3 * t).sin_cos();
+        poses.push_str(&format!(
+            "{},{:.3},{:.3},400.0,0,{s:.9},0,{c:.9}\n",
+            t0 + k * 66_666_667,
+            500.0 + 100.0 * t.cos(),
+            100.0 * t.sin()
+        ));
+    }
+    seed.label = "pose CSV and EuRoC IMU".into();
+    seed.files[1] = ("poses.csv".into(), poses.into());
+    seed
+}
+
+/// `import poses` in-process: the reader with the seed's columns and
+/// units, then the session written and read back (an accepted file must
+/// make a session the reader accepts).
+fn read_pose_csv_import(dir: &Path) -> Result<(), String> {
+    use robimu_session::import::read_pose_csv_pair;
+    use robimu_session::{Orientation, PoseCsvOptions, QuaternionOrder};
+    let s = |v: &str| v.to_string();
+    let opts = PoseCsvOptions {
+        time_ns_per_unit: 1.0,
+        metres_per_unit: 1e-3,
+        orientation: Orientation::Quaternion {
+            columns: [s("qx"), s("qy"), s("qz"), s("qw")],
+            order: QuaternionOrder::Xyzw,
+        },
+        ..PoseCsvOptions::default()
+    };
+    let streams = read_pose_csv_pair(&dir.join("poses.csv"), &opts, &dir.join("imu.csv"))
+        .map_err(|e| e.to_string())?;
+    let out = dir.with_extension("imported");
+    if let Err(e) = streams.write_pose_session(&out, &PoseSessionMeta::default()) {
+        return Err(e.to_string());
+    }
+    if let Err(e) = PoseSession::read(&out) {
+        panic!("import accepted what the pose-session reader refuses: {e}");
+    }
+    // the check's fatal findings are refusals, named
+    read_pose_session(&out)
 }
 
 /// A recording as `robimu record` leaves it (a UR controller's clock
