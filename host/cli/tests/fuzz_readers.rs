@@ -34,6 +34,16 @@
 //! 1 908 exits 0. Earlier runs found the CSV import's `t - t0` overflow
 //! and the mcap crate's chunk underflow (regression tests in
 //! `robimu_session::import`).
+//!
+//! Fresh campaigns on 2026-12-06 (pose-session and pose CSV import targets
+//! added, aubo_i5 naming its joints): in-process 24 000 inputs over 14
+//! targets (seed 1796517017860854669, 255 s under a load of ~6): 0 panics,
+//! 0 silent, 0 calls over 2 s (longest 0.23 s), 20 724 refused with a
+//! message, 3 276 read; process-level 20 000 runs over 11 commands (seed
+//! 1796517279698382757, 339 s): 0 panics or signals, every non-zero exit
+//! with an error line (17 987), 0 runs over 20 s (longest 0.28 s), 2 013
+//! exits 0 (mutations that leave a valid file: a changed digit, a
+//! reordered column, a comment).
 
 mod fuzz;
 
