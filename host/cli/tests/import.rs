@@ -17,7 +17,7 @@ use robimu_workflows::calibrate::{calibrate, CalibrateOptions};
 use robimu_workflows::simulate::{simulate, SimulateOptions};
 
 mod common;
-use common::{robimu, robimu_ok, s};
+use common::{euroc_imu_csv, robimu, robimu_ok, s};
 
 /// Source clock of the recordings: an epoch time, ns.
 const BASE_NS: i64 = 1_700_000_000_123_456_789;
@@ -173,19 +173,12 @@ fn write_mcap(path: &Path, data: &Measurements, spec: &McapSpec) {
 
 /// The data as EuRoC `imu0/data.csv` (gyro first) and a joints CSV.
 fn write_csv(dir: &Path, data: &Measurements) -> (PathBuf, PathBuf) {
-    let mut imu = String::from("#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n");
-    for (t, z) in data.imu_t.iter().zip(&data.imu_z) {
-        imu.push_str(&format!(
-            "{},{:?},{:?},{:?},{:?},{:?},{:?}\n",
-            ns(*t),
-            z[3],
-            z[4],
-            z[5],
-            z[0],
-            z[1],
-            z[2]
-        ));
-    }
+    let imu = euroc_imu_csv(
+        data.imu_t
+            .iter()
+            .zip(&data.imu_z)
+            .map(|(t, z)| (ns(*t), *z)),
+    );
     let mut joints = format!("#timestamp [ns],{}\n", JOINTS.join(","));
     let width = data.joint_q.len() / data.joint_t.len();
     for (k, t) in data.joint_t.iter().enumerate() {

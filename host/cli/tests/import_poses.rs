@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use common::{robimu, robimu_ok, s};
+use common::{euroc_imu_csv, robimu, robimu_ok, s};
 use nalgebra::{Quaternion, UnitQuaternion};
 use robimu_session::import::cdr::{encode, ImuMsg, PoseMsg, Stamp};
 use robimu_session::PoseSession;
@@ -103,25 +103,12 @@ fn assert_same_session_to(got: &PoseSession, sim: &PoseSession, what: &str, quat
 
 /// `sim`'s IMU as an EuRoC imu0/data.csv (ns, gyroscope first).
 fn write_euroc_imu(path: &Path, sim: &PoseSession) {
-    let mut text = String::from(
-        "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],\
-         a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n",
-    );
     let imu = &sim.imus[0].samples;
-    for k in 0..imu.len() {
-        let z = imu.row(k);
-        text.push_str(&format!(
-            "{},{:?},{:?},{:?},{:?},{:?},{:?}\n",
-            ns(CSV_BASE_NS, sim, imu.t[k]),
-            z[3],
-            z[4],
-            z[5],
-            z[0],
-            z[1],
-            z[2]
-        ));
-    }
-    std::fs::write(path, text).unwrap();
+    let rows = (0..imu.len()).map(|k| {
+        let z: [f64; 6] = imu.row(k).try_into().unwrap();
+        (ns(CSV_BASE_NS, sim, imu.t[k]), z)
+    });
+    std::fs::write(path, euroc_imu_csv(rows)).unwrap();
 }
 
 /// `sim`'s poses as a controller might log them: ms, mm, quaternion
@@ -498,48 +485,27 @@ fn ros2_poses_that_are_not_measurements_are_refused() {
             "the ones before it in \"base\": poses must be in one fixed frame",
         ),
     ];
-    for (name, mutate, want) in cases {
-        let mut msgs = tool.clone();
-        mutate(&mut msgs);
+    // each message alone on /tf, bagged as NAME.mcap, imported to `out`
+    let import = |name: &str, msgs: &[PoseMsg], out: &Path| {
         let list = msgs
             .iter()
             .map(|m| (m.stamp.0, encode::tf(std::slice::from_ref(m))))
             .collect();
         let bag = d.join(format!("{name}.mcap"));
         write_bag(&bag, &sim, &[("/tf", "tf2_msgs/msg/TFMessage", list)]);
-        robimu([
-            "import",
-            "ros2",
-            s(&bag),
-            "--imu",
-            "/imu/data_raw",
-            "--poses",
-            "/tf",
-            "--out",
-            s(&bad),
-        ])
-        .assert_fails(&[want]);
+        let args = ["import", "ros2", s(&bag), "--imu", "/imu/data_raw"];
+        robimu(args.into_iter().chain(["--poses", "/tf", "--out", s(out)]))
+    };
+    for (name, mutate, want) in cases {
+        let mut msgs = tool.clone();
+        mutate(&mut msgs);
+        import(name, &msgs, &bad).assert_fails(&[want]);
     }
     // the one frame of a topic is taken without --frame
     tool.truncate(20);
-    let list = tool
-        .iter()
-        .map(|m| (m.stamp.0, encode::tf(std::slice::from_ref(m))))
-        .collect();
-    let bag = d.join("one.mcap");
-    write_bag(&bag, &sim, &[("/tf", "tf2_msgs/msg/TFMessage", list)]);
     let out = d.join("one");
-    robimu_ok([
-        "import",
-        "ros2",
-        s(&bag),
-        "--imu",
-        "/imu/data_raw",
-        "--poses",
-        "/tf",
-        "--out",
-        s(&out),
-    ]);
+    let run = import("one", &tool, &out);
+    assert!(run.success(), "{}", run.text());
     assert_eq!(PoseSession::read(&out).unwrap().poses.len(), 20);
     assert!(!bad.exists());
 }

@@ -43,7 +43,7 @@
 //!   artefact) is noted.
 
 use robimu_model::{ParamLayout, Robot};
-use robimu_session::result::{ModelTestsRecord, Trust, VerdictCheck, VerdictRecord};
+use robimu_session::result::{EffectRecord, ModelTestsRecord, Trust, VerdictCheck, VerdictRecord};
 
 use crate::calibrate::noise_choice::{settled, wanted, NoiseOutcome, Settle};
 use crate::calibrate::Calibration;
@@ -87,6 +87,9 @@ pub struct VerdictInput<'a> {
     /// The written model's residual statistics (IMU 0), for the
     /// structure the model leaves.
     pub residual_stats: Option<&'a ResidualStats>,
+    /// The effects in the written model (None: the paper's model), for
+    /// the next steps that name a model.
+    pub effects: Option<&'a [EffectRecord]>,
 }
 
 /// The verdict (module doc).

@@ -285,3 +285,20 @@ pub fn write_result_json(
         "covariance": {"names": [], "matrix": []}, "robot": robot});
     std::fs::write(path, json.to_string()).unwrap();
 }
+
+/// IMU samples as EuRoC's `imu0/data.csv`: ns stamps, the gyroscope's
+/// columns first (rad/s), then the accelerometer's (m/s²); `z` in robimu's
+/// order [ax, ay, az, gx, gy, gz], written to round-trip exactly.
+pub fn euroc_imu_csv(samples: impl IntoIterator<Item = (i64, [f64; 6])>) -> String {
+    let mut text = String::from(
+        "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],\
+         a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n",
+    );
+    for (ns, z) in samples {
+        text.push_str(&format!(
+            "{ns},{:?},{:?},{:?},{:?},{:?},{:?}\n",
+            z[3], z[4], z[5], z[0], z[1], z[2]
+        ));
+    }
+    text
+}

@@ -404,19 +404,17 @@ impl Prepared {
                 .collect();
         let setup = selection.as_ref().map_or(&self.setup, |d| &d.setup);
         let stats = residual_stats(&self.robot, &self.data, setup, &fit);
-        let verdict = self.verdict(
-            VerdictInput {
-                robot: &self.robot,
-                calibration: &cal,
-                noise: Some(&noise),
-                whiteness: whiteness.as_ref(),
-                repeatability: None,
-                other_imus: &other_imus,
-                model_tests: Some(&tests),
-                residual_stats: Some(&stats),
-            },
-            effects.as_deref(),
-        );
+        let verdict = self.verdict(VerdictInput {
+            robot: &self.robot,
+            calibration: &cal,
+            noise: Some(&noise),
+            whiteness: whiteness.as_ref(),
+            repeatability: None,
+            other_imus: &other_imus,
+            model_tests: Some(&tests),
+            residual_stats: Some(&stats),
+            effects: effects.as_deref(),
+        });
         let mut result = result_record(&cal, &self.layout, &self.session, self.opts.use_prior);
         result.noise_warning = noise.warning.clone();
         result.verdict = Some(verdict);
@@ -497,28 +495,27 @@ impl Prepared {
         let study =
             repeatability::compare(&ParamLayout::new(&self.robot), full.cal.clone(), results);
         let mut result = full.result.clone();
-        result.verdict = Some(self.verdict(
-            VerdictInput {
-                robot: &self.robot,
-                calibration: &study.full,
-                noise: Some(&full.noise),
-                whiteness: full.whiteness.as_ref(),
-                repeatability: Some(&study),
-                other_imus: &full.other_imus,
-                model_tests: full.result.model_tests.as_ref(),
-                residual_stats: Some(&full.residual_stats),
-            },
-            full.result.effects.as_deref(),
-        ));
+        result.verdict = Some(self.verdict(VerdictInput {
+            robot: &self.robot,
+            calibration: &study.full,
+            noise: Some(&full.noise),
+            whiteness: full.whiteness.as_ref(),
+            repeatability: Some(&study),
+            other_imus: &full.other_imus,
+            model_tests: full.result.model_tests.as_ref(),
+            residual_stats: Some(&full.residual_stats),
+            effects: full.result.effects.as_deref(),
+        }));
         Ok((study, result))
     }
 
     /// The verdict on `input` (docs/model.md §8.5), with the next steps
     /// its checks call for when the model's tests were run.
-    fn verdict(&self, input: VerdictInput<'_>, effects: Option<&[EffectRecord]>) -> VerdictRecord {
+    fn verdict(&self, input: VerdictInput<'_>) -> VerdictRecord {
         let mut verdict = verdict::verdict(&input);
         if let Some(tests) = input.model_tests {
-            let names: Vec<String> = effects
+            let names: Vec<String> = input
+                .effects
                 .unwrap_or_default()
                 .iter()
                 .map(|e| e.name.clone())

@@ -11,16 +11,14 @@ use robimu_model::PoseSpline;
 use robimu_session::{files, PoseSession};
 
 use crate::check::{Finding, Severity};
-use crate::pose_calibrate::default_knot_spacing;
 use crate::pose_calibrate::startup::{find_tau, gyro_alignment_rms};
+use crate::pose_calibrate::{default_knot_spacing, PoseCalibrationOptions};
 
 /// The world-frame rates' alignment RMS under this part of the body
 /// rates' names the inverse convention. The body rates of a body turning
 /// about varying axes leave an RMS of the order of the rates themselves
 /// in the wrong convention, against the gyroscope's noise in the right one.
 pub(crate) const INVERSE_RATIO: f64 = 0.5;
-/// τ is searched within ±this (s), as the calibration's default.
-const TAU_SEARCH: f64 = 5.0;
 
 /// The finding of an inverse rotation convention (module doc); None when
 /// the convention fits or the alignment cannot be computed (the other
@@ -32,7 +30,9 @@ pub(crate) fn inverse_rotation(session: &PoseSession) -> Option<Finding> {
     }
     let spacing = default_knot_spacing(&data.pose_t);
     let spline = PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing).ok()?;
-    let (tau, _) = find_tau(&spline, &data.imu_t, &data.imu_z, TAU_SEARCH).ok()?;
+    // τ searched as the calibration's start-up does
+    let search = PoseCalibrationOptions::default().tau_search;
+    let (tau, _) = find_tau(&spline, &data.imu_t, &data.imu_z, search).ok()?;
     let (body, world) = gyro_alignment_rms(&spline, &data.imu_t, &data.imu_z, tau).ok()?;
     // NaN fits name nothing
     if world.partial_cmp(&(INVERSE_RATIO * body)) != Some(std::cmp::Ordering::Less) {
