@@ -8,7 +8,11 @@
 //! * **converged** — Levenberg–Marquardt's termination; not converged is *bad*;
 //! * **residuals** — the RMS of the whitened residuals of each IMU channel
 //!   (residual / σ_z) and of the poses (position / σ_p, rotation / σ_r)
-//!   within 0.67–1.5: outside, the σ do not fit the data (*doubtful*);
+//!   within 0.67–[`POSE_RMS_MAX`]: outside, the σ do not fit the data
+//!   (*doubtful*), and the σ the residuals suggest are given for
+//!   `session.toml`. The upper bound is tighter than the joint path's 1.5:
+//!   the pose calibration does not identify its noise, so a σ taken 1.5×
+//!   too small would leave every σ of x 1.5× too small;
 //! * **undetermined** — parameters with an informative prior whose
 //!   posterior σ is above 0.9 of it: listed, not a reason for doubt;
 //! * **plausible** — estimates more than 4 prior σ from the prior mean,
@@ -31,6 +35,13 @@ use crate::verdict::{IMPLAUSIBLE, RMS_RANGE, UNDETERMINED};
 /// A prior σ at or above this (rad) is no information: the sensor
 /// rotations' (π).
 const UNINFORMATIVE: f64 = 3.0;
+
+/// The largest whitened residual RMS of a good pose calibration. With
+/// the right σ it is about 0.95 for the IMU channels (the spline takes
+/// some of the noise; 60 s, 15 Hz poses, 100 Hz IMU) and 0.87–1.01 for
+/// the poses; σ taken too small by more than 1.15/0.95 ≈ 20 % make the
+/// σ of x too small by as much (the Monte Carlo's bound is 15 %).
+pub(crate) const POSE_RMS_MAX: f64 = 1.15;
 
 /// A calibrated pose session ([`calibrate_pose_session`]).
 #[derive(Debug, Clone)]
@@ -202,7 +213,9 @@ fn pose_verdict(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> Verdict
     crate::verdict::record(checks, !cal.converged)
 }
 
-/// The whitened RMS of the IMU channels and the poses, within [`RMS_RANGE`].
+/// The whitened RMS of the IMU channels and the poses, within
+/// [`RMS_RANGE`]`.0`–[`POSE_RMS_MAX`]; outside, the σ the residuals
+/// suggest.
 fn residuals(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> VerdictCheck {
     let imu = whitened_imu_rms(opts, cal);
     let pose = [
@@ -217,7 +230,7 @@ fn residuals(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> VerdictChe
     let outside: Vec<String> = names
         .clone()
         .zip(values.clone())
-        .filter(|(_, v)| !(RMS_RANGE.0..=RMS_RANGE.1).contains(*v))
+        .filter(|(_, v)| !(RMS_RANGE.0..=POSE_RMS_MAX).contains(*v))
         .map(|(n, v)| format!("{n} {v:.2}"))
         .collect();
     let all = names
@@ -229,11 +242,11 @@ fn residuals(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> VerdictChe
         format!("white noise model; whitened RMS {all}")
     } else {
         format!(
-            "whitened RMS outside {}–{}: {} (the σ of session.toml's [poses] and [noise] do \
-             not fit the data); all: {all}",
+            "whitened RMS outside {}–{POSE_RMS_MAX}: {} (the σ of session.toml's [poses] and \
+             [noise] do not fit the data; the residuals suggest {}); all: {all}",
             RMS_RANGE.0,
-            RMS_RANGE.1,
-            outside.join(", ")
+            outside.join(", "),
+            suggested_sigma(cal)
         )
     };
     VerdictCheck {
@@ -241,6 +254,18 @@ fn residuals(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> VerdictChe
         ok: outside.is_empty(),
         text,
     }
+}
+
+/// session.toml's σ as the residuals' RMS give them (a little small: the
+/// spline takes some of the noise).
+fn suggested_sigma(cal: &PoseCalibration) -> String {
+    let z: Vec<String> = cal.imu_rms.iter().map(|v| format!("{v:.3e}")).collect();
+    format!(
+        "[noise] sigma_z = [{}], [poses] sigma_p = {:.3e}, sigma_r = {:.3e}",
+        z.join(", "),
+        cal.pose_rms[0],
+        cal.pose_rms[1]
+    )
 }
 
 /// Informative priors the data barely narrows (listed, not a failure).
@@ -316,5 +341,49 @@ mod tests {
         assert_eq!(opts.sigma_z[5], 0.03);
         assert_eq!(warnings.len(), 1);
         assert!(warnings[0].contains("gravity = 9.7"), "{warnings:?}");
+    }
+
+    /// A 40 s simulated session calibrated with the IMU's σ taken as
+    /// given and 1.3× too small: good with the right σ; doubtful with the
+    /// wrong ones, naming the channels and suggesting σ within 10 % of the
+    /// simulation's.
+    #[test]
+    fn sigma_too_small_by_a_third_is_doubtful_and_the_right_sigma_suggested() {
+        use crate::pose_calibrate::{
+            calibrate_poses, draw_pose_truth, random_pose_motion, simulate_pose_session,
+            PoseNoise as SimNoise,
+        };
+        let truth = draw_pose_truth(7);
+        let motion = random_pose_motion(40.0, 8).unwrap();
+        let noise = SimNoise::default();
+        let data = simulate_pose_session(&truth, &motion, 15.0, 0.003, 100.0, &noise, 9).unwrap();
+        let right = PoseCalibrationOptions::default();
+        let cal = calibrate_poses(&data, &right).unwrap();
+        let check = residuals(&right, &cal);
+        assert!(check.ok, "{}", check.text);
+        let wrong = PoseCalibrationOptions {
+            sigma_z: noise.sigma_z.map(|s| s / 1.3),
+            ..right
+        };
+        let cal = calibrate_poses(&data, &wrong).unwrap();
+        let check = residuals(&wrong, &cal);
+        assert!(!check.ok, "{}", check.text);
+        assert!(check.text.contains("ax 1.2"), "{}", check.text);
+        for (c, s) in noise.sigma_z.iter().enumerate() {
+            let suggested = cal.imu_rms[c];
+            assert!(
+                (suggested / s - 1.0).abs() < 0.1,
+                "channel {c}: {suggested} against {s}"
+            );
+            assert!(
+                check.text.contains(&format!("{suggested:.3e}")),
+                "{}",
+                check.text
+            );
+        }
+        assert_eq!(
+            pose_verdict(&wrong, &cal).trust,
+            robimu_session::result::Trust::Doubtful
+        );
     }
 }
