@@ -243,7 +243,11 @@ impl Rows<'_> {
     }
 }
 
-fn required_columns(header: &[String], columns: Columns<'_>) -> Result<Vec<String>, String> {
+/// The required columns' names, or why `header` lacks them.
+pub(super) fn required_columns(
+    header: &[String],
+    columns: Columns<'_>,
+) -> Result<Vec<String>, String> {
     let got: Vec<&str> = header.iter().map(String::as_str).collect();
     if got.first() != Some(&"t") {
         return Err(format!(

@@ -28,7 +28,9 @@ pub(super) fn parse_table_with(
             "the file is empty (no header line)",
         ));
     }
-    let names = required_columns(&header, columns)
+    // the header rule is the reader's own: the reference is for the values
+    let header_names: Vec<String> = header.iter().map(str::to_string).collect();
+    let names = super::read::required_columns(&header_names, columns)
         .map_err(|m| SessionError::line(path, header_line(&header), m))?;
     let width = names.len();
     // the field index of each optional column, when the header has it
@@ -123,53 +125,6 @@ pub(super) fn parse_table_with(
 
 fn header_line(header: &csv::StringRecord) -> u64 {
     header.position().map_or(1, |p| p.line())
-}
-
-fn required_columns(
-    header: &csv::StringRecord,
-    columns: Columns<'_>,
-) -> Result<Vec<String>, String> {
-    let got: Vec<&str> = header.iter().collect();
-    if got.first() != Some(&"t") {
-        return Err(format!(
-            "the header must start with `t`, found `{}`",
-            got.first().copied().unwrap_or("")
-        ));
-    }
-    match columns {
-        Columns::Fixed(names) => {
-            for (i, name) in names.iter().enumerate() {
-                match got.get(i + 1) {
-                    Some(g) if g == name => {}
-                    Some(g) => {
-                        return Err(format!(
-                            "column {} must be `{name}`, found `{g}` (expected header `t,{}`)",
-                            i + 2,
-                            names.join(",")
-                        ))
-                    }
-                    None => {
-                        return Err(format!(
-                            "missing column `{name}` (expected header `t,{}`)",
-                            names.join(",")
-                        ))
-                    }
-                }
-            }
-            Ok(names.iter().map(|s| s.to_string()).collect())
-        }
-        Columns::Joints => {
-            let n = got[1..]
-                .iter()
-                .enumerate()
-                .take_while(|(i, g)| **g == format!("q{}", i + 1))
-                .count();
-            if n == 0 {
-                return Err("missing joint columns: expected header `t,q1,q2,…`".into());
-            }
-            Ok((1..=n).map(|i| format!("q{i}")).collect())
-        }
-    }
 }
 
 fn csv_error(path: &Path, e: csv::Error) -> SessionError {
