@@ -26,7 +26,7 @@ pub(super) fn table(
         return Err(empty());
     }
     let names =
-        required_columns(&header, columns).map_err(|m| SessionError::line(path, line, m))?;
+        super::required_columns(&header, columns).map_err(|m| SessionError::line(path, line, m))?;
     let width = names.len();
     // the field index of each optional column, when the header has it
     let wanted: Vec<Option<usize>> = optional
@@ -240,54 +240,6 @@ impl Rows<'_> {
             }
         }
         Ok(())
-    }
-}
-
-/// The required columns' names, or why `header` lacks them.
-pub(super) fn required_columns(
-    header: &[String],
-    columns: Columns<'_>,
-) -> Result<Vec<String>, String> {
-    let got: Vec<&str> = header.iter().map(String::as_str).collect();
-    if got.first() != Some(&"t") {
-        return Err(format!(
-            "the header must start with `t`, found `{}`",
-            got.first().copied().unwrap_or("")
-        ));
-    }
-    match columns {
-        Columns::Fixed(names) => {
-            for (i, name) in names.iter().enumerate() {
-                match got.get(i + 1) {
-                    Some(g) if g == name => {}
-                    Some(g) => {
-                        return Err(format!(
-                            "column {} must be `{name}`, found `{g}` (expected header `t,{}`)",
-                            i + 2,
-                            names.join(",")
-                        ))
-                    }
-                    None => {
-                        return Err(format!(
-                            "missing column `{name}` (expected header `t,{}`)",
-                            names.join(",")
-                        ))
-                    }
-                }
-            }
-            Ok(names.iter().map(|s| s.to_string()).collect())
-        }
-        Columns::Joints => {
-            let n = got[1..]
-                .iter()
-                .enumerate()
-                .take_while(|(i, g)| **g == format!("q{}", i + 1))
-                .count();
-            if n == 0 {
-                return Err("missing joint columns: expected header `t,q1,q2,…`".into());
-            }
-            Ok((1..=n).map(|i| format!("q{i}")).collect())
-        }
     }
 }
 

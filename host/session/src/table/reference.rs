@@ -30,7 +30,7 @@ pub(super) fn parse_table_with(
     }
     // the header rule is the reader's own: the reference is for the values
     let header_names: Vec<String> = header.iter().map(str::to_string).collect();
-    let names = super::read::required_columns(&header_names, columns)
+    let names = super::required_columns(&header_names, columns)
         .map_err(|m| SessionError::line(path, header_line(&header), m))?;
     let width = names.len();
     // the field index of each optional column, when the header has it
