@@ -10,6 +10,7 @@
 
 pub mod simulate;
 pub(crate) mod startup;
+pub mod tau_drift;
 #[cfg(test)]
 mod tests;
 
@@ -20,9 +21,12 @@ use robimu_solver::{
     IterationRecord, LeastSquares, LmOptions, PoseData, PoseProblem, PoseProblemError,
 };
 
-pub use simulate::{draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise};
+pub use simulate::{
+    draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming, PoseNoise,
+};
 use startup::greater;
 pub use startup::Startup;
+pub use tau_drift::TauDrift;
 
 /// Why a pose calibration failed.
 #[derive(Debug, thiserror::Error)]
@@ -118,6 +122,9 @@ pub struct PoseCalibration {
     pub knot_spacing: f64,
     /// What the start-up found.
     pub startup: Startup,
+    /// The score test of a constant τ ([`tau_drift`]); `None` when it could
+    /// not be formed.
+    pub tau_drift: Option<TauDrift>,
 }
 
 /// Checks of the measurements; the rotations as matrices.
@@ -208,6 +215,7 @@ pub fn calibrate_poses_with(
         prior_mean: specs.iter().map(|s| s.nominal).collect(),
         prior_sigma: specs.iter().map(|s| s.sigma).collect(),
     };
+    let (base, pdata_all) = (spline.clone(), pdata.clone());
     let mut problem = PoseProblem::new(spline, pdata)?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
@@ -221,6 +229,13 @@ pub fn calibrate_poses_with(
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();
     let (imu_rms, pose_rms) = residual_rms(&problem, &sol.theta, data)?;
+    let drift = tau_drift::tau_drift(
+        &base,
+        &pdata_all,
+        problem.selected(),
+        &sol.theta,
+        &sol.factor,
+    )?;
     Ok(PoseCalibration {
         names: specs.iter().map(|s| s.name.clone()).collect(),
         units: specs.iter().map(|s| s.unit).collect(),
@@ -242,6 +257,7 @@ pub fn calibrate_poses_with(
         cost: sol.summary.final_cost,
         knot_spacing: spacing,
         startup: st,
+        tau_drift: drift,
     })
 }
 
