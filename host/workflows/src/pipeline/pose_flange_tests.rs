@@ -116,7 +116,12 @@ fn joint_and_pose_calibrations_of_one_motion_agree_on_the_sensor() {
     let (names, [xj, sj, xp, sp]) = both_ways(60.0, 3);
     let mut worst = (0.0f64, String::new());
     for k in 0..24 {
-        let z = (xj[k] - xp[k]) / (sj[k] * sj[k] + sp[k] * sp[k]).sqrt();
+        let pi = std::f64::consts::PI;
+        let mut d = xj[k] - xp[k];
+        if names[k].starts_with("r_") {
+            d = (d + pi).rem_euclid(2.0 * pi) - pi; // the same angle
+        }
+        let z = d / (sj[k] * sj[k] + sp[k] * sp[k]).sqrt();
         println!(
             "{:12} joint {:+.6e} ± {:.2e}  pose {:+.6e} ± {:.2e}  z {z:+.2}",
             names[k], xj[k], sj[k], xp[k], sp[k]
