@@ -5,8 +5,10 @@
 //! into [`SEGMENTS`] runs of equal count) read at t_i + τ + δ_k, δ_0 = 0.
 //! Their residuals' Jacobian is ∂r_i/∂δ_k = ∂r_i/∂τ on segment k, so the
 //! score and information blocks are those of τ restricted to the segment:
-//! linearising the problem with only segment k's IMU samples gives
-//! g_k = (A_k)_{τ} and c_k = (A_k)_{·τ} (less τ's prior). The efficient
+//! linearising the problem with only segment k's IMU samples (and no pose
+//! samples, which do not depend on τ) gives its score g_k (the gradient's
+//! τ entry) and c_k (the τ column of its Gauss–Newton matrix), each less
+//! τ's prior: three quarters of one linearisation's IMU work. The efficient
 //! information V = diag(d_k) − Cᵀ A⁻¹ C projects out every parameter of the
 //! fit (spline, p_I, g, τ and the 24 sensor parameters) with the fit's own
 //! Gauss–Newton matrix A; at the MAP estimate the full gradient is zero, so
@@ -65,10 +67,11 @@ pub fn tau_drift(
     let mut cols: Vec<Vec<f64>> = Vec::with_capacity(m);
     for k in 1..SEGMENTS {
         let range = selected.len() * k / SEGMENTS..selected.len() * (k + 1) / SEGMENTS;
+        // no pose samples: they do not touch τ's column or gradient entry
         let mut seg = PoseData {
-            pose_t: data.pose_t.clone(),
-            pose_p: data.pose_p.clone(),
-            pose_r: data.pose_r.clone(),
+            pose_t: Vec::new(),
+            pose_p: Vec::new(),
+            pose_r: Vec::new(),
             imu_t: Vec::with_capacity(range.len()),
             imu_z: Vec::with_capacity(range.len()),
             prior_mean: data.prior_mean.clone(),
