@@ -96,6 +96,12 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             spec.pose_rate
         )));
     }
+    let ImuTiming { jitter, drift } = spec.imu_timing;
+    if !(jitter.is_finite() && jitter >= 0.0 && drift.is_finite()) {
+        return Err(PipelineError::input(anyhow::anyhow!(
+            "--imu-jitter must be ≥ 0 and --imu-drift finite (got {jitter} s and {drift} s)"
+        )));
+    }
     let fit = |e: crate::PoseCalibrationError| PipelineError::fit(e.into());
     let mut noise = PoseNoise::default();
     let (truth, mut data) = match &spec.robot {
