@@ -30,7 +30,9 @@ fn judged(dir: &std::path::Path, spec: &PoseSessionSpec) -> (Trust, Vec<f64>, St
         })
         .collect();
     let v = f.result.verdict.unwrap();
-    (v.trust, z, v.reasons.join("; "))
+    let drift = f.cal.tau_drift.map_or(f64::NAN, |d| d.statistic);
+    let why = format!("S {drift:.1}; {}", v.reasons.join("; "));
+    (v.trust, z, why)
 }
 
 fn spec(robot: Option<&str>, jitter: f64, drift: f64, seed: u64) -> PoseSessionSpec {
