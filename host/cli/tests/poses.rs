@@ -164,7 +164,16 @@ fn flags_that_do_not_apply_are_refused() {
 fn a_robots_flange_session_has_the_joint_sessions_imu_samples() {
     let tmp = tempfile::tempdir().unwrap();
     let (j, p) = (tmp.path().join("j"), tmp.path().join("p"));
-    let common = ["--robot", "ur5e", "--duration", "8", "--rate", "50", "--seed", "9"];
+    let common = [
+        "--robot",
+        "ur5e",
+        "--duration",
+        "8",
+        "--rate",
+        "50",
+        "--seed",
+        "9",
+    ];
     let mut args = vec!["simulate", "--out", s(&j)];
     args.extend(common);
     robimu_ok(args);

@@ -7,8 +7,8 @@ use anyhow::bail;
 use robimu_workflows::pipeline::pose_simulate::{
     simulate_pose_dir, PoseSessionSpec, PoseSimulated,
 };
-use robimu_workflows::pose_calibrate::ImuTiming;
 use robimu_workflows::pipeline::simulate::{check_rates, simulate_session, SessionSpec, Simulated};
+use robimu_workflows::pose_calibrate::ImuTiming;
 
 use crate::args::UrdfLinks;
 use crate::input::{place_imus, resolve_robot_with};

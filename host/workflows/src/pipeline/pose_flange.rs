@@ -92,8 +92,9 @@ pub(crate) fn flange_session(
         let lever = mul_mv(&imu.r, p_imu);
         let n_r: V3 = std::array::from_fn(|_| normal(noise.sigma_r));
         out.pose_t.push(t);
-        out.pose_p
-            .push(std::array::from_fn(|c| imu.p[c] - lever[c] + normal(noise.sigma_p)));
+        out.pose_p.push(std::array::from_fn(|c| {
+            imu.p[c] - lever[c] + normal(noise.sigma_p)
+        }));
         out.pose_q
             .push(quat_from_matrix(&mul_mm(&imu.r, &exp_so3(n_r))));
     }

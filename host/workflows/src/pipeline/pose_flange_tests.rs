@@ -1,79 +1,23 @@
 //! The flange pose session against the joint session of the same motion:
-//! the same IMU samples, the truth's mapping, and (issue 39) the same
-//! sensor parameters from both calibrations within their σ.
+//! (issue 39) the same sensor parameters from both calibrations within
+//! their σ. (Its files against the joint session's: `pose_simulate`'s tests.)
 
 use super::*;
 use crate::calibrate::{calibrate, CalibrateOptions};
-use crate::pipeline::pose_simulate::{simulate_pose_dir, PoseSessionSpec};
-use crate::pipeline::simulate::simulate_session;
-use crate::pose_calibrate::{calibrate_poses, ImuTiming, PoseCalibrationOptions};
+use crate::pose_calibrate::{calibrate_poses, PoseCalibrationOptions};
 use robimu_model::pose_measurement::ACCEL;
-use robimu_session::Truth;
-
-/// `robimu simulate --robot NAME`'s spec with these flags.
-fn joint_spec(robot: Robot, duration: f64, rate: f64, seed: u64, out: PathBuf) -> SessionSpec {
-    SessionSpec {
-        robot_field: robot.name().to_string(),
-        robot,
-        duration,
-        trajectory: None,
-        rate,
-        joint_rate: None,
-        seed,
-        out,
-        noise_free: false,
-        truth: None,
-        tracker: false,
-        nominal: Vec::new(),
-        poses: 250,
-        effects: Vec::new(),
-        bias_walk: None,
-        temperature: None,
-        resonance: Mode::default(),
-        noise_model: None,
-        imus: 1,
-        imu_position: Vec::new(),
-    }
-}
-
-#[test]
-fn the_flange_sessions_imu_csv_is_the_joint_sessions_and_its_truth_maps() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (jd, pd) = (tmp.path().join("joints"), tmp.path().join("poses"));
-    simulate_session(&joint_spec(Robot::aubo_i5(), 12.0, 100.0, 7, jd.clone())).unwrap();
-    let p = simulate_pose_dir(&PoseSessionSpec {
-        out: pd.clone(),
-        duration: 12.0,
-        seed: 7,
-        pose_rate: 20.0,
-        pose_jitter: 0.003,
-        imu_rate: 100.0,
-        robot: Some(Robot::aubo_i5()),
-        imu_timing: ImuTiming::default(),
-    })
-    .unwrap();
-    let read = |d: &PathBuf| std::fs::read(d.join("imu.csv")).unwrap();
-    assert_eq!(read(&jd), read(&pd), "imu.csv differs");
-    assert!((p.poses as f64 - 12.0 * 20.0).abs() <= 2.0, "{} poses", p.poses);
-    let (tj, tp) = (
-        Truth::read(&jd.join("truth.toml")).unwrap(),
-        Truth::read(&pd.join("truth.toml")).unwrap(),
-    );
-    for (pose, joint) in [("p_imu_x", "eps_6_1"), ("p_imu_y", "eps_6_2"), ("p_imu_z", "eps_6_3")]
-        .into_iter()
-        .chain(
-            ["g_x", "g_y", "tau", "gamma_a_yz", "r_a_x", "k_w_z", "b_w_x"].map(|n| (n, n)),
-        )
-    {
-        assert_eq!(tp.get(pose), tj.get(joint), "{pose} vs {joint}");
-    }
-}
 
 /// The sensor parameters (x̂, σ) of both calibrations of one AUBO i5 motion.
 fn both_ways(duration: f64, seed: u64) -> (Vec<String>, [Vec<f64>; 4]) {
     let robot = Robot::aubo_i5();
-    let m = simulate_motion(&joint_spec(robot.clone(), duration, 100.0, seed, PathBuf::new()))
-        .unwrap();
+    let m = simulate_motion(&SessionSpec::plain(
+        robot.clone(),
+        duration,
+        100.0,
+        seed,
+        PathBuf::new(),
+    ))
+    .unwrap();
     let joint = calibrate(&robot, &m.data, &CalibrateOptions::new(&robot), |_| {}).unwrap();
     let f = flange_session(
         robot.clone(),
@@ -131,5 +75,10 @@ fn joint_and_pose_calibrations_of_one_motion_agree_on_the_sensor() {
         }
     }
     println!("worst |z| {:.2} ({})", worst.0, worst.1);
-    assert!(worst.0 < 3.0, "{} differs by {:.2} combined σ", worst.1, worst.0);
+    assert!(
+        worst.0 < 3.0,
+        "{} differs by {:.2} combined σ",
+        worst.1,
+        worst.0
+    );
 }

@@ -9,7 +9,7 @@
 //! [`simulate_pose_session`]'s, with the default noise of
 //! [`PoseCalibrationOptions`](crate::PoseCalibrationOptions). With a robot
 //! the body is its flange on the motion of `robimu simulate --robot`
-//! ([`super::pose_flange`]). Either way the IMU stamps may then carry
+//! (`pipeline/pose_flange.rs`). Either way the IMU stamps may then carry
 //! arrival jitter and a drifting lag ([`ImuTiming`]).
 
 use std::fmt;
@@ -21,8 +21,8 @@ use robimu_session::{
     PoseSessionWriter, Truth,
 };
 
-use super::simulate::check_rates;
 use super::pose_flange::flange_session;
+use super::simulate::check_rates;
 use super::PipelineError;
 use crate::pose_calibrate::{
     draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming, PoseNoise,
@@ -152,10 +152,12 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             "simulated by robimu simulate --source poses (seed {}, {}, poses at {} Hz with \
              jitter {} s, IMU at {} Hz, IMU stamps' arrival jitter {} s and lag drift {} s)",
             spec.seed,
-            spec.robot.as_ref().map_or("a hand-held motion".to_string(), |r| format!(
-                "the flange of {}",
-                r.name()
-            )),
+            spec.robot
+                .as_ref()
+                .map_or("a hand-held motion".to_string(), |r| format!(
+                    "the flange of {}",
+                    r.name()
+                )),
             spec.pose_rate,
             spec.pose_jitter,
             spec.imu_rate,
@@ -185,5 +187,5 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
 }
 
 #[cfg(test)]
-#[path = "pose_timing_tests.rs"]
+#[path = "pose_simulate_tests.rs"]
 mod tests;

@@ -19,7 +19,8 @@
 //!   where the prior is informative (not the sensor rotations, whose
 //!   prior σ is π): *doubtful*;
 //! * **time offset** — a score test of a constant τ over the recording
-//!   ([`crate::pose_calibrate::tau_drift`]): p below 0.01 is *doubtful*.
+//!   ([`TauDrift`](crate::TauDrift), docs/model.md §7.9): p below 0.01 is
+//!   *doubtful*.
 
 use std::path::Path;
 

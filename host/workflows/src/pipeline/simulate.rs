@@ -209,6 +209,36 @@ pub(crate) fn simulate_motion(spec: &SessionSpec) -> anyhow::Result<SimulatedMot
     })
 }
 
+#[cfg(test)]
+impl SessionSpec {
+    /// `robimu simulate --robot NAME --duration --rate --seed --out`'s spec
+    /// (every other flag at its default).
+    pub(crate) fn plain(robot: Robot, duration: f64, rate: f64, seed: u64, out: PathBuf) -> Self {
+        Self {
+            robot_field: robot.name().to_string(),
+            robot,
+            duration,
+            trajectory: None,
+            rate,
+            joint_rate: None,
+            seed,
+            out,
+            noise_free: false,
+            truth: None,
+            tracker: false,
+            nominal: Vec::new(),
+            poses: 250,
+            effects: Vec::new(),
+            bias_walk: None,
+            temperature: None,
+            resonance: Mode::default(),
+            noise_model: None,
+            imus: 1,
+            imu_position: Vec::new(),
+        }
+    }
+}
+
 /// Simulate the session `spec` describes and write it.
 pub fn simulate_session(spec: &SessionSpec) -> anyhow::Result<Simulated> {
     let robot = &spec.robot;

@@ -10,7 +10,7 @@
 
 pub mod simulate;
 pub(crate) mod startup;
-pub mod tau_drift;
+pub(crate) mod tau_drift;
 #[cfg(test)]
 mod tests;
 
@@ -122,8 +122,8 @@ pub struct PoseCalibration {
     pub knot_spacing: f64,
     /// What the start-up found.
     pub startup: Startup,
-    /// The score test of a constant τ ([`tau_drift`]); `None` when it could
-    /// not be formed.
+    /// The score test of a constant τ (docs/model.md §7.9, *time offset*);
+    /// `None` when it could not be formed.
     pub tau_drift: Option<TauDrift>,
 }
 

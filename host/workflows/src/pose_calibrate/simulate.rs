@@ -180,7 +180,11 @@ impl ImuTiming {
 
     /// Restamp the IMU samples of `data` (module doc of [`ImuTiming`]),
     /// keeping them in stamp order.
-    pub fn apply(&self, data: &mut PoseMeasurements, seed: u64) -> Result<(), PoseCalibrationError> {
+    pub fn apply(
+        &self,
+        data: &mut PoseMeasurements,
+        seed: u64,
+    ) -> Result<(), PoseCalibrationError> {
         if !(self.jitter.is_finite() && self.jitter >= 0.0 && self.drift.is_finite()) {
             return Err(PoseCalibrationError::Input(format!(
                 "IMU timing: jitter {} s must be ≥ 0 and drift {} s finite",

@@ -17,14 +17,14 @@
 //! absorb most of the drift, which refitting τ alone per half misses.
 
 use robimu_model::pose_measurement::TAU;
-use robimu_solver::{ArrowFactor, LeastSquares, PoseData, PoseProblem, PoseProblemError};
 use robimu_model::PoseSpline;
+use robimu_solver::{ArrowFactor, LeastSquares, PoseData, PoseProblem, PoseProblemError};
 
 use crate::stats::chi2_sf;
 use faer::linalg::solvers::DenseSolveCore;
 
 /// Number of segments K.
-pub const SEGMENTS: usize = 4;
+pub(crate) const SEGMENTS: usize = 4;
 
 /// The test's outcome.
 #[derive(Debug, Clone, PartialEq)]
@@ -45,7 +45,7 @@ pub struct TauDrift {
 /// The score test at the solution θ of `problem`'s full data `data` (its
 /// spline `base`), with `factor` the undamped Gauss–Newton matrix at θ.
 /// `None` when there are too few IMU samples to cut or V is singular.
-pub fn tau_drift(
+pub(crate) fn tau_drift(
     base: &PoseSpline,
     data: &PoseData,
     selected: &[usize],
@@ -130,7 +130,7 @@ pub fn tau_drift(
 }
 
 /// Below this p-value the verdict doubts a constant τ.
-pub const P_DOUBT: f64 = 0.01;
+pub(crate) const P_DOUBT: f64 = 0.01;
 
 /// The verdict's *time offset* check: τ constant over the recording
 /// (p ≥ [`P_DOUBT`]); when doubted, τ per segment relative to the first.

@@ -12,9 +12,16 @@ use crate::pose_calibrate::{
 fn drift_of(seed: u64, timing: ImuTiming) -> TauDrift {
     let truth = draw_pose_truth(500 + seed);
     let motion = random_pose_motion(60.0, 600 + seed).unwrap();
-    let mut data =
-        simulate_pose_session(&truth, &motion, 15.0, 0.003, 100.0, &PoseNoise::default(), seed)
-            .unwrap();
+    let mut data = simulate_pose_session(
+        &truth,
+        &motion,
+        15.0,
+        0.003,
+        100.0,
+        &PoseNoise::default(),
+        seed,
+    )
+    .unwrap();
     timing.apply(&mut data, seed).unwrap();
     let cal = calibrate_poses(&data, &PoseCalibrationOptions::default()).unwrap();
     cal.tau_drift.expect("the test is formed")
@@ -25,13 +32,7 @@ fn a_constant_tau_passes_and_a_drifting_lag_is_found_where_it_is() {
     let clean = drift_of(1, ImuTiming::default());
     assert!(clean.p_value >= P_DOUBT, "{clean:?}");
     let drift = 0.030;
-    let messy = drift_of(
-        1,
-        ImuTiming {
-            jitter: 0.0,
-            drift,
-        },
-    );
+    let messy = drift_of(1, ImuTiming { jitter: 0.0, drift });
     assert!(messy.p_value < 1e-6, "{messy:?}");
     for k in 0..SEGMENTS - 1 {
         let want = -drift / SEGMENTS as f64 * (k + 1) as f64;

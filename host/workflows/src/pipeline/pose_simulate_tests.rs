@@ -1,11 +1,14 @@
-//! Issue 39, messy timing: simulated pose sessions whose IMU stamps carry
-//! arrival jitter and a drifting lag are calibrated with σ that hold or get
-//! a verdict that is not "good" (through `robimu calibrate`'s path: the
-//! session written, read, calibrated, judged).
+//! Simulated pose sessions: a robot flange's has the joint session's IMU
+//! samples and truth; and (issue 39, messy timing) sessions whose IMU
+//! stamps carry arrival jitter and a drifting lag are calibrated with σ that
+//! hold or get a verdict that is not "good" (through `robimu calibrate`'s
+//! path: the session written, read, calibrated, judged).
 
 use super::*;
 use crate::pipeline::poses::{calibrate_pose_session, load_pose_session, pose_options};
+use crate::pipeline::simulate::simulate_session;
 use robimu_session::result::Trust;
+use robimu_session::Truth;
 
 /// The verdict and the normalised errors (x̂ − x)/σ of one session.
 fn judged(dir: &std::path::Path, spec: &PoseSessionSpec) -> (Trust, Vec<f64>, String) {
@@ -84,7 +87,10 @@ fn monte_carlo_verdicts_under_messy_timing() {
             good.push(z);
         }
     }
-    println!("{:.2} s per session", t0.elapsed().as_secs_f64() / runs as f64);
+    println!(
+        "{:.2} s per session",
+        t0.elapsed().as_secs_f64() / runs as f64
+    );
     let share = good.len() as f64 / runs as f64;
     println!("good: {} of {runs} ({:.0} %)", good.len(), 100.0 * share);
     let mut worst = (0.0f64, 0.0f64);
@@ -109,5 +115,51 @@ fn monte_carlo_verdicts_under_messy_timing() {
     }
     if jitter == 0.0 && drift == 0.0 {
         assert!(share >= 0.95, "clean sessions: {:.0} % good", 100.0 * share);
+    }
+}
+
+#[test]
+fn the_flange_sessions_imu_csv_is_the_joint_sessions_and_its_truth_maps() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (jd, pd) = (tmp.path().join("joints"), tmp.path().join("poses"));
+    simulate_session(&crate::pipeline::simulate::SessionSpec::plain(
+        Robot::aubo_i5(),
+        12.0,
+        100.0,
+        7,
+        jd.clone(),
+    ))
+    .unwrap();
+    let p = simulate_pose_dir(&PoseSessionSpec {
+        out: pd.clone(),
+        duration: 12.0,
+        seed: 7,
+        pose_rate: 20.0,
+        pose_jitter: 0.003,
+        imu_rate: 100.0,
+        robot: Some(Robot::aubo_i5()),
+        imu_timing: ImuTiming::default(),
+    })
+    .unwrap();
+    let read = |d: &PathBuf| std::fs::read(d.join("imu.csv")).unwrap();
+    assert_eq!(read(&jd), read(&pd), "imu.csv differs");
+    assert!(
+        (p.poses as f64 - 12.0 * 20.0).abs() <= 2.0,
+        "{} poses",
+        p.poses
+    );
+    let (tj, tp) = (
+        Truth::read(&jd.join("truth.toml")).unwrap(),
+        Truth::read(&pd.join("truth.toml")).unwrap(),
+    );
+    for (pose, joint) in [
+        ("p_imu_x", "eps_6_1"),
+        ("p_imu_y", "eps_6_2"),
+        ("p_imu_z", "eps_6_3"),
+    ]
+    .into_iter()
+    .chain(["g_x", "g_y", "tau", "gamma_a_yz", "r_a_x", "k_w_z", "b_w_x"].map(|n| (n, n)))
+    {
+        assert_eq!(tp.get(pose), tj.get(joint), "{pose} vs {joint}");
     }
 }
