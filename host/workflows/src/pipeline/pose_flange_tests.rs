@@ -54,10 +54,15 @@ fn both_ways(duration: f64, seed: u64) -> (Vec<String>, [Vec<f64>; 4]) {
 /// Issue 39: the same data through the robot description (joint angles)
 /// and through the flange's pose stream of the same motion at the same
 /// rate (100 Hz) agree on the 24 sensor parameters within their σ:
-/// |x_joint − x_pose| / √(σ_joint² + σ_pose²) < 3 for each.
+/// |x_joint − x_pose| / √(σ_joint² + σ_pose²) < 3 for each (seed
+/// `AGREE_SEED`, default 3).
 #[test]
 fn joint_and_pose_calibrations_of_one_motion_agree_on_the_sensor() {
-    let (names, [xj, sj, xp, sp]) = both_ways(60.0, 3);
+    let seed = std::env::var("AGREE_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3);
+    let (names, [xj, sj, xp, sp]) = both_ways(60.0, seed);
     let mut worst = (0.0f64, String::new());
     for k in 0..24 {
         let pi = std::f64::consts::PI;
