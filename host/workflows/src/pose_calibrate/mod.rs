@@ -5,8 +5,9 @@
 //! [`calibrate_poses`]: fit the pose spline to the poses, find τ and the
 //! sensor rotations from the data (the start-up, [`Startup`]), then solve the MAP problem
 //! ([`robimu_solver::PoseProblem`]) by Levenberg–Marquardt; the covariance
-//! of x is the Schur complement's inverse (paper (24)). [`simulate`] makes
-//! sessions with known truth.
+//! of x is the Schur complement's inverse (paper (24)); then a score test
+//! of a constant τ over the recording (`tau_drift.rs`, [`TauDrift`]).
+//! [`simulate`] makes sessions with known truth.
 
 pub mod simulate;
 pub(crate) mod startup;
