@@ -137,11 +137,56 @@ fn flags_that_do_not_apply_are_refused() {
         "--out",
         s(&dir),
     ]);
-    run.assert_fails(&["--robot, --tracker", "not for --source poses"]);
+    run.assert_fails(&["--tracker: not for --source poses"]);
     let run = robimu(["simulate", "--pose-rate", "10", "--out", s(&dir)]);
     run.assert_fails(&["--pose-rate", "--source poses"]);
+    let run = robimu(["simulate", "--imu-drift", "0.03", "--out", s(&dir)]);
+    run.assert_fails(&["--imu-drift", "--source poses"]);
+    let run = robimu([
+        "simulate",
+        "--source",
+        "poses",
+        "--imu-jitter=-0.001",
+        "--out",
+        s(&dir),
+    ]);
+    run.assert_fails(&["--imu-jitter must be ≥ 0"]);
     assert!(!dir.exists());
     simulate(&dir, "2");
     let run = robimu(["calibrate", s(&dir), "--windows", "3"]);
     run.assert_fails(&["--windows", "does not apply to a pose session"]);
+}
+
+/// `--source poses --robot NAME`: the flange on the motion of `simulate
+/// --robot NAME` with the same seed, length and rate: the same imu.csv, and
+/// the truth's IMU position is the robot truth's ε_n1..3.
+#[test]
+fn a_robots_flange_session_has_the_joint_sessions_imu_samples() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (j, p) = (tmp.path().join("j"), tmp.path().join("p"));
+    let common = [
+        "--robot",
+        "ur5e",
+        "--duration",
+        "8",
+        "--rate",
+        "50",
+        "--seed",
+        "9",
+    ];
+    let mut args = vec!["simulate", "--out", s(&j)];
+    args.extend(common);
+    robimu_ok(args);
+    let mut args = vec!["simulate", "--source", "poses", "--out", s(&p)];
+    args.extend(common);
+    let run = robimu_ok(args);
+    assert!(run.stdout.contains("poses"), "{}", run.stdout);
+    let read = |d: &Path| std::fs::read(d.join("imu.csv")).unwrap();
+    assert_eq!(read(&j), read(&p), "imu.csv differs");
+    let (tj, tp) = (
+        Truth::read(&j.join("truth.toml")).unwrap(),
+        Truth::read(&p.join("truth.toml")).unwrap(),
+    );
+    assert_eq!(tp.get("p_imu_y"), tj.get("eps_6_2"));
+    assert_eq!(tp.get("tau"), tj.get("tau"));
 }

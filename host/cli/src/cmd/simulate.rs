@@ -8,6 +8,7 @@ use robimu_workflows::pipeline::pose_simulate::{
     simulate_pose_dir, PoseSessionSpec, PoseSimulated,
 };
 use robimu_workflows::pipeline::simulate::{check_rates, simulate_session, SessionSpec, Simulated};
+use robimu_workflows::pose_calibrate::ImuTiming;
 
 use crate::args::UrdfLinks;
 use crate::input::{place_imus, resolve_robot_with};
@@ -21,11 +22,14 @@ use crate::input::{place_imus, resolve_robot_with};
 ///
 /// `--source poses` simulates a session with tool poses instead
 /// (docs/model.md §7.9): a random hand-held-like motion of a body carrying
-/// the IMU, its poses at --pose-rate Hz (sample times jittered by
-/// --pose-jitter s), the IMU at --rate Hz, the 30 true parameters drawn
-/// from the priors with a uniformly random mount rotation: session.toml
-/// (source = "poses"), poses.csv, imu.csv and truth.toml. The flags of the
-/// robot and its joints do not apply to it.
+/// the IMU (the 30 true parameters drawn from the priors with a uniformly
+/// random mount rotation) or, with --robot, the robot's flange on the motion
+/// `robimu simulate --robot` makes with the same seed, --duration and
+/// --rate (its imu.csv byte for byte); its poses at --pose-rate Hz (sample
+/// times jittered by --pose-jitter s), the IMU at --rate Hz, its stamps
+/// optionally late by --imu-jitter and a lag drifting by --imu-drift:
+/// session.toml (source = "poses"), poses.csv, imu.csv and truth.toml. The
+/// other flags of joint sessions do not apply to it.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateCmd {
     /// What the session records of the motion: `joints` (joint angles of a
@@ -136,6 +140,14 @@ pub struct SimulateCmd {
     /// [default: 0.003].
     #[arg(long, value_name = "S")]
     pub pose_jitter: Option<f64>,
+    /// `--source poses`: standard deviation of the IMU stamps' arrival
+    /// jitter, s (a sample taken at t is stamped t + lag + jitter) [default: 0].
+    #[arg(long, value_name = "S")]
+    pub imu_jitter: Option<f64>,
+    /// `--source poses`: change of the IMU stamps' lag over the recording, s
+    /// (linear, zero mid-recording: the true tau is the mean lag's) [default: 0].
+    #[arg(long, value_name = "S")]
+    pub imu_drift: Option<f64>,
 }
 
 /// What a simulated session records of the motion.
@@ -169,11 +181,16 @@ impl SimulateCmd {
         let joint_only = self.joint_only_flags();
         if !joint_only.is_empty() {
             bail!(
-                "{}: not for --source poses (a pose session has no robot and no joints; it takes \
-                 --out, --duration, --seed, --rate, --pose-rate and --pose-jitter)",
+                "{}: not for --source poses (a pose session has no joints; it takes --out, \
+                 --duration, --seed, --rate, --robot, --pose-rate, --pose-jitter, --imu-jitter \
+                 and --imu-drift)",
                 joint_only.join(", ")
             );
         }
+        let robot = match &self.robot {
+            Some(name) => Some(resolve_robot_with(name, None, &self.links)?.0),
+            None => None,
+        };
         Ok(simulate_pose_dir(&PoseSessionSpec {
             out: self.out.clone(),
             duration: self.duration.unwrap_or(60.0),
@@ -181,6 +198,11 @@ impl SimulateCmd {
             pose_rate: self.pose_rate.unwrap_or(15.0),
             pose_jitter: self.pose_jitter.unwrap_or(0.003),
             imu_rate: self.rate.unwrap_or(100.0),
+            robot,
+            imu_timing: ImuTiming {
+                jitter: self.imu_jitter.unwrap_or(0.0),
+                drift: self.imu_drift.unwrap_or(0.0),
+            },
         })?)
     }
 
@@ -188,10 +210,9 @@ impl SimulateCmd {
     fn joint_only_flags(&self) -> Vec<&'static str> {
         let r = crate::args::ResonanceMode::default();
         [
-            (self.robot.is_some(), "--robot"),
             (
-                self.links.base.is_some() || self.links.tip.is_some(),
-                "--base/--tip",
+                self.robot.is_none() && (self.links.base.is_some() || self.links.tip.is_some()),
+                "--base/--tip without --robot",
             ),
             (self.trajectory.is_some(), "--trajectory"),
             (self.joint_rate.is_some(), "--joint-rate"),
@@ -218,9 +239,14 @@ impl SimulateCmd {
 
     /// `--source joints`: the joint session.
     fn simulate_joints(&self) -> anyhow::Result<Simulated> {
-        if self.pose_rate.is_some() || self.pose_jitter.is_some() {
+        if self.pose_rate.is_some()
+            || self.pose_jitter.is_some()
+            || self.imu_jitter.is_some()
+            || self.imu_drift.is_some()
+        {
             bail!(
-                "--pose-rate and --pose-jitter are for --source poses (a session with tool poses)"
+                "--pose-rate, --pose-jitter, --imu-jitter and --imu-drift are for --source poses \
+                 (a session with tool poses)"
             );
         }
         let (duration, rate) = (self.duration.unwrap_or(300.0), self.rate.unwrap_or(120.0));

@@ -3,24 +3,29 @@
 //! (`source = "poses"`, the σ it was simulated with), `poses.csv`,
 //! `imu.csv` and `truth.toml` with the 30 true parameters.
 //!
-//! The truth is drawn from the priors with a uniformly random mount
-//! rotation ([`draw_pose_truth`]), the motion is a random hand-held-like
-//! one ([`random_pose_motion`]), and the samples are
+//! Without a robot the truth is drawn from the priors with a uniformly
+//! random mount rotation ([`draw_pose_truth`]), the motion is a random
+//! hand-held-like one ([`random_pose_motion`]), and the samples are
 //! [`simulate_pose_session`]'s, with the default noise of
-//! [`PoseCalibrationOptions`](crate::PoseCalibrationOptions).
+//! [`PoseCalibrationOptions`](crate::PoseCalibrationOptions). With a robot
+//! the body is its flange on the motion of `robimu simulate --robot`
+//! (`pipeline/pose_flange.rs`). Either way the IMU stamps may then carry
+//! arrival jitter and a drifting lag ([`ImuTiming`]).
 
 use std::fmt;
 use std::path::PathBuf;
 
+use robimu_model::Robot;
 use robimu_session::{
     pose_parameter_names, NoiseOverride, PoseNoise as PoseSigma, PoseSessionMeta,
     PoseSessionWriter, Truth,
 };
 
+use super::pose_flange::flange_session;
 use super::simulate::check_rates;
 use super::PipelineError;
 use crate::pose_calibrate::{
-    draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise,
+    draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming, PoseNoise,
 };
 
 /// What to simulate.
@@ -39,6 +44,10 @@ pub struct PoseSessionSpec {
     pub pose_jitter: f64,
     /// IMU sample rate, Hz.
     pub imu_rate: f64,
+    /// The robot whose flange carries the IMU (`None`: a hand-held motion).
+    pub robot: Option<Robot>,
+    /// Arrival jitter and lag drift of the IMU stamps.
+    pub imu_timing: ImuTiming,
 }
 
 /// A written pose session.
@@ -87,20 +96,49 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             spec.pose_rate
         )));
     }
+    let ImuTiming { jitter, drift } = spec.imu_timing;
+    if !(jitter.is_finite() && jitter >= 0.0 && drift.is_finite()) {
+        return Err(PipelineError::input(anyhow::anyhow!(
+            "--imu-jitter must be ≥ 0 and --imu-drift finite (got {jitter} s and {drift} s)"
+        )));
+    }
     let fit = |e: crate::PoseCalibrationError| PipelineError::fit(e.into());
-    let truth = draw_pose_truth(spec.seed);
-    let motion = random_pose_motion(spec.duration, spec.seed.wrapping_add(1)).map_err(fit)?;
-    let noise = PoseNoise::default();
-    let data = simulate_pose_session(
-        &truth,
-        &motion,
-        spec.pose_rate,
-        spec.pose_jitter,
-        spec.imu_rate,
-        &noise,
-        spec.seed.wrapping_add(2),
-    )
-    .map_err(fit)?;
+    let mut noise = PoseNoise::default();
+    let (truth, mut data) = match &spec.robot {
+        None => {
+            let truth = draw_pose_truth(spec.seed);
+            let motion =
+                random_pose_motion(spec.duration, spec.seed.wrapping_add(1)).map_err(fit)?;
+            let data = simulate_pose_session(
+                &truth,
+                &motion,
+                spec.pose_rate,
+                spec.pose_jitter,
+                spec.imu_rate,
+                &noise,
+                spec.seed.wrapping_add(2),
+            )
+            .map_err(fit)?;
+            (truth, data)
+        }
+        Some(robot) => {
+            let f = flange_session(
+                robot.clone(),
+                spec.duration,
+                spec.imu_rate,
+                spec.seed,
+                spec.pose_rate,
+                spec.pose_jitter,
+                &noise,
+            )
+            .map_err(PipelineError::fit)?;
+            noise.sigma_z = f.sigma_z;
+            (f.truth, f.data)
+        }
+    };
+    spec.imu_timing
+        .apply(&mut data, spec.seed.wrapping_add(3))
+        .map_err(|e| PipelineError::input(e.into()))?;
     let meta = PoseSessionMeta {
         poses: Some(PoseSigma {
             sigma_p: Some(noise.sigma_p),
@@ -111,9 +149,20 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             sigma_q: None,
         }),
         notes: Some(format!(
-            "simulated by robimu simulate --source poses (seed {}, poses at {} Hz with jitter \
-             {} s, IMU at {} Hz)",
-            spec.seed, spec.pose_rate, spec.pose_jitter, spec.imu_rate
+            "simulated by robimu simulate --source poses (seed {}, {}, poses at {} Hz with \
+             jitter {} s, IMU at {} Hz, IMU stamps' arrival jitter {} s and lag drift {} s)",
+            spec.seed,
+            spec.robot
+                .as_ref()
+                .map_or("a hand-held motion".to_string(), |r| format!(
+                    "the flange of {}",
+                    r.name()
+                )),
+            spec.pose_rate,
+            spec.pose_jitter,
+            spec.imu_rate,
+            spec.imu_timing.jitter,
+            spec.imu_timing.drift
         )),
         ..Default::default()
     };
@@ -136,3 +185,7 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
         tau: truth[5],
     })
 }
+
+#[cfg(test)]
+#[path = "pose_simulate_tests.rs"]
+mod tests;

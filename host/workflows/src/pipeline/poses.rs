@@ -17,7 +17,10 @@
 //!   posterior σ is above 0.9 of it: listed, not a reason for doubt;
 //! * **plausible** — estimates more than 4 prior σ from the prior mean,
 //!   where the prior is informative (not the sensor rotations, whose
-//!   prior σ is π): *doubtful*.
+//!   prior σ is π): *doubtful*;
+//! * **time offset** — a score test of a constant τ over the recording
+//!   ([`TauDrift`](crate::TauDrift), docs/model.md §7.9): p below 0.01 is
+//!   *doubtful*.
 
 use std::path::Path;
 
@@ -209,6 +212,7 @@ fn pose_verdict(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> Verdict
         residuals(opts, cal),
         undetermined(cal),
         plausible(cal),
+        crate::pose_calibrate::tau_drift::verdict_check(cal.tau_drift.as_ref()),
     ];
     crate::verdict::record(checks, !cal.converged)
 }

@@ -128,8 +128,26 @@ fn in_range(what: &str, v: f64, max: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Simulate the session `spec` describes and write it.
-pub fn simulate_session(spec: &SessionSpec) -> anyhow::Result<Simulated> {
+/// The truth, the trajectory and the samples of `spec` before any effect,
+/// warm-up or bias walk (what [`simulate_session`] and a robot's flange pose
+/// session, [`super::pose_flange`], share).
+pub(crate) struct SimulatedMotion {
+    /// The layout of x.
+    pub layout: ParamLayout,
+    /// The true x.
+    pub x_true: Vec<f64>,
+    /// The joint trajectory.
+    pub trajectory: Spline,
+    /// The samples.
+    pub data: Measurements,
+    /// How they were sampled.
+    pub opts: SimulateOptions,
+    /// The IMU noise model given.
+    pub noise_model: Option<NoiseModel>,
+}
+
+/// The motion and samples of `spec` ([`SimulatedMotion`]).
+pub(crate) fn simulate_motion(spec: &SessionSpec) -> anyhow::Result<SimulatedMotion> {
     let robot = &spec.robot;
     if spec.imus > 1 {
         for (given, flag) in [
@@ -179,8 +197,59 @@ pub fn simulate_session(spec: &SessionSpec) -> anyhow::Result<Simulated> {
         opts.sigma_z = model.sigma_z();
         opts.noise_model = (!model.is_white()).then(|| model.clone());
     }
-    let mut data = simulate(robot, &layout, &x_true, &trajectory, &opts, spec.seed)
+    let data = simulate(robot, &layout, &x_true, &trajectory, &opts, spec.seed)
         .context("cannot simulate the measurements at these true parameters")?;
+    Ok(SimulatedMotion {
+        layout,
+        x_true,
+        trajectory,
+        data,
+        opts,
+        noise_model,
+    })
+}
+
+#[cfg(test)]
+impl SessionSpec {
+    /// `robimu simulate --robot NAME --duration --rate --seed --out`'s spec
+    /// (every other flag at its default).
+    pub(crate) fn plain(robot: Robot, duration: f64, rate: f64, seed: u64, out: PathBuf) -> Self {
+        Self {
+            robot_field: robot.name().to_string(),
+            robot,
+            duration,
+            trajectory: None,
+            rate,
+            joint_rate: None,
+            seed,
+            out,
+            noise_free: false,
+            truth: None,
+            tracker: false,
+            nominal: Vec::new(),
+            poses: 250,
+            effects: Vec::new(),
+            bias_walk: None,
+            temperature: None,
+            resonance: Mode::default(),
+            noise_model: None,
+            imus: 1,
+            imu_position: Vec::new(),
+        }
+    }
+}
+
+/// Simulate the session `spec` describes and write it.
+pub fn simulate_session(spec: &SessionSpec) -> anyhow::Result<Simulated> {
+    let robot = &spec.robot;
+    let SimulatedMotion {
+        layout,
+        x_true,
+        trajectory,
+        mut data,
+        opts,
+        noise_model,
+    } = simulate_motion(spec)?;
     if let Some(w) = warm_up(spec)? {
         data.imu_temp = Some(w.readings(&data.imu_t));
     }

@@ -5,11 +5,13 @@
 //! [`calibrate_poses`]: fit the pose spline to the poses, find τ and the
 //! sensor rotations from the data (the start-up, [`Startup`]), then solve the MAP problem
 //! ([`robimu_solver::PoseProblem`]) by Levenberg–Marquardt; the covariance
-//! of x is the Schur complement's inverse (paper (24)). [`simulate`] makes
-//! sessions with known truth.
+//! of x is the Schur complement's inverse (paper (24)); then a score test
+//! of a constant τ over the recording (`tau_drift.rs`, [`TauDrift`]).
+//! [`simulate`] makes sessions with known truth.
 
 pub mod simulate;
 pub(crate) mod startup;
+pub(crate) mod tau_drift;
 #[cfg(test)]
 mod tests;
 
@@ -20,9 +22,12 @@ use robimu_solver::{
     IterationRecord, LeastSquares, LmOptions, PoseData, PoseProblem, PoseProblemError,
 };
 
-pub use simulate::{draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise};
+pub use simulate::{
+    draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming, PoseNoise,
+};
 use startup::greater;
 pub use startup::Startup;
+pub use tau_drift::TauDrift;
 
 /// Why a pose calibration failed.
 #[derive(Debug, thiserror::Error)]
@@ -118,6 +123,9 @@ pub struct PoseCalibration {
     pub knot_spacing: f64,
     /// What the start-up found.
     pub startup: Startup,
+    /// The score test of a constant τ (docs/model.md §7.9, *time offset*);
+    /// `None` when it could not be formed.
+    pub tau_drift: Option<TauDrift>,
 }
 
 /// Checks of the measurements; the rotations as matrices.
@@ -208,6 +216,7 @@ pub fn calibrate_poses_with(
         prior_mean: specs.iter().map(|s| s.nominal).collect(),
         prior_sigma: specs.iter().map(|s| s.sigma).collect(),
     };
+    let (base, pdata_all) = (spline.clone(), pdata.clone());
     let mut problem = PoseProblem::new(spline, pdata)?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
@@ -221,6 +230,13 @@ pub fn calibrate_poses_with(
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();
     let (imu_rms, pose_rms) = residual_rms(&problem, &sol.theta, data)?;
+    let drift = tau_drift::tau_drift(
+        &base,
+        &pdata_all,
+        problem.selected(),
+        &sol.theta,
+        &sol.factor,
+    )?;
     Ok(PoseCalibration {
         names: specs.iter().map(|s| s.name.clone()).collect(),
         units: specs.iter().map(|s| s.unit).collect(),
@@ -242,6 +258,7 @@ pub fn calibrate_poses_with(
         cost: sol.summary.final_cost,
         knot_spacing: spacing,
         startup: st,
+        tau_drift: drift,
     })
 }
 

@@ -159,3 +159,54 @@ pub fn simulate_pose_session(
     }
     Ok(out)
 }
+
+/// Arrival timing of simulated IMU stamps (docs/model.md §7.9): a sample
+/// taken at true time t is stamped t + lag(t) + n, n ~ N(0, `jitter`²),
+/// lag(t) = `drift` · ((t − t_0)/(t_1 − t_0) − ½) over the samples' span
+/// [t_0, t_1] (zero mid-recording, so the truth's τ is the mean lag's).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ImuTiming {
+    /// Arrival jitter σ (s).
+    pub jitter: f64,
+    /// Change of the lag over the recording (s).
+    pub drift: f64,
+}
+
+impl ImuTiming {
+    /// Whether the stamps are the true times.
+    pub fn is_exact(&self) -> bool {
+        self.jitter == 0.0 && self.drift == 0.0
+    }
+
+    /// Restamp the IMU samples of `data` (module doc of [`ImuTiming`]),
+    /// keeping them in stamp order.
+    pub fn apply(
+        &self,
+        data: &mut PoseMeasurements,
+        seed: u64,
+    ) -> Result<(), PoseCalibrationError> {
+        if !(self.jitter.is_finite() && self.jitter >= 0.0 && self.drift.is_finite()) {
+            return Err(PoseCalibrationError::Input(format!(
+                "IMU timing: jitter {} s must be ≥ 0 and drift {} s finite",
+                self.jitter, self.drift
+            )));
+        }
+        if self.is_exact() || data.imu_t.len() < 2 {
+            return Ok(());
+        }
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let (t0, t1) = (data.imu_t[0], data.imu_t[data.imu_t.len() - 1]);
+        let mut samples: Vec<(f64, [f64; 6])> = data
+            .imu_t
+            .iter()
+            .zip(&data.imu_z)
+            .map(|(&t, &z)| {
+                let lag = self.drift * ((t - t0) / (t1 - t0) - 0.5);
+                (t + lag + normal(&mut rng, self.jitter), z)
+            })
+            .collect();
+        samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+        (data.imu_t, data.imu_z) = samples.into_iter().unzip();
+        Ok(())
+    }
+}
