@@ -34,7 +34,11 @@ fn judged(dir: &std::path::Path, spec: &PoseSessionSpec) -> (Trust, Vec<f64>, St
         .collect();
     let v = f.result.verdict.unwrap();
     let drift = f.cal.tau_drift.map_or(f64::NAN, |d| d.statistic);
-    let why = format!("S {drift:.1}; {}", v.reasons.join("; "));
+    let why = format!(
+        "S {drift:.1}; {}; next: {}",
+        v.reasons.join("; "),
+        v.next_steps.join("; ")
+    );
     (v.trust, z, why)
 }
 
@@ -60,6 +64,9 @@ fn a_messy_session_is_not_good_and_a_clean_one_is() {
     let (t, _, why) = judged(tmp.path(), &spec(None, 0.004, 0.030, 4));
     assert_ne!(t, Trust::Good);
     assert!(why.contains("time offset"), "{why}");
+    // the timing first: the residuals' σ would only hide it
+    assert!(why.contains("next: stamp the IMU's samples where"), "{why}");
+    assert!(!why.contains("put the σ the residuals suggest"), "{why}");
     // a slow flange motion: the other parameters absorb much of the drift
     let (t, _, why) = judged(tmp.path(), &spec(Some("ur5e"), 0.004, 0.030, 4));
     assert_ne!(t, Trust::Good);

@@ -189,7 +189,7 @@ fn pose_result(
         noise_model: Some(NoiseModelRecord::White),
         imu_noise_models: Vec::new(),
         noise_warning: None,
-        verdict: Some(pose_verdict(opts, cal)),
+        verdict: Some(pose_verdict(opts, cal, dir)),
         effects: None,
         model_tests: None,
         pose_accuracy: None,
@@ -202,7 +202,7 @@ fn whitened_imu_rms(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> [f6
 }
 
 /// The verdict on a pose calibration (module doc).
-fn pose_verdict(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> VerdictRecord {
+fn pose_verdict(opts: &PoseCalibrationOptions, cal: &PoseCalibration, dir: &Path) -> VerdictRecord {
     let checks = vec![
         VerdictCheck {
             topic: "converged".into(),
@@ -214,7 +214,43 @@ fn pose_verdict(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> Verdict
         plausible(cal),
         crate::pose_calibrate::tau_drift::verdict_check(cal.tau_drift.as_ref()),
     ];
-    crate::verdict::record(checks, !cal.converged)
+    let mut verdict = crate::verdict::record(checks, !cal.converged);
+    verdict.next_steps = pose_next_steps(&verdict, dir);
+    verdict
+}
+
+/// What to do about each failed check, as commands or edits to paste
+/// (`dir` is the session). A τ that wanders also inflates the residuals:
+/// then the timing comes first, and no σ is suggested.
+fn pose_next_steps(verdict: &VerdictRecord, dir: &Path) -> Vec<String> {
+    let dir = dir.display();
+    let failed = |topic: &str| verdict.checks.iter().any(|c| c.topic == topic && !c.ok);
+    let mut steps = Vec::new();
+    if failed("converged") {
+        steps.push(format!(
+            "find what keeps the fit from converging: robimu check {dir}"
+        ));
+    }
+    if failed("time offset") {
+        steps.push(
+            "stamp the IMU's samples where they are taken (the board's own clock, as \
+             `robimu record` does) instead of on arrival at the PC, or record with the IMU \
+             and the pose source on one clock; then record again"
+                .into(),
+        );
+    } else if failed("residuals") {
+        steps.push(format!(
+            "put the σ the residuals suggest (the residuals check) in {dir}/session.toml's \
+             [noise] and [poses] tables and calibrate again"
+        ));
+    }
+    if failed("plausible") {
+        steps.push(format!(
+            "check the units and the pose convention: robimu check {dir} (positions in mm \
+             need --units mm at the import; the inverse rotation --conjugate or --inverse)"
+        ));
+    }
+    steps
 }
 
 /// The whitened RMS of the IMU channels and the poses, within
@@ -385,9 +421,9 @@ mod tests {
                 check.text
             );
         }
-        assert_eq!(
-            pose_verdict(&wrong, &cal).trust,
-            robimu_session::result::Trust::Doubtful
-        );
+        let verdict = pose_verdict(&wrong, &cal, Path::new("s"));
+        assert_eq!(verdict.trust, robimu_session::result::Trust::Doubtful);
+        assert_eq!(verdict.next_steps.len(), 1, "{:?}", verdict.next_steps);
+        assert!(verdict.next_steps[0].contains("s/session.toml's [noise]"));
     }
 }
