@@ -227,5 +227,6 @@ pub fn predict_jacobians(
     Ok(out)
 }
 
+pub mod rows;
 #[cfg(test)]
 mod tests;

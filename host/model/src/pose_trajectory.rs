@@ -65,12 +65,14 @@ use crate::jet::{Jet, Scalar};
 use crate::spline::{Basis, Knots, Spline, SplineError};
 
 mod fit;
+mod rotation_jet;
 pub mod so3;
 #[cfg(test)]
 mod tests;
 mod time_jet;
 
 pub use fit::FitReport;
+pub use rotation_jet::{rot_var, RotationJet, RotationSeeds, ROT_TIME, ROT_VARS};
 use so3::{exp_s, left_jacobian_inv, right_jacobian_inv};
 pub use time_jet::{ImuPointJet, KinematicsJet};
 

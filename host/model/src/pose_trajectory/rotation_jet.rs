@@ -1,0 +1,128 @@
+//! B's rotation kinematics as jets in only the 13 variables that enter
+//! them (MODEL.md §10 with §4's t + τ): the time offset (variable
+//! [`ROT_TIME`]) and the 12 local rotation parameters of the 4 control
+//! points at t (variable [`rot_var`]`(j, c)`); the position part, linear in
+//! its control points, as plain values (p̈, p⃛ and the weights N̈_j).
+//! The same recursion as [`PoseSpline::kinematics_jet`], whose 30-variable
+//! jets carry 17 zero gradients here (a test compares the two).
+//! The seeds of a segment (R_i and the differences d_j with their
+//! Jacobians) are made once per segment ([`RotationSeeds`]).
+
+use super::*;
+
+/// Number of jet variables: time offset + 12 rotation parameters.
+pub const ROT_VARS: usize = 1 + LOCAL;
+/// The time-offset variable.
+pub const ROT_TIME: usize = 0;
+
+/// The variable of component c of the rotation parameter of control point
+/// `first + j`.
+pub const fn rot_var(j: usize, c: usize) -> usize {
+    1 + 3 * j + c
+}
+
+type J13 = Jet<ROT_VARS>;
+
+/// The seeds of one segment (first control point `first`): R_first and
+/// d_j as jets in the rotation variables.
+#[derive(Clone, Copy, Debug)]
+pub struct RotationSeeds {
+    first: usize,
+    r0: M3<J13>,
+    d: [V3<J13>; DEGREE],
+}
+
+/// B's kinematics at one t ([`PoseSpline::rotation_jet`]).
+#[derive(Clone, Copy, Debug)]
+pub struct RotationJet {
+    /// Index of the first of the 4 control points at t.
+    pub first: usize,
+    /// R(t).
+    pub r: M3<J13>,
+    /// Body rate ω (rad/s).
+    pub omega: V3<J13>,
+    /// Body angular acceleration ω̇ (rad/s²).
+    pub alpha: V3<J13>,
+    /// p̈(t) of B's origin in W (m/s²).
+    pub a: V3,
+    /// p⃛(t) (m/s³), p̈'s derivative along the time offset.
+    pub jerk: V3,
+    /// N̈_{first+j}(t): ∂p̈/∂c_{first+j} = N̈_j·I.
+    pub ddn: [f64; ORDER],
+}
+
+impl PoseSpline {
+    /// The seeds of the segment whose first control point is `first`.
+    ///
+    /// # Panics
+    /// If `first + 3` is not a control point.
+    pub fn rotation_seeds(&self, first: usize) -> RotationSeeds {
+        let r_i = &self.rotation[first];
+        let mut r0: M3<J13> = r_i.map(|row| row.map(J13::cst));
+        for c in 0..3 {
+            let mut e = [0.0; 3];
+            e[c] = 1.0;
+            let dr = mul_mm(r_i, &so3::hat(e));
+            for (row, drow) in r0.iter_mut().zip(&dr) {
+                for (x, dx) in row.iter_mut().zip(drow) {
+                    x.d[rot_var(0, c)] = *dx;
+                }
+            }
+        }
+        let d_val = self.differences(first);
+        let d = std::array::from_fn(|j| {
+            let mut dj = d_val[j].map(J13::cst);
+            let (jl, jr) = (left_jacobian_inv(d_val[j]), right_jacobian_inv(d_val[j]));
+            for r in 0..3 {
+                for c in 0..3 {
+                    dj[r].d[rot_var(j, c)] = -jl[r][c];
+                    dj[r].d[rot_var(j + 1, c)] = jr[r][c];
+                }
+            }
+            dj
+        });
+        RotationSeeds { first, r0, d }
+    }
+
+    /// B's kinematics at `t` (module doc); `seeds` is reused when it is of
+    /// t's segment, else replaced.
+    pub fn rotation_jet(
+        &self,
+        t: f64,
+        seeds: &mut Option<RotationSeeds>,
+    ) -> Result<RotationJet, SplineError> {
+        let mut basis = Basis::default();
+        self.knots().basis(t, &mut basis)?;
+        let i = basis.first;
+        let b = &basis.d;
+        let s = match seeds {
+            Some(s) if s.first == i => s,
+            _ => seeds.insert(self.rotation_seeds(i)),
+        };
+        let lam: [[f64; DEGREE]; 4] =
+            std::array::from_fn(|k| std::array::from_fn(|j| b[k][j + 1..ORDER].iter().sum()));
+        let lam_s: [[J13; DEGREE]; 3] = std::array::from_fn(|k| {
+            std::array::from_fn(|j| {
+                let mut l = J13::cst(lam[k][j]);
+                l.d[ROT_TIME] = lam[k + 1][j];
+                l
+            })
+        });
+        let (mut a, mut jerk) = ([0.0; 3], [0.0; 3]);
+        for j in 0..ORDER {
+            let c = self.position_control_point(i + j);
+            a = add(a, scale(c, b[2][j]));
+            jerk = add(jerk, scale(c, b[3][j]));
+        }
+        let rk = time_jet::rot_kinematics_s(&s.r0, &s.d, &lam_s);
+        Ok(RotationJet {
+            first: i,
+            r: rk.r,
+            omega: rk.omega,
+            alpha: rk.alpha,
+            a,
+            jerk,
+            ddn: std::array::from_fn(|j| b[2][j]),
+        })
+    }
+}
