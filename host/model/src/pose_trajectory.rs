@@ -583,6 +583,19 @@ impl PoseSpline {
         self.pose_residual_r(t, p_meas, &matrix_from_quat(q_meas))
     }
 
+    /// The residual values (e_p, e_r) of [`Self::pose_residual_r`] alone,
+    /// without the Jacobians.
+    pub fn pose_error_r(&self, t: f64, p_meas: V3, r_meas: &M3) -> Result<(V3, V3), SplineError> {
+        let loc = self.local(t)?;
+        let d = self.differences(loc.first);
+        let mut r = self.rotation[loc.first];
+        for j in 0..DEGREE {
+            r = mul_mm(&r, &exp_s(scale(d[j], loc.lam[0][j])));
+        }
+        let [p, _, _] = self.position_rows(&loc);
+        Ok((sub(p, p_meas), log_so3(&mul_mm(&transpose(r_meas), &r))))
+    }
+
     /// [`Self::pose_residual`] with the measured rotation as a matrix R̃.
     pub fn pose_residual_r(
         &self,

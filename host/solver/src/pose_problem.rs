@@ -181,9 +181,9 @@ impl PoseProblem {
         let d = &self.data;
         let mut out = Vec::with_capacity(6 * (d.pose_t.len() + self.selected.len()) + POSE_PARAMS);
         for k in 0..d.pose_t.len() {
-            let e = sp.pose_residual_r(d.pose_t[k], d.pose_p[k], &d.pose_r[k])?;
-            out.extend(e.e_p.iter().map(|v| v / d.sigma_p));
-            out.extend(e.e_r.iter().map(|v| v / d.sigma_r));
+            let (e_p, e_r) = sp.pose_error_r(d.pose_t[k], d.pose_p[k], &d.pose_r[k])?;
+            out.extend(e_p.iter().map(|v| v / d.sigma_p));
+            out.extend(e_r.iter().map(|v| v / d.sigma_r));
         }
         for &i in &self.selected {
             let z = pm::predict(&sp, d.imu_t[i], x)?;
@@ -252,27 +252,26 @@ impl Segment {
         }
     }
 
-    /// Add one sample's whitened rows (`wr`: whitened residuals).
+    /// Add one sample's whitened rows (`wr`: whitened residuals), the
+    /// three rows of a sensor in one pass over its sums.
     fn add(&mut self, rows: &PoseRows, w: &[f64; 6], wr: &[f64; 6]) {
-        for r in 0..3 {
-            let a: [f64; ACCEL_COLS] = rows.accel[r].map(|v| v * w[r]);
-            for p in 0..ACCEL_COLS {
-                let ap = a[p];
-                let row = &mut self.aa[p];
-                for q in 0..ACCEL_COLS {
-                    row[q] += ap * a[q];
-                }
-                self.ga[p] += ap * wr[r];
+        let a: [[f64; ACCEL_COLS]; 3] = std::array::from_fn(|r| rows.accel[r].map(|v| v * w[r]));
+        for p in 0..ACCEL_COLS {
+            let (x0, x1, x2) = (a[0][p], a[1][p], a[2][p]);
+            let row = &mut self.aa[p];
+            for q in 0..ACCEL_COLS {
+                row[q] += x0 * a[0][q] + x1 * a[1][q] + x2 * a[2][q];
             }
-            let g: [f64; GYRO_COLS] = rows.gyro[r].map(|v| v * w[3 + r]);
-            for p in 0..GYRO_COLS {
-                let gp = g[p];
-                let row = &mut self.gg_m[p];
-                for q in 0..GYRO_COLS {
-                    row[q] += gp * g[q];
-                }
-                self.gg[p] += gp * wr[3 + r];
+            self.ga[p] += x0 * wr[0] + x1 * wr[1] + x2 * wr[2];
+        }
+        let g: [[f64; GYRO_COLS]; 3] = std::array::from_fn(|r| rows.gyro[r].map(|v| v * w[3 + r]));
+        for p in 0..GYRO_COLS {
+            let (x0, x1, x2) = (g[0][p], g[1][p], g[2][p]);
+            let row = &mut self.gg_m[p];
+            for q in 0..GYRO_COLS {
+                row[q] += x0 * g[0][q] + x1 * g[1][q] + x2 * g[2][q];
             }
+            self.gg[p] += x0 * wr[3] + x1 * wr[4] + x2 * wr[5];
         }
     }
 

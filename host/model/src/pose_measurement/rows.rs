@@ -5,7 +5,8 @@
 //! them), computed with 13-variable rotation jets
 //! ([`PoseSpline::rotation_jet`]) and the rest in closed form:
 //!
-//! * s = Rᵀ(p̈ − g) + α × p_I + ω × (ω × p_I) (body frame; §10's
+//! * s = Rᵀ(p̈ − g) + α × p_I + ω × (ω × p_I) (body frame, Rᵀ(p̈ − g) from
+//!   [`PoseSpline::rotation_jet`]; §10's
 //!   Rᵀ(a_n − g) with a_n = p̈ + α_n × R p_I + ω_n × (ω_n × R p_I));
 //!   ∂s/∂c_j = N̈_j Rᵀ, ∂s/∂p_I = [α]× + [ω]×², ∂s/∂g = −Rᵀ ∂g/∂g_xy;
 //! * z_a = M_a s + b_a, z_ω = M_ω ω + b_ω with M = K Γ R_s (eq. (6)), whose
@@ -150,17 +151,13 @@ pub fn prediction_rows(
     ctx: &RowContext,
     seeds: &mut Option<RotationSeeds>,
 ) -> Result<PoseRows, PoseMeasurementError> {
-    let k = spline.rotation_jet(t + ctx.tau, seeds)?;
+    let k = spline.rotation_jet(t + ctx.tau, ctx.g, seeds)?;
     let pi = ctx.p_imu.map(Jet::cst);
-    let mut u = sub(k.a, ctx.g).map(Jet::<ROT_VARS>::cst);
-    for c in 0..3 {
-        u[c].d[ROT_TIME] = k.jerk[c];
-    }
     let s = add(
-        add(mul_mtv(&k.r, u), cross(k.alpha, pi)),
+        add(k.f, cross(k.alpha, pi)),
         cross(k.omega, cross(k.omega, pi)),
     );
-    let rv = k.r.map(|row| row.map(|e| e.v));
+    let rv = k.r;
     let (w, al) = (k.omega.map(|e| e.v), k.alpha.map(|e| e.v));
     let wx = hat(w);
     let mut ds_dp = mul_mm(&wx, &wx);

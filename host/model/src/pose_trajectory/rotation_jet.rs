@@ -4,7 +4,11 @@
 //! points at t (variable [`rot_var`]`(j, c)`); the position part, linear in
 //! its control points, as plain values (p̈, p⃛ and the weights N̈_j).
 //! The same recursion as [`PoseSpline::kinematics_jet`], whose 30-variable
-//! jets carry 17 zero gradients here (a test compares the two).
+//! jets carry 17 zero gradients here (a test compares the two), except
+//! that R(t) is not carried as a jet matrix: what the IMU needs of it is
+//! the specific force of B's origin in B, Rᵀ(p̈ − g), carried as a jet
+//! vector through the same products (Rᵀu = A_3ᵀA_2ᵀA_1ᵀR_iᵀu), and Exp is
+//! Rodrigues' formula with [w]×² = wwᵀ − |w|²I.
 //! The seeds of a segment (R_i and the differences d_j with their
 //! Jacobians) are made once per segment ([`RotationSeeds`]).
 
@@ -37,16 +41,14 @@ pub struct RotationSeeds {
 pub struct RotationJet {
     /// Index of the first of the 4 control points at t.
     pub first: usize,
-    /// R(t).
-    pub r: M3<J13>,
+    /// R(t) (value).
+    pub r: M3,
+    /// Rᵀ(p̈ − g): the specific force of B's origin in B (m/s²).
+    pub f: V3<J13>,
     /// Body rate ω (rad/s).
     pub omega: V3<J13>,
     /// Body angular acceleration ω̇ (rad/s²).
     pub alpha: V3<J13>,
-    /// p̈(t) of B's origin in W (m/s²).
-    pub a: V3,
-    /// p⃛(t) (m/s³), p̈'s derivative along the time offset.
-    pub jerk: V3,
     /// N̈_{first+j}(t): ∂p̈/∂c_{first+j} = N̈_j·I.
     pub ddn: [f64; ORDER],
 }
@@ -84,11 +86,12 @@ impl PoseSpline {
         RotationSeeds { first, r0, d }
     }
 
-    /// B's kinematics at `t` (module doc); `seeds` is reused when it is of
-    /// t's segment, else replaced.
+    /// B's kinematics at `t` with gravity `g` (module doc); `seeds` is
+    /// reused when it is of t's segment, else replaced.
     pub fn rotation_jet(
         &self,
         t: f64,
+        g: V3,
         seeds: &mut Option<RotationSeeds>,
     ) -> Result<RotationJet, SplineError> {
         let mut basis = Basis::default();
@@ -108,21 +111,77 @@ impl PoseSpline {
                 l
             })
         });
-        let (mut a, mut jerk) = ([0.0; 3], [0.0; 3]);
+        let (mut a, mut jerk) = ([0.0; 3], [0.0f64; 3]);
         for j in 0..ORDER {
             let c = self.position_control_point(i + j);
             a = add(a, scale(c, b[2][j]));
             jerk = add(jerk, scale(c, b[3][j]));
         }
-        let rk = time_jet::rot_kinematics_s(&s.r0, &s.d, &lam_s);
+        let mut u = sub(a, g).map(J13::cst);
+        for c in 0..3 {
+            u[c].d[ROT_TIME] = jerk[c];
+        }
+        let (r, omega, alpha, f) = recursion(s, &lam_s, u);
         Ok(RotationJet {
             first: i,
-            r: rk.r,
-            omega: rk.omega,
-            alpha: rk.alpha,
-            a,
-            jerk,
+            r,
+            f,
+            omega,
+            alpha,
             ddn: std::array::from_fn(|j| b[2][j]),
         })
     }
+}
+
+/// Exp by Rodrigues with [w]×² = wwᵀ − θ²I (as [`so3::exp_s`], series
+/// below the same small angle).
+fn exp_jet(w: V3<J13>) -> M3<J13> {
+    let th2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+    let (a, b) = if th2.v < 1e-8 {
+        (
+            J13::cst(1.0) - th2 * (1.0 / 6.0) + th2 * th2 * (1.0 / 120.0),
+            J13::cst(0.5) - th2 * (1.0 / 24.0) + th2 * th2 * (1.0 / 720.0),
+        )
+    } else {
+        let th = th2.sqrt();
+        let (s, c) = th.sin_cos();
+        (s / th, (J13::cst(1.0) - c) / th2)
+    };
+    let bw = [b * w[0], b * w[1], b * w[2]];
+    let aw = [a * w[0], a * w[1], a * w[2]];
+    let (b01, b02, b12) = (bw[0] * w[1], bw[0] * w[2], bw[1] * w[2]);
+    let one_bt = J13::cst(1.0) - b * th2;
+    [
+        [one_bt + bw[0] * w[0], b01 - aw[2], b02 + aw[1]],
+        [b01 + aw[2], one_bt + bw[1] * w[1], b12 - aw[0]],
+        [b02 - aw[1], b12 + aw[0], one_bt + bw[2] * w[2]],
+    ]
+}
+
+/// The recursion of the parent module's doc (ω, ω̇) and Rᵀu, with R's value.
+fn recursion(
+    s: &RotationSeeds,
+    lam: &[[J13; DEGREE]; 3],
+    u: V3<J13>,
+) -> (M3, V3<J13>, V3<J13>, V3<J13>) {
+    let mut v = mul_mtv(&s.r0, u);
+    let mut r = s.r0.map(|row| row.map(|x| x.v));
+    let (mut w, mut al) = ([J13::cst(0.0); 3], [J13::cst(0.0); 3]);
+    for j in 0..DEGREE {
+        let a = exp_jet(scale(s.d[j], lam[0][j]));
+        let wd = scale(s.d[j], lam[1][j]);
+        let dd = scale(s.d[j], lam[2][j]);
+        if j == 0 {
+            // ω = ω̇ = 0 before the first factor
+            al = dd;
+            w = wd;
+        } else {
+            let at_w = mul_mtv(&a, w);
+            al = add(add(mul_mtv(&a, al), cross(at_w, wd)), dd);
+            w = add(at_w, wd);
+        }
+        v = mul_mtv(&a, v);
+        r = mul_mm(&r, &a.map(|row| row.map(|x| x.v)));
+    }
+    (r, w, al, v)
 }
