@@ -316,6 +316,23 @@ impl Segment {
     }
 }
 
+/// The rows' rotation columns (∂/∂δ of the local perturbation) into θ's
+/// rotation unknowns φ (R_k = R_k0·Exp(φ_k)): times J_r(φ_k), as the pose
+/// blocks.
+fn through_right_jacobians(rows: &mut PoseRows, jr: &[M3]) {
+    for j in 0..4 {
+        let m = &jr[rows.first + j];
+        for r in 0..3 {
+            let a: [f64; 3] = std::array::from_fn(|l| rows.accel[r][6 * j + 3 + l]);
+            let g: [f64; 3] = std::array::from_fn(|l| rows.gyro[r][3 * j + l]);
+            for c in 0..3 {
+                rows.accel[r][6 * j + 3 + c] = (0..3).map(|l| a[l] * m[l][c]).sum();
+                rows.gyro[r][3 * j + c] = (0..3).map(|l| g[l] * m[l][c]).sum();
+            }
+        }
+    }
+}
+
 /// Every x index.
 const ALL_X: [usize; POSE_PARAMS] = {
     let mut v = [0; POSE_PARAMS];
@@ -345,6 +362,7 @@ impl PoseProblem {
     fn linearize_imu(
         &self,
         sp: &PoseSpline,
+        jr: &[M3],
         x: &[f64],
         a: &mut ArrowMatrix,
         g: &mut [f64],
@@ -354,7 +372,8 @@ impl PoseProblem {
         let w: [f64; 6] = d.sigma_z.map(|s| 1.0 / s);
         let (mut seg, mut seeds, mut cost) = (Segment::new(), None, 0.0);
         for &i in &self.selected {
-            let rows = prediction_rows(sp, d.imu_t[i], &ctx, &mut seeds)?;
+            let mut rows = prediction_rows(sp, d.imu_t[i], &ctx, &mut seeds)?;
+            through_right_jacobians(&mut rows, jr);
             if rows.first != seg.first {
                 seg.flush(a, g, self.n_band());
                 seg.first = rows.first;
@@ -401,7 +420,7 @@ impl LeastSquares for PoseProblem {
             cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
             accumulate_pose(a, g, &b, &mut local);
         }
-        cost += self.linearize_imu(&sp, x, a, g)?;
+        cost += self.linearize_imu(&sp, &jr, x, a, g)?;
         let d = &self.data;
         for k in 0..POSE_PARAMS {
             let w = 1.0 / (d.prior_sigma[k] * d.prior_sigma[k]);
