@@ -581,3 +581,34 @@ fn pose_error_equals_the_residual_with_jacobians() {
         }
     }
 }
+
+/// The jet-free rotation Jacobian of the pose residual equals the one
+/// through the 12-variable jets (`jacobians`' r) to 1e-12.
+#[test]
+fn rotation_jacobian_without_jets_equals_the_jets() {
+    let times: Vec<f64> = (0..=200).map(|k| k as f64 * 0.01).collect();
+    let pos = vec![[0.0; 3]; times.len()];
+    let q: Vec<[f64; 4]> = times
+        .iter()
+        .map(|t| {
+            let (a, b) = (1.7 * t, 0.9 * t * t);
+            let n = (1.0 + a * a + b * b + 0.04).sqrt();
+            [1.0 / n, a / n, b / n, 0.2 / n]
+        })
+        .collect();
+    let sp = PoseSpline::fit(&times, &pos, &q, 0.1).unwrap();
+    for k in 0..60 {
+        let t = 0.007 + 1.98 * k as f64 / 60.0;
+        let loc = sp.local(t).unwrap();
+        let (r, j) = sp.rotation_and_jacobian(&loc);
+        let (state, jac) = sp.jacobians(t).unwrap();
+        for a in 0..3 {
+            for b in 0..3 {
+                assert!((r[a][b] - state.r[a][b]).abs() < 1e-12);
+            }
+            for c in 0..LOCAL {
+                assert!((j[a][c] - jac.r[a][c]).abs() < 1e-12, "J[{a}][{c}] at {t}");
+            }
+        }
+    }
+}
