@@ -72,7 +72,7 @@ mod tests;
 mod time_jet;
 
 pub use fit::FitReport;
-pub use rotation_jet::{rot_var, RotationJet, RotationSeeds, ROT_TIME, ROT_VARS};
+pub(crate) use rotation_jet::{rot_var, RotationSeeds, ROT_TIME, ROT_VARS};
 use so3::{exp_s, left_jacobian_inv, right_jacobian, right_jacobian_inv};
 pub use time_jet::{ImuPointJet, KinematicsJet};
 

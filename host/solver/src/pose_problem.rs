@@ -15,7 +15,7 @@
 use faer::Mat;
 use robimu_model::geom::{mul_mm, M3, V3};
 use robimu_model::pose_measurement::rows::{
-    prediction_rows, PoseRows, RowContext, ACCEL_COLS, GYRO_COLS, GYRO_LOCAL,
+    prediction_rows, PoseRows, RowContext, SegmentCache, ACCEL_COLS, GYRO_COLS, GYRO_LOCAL,
 };
 use robimu_model::pose_measurement::{self as pm, PoseMeasurementError, CTRL, POSE_PARAMS, TAU};
 use robimu_model::pose_trajectory::so3::{exp_s, right_jacobian};
@@ -370,7 +370,7 @@ impl PoseProblem {
         let d = &self.data;
         let ctx = RowContext::new(x)?;
         let w: [f64; 6] = d.sigma_z.map(|s| 1.0 / s);
-        let (mut seg, mut seeds, mut cost) = (Segment::new(), None, 0.0);
+        let (mut seg, mut seeds, mut cost) = (Segment::new(), SegmentCache::default(), 0.0);
         for &i in &self.selected {
             let mut rows = prediction_rows(sp, d.imu_t[i], &ctx, &mut seeds)?;
             through_right_jacobians(&mut rows, jr);

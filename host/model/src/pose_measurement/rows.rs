@@ -3,10 +3,10 @@
 //! that can be non-zero, for accumulating the normal equations without
 //! touching zeros. Equal to [`super::predict_jacobians`] (a test compares
 //! them), computed with 13-variable rotation jets
-//! ([`PoseSpline::rotation_jet`]) and the rest in closed form:
+//! (the crate's 13-variable `rotation_jet` of [`PoseSpline`]) and the rest in closed form:
 //!
 //! * s = Rᵀ(p̈ − g) + α × p_I + ω × (ω × p_I) (body frame, Rᵀ(p̈ − g) from
-//!   [`PoseSpline::rotation_jet`]; §10's
+//!   the same jets; §10's
 //!   Rᵀ(a_n − g) with a_n = p̈ + α_n × R p_I + ω_n × (ω_n × R p_I));
 //!   ∂s/∂c_j = N̈_j Rᵀ, ∂s/∂p_I = [α]× + [ω]×², ∂s/∂g = −Rᵀ ∂g/∂g_xy;
 //! * z_a = M_a s + b_a, z_ω = M_ω ω + b_ω with M = K Γ R_s (eq. (6)), whose
@@ -125,6 +125,13 @@ impl RowContext {
     }
 }
 
+/// What consecutive samples of one segment share (the rotation seeds,
+/// made once per segment); start with `Default`.
+#[derive(Clone, Debug, Default)]
+pub struct SegmentCache {
+    seeds: Option<RotationSeeds>,
+}
+
 /// A sample's prediction and its Jacobian rows in compact columns (module doc).
 #[derive(Clone, Copy, Debug)]
 pub struct PoseRows {
@@ -144,14 +151,14 @@ fn mul_cj(m: &M3, v: &V3<Jet<ROT_VARS>>) -> V3<Jet<ROT_VARS>> {
 }
 
 /// The prediction of the sample stamped `t` and its rows (module doc);
-/// `seeds` is [`PoseSpline::rotation_jet`]'s cache.
+/// `cache` is reused across the samples of a segment.
 pub fn prediction_rows(
     spline: &PoseSpline,
     t: f64,
     ctx: &RowContext,
-    seeds: &mut Option<RotationSeeds>,
+    cache: &mut SegmentCache,
 ) -> Result<PoseRows, PoseMeasurementError> {
-    let k = spline.rotation_jet(t + ctx.tau, ctx.g, seeds)?;
+    let k = spline.rotation_jet(t + ctx.tau, ctx.g, &mut cache.seeds)?;
     let pi = ctx.p_imu.map(Jet::cst);
     let s = add(
         add(k.f, cross(k.alpha, pi)),

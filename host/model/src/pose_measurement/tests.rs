@@ -173,7 +173,7 @@ fn compact_rows_equal_the_30_variable_reference() {
         let sp = random_spline(seed);
         let x = test_x();
         let ctx = RowContext::new(&x).unwrap();
-        let mut seeds = None;
+        let mut seeds = rows::SegmentCache::default();
         for k in 0..40 {
             let t = 0.05 + 2.7 * k as f64 / 40.0;
             let p = predict_jacobians(&sp, t, &x).unwrap();
@@ -191,13 +191,20 @@ fn compact_rows_equal_the_30_variable_reference() {
                 .map(|(r, c)| full(r, c).abs())
                 .fold(1.0f64, f64::max);
             let close = |a: f64, b: f64, what: &str| {
-                assert!((a - b).abs() <= 1e-10 * scale, "{what}: {a} vs {b} (seed {seed}, t {t})")
+                assert!(
+                    (a - b).abs() <= 1e-10 * scale,
+                    "{what}: {a} vs {b} (seed {seed}, t {t})"
+                )
             };
             for r in 0..3 {
                 close(rw.z[r], p.z[r], "z_a");
                 close(rw.z[3 + r], p.z[3 + r], "z_w");
                 for col in 0..CTRL + POSE_PARAMS {
-                    let a = if col < ACCEL_COLS { rw.accel[r][col] } else { 0.0 };
+                    let a = if col < ACCEL_COLS {
+                        rw.accel[r][col]
+                    } else {
+                        0.0
+                    };
                     close(a, full(r, col), &format!("accel row {r} col {col}"));
                     let g = GYRO_LOCAL
                         .iter()

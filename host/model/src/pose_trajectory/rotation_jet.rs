@@ -15,13 +15,13 @@
 use super::*;
 
 /// Number of jet variables: time offset + 12 rotation parameters.
-pub const ROT_VARS: usize = 1 + LOCAL;
+pub(crate) const ROT_VARS: usize = 1 + LOCAL;
 /// The time-offset variable.
-pub const ROT_TIME: usize = 0;
+pub(crate) const ROT_TIME: usize = 0;
 
 /// The variable of component c of the rotation parameter of control point
 /// `first + j`.
-pub const fn rot_var(j: usize, c: usize) -> usize {
+pub(crate) const fn rot_var(j: usize, c: usize) -> usize {
     1 + 3 * j + c
 }
 
@@ -30,7 +30,7 @@ type J13 = Jet<ROT_VARS>;
 /// The seeds of one segment (first control point `first`): R_first and
 /// d_j as jets in the rotation variables.
 #[derive(Clone, Copy, Debug)]
-pub struct RotationSeeds {
+pub(crate) struct RotationSeeds {
     first: usize,
     r0: M3<J13>,
     d: [V3<J13>; DEGREE],
@@ -38,7 +38,7 @@ pub struct RotationSeeds {
 
 /// B's kinematics at one t ([`PoseSpline::rotation_jet`]).
 #[derive(Clone, Copy, Debug)]
-pub struct RotationJet {
+pub(crate) struct RotationJet {
     /// Index of the first of the 4 control points at t.
     pub first: usize,
     /// R(t) (value).
@@ -58,7 +58,7 @@ impl PoseSpline {
     ///
     /// # Panics
     /// If `first + 3` is not a control point.
-    pub fn rotation_seeds(&self, first: usize) -> RotationSeeds {
+    pub(crate) fn rotation_seeds(&self, first: usize) -> RotationSeeds {
         let r_i = &self.rotation[first];
         let mut r0: M3<J13> = r_i.map(|row| row.map(J13::cst));
         for c in 0..3 {
@@ -88,7 +88,7 @@ impl PoseSpline {
 
     /// B's kinematics at `t` with gravity `g` (module doc); `seeds` is
     /// reused when it is of t's segment, else replaced.
-    pub fn rotation_jet(
+    pub(crate) fn rotation_jet(
         &self,
         t: f64,
         g: V3,

@@ -9,8 +9,6 @@ use std::cell::RefCell;
 
 use robimu_model::{PoseSpline, PoseSplineError};
 
-use super::PoseCalibrationError;
-
 /// What a fit was made from: times, positions, quaternions, knot spacing.
 type FitKey = (Vec<f64>, Vec<[f64; 3]>, Vec<[f64; 4]>, u64);
 /// What a τ search was made from: the spline, IMU times and samples, range.
@@ -29,7 +27,9 @@ pub(crate) fn fit(
     spacing: f64,
 ) -> Result<PoseSpline, PoseSplineError> {
     let same = |k: &FitKey| k.0 == t && k.1 == p && k.2 == q && k.3 == spacing.to_bits();
-    if let Some(s) = FIT.with_borrow(|m| m.as_ref().filter(|(k, _)| same(k)).map(|(_, s)| s.clone())) {
+    if let Some(s) =
+        FIT.with_borrow(|m| m.as_ref().filter(|(k, _)| same(k)).map(|(_, s)| s.clone()))
+    {
         return Ok(s);
     }
     let s = PoseSpline::fit(t, p, q, spacing)?;
@@ -38,21 +38,27 @@ pub(crate) fn fit(
     Ok(s)
 }
 
-/// [`super::startup::find_tau`], the last result again for the same input.
-pub(crate) fn find_tau(
+/// The τ search `search` (the start-up's, [`super::startup::find_tau`]) on
+/// this input, the last result again for the same input.
+pub(crate) fn find_tau<E>(
     spline: &PoseSpline,
     imu_t: &[f64],
     imu_z: &[[f64; 6]],
     tau_max: f64,
-) -> Result<(f64, f64), PoseCalibrationError> {
-    let same = |k: &TauKey| {
-        k.3 == tau_max.to_bits() && k.1 == imu_t && k.2 == imu_z && k.0 == *spline
-    };
+    search: impl FnOnce() -> Result<(f64, f64), E>,
+) -> Result<(f64, f64), E> {
+    let same =
+        |k: &TauKey| k.3 == tau_max.to_bits() && k.1 == imu_t && k.2 == imu_z && k.0 == *spline;
     if let Some(r) = TAU.with_borrow(|m| m.as_ref().filter(|(k, _)| same(k)).map(|(_, r)| *r)) {
         return Ok(r);
     }
-    let r = super::startup::find_tau(spline, imu_t, imu_z, tau_max)?;
-    let key = (spline.clone(), imu_t.to_vec(), imu_z.to_vec(), tau_max.to_bits());
+    let r = search()?;
+    let key = (
+        spline.clone(),
+        imu_t.to_vec(),
+        imu_z.to_vec(),
+        tau_max.to_bits(),
+    );
     TAU.with_borrow_mut(|m| *m = Some((key, r)));
     Ok(r)
 }

@@ -50,7 +50,7 @@ pub enum PoseCalibrationError {
 /// (Gauss–Newton's steps then shrink about tenfold per iteration here, so
 /// the point is about 0.01 σ from the minimum; the joint-angle calibration
 /// leaves the σ stop off).
-pub const SIGMA_TOLERANCE: f64 = 0.1;
+const SIGMA_TOLERANCE: f64 = 0.1;
 
 /// Options of [`calibrate_poses`].
 #[derive(Debug, Clone)]

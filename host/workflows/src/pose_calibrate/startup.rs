@@ -144,7 +144,12 @@ fn prefix(v: &[f64], f: impl Fn(f64) -> f64) -> Vec<f64> {
 fn dot_lanes(a: &[f64], b: &[f64]) -> f64 {
     let mut acc = [0.0; 8];
     let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
-    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
     for (x, y) in ca.zip(cb) {
         for k in 0..8 {
             acc[k] += x[k] * y[k];
@@ -251,7 +256,9 @@ pub(crate) fn startup(
     imu_z: &[[f64; 6]],
     tau_max: f64,
 ) -> Result<Startup, PoseCalibrationError> {
-    let (tau, correlation) = super::memo::find_tau(spline, imu_t, imu_z, tau_max)?;
+    let (tau, correlation) = super::memo::find_tau(spline, imu_t, imu_z, tau_max, || {
+        find_tau(spline, imu_t, imu_z, tau_max)
+    })?;
     let used: Vec<usize> = (0..imu_t.len())
         .filter(|&i| spline.knots().contains(imu_t[i] + tau))
         .collect();

@@ -11,8 +11,8 @@ use robimu_session::{files, PoseSession};
 
 use crate::check::{Finding, Severity};
 use crate::pose_calibrate::default_knot_spacing;
-use crate::pose_calibrate::memo::{find_tau, fit};
-use crate::pose_calibrate::startup::gyro_alignment_rms;
+use crate::pose_calibrate::memo::{self, fit};
+use crate::pose_calibrate::startup::{find_tau, gyro_alignment_rms};
 
 /// The world-frame rates' alignment RMS under this part of the body
 /// rates' names the inverse convention. The body rates of a body turning
@@ -32,7 +32,10 @@ pub(crate) fn inverse_rotation(session: &PoseSession) -> Option<Finding> {
     }
     let spacing = default_knot_spacing(&data.pose_t);
     let spline = fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing).ok()?;
-    let (tau, _) = find_tau(&spline, &data.imu_t, &data.imu_z, TAU_SEARCH).ok()?;
+    let (tau, _) = memo::find_tau(&spline, &data.imu_t, &data.imu_z, TAU_SEARCH, || {
+        find_tau(&spline, &data.imu_t, &data.imu_z, TAU_SEARCH)
+    })
+    .ok()?;
     let (body, world) = gyro_alignment_rms(&spline, &data.imu_t, &data.imu_z, tau).ok()?;
     // NaN fits name nothing
     if world.partial_cmp(&(INVERSE_RATIO * body)) != Some(std::cmp::Ordering::Less) {
