@@ -1,7 +1,7 @@
 //! The whitened-free Jacobian rows of an IMU sample of a pose session
 //! (MODEL.md §10, §3 eq. (5), (6)) in compact columns: only the columns
 //! that can be non-zero, for accumulating the normal equations without
-//! touching zeros. Equal to [`super::predict_jacobians`] (a test compares
+//! touching zeros. Equal to `predict_jacobians` (a test compares
 //! them), computed with 13-variable rotation jets
 //! (the crate's 13-variable `rotation_jet` of [`PoseSpline`]) and the rest in closed form:
 //!
