@@ -62,3 +62,47 @@ pub(crate) fn find_tau<E>(
     TAU.with_borrow_mut(|m| *m = Some((key, r)));
     Ok(r)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn poses(n: usize) -> (Vec<f64>, Vec<[f64; 3]>, Vec<[f64; 4]>) {
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.05).collect();
+        let p = t.iter().map(|s| [s.sin(), s.cos(), 0.1 * s]).collect();
+        let q = t
+            .iter()
+            .map(|s| [(0.3 * s).cos(), 0.0, 0.0, (0.3 * s).sin()])
+            .collect();
+        (t, p, q)
+    }
+
+    /// The same input gives the same spline and τ without searching again;
+    /// another input is computed afresh.
+    #[test]
+    fn same_input_is_kept_other_input_is_computed() {
+        let (t, p, q) = poses(60);
+        let a = fit(&t, &p, &q, 0.2).unwrap();
+        assert_eq!(a, PoseSpline::fit(&t, &p, &q, 0.2).unwrap());
+        assert_eq!(fit(&t, &p, &q, 0.2).unwrap(), a);
+        let b = fit(&t, &p, &q, 0.25).unwrap();
+        assert_ne!(a, b);
+        assert_eq!(b, PoseSpline::fit(&t, &p, &q, 0.25).unwrap());
+        let (imu_t, imu_z) = (vec![0.0, 1.0], vec![[0.0; 6]; 2]);
+        let calls = std::cell::Cell::new(0);
+        let search = |v: f64| {
+            calls.set(calls.get() + 1);
+            Ok::<_, ()>((v, 0.5))
+        };
+        let r1 = find_tau(&b, &imu_t, &imu_z, 1.0, || search(0.1)).unwrap();
+        let r2 = find_tau(&b, &imu_t, &imu_z, 1.0, || search(0.2)).unwrap();
+        assert_eq!((r1, r2, calls.get()), ((0.1, 0.5), (0.1, 0.5), 1));
+        let r3 = find_tau(&b, &imu_t, &imu_z, 2.0, || search(0.3)).unwrap();
+        let r4 = find_tau(&a, &imu_t, &imu_z, 2.0, || search(0.4)).unwrap();
+        assert_eq!((r3.0, r4.0, calls.get()), (0.3, 0.4, 3));
+        // failures are not kept
+        assert!(find_tau(&a, &imu_t, &imu_z, 3.0, || Err(())).is_err());
+        let r5 = find_tau(&a, &imu_t, &imu_z, 3.0, || search(0.5)).unwrap();
+        assert_eq!(r5.0, 0.5);
+    }
+}
