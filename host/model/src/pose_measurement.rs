@@ -149,7 +149,7 @@ pub fn predict(spline: &PoseSpline, t: f64, x: &[f64]) -> Result<[f64; 6], PoseM
 /// A prediction and its Jacobians (`predict_jacobians`).
 #[cfg(test)]
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PosePrediction {
+pub(crate) struct PosePrediction {
     /// Index of the first of the 4 control points at t + τ.
     pub first: usize,
     /// z.
