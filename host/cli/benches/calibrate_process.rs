@@ -23,12 +23,16 @@
 //! first on even runs and second on odd ones) and prints the ratio of their
 //! medians — the back-to-back comparison issue 18 is measured by — and the
 //! median and range of the run-by-run ratios.
+//! `--poses` times instead `robimu calibrate DIR` on a pose session
+//! (`robimu simulate --source poses --seed 1`: 60 s, 15 Hz tool poses with
+//! 3 ms jitter, 100 Hz IMU; issue 39's target is 0.2 s), with `--versus`
+//! interleaved as above.
 //! `--ceres PATH` times the independent Ceres implementation of
 //! `peers/ceres` (built by `peers/ceres/build.sh`) the same way on the
 //! 300 s / 120 Hz case, given robimu's τ start and knot spacing (it does no
 //! τ search or knot choice of its own), and prints how much slower it is.
 //!
-//! `cargo bench -p robimu --bench calibrate_process [-- --long --runs 7 --imus 3 --versus OLD --ceres PEER]`
+//! `cargo bench -p robimu --bench calibrate_process [-- --long --runs 7 --imus 3 --versus OLD --ceres PEER | --poses]`
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -180,6 +184,61 @@ fn program(flag: &str, path: &str) -> PathBuf {
     found
 }
 
+/// The pose-session case (`--poses`): simulate, then `runs` calibrations
+/// (interleaved with `versus`'s when given); one line of figures.
+fn pose_case(bin: &Path, work: &Path, runs: usize, time: Option<&Path>, versus: Option<&Path>) {
+    let dir = work.join("poses");
+    let status = Command::new(bin)
+        .args(["simulate", "--source", "poses", "--seed", "1", "--out"])
+        .arg(&dir)
+        .stdout(Stdio::null())
+        .status()
+        .expect("run robimu simulate");
+    assert!(status.success(), "robimu simulate --source poses failed");
+    let load_before = load();
+    let (mut ours, mut theirs) = (Vec::new(), Vec::new());
+    for i in 0..runs {
+        let other = |theirs: &mut Vec<f64>| {
+            if let Some(o) = versus {
+                theirs.push(run_once("calibrate", o, &dir, time, "-versus").wall);
+            }
+        };
+        if i % 2 == 0 {
+            other(&mut theirs);
+        }
+        ours.push(run_once("calibrate", bin, &dir, time, ""));
+        if i % 2 == 1 {
+            other(&mut theirs);
+        }
+    }
+    let walls: Vec<f64> = ours.iter().map(|r| r.wall).collect();
+    let (med, min) = median_min(&walls);
+    let max = walls.iter().cloned().fold(0.0, f64::max);
+    let mut line = format!(
+        "calibrate, pose session (`robimu simulate --source poses --seed 1`: 60 s, 15 Hz poses, 100 Hz IMU): \
+         wall median {med:.3} s, min {min:.3} s, max {max:.3} s"
+    );
+    if ours.iter().all(|r| r.cpu.is_some()) {
+        let user = median(ours.iter().map(|r| r.cpu.unwrap().0).collect());
+        let sys = median(ours.iter().map(|r| r.cpu.unwrap().1).collect());
+        let peak = ours.iter().map(|r| r.cpu.unwrap().2).fold(0.0, f64::max);
+        line += &format!("; CPU median user {user:.2} s + sys {sys:.2} s; peak RSS {peak:.0} MB");
+    }
+    if let Some(o) = versus {
+        let (their, their_min) = median_min(&theirs);
+        line += &format!(
+            "; versus {} interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's{}",
+            o.display(),
+            their / med,
+            pairwise(&theirs, &walls)
+        );
+    }
+    println!(
+        "{line}; load average before {load_before}, after {}",
+        load()
+    );
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -205,6 +264,15 @@ fn main() {
     let ceres = value("--ceres").map(|p| program("--ceres", p));
     let time = gnu_time();
     let work = tempfile::tempdir().expect("temporary directory");
+    if args.iter().any(|a| a == "--poses") {
+        println!(
+            "{}: {runs} runs; {} cores",
+            bin.display(),
+            std::thread::available_parallelism().map_or(0, |n| n.get())
+        );
+        pose_case(&bin, work.path(), runs, time, versus.as_deref());
+        return;
+    }
     let mut cases = vec![("300 s at 120 Hz", 300.0, 120.0, 1)];
     if imus > 1 {
         cases.push(("300 s at 120 Hz", 300.0, 120.0, imus));

@@ -91,7 +91,6 @@ pub use lanes::F64x4;
 pub use measurement::{MeasurementJacobians, MeasurementModel, ModelError};
 pub use observations::{Measurements, PoseMeasurements};
 pub use params::{ModelParams, Offsets, ParamLayout, ParamSpec};
-pub use pose_measurement::PosePrediction;
 pub use pose_trajectory::{
     ImuPointJacobians, ImuPointJet, ImuPointState, Jac3x12, KinematicsJet, PoseJacobians,
     PoseResidual, PoseSpline, PoseSplineError, PoseState,

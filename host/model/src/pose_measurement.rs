@@ -146,9 +146,10 @@ pub fn predict(spline: &PoseSpline, t: f64, x: &[f64]) -> Result<[f64; 6], PoseM
     Ok([a[0], a[1], a[2], w[0], w[1], w[2]])
 }
 
-/// A prediction and its Jacobians ([`predict_jacobians`]).
+/// A prediction and its Jacobians (`predict_jacobians`).
+#[cfg(test)]
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PosePrediction {
+pub(crate) struct PosePrediction {
     /// Index of the first of the 4 control points at t + τ.
     pub first: usize,
     /// z.
@@ -162,10 +163,13 @@ pub struct PosePrediction {
 
 /// Jet variables of the kinematic part: p_I (0..3), g_xy (3..5), τ (5),
 /// then the 24 control-point parameters (6..30).
+#[cfg(test)]
 type K30 = Jet<30>;
+#[cfg(test)]
 const KIN_CTRL: usize = 6;
 
 /// Sensor output K Γ R v + b with its Jacobians: ∂/∂v (= KΓR) and ∂/∂(γ, r, k, b).
+#[cfg(test)]
 fn sensor_jac(sensor: &ImuIntrinsics<f64>, v: V3) -> (V3, M3, [[f64; 12]; 3]) {
     let p: [f64; 12] = [sensor.gamma, sensor.r, sensor.k, sensor.b]
         .concat()
@@ -184,8 +188,10 @@ fn sensor_jac(sensor: &ImuIntrinsics<f64>, v: V3) -> (V3, M3, [[f64; 12]; 3]) {
 
 /// [`predict`] and its exact Jacobians with respect to x (all 30, τ by
 /// the basis's time derivatives, [`PoseSpline::kinematics_jet`]) and to
-/// the control points at t + τ.
-pub fn predict_jacobians(
+/// the control points at t + τ: the tests' 30-variable reference for
+/// [`rows`].
+#[cfg(test)]
+pub(crate) fn predict_jacobians(
     spline: &PoseSpline,
     t: f64,
     x: &[f64],
@@ -227,5 +233,6 @@ pub fn predict_jacobians(
     Ok(out)
 }
 
+pub mod rows;
 #[cfg(test)]
 mod tests;

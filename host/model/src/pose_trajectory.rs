@@ -65,13 +65,15 @@ use crate::jet::{Jet, Scalar};
 use crate::spline::{Basis, Knots, Spline, SplineError};
 
 mod fit;
+mod rotation_jet;
 pub mod so3;
 #[cfg(test)]
 mod tests;
 mod time_jet;
 
 pub use fit::FitReport;
-use so3::{exp_s, left_jacobian_inv, right_jacobian_inv};
+pub(crate) use rotation_jet::{rot_var, RotationSeeds, ROT_TIME, ROT_VARS};
+use so3::{exp_s, left_jacobian_inv, right_jacobian, right_jacobian_inv};
 pub use time_jet::{ImuPointJet, KinematicsJet};
 
 /// Degree of both parts of the pose spline (cubic).
@@ -450,6 +452,37 @@ impl PoseSpline {
         rot_kinematics(&r0, &d, &loc.lam)
     }
 
+    /// R(t) and its body-frame Jacobian ([`PoseJacobians::r`]) at `loc`
+    /// without jets: with R ← R·A_j, A_j = Exp(λ_j d_j), a perturbation ε of
+    /// R becomes A_jᵀε, and A_j's own is J_r(λ_j d_j)·λ_j·∂d_j (∂d_j/∂δ the
+    /// seeds of the module doc), so J ← A_jᵀJ + λ_j J_r(λ_j d_j) ∂d_j/∂δ
+    /// from J = [I 0 0 0].
+    fn rotation_and_jacobian(&self, loc: &Local) -> (M3, Jac3x12) {
+        let i = loc.first;
+        let mut r = self.rotation[i];
+        let mut jac = [[0.0; LOCAL]; 3];
+        for c in 0..3 {
+            jac[c][c] = 1.0;
+        }
+        let d = self.differences(i);
+        for j in 0..DEGREE {
+            let phi = scale(d[j], loc.lam[0][j]);
+            let a = exp_s(phi);
+            let m = right_jacobian(phi).map(|row| row.map(|v| v * loc.lam[0][j]));
+            let ml = mul_mm(&m, &left_jacobian_inv(d[j]));
+            let mr = mul_mm(&m, &right_jacobian_inv(d[j]));
+            jac = mul_mj(&transpose(&a), &jac);
+            for row in 0..3 {
+                for c in 0..3 {
+                    jac[row][3 * j + c] -= ml[row][c];
+                    jac[row][3 * (j + 1) + c] += mr[row][c];
+                }
+            }
+            r = mul_mm(&r, &a);
+        }
+        (r, jac)
+    }
+
     /// R(t) alone.
     pub fn rotation(&self, t: f64) -> Result<M3, SplineError> {
         let loc = self.local(t)?;
@@ -581,6 +614,19 @@ impl PoseSpline {
         self.pose_residual_r(t, p_meas, &matrix_from_quat(q_meas))
     }
 
+    /// The residual values (e_p, e_r) of [`Self::pose_residual_r`] alone,
+    /// without the Jacobians.
+    pub fn pose_error_r(&self, t: f64, p_meas: V3, r_meas: &M3) -> Result<(V3, V3), SplineError> {
+        let loc = self.local(t)?;
+        let d = self.differences(loc.first);
+        let mut r = self.rotation[loc.first];
+        for j in 0..DEGREE {
+            r = mul_mm(&r, &exp_s(scale(d[j], loc.lam[0][j])));
+        }
+        let [p, _, _] = self.position_rows(&loc);
+        Ok((sub(p, p_meas), log_so3(&mul_mm(&transpose(r_meas), &r))))
+    }
+
     /// [`Self::pose_residual`] with the measured rotation as a matrix R̃.
     pub fn pose_residual_r(
         &self,
@@ -589,8 +635,7 @@ impl PoseSpline {
         r_meas: &M3,
     ) -> Result<PoseResidual, SplineError> {
         let loc = self.local(t)?;
-        let rk = self.rot_jets(&loc);
-        let (r, jr) = rotation_jacobian(&rk.r);
+        let (r, jr) = self.rotation_and_jacobian(&loc);
         let e_r = log_so3(&mul_mm(&transpose(r_meas), &r));
         let [p, _, _] = self.position_rows(&loc);
         Ok(PoseResidual {

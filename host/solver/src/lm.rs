@@ -79,6 +79,12 @@ pub struct LmOptions {
     /// last step* in the doc of `newton_tolerance_reached`); 0 disables it. The default, 10⁻⁴ σ, is a cost
     /// excess of 5·10⁻⁹, far below what `function_tolerance` resolves.
     pub newton_tolerance: f64,
+    /// Stop when an accepted, nearly undamped (λ ≤ 10⁻³) step moved every
+    /// unknown by less than this fraction of its conditional σ (1/√A_kk,
+    /// at most its marginal σ): what is left to gain is far below the
+    /// estimate's uncertainty ([`Termination::SigmaTolerance`]); 0 (the
+    /// default) disables it.
+    pub sigma_tolerance: f64,
 }
 
 impl Default for LmOptions {
@@ -90,6 +96,7 @@ impl Default for LmOptions {
             gradient_tolerance: 1e-10,
             initial_lambda: 1e-4,
             newton_tolerance: 1e-4,
+            sigma_tolerance: 0.0,
         }
     }
 }
@@ -104,7 +111,8 @@ impl LmOptions {
         if !(pos(self.function_tolerance)
             && pos(self.parameter_tolerance)
             && pos(self.gradient_tolerance)
-            && pos(self.newton_tolerance))
+            && pos(self.newton_tolerance)
+            && pos(self.sigma_tolerance))
         {
             return Err("tolerances must be finite and non-negative".into());
         }
@@ -159,6 +167,8 @@ pub enum Termination {
     GradientTolerance,
     /// The last Gauss–Newton step reached the minimum to the Newton tolerance.
     NewtonTolerance,
+    /// Step below the σ tolerance ([`LmOptions::sigma_tolerance`]).
+    SigmaTolerance,
     /// Iteration limit reached before convergence.
     MaxIterations,
     /// No step lowered the cost even with very strong damping.
@@ -179,6 +189,7 @@ impl std::fmt::Display for Termination {
             Termination::ParameterTolerance => "converged (step below tolerance)",
             Termination::GradientTolerance => "converged (gradient below tolerance)",
             Termination::NewtonTolerance => "converged (Newton step at the minimum)",
+            Termination::SigmaTolerance => "converged (step below the σ tolerance)",
             Termination::MaxIterations => "stopped at the iteration limit without converging",
             Termination::NoProgress => "stopped: no step lowers the cost",
         })
@@ -292,6 +303,18 @@ fn parameter_tolerance_reached(opts: &LmOptions, delta: &[f64], theta: &[f64], d
         .zip(theta)
         .zip(d)
         .all(|((dt, t), dk)| dt.abs() <= opts.parameter_tolerance * (t.abs() + 1.0 / dk.sqrt()))
+}
+
+/// Stop when an accepted step `delta` taken at damping `lambda` ≤ 10⁻³
+/// is below `sigma_tolerance` in every unknown, measured in its
+/// conditional σ 1/√D_k: max_k |δ_k|·√D_k < `sigma_tolerance`.
+fn sigma_tolerance_reached(opts: &LmOptions, delta: &[f64], d: &[f64], lambda: f64) -> bool {
+    opts.sigma_tolerance > 0.0
+        && lambda <= 1e-3
+        && delta
+            .iter()
+            .zip(d)
+            .all(|(dt, dk)| dt.abs() * dk.sqrt() < opts.sigma_tolerance)
 }
 
 /// Decrease of the cost (J = ½χ², whitened) below which a rejected first
@@ -731,6 +754,7 @@ impl<'o, R: FnMut(&IterationRecord)> Run<'o, R> {
     ) -> Option<Termination> {
         let cost_reached = function_tolerance_reached(self.opts, at.cost, trial.new_cost);
         let step_reached = parameter_tolerance_reached(self.opts, &self.delta, &self.theta, &at.d);
+        let sigma_reached = sigma_tolerance_reached(self.opts, &self.delta, &at.d, self.lambda);
         self.theta = trial.candidate;
         if trial.linearized {
             self.ahead = Some(trial.new_cost);
@@ -744,6 +768,8 @@ impl<'o, R: FnMut(&IterationRecord)> Run<'o, R> {
             Some(Termination::FunctionTolerance)
         } else if step_reached {
             Some(Termination::ParameterTolerance)
+        } else if sigma_reached {
+            Some(Termination::SigmaTolerance)
         } else {
             None
         }
@@ -1283,6 +1309,49 @@ mod tests {
         // off the minimum by e < tol conditional σ: a cost excess below ½tol²
         let excess = a.summary.final_cost - b.summary.final_cost;
         assert!(excess <= 0.5 * tol * tol, "cost excess {excess:e}");
+    }
+
+    /// The σ stop ends the run after the first nearly undamped step below
+    /// the tolerance in conditional σ: fewer linearisations than without
+    /// it, at a point within a few tolerances (in conditional σ) of the
+    /// minimum the run without it reaches.
+    #[test]
+    fn the_sigma_stop_ends_at_a_step_below_the_tolerance() {
+        let start = || {
+            let mut s = vec![-1.2; 12];
+            s.push(0.0);
+            s
+        };
+        let toy = || Toy {
+            keeps: true,
+            ..Toy::new(12)
+        };
+        let (mut with, mut without) = (toy(), toy());
+        let tol = 0.05;
+        let on = LmOptions {
+            sigma_tolerance: tol,
+            newton_tolerance: 0.0,
+            ..LmOptions::default()
+        };
+        let off = LmOptions {
+            newton_tolerance: 0.0,
+            ..LmOptions::default()
+        };
+        let a = solve(&mut with, start(), &on, |_| {}).unwrap();
+        let b = solve(&mut without, start(), &off, |_| {}).unwrap();
+        assert_eq!(a.summary.termination, Termination::SigmaTolerance);
+        assert_ne!(b.summary.termination, Termination::SigmaTolerance);
+        let (_, lin_a) = with.calls.get();
+        let (_, lin_b) = without.calls.get();
+        assert!(lin_a < lin_b, "{lin_a} linearisations against {lin_b}");
+        let mut m = with.new_matrix();
+        let mut g = vec![0.0; a.theta.len()];
+        with.linearize(&b.theta, &mut m, &mut g).unwrap();
+        let d = m.diagonal();
+        for (k, (x, y)) in a.theta.iter().zip(&b.theta).enumerate() {
+            let e = (x - y).abs() * d[k].sqrt();
+            assert!(e < tol, "θ[{k}] off by {e:e} σ");
+        }
     }
 
     /// z_i = x₀ + x₁ + noise: only the sum is determined, so the

@@ -14,6 +14,9 @@
 
 use faer::Mat;
 use robimu_model::geom::{mul_mm, M3, V3};
+use robimu_model::pose_measurement::rows::{
+    prediction_rows, PoseRows, RowContext, SegmentCache, ACCEL_COLS, GYRO_COLS, GYRO_LOCAL,
+};
 use robimu_model::pose_measurement::{self as pm, PoseMeasurementError, CTRL, POSE_PARAMS, TAU};
 use robimu_model::pose_trajectory::so3::{exp_s, right_jacobian};
 use robimu_model::{PoseSpline, PoseSplineError};
@@ -88,7 +91,7 @@ pub struct PoseProblem {
 struct Block {
     first: usize,
     rows: usize,
-    j: [[f64; CTRL + POSE_PARAMS]; 6],
+    j: [[f64; CTRL]; 6],
     r: [f64; 6],
 }
 
@@ -178,9 +181,9 @@ impl PoseProblem {
         let d = &self.data;
         let mut out = Vec::with_capacity(6 * (d.pose_t.len() + self.selected.len()) + POSE_PARAMS);
         for k in 0..d.pose_t.len() {
-            let e = sp.pose_residual_r(d.pose_t[k], d.pose_p[k], &d.pose_r[k])?;
-            out.extend(e.e_p.iter().map(|v| v / d.sigma_p));
-            out.extend(e.e_r.iter().map(|v| v / d.sigma_r));
+            let (e_p, e_r) = sp.pose_error_r(d.pose_t[k], d.pose_p[k], &d.pose_r[k])?;
+            out.extend(e_p.iter().map(|v| v / d.sigma_p));
+            out.extend(e_r.iter().map(|v| v / d.sigma_r));
         }
         for &i in &self.selected {
             let z = pm::predict(&sp, d.imu_t[i], x)?;
@@ -204,7 +207,7 @@ impl PoseProblem {
         let mut b = Block {
             first: e.first,
             rows: 6,
-            j: [[0.0; CTRL + POSE_PARAMS]; 6],
+            j: [[0.0; CTRL]; 6],
             r: [0.0; 6],
         };
         for r in 0..3 {
@@ -221,70 +224,167 @@ impl PoseProblem {
         }
         Ok(b)
     }
+}
 
-    /// The whitened Jacobian block of IMU sample i.
-    fn imu_block(
+/// The IMU samples' normal equations of one segment (the 4 control points
+/// at their t + τ), summed in compact columns ([`pm::rows`]): the
+/// accelerometer rows' 42 × 42 and the gyroscope rows' 25 × 25 products
+/// (lower triangles), and their gradients; added to the matrix once per
+/// segment.
+struct Segment {
+    first: usize,
+    aa: Box<[[f64; ACCEL_COLS]; ACCEL_COLS]>,
+    ga: [f64; ACCEL_COLS],
+    gg_m: [[f64; GYRO_COLS]; GYRO_COLS],
+    gg: [f64; GYRO_COLS],
+    local: Mat<f64>,
+}
+
+impl Segment {
+    fn new() -> Self {
+        Self {
+            first: usize::MAX,
+            aa: Box::new([[0.0; ACCEL_COLS]; ACCEL_COLS]),
+            ga: [0.0; ACCEL_COLS],
+            gg_m: [[0.0; GYRO_COLS]; GYRO_COLS],
+            gg: [0.0; GYRO_COLS],
+            local: Mat::zeros(CTRL + POSE_PARAMS, CTRL + POSE_PARAMS),
+        }
+    }
+
+    /// Add one sample's whitened rows (`wr`: whitened residuals), the
+    /// three rows of a sensor in one pass over its sums.
+    fn add(&mut self, rows: &PoseRows, w: &[f64; 6], wr: &[f64; 6]) {
+        let a: [[f64; ACCEL_COLS]; 3] = std::array::from_fn(|r| rows.accel[r].map(|v| v * w[r]));
+        for p in 0..ACCEL_COLS {
+            let (x0, x1, x2) = (a[0][p], a[1][p], a[2][p]);
+            let row = &mut self.aa[p];
+            for q in 0..ACCEL_COLS {
+                row[q] += x0 * a[0][q] + x1 * a[1][q] + x2 * a[2][q];
+            }
+            self.ga[p] += x0 * wr[0] + x1 * wr[1] + x2 * wr[2];
+        }
+        let g: [[f64; GYRO_COLS]; 3] = std::array::from_fn(|r| rows.gyro[r].map(|v| v * w[3 + r]));
+        for p in 0..GYRO_COLS {
+            let (x0, x1, x2) = (g[0][p], g[1][p], g[2][p]);
+            let row = &mut self.gg_m[p];
+            for q in 0..GYRO_COLS {
+                row[q] += x0 * g[0][q] + x1 * g[1][q] + x2 * g[2][q];
+            }
+            self.gg[p] += x0 * wr[3] + x1 * wr[4] + x2 * wr[5];
+        }
+    }
+
+    /// Add the sums to `a`, `g` and start empty.
+    fn flush(&mut self, a: &mut ArrowMatrix, g: &mut [f64], nc: usize) {
+        if self.first == usize::MAX {
+            return;
+        }
+        let n = CTRL + POSE_PARAMS;
+        self.local.fill(0.0);
+        let mut grad = [0.0; CTRL + POSE_PARAMS];
+        for p in 0..ACCEL_COLS {
+            for q in 0..=p {
+                self.local[(p, q)] = self.aa[p][q];
+            }
+            grad[p] = self.ga[p];
+        }
+        for p in 0..GYRO_COLS {
+            let lp = GYRO_LOCAL[p];
+            for q in 0..GYRO_COLS {
+                let lq = GYRO_LOCAL[q];
+                if lq <= lp {
+                    self.local[(lp, lq)] += self.gg_m[p][q];
+                }
+            }
+            grad[lp] += self.gg[p];
+        }
+        let c0 = PER_CONTROL * self.first;
+        for p in 0..n {
+            if p < CTRL {
+                g[c0 + p] += grad[p];
+            } else {
+                g[nc + p - CTRL] += grad[p];
+            }
+        }
+        a.add_local(c0, CTRL, &ALL_X, self.local.as_ref());
+        *self.aa = [[0.0; ACCEL_COLS]; ACCEL_COLS];
+        self.ga = [0.0; ACCEL_COLS];
+        self.gg_m = [[0.0; GYRO_COLS]; GYRO_COLS];
+        self.gg = [0.0; GYRO_COLS];
+        self.first = usize::MAX;
+    }
+}
+
+/// The rows' rotation columns (∂/∂δ of the local perturbation) into θ's
+/// rotation unknowns φ (R_k = R_k0·Exp(φ_k)): times J_r(φ_k), as the pose
+/// blocks.
+fn through_right_jacobians(rows: &mut PoseRows, jr: &[M3]) {
+    for j in 0..4 {
+        let m = &jr[rows.first + j];
+        for r in 0..3 {
+            let a: [f64; 3] = std::array::from_fn(|l| rows.accel[r][6 * j + 3 + l]);
+            let g: [f64; 3] = std::array::from_fn(|l| rows.gyro[r][3 * j + l]);
+            for c in 0..3 {
+                rows.accel[r][6 * j + 3 + c] = (0..3).map(|l| a[l] * m[l][c]).sum();
+                rows.gyro[r][3 * j + c] = (0..3).map(|l| g[l] * m[l][c]).sum();
+            }
+        }
+    }
+}
+
+/// Every x index.
+const ALL_X: [usize; POSE_PARAMS] = {
+    let mut v = [0; POSE_PARAMS];
+    let mut k = 0;
+    while k < POSE_PARAMS {
+        v[k] = k;
+        k += 1;
+    }
+    v
+};
+
+/// Add a pose block's JᵀJ and Jᵀr (band columns only).
+fn accumulate_pose(a: &mut ArrowMatrix, g: &mut [f64], b: &Block, local: &mut Mat<f64>) {
+    let c0 = PER_CONTROL * b.first;
+    for p in 0..CTRL {
+        for q in 0..=p {
+            local[(p, q)] = (0..b.rows).map(|r| b.j[r][p] * b.j[r][q]).sum();
+        }
+        g[c0 + p] += (0..b.rows).map(|r| b.j[r][p] * b.r[r]).sum::<f64>();
+    }
+    a.add_local(c0, CTRL, &[], local.as_ref().submatrix(0, 0, CTRL, CTRL));
+}
+
+impl PoseProblem {
+    /// Add the selected IMU samples' normal equations at `sp`, x (segment by
+    /// segment, [`Segment`]); their cost.
+    fn linearize_imu(
         &self,
         sp: &PoseSpline,
         jr: &[M3],
         x: &[f64],
-        i: usize,
-    ) -> Result<Block, PoseProblemError> {
+        a: &mut ArrowMatrix,
+        g: &mut [f64],
+    ) -> Result<f64, PoseProblemError> {
         let d = &self.data;
-        let p = pm::predict_jacobians(sp, d.imu_t[i], x)?;
-        let mut b = Block {
-            first: p.first,
-            rows: 6,
-            j: [[0.0; CTRL + POSE_PARAMS]; 6],
-            r: [0.0; 6],
-        };
-        for r in 0..6 {
-            let w = 1.0 / d.sigma_z[r];
-            b.r[r] = (p.z[r] - d.imu_z[i][r]) * w;
-            for j in 0..4 {
-                let m = &jr[p.first + j];
-                for c in 0..3 {
-                    b.j[r][6 * j + c] = p.dc[r][6 * j + c] * w;
-                    let v: f64 = (0..3).map(|l| p.dc[r][6 * j + 3 + l] * m[l][c]).sum();
-                    b.j[r][6 * j + 3 + c] = v * w;
-                }
+        let ctx = RowContext::new(x)?;
+        let w: [f64; 6] = d.sigma_z.map(|s| 1.0 / s);
+        let (mut seg, mut seeds, mut cost) = (Segment::new(), SegmentCache::default(), 0.0);
+        for &i in &self.selected {
+            let mut rows = prediction_rows(sp, d.imu_t[i], &ctx, &mut seeds)?;
+            through_right_jacobians(&mut rows, jr);
+            if rows.first != seg.first {
+                seg.flush(a, g, self.n_band());
+                seg.first = rows.first;
             }
-            for k in 0..POSE_PARAMS {
-                b.j[r][CTRL + k] = p.dx[r][k] * w;
-            }
+            let wr: [f64; 6] = std::array::from_fn(|c| (rows.z[c] - d.imu_z[i][c]) * w[c]);
+            cost += 0.5 * wr.iter().map(|r| r * r).sum::<f64>();
+            seg.add(&rows, &w, &wr);
         }
-        Ok(b)
+        seg.flush(a, g, self.n_band());
+        Ok(cost)
     }
-}
-
-/// Add a block's JᵀJ and Jᵀr (`with_x`: the block has x columns).
-fn accumulate(
-    a: &mut ArrowMatrix,
-    g: &mut [f64],
-    nc: usize,
-    b: &Block,
-    with_x: bool,
-    local: &mut Mat<f64>,
-) {
-    let n = if with_x { CTRL + POSE_PARAMS } else { CTRL };
-    let c0 = PER_CONTROL * b.first;
-    for p in 0..n {
-        for q in 0..=p {
-            local[(p, q)] = (0..b.rows).map(|r| b.j[r][p] * b.j[r][q]).sum();
-        }
-        let gp: f64 = (0..b.rows).map(|r| b.j[r][p] * b.r[r]).sum();
-        if p < CTRL {
-            g[c0 + p] += gp;
-        } else {
-            g[nc + p - CTRL] += gp;
-        }
-    }
-    let xi: Vec<usize> = if with_x {
-        (0..POSE_PARAMS).collect()
-    } else {
-        Vec::new()
-    };
-    a.add_local(c0, CTRL, &xi, local.as_ref().submatrix(0, 0, n, n));
 }
 
 impl LeastSquares for PoseProblem {
@@ -313,18 +413,14 @@ impl LeastSquares for PoseProblem {
             self.n_band(),
         );
         let x = self.x(theta);
-        let mut local = Mat::zeros(CTRL + POSE_PARAMS, CTRL + POSE_PARAMS);
+        let mut local = Mat::zeros(CTRL, CTRL);
         let mut cost = 0.0;
         for k in 0..self.data.pose_t.len() {
             let b = self.pose_block(&sp, &jr, k)?;
             cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
-            accumulate(a, g, nc, &b, false, &mut local);
+            accumulate_pose(a, g, &b, &mut local);
         }
-        for &i in &self.selected {
-            let b = self.imu_block(&sp, &jr, x, i)?;
-            cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
-            accumulate(a, g, nc, &b, true, &mut local);
-        }
+        cost += self.linearize_imu(&sp, &jr, x, a, g)?;
         let d = &self.data;
         for k in 0..POSE_PARAMS {
             let w = 1.0 / (d.prior_sigma[k] * d.prior_sigma[k]);

@@ -162,3 +162,57 @@ fn jacobian_in_control_points_matches_finite_differences() {
         }
     }
 }
+
+/// The compact rows (13-variable rotation jets, closed-form rest) equal the
+/// 30-variable reference [`predict_jacobians`] in every column, and are
+/// zero where they have no column, to 1e-10 relative.
+#[test]
+fn compact_rows_equal_the_30_variable_reference() {
+    use rows::{prediction_rows, RowContext, ACCEL_COLS, GYRO_LOCAL};
+    for seed in 0..4 {
+        let sp = random_spline(seed);
+        let x = test_x();
+        let ctx = RowContext::new(&x).unwrap();
+        let mut seeds = rows::SegmentCache::default();
+        for k in 0..40 {
+            let t = 0.05 + 2.7 * k as f64 / 40.0;
+            let p = predict_jacobians(&sp, t, &x).unwrap();
+            let rw = prediction_rows(&sp, t, &ctx, &mut seeds).unwrap();
+            assert_eq!(p.first, rw.first);
+            let full = |r: usize, col: usize| {
+                if col < CTRL {
+                    p.dc[r][col]
+                } else {
+                    p.dx[r][col - CTRL]
+                }
+            };
+            let scale = (0..6)
+                .flat_map(|r| (0..CTRL + POSE_PARAMS).map(move |c| (r, c)))
+                .map(|(r, c)| full(r, c).abs())
+                .fold(1.0f64, f64::max);
+            let close = |a: f64, b: f64, what: &str| {
+                assert!(
+                    (a - b).abs() <= 1e-10 * scale,
+                    "{what}: {a} vs {b} (seed {seed}, t {t})"
+                )
+            };
+            for r in 0..3 {
+                close(rw.z[r], p.z[r], "z_a");
+                close(rw.z[3 + r], p.z[3 + r], "z_w");
+                for col in 0..CTRL + POSE_PARAMS {
+                    let a = if col < ACCEL_COLS {
+                        rw.accel[r][col]
+                    } else {
+                        0.0
+                    };
+                    close(a, full(r, col), &format!("accel row {r} col {col}"));
+                    let g = GYRO_LOCAL
+                        .iter()
+                        .position(|&l| l == col)
+                        .map_or(0.0, |i| rw.gyro[r][i]);
+                    close(g, full(3 + r, col), &format!("gyro row {r} col {col}"));
+                }
+            }
+        }
+    }
+}

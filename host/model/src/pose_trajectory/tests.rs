@@ -552,3 +552,63 @@ fn long_session_fit_time() {
         start.elapsed() / times.len() as u32
     );
 }
+
+/// The value-only pose error equals the residual of `pose_residual_r`
+/// (computed through the jets).
+#[test]
+fn pose_error_equals_the_residual_with_jacobians() {
+    let sp = {
+        let times: Vec<f64> = (0..=200).map(|k| k as f64 * 0.01).collect();
+        let pos: Vec<[f64; 3]> = times.iter().map(|t| [t.sin(), 0.3 * t, t * t]).collect();
+        let q: Vec<[f64; 4]> = times
+            .iter()
+            .map(|t| {
+                let (a, b) = (0.7 * t, 0.4 * t * t);
+                let n = (1.0 + a * a + b * b).sqrt();
+                [1.0 / n, a / n, b / n, 0.2 / n]
+            })
+            .collect();
+        PoseSpline::fit(&times, &pos, &q, 0.1).unwrap()
+    };
+    let r_meas = crate::geom::exp_so3([0.1, -0.2, 0.3]);
+    for k in 0..50 {
+        let t = 0.013 + 1.95 * k as f64 / 50.0;
+        let full = sp.pose_residual_r(t, [0.1, 0.2, 0.3], &r_meas).unwrap();
+        let (e_p, e_r) = sp.pose_error_r(t, [0.1, 0.2, 0.3], &r_meas).unwrap();
+        for c in 0..3 {
+            assert!((e_p[c] - full.e_p[c]).abs() < 1e-14, "e_p {c} at {t}");
+            assert!((e_r[c] - full.e_r[c]).abs() < 1e-12, "e_r {c} at {t}");
+        }
+    }
+}
+
+/// The jet-free rotation Jacobian of the pose residual equals the one
+/// through the 12-variable jets (`jacobians`' r) to 1e-12.
+#[test]
+fn rotation_jacobian_without_jets_equals_the_jets() {
+    let times: Vec<f64> = (0..=200).map(|k| k as f64 * 0.01).collect();
+    let pos = vec![[0.0; 3]; times.len()];
+    let q: Vec<[f64; 4]> = times
+        .iter()
+        .map(|t| {
+            let (a, b) = (1.7 * t, 0.9 * t * t);
+            let n = (1.0 + a * a + b * b + 0.04).sqrt();
+            [1.0 / n, a / n, b / n, 0.2 / n]
+        })
+        .collect();
+    let sp = PoseSpline::fit(&times, &pos, &q, 0.1).unwrap();
+    for k in 0..60 {
+        let t = 0.007 + 1.98 * k as f64 / 60.0;
+        let loc = sp.local(t).unwrap();
+        let (r, j) = sp.rotation_and_jacobian(&loc);
+        let (state, jac) = sp.jacobians(t).unwrap();
+        for a in 0..3 {
+            for b in 0..3 {
+                assert!((r[a][b] - state.r[a][b]).abs() < 1e-12);
+            }
+            for c in 0..LOCAL {
+                assert!((j[a][c] - jac.r[a][c]).abs() < 1e-12, "J[{a}][{c}] at {t}");
+            }
+        }
+    }
+}

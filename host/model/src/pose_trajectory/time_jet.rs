@@ -36,7 +36,7 @@ pub struct ImuPointJet<const N: usize> {
 }
 
 /// The recursion of the parent module's doc, with jet λ's.
-fn rot_kinematics_s<S: Scalar>(
+pub(super) fn rot_kinematics_s<S: Scalar>(
     r0: &M3<S>,
     d: &[V3<S>; DEGREE],
     lam: &[[S; DEGREE]; 3],

@@ -95,22 +95,20 @@ pub(crate) fn find_tau(
     let l_lo = ((-tau_max - base) / TAU_STEP).ceil() as i64;
     let l_hi = ((tau_max - base) / TAU_STEP).floor() as i64;
     let min_overlap = (np.min(nq) / 4).max(20);
+    let (pa, paa) = (prefix(&imu, |v| v), prefix(&imu, |v| v * v));
+    let (pb, pbb) = (prefix(&pose, |v| v), prefix(&pose, |v| v * v));
     let corr = |l: i64| -> Option<f64> {
         let m_lo = (-l).max(0) as usize;
         let m_hi = (nq as i64).min(np as i64 - l);
         if m_hi <= m_lo as i64 || ((m_hi as usize) - m_lo) < min_overlap {
             return None;
         }
-        let pairs = (m_lo..m_hi as usize).map(|m| (imu[m], pose[(m as i64 + l) as usize]));
-        let n = (m_hi as usize - m_lo) as f64;
-        let (mut sa, mut sb, mut saa, mut sbb, mut sab) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for (a, b) in pairs {
-            sa += a;
-            sb += b;
-            saa += a * a;
-            sbb += b * b;
-            sab += a * b;
-        }
+        let (m_hi, k_lo) = (m_hi as usize, (m_lo as i64 + l) as usize);
+        let k_hi = k_lo + (m_hi - m_lo);
+        let n = (m_hi - m_lo) as f64;
+        let (sa, saa) = (pa[m_hi] - pa[m_lo], paa[m_hi] - paa[m_lo]);
+        let (sb, sbb) = (pb[k_hi] - pb[k_lo], pbb[k_hi] - pbb[k_lo]);
+        let sab = dot_lanes(&imu[m_lo..m_hi], &pose[k_lo..k_hi]);
         let (va, vb) = (saa - sa * sa / n, sbb - sb * sb / n);
         (va > 0.0 && vb > 0.0).then(|| (sab - sa * sb / n) / (va * vb).sqrt())
     };
@@ -127,6 +125,37 @@ pub(crate) fn find_tau(
         _ => 0.0,
     };
     Ok((base + (lb as f64 + frac) * TAU_STEP, cb))
+}
+
+/// Prefix sums of f(v): `out[k]` = Σ_{i<k} f(v_i) (the correlation's
+/// window sums in O(1) per lag).
+fn prefix(v: &[f64], f: impl Fn(f64) -> f64) -> Vec<f64> {
+    let mut out = Vec::with_capacity(v.len() + 1);
+    let mut acc = 0.0;
+    out.push(acc);
+    for &x in v {
+        acc += f(x);
+        out.push(acc);
+    }
+    out
+}
+
+/// Σ a_i b_i in 8 interleaved partial sums (vectorised).
+fn dot_lanes(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for k in 0..8 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    acc.iter().sum::<f64>() + tail
 }
 
 /// Least squares y_i ≈ A u_i + b: (A, b).
@@ -227,7 +256,9 @@ pub(crate) fn startup(
     imu_z: &[[f64; 6]],
     tau_max: f64,
 ) -> Result<Startup, PoseCalibrationError> {
-    let (tau, correlation) = find_tau(spline, imu_t, imu_z, tau_max)?;
+    let (tau, correlation) = super::memo::find_tau(spline, imu_t, imu_z, tau_max, || {
+        find_tau(spline, imu_t, imu_z, tau_max)
+    })?;
     let used: Vec<usize> = (0..imu_t.len())
         .filter(|&i| spline.knots().contains(imu_t[i] + tau))
         .collect();

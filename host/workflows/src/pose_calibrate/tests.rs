@@ -62,7 +62,9 @@ fn startup_recovers_a_uniform_rotation_and_tau() {
     truth[GYRO + ROT..GYRO + ROT + 3].copy_from_slice(&q);
     truth[ACCEL + ROT..ACCEL + ROT + 3].copy_from_slice(&q);
     let data = session(&truth, 21, 30.0);
-    let spline = PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, 2.0 / 15.0).unwrap();
+    let spline =
+        robimu_model::PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, 2.0 / 15.0)
+            .unwrap();
     let st = startup::startup(&spline, &data.imu_t, &data.imu_z, 5.0).unwrap();
     assert!((st.tau - 0.37).abs() < 0.01, "τ = {}", st.tau);
     let ew = rotation_error(st.gyro.r, q);

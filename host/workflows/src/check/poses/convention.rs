@@ -7,10 +7,10 @@
 //! body rates. Named, fatal, when its RMS is under `INVERSE_RATIO` of the
 //! body rates'.
 
-use robimu_model::PoseSpline;
 use robimu_session::{files, PoseSession};
 
 use crate::check::{Finding, Severity};
+use crate::pose_calibrate::memo::{self, fit};
 use crate::pose_calibrate::startup::{find_tau, gyro_alignment_rms};
 use crate::pose_calibrate::{default_knot_spacing, PoseCalibrationOptions};
 
@@ -29,10 +29,13 @@ pub(crate) fn inverse_rotation(session: &PoseSession) -> Option<Finding> {
         return None;
     }
     let spacing = default_knot_spacing(&data.pose_t);
-    let spline = PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing).ok()?;
+    let spline = fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing).ok()?;
     // τ searched as the calibration's start-up does
     let search = PoseCalibrationOptions::default().tau_search;
-    let (tau, _) = find_tau(&spline, &data.imu_t, &data.imu_z, search).ok()?;
+    let (tau, _) = memo::find_tau(&spline, &data.imu_t, &data.imu_z, search, || {
+        find_tau(&spline, &data.imu_t, &data.imu_z, search)
+    })
+    .ok()?;
     let (body, world) = gyro_alignment_rms(&spline, &data.imu_t, &data.imu_z, tau).ok()?;
     // NaN fits name nothing
     if world.partial_cmp(&(INVERSE_RATIO * body)) != Some(std::cmp::Ordering::Less) {
