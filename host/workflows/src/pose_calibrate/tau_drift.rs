@@ -62,10 +62,9 @@ pub(crate) fn tau_drift(
         data.prior_sigma[TAU].powi(-2),
         theta[nc + TAU] - data.prior_mean[TAU],
     );
-    let mut g = vec![0.0; m];
-    let mut d = vec![0.0; m];
-    let mut cols: Vec<Vec<f64>> = Vec::with_capacity(m);
-    for k in 1..SEGMENTS {
+    // segment k's τ column of the information and gradient entry; the
+    // segments are independent, each on its own thread
+    let segment = |k: usize| -> Result<(f64, Vec<f64>), PoseProblemError> {
         let range = selected.len() * k / SEGMENTS..selected.len() * (k + 1) / SEGMENTS;
         // no pose samples: they do not touch τ's column or gradient entry
         let mut seg = PoseData {
@@ -87,12 +86,29 @@ pub(crate) fn tau_drift(
         let mut a = p.new_matrix();
         let mut gk = vec![0.0; n];
         p.linearize(theta, &mut a, &mut gk)?;
-        g[k - 1] = gk[nc + TAU] - w_tau * e_tau;
         let mut c: Vec<f64> = (0..n).map(|i| a.get(i, nc + TAU)).collect();
         c[nc + TAU] -= w_tau;
-        d[k - 1] = c[nc + TAU];
+        Ok((gk[nc + TAU] - w_tau * e_tau, c))
+    };
+    let parts: Vec<Result<(f64, Vec<f64>), PoseProblemError>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (2..SEGMENTS).map(|k| s.spawn(move || segment(k))).collect();
+        let first = segment(1);
+        std::iter::once(first)
+            .chain(
+                handles
+                    .into_iter()
+                    .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e))),
+            )
+            .collect()
+    });
+    let mut g = Vec::with_capacity(m);
+    let mut cols: Vec<Vec<f64>> = Vec::with_capacity(m);
+    for part in parts {
+        let (gk, c) = part?;
+        g.push(gk);
         cols.push(c);
     }
+    let d: Vec<f64> = cols.iter().map(|c| c[nc + TAU]).collect();
     // V = diag(d) − Cᵀ A⁻¹ C
     let solved: Vec<Vec<f64>> = cols
         .iter()
