@@ -16,7 +16,6 @@ use std::path::PathBuf;
 
 use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
-use robimu_model::effects::resonance::Mode;
 use robimu_model::geom::{exp_so3, mul_mm, mul_mv, quat_from_matrix, V3};
 use robimu_model::{JointState, MeasurementModel, PoseMeasurements, Robot};
 
@@ -46,27 +45,10 @@ pub(crate) fn flange_session(
     pose_jitter: f64,
     noise: &PoseNoise,
 ) -> anyhow::Result<FlangeSession> {
+    // the motion alone: no session is written, no tracker poses drawn
     let spec = SessionSpec {
-        robot_field: String::new(),
-        duration,
-        trajectory: None,
-        rate: imu_rate,
-        joint_rate: None,
-        seed,
-        out: PathBuf::new(),
-        noise_free: false,
-        truth: None,
-        tracker: false,
-        nominal: Vec::new(),
         poses: 0,
-        effects: Vec::new(),
-        bias_walk: None,
-        temperature: None,
-        resonance: Mode::default(),
-        noise_model: None,
-        imus: 1,
-        imu_position: Vec::new(),
-        robot,
+        ..SessionSpec::plain(robot, duration, imu_rate, seed, PathBuf::new())
     };
     let m = simulate_motion(&spec)?;
     let robot = &spec.robot;

@@ -209,7 +209,6 @@ pub(crate) fn simulate_motion(spec: &SessionSpec) -> anyhow::Result<SimulatedMot
     })
 }
 
-#[cfg(test)]
 impl SessionSpec {
     /// `robimu simulate --robot NAME --duration --rate --seed --out`'s spec
     /// (every other flag at its default).
