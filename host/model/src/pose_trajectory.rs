@@ -88,6 +88,23 @@ pub type Jac3x12 = [[f64; LOCAL]; 3];
 
 type J12 = Jet<LOCAL>;
 
+/// R_i as a jet in its right perturbation δ (R_i Exp(δ), ∂R/∂δ_c =
+/// R_i [e_c]×), δ_c being the jet's variable `var(c)`.
+fn seeded_rotation<const N: usize>(r_i: &M3, var: impl Fn(usize) -> usize) -> M3<Jet<N>> {
+    let mut r0: M3<Jet<N>> = r_i.map(|row| row.map(Jet::cst));
+    for c in 0..3 {
+        let mut e = [0.0; 3];
+        e[c] = 1.0;
+        let dr = mul_mm(r_i, &so3::hat(e));
+        for (row, drow) in r0.iter_mut().zip(&dr) {
+            for (x, dx) in row.iter_mut().zip(drow) {
+                x.d[var(c)] = *dx;
+            }
+        }
+    }
+    r0
+}
+
 /// Why a pose spline could not be built or fitted.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum PoseSplineError {
@@ -426,17 +443,7 @@ impl PoseSpline {
     fn rot_jets(&self, loc: &Local) -> RotKin<J12> {
         let i = loc.first;
         let r_i = &self.rotation[i];
-        let mut r0: M3<J12> = r_i.map(|row| row.map(J12::cst));
-        for c in 0..3 {
-            let mut e = [0.0; 3];
-            e[c] = 1.0;
-            let dr = mul_mm(r_i, &so3::hat(e));
-            for (row, drow) in r0.iter_mut().zip(&dr) {
-                for (x, dx) in row.iter_mut().zip(drow) {
-                    x.d[c] = *dx;
-                }
-            }
-        }
+        let r0: M3<J12> = seeded_rotation(r_i, |c| c);
         let d_val = self.differences(i);
         let d: [V3<J12>; DEGREE] = std::array::from_fn(|j| {
             let (jl, jr) = (left_jacobian_inv(d_val[j]), right_jacobian_inv(d_val[j]));

@@ -60,17 +60,7 @@ impl PoseSpline {
     /// If `first + 3` is not a control point.
     pub(crate) fn rotation_seeds(&self, first: usize) -> RotationSeeds {
         let r_i = &self.rotation[first];
-        let mut r0: M3<J13> = r_i.map(|row| row.map(J13::cst));
-        for c in 0..3 {
-            let mut e = [0.0; 3];
-            e[c] = 1.0;
-            let dr = mul_mm(r_i, &so3::hat(e));
-            for (row, drow) in r0.iter_mut().zip(&dr) {
-                for (x, dx) in row.iter_mut().zip(drow) {
-                    x.d[rot_var(0, c)] = *dx;
-                }
-            }
-        }
+        let r0: M3<J13> = seeded_rotation(r_i, |c| rot_var(0, c));
         let d_val = self.differences(first);
         let d = std::array::from_fn(|j| {
             let mut dj = d_val[j].map(J13::cst);

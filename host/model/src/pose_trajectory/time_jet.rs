@@ -106,19 +106,10 @@ impl PoseSpline {
             }
         }
         let r_i = &self.rotation[i];
-        let mut r0: M3<Jet<N>> = r_i.map(|row| row.map(Jet::cst));
-        if let Some(v) = ctrl_var {
-            for c in 0..3 {
-                let mut e = [0.0; 3];
-                e[c] = 1.0;
-                let dr = mul_mm(r_i, &so3::hat(e));
-                for (row, drow) in r0.iter_mut().zip(&dr) {
-                    for (x, dx) in row.iter_mut().zip(drow) {
-                        x.d[v + 3 + c] = *dx;
-                    }
-                }
-            }
-        }
+        let r0: M3<Jet<N>> = match ctrl_var {
+            Some(v) => seeded_rotation(r_i, |c| v + 3 + c),
+            None => r_i.map(|row| row.map(Jet::cst)),
+        };
         let d_val = self.differences(i);
         let d: [V3<Jet<N>>; DEGREE] = std::array::from_fn(|j| {
             let mut dj = d_val[j].map(Jet::cst);
