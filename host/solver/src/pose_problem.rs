@@ -233,21 +233,52 @@ impl PoseProblem {
 /// segment.
 struct Segment {
     first: usize,
-    aa: Box<[[f64; ACCEL_COLS]; ACCEL_COLS]>,
-    ga: [f64; ACCEL_COLS],
-    gg_m: [[f64; GYRO_COLS]; GYRO_COLS],
-    gg: [f64; GYRO_COLS],
+    accel: Gram<ACCEL_COLS>,
+    gyro: Gram<GYRO_COLS>,
     local: Mat<f64>,
+}
+
+/// One sensor's sums over a segment in its C compact columns: Σ wᵀw (the
+/// full square; the flush reads the lower triangle) and the gradient
+/// Σ wᵀ·(whitened residual), w the sample's three whitened rows.
+struct Gram<const C: usize> {
+    m: Box<[[f64; C]; C]>,
+    g: [f64; C],
+}
+
+impl<const C: usize> Gram<C> {
+    fn new() -> Self {
+        Self {
+            m: Box::new([[0.0; C]; C]),
+            g: [0.0; C],
+        }
+    }
+
+    /// Add the three `rows` weighted by `w`, their whitened residuals `wr`.
+    fn add(&mut self, rows: &[[f64; C]; 3], w: &[f64], wr: &[f64]) {
+        let a: [[f64; C]; 3] = std::array::from_fn(|r| rows[r].map(|v| v * w[r]));
+        for p in 0..C {
+            let (x0, x1, x2) = (a[0][p], a[1][p], a[2][p]);
+            let row = &mut self.m[p];
+            for q in 0..C {
+                row[q] += x0 * a[0][q] + x1 * a[1][q] + x2 * a[2][q];
+            }
+            self.g[p] += x0 * wr[0] + x1 * wr[1] + x2 * wr[2];
+        }
+    }
+
+    fn clear(&mut self) {
+        *self.m = [[0.0; C]; C];
+        self.g = [0.0; C];
+    }
 }
 
 impl Segment {
     fn new() -> Self {
         Self {
             first: usize::MAX,
-            aa: Box::new([[0.0; ACCEL_COLS]; ACCEL_COLS]),
-            ga: [0.0; ACCEL_COLS],
-            gg_m: [[0.0; GYRO_COLS]; GYRO_COLS],
-            gg: [0.0; GYRO_COLS],
+            accel: Gram::new(),
+            gyro: Gram::new(),
             local: Mat::zeros(CTRL + POSE_PARAMS, CTRL + POSE_PARAMS),
         }
     }
@@ -255,24 +286,8 @@ impl Segment {
     /// Add one sample's whitened rows (`wr`: whitened residuals), the
     /// three rows of a sensor in one pass over its sums.
     fn add(&mut self, rows: &PoseRows, w: &[f64; 6], wr: &[f64; 6]) {
-        let a: [[f64; ACCEL_COLS]; 3] = std::array::from_fn(|r| rows.accel[r].map(|v| v * w[r]));
-        for p in 0..ACCEL_COLS {
-            let (x0, x1, x2) = (a[0][p], a[1][p], a[2][p]);
-            let row = &mut self.aa[p];
-            for q in 0..ACCEL_COLS {
-                row[q] += x0 * a[0][q] + x1 * a[1][q] + x2 * a[2][q];
-            }
-            self.ga[p] += x0 * wr[0] + x1 * wr[1] + x2 * wr[2];
-        }
-        let g: [[f64; GYRO_COLS]; 3] = std::array::from_fn(|r| rows.gyro[r].map(|v| v * w[3 + r]));
-        for p in 0..GYRO_COLS {
-            let (x0, x1, x2) = (g[0][p], g[1][p], g[2][p]);
-            let row = &mut self.gg_m[p];
-            for q in 0..GYRO_COLS {
-                row[q] += x0 * g[0][q] + x1 * g[1][q] + x2 * g[2][q];
-            }
-            self.gg[p] += x0 * wr[3] + x1 * wr[4] + x2 * wr[5];
-        }
+        self.accel.add(&rows.accel, &w[..3], &wr[..3]);
+        self.gyro.add(&rows.gyro, &w[3..], &wr[3..]);
     }
 
     /// Add the sums to `a`, `g` and start empty.
@@ -285,19 +300,19 @@ impl Segment {
         let mut grad = [0.0; CTRL + POSE_PARAMS];
         for p in 0..ACCEL_COLS {
             for q in 0..=p {
-                self.local[(p, q)] = self.aa[p][q];
+                self.local[(p, q)] = self.accel.m[p][q];
             }
-            grad[p] = self.ga[p];
+            grad[p] = self.accel.g[p];
         }
         for p in 0..GYRO_COLS {
             let lp = GYRO_LOCAL[p];
             for q in 0..GYRO_COLS {
                 let lq = GYRO_LOCAL[q];
                 if lq <= lp {
-                    self.local[(lp, lq)] += self.gg_m[p][q];
+                    self.local[(lp, lq)] += self.gyro.m[p][q];
                 }
             }
-            grad[lp] += self.gg[p];
+            grad[lp] += self.gyro.g[p];
         }
         let c0 = PER_CONTROL * self.first;
         for p in 0..n {
@@ -308,10 +323,8 @@ impl Segment {
             }
         }
         a.add_local(c0, CTRL, &ALL_X, self.local.as_ref());
-        *self.aa = [[0.0; ACCEL_COLS]; ACCEL_COLS];
-        self.ga = [0.0; ACCEL_COLS];
-        self.gg_m = [[0.0; GYRO_COLS]; GYRO_COLS];
-        self.gg = [0.0; GYRO_COLS];
+        self.accel.clear();
+        self.gyro.clear();
         self.first = usize::MAX;
     }
 }
