@@ -147,6 +147,18 @@ fn median_min(v: &[f64]) -> (f64, f64) {
     )
 }
 
+/// The other build's figures beside ours (`walls`, median `med`), run
+/// interleaved with them (`theirs`).
+fn versus_text(other: &Path, theirs: &[f64], walls: &[f64], med: f64) -> String {
+    let (their, their_min) = median_min(theirs);
+    format!(
+        "; versus {} interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's{}",
+        other.display(),
+        their / med,
+        pairwise(theirs, walls)
+    )
+}
+
 /// The run-by-run ratios of interleaved runs (each `theirs[i] / ours[i]`,
 /// timed seconds apart): their median and range, which a drift of the
 /// machine over the whole bench moves less than the ratio of the medians.
@@ -225,13 +237,7 @@ fn pose_case(bin: &Path, work: &Path, runs: usize, time: Option<&Path>, versus: 
         line += &format!("; CPU median user {user:.2} s + sys {sys:.2} s; peak RSS {peak:.0} MB");
     }
     if let Some(o) = versus {
-        let (their, their_min) = median_min(&theirs);
-        line += &format!(
-            "; versus {} interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's{}",
-            o.display(),
-            their / med,
-            pairwise(&theirs, &walls)
-        );
+        line += &versus_text(o, &theirs, &walls, med);
     }
     println!(
         "{line}; load average before {load_before}, after {}",
@@ -353,13 +359,7 @@ fn main() {
                 }
             }
             if let Some(o) = other {
-                let (their, their_min) = median_min(&theirs);
-                line += &format!(
-                    "; versus {} interleaved: median {their:.3} s, min {their_min:.3} s, {:.2}x this one's{}",
-                    o.display(),
-                    their / med,
-                    pairwise(&theirs, &walls)
-                );
+                line += &versus_text(o, &theirs, &walls, med);
             }
             if !peers.is_empty() {
                 let peer_walls: Vec<f64> = peers.iter().map(|r| r.wall).collect();
