@@ -20,8 +20,12 @@
 //! `band[i·(w+1) ..]`, the diagonal last; entries with negative column index are
 //! padding and stay zero.
 
+mod inverse;
+
 use faer::linalg::solvers::{DenseSolveCore, Llt, Solve};
 use faer::{Mat, MatRef, Side};
+
+pub use inverse::SelectedInverse;
 
 /// A symmetric arrowhead matrix (see the module doc). Only the lower band,
 /// the border and the full corner are stored.
@@ -433,7 +437,7 @@ impl ArrowFactor {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     /// Every entry of a restricted matrix is the original's at the kept
@@ -462,7 +466,7 @@ mod tests {
     }
 
     /// A random SPD arrowhead built from random local blocks, as assembly does.
-    fn random_arrow(nc: usize, w: usize, nx: usize, seed: u64) -> ArrowMatrix {
+    pub(super) fn random_arrow(nc: usize, w: usize, nx: usize, seed: u64) -> ArrowMatrix {
         let mut state = seed;
         let mut rnd = move || {
             state = state
@@ -483,7 +487,7 @@ mod tests {
         a
     }
 
-    fn dense(a: &ArrowMatrix) -> Mat<f64> {
+    pub(super) fn dense(a: &ArrowMatrix) -> Mat<f64> {
         let n = a.nc + a.nx;
         Mat::from_fn(n, n, |i, j| a.get(i, j))
     }

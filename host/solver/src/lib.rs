@@ -62,7 +62,7 @@ pub mod lm;
 pub mod pose_problem;
 pub mod problem;
 
-pub use arrow::{ArrowFactor, ArrowMatrix, FactorError};
+pub use arrow::{ArrowFactor, ArrowMatrix, FactorError, SelectedInverse};
 pub use lm::{
     solve, solve_from, IterationRecord, LeastSquares, Linearization, LmError, LmOptions,
     LmSolution, LmSummary, Termination,
