@@ -132,6 +132,20 @@ pub(crate) fn ranges_of(imu: Option<&toml::Table>) -> (Option<f64>, Option<f64>)
     (accel, gyro)
 }
 
+/// Fatal above this share of saturated rows (the fit cannot use them), a
+/// warning below.
+const SATURATED_SHARE_FATAL: f64 = 0.01;
+
+/// The severity of saturation in `share` of the rows, whether found at a
+/// recorded range or by clipping runs ([`super::clipping`]).
+pub(crate) fn saturation_severity(share: f64) -> Severity {
+    if share > SATURATED_SHARE_FATAL {
+        Severity::Fatal
+    } else {
+        Severity::Warning
+    }
+}
+
 /// Samples at the device's range, per sensor.
 fn saturation(session: &Session) -> Vec<Finding> {
     let (accel, gyro) = ranges(session);
@@ -158,11 +172,7 @@ pub(crate) fn saturation_of(imu: &Table, accel: Option<f64>, gyro: Option<f64>) 
             continue;
         }
         let share = count as f64 / n as f64;
-        let severity = if share > 0.01 {
-            Severity::Fatal
-        } else {
-            Severity::Warning
-        };
+        let severity = saturation_severity(share);
         out.push(Finding::new(
             "saturation",
             severity,

@@ -7,8 +7,8 @@
 //! clips below 2 g or 125 °/s: an accelerometer at rest repeating 9.81 is
 //! not saturated); a value near a typical full scale is named as such.
 
-use super::channels::{G_STANDARD, SATURATION};
-use super::{Finding, Severity};
+use super::channels::{saturation_severity, G_STANDARD, SATURATION};
+use super::Finding;
 use robimu_session::{Table, IMU_COLUMNS};
 
 /// A clipped stretch is at least this many identical samples in a row.
@@ -48,11 +48,7 @@ pub fn check(name: &str, imu: &Table) -> Vec<Finding> {
             .find(|fs| ((value.abs() / scale) / **fs - 1.0).abs() < FULL_SCALE_TOLERANCE)
             .map(|fs| format!(", a typical full scale ±{fs} {scale_unit}"))
             .unwrap_or_default();
-        let severity = if share > 0.01 {
-            Severity::Fatal
-        } else {
-            Severity::Warning
-        };
+        let severity = saturation_severity(share);
         out.push(Finding::new(
             "saturation",
             severity,
@@ -100,6 +96,7 @@ fn clipped(v: &[f64], min_full_scale: f64) -> Option<(usize, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::check::Severity;
 
     /// A table of `n` rows at 100 Hz: a smooth motion, every channel moving.
     fn smooth(n: usize) -> Table {
