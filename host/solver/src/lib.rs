@@ -69,5 +69,7 @@ pub use lm::{
 };
 
 pub use crate::dense::DenseError;
-pub use crate::pose_problem::{PoseData, PoseProblem, PoseProblemError};
+pub use crate::pose_problem::{
+    ChannelFit, PoseData, PoseProblem, PoseProblemError, PoseSigma, FIT_CHANNELS,
+};
 pub use crate::problem::ImuResiduals;

@@ -454,5 +454,8 @@ impl LeastSquares for PoseProblem {
     }
 }
 
+mod leverage;
 #[cfg(test)]
 mod tests;
+
+pub use leverage::{ChannelFit, PoseSigma, FIT_CHANNELS};

@@ -9,7 +9,7 @@ use robimu_model::Knots;
 
 /// A small problem: a random spline over [0, 2] s, poses at 20 Hz, IMU at
 /// 40 Hz (outputs arbitrary: only derivatives are tested).
-fn small_problem() -> (PoseProblem, Vec<f64>) {
+pub(super) fn small_problem() -> (PoseProblem, Vec<f64>) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(9);
     let knots = Knots::uniform(0.0, 2.0, 0.25, 3).unwrap();
     let m = knots.num_coeffs();

@@ -10,19 +10,21 @@
 //! [`simulate`] makes sessions with known truth.
 
 pub(crate) mod memo;
+pub mod noise;
 pub mod simulate;
 pub(crate) mod startup;
 pub(crate) mod tau_drift;
 #[cfg(test)]
 mod tests;
 
-use robimu_model::geom::{matrix_from_quat, V3};
-use robimu_model::pose_measurement::{self as pm, pose_param_specs, POSE_PARAMS};
+use robimu_model::geom::matrix_from_quat;
+use robimu_model::pose_measurement::{pose_param_specs, POSE_PARAMS};
 use robimu_model::{PoseMeasurements, PoseSplineError};
 use robimu_solver::{
     IterationRecord, LeastSquares, LmOptions, PoseData, PoseProblem, PoseProblemError,
 };
 
+pub use noise::NoiseLevels;
 pub use simulate::{
     draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming, PoseNoise,
 };
@@ -73,6 +75,9 @@ pub struct PoseCalibrationOptions {
     pub knot_spacing: Option<f64>,
     /// τ is searched within ±this (s).
     pub tau_search: f64,
+    /// Identify the noise levels from the residuals and refit with them
+    /// ([`noise`]); false: σ as given.
+    pub identify_noise: bool,
     /// Levenberg–Marquardt settings.
     pub lm: LmOptions,
 }
@@ -87,6 +92,7 @@ impl Default for PoseCalibrationOptions {
             sigma_z: [0.38, 0.21, 0.19, 0.32 * d, 0.47 * d, 0.57 * d],
             knot_spacing: None,
             tau_search: 5.0,
+            identify_noise: true,
             lm: LmOptions {
                 max_iterations: 50,
                 sigma_tolerance: SIGMA_TOLERANCE,
@@ -135,6 +141,8 @@ pub struct PoseCalibration {
     /// The score test of a constant τ (docs/model.md §7.9, *time offset*);
     /// `None` when it could not be formed.
     pub tau_drift: Option<TauDrift>,
+    /// The noise levels given, identified and used ([`noise`]).
+    pub noise: NoiseLevels,
 }
 
 /// Checks of the measurements; the rotations as matrices.
@@ -225,7 +233,7 @@ pub fn calibrate_poses_with(
         prior_mean: specs.iter().map(|s| s.nominal).collect(),
         prior_sigma: specs.iter().map(|s| s.sigma).collect(),
     };
-    let (base, pdata_all) = (spline.clone(), pdata.clone());
+    let (base, mut pdata_all) = (spline.clone(), pdata.clone());
     let mut problem = PoseProblem::new(spline, pdata)?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
@@ -233,12 +241,20 @@ pub fn calibrate_poses_with(
         "solving: tau = {:.4} s from the start-up (correlation {:.3})",
         st.tau, st.correlation
     ));
-    let sol = robimu_solver::solve(&mut problem, theta, &opts.lm, iteration)
-        .map_err(|e| PoseCalibrationError::Solver(e.to_string()))?;
+    let (sol, noise) = noise::solve_identified(
+        &mut problem,
+        theta,
+        &opts.lm,
+        opts.identify_noise,
+        &mut stage,
+        iteration,
+    )?;
     problem.begin_iteration(&sol.theta)?;
+    (pdata_all.sigma_z, pdata_all.sigma_p, pdata_all.sigma_r) =
+        (noise.used.sigma_z, noise.used.sigma_p, noise.used.sigma_r);
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();
-    let (imu_rms, pose_rms) = residual_rms(&problem, &sol.theta, data)?;
+    let (imu_rms, pose_rms) = noise.rms();
     let drift = tau_drift::tau_drift(
         &base,
         &pdata_all,
@@ -268,37 +284,6 @@ pub fn calibrate_poses_with(
         knot_spacing: spacing,
         startup: st,
         tau_drift: drift,
+        noise,
     })
-}
-
-/// Residual RMS per IMU channel and of the pose samples at θ.
-fn residual_rms(
-    problem: &PoseProblem,
-    theta: &[f64],
-    data: &PoseMeasurements,
-) -> Result<([f64; 6], [f64; 2]), PoseCalibrationError> {
-    let sp = problem.spline(theta)?;
-    let x = problem.x(theta);
-    let mut sz = [0.0; 6];
-    for &i in problem.selected() {
-        let z = pm::predict(&sp, data.imu_t[i], x).map_err(PoseProblemError::from)?;
-        for c in 0..6 {
-            sz[c] += (z[c] - data.imu_z[i][c]).powi(2);
-        }
-    }
-    let ni = problem.selected().len().max(1) as f64;
-    let (mut sp2, mut sr2) = (0.0, 0.0);
-    for k in 0..data.pose_t.len() {
-        let e = sp
-            .pose_residual(data.pose_t[k], data.pose_p[k], data.pose_q[k])
-            .map_err(PoseSplineError::from)?;
-        let sq = |v: V3| v.iter().map(|a| a * a).sum::<f64>();
-        sp2 += sq(e.e_p);
-        sr2 += sq(e.e_r);
-    }
-    let np = (3 * data.pose_t.len()) as f64;
-    Ok((
-        sz.map(|s| (s / ni).sqrt()),
-        [(sp2 / np).sqrt(), (sr2 / np).sqrt()],
-    ))
 }

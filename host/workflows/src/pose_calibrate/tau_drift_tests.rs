@@ -1,7 +1,9 @@
 //! The score test of a constant τ on simulated sessions: silent on exact
 //! stamps, and on a lag drifting by D over the recording it finds the
 //! segments' τ the simulation put there (−D/4 per segment: a sample
-//! stamped late by lag(t) reads the motion at its stamp + τ − lag(t)).
+//! stamped late by lag(t) reads the motion at its stamp + τ − lag(t)),
+//! with the σ given (the noise identification would take part of the
+//! drift for noise).
 
 use super::*;
 use crate::pose_calibrate::{
@@ -9,7 +11,7 @@ use crate::pose_calibrate::{
     PoseCalibrationOptions, PoseNoise,
 };
 
-fn drift_of(seed: u64, timing: ImuTiming) -> TauDrift {
+fn drift_of(seed: u64, timing: ImuTiming, identify_noise: bool) -> TauDrift {
     let truth = draw_pose_truth(500 + seed);
     let motion = random_pose_motion(60.0, 600 + seed).unwrap();
     let mut data = simulate_pose_session(
@@ -23,16 +25,26 @@ fn drift_of(seed: u64, timing: ImuTiming) -> TauDrift {
     )
     .unwrap();
     timing.apply(&mut data, seed).unwrap();
-    let cal = calibrate_poses(&data, &PoseCalibrationOptions::default()).unwrap();
+    let opts = PoseCalibrationOptions {
+        identify_noise,
+        ..Default::default()
+    };
+    let cal = calibrate_poses(&data, &opts).unwrap();
     cal.tau_drift.expect("the test is formed")
 }
 
 #[test]
 fn a_constant_tau_passes_and_a_drifting_lag_is_found_where_it_is() {
-    let clean = drift_of(1, ImuTiming::default());
+    let clean = drift_of(1, ImuTiming::default(), true);
     assert!(clean.p_value >= P_DOUBT, "{clean:?}");
     let drift = 0.030;
-    let messy = drift_of(1, ImuTiming { jitter: 0.0, drift });
+    let timing = ImuTiming { jitter: 0.0, drift };
+    // the noise identification takes part of the drift for noise (σ_r
+    // doubles here): the test still rejects, the segments' τ are
+    // pulled towards 0 (−5, −13, −20 ms); located with the σ given
+    let identified = drift_of(1, timing, true);
+    assert!(identified.p_value < 1e-6, "{identified:?}");
+    let messy = drift_of(1, timing, false);
     assert!(messy.p_value < 1e-6, "{messy:?}");
     for k in 0..SEGMENTS - 1 {
         let want = -drift / SEGMENTS as f64 * (k + 1) as f64;

@@ -1,0 +1,115 @@
+//! The pose calibration's noise levels from its own residuals (docs/model.md
+//! §7.9, *noise*): after the solve, each channel's
+//! σ̂_c = σ_c √(RSS_c / (N_c − h_c)) ([`ChannelFit`]: the rows' leverage h_c
+//! puts back the part of the noise the spline and x absorbed, which leaves
+//! the raw RMS 5–13 % low); while some σ̂ differs from the σ used by more
+//! than [`SETTLE`], the problem is refitted from its solution with σ̂, at
+//! most [`MAX_REFITS`] times. The channels are the six IMU channels and the
+//! poses' position and rotation; the noise stays white (the paper's model):
+//! a level is identified, not a correlation.
+
+use robimu_solver::{
+    solve_from, ChannelFit, IterationRecord, LeastSquares, LmOptions, LmSolution, PoseProblem,
+    PoseSigma, FIT_CHANNELS,
+};
+
+use super::PoseCalibrationError;
+
+/// The identification has settled when every σ̂ is within this share of
+/// the σ used (a 2 % error in σ is a 2 % error in every σ of x), or
+/// within [`SETTLE_SE`] of its standard error, whichever is wider.
+pub const SETTLE: f64 = 0.02;
+
+/// σ̂_c/σ_c within this many standard errors 1/√(2 (N_c − h_c)) of 1 is
+/// what the data cannot tell from 1: no refit.
+pub const SETTLE_SE: f64 = 3.0;
+
+/// The settling tolerance of channel `c` (relative).
+fn tolerance(fit: &ChannelFit, c: usize) -> f64 {
+    let dof = (fit.rows[c] as f64 - fit.leverage[c]).max(1.0);
+    SETTLE.max(SETTLE_SE / (2.0 * dof).sqrt())
+}
+
+/// The IMU rows' leverage from every this many samples
+/// ([`PoseProblem::channel_fit`]).
+const STRIDE: usize = 8;
+
+/// Most refits with identified σ.
+pub const MAX_REFITS: usize = 4;
+
+/// The noise levels of a pose calibration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NoiseLevels {
+    /// The σ the calibration started from (session.toml's or the defaults).
+    pub given: PoseSigma,
+    /// The σ of the final fit (its rows, covariance and whitened RMS).
+    pub used: PoseSigma,
+    /// Whether σ were identified (false: `used` is `given`).
+    pub identified: bool,
+    /// Refits with identified σ.
+    pub refits: usize,
+    /// Whether the last σ̂ are within [`SETTLE`] of `used`.
+    pub settled: bool,
+    /// RSS, rows and leverage of the final fit, per channel.
+    pub fit: ChannelFit,
+}
+
+impl NoiseLevels {
+    /// The final fit's residual RMS (not whitened): per IMU channel, and of
+    /// the poses' position (m) and rotation (rad) per component.
+    pub fn rms(&self) -> ([f64; 6], [f64; 2]) {
+        let s = self.used.channels();
+        let rms = |c: usize| s[c] * (self.fit.rss[c] / self.fit.rows[c].max(1) as f64).sqrt();
+        (std::array::from_fn(rms), [rms(6), rms(7)])
+    }
+
+    /// The σ the final fit's residuals give: `used` times σ̂/σ.
+    pub fn suggested(&self) -> PoseSigma {
+        let ratio = self.fit.sigma_ratio().map(|r| r.unwrap_or(1.0));
+        self.used.scaled(ratio)
+    }
+}
+
+fn solver_error<E: std::fmt::Display>(e: E) -> PoseCalibrationError {
+    PoseCalibrationError::Solver(e.to_string())
+}
+
+/// Solve `problem` from `theta` and, with `identify`, identify its σ and
+/// refit until they settle (module doc); `stage` hears of each refit.
+pub(crate) fn solve_identified(
+    problem: &mut PoseProblem,
+    theta: Vec<f64>,
+    lm: &LmOptions,
+    identify: bool,
+    mut stage: impl FnMut(&str),
+    mut iteration: impl FnMut(&IterationRecord),
+) -> Result<(LmSolution, NoiseLevels), PoseCalibrationError> {
+    let given = problem.sigma();
+    let mut sol = solve_from(problem, theta, None, lm, &mut iteration).map_err(solver_error)?;
+    let mut refits = 0;
+    loop {
+        problem.begin_iteration(&sol.theta)?;
+        let fit = problem.channel_fit(&sol.theta, &sol.factor.selected_inverse(), STRIDE)?;
+        let factor = fit.sigma_ratio().map(|r| r.unwrap_or(1.0));
+        let settled = (0..FIT_CHANNELS).all(|c| (factor[c] - 1.0).abs() <= tolerance(&fit, c));
+        if !identify || settled || refits == MAX_REFITS {
+            let levels = NoiseLevels {
+                given,
+                used: problem.sigma(),
+                identified: identify,
+                refits,
+                settled,
+                fit,
+            };
+            return Ok((sol, levels));
+        }
+        let next = problem.sigma().scaled(factor);
+        problem.set_sigma(next)?;
+        refits += 1;
+        stage(&format!(
+            "refit {refits} with the noise levels of the residuals (σ changed by up to {:.0} %)",
+            100.0 * factor.iter().map(|f| (f - 1.0).abs()).fold(0.0, f64::max)
+        ));
+        sol = solve_from(problem, sol.theta, None, lm, &mut iteration).map_err(solver_error)?;
+    }
+}
