@@ -54,6 +54,34 @@ pub fn pose_param_names() -> [String; POSE_PARAMS] {
     v.try_into().expect("30 names")
 }
 
+/// Parameters of its own of IMU j ≥ 1 (all but the shared `g_x`, `g_y`;
+/// MODEL.md §9, §10).
+pub const IMU_OWN: usize = POSE_PARAMS - 2;
+
+/// Number of parameters of a pose session with `n_imus` IMUs: IMU 0's 30,
+/// then 28 per further IMU (2 + 28·K; MODEL.md §10).
+pub fn n_pose_params(n_imus: usize) -> usize {
+    POSE_PARAMS + IMU_OWN * n_imus.saturating_sub(1)
+}
+
+/// The indices in the K-IMU x of IMU `j`'s 30-vector (its p_I, the shared
+/// g_x, g_y, its τ and sensor parameters, §10's order): 0..30 for IMU 0;
+/// for j ≥ 1 its 28 at 30 + 28·(j − 1), with g at 3, 4.
+pub fn imu_indices(j: usize) -> [usize; POSE_PARAMS] {
+    let own = POSE_PARAMS + IMU_OWN * j.saturating_sub(1);
+    std::array::from_fn(|k| match (j, k) {
+        (0, _) => k,
+        (_, k) if k < G_XY => own + k,
+        (_, k) if k < TAU => k,
+        (_, k) => own + k - 2,
+    })
+}
+
+/// IMU `j`'s 30-vector of the K-IMU `x` ([`imu_indices`]).
+pub fn imu_view(x: &[f64], j: usize) -> [f64; POSE_PARAMS] {
+    imu_indices(j).map(|i| x[i])
+}
+
 /// The parameter specs (name, unit, prior mean, σ) of a pose session
 /// (MODEL.md §10, §6): p_imu 0 ± 0.2 m, g_xy 0 ± 0.5 m/s², τ 0 ± 1 s, the §6
 /// sensor priors, except the sensor rotations: prior means `r_a`, `r_w`
