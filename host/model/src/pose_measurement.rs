@@ -19,7 +19,7 @@ pub const POSE_PARAMS: usize = 30;
 /// Index of `p_imu_x` (then y, z).
 pub(crate) const P_IMU: usize = 0;
 /// Index of `g_x` (then `g_y`).
-pub(crate) const G_XY: usize = 3;
+pub const G_XY: usize = 3;
 /// Index of `tau`.
 pub const TAU: usize = 5;
 /// Index of `gamma_a_yz` (the accelerometer block: γ_a, r_a, k_a, b_a).

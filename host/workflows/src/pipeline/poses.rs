@@ -7,7 +7,7 @@
 //!
 //! * **converged** — Levenberg–Marquardt's termination; not converged is *bad*;
 //! * **residuals** — the RMS of the whitened residuals of each IMU channel
-//!   (residual / σ_z) and of the poses (position / σ_p, rotation / σ_r)
+//!   (residual / σ_z, every IMU's) and of the poses (position / σ_p, rotation / σ_r)
 //!   within 0.67–[`POSE_RMS_MAX`]: outside, the σ do not fit the data
 //!   (*doubtful*), and the σ the residuals suggest are given for
 //!   `session.toml`. The upper bound is tighter than the joint path's 1.5:
@@ -19,8 +19,12 @@
 //!   where the prior is informative (not the sensor rotations, whose
 //!   prior σ is π): *doubtful*;
 //! * **time offset** — a score test of a constant τ over the recording
-//!   ([`TauDrift`](crate::TauDrift), docs/model.md §7.9): p below 0.01 is
-//!   *doubtful*.
+//!   ([`TauDrift`](crate::TauDrift), docs/model.md §7.9), one per IMU: p
+//!   below 0.01 is *doubtful*.
+//!
+//! A session with several IMUs (docs/model.md §9) is calibrated jointly:
+//! one pose spline and g for all, each IMU's own 28 parameters
+//! (`imu<j>/<name>`).
 
 use std::path::Path;
 
@@ -32,7 +36,9 @@ use robimu_session::{PoseSession, PoseSessionMeta, SOURCE_POSES};
 
 use super::{fatal_findings, FitEvent, PipelineError};
 use crate::check::{check_pose_session, Severity};
-use crate::pose_calibrate::{calibrate_poses_with, PoseCalibration, PoseCalibrationOptions};
+use crate::pose_calibrate::{
+    calibrate_pose_imus_with, ImuSamples, PoseCalibration, PoseCalibrationOptions,
+};
 use crate::verdict::{IMPLAUSIBLE, RMS_RANGE, UNDETERMINED};
 
 /// A prior σ at or above this (rad) is no information: the sensor
@@ -115,24 +121,25 @@ pub fn pose_options(
     opts
 }
 
-/// Calibrate IMU 0 of `session` (other IMUs are left out, said through
-/// `report`'s first stage), reporting the stages and the solver's
-/// iterations.
+/// Calibrate every IMU of `session` (jointly, docs/model.md §9), reporting
+/// the stages and the solver's iterations.
 pub fn calibrate_pose_session(
     session: PoseSession,
     options: PoseCalibrationOptions,
-    mut report: impl FnMut(FitEvent),
+    report: impl FnMut(FitEvent),
 ) -> Result<PoseFitted, PipelineError> {
-    if session.n_imus() > 1 {
-        report(FitEvent::Stage(&format!(
-            "calibrating IMU 0 of {} (a pose session's IMUs are calibrated one at a time)",
-            session.n_imus()
-        )));
-    }
     let data = session.measurements();
+    let more: Vec<ImuSamples> = (1..session.n_imus())
+        .filter_map(|j| session.measurements_of_imu(j))
+        .map(|m| ImuSamples {
+            t: m.imu_t,
+            z: m.imu_z,
+        })
+        .collect();
     let report = std::cell::RefCell::new(report);
-    let cal = calibrate_poses_with(
+    let cal = calibrate_pose_imus_with(
         &data,
+        &more,
         &options,
         |s| (report.borrow_mut())(FitEvent::Stage(s)),
         |r| (report.borrow_mut())(FitEvent::Iteration(r)),
@@ -148,7 +155,7 @@ pub fn calibrate_pose_session(
 }
 
 /// The result file of a pose calibration (docs/model.md §8): the 30
-/// parameters, their covariance, `"source": "poses"`, the solver's run,
+/// parameters (2 + 28·K with K IMUs), their covariance, `"source": "poses"`, the solver's run,
 /// the whitened residual RMS and the verdict.
 fn pose_result(
     dir: &Path,
@@ -196,9 +203,26 @@ fn pose_result(
     }
 }
 
-/// The IMU residual RMS per channel over σ_z.
+/// IMU 0's residual RMS per channel over σ_z.
 fn whitened_imu_rms(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> [f64; 6] {
     std::array::from_fn(|c| cal.imu_rms[c] / opts.sigma_z[c])
+}
+
+/// Every IMU's residual RMS per channel (IMU 0 first), with the channel
+/// names (`imu<j>/ax` for j ≥ 1).
+fn imu_rms_named(cal: &PoseCalibration) -> Vec<(String, f64)> {
+    let rms = std::iter::once(&cal.imu_rms).chain(cal.more.iter().map(|m| &m.imu_rms));
+    rms.enumerate()
+        .flat_map(|(j, r)| {
+            robimu_session::IMU_COLUMNS
+                .iter()
+                .zip(r)
+                .map(move |(n, v)| match j {
+                    0 => (n.to_string(), *v),
+                    _ => (format!("imu{j}/{n}"), *v),
+                })
+        })
+        .collect()
 }
 
 /// The verdict on a pose calibration (module doc).
@@ -212,8 +236,17 @@ fn pose_verdict(opts: &PoseCalibrationOptions, cal: &PoseCalibration, dir: &Path
         residuals(opts, cal),
         undetermined(cal),
         plausible(cal),
-        crate::pose_calibrate::tau_drift::verdict_check(cal.tau_drift.as_ref()),
     ];
+    let mut checks = checks;
+    let drifts = std::iter::once(cal.tau_drift.as_ref())
+        .chain(cal.more.iter().map(|m| m.tau_drift.as_ref()));
+    for (j, d) in drifts.enumerate() {
+        let mut c = crate::pose_calibrate::tau_drift::verdict_check(d);
+        if !cal.more.is_empty() {
+            c.text = format!("IMU {j}: {}", c.text);
+        }
+        checks.push(c);
+    }
     let mut verdict = crate::verdict::record(checks, !cal.converged);
     verdict.next_steps = pose_next_steps(&verdict, dir);
     verdict
@@ -257,16 +290,16 @@ fn pose_next_steps(verdict: &VerdictRecord, dir: &Path) -> Vec<String> {
 /// [`RMS_RANGE`]`.0`–[`POSE_RMS_MAX`]; outside, the σ the residuals
 /// suggest.
 fn residuals(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> VerdictCheck {
-    let imu = whitened_imu_rms(opts, cal);
+    let imu = imu_rms_named(cal);
     let pose = [
         cal.pose_rms[0] / opts.sigma_p,
         cal.pose_rms[1] / opts.sigma_r,
     ];
-    let names = robimu_session::IMU_COLUMNS
-        .iter()
-        .copied()
-        .chain(["position", "rotation"]);
-    let values = imu.iter().chain(&pose);
+    let names = (imu.iter().map(|(n, _)| n.as_str())).chain(["position", "rotation"]);
+    let whitened: Vec<f64> = (imu.iter().enumerate())
+        .map(|(i, (_, v))| v / opts.sigma_z[i % 6])
+        .collect();
+    let values = whitened.iter().chain(&pose);
     let outside: Vec<String> = names
         .clone()
         .zip(values.clone())
@@ -297,9 +330,18 @@ fn residuals(opts: &PoseCalibrationOptions, cal: &PoseCalibration) -> VerdictChe
 }
 
 /// session.toml's σ as the residuals' RMS give them (a little small: the
-/// spline takes some of the noise).
+/// spline takes some of the noise); σ_z is one for all IMUs, their RMS
+/// pooled.
 fn suggested_sigma(cal: &PoseCalibration) -> String {
-    let z: Vec<String> = cal.imu_rms.iter().map(|v| format!("{v:.3e}")).collect();
+    let k = (1 + cal.more.len()) as f64;
+    let pooled: [f64; 6] = std::array::from_fn(|c| match cal.more.is_empty() {
+        true => cal.imu_rms[c],
+        false => {
+            let s2: f64 = cal.more.iter().map(|m| m.imu_rms[c].powi(2)).sum();
+            ((cal.imu_rms[c].powi(2) + s2) / k).sqrt()
+        }
+    });
+    let z: Vec<String> = pooled.iter().map(|v| format!("{v:.3e}")).collect();
     format!(
         "[noise] sigma_z = [{}], [poses] sigma_p = {:.3e}, sigma_r = {:.3e}",
         z.join(", "),

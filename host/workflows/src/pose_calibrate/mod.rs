@@ -7,8 +7,11 @@
 //! ([`robimu_solver::PoseProblem`]) by Levenberg–Marquardt; the covariance
 //! of x is the Schur complement's inverse (paper (24)); then a score test
 //! of a constant τ over the recording (`tau_drift.rs`, [`TauDrift`]).
-//! [`simulate`] makes sessions with known truth.
+//! [`simulate`] makes sessions with known truth. Several IMUs on the body
+//! (MODEL.md §9): [`calibrate_pose_imus_with`], one spline and g for all,
+//! each IMU's start-up and τ test its own (`imus.rs`).
 
+pub(crate) mod imus;
 pub(crate) mod memo;
 pub mod simulate;
 pub(crate) mod startup;
@@ -17,12 +20,12 @@ pub(crate) mod tau_drift;
 mod tests;
 
 use robimu_model::geom::{matrix_from_quat, V3};
-use robimu_model::pose_measurement::{self as pm, pose_param_specs, POSE_PARAMS};
 use robimu_model::{PoseMeasurements, PoseSplineError};
 use robimu_solver::{
-    IterationRecord, LeastSquares, LmOptions, PoseData, PoseProblem, PoseProblemError,
+    IterationRecord, LeastSquares, LmOptions, PoseData, PoseImuData, PoseProblem, PoseProblemError,
 };
 
+pub use imus::{draw_pose_imus_truth, simulate_pose_imus, ImuSamples, PoseImuFit};
 pub use simulate::{
     draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming, PoseNoise,
 };
@@ -107,18 +110,18 @@ pub struct PoseCalibration {
     pub x: Vec<f64>,
     /// Standard deviations √diag(Σ_x).
     pub sigma: Vec<f64>,
-    /// The 30 × 30 marginal covariance of x, row-major.
+    /// The marginal covariance of x (30 × 30 for one IMU), row-major.
     pub covariance: Vec<Vec<f64>>,
     /// The prior means used (the sensor rotations' from the start-up).
     pub prior_mean: Vec<f64>,
     /// The prior standard deviations used (π for the sensor rotations: no
     /// informative prior).
     pub prior_sigma: Vec<f64>,
-    /// Residual RMS of the used IMU samples per channel [ax … gz].
+    /// Residual RMS of IMU 0's used samples per channel [ax … gz].
     pub imu_rms: [f64; 6],
     /// Residual RMS of the pose samples: position (m), rotation (rad).
     pub pose_rms: [f64; 2],
-    /// IMU samples in the fit.
+    /// IMU 0's samples in the fit.
     pub imu_used: usize,
     /// Levenberg–Marquardt iterations.
     pub iterations: usize,
@@ -130,11 +133,13 @@ pub struct PoseCalibration {
     pub cost: f64,
     /// Knot spacing used (s).
     pub knot_spacing: f64,
-    /// What the start-up found.
+    /// What the start-up found (IMU 0).
     pub startup: Startup,
-    /// The score test of a constant τ (docs/model.md §7.9, *time offset*);
-    /// `None` when it could not be formed.
+    /// The score test of IMU 0's constant τ (docs/model.md §7.9, *time
+    /// offset*); `None` when it could not be formed.
     pub tau_drift: Option<TauDrift>,
+    /// IMU j ≥ 1's start-up, residuals and τ test at `more[j − 1]`.
+    pub more: Vec<PoseImuFit>,
 }
 
 /// Checks of the measurements; the rotations as matrices.
@@ -144,23 +149,13 @@ fn checked(data: &PoseMeasurements) -> Result<Vec<robimu_model::geom::M3>, PoseC
     if data.pose_p.len() != n || data.pose_q.len() != n {
         return bad("pose_t, pose_p and pose_q differ in length");
     }
-    if data.imu_z.len() != data.imu_t.len() {
-        return bad("imu_t and imu_z differ in length");
+    if n < 8 {
+        return bad("too few pose samples (need ≥ 8)");
     }
-    if n < 8 || data.imu_t.len() < 20 {
-        return bad("too few pose or IMU samples (need ≥ 8 poses and ≥ 20 IMU samples)");
+    if data.pose_t.windows(2).any(|w| !greater(w[1], w[0])) {
+        return bad("pose times must be finite and increasing");
     }
-    if data
-        .imu_t
-        .windows(2)
-        .any(|w| !(greater(w[1], w[0]) || w[1] == w[0]))
-        || data.pose_t.windows(2).any(|w| !greater(w[1], w[0]))
-    {
-        return bad("sample times must be finite and increasing");
-    }
-    if data.imu_z.iter().flatten().any(|v| !v.is_finite()) {
-        return bad("an IMU sample is not finite");
-    }
+    imus::check_imu(&data.imu_t, &data.imu_z, "IMU 0")?;
     Ok(data.pose_q.iter().map(|q| matrix_from_quat(*q)).collect())
 }
 
@@ -187,10 +182,26 @@ pub fn calibrate_poses(
 pub fn calibrate_poses_with(
     data: &PoseMeasurements,
     opts: &PoseCalibrationOptions,
+    stage: impl FnMut(&str),
+    iteration: impl FnMut(&IterationRecord),
+) -> Result<PoseCalibration, PoseCalibrationError> {
+    calibrate_pose_imus_with(data, &[], opts, stage, iteration)
+}
+
+/// [`calibrate_poses_with`] with IMU 0 in `data` and IMU j ≥ 1's samples
+/// in `more[j − 1]` (MODEL.md §9, §10): x is IMU 0's 30 then each further
+/// IMU's 28, named `imu<j>/<name>`.
+pub fn calibrate_pose_imus_with(
+    data: &PoseMeasurements,
+    more: &[ImuSamples],
+    opts: &PoseCalibrationOptions,
     mut stage: impl FnMut(&str),
     iteration: impl FnMut(&IterationRecord),
 ) -> Result<PoseCalibration, PoseCalibrationError> {
     let pose_r = checked(data)?;
+    for (j, m) in more.iter().enumerate() {
+        imus::check_imu(&m.t, &m.z, &format!("IMU {}", j + 1))?;
+    }
     let n = data.pose_t.len();
     let spacing = opts
         .knot_spacing
@@ -205,14 +216,25 @@ pub fn calibrate_poses_with(
     ));
     let spline = memo::fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing)?;
     stage("start-up: tau and the sensor rotations from the data");
-    let st = startup::startup(&spline, &data.imu_t, &data.imu_z, opts.tau_search)?;
-    let specs = pose_param_specs(st.accel.r, st.gyro.r);
-    let mut x0 = Vec::with_capacity(POSE_PARAMS);
-    x0.extend(st.p_imu);
-    x0.extend([0.0, 0.0, st.tau]);
-    for s in [&st.accel, &st.gyro] {
-        x0.extend(s.gamma.iter().chain(&s.r).chain(&s.k).chain(&s.b));
+    let mut starts = vec![startup::startup(
+        &spline,
+        &data.imu_t,
+        &data.imu_z,
+        opts.tau_search,
+    )?];
+    for m in more {
+        starts.push(startup::startup(&spline, &m.t, &m.z, opts.tau_search)?);
     }
+    let (specs, x0) = imus::specs_and_start(&starts);
+    let nx = specs.len();
+    let more_data: Vec<PoseImuData> = more
+        .iter()
+        .map(|m| PoseImuData {
+            imu_t: m.t.clone(),
+            imu_z: m.z.clone(),
+            sigma_z: opts.sigma_z,
+        })
+        .collect();
     let pdata = PoseData {
         pose_t: data.pose_t.clone(),
         pose_p: data.pose_p.clone(),
@@ -226,12 +248,12 @@ pub fn calibrate_poses_with(
         prior_sigma: specs.iter().map(|s| s.sigma).collect(),
     };
     let (base, pdata_all) = (spline.clone(), pdata.clone());
-    let mut problem = PoseProblem::new(spline, pdata)?;
+    let mut problem = PoseProblem::with_imus(spline, pdata, more_data.clone())?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
     stage(&format!(
         "solving: tau = {:.4} s from the start-up (correlation {:.3})",
-        st.tau, st.correlation
+        starts[0].tau, starts[0].correlation
     ));
     let sol = robimu_solver::solve(&mut problem, theta, &opts.lm, iteration)
         .map_err(|e| PoseCalibrationError::Solver(e.to_string()))?;
@@ -239,21 +261,33 @@ pub fn calibrate_poses_with(
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();
     let (imu_rms, pose_rms) = residual_rms(&problem, &sol.theta, data)?;
-    let drift = tau_drift::tau_drift(
-        &base,
-        &pdata_all,
-        problem.selected(),
-        &sol.theta,
-        &sol.factor,
-    )?;
+    let sp = problem.spline(&sol.theta)?;
+    let drift = |j: usize| {
+        let (d, m) = ((&base, &pdata_all), more_data.as_slice());
+        tau_drift::tau_drift(d, m, j, problem.selected_of(j), &sol.theta, &sol.factor)
+    };
+    let tau_drift0 = drift(0)?;
+    let mut fits = Vec::with_capacity(more.len());
+    for (j, (m, st)) in more
+        .iter()
+        .zip(starts.drain(1..))
+        .enumerate()
+        .map(|(i, v)| (i + 1, v))
+    {
+        fits.push(PoseImuFit {
+            startup: st,
+            imu_rms: imus::imu_rms(&problem, &sp, &sol.theta, j, (&m.t, &m.z))?,
+            imu_used: problem.selected_of(j).len(),
+            tau_drift: drift(j)?,
+        });
+    }
+    let st = starts.remove(0);
     Ok(PoseCalibration {
         names: specs.iter().map(|s| s.name.clone()).collect(),
         units: specs.iter().map(|s| s.unit).collect(),
-        sigma: (0..POSE_PARAMS)
-            .map(|k| cov[(k, k)].max(0.0).sqrt())
-            .collect(),
-        covariance: (0..POSE_PARAMS)
-            .map(|k| (0..POSE_PARAMS).map(|l| cov[(k, l)]).collect())
+        sigma: (0..nx).map(|k| cov[(k, k)].max(0.0).sqrt()).collect(),
+        covariance: (0..nx)
+            .map(|k| (0..nx).map(|l| cov[(k, l)]).collect())
             .collect(),
         prior_mean: specs.iter().map(|s| s.nominal).collect(),
         prior_sigma: specs.iter().map(|s| s.sigma).collect(),
@@ -267,26 +301,19 @@ pub fn calibrate_poses_with(
         cost: sol.summary.final_cost,
         knot_spacing: spacing,
         startup: st,
-        tau_drift: drift,
+        tau_drift: tau_drift0,
+        more: fits,
     })
 }
 
-/// Residual RMS per IMU channel and of the pose samples at θ.
+/// Residual RMS per IMU 0 channel and of the pose samples at θ.
 fn residual_rms(
     problem: &PoseProblem,
     theta: &[f64],
     data: &PoseMeasurements,
 ) -> Result<([f64; 6], [f64; 2]), PoseCalibrationError> {
     let sp = problem.spline(theta)?;
-    let x = problem.x(theta);
-    let mut sz = [0.0; 6];
-    for &i in problem.selected() {
-        let z = pm::predict(&sp, data.imu_t[i], x).map_err(PoseProblemError::from)?;
-        for c in 0..6 {
-            sz[c] += (z[c] - data.imu_z[i][c]).powi(2);
-        }
-    }
-    let ni = problem.selected().len().max(1) as f64;
+    let imu = imus::imu_rms(problem, &sp, theta, 0, (&data.imu_t, &data.imu_z))?;
     let (mut sp2, mut sr2) = (0.0, 0.0);
     for k in 0..data.pose_t.len() {
         let e = sp
@@ -297,8 +324,5 @@ fn residual_rms(
         sr2 += sq(e.e_r);
     }
     let np = (3 * data.pose_t.len()) as f64;
-    Ok((
-        sz.map(|s| (s / ni).sqrt()),
-        [(sp2 / np).sqrt(), (sr2 / np).sqrt()],
-    ))
+    Ok((imu, [(sp2 / np).sqrt(), (sr2 / np).sqrt()]))
 }

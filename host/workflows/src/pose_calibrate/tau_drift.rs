@@ -16,9 +16,11 @@
 //! clock, arrival stamps) makes it large even where the other parameters
 //! absorb most of the drift, which refitting τ alone per half misses.
 
-use robimu_model::pose_measurement::TAU;
+use robimu_model::pose_measurement::{imu_indices, n_pose_params, TAU};
 use robimu_model::PoseSpline;
-use robimu_solver::{ArrowFactor, LeastSquares, PoseData, PoseProblem, PoseProblemError};
+use robimu_solver::{
+    ArrowFactor, LeastSquares, PoseData, PoseImuData, PoseProblem, PoseProblemError,
+};
 
 use crate::stats::chi2_sf;
 use faer::linalg::solvers::DenseSolveCore;
@@ -42,12 +44,14 @@ pub struct TauDrift {
     pub delta_sigma: Vec<f64>,
 }
 
-/// The score test at the solution θ of `problem`'s full data `data` (its
-/// spline `base`), with `factor` the undamped Gauss–Newton matrix at θ.
-/// `None` when there are too few IMU samples to cut or V is singular.
+/// The score test of IMU `imu`'s τ (its `selected` samples) at the
+/// solution θ of the problem of the full data `data` (its spline `base`)
+/// and `more` (IMU j ≥ 1), with `factor` the undamped Gauss–Newton matrix
+/// at θ. `None` when there are too few IMU samples to cut or V is singular.
 pub(crate) fn tau_drift(
-    base: &PoseSpline,
-    data: &PoseData,
+    (base, data): (&PoseSpline, &PoseData),
+    more: &[PoseImuData],
+    imu: usize,
     selected: &[usize],
     theta: &[f64],
     factor: &ArrowFactor,
@@ -57,11 +61,17 @@ pub(crate) fn tau_drift(
         return Ok(None);
     }
     let n = theta.len();
-    let nc = n - robimu_model::pose_measurement::POSE_PARAMS;
+    let tau = imu_indices(imu)[TAU];
+    // τ's index in θ (after the band)
+    let i_tau = n - n_pose_params(1 + more.len()) + tau;
     let (w_tau, e_tau) = (
-        data.prior_sigma[TAU].powi(-2),
-        theta[nc + TAU] - data.prior_mean[TAU],
+        data.prior_sigma[tau].powi(-2),
+        theta[i_tau] - data.prior_mean[tau],
     );
+    let (src_t, src_z) = match imu {
+        0 => (&data.imu_t, &data.imu_z),
+        j => (&more[j - 1].imu_t, &more[j - 1].imu_z),
+    };
     // segment k's τ column of the information and gradient entry; the
     // segments are independent, each on its own thread
     let segment = |k: usize| -> Result<(f64, Vec<f64>), PoseProblemError> {
@@ -77,18 +87,34 @@ pub(crate) fn tau_drift(
             prior_sigma: data.prior_sigma.clone(),
             ..*data
         };
+        // only IMU `imu`'s samples of the segment: the others' do not touch its τ
+        let mut seg_more: Vec<PoseImuData> = more
+            .iter()
+            .map(|m| PoseImuData {
+                imu_t: Vec::new(),
+                imu_z: Vec::new(),
+                ..*m
+            })
+            .collect();
+        let (t, z) = match imu {
+            0 => (&mut seg.imu_t, &mut seg.imu_z),
+            j => {
+                let m = &mut seg_more[j - 1];
+                (&mut m.imu_t, &mut m.imu_z)
+            }
+        };
         for &i in &selected[range] {
-            seg.imu_t.push(data.imu_t[i]);
-            seg.imu_z.push(data.imu_z[i]);
+            t.push(src_t[i]);
+            z.push(src_z[i]);
         }
-        let mut p = PoseProblem::new(base.clone(), seg)?;
+        let mut p = PoseProblem::with_imus(base.clone(), seg, seg_more)?;
         p.begin_iteration(theta)?;
         let mut a = p.new_matrix();
         let mut gk = vec![0.0; n];
         p.linearize(theta, &mut a, &mut gk)?;
-        let mut c: Vec<f64> = (0..n).map(|i| a.get(i, nc + TAU)).collect();
-        c[nc + TAU] -= w_tau;
-        Ok((gk[nc + TAU] - w_tau * e_tau, c))
+        let mut c: Vec<f64> = (0..n).map(|i| a.get(i, i_tau)).collect();
+        c[i_tau] -= w_tau;
+        Ok((gk[i_tau] - w_tau * e_tau, c))
     };
     let parts: Vec<Result<(f64, Vec<f64>), PoseProblemError>> = std::thread::scope(|s| {
         let handles: Vec<_> = (2..SEGMENTS).map(|k| s.spawn(move || segment(k))).collect();
@@ -108,7 +134,7 @@ pub(crate) fn tau_drift(
         g.push(gk);
         cols.push(c);
     }
-    let d: Vec<f64> = cols.iter().map(|c| c[nc + TAU]).collect();
+    let d: Vec<f64> = cols.iter().map(|c| c[i_tau]).collect();
     // V = diag(d) − Cᵀ A⁻¹ C
     let solved: Vec<Vec<f64>> = cols
         .iter()
