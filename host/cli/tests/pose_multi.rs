@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{robimu_ok, s};
+use common::{robimu, robimu_ok, s};
 use robimu_session::result::{CalibrationResult, Trust};
 use robimu_session::Truth;
 
@@ -69,10 +69,70 @@ fn two_imus_simulate_and_calibrate_within_4_sigma() {
             worst = (z.abs(), p.name.clone());
         }
     }
+    exports_take_one_imu_at_a_time(tmp.path(), &out, &result);
     assert!(
         worst.0 < 4.0,
         "{} is {:.2}σ from its truth",
         worst.1,
         worst.0
     );
+}
+
+/// Kalibr's imu.yaml and the correction file of a two-IMU pose result: one
+/// IMU per file (`--imu J`; without it an error naming the IMUs), IMU 1's
+/// from its `imu1/` parameters; `correct` of imu1.csv uses IMU 1's.
+fn exports_take_one_imu_at_a_time(
+    tmp: &std::path::Path,
+    out: &std::path::Path,
+    r: &CalibrationResult,
+) {
+    let yaml = tmp.join("imu.yaml");
+    let args = |extra: &[&str]| {
+        let mut a = vec![
+            "export",
+            "--calibration",
+            s(out),
+            "--format",
+            "kalibr",
+            "--out",
+            s(&yaml),
+        ];
+        a.extend_from_slice(extra);
+        a.iter().map(|v| v.to_string()).collect::<Vec<String>>()
+    };
+    robimu(args(&[])).assert_fails(&["the result has 2 IMUs", "--imu J"]);
+    robimu_ok(args(&["--imu", "1"]));
+    let text = std::fs::read_to_string(&yaml).unwrap();
+    assert!(text.contains("imu0:"), "{text}");
+    let corr = tmp.join("c.toml");
+    robimu_ok([
+        "export",
+        "--calibration",
+        s(out),
+        "--format",
+        "correction",
+        "--imu",
+        "1",
+        "--out",
+        s(&corr),
+    ]);
+    let c = std::fs::read_to_string(&corr).unwrap();
+    // IMU 1's accelerometer bias, not IMU 0's
+    let b1 = r.parameter("imu1/b_a_x").unwrap().value;
+    let b0 = r.parameter("b_a_x").unwrap().value;
+    assert!(
+        c.contains(&format!("{b1}")) && !c.contains(&format!("{b0}")),
+        "{c}"
+    );
+    let session = tmp.join("s");
+    let corrected = tmp.join("imu1_corrected.csv");
+    robimu_ok([
+        "correct",
+        "--calibration",
+        s(out),
+        s(&session.join("imu1.csv")),
+        "--out",
+        s(&corrected),
+    ]);
+    assert!(corrected.is_file());
 }

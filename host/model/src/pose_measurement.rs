@@ -56,7 +56,7 @@ pub fn pose_param_names() -> [String; POSE_PARAMS] {
 
 /// Parameters of its own of IMU j ≥ 1 (all but the shared `g_x`, `g_y`;
 /// MODEL.md §9, §10).
-pub const IMU_OWN: usize = POSE_PARAMS - 2;
+pub(crate) const IMU_OWN: usize = POSE_PARAMS - 2;
 
 /// Number of parameters of a pose session with `n_imus` IMUs: IMU 0's 30,
 /// then 28 per further IMU (2 + 28·K; MODEL.md §10).

@@ -32,8 +32,15 @@ fn session(
     (truth, data, more)
 }
 
+/// Calibrate with the default options (knot spacing `POSE_MC_KNOTS` when
+/// set).
 fn calibrate(data: &robimu_model::PoseMeasurements, more: &[ImuSamples]) -> PoseCalibration {
-    let opts = PoseCalibrationOptions::default();
+    let opts = PoseCalibrationOptions {
+        knot_spacing: std::env::var("POSE_MC_KNOTS")
+            .ok()
+            .and_then(|s| s.parse().ok()),
+        ..Default::default()
+    };
     calibrate_pose_imus_with(data, more, &opts, |_| {}, |_| {}).unwrap()
 }
 

@@ -68,45 +68,11 @@ pub(crate) fn tau_drift(
         data.prior_sigma[tau].powi(-2),
         theta[i_tau] - data.prior_mean[tau],
     );
-    let (src_t, src_z) = match imu {
-        0 => (&data.imu_t, &data.imu_z),
-        j => (&more[j - 1].imu_t, &more[j - 1].imu_z),
-    };
     // segment k's τ column of the information and gradient entry; the
     // segments are independent, each on its own thread
     let segment = |k: usize| -> Result<(f64, Vec<f64>), PoseProblemError> {
         let range = selected.len() * k / SEGMENTS..selected.len() * (k + 1) / SEGMENTS;
-        // no pose samples: they do not touch τ's column or gradient entry
-        let mut seg = PoseData {
-            pose_t: Vec::new(),
-            pose_p: Vec::new(),
-            pose_r: Vec::new(),
-            imu_t: Vec::with_capacity(range.len()),
-            imu_z: Vec::with_capacity(range.len()),
-            prior_mean: data.prior_mean.clone(),
-            prior_sigma: data.prior_sigma.clone(),
-            ..*data
-        };
-        // only IMU `imu`'s samples of the segment: the others' do not touch its τ
-        let mut seg_more: Vec<PoseImuData> = more
-            .iter()
-            .map(|m| PoseImuData {
-                imu_t: Vec::new(),
-                imu_z: Vec::new(),
-                ..*m
-            })
-            .collect();
-        let (t, z) = match imu {
-            0 => (&mut seg.imu_t, &mut seg.imu_z),
-            j => {
-                let m = &mut seg_more[j - 1];
-                (&mut m.imu_t, &mut m.imu_z)
-            }
-        };
-        for &i in &selected[range] {
-            t.push(src_t[i]);
-            z.push(src_z[i]);
-        }
+        let (seg, seg_more) = segment_data(data, more, imu, &selected[range]);
         let mut p = PoseProblem::with_imus(base.clone(), seg, seg_more)?;
         p.begin_iteration(theta)?;
         let mut a = p.new_matrix();
@@ -169,6 +135,49 @@ pub(crate) fn tau_drift(
         delta,
         delta_sigma: (0..m).map(|a| v_inv[(a, a)].max(0.0).sqrt()).collect(),
     }))
+}
+
+/// The problem data of one segment: IMU `imu`'s samples `picked` alone
+/// (no pose samples: they do not touch τ's column or gradient entry; nor
+/// the other IMUs' samples), the full prior.
+fn segment_data(
+    data: &PoseData,
+    more: &[PoseImuData],
+    imu: usize,
+    picked: &[usize],
+) -> (PoseData, Vec<PoseImuData>) {
+    let mut seg = PoseData {
+        pose_t: Vec::new(),
+        pose_p: Vec::new(),
+        pose_r: Vec::new(),
+        imu_t: Vec::new(),
+        imu_z: Vec::new(),
+        prior_mean: data.prior_mean.clone(),
+        prior_sigma: data.prior_sigma.clone(),
+        ..*data
+    };
+    let mut seg_more: Vec<PoseImuData> = more
+        .iter()
+        .map(|m| PoseImuData {
+            imu_t: Vec::new(),
+            imu_z: Vec::new(),
+            ..*m
+        })
+        .collect();
+    let (src_t, src_z) = match imu {
+        0 => (&data.imu_t, &data.imu_z),
+        j => (&more[j - 1].imu_t, &more[j - 1].imu_z),
+    };
+    let (t, z) = match imu {
+        0 => (&mut seg.imu_t, &mut seg.imu_z),
+        j => {
+            let m = &mut seg_more[j - 1];
+            (&mut m.imu_t, &mut m.imu_z)
+        }
+    };
+    t.extend(picked.iter().map(|&i| src_t[i]));
+    z.extend(picked.iter().map(|&i| src_z[i]));
+    (seg, seg_more)
 }
 
 /// Below this p-value the verdict doubts a constant τ.
