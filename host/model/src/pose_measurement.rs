@@ -19,7 +19,7 @@ pub const POSE_PARAMS: usize = 30;
 /// Index of `p_imu_x` (then y, z).
 pub(crate) const P_IMU: usize = 0;
 /// Index of `g_x` (then `g_y`).
-pub(crate) const G_XY: usize = 3;
+pub const G_XY: usize = 3;
 /// Index of `tau`.
 pub const TAU: usize = 5;
 /// Index of `gamma_a_yz` (the accelerometer block: γ_a, r_a, k_a, b_a).
@@ -52,6 +52,34 @@ pub fn pose_param_names() -> [String; POSE_PARAMS] {
         }
     }
     v.try_into().expect("30 names")
+}
+
+/// Parameters of its own of IMU j ≥ 1 (all but the shared `g_x`, `g_y`;
+/// MODEL.md §9, §10).
+pub(crate) const IMU_OWN: usize = POSE_PARAMS - 2;
+
+/// Number of parameters of a pose session with `n_imus` IMUs: IMU 0's 30,
+/// then 28 per further IMU (2 + 28·K; MODEL.md §10).
+pub fn n_pose_params(n_imus: usize) -> usize {
+    POSE_PARAMS + IMU_OWN * n_imus.saturating_sub(1)
+}
+
+/// The indices in the K-IMU x of IMU `j`'s 30-vector (its p_I, the shared
+/// g_x, g_y, its τ and sensor parameters, §10's order): 0..30 for IMU 0;
+/// for j ≥ 1 its 28 at 30 + 28·(j − 1), with g at 3, 4.
+pub fn imu_indices(j: usize) -> [usize; POSE_PARAMS] {
+    let own = POSE_PARAMS + IMU_OWN * j.saturating_sub(1);
+    std::array::from_fn(|k| match (j, k) {
+        (0, _) => k,
+        (_, k) if k < G_XY => own + k,
+        (_, k) if k < TAU => k,
+        (_, k) => own + k - 2,
+    })
+}
+
+/// IMU `j`'s 30-vector of the K-IMU `x` ([`imu_indices`]).
+pub fn imu_view(x: &[f64], j: usize) -> [f64; POSE_PARAMS] {
+    imu_indices(j).map(|i| x[i])
 }
 
 /// The parameter specs (name, unit, prior mean, σ) of a pose session

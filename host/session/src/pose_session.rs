@@ -355,6 +355,26 @@ mod tests {
         assert!(e.to_string().contains("not a session directory"), "{e}");
     }
 
+    /// The model's layout of x ([`robimu_model::pose_measurement::imu_indices`])
+    /// puts each IMU's parameters at their names.
+    #[test]
+    fn names_follow_the_models_layout_of_x() {
+        use robimu_model::pose_measurement::{imu_indices, n_pose_params};
+        let names = pose_parameter_names(3);
+        assert_eq!(names.len(), n_pose_params(3));
+        for j in 0..3 {
+            for (k, &i) in imu_indices(j).iter().enumerate() {
+                let own = POSE_PARAMETERS[k];
+                let want = match j {
+                    0 => own.to_string(),
+                    _ if own.starts_with("g_") => own.to_string(),
+                    _ => format!("imu{j}/{own}"),
+                };
+                assert_eq!(names[i], want);
+            }
+        }
+    }
+
     #[test]
     fn a_truth_lists_exactly_the_pose_parameters() {
         let dir = minimal();

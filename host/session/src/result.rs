@@ -633,8 +633,10 @@ impl ImuSets {
 impl CalibrationResult {
     /// The shared parameters and each IMU's (docs/model.md §9), from the
     /// names alone: a name `imu<j>/X` is IMU j's; an unprefixed name is
-    /// IMU 0's when it is one of the 28 of [`imu_base_names`] or some IMU
-    /// j ≥ 1 has `imu<j>/` of it (an effect fitted per IMU), else shared.
+    /// IMU 0's when it is one of the 28 of [`imu_base_names`] (of a pose
+    /// session's result, docs/model.md §7.9: `p_imu_x`, `p_imu_y`,
+    /// `p_imu_z` for the position) or some IMU j ≥ 1 has `imu<j>/` of it (an
+    /// effect fitted per IMU), else shared.
     ///
     /// # Errors
     /// Names the cause when the IMUs are not numbered 1, 2, … without a
@@ -650,7 +652,10 @@ impl CalibrationResult {
             })
             .max()
             .unwrap_or(0);
-        let own = imu_base_names(imu_link);
+        let mut own = imu_base_names(imu_link);
+        if self.parameters.iter().any(|p| p.name == "p_imu_x") {
+            own.splice(0..3, ["p_imu_x", "p_imu_y", "p_imu_z"].map(String::from));
+        }
         let is_shared_base = |base: &str| match eps_indices(base) {
             Some((i, k)) => !(i == imu_link && k <= 3),
             None => base == "g_x" || base == "g_y",
@@ -1126,6 +1131,56 @@ mod tests {
         }
         // a file with only the required keys and one parameter: one IMU
         assert_eq!(sample().imu_count(), 1);
+    }
+
+    /// A pose session's result of two IMUs (docs/model.md §7.9): g shared,
+    /// each IMU's 28 with `p_imu_*` its position; IMU 1's view has the 30
+    /// one-IMU names in their order with IMU 1's values.
+    #[test]
+    fn a_two_imu_pose_result_splits_into_its_imus() {
+        // a pose session's names (pose_session.rs's, spelled out here)
+        let mut base: Vec<String> = ["p_imu_x", "p_imu_y", "p_imu_z", "g_x", "g_y"]
+            .map(String::from)
+            .to_vec();
+        base.extend(imu_base_names(0).into_iter().skip(3));
+        let mut names = base.clone();
+        names.extend(
+            base[..3]
+                .iter()
+                .chain(&base[5..])
+                .map(|n| format!("imu1/{n}")),
+        );
+        let mut r = sample();
+        r.parameters = names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| ParameterResult {
+                name: n.clone(),
+                unit: "1".into(),
+                value: i as f64,
+                prior: 0.0,
+                prior_sigma: 1.0,
+                sigma: 0.1,
+                frozen: false,
+            })
+            .collect();
+        r.covariance = CovarianceMatrix {
+            names: names.clone(),
+            matrix: (0..58)
+                .map(|a| (0..58).map(|b| if a == b { 0.01 } else { 0.0 }).collect())
+                .collect(),
+        };
+        let sets = r.imu_sets().unwrap();
+        assert_eq!(sets.len(), 2);
+        assert_eq!(sets.shared, [3, 4]);
+        assert_eq!(sets.imus[0].len(), 28);
+        let v = r.imu(1).unwrap();
+        let got: Vec<&str> = v.parameters.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(got, base);
+        assert_eq!(v.parameters[0].value, 30.0);
+        assert_eq!(v.parameters[3].value, 3.0);
+        assert_eq!(v.parameters[5].value, 33.0);
+        assert_eq!(v.covariance.names.len(), 30);
     }
 
     #[test]

@@ -2,7 +2,10 @@
 //! problem's arrangement, [`crate::problem`]): unknowns θ = [c, x] with c
 //! the pose spline's control-point corrections, 6 per control point
 //! (Δc_k, then φ_k with R_k = R_k0·Exp(φ_k) about the initial fit R_k0), and
-//! x the 30 parameters ([`robimu_model::pose_measurement`]).
+//! x the 30 parameters ([`robimu_model::pose_measurement`]); with K IMUs
+//! (MODEL.md §9, §10) x is IMU 0's 30 then 28 per further IMU, one pose
+//! spline serving all, each IMU's samples predicted from its own 30-vector
+//! ([`pm::imu_indices`]) and their Jacobian columns scattered into x.
 //!
 //! Residuals, each whitened by its σ: pose samples (e_p = p(t_k) − p̃ with
 //! σ_p, e_r = Log(R̃ᵀR(t_k)) with σ_r), IMU samples (σ_z per channel; a
@@ -17,7 +20,9 @@ use robimu_model::geom::{mul_mm, M3, V3};
 use robimu_model::pose_measurement::rows::{
     prediction_rows, PoseRows, RowContext, SegmentCache, ACCEL_COLS, GYRO_COLS, GYRO_LOCAL,
 };
-use robimu_model::pose_measurement::{self as pm, PoseMeasurementError, CTRL, POSE_PARAMS, TAU};
+use robimu_model::pose_measurement::{
+    self as pm, imu_indices, imu_view, PoseMeasurementError, CTRL, POSE_PARAMS, TAU,
+};
 use robimu_model::pose_trajectory::so3::{exp_s, right_jacobian};
 use robimu_model::{PoseSpline, PoseSplineError};
 
@@ -78,12 +83,33 @@ pub struct PoseData {
     pub prior_sigma: Vec<f64>,
 }
 
+/// The samples and σ_z of IMU j ≥ 1 of a pose problem (IMU 0's are in
+/// [`PoseData`]).
+#[derive(Debug, Clone)]
+pub struct PoseImuData {
+    /// IMU sample times (s).
+    pub imu_t: Vec<f64>,
+    /// IMU samples [ax, ay, az, gx, gy, gz].
+    pub imu_z: Vec<[f64; 6]>,
+    /// σ_z per channel.
+    pub sigma_z: [f64; 6],
+}
+
 /// The pose-session problem ([`LeastSquares`]; module doc).
 #[derive(Debug, Clone)]
 pub struct PoseProblem {
     base: PoseSpline,
     data: PoseData,
-    selected: Vec<usize>,
+    more: Vec<PoseImuData>,
+    /// The selected samples of each IMU.
+    selected: Vec<Vec<usize>>,
+}
+
+/// IMU j's samples: times, values, σ_z.
+struct ImuRef<'a> {
+    t: &'a [f64],
+    z: &'a [[f64; 6]],
+    sigma_z: &'a [f64; 6],
 }
 
 /// The local Jacobian block of one residual group: rows × (24 band + 30 x)
@@ -98,19 +124,36 @@ struct Block {
 impl PoseProblem {
     /// A problem about the initial spline `base` (θ's c = 0 is `base`).
     pub fn new(base: PoseSpline, data: PoseData) -> Result<Self, PoseProblemError> {
+        Self::with_imus(base, data, Vec::new())
+    }
+
+    /// A problem with IMU 0 in `data` and IMU j ≥ 1 in `more[j − 1]`; the
+    /// prior in `data` spans all 2 + 28·K parameters.
+    pub fn with_imus(
+        base: PoseSpline,
+        data: PoseData,
+        more: Vec<PoseImuData>,
+    ) -> Result<Self, PoseProblemError> {
         let n = data.pose_t.len();
-        if data.pose_p.len() != n || data.pose_r.len() != n || data.imu_z.len() != data.imu_t.len()
+        let uneven = more.iter().any(|m| m.imu_t.len() != m.imu_z.len());
+        if data.pose_p.len() != n
+            || data.pose_r.len() != n
+            || data.imu_z.len() != data.imu_t.len()
+            || uneven
         {
             return Err(PoseProblemError::Input(
                 "sample buffers of different lengths".into(),
             ));
         }
-        if data.prior_mean.len() != POSE_PARAMS || data.prior_sigma.len() != POSE_PARAMS {
-            return Err(PoseProblemError::Input(
-                "the prior needs 30 means and σ".into(),
-            ));
+        let nx = pm::n_pose_params(1 + more.len());
+        if data.prior_mean.len() != nx || data.prior_sigma.len() != nx {
+            return Err(PoseProblemError::Input(format!(
+                "the prior needs {nx} means and σ ({} IMU(s))",
+                1 + more.len()
+            )));
         }
         let bad_sigma = (data.prior_sigma.iter().chain(&data.sigma_z))
+            .chain(more.iter().flat_map(|m| &m.sigma_z))
             .chain([&data.sigma_p, &data.sigma_r])
             .any(|s| !(s.is_finite() && *s > 0.0));
         if bad_sigma {
@@ -121,8 +164,37 @@ impl PoseProblem {
         Ok(Self {
             base,
             data,
-            selected: Vec::new(),
+            selected: vec![Vec::new(); 1 + more.len()],
+            more,
         })
+    }
+
+    /// Number of IMUs K.
+    pub fn n_imus(&self) -> usize {
+        1 + self.more.len()
+    }
+
+    /// Number of parameters x (2 + 28·K).
+    pub fn n_x(&self) -> usize {
+        pm::n_pose_params(self.n_imus())
+    }
+
+    fn imu(&self, j: usize) -> ImuRef<'_> {
+        match j {
+            0 => ImuRef {
+                t: &self.data.imu_t,
+                z: &self.data.imu_z,
+                sigma_z: &self.data.sigma_z,
+            },
+            _ => {
+                let m = &self.more[j - 1];
+                ImuRef {
+                    t: &m.imu_t,
+                    z: &m.imu_z,
+                    sigma_z: &m.sigma_z,
+                }
+            }
+        }
     }
 
     /// Number of band unknowns (6 per control point).
@@ -130,14 +202,19 @@ impl PoseProblem {
         PER_CONTROL * self.base.num_control_points()
     }
 
-    /// Number of unknowns (band + 30).
+    /// Number of unknowns (band + x).
     pub fn n_unknowns(&self) -> usize {
-        self.n_band() + POSE_PARAMS
+        self.n_band() + self.n_x()
     }
 
-    /// The IMU samples in the current cost (those with t_i + τ in the pose span).
+    /// IMU 0's samples in the current cost (those with t_i + τ in the pose span).
     pub fn selected(&self) -> &[usize] {
-        &self.selected
+        &self.selected[0]
+    }
+
+    /// IMU `j`'s samples in the current cost.
+    pub fn selected_of(&self, j: usize) -> &[usize] {
+        &self.selected[j]
     }
 
     /// θ's x part.
@@ -163,33 +240,45 @@ impl PoseProblem {
         Ok(PoseSpline::new(self.base.knots().clone(), &pos, &rot)?)
     }
 
-    /// IMU samples whose t_i + τ is inside the pose span, [`SPAN_MARGIN`]
-    /// from its ends.
-    fn selection(&self, tau: f64) -> Vec<usize> {
+    /// IMU samples (times `imu_t`) whose t_i + τ is inside the pose span,
+    /// [`SPAN_MARGIN`] from its ends.
+    fn selection(&self, imu_t: &[f64], tau: f64) -> Vec<usize> {
         let k = self.base.knots();
         let (t0, t1) = (k.start() + SPAN_MARGIN, k.end() - SPAN_MARGIN);
-        (0..self.data.imu_t.len())
-            .filter(|&i| (t0..=t1).contains(&(self.data.imu_t[i] + tau)))
+        (0..imu_t.len())
+            .filter(|&i| (t0..=t1).contains(&(imu_t[i] + tau)))
+            .collect()
+    }
+
+    /// Every IMU's selection at θ.
+    fn selections(&self, theta: &[f64]) -> Vec<Vec<usize>> {
+        let x = self.x(theta);
+        (0..self.n_imus())
+            .map(|j| self.selection(self.imu(j).t, x[imu_indices(j)[TAU]]))
             .collect()
     }
 
     /// The whitened residual vector at θ: pose samples (6 each), selected
-    /// IMU samples (6 each), prior (30).
+    /// IMU samples (6 each; IMU 0's, then IMU 1's, …), prior (all of x).
     pub fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>, PoseProblemError> {
         let sp = self.spline(theta)?;
         let x = self.x(theta);
         let d = &self.data;
-        let mut out = Vec::with_capacity(6 * (d.pose_t.len() + self.selected.len()) + POSE_PARAMS);
+        let n_imu: usize = self.selected.iter().map(Vec::len).sum();
+        let mut out = Vec::with_capacity(6 * (d.pose_t.len() + n_imu) + x.len());
         for k in 0..d.pose_t.len() {
             let (e_p, e_r) = sp.pose_error_r(d.pose_t[k], d.pose_p[k], &d.pose_r[k])?;
             out.extend(e_p.iter().map(|v| v / d.sigma_p));
             out.extend(e_r.iter().map(|v| v / d.sigma_r));
         }
-        for &i in &self.selected {
-            let z = pm::predict(&sp, d.imu_t[i], x)?;
-            out.extend((0..6).map(|c| (z[c] - d.imu_z[i][c]) / d.sigma_z[c]));
+        for (j, selected) in self.selected.iter().enumerate() {
+            let (imu, xj) = (self.imu(j), imu_view(x, j));
+            for &i in selected {
+                let z = pm::predict(&sp, imu.t[i], &xj)?;
+                out.extend((0..6).map(|c| (z[c] - imu.z[i][c]) / imu.sigma_z[c]));
+            }
         }
-        out.extend((0..POSE_PARAMS).map(|k| (x[k] - d.prior_mean[k]) / d.prior_sigma[k]));
+        out.extend((0..x.len()).map(|k| (x[k] - d.prior_mean[k]) / d.prior_sigma[k]));
         Ok(out)
     }
 
@@ -290,8 +379,15 @@ impl Segment {
         self.gyro.add(&rows.gyro, &w[3..], &wr[3..]);
     }
 
-    /// Add the sums to `a`, `g` and start empty.
-    fn flush(&mut self, a: &mut ArrowMatrix, g: &mut [f64], nc: usize) {
+    /// Add the sums to `a`, `g` (the x columns at `x_index`) and start
+    /// empty.
+    fn flush(
+        &mut self,
+        a: &mut ArrowMatrix,
+        g: &mut [f64],
+        nc: usize,
+        x_index: &[usize; POSE_PARAMS],
+    ) {
         if self.first == usize::MAX {
             return;
         }
@@ -319,10 +415,10 @@ impl Segment {
             if p < CTRL {
                 g[c0 + p] += grad[p];
             } else {
-                g[nc + p - CTRL] += grad[p];
+                g[nc + x_index[p - CTRL]] += grad[p];
             }
         }
-        a.add_local(c0, CTRL, &ALL_X, self.local.as_ref());
+        a.add_local(c0, CTRL, x_index, self.local.as_ref());
         self.accel.clear();
         self.gyro.clear();
         self.first = usize::MAX;
@@ -346,17 +442,6 @@ fn through_right_jacobians(rows: &mut PoseRows, jr: &[M3]) {
     }
 }
 
-/// Every x index.
-const ALL_X: [usize; POSE_PARAMS] = {
-    let mut v = [0; POSE_PARAMS];
-    let mut k = 0;
-    while k < POSE_PARAMS {
-        v[k] = k;
-        k += 1;
-    }
-    v
-};
-
 /// Add a pose block's JᵀJ and Jᵀr (band columns only).
 fn accumulate_pose(a: &mut ArrowMatrix, g: &mut [f64], b: &Block, local: &mut Mat<f64>) {
     let c0 = PER_CONTROL * b.first;
@@ -370,32 +455,34 @@ fn accumulate_pose(a: &mut ArrowMatrix, g: &mut [f64], b: &Block, local: &mut Ma
 }
 
 impl PoseProblem {
-    /// Add the selected IMU samples' normal equations at `sp`, x (segment by
-    /// segment, [`Segment`]); their cost.
+    /// Add IMU `j`'s selected samples' normal equations at `sp`, x (segment
+    /// by segment, [`Segment`]; its 30-vector's columns at
+    /// [`imu_indices`]); their cost.
     fn linearize_imu(
         &self,
+        j: usize,
         sp: &PoseSpline,
         jr: &[M3],
         x: &[f64],
         a: &mut ArrowMatrix,
         g: &mut [f64],
     ) -> Result<f64, PoseProblemError> {
-        let d = &self.data;
-        let ctx = RowContext::new(x)?;
-        let w: [f64; 6] = d.sigma_z.map(|s| 1.0 / s);
+        let (imu, x_index) = (self.imu(j), imu_indices(j));
+        let ctx = RowContext::new(&imu_view(x, j))?;
+        let w: [f64; 6] = imu.sigma_z.map(|s| 1.0 / s);
         let (mut seg, mut seeds, mut cost) = (Segment::new(), SegmentCache::default(), 0.0);
-        for &i in &self.selected {
-            let mut rows = prediction_rows(sp, d.imu_t[i], &ctx, &mut seeds)?;
+        for &i in &self.selected[j] {
+            let mut rows = prediction_rows(sp, imu.t[i], &ctx, &mut seeds)?;
             through_right_jacobians(&mut rows, jr);
             if rows.first != seg.first {
-                seg.flush(a, g, self.n_band());
+                seg.flush(a, g, self.n_band(), &x_index);
                 seg.first = rows.first;
             }
-            let wr: [f64; 6] = std::array::from_fn(|c| (rows.z[c] - d.imu_z[i][c]) * w[c]);
+            let wr: [f64; 6] = std::array::from_fn(|c| (rows.z[c] - imu.z[i][c]) * w[c]);
             cost += 0.5 * wr.iter().map(|r| r * r).sum::<f64>();
             seg.add(&rows, &w, &wr);
         }
-        seg.flush(a, g, self.n_band());
+        seg.flush(a, g, self.n_band(), &x_index);
         Ok(cost)
     }
 }
@@ -404,7 +491,7 @@ impl LeastSquares for PoseProblem {
     type Error = PoseProblemError;
 
     fn begin_iteration(&mut self, theta: &[f64]) -> Result<(), Self::Error> {
-        self.selected = self.selection(theta[self.n_band() + TAU]);
+        self.selected = self.selections(theta);
         Ok(())
     }
 
@@ -433,9 +520,11 @@ impl LeastSquares for PoseProblem {
             cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
             accumulate_pose(a, g, &b, &mut local);
         }
-        cost += self.linearize_imu(&sp, &jr, x, a, g)?;
+        for j in 0..self.n_imus() {
+            cost += self.linearize_imu(j, &sp, &jr, x, a, g)?;
+        }
         let d = &self.data;
-        for k in 0..POSE_PARAMS {
+        for k in 0..x.len() {
             let w = 1.0 / (d.prior_sigma[k] * d.prior_sigma[k]);
             let e = x[k] - d.prior_mean[k];
             a.add_xx(k, k, w);
@@ -446,11 +535,11 @@ impl LeastSquares for PoseProblem {
     }
 
     fn new_matrix(&self) -> ArrowMatrix {
-        ArrowMatrix::zeros(self.n_band(), CTRL - 1, POSE_PARAMS)
+        ArrowMatrix::zeros(self.n_band(), CTRL - 1, self.n_x())
     }
 
     fn keeps_setup(&self, theta: &[f64]) -> bool {
-        self.selection(theta[self.n_band() + TAU]) == self.selected
+        self.selections(theta) == self.selected
     }
 }
 
@@ -458,4 +547,4 @@ mod leverage;
 #[cfg(test)]
 mod tests;
 
-pub use leverage::{ChannelFit, PoseSigma, FIT_CHANNELS};
+pub use leverage::{ChannelFit, PoseSigma};

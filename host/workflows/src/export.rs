@@ -452,7 +452,8 @@ pub fn is_pose_result(result: &CalibrationResult) -> bool {
 /// intrinsics as Kalibr's imu.yaml or the correction file, from the same
 /// 24 sensor parameters as a joint session's; the robot formats are
 /// refused (a pose session has no robot). The sample rate and noise come
-/// from the request or the result's pose session.
+/// from the request or the result's pose session. A result of several
+/// IMUs exports the one `--imu J` names (without it: an error saying so).
 pub fn export_poses(
     req: &ExportRequest,
     result: &CalibrationResult,
@@ -478,6 +479,15 @@ pub fn export_poses(
         _ => "the correction file",
     }) {
         notify(Notice::Note(note));
+    }
+    let k = result.imu_count();
+    if k > 1 && req.imu.is_none() {
+        bail!(
+            "{}: the result has {k} IMUs (docs/model.md §9): --imu J exports IMU J's \
+             (0 to {}), one file per IMU",
+            req.calibration.display(),
+            k - 1
+        );
     }
     let j = req.imu.unwrap_or(0);
     let view = result

@@ -124,7 +124,9 @@ pub struct SimulateCmd {
     /// Number of IMUs K on the flange (docs/model.md §9): one robot motion,
     /// each IMU j its own 28 truths (position, tau, intrinsics) drawn from
     /// the priors, written to imu.csv, imu1.csv, … and truth.toml
-    /// (`imu1/tau`, …).
+    /// (`imu1/tau`, …). With --source poses (hand-held motion only) each
+    /// IMU j has its own p_imu, tau, mount rotation and intrinsics, g
+    /// shared.
     #[arg(long, default_value_t = 1, value_name = "K")]
     pub imus: usize,
     /// `J=X,Y,Z`: IMU J mounted at (X, Y, Z) m on the flange (a plate of
@@ -182,8 +184,8 @@ impl SimulateCmd {
         if !joint_only.is_empty() {
             bail!(
                 "{}: not for --source poses (a pose session has no joints; it takes --out, \
-                 --duration, --seed, --rate, --robot, --pose-rate, --pose-jitter, --imu-jitter \
-                 and --imu-drift)",
+                 --duration, --seed, --rate, --robot, --imus, --pose-rate, --pose-jitter, \
+                 --imu-jitter and --imu-drift)",
                 joint_only.join(", ")
             );
         }
@@ -203,6 +205,7 @@ impl SimulateCmd {
                 jitter: self.imu_jitter.unwrap_or(0.0),
                 drift: self.imu_drift.unwrap_or(0.0),
             },
+            imus: self.imus,
         })?)
     }
 
@@ -229,7 +232,6 @@ impl SimulateCmd {
                 "--resonance-hz/--resonance-zeta",
             ),
             (self.noise_model.is_some(), "--noise-model"),
-            (self.imus != 1, "--imus"),
             (!self.imu_position.is_empty(), "--imu-position"),
         ]
         .into_iter()

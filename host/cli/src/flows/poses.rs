@@ -102,14 +102,25 @@ fn write_header(
     session: &robimu_session::PoseSession,
 ) -> std::io::Result<()> {
     let (ta, tb) = session.poses.span().unwrap_or_default();
+    let k = session.n_imus();
+    let samples: Vec<String> = (session.imus.iter())
+        .map(|f| f.samples.len().to_string())
+        .collect();
     writeln!(
         out,
-        "session {}: tool poses, {} poses, {} IMU samples, {:.1} s; estimating 30 parameters \
-         (IMU position, gravity, tau, 24 sensor parameters)",
+        "session {}: tool poses, {} poses, {} IMU samples{}, {:.1} s; estimating {} parameters \
+         (IMU position, gravity, tau, 24 sensor parameters{})",
         dir.display(),
         session.poses.len(),
-        session.imus[0].samples.len(),
+        samples.join(" + "),
+        if k > 1 {
+            format!(" ({k} IMUs)")
+        } else {
+            String::new()
+        },
         tb - ta,
+        robimu_session::pose_parameter_names(k).len(),
+        if k > 1 { "; per IMU, g shared" } else { "" },
     )?;
     out.flush()
 }

@@ -67,9 +67,84 @@ pub(super) fn small_problem() -> (PoseProblem, Vec<f64>) {
     (p, theta)
 }
 
+/// [`small_problem`] with a second IMU (its own times, samples, σ_z and
+/// 28 parameters, MODEL.md §9): x of 58.
+pub(super) fn two_imu_problem() -> (PoseProblem, Vec<f64>) {
+    let (p, theta) = small_problem();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+    let imu_t: Vec<f64> = (0..70).map(|k| k as f64 * 0.028 + 0.011).collect();
+    let imu_z = imu_t
+        .iter()
+        .map(|_| std::array::from_fn(|_| rng.random_range(-5.0..5.0)))
+        .collect();
+    let more = PoseImuData {
+        imu_t,
+        imu_z,
+        sigma_z: [0.2, 0.3, 0.25, 0.02, 0.01, 0.015],
+    };
+    let specs = pose_param_specs([-0.5, 1.2, 0.3], [0.1, 0.3, -2.0]);
+    let mut data = p.data.clone();
+    let own = |k: &usize| !(3..5).contains(k);
+    data.prior_mean
+        .extend((0..30).filter(own).map(|k| specs[k].nominal));
+    data.prior_sigma
+        .extend((0..30).filter(own).map(|k| specs[k].sigma));
+    let two = PoseProblem::with_imus(p.base.clone(), data, vec![more]).unwrap();
+    let mut theta = theta;
+    let x1: Vec<f64> = (0..30)
+        .filter(own)
+        .map(|k| specs[k].nominal + 0.05 * rng.random_range(-1.0..1.0))
+        .collect();
+    theta.extend(x1);
+    theta[two.n_band() + 30 + TAU - 2] = -0.07;
+    (two, theta)
+}
+
 #[test]
 fn gradient_and_normal_matrix_match_finite_differences() {
-    let (mut p, theta) = small_problem();
+    check_derivatives(small_problem());
+}
+
+#[test]
+fn two_imus_gradient_and_normal_matrix_match_finite_differences() {
+    let (p, theta) = two_imu_problem();
+    assert_eq!((p.n_imus(), p.n_x()), (2, 58));
+    check_derivatives((p, theta));
+}
+
+/// IMU 1's residuals in the 2-IMU problem are those of a one-IMU problem
+/// with IMU 1's samples as IMU 0 and its 30-vector as x; IMU 0's and the
+/// poses' are the one-IMU problem's of IMU 0.
+#[test]
+fn two_imus_residuals_are_each_imus_own() {
+    let (mut p, theta) = two_imu_problem();
+    p.begin_iteration(&theta).unwrap();
+    let nb = p.n_band();
+    let r = p.residuals(&theta).unwrap();
+    let one = |j: usize| {
+        let imu = p.imu(j);
+        let mut d = p.data.clone();
+        (d.imu_t, d.imu_z, d.sigma_z) = (imu.t.to_vec(), imu.z.to_vec(), *imu.sigma_z);
+        let x = imu_view(p.x(&theta), j);
+        d.prior_mean = imu_view(&p.data.prior_mean, j).to_vec();
+        d.prior_sigma = imu_view(&p.data.prior_sigma, j).to_vec();
+        let mut q = PoseProblem::new(p.base.clone(), d).unwrap();
+        let mut th = theta[..nb].to_vec();
+        th.extend(x);
+        q.begin_iteration(&th).unwrap();
+        (q.selected().len(), q.residuals(&th).unwrap())
+    };
+    let (n0, r0) = one(0);
+    let (n1, r1) = one(1);
+    assert_eq!((n0, n1), (p.selected_of(0).len(), p.selected_of(1).len()));
+    assert!(n1 > 50 && n1 != n0, "{n0} {n1}");
+    let np = 6 * p.data.pose_t.len();
+    assert_eq!(r[..np + 6 * n0], r0[..np + 6 * n0]);
+    assert_eq!(r[np + 6 * n0..np + 6 * (n0 + n1)], r1[np..np + 6 * n1]);
+    assert_eq!(r.len(), np + 6 * (n0 + n1) + 58);
+}
+
+fn check_derivatives((mut p, theta): (PoseProblem, Vec<f64>)) {
     p.begin_iteration(&theta).unwrap();
     let n = p.n_unknowns();
     let mut a = p.new_matrix();

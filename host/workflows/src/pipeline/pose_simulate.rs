@@ -10,7 +10,10 @@
 //! [`PoseCalibrationOptions`](crate::PoseCalibrationOptions). With a robot
 //! the body is its flange on the motion of `robimu simulate --robot`
 //! (`pipeline/pose_flange.rs`). Either way the IMU stamps may then carry
-//! arrival jitter and a drifting lag ([`ImuTiming`]).
+//! arrival jitter and a drifting lag ([`ImuTiming`]). With `imus` K > 1
+//! (hand-held motion only) IMU j ≥ 1 is written to `imu<j>.csv` with its
+//! own truth, mount rotation and noise ([`simulate_pose_imus`],
+//! docs/model.md §9) and the truth lists all 2 + 28·K parameters.
 
 use std::fmt;
 use std::path::PathBuf;
@@ -25,7 +28,7 @@ use super::pose_flange::flange_session;
 use super::simulate::check_rates;
 use super::PipelineError;
 use crate::pose_calibrate::{
-    draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming, PoseNoise,
+    draw_pose_imus_truth, random_pose_motion, simulate_pose_imus, ImuSamples, ImuTiming, PoseNoise,
 };
 
 /// What to simulate.
@@ -48,6 +51,8 @@ pub struct PoseSessionSpec {
     pub robot: Option<Robot>,
     /// Arrival jitter and lag drift of the IMU stamps.
     pub imu_timing: ImuTiming,
+    /// Number of IMUs K on the body (docs/model.md §9; > 1 without a robot).
+    pub imus: usize,
 }
 
 /// A written pose session.
@@ -59,6 +64,8 @@ pub struct PoseSimulated {
     pub poses: usize,
     /// Rows of imu.csv.
     pub imu_samples: usize,
+    /// Number of IMUs.
+    pub imus: usize,
     /// Length, s.
     pub duration: f64,
     /// The true τ, s.
@@ -71,10 +78,14 @@ impl fmt::Display for PoseSimulated {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "wrote {}: {} poses, {} IMU samples over {:.1} s (true tau = {:.4} s; truth in truth.toml)",
+            "wrote {}: {} poses, {} IMU samples{} over {:.1} s (true tau = {:.4} s; truth in truth.toml)",
             self.dir.display(),
             self.poses,
             self.imu_samples,
+            match self.imus {
+                1 => String::new(),
+                k => format!(" per IMU ({k} IMUs: imu.csv, imu1.csv, …)"),
+            },
             self.duration,
             self.tau
         )
@@ -102,24 +113,31 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             "--imu-jitter must be ≥ 0 and --imu-drift finite (got {jitter} s and {drift} s)"
         )));
     }
+    if !(1..=64).contains(&spec.imus) || (spec.imus > 1 && spec.robot.is_some()) {
+        return Err(PipelineError::input(anyhow::anyhow!(
+            "--imus must be between 1 and 64, and above 1 only for the hand-held motion \
+             (without --robot; got {})",
+            spec.imus
+        )));
+    }
     let fit = |e: crate::PoseCalibrationError| PipelineError::fit(e.into());
     let mut noise = PoseNoise::default();
-    let (truth, mut data) = match &spec.robot {
+    let (truth, mut data, mut more) = match &spec.robot {
         None => {
-            let truth = draw_pose_truth(spec.seed);
+            let truth = draw_pose_imus_truth(spec.seed, spec.imus);
             let motion =
                 random_pose_motion(spec.duration, spec.seed.wrapping_add(1)).map_err(fit)?;
-            let data = simulate_pose_session(
+            let (data, more) = simulate_pose_imus(
                 &truth,
+                spec.imus,
                 &motion,
-                spec.pose_rate,
-                spec.pose_jitter,
+                (spec.pose_rate, spec.pose_jitter),
                 spec.imu_rate,
                 &noise,
                 spec.seed.wrapping_add(2),
             )
             .map_err(fit)?;
-            (truth, data)
+            (truth, data, more)
         }
         Some(robot) => {
             let f = flange_session(
@@ -133,12 +151,15 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             )
             .map_err(PipelineError::fit)?;
             noise.sigma_z = f.sigma_z;
-            (f.truth, f.data)
+            (f.truth, f.data, Vec::new())
         }
     };
     spec.imu_timing
         .apply(&mut data, spec.seed.wrapping_add(3))
         .map_err(|e| PipelineError::input(e.into()))?;
+    for (j, m) in more.iter_mut().enumerate() {
+        restamp(&spec.imu_timing, m, spec.seed.wrapping_add(4 + j as u64))?;
+    }
     let meta = PoseSessionMeta {
         poses: Some(PoseSigma {
             sigma_p: Some(noise.sigma_p),
@@ -169,8 +190,13 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
     let write = |e: robimu_session::SessionError| PipelineError::write(e.into());
     let mut w = PoseSessionWriter::create(&spec.out, &meta).map_err(write)?;
     w.measurements(&data).map_err(write)?;
+    for (j, m) in more.iter().enumerate() {
+        for (t, z) in m.t.iter().zip(&m.z) {
+            w.imu_of(j + 1, *t, z).map_err(write)?;
+        }
+    }
     w.truth(&Truth {
-        values: pose_parameter_names(1)
+        values: pose_parameter_names(spec.imus)
             .into_iter()
             .zip(truth.clone())
             .collect(),
@@ -181,9 +207,24 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
         dir,
         poses: data.pose_t.len(),
         imu_samples: data.imu_t.len(),
+        imus: spec.imus,
         duration: spec.duration,
         tau: truth[5],
     })
+}
+
+/// [`ImuTiming::apply`] to IMU j ≥ 1's samples `m`.
+fn restamp(timing: &ImuTiming, m: &mut ImuSamples, seed: u64) -> Result<(), PipelineError> {
+    let mut d = robimu_model::PoseMeasurements {
+        imu_t: std::mem::take(&mut m.t),
+        imu_z: std::mem::take(&mut m.z),
+        ..Default::default()
+    };
+    timing
+        .apply(&mut d, seed)
+        .map_err(|e| PipelineError::input(e.into()))?;
+    (m.t, m.z) = (d.imu_t, d.imu_z);
+    Ok(())
 }
 
 #[cfg(test)]

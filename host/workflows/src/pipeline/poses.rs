@@ -8,7 +8,8 @@
 //! * **converged** — Levenberg–Marquardt's termination; not converged is *bad*;
 //! * **residuals** — the noise levels identified from the residuals
 //!   ([`crate::pose_calibrate::noise`]) have settled, and the RMS of the
-//!   whitened residuals of each IMU channel (residual / σ_z) and of the
+//!   whitened residuals of each IMU channel (residual / σ_z, every
+//!   IMU's) and of the
 //!   poses (position / σ_p, rotation / σ_r) is within
 //!   0.67–[`POSE_RMS_MAX`]: otherwise the σ do not fit the data
 //!   (*doubtful*), and the σ the residuals suggest are given for
@@ -21,20 +22,26 @@
 //!   where the prior is informative (not the sensor rotations, whose
 //!   prior σ is π): *doubtful*;
 //! * **time offset** — a score test of a constant τ over the recording
-//!   ([`TauDrift`](crate::TauDrift), docs/model.md §7.9): p below 0.01 is
-//!   *doubtful*.
+//!   ([`TauDrift`](crate::TauDrift), docs/model.md §7.9), one per IMU: p
+//!   below 0.01 is *doubtful*.
+//!
+//! A session with several IMUs (docs/model.md §9) is calibrated jointly:
+//! one pose spline and g for all, each IMU's own 28 parameters
+//! (`imu<j>/<name>`).
 
 use std::path::Path;
 
 use robimu_session::result::{
-    CalibrationResult, ChannelNoiseRecord, CovarianceMatrix, NoiseModelRecord, ParameterResult,
-    VerdictCheck, VerdictRecord, RESULT_FORMAT,
+    CalibrationResult, ChannelNoiseRecord, CovarianceMatrix, ImuNoiseModelRecord, NoiseModelRecord,
+    ParameterResult, VerdictCheck, VerdictRecord, RESULT_FORMAT,
 };
 use robimu_session::{PoseSession, PoseSessionMeta, SOURCE_POSES};
 
 use super::{fatal_findings, FitEvent, PipelineError};
 use crate::check::{check_pose_session, Severity};
-use crate::pose_calibrate::{calibrate_poses_with, PoseCalibration, PoseCalibrationOptions};
+use crate::pose_calibrate::{
+    calibrate_pose_imus_with, ImuSamples, PoseCalibration, PoseCalibrationOptions,
+};
 use crate::verdict::{IMPLAUSIBLE, RMS_RANGE, UNDETERMINED};
 
 /// A prior σ at or above this (rad) is no information: the sensor
@@ -117,24 +124,25 @@ pub fn pose_options(
     opts
 }
 
-/// Calibrate IMU 0 of `session` (other IMUs are left out, said through
-/// `report`'s first stage), reporting the stages and the solver's
-/// iterations.
+/// Calibrate every IMU of `session` (jointly, docs/model.md §9), reporting
+/// the stages and the solver's iterations.
 pub fn calibrate_pose_session(
     session: PoseSession,
     options: PoseCalibrationOptions,
-    mut report: impl FnMut(FitEvent),
+    report: impl FnMut(FitEvent),
 ) -> Result<PoseFitted, PipelineError> {
-    if session.n_imus() > 1 {
-        report(FitEvent::Stage(&format!(
-            "calibrating IMU 0 of {} (a pose session's IMUs are calibrated one at a time)",
-            session.n_imus()
-        )));
-    }
     let data = session.measurements();
+    let more: Vec<ImuSamples> = (1..session.n_imus())
+        .filter_map(|j| session.measurements_of_imu(j))
+        .map(|m| ImuSamples {
+            t: m.imu_t,
+            z: m.imu_z,
+        })
+        .collect();
     let report = std::cell::RefCell::new(report);
-    let cal = calibrate_poses_with(
+    let cal = calibrate_pose_imus_with(
         &data,
+        &more,
         &options,
         |s| (report.borrow_mut())(FitEvent::Stage(s)),
         |r| (report.borrow_mut())(FitEvent::Iteration(r)),
@@ -150,7 +158,7 @@ pub fn calibrate_pose_session(
 }
 
 /// The result file of a pose calibration (docs/model.md §8): the 30
-/// parameters, their covariance, `"source": "poses"`, the solver's run,
+/// parameters (2 + 28·K with K IMUs), their covariance, `"source": "poses"`, the solver's run,
 /// the whitened residual RMS and the verdict.
 fn pose_result(dir: &Path, cal: &PoseCalibration) -> CalibrationResult {
     let parameters = (0..cal.x.len())
@@ -184,8 +192,13 @@ fn pose_result(dir: &Path, cal: &PoseCalibration) -> CalibrationResult {
         residual_rms: Some(whitened_imu_rms(cal)),
         imu_samples_used: Some(cal.imu_used),
         weak_directions: Vec::new(),
-        noise_model: Some(noise_record(cal)),
-        imu_noise_models: Vec::new(),
+        noise_model: Some(noise_record(cal, 0)),
+        imu_noise_models: (1..=cal.more.len())
+            .map(|j| ImuNoiseModelRecord {
+                imu: format!("imu{j}"),
+                noise_model: noise_record(cal, j),
+            })
+            .collect(),
         noise_warning: None,
         verdict: Some(pose_verdict(cal, dir)),
         effects: None,
@@ -194,19 +207,19 @@ fn pose_result(dir: &Path, cal: &PoseCalibration) -> CalibrationResult {
     }
 }
 
-/// The IMU residual RMS per channel over the σ_z of the fit.
+/// IMU 0's residual RMS per channel over the σ_z of the fit.
 fn whitened_imu_rms(cal: &PoseCalibration) -> [f64; 6] {
-    std::array::from_fn(|c| cal.imu_rms[c] / cal.noise.used.sigma_z[c])
+    std::array::from_fn(|c| cal.imu_rms[c] / cal.noise.used.sigma_z[0][c])
 }
 
-/// The fit's IMU noise model: white, at the identified levels when they
-/// were identified (an AR record without coefficients), else as given.
-fn noise_record(cal: &PoseCalibration) -> NoiseModelRecord {
+/// IMU `j`'s noise model in the fit: white, at the identified levels when
+/// they were identified (an AR record without coefficients), else as given.
+fn noise_record(cal: &PoseCalibration, j: usize) -> NoiseModelRecord {
     if !cal.noise.identified {
         return NoiseModelRecord::White;
     }
     NoiseModelRecord::Ar {
-        channels: (cal.noise.used.sigma_z.iter())
+        channels: (cal.noise.used.sigma_z[j].iter())
             .map(|&sigma| ChannelNoiseRecord {
                 phi: Vec::new(),
                 sigma,
@@ -214,6 +227,23 @@ fn noise_record(cal: &PoseCalibration) -> NoiseModelRecord {
             })
             .collect(),
     }
+}
+
+/// Every IMU's residual RMS per channel (IMU 0 first), with the channel
+/// names (`imu<j>/ax` for j ≥ 1).
+fn imu_rms_named(cal: &PoseCalibration) -> Vec<(String, f64)> {
+    let rms = std::iter::once(&cal.imu_rms).chain(cal.more.iter().map(|m| &m.imu_rms));
+    rms.enumerate()
+        .flat_map(|(j, r)| {
+            robimu_session::IMU_COLUMNS
+                .iter()
+                .zip(r)
+                .map(move |(n, v)| match j {
+                    0 => (n.to_string(), *v),
+                    _ => (format!("imu{j}/{n}"), *v),
+                })
+        })
+        .collect()
 }
 
 /// The verdict on a pose calibration (module doc).
@@ -227,8 +257,17 @@ fn pose_verdict(cal: &PoseCalibration, dir: &Path) -> VerdictRecord {
         residuals(cal),
         undetermined(cal),
         plausible(cal),
-        crate::pose_calibrate::tau_drift::verdict_check(cal.tau_drift.as_ref()),
     ];
+    let mut checks = checks;
+    let drifts = std::iter::once(cal.tau_drift.as_ref())
+        .chain(cal.more.iter().map(|m| m.tau_drift.as_ref()));
+    for (j, d) in drifts.enumerate() {
+        let mut c = crate::pose_calibrate::tau_drift::verdict_check(d);
+        if !cal.more.is_empty() {
+            c.text = format!("IMU {j}: {}", c.text);
+        }
+        checks.push(c);
+    }
     let mut verdict = crate::verdict::record(checks, !cal.converged);
     verdict.next_steps = pose_next_steps(&verdict, dir);
     verdict
@@ -273,16 +312,16 @@ fn pose_next_steps(verdict: &VerdictRecord, dir: &Path) -> Vec<String> {
 /// identified, settled; otherwise the σ the residuals suggest.
 fn residuals(cal: &PoseCalibration) -> VerdictCheck {
     let (noise, used) = (&cal.noise, &cal.noise.used);
-    let imu = whitened_imu_rms(cal);
+    let imu = imu_rms_named(cal);
     let pose = [
         cal.pose_rms[0] / used.sigma_p,
         cal.pose_rms[1] / used.sigma_r,
     ];
-    let names = robimu_session::IMU_COLUMNS
-        .iter()
-        .copied()
-        .chain(["position", "rotation"]);
-    let values = imu.iter().chain(&pose);
+    let names = (imu.iter().map(|(n, _)| n.as_str())).chain(["position", "rotation"]);
+    let whitened: Vec<f64> = (imu.iter().enumerate())
+        .map(|(i, (_, v))| v / used.sigma_z[i / 6][i % 6])
+        .collect();
+    let values = whitened.iter().chain(&pose);
     let outside: Vec<String> = names
         .clone()
         .zip(values.clone())
@@ -331,14 +370,19 @@ fn residuals(cal: &PoseCalibration) -> VerdictCheck {
     }
 }
 
-/// σ as session.toml's tables take them.
+/// σ as session.toml's tables take them (IMU j ≥ 1's σ_z named).
 fn sigma_text(s: &robimu_solver::PoseSigma) -> String {
-    let z: Vec<String> = s.sigma_z.iter().map(|v| format!("{v:.3e}")).collect();
+    let list = |z: &[f64; 6]| {
+        let v: Vec<String> = z.iter().map(|v| format!("{v:.3e}")).collect();
+        format!("[{}]", v.join(", "))
+    };
+    let more: String = (s.sigma_z.iter().enumerate().skip(1))
+        .map(|(j, z)| format!(", imu{j} sigma_z = {}", list(z)))
+        .collect();
+    let z = list(&s.sigma_z[0]);
     format!(
-        "[noise] sigma_z = [{}], [poses] sigma_p = {:.3e}, sigma_r = {:.3e}",
-        z.join(", "),
-        s.sigma_p,
-        s.sigma_r
+        "[noise] sigma_z = {z}{more}, [poses] sigma_p = {:.3e}, sigma_r = {:.3e}",
+        s.sigma_p, s.sigma_r
     )
 }
 
@@ -461,7 +505,7 @@ mod tests {
         assert!(
             check
                 .text
-                .contains(&format!("{:.3e}", suggested.sigma_z[0])),
+                .contains(&format!("{:.3e}", suggested.sigma_z[0][0])),
             "{}",
             check.text
         );

@@ -7,8 +7,11 @@
 //! ([`robimu_solver::PoseProblem`]) by Levenberg–Marquardt; the covariance
 //! of x is the Schur complement's inverse (paper (24)); then a score test
 //! of a constant τ over the recording (`tau_drift.rs`, [`TauDrift`]).
-//! [`simulate`] makes sessions with known truth.
+//! [`simulate`] makes sessions with known truth. Several IMUs on the body
+//! (MODEL.md §9): [`calibrate_pose_imus_with`], one spline and g for all,
+//! each IMU's start-up and τ test its own (`imus.rs`).
 
+pub(crate) mod imus;
 pub(crate) mod memo;
 pub mod noise;
 pub mod simulate;
@@ -18,12 +21,12 @@ pub(crate) mod tau_drift;
 mod tests;
 
 use robimu_model::geom::matrix_from_quat;
-use robimu_model::pose_measurement::{pose_param_specs, POSE_PARAMS};
 use robimu_model::{PoseMeasurements, PoseSplineError};
 use robimu_solver::{
-    IterationRecord, LeastSquares, LmOptions, PoseData, PoseProblem, PoseProblemError,
+    IterationRecord, LeastSquares, LmOptions, PoseData, PoseImuData, PoseProblem, PoseProblemError,
 };
 
+pub use imus::{draw_pose_imus_truth, simulate_pose_imus, ImuSamples, PoseImuFit};
 pub use noise::NoiseLevels;
 pub use simulate::{
     draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming, PoseNoise,
@@ -113,18 +116,18 @@ pub struct PoseCalibration {
     pub x: Vec<f64>,
     /// Standard deviations √diag(Σ_x).
     pub sigma: Vec<f64>,
-    /// The 30 × 30 marginal covariance of x, row-major.
+    /// The marginal covariance of x (30 × 30 for one IMU), row-major.
     pub covariance: Vec<Vec<f64>>,
     /// The prior means used (the sensor rotations' from the start-up).
     pub prior_mean: Vec<f64>,
     /// The prior standard deviations used (π for the sensor rotations: no
     /// informative prior).
     pub prior_sigma: Vec<f64>,
-    /// Residual RMS of the used IMU samples per channel [ax … gz].
+    /// Residual RMS of IMU 0's used samples per channel [ax … gz].
     pub imu_rms: [f64; 6],
     /// Residual RMS of the pose samples: position (m), rotation (rad).
     pub pose_rms: [f64; 2],
-    /// IMU samples in the fit.
+    /// IMU 0's samples in the fit.
     pub imu_used: usize,
     /// Levenberg–Marquardt iterations.
     pub iterations: usize,
@@ -136,13 +139,15 @@ pub struct PoseCalibration {
     pub cost: f64,
     /// Knot spacing used (s).
     pub knot_spacing: f64,
-    /// What the start-up found.
+    /// What the start-up found (IMU 0).
     pub startup: Startup,
-    /// The score test of a constant τ (docs/model.md §7.9, *time offset*);
-    /// `None` when it could not be formed.
+    /// The score test of IMU 0's constant τ (docs/model.md §7.9, *time
+    /// offset*); `None` when it could not be formed.
     pub tau_drift: Option<TauDrift>,
     /// The noise levels given, identified and used ([`noise`]).
     pub noise: NoiseLevels,
+    /// IMU j ≥ 1's start-up, residuals and τ test at `more[j − 1]`.
+    pub more: Vec<PoseImuFit>,
 }
 
 /// Checks of the measurements; the rotations as matrices.
@@ -152,23 +157,13 @@ fn checked(data: &PoseMeasurements) -> Result<Vec<robimu_model::geom::M3>, PoseC
     if data.pose_p.len() != n || data.pose_q.len() != n {
         return bad("pose_t, pose_p and pose_q differ in length");
     }
-    if data.imu_z.len() != data.imu_t.len() {
-        return bad("imu_t and imu_z differ in length");
+    if n < 8 {
+        return bad("too few pose samples (need ≥ 8)");
     }
-    if n < 8 || data.imu_t.len() < 20 {
-        return bad("too few pose or IMU samples (need ≥ 8 poses and ≥ 20 IMU samples)");
+    if data.pose_t.windows(2).any(|w| !greater(w[1], w[0])) {
+        return bad("pose times must be finite and increasing");
     }
-    if data
-        .imu_t
-        .windows(2)
-        .any(|w| !(greater(w[1], w[0]) || w[1] == w[0]))
-        || data.pose_t.windows(2).any(|w| !greater(w[1], w[0]))
-    {
-        return bad("sample times must be finite and increasing");
-    }
-    if data.imu_z.iter().flatten().any(|v| !v.is_finite()) {
-        return bad("an IMU sample is not finite");
-    }
+    imus::check_imu(&data.imu_t, &data.imu_z, "IMU 0")?;
     Ok(data.pose_q.iter().map(|q| matrix_from_quat(*q)).collect())
 }
 
@@ -195,10 +190,26 @@ pub fn calibrate_poses(
 pub fn calibrate_poses_with(
     data: &PoseMeasurements,
     opts: &PoseCalibrationOptions,
+    stage: impl FnMut(&str),
+    iteration: impl FnMut(&IterationRecord),
+) -> Result<PoseCalibration, PoseCalibrationError> {
+    calibrate_pose_imus_with(data, &[], opts, stage, iteration)
+}
+
+/// [`calibrate_poses_with`] with IMU 0 in `data` and IMU j ≥ 1's samples
+/// in `more[j − 1]` (MODEL.md §9, §10): x is IMU 0's 30 then each further
+/// IMU's 28, named `imu<j>/<name>`.
+pub fn calibrate_pose_imus_with(
+    data: &PoseMeasurements,
+    more: &[ImuSamples],
+    opts: &PoseCalibrationOptions,
     mut stage: impl FnMut(&str),
     iteration: impl FnMut(&IterationRecord),
 ) -> Result<PoseCalibration, PoseCalibrationError> {
     let pose_r = checked(data)?;
+    for (j, m) in more.iter().enumerate() {
+        imus::check_imu(&m.t, &m.z, &format!("IMU {}", j + 1))?;
+    }
     let n = data.pose_t.len();
     let spacing = opts
         .knot_spacing
@@ -213,14 +224,25 @@ pub fn calibrate_poses_with(
     ));
     let spline = memo::fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing)?;
     stage("start-up: tau and the sensor rotations from the data");
-    let st = startup::startup(&spline, &data.imu_t, &data.imu_z, opts.tau_search)?;
-    let specs = pose_param_specs(st.accel.r, st.gyro.r);
-    let mut x0 = Vec::with_capacity(POSE_PARAMS);
-    x0.extend(st.p_imu);
-    x0.extend([0.0, 0.0, st.tau]);
-    for s in [&st.accel, &st.gyro] {
-        x0.extend(s.gamma.iter().chain(&s.r).chain(&s.k).chain(&s.b));
+    let mut starts = vec![startup::startup(
+        &spline,
+        &data.imu_t,
+        &data.imu_z,
+        opts.tau_search,
+    )?];
+    for m in more {
+        starts.push(startup::startup(&spline, &m.t, &m.z, opts.tau_search)?);
     }
+    let (specs, x0) = imus::specs_and_start(&starts);
+    let nx = specs.len();
+    let more_data: Vec<PoseImuData> = more
+        .iter()
+        .map(|m| PoseImuData {
+            imu_t: m.t.clone(),
+            imu_z: m.z.clone(),
+            sigma_z: opts.sigma_z,
+        })
+        .collect();
     let pdata = PoseData {
         pose_t: data.pose_t.clone(),
         pose_p: data.pose_p.clone(),
@@ -234,12 +256,12 @@ pub fn calibrate_poses_with(
         prior_sigma: specs.iter().map(|s| s.sigma).collect(),
     };
     let (base, mut pdata_all) = (spline.clone(), pdata.clone());
-    let mut problem = PoseProblem::new(spline, pdata)?;
+    let mut problem = PoseProblem::with_imus(spline, pdata, more_data)?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
     stage(&format!(
         "solving: tau = {:.4} s from the start-up (correlation {:.3})",
-        st.tau, st.correlation
+        starts[0].tau, starts[0].correlation
     ));
     let (sol, noise) = noise::solve_identified(
         &mut problem,
@@ -250,26 +272,42 @@ pub fn calibrate_poses_with(
         iteration,
     )?;
     problem.begin_iteration(&sol.theta)?;
-    (pdata_all.sigma_z, pdata_all.sigma_p, pdata_all.sigma_r) =
-        (noise.used.sigma_z, noise.used.sigma_p, noise.used.sigma_r);
+    (pdata_all.sigma_z, pdata_all.sigma_p, pdata_all.sigma_r) = (
+        noise.used.sigma_z[0],
+        noise.used.sigma_p,
+        noise.used.sigma_r,
+    );
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();
-    let (imu_rms, pose_rms) = noise.rms();
-    let drift = tau_drift::tau_drift(
-        &base,
-        &pdata_all,
-        problem.selected(),
-        &sol.theta,
-        &sol.factor,
-    )?;
+    let (imu_rms, pose_rms) = (noise.imu_rms(0), noise.pose_rms());
+    let more_data: Vec<PoseImuData> = (1..problem.n_imus())
+        .map(|j| PoseImuData {
+            imu_t: more[j - 1].t.clone(),
+            imu_z: more[j - 1].z.clone(),
+            sigma_z: noise.used.sigma_z[j],
+        })
+        .collect();
+    let drift = |j: usize| {
+        let (d, m) = ((&base, &pdata_all), more_data.as_slice());
+        tau_drift::tau_drift(d, m, j, problem.selected_of(j), &sol.theta, &sol.factor)
+    };
+    let tau_drift0 = drift(0)?;
+    let mut fits = Vec::with_capacity(more.len());
+    for (j, st) in (1..).zip(starts.drain(1..)) {
+        fits.push(PoseImuFit {
+            startup: st,
+            imu_rms: noise.imu_rms(j),
+            imu_used: problem.selected_of(j).len(),
+            tau_drift: drift(j)?,
+        });
+    }
+    let st = starts.remove(0);
     Ok(PoseCalibration {
         names: specs.iter().map(|s| s.name.clone()).collect(),
         units: specs.iter().map(|s| s.unit).collect(),
-        sigma: (0..POSE_PARAMS)
-            .map(|k| cov[(k, k)].max(0.0).sqrt())
-            .collect(),
-        covariance: (0..POSE_PARAMS)
-            .map(|k| (0..POSE_PARAMS).map(|l| cov[(k, l)]).collect())
+        sigma: (0..nx).map(|k| cov[(k, k)].max(0.0).sqrt()).collect(),
+        covariance: (0..nx)
+            .map(|k| (0..nx).map(|l| cov[(k, l)]).collect())
             .collect(),
         prior_mean: specs.iter().map(|s| s.nominal).collect(),
         prior_sigma: specs.iter().map(|s| s.sigma).collect(),
@@ -283,7 +321,8 @@ pub fn calibrate_poses_with(
         cost: sol.summary.final_cost,
         knot_spacing: spacing,
         startup: st,
-        tau_drift: drift,
+        tau_drift: tau_drift0,
         noise,
+        more: fits,
     })
 }

@@ -10,7 +10,7 @@
 
 use robimu_solver::{
     solve_from, ChannelFit, IterationRecord, LeastSquares, LmOptions, LmSolution, PoseProblem,
-    PoseSigma, FIT_CHANNELS,
+    PoseSigma,
 };
 
 use super::PoseCalibrationError;
@@ -18,11 +18,11 @@ use super::PoseCalibrationError;
 /// The identification has settled when every σ̂ is within this share of
 /// the σ used (a 2 % error in σ is a 2 % error in every σ of x), or
 /// within [`SETTLE_SE`] of its standard error, whichever is wider.
-pub const SETTLE: f64 = 0.02;
+pub(crate) const SETTLE: f64 = 0.02;
 
 /// σ̂_c/σ_c within this many standard errors 1/√(2 (N_c − h_c)) of 1 is
 /// what the data cannot tell from 1: no refit.
-pub const SETTLE_SE: f64 = 3.0;
+pub(crate) const SETTLE_SE: f64 = 3.0;
 
 /// The settling tolerance of channel `c` (relative).
 fn tolerance(fit: &ChannelFit, c: usize) -> f64 {
@@ -55,18 +55,29 @@ pub struct NoiseLevels {
 }
 
 impl NoiseLevels {
-    /// The final fit's residual RMS (not whitened): per IMU channel, and of
-    /// the poses' position (m) and rotation (rad) per component.
-    pub fn rms(&self) -> ([f64; 6], [f64; 2]) {
-        let s = self.used.channels();
-        let rms = |c: usize| s[c] * (self.fit.rss[c] / self.fit.rows[c].max(1) as f64).sqrt();
-        (std::array::from_fn(rms), [rms(6), rms(7)])
+    /// The final fit's residual RMS of IMU `j` per channel (not whitened).
+    pub fn imu_rms(&self, j: usize) -> [f64; 6] {
+        std::array::from_fn(|c| self.rms(6 * j + c))
+    }
+
+    /// The final fit's residual RMS of the poses' position (m) and
+    /// rotation (rad) per component.
+    pub fn pose_rms(&self) -> [f64; 2] {
+        let k = self.used.sigma_z.len();
+        [self.rms(6 * k), self.rms(6 * k + 1)]
+    }
+
+    fn rms(&self, c: usize) -> f64 {
+        let s = self.used.channels()[c];
+        s * (self.fit.rss[c] / self.fit.rows[c].max(1) as f64).sqrt()
     }
 
     /// The σ the final fit's residuals give: `used` times σ̂/σ.
     pub fn suggested(&self) -> PoseSigma {
-        let ratio = self.fit.sigma_ratio().map(|r| r.unwrap_or(1.0));
-        self.used.scaled(ratio)
+        let ratio: Vec<f64> = (self.fit.sigma_ratio().iter())
+            .map(|r| r.unwrap_or(1.0))
+            .collect();
+        self.used.scaled(&ratio)
     }
 }
 
@@ -90,8 +101,10 @@ pub(crate) fn solve_identified(
     loop {
         problem.begin_iteration(&sol.theta)?;
         let fit = problem.channel_fit(&sol.theta, &sol.factor.selected_inverse(), STRIDE)?;
-        let factor = fit.sigma_ratio().map(|r| r.unwrap_or(1.0));
-        let settled = (0..FIT_CHANNELS).all(|c| (factor[c] - 1.0).abs() <= tolerance(&fit, c));
+        let factor: Vec<f64> = (fit.sigma_ratio().iter())
+            .map(|r| r.unwrap_or(1.0))
+            .collect();
+        let settled = (0..factor.len()).all(|c| (factor[c] - 1.0).abs() <= tolerance(&fit, c));
         if !identify || settled || refits == MAX_REFITS {
             let levels = NoiseLevels {
                 given,
@@ -103,8 +116,8 @@ pub(crate) fn solve_identified(
             };
             return Ok((sol, levels));
         }
-        let next = problem.sigma().scaled(factor);
-        problem.set_sigma(next)?;
+        let next = problem.sigma().scaled(&factor);
+        problem.set_sigma(&next)?;
         refits += 1;
         stage(&format!(
             "refit {refits} with the noise levels of the residuals (σ changed by up to {:.0} %)",

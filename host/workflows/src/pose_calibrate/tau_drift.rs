@@ -16,9 +16,11 @@
 //! clock, arrival stamps) makes it large even where the other parameters
 //! absorb most of the drift, which refitting τ alone per half misses.
 
-use robimu_model::pose_measurement::TAU;
+use robimu_model::pose_measurement::{imu_indices, n_pose_params, TAU};
 use robimu_model::PoseSpline;
-use robimu_solver::{ArrowFactor, LeastSquares, PoseData, PoseProblem, PoseProblemError};
+use robimu_solver::{
+    ArrowFactor, LeastSquares, PoseData, PoseImuData, PoseProblem, PoseProblemError,
+};
 
 use crate::stats::chi2_sf;
 use faer::linalg::solvers::DenseSolveCore;
@@ -42,12 +44,14 @@ pub struct TauDrift {
     pub delta_sigma: Vec<f64>,
 }
 
-/// The score test at the solution θ of `problem`'s full data `data` (its
-/// spline `base`), with `factor` the undamped Gauss–Newton matrix at θ.
-/// `None` when there are too few IMU samples to cut or V is singular.
+/// The score test of IMU `imu`'s τ (its `selected` samples) at the
+/// solution θ of the problem of the full data `data` (its spline `base`)
+/// and `more` (IMU j ≥ 1), with `factor` the undamped Gauss–Newton matrix
+/// at θ. `None` when there are too few IMU samples to cut or V is singular.
 pub(crate) fn tau_drift(
-    base: &PoseSpline,
-    data: &PoseData,
+    (base, data): (&PoseSpline, &PoseData),
+    more: &[PoseImuData],
+    imu: usize,
     selected: &[usize],
     theta: &[f64],
     factor: &ArrowFactor,
@@ -57,38 +61,26 @@ pub(crate) fn tau_drift(
         return Ok(None);
     }
     let n = theta.len();
-    let nc = n - robimu_model::pose_measurement::POSE_PARAMS;
+    let tau = imu_indices(imu)[TAU];
+    // τ's index in θ (after the band)
+    let i_tau = n - n_pose_params(1 + more.len()) + tau;
     let (w_tau, e_tau) = (
-        data.prior_sigma[TAU].powi(-2),
-        theta[nc + TAU] - data.prior_mean[TAU],
+        data.prior_sigma[tau].powi(-2),
+        theta[i_tau] - data.prior_mean[tau],
     );
     // segment k's τ column of the information and gradient entry; the
     // segments are independent, each on its own thread
     let segment = |k: usize| -> Result<(f64, Vec<f64>), PoseProblemError> {
         let range = selected.len() * k / SEGMENTS..selected.len() * (k + 1) / SEGMENTS;
-        // no pose samples: they do not touch τ's column or gradient entry
-        let mut seg = PoseData {
-            pose_t: Vec::new(),
-            pose_p: Vec::new(),
-            pose_r: Vec::new(),
-            imu_t: Vec::with_capacity(range.len()),
-            imu_z: Vec::with_capacity(range.len()),
-            prior_mean: data.prior_mean.clone(),
-            prior_sigma: data.prior_sigma.clone(),
-            ..*data
-        };
-        for &i in &selected[range] {
-            seg.imu_t.push(data.imu_t[i]);
-            seg.imu_z.push(data.imu_z[i]);
-        }
-        let mut p = PoseProblem::new(base.clone(), seg)?;
+        let (seg, seg_more) = segment_data(data, more, imu, &selected[range]);
+        let mut p = PoseProblem::with_imus(base.clone(), seg, seg_more)?;
         p.begin_iteration(theta)?;
         let mut a = p.new_matrix();
         let mut gk = vec![0.0; n];
         p.linearize(theta, &mut a, &mut gk)?;
-        let mut c: Vec<f64> = (0..n).map(|i| a.get(i, nc + TAU)).collect();
-        c[nc + TAU] -= w_tau;
-        Ok((gk[nc + TAU] - w_tau * e_tau, c))
+        let mut c: Vec<f64> = (0..n).map(|i| a.get(i, i_tau)).collect();
+        c[i_tau] -= w_tau;
+        Ok((gk[i_tau] - w_tau * e_tau, c))
     };
     let parts: Vec<Result<(f64, Vec<f64>), PoseProblemError>> = std::thread::scope(|s| {
         let handles: Vec<_> = (2..SEGMENTS).map(|k| s.spawn(move || segment(k))).collect();
@@ -108,7 +100,7 @@ pub(crate) fn tau_drift(
         g.push(gk);
         cols.push(c);
     }
-    let d: Vec<f64> = cols.iter().map(|c| c[nc + TAU]).collect();
+    let d: Vec<f64> = cols.iter().map(|c| c[i_tau]).collect();
     // V = diag(d) − Cᵀ A⁻¹ C
     let solved: Vec<Vec<f64>> = cols
         .iter()
@@ -143,6 +135,49 @@ pub(crate) fn tau_drift(
         delta,
         delta_sigma: (0..m).map(|a| v_inv[(a, a)].max(0.0).sqrt()).collect(),
     }))
+}
+
+/// The problem data of one segment: IMU `imu`'s samples `picked` alone
+/// (no pose samples: they do not touch τ's column or gradient entry; nor
+/// the other IMUs' samples), the full prior.
+fn segment_data(
+    data: &PoseData,
+    more: &[PoseImuData],
+    imu: usize,
+    picked: &[usize],
+) -> (PoseData, Vec<PoseImuData>) {
+    let mut seg = PoseData {
+        pose_t: Vec::new(),
+        pose_p: Vec::new(),
+        pose_r: Vec::new(),
+        imu_t: Vec::new(),
+        imu_z: Vec::new(),
+        prior_mean: data.prior_mean.clone(),
+        prior_sigma: data.prior_sigma.clone(),
+        ..*data
+    };
+    let mut seg_more: Vec<PoseImuData> = more
+        .iter()
+        .map(|m| PoseImuData {
+            imu_t: Vec::new(),
+            imu_z: Vec::new(),
+            ..*m
+        })
+        .collect();
+    let (src_t, src_z) = match imu {
+        0 => (&data.imu_t, &data.imu_z),
+        j => (&more[j - 1].imu_t, &more[j - 1].imu_z),
+    };
+    let (t, z) = match imu {
+        0 => (&mut seg.imu_t, &mut seg.imu_z),
+        j => {
+            let m = &mut seg_more[j - 1];
+            (&mut m.imu_t, &mut m.imu_z)
+        }
+    };
+    t.extend(picked.iter().map(|&i| src_t[i]));
+    z.extend(picked.iter().map(|&i| src_z[i]));
+    (seg, seg_more)
 }
 
 /// Below this p-value the verdict doubts a constant τ.

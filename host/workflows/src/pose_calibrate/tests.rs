@@ -6,7 +6,7 @@ use super::startup::euler_zyx;
 use super::*;
 use rand::SeedableRng;
 use robimu_model::geom::{log_so3, mul_mm, transpose};
-use robimu_model::pose_measurement::{ACCEL, GYRO, ROT, TAU};
+use robimu_model::pose_measurement::{ACCEL, GYRO, POSE_PARAMS, ROT, TAU};
 use robimu_model::ImuIntrinsics;
 
 /// The angle between the Z–Y–X rotations of two Euler triples (rad).
