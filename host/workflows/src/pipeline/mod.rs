@@ -35,6 +35,7 @@
 
 mod batch;
 mod calibration;
+mod covariance_kind;
 mod diagnosis;
 mod input;
 mod model_choice;

@@ -193,6 +193,7 @@ fn pose_result(
         effects: None,
         model_tests: None,
         pose_accuracy: None,
+        covariance_kind: None,
     }
 }
 
