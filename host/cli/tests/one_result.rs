@@ -129,8 +129,11 @@ fn sandwich_study(
     fitted: &Fitted,
     rows: &[robimu_session::TruthRow],
 ) {
-    use robimu_workflows::calibrate::sandwich_fit::fit_sandwich;
-    let setup = fitted.selection.as_ref().map_or(&prepared.setup, |d| &d.setup);
+    use robimu_workflows::calibrate::sandwich_fit::{fit_sandwich, FitSandwich};
+    let setup = fitted
+        .selection
+        .as_ref()
+        .map_or(&prepared.setup, |d| &d.setup);
     let set = robimu_workflows::diagnose::effect_set(setup, &fitted.fit.effects).unwrap();
     let layout = robimu_model::ParamLayout::new(robot);
     let mut worst: Vec<&robimu_session::TruthRow> = rows.iter().collect();
@@ -139,7 +142,16 @@ fn sandwich_study(
         let (w, l) = wl.split_once(':').unwrap();
         let (w, l): (f64, usize) = (w.parse().unwrap(), l.parse().unwrap());
         let t = std::time::Instant::now();
-        let sw = fit_sandwich(robot, &prepared.data, &prepared.opts, &set, &fitted.fit, w, l).unwrap();
+        let sw: FitSandwich = fit_sandwich(
+            robot,
+            &prepared.data,
+            &prepared.opts,
+            &set,
+            &fitted.fit,
+            w,
+            l,
+        )
+        .unwrap();
         let mut zmax = (0.0f64, String::new());
         let mut line = String::new();
         for (i, r) in worst.iter().enumerate() {
@@ -151,10 +163,21 @@ fn sandwich_study(
                 zmax = (z.abs(), r.name.clone());
             }
             if i < 5 {
-                line += &format!(" {} z {:.2} σ×{:.2} →{:.2};", r.name, r.z(), sw.sigma[k] / r.sigma, z);
+                line += &format!(
+                    " {} z {:.2} σ×{:.2} →{:.2};",
+                    r.name,
+                    r.z(),
+                    sw.sigma[k] / r.sigma,
+                    z
+                );
             }
         }
-        eprintln!("sandwich W {w} s L {l} ({:.1} s): worst |z| {:.2} {};{line}", t.elapsed().as_secs_f64(), zmax.0, zmax.1);
+        eprintln!(
+            "sandwich W {w} s L {l} ({:.1} s): worst |z| {:.2} {};{line}",
+            t.elapsed().as_secs_f64(),
+            zmax.0,
+            zmax.1
+        );
     }
 }
 

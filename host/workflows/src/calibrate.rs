@@ -18,8 +18,6 @@ pub mod noise_choice;
 mod sandwich;
 pub mod sandwich_fit;
 #[cfg(test)]
-mod sandwich_fit_montecarlo;
-#[cfg(test)]
 mod sandwich_montecarlo;
 #[cfg(test)]
 mod tau_search_tests;

@@ -210,7 +210,10 @@ impl Problem<'_> {
         edges: &[f64],
         mut emit: impl FnMut(usize, &[f64]),
     ) -> Result<(), ProblemError> {
-        assert!(edges.windows(2).all(|e| e[0] < e[1]), "edges not increasing");
+        assert!(
+            edges.windows(2).all(|e| e[0] < e[1]),
+            "edges not increasing"
+        );
         let x = self.x_of(theta);
         let models = self.models(&x)?;
         let spline = self.spline_of(theta);

@@ -30,8 +30,8 @@ use robimu_model::{ParamLayout, Robot};
 use robimu_solver::problem::Problem;
 
 use super::fit::Fit;
-use robimu_solver::LeastSquares;
 use super::{CalibrateError, CalibrateOptions};
+use robimu_solver::LeastSquares;
 
 /// The sandwich covariance of a fit's x.
 #[derive(Debug, Clone)]
@@ -124,7 +124,10 @@ fn window_edges(data: &Measurements, window: f64) -> Result<Vec<f64>, CalibrateE
     let ends = [data.joint_t.first(), data.imu_t.first()];
     let t0 = ends.iter().flatten().fold(f64::INFINITY, |a, &b| a.min(*b));
     let ends = [data.joint_t.last(), data.imu_t.last()];
-    let t1 = ends.iter().flatten().fold(f64::NEG_INFINITY, |a, &b| a.max(*b));
+    let t1 = ends
+        .iter()
+        .flatten()
+        .fold(f64::NEG_INFINITY, |a, &b| a.max(*b));
     if !(t1 > t0) {
         return Err(CalibrateError::Input("no samples to window".into()));
     }
@@ -138,14 +141,24 @@ fn window_edges(data: &Measurements, window: f64) -> Result<Vec<f64>, CalibrateE
 }
 
 /// Adds the priors' part R P Rᵀ (x's and θ_E's) to `b`.
-fn add_prior(r: &Mat<f64>, problem: &Problem, layout: &ParamLayout, set: &EffectSet, b: &mut Mat<f64>) {
+fn add_prior(
+    r: &Mat<f64>,
+    problem: &Problem,
+    layout: &ParamLayout,
+    set: &EffectSet,
+    b: &mut Mat<f64>,
+) {
     let (nc, na) = (problem.n_coeffs(), problem.active().len());
     let specs = layout.specs();
     let info = problem
         .active()
         .iter()
         .map(|&k| 1.0 / (specs[k].sigma * specs[k].sigma))
-        .chain(set.params().iter().map(|p| 1.0 / (p.prior_sigma * p.prior_sigma)));
+        .chain(
+            set.params()
+                .iter()
+                .map(|p| 1.0 / (p.prior_sigma * p.prior_sigma)),
+        );
     for (c, w) in info.enumerate() {
         for p in 0..na {
             for q in 0..na {
@@ -225,4 +238,3 @@ pub(super) fn bartlett(psi: &Mat<f64>, l: usize) -> Mat<f64> {
     }
     b
 }
-

@@ -20,8 +20,8 @@ use robimu_solver::IterationRecord;
 use robimu_model::effects::CatalogueSetup;
 use robimu_session::result::{ModelTestsRecord, VerdictRecord};
 
-use super::model_choice::{effect_records, selection_tests, test_model, ModelChoice, MODEL_ALPHA};
 use super::covariance_kind;
+use super::model_choice::{effect_records, selection_tests, test_model, ModelChoice, MODEL_ALPHA};
 use super::next_steps::next_steps;
 use super::noise_spec::{noise_choice, NoiseFileArg};
 use super::{checked_mode, fatal_findings, PipelineError};

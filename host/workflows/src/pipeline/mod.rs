@@ -36,6 +36,8 @@
 mod batch;
 mod calibration;
 mod covariance_kind;
+#[cfg(test)]
+mod covariance_kind_montecarlo;
 mod diagnosis;
 mod input;
 mod model_choice;

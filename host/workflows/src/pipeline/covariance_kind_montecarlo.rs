@@ -1,4 +1,5 @@
-//! Monte Carlo of [`super::sandwich_fit`] on 40 s sessions fitted by GLS
+//! Monte Carlo of the sandwich the widened covariance comes from
+//! ([`crate::calibrate::sandwich_fit`], [`super::covariance_kind`]) on 40 s sessions fitted by GLS
 //! with their true noise (AR(1) accelerometer noise of 50 ms) and the
 //! `sensor_delay` effect: with an adequate model the sandwich σ are the
 //! model's A⁻¹ σ (a little below: never widened); with a misfit that follows the motion (a term in ω_y ω_z
@@ -10,9 +11,9 @@ use robimu_model::effects::resonance::Mode;
 use robimu_model::noise::NoiseModel;
 use robimu_model::{JointState, Robot};
 
-use super::fit::{fit, FitSpec, Start};
-use super::sandwich_fit::fit_sandwich;
-use super::CalibrateOptions;
+use crate::calibrate::fit::{fit, FitSpec, Start};
+use crate::calibrate::sandwich_fit::fit_sandwich;
+use crate::calibrate::CalibrateOptions;
 use crate::diagnose::{effect_set, setup_with};
 use crate::simulate::{random_session, SimulateOptions};
 
@@ -104,12 +105,19 @@ fn with_an_adequate_model_the_sandwich_is_the_models_covariance() {
     let dim = r.err[0].len();
     let q: Vec<f64> = (0..dim)
         .map(|k| {
-            r.s_sandwich.iter().zip(&r.s_model).map(|(a, b)| a[k] / b[k]).sum::<f64>()
+            r.s_sandwich
+                .iter()
+                .zip(&r.s_model)
+                .map(|(a, b)| a[k] / b[k])
+                .sum::<f64>()
                 / r.err.len() as f64
         })
         .collect();
     let (lo, hi) = range(&q);
-    eprintln!("sandwich σ / model σ: median {:.3}, range {lo:.3}..{hi:.3}", median(&q));
+    eprintln!(
+        "sandwich σ / model σ: median {:.3}, range {lo:.3}..{hi:.3}",
+        median(&q)
+    );
     // the windows' scores at the estimate lose the leverage of each window
     // (20 of 2 s here): biased low by about that much, never high — the
     // widening max(1, ·) leaves an adequate model's σ within a few %
@@ -122,12 +130,18 @@ fn with_a_misfit_that_follows_the_motion_the_sandwich_covers_the_spread() {
     let r = run(16, 60.0);
     let (model, sw) = (ratios(&r.err, &r.s_model), ratios(&r.err, &r.s_sandwich));
     let dim = model.len();
-    let worst = (0..dim).max_by(|&a, &b| model[a].total_cmp(&model[b])).unwrap();
+    let worst = (0..dim)
+        .max_by(|&a, &b| model[a].total_cmp(&model[b]))
+        .unwrap();
     eprintln!(
         "rms(error)/mean(σ) over {} runs: model median {:.2} range {:.2?}, sandwich median {:.2} range {:.2?}; worst under the model: {:.2} → {:.2}",
         r.err.len(), median(&model), range(&model), median(&sw), range(&sw), model[worst], sw[worst]
     );
-    assert!(model[worst] > 3.0, "the misfit is too small: {}", model[worst]);
+    assert!(
+        model[worst] > 3.0,
+        "the misfit is too small: {}",
+        model[worst]
+    );
     assert!(median(&model) > 1.3, "model median {}", median(&model));
     assert!(range(&sw).1 < 2.0, "sandwich {:?}", range(&sw));
     assert!(median(&sw) < 1.25, "sandwich median {}", median(&sw));
