@@ -405,7 +405,7 @@ impl Prepared {
                 .collect();
         let setup = selection.as_ref().map_or(&self.setup, |d| &d.setup);
         let stats = residual_stats(&self.robot, &self.data, setup, &fit);
-        let verdict = self.verdict(VerdictInput {
+        let mut verdict = self.verdict(VerdictInput {
             robot: &self.robot,
             calibration: &cal,
             noise: Some(&noise),
@@ -425,7 +425,7 @@ impl Prepared {
                 (&self.robot, &self.data, &self.opts),
                 setup,
                 &fit,
-                &verdict,
+                &mut verdict,
                 &mut cal,
             ),
         };

@@ -26,18 +26,18 @@ pub(super) const LAGS: usize = 0;
 /// sandwich of `fit` (its effects from `setup`, its noise model), each
 /// parameter's σ by s_k = max(1, σ_sandwich/σ_k) and the covariance by
 /// diag(s) Σ diag(s) (positive definite, A⁻¹'s correlations kept); the
-/// record of it. `None`, `cal` unchanged, when the check passed or the
+/// record of it, said in the check's text. `None`, `cal` unchanged, when the check passed or the
 /// sandwich cannot be formed (several IMUs).
 pub(super) fn widen(
     (robot, data, opts): (&Robot, &Measurements, &CalibrateOptions),
     setup: &CatalogueSetup,
     fit: &Fit,
-    verdict: &VerdictRecord,
+    verdict: &mut VerdictRecord,
     cal: &mut Calibration,
 ) -> Option<CovarianceKindRecord> {
     let check = verdict
         .checks
-        .iter()
+        .iter_mut()
         .find(|c| c.topic == "structure" && !c.ok)?;
     if cal.active != fit.active {
         return None;
@@ -62,9 +62,18 @@ pub(super) fn widen(
     for (&k, s) in cal.active.iter().zip(&factors) {
         cal.sigma[k] *= s;
     }
+    let reason = format!("structure: {}", check.text);
+    let (c, s) = factors
+        .iter()
+        .enumerate()
+        .fold((0, 1.0), |m, (c, &s)| if s > m.1 { (c, s) } else { m });
+    check.text += &format!(
+        "; the σ are widened to the sandwich of the fit (largest ×{s:.2}, {}; covariance_kind)",
+        layout.specs()[cal.active[c]].name
+    );
     Some(CovarianceKindRecord {
         kind: "sandwich".into(),
-        reason: format!("structure: {}", check.text),
+        reason,
         window_s: WINDOW_S,
         lags: LAGS,
         inflation: cal
