@@ -57,7 +57,6 @@ use robimu_model::{
     Basis, JointState, Knots, MeasurementJacobians, MeasurementModel, ParamLayout, Robot, Spline,
 };
 use robimu_solver::problem::Problem;
-use robimu_solver::LeastSquares;
 
 use super::fit::Fit;
 use super::sandwich_fit::{bartlett, influence_rows};

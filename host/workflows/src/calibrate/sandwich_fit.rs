@@ -128,7 +128,7 @@ fn window_edges(data: &Measurements, window: f64) -> Result<Vec<f64>, CalibrateE
         .iter()
         .flatten()
         .fold(f64::NEG_INFINITY, |a, &b| a.max(*b));
-    if !(t1 > t0) {
+    if t1.partial_cmp(&t0) != Some(std::cmp::Ordering::Greater) {
         return Err(CalibrateError::Input("no samples to window".into()));
     }
     let n = ((t1 - t0) / window).floor() as usize + 1;
