@@ -90,6 +90,9 @@ fn run(mut config: SimRigConfig, seed: u64, duration: f64, dir: &Path) -> Outcom
     })
     .unwrap()
     .rows;
+    if let Ok(spec) = std::env::var("ROBIMU_ONE_RESULT_SANDWICH") {
+        sandwich_study(&spec, &robot, &prepared, &fitted, &rows);
+    }
     let worst = rows
         .iter()
         .map(|r| (r.z().abs(), r.name.clone()))
@@ -115,6 +118,67 @@ fn run(mut config: SimRigConfig, seed: u64, duration: f64, dir: &Path) -> Outcom
     };
     eprintln!("{outcome:?}");
     outcome
+}
+
+/// ROBIMU_ONE_RESULT_SANDWICH=W:L,… prints, per window W s and lags L,
+/// the sandwich σ of the written fit against the truth (the worst rows).
+fn sandwich_study(
+    spec: &str,
+    robot: &Robot,
+    prepared: &Prepared,
+    fitted: &Fitted,
+    rows: &[robimu_session::TruthRow],
+) {
+    use robimu_workflows::calibrate::sandwich_fit::{fit_sandwich, FitSandwich};
+    let setup = fitted
+        .selection
+        .as_ref()
+        .map_or(&prepared.setup, |d| &d.setup);
+    let set = robimu_workflows::diagnose::effect_set(setup, &fitted.fit.effects).unwrap();
+    let layout = robimu_model::ParamLayout::new(robot);
+    let mut worst: Vec<&robimu_session::TruthRow> = rows.iter().collect();
+    worst.sort_by(|a, b| b.z().abs().total_cmp(&a.z().abs()));
+    for wl in spec.split(',') {
+        let (w, l) = wl.split_once(':').unwrap();
+        let (w, l): (f64, usize) = (w.parse().unwrap(), l.parse().unwrap());
+        let t = std::time::Instant::now();
+        let sw: FitSandwich = fit_sandwich(
+            robot,
+            &prepared.data,
+            &prepared.opts,
+            &set,
+            &fitted.fit,
+            w,
+            l,
+        )
+        .unwrap();
+        let mut zmax = (0.0f64, String::new());
+        let mut line = String::new();
+        for (i, r) in worst.iter().enumerate() {
+            let Some(k) = layout.specs().iter().position(|s| s.name == r.name) else {
+                continue;
+            };
+            let z = (r.estimate - r.truth) / sw.sigma[k];
+            if z.abs() > zmax.0 {
+                zmax = (z.abs(), r.name.clone());
+            }
+            if i < 5 {
+                line += &format!(
+                    " {} z {:.2} σ×{:.2} →{:.2};",
+                    r.name,
+                    r.z(),
+                    sw.sigma[k] / r.sigma,
+                    z
+                );
+            }
+        }
+        eprintln!(
+            "sandwich W {w} s L {l} ({:.1} s): worst |z| {:.2} {};{line}",
+            t.elapsed().as_secs_f64(),
+            zmax.0,
+            zmax.1
+        );
+    }
 }
 
 /// Sessions of `config(seed)` for `seeds`, `duration` s each; prints the

@@ -50,17 +50,23 @@ pub fn session_truth(
     ))
 }
 
-/// Every estimated parameter of diagnose's final model against `truth`.
-fn final_model_rows(robot: &Robot, d: &Diagnosis, truth: &TwinTruth) -> Vec<TruthRow> {
+/// Every estimated parameter of diagnose's final model against `truth`, x's
+/// with the σ `sigma_x`.
+fn final_model_rows(
+    robot: &Robot,
+    d: &Diagnosis,
+    sigma_x: &[f64],
+    truth: &TwinTruth,
+) -> Vec<TruthRow> {
     let fit = &d.final_fit;
     let layout = ParamLayout::new(robot);
     let mut rows = Vec::new();
     for (k, spec) in layout.specs().iter().enumerate() {
-        if let (Some(t), true) = (truth.get(&spec.name), fit.sigma_x[k] > 0.0) {
+        if let (Some(t), true) = (truth.get(&spec.name), sigma_x[k] > 0.0) {
             rows.push(TruthRow {
                 name: spec.name.clone(),
                 estimate: fit.x[k],
-                sigma: fit.sigma_x[k],
+                sigma: sigma_x[k],
                 truth: t,
                 mode_share: truth.mode_share(&spec.name),
             });
@@ -215,7 +221,9 @@ pub fn fitted_check(
             let truth = truth_for(&names, share.as_deref())?;
             FittedCheck {
                 effects: d.final_fit.effects.clone(),
-                rows: final_model_rows(robot, d, &truth),
+                // x's σ as written (widened where the model is shown
+                // inadequate, docs/model.md §8.5), θ_E's the fit's
+                rows: final_model_rows(robot, d, &fitted.cal.sigma, &truth),
                 truth,
             }
         }

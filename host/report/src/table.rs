@@ -401,6 +401,7 @@ mod tests {
             effects: None,
             model_tests: None,
             pose_accuracy: None,
+            covariance_kind: None,
         };
         r.validate().unwrap();
         r

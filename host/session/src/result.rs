@@ -162,6 +162,37 @@ pub struct CalibrationResult {
     /// robimu extension).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pose_accuracy: Option<PoseAccuracyRecord>,
+    /// Which covariance `covariance` is when it is not the model's A⁻¹:
+    /// the sandwich of a fit whose model the verdict found inadequate
+    /// (docs/model.md §4.6, §8.5; robimu extension, absent for A⁻¹).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance_kind: Option<CovarianceKindRecord>,
+}
+
+/// The reported covariance widened to the sandwich A⁻¹BA⁻¹ of the written
+/// fit (docs/model.md §4.6 *Sandwich of the written fit*).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CovarianceKindRecord {
+    /// `"sandwich"`.
+    pub kind: String,
+    /// The verdict's check that found the model inadequate.
+    pub reason: String,
+    /// The score windows' length, s.
+    pub window_s: f64,
+    /// The Bartlett kernel's lags, in windows.
+    pub lags: usize,
+    /// Per estimated parameter, the factor its σ was multiplied by:
+    /// max(1, sandwich σ / the model's σ).
+    pub inflation: Vec<InflationRecord>,
+}
+
+/// One parameter's σ inflation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InflationRecord {
+    /// Parameter name.
+    pub name: String,
+    /// σ factor (≥ 1).
+    pub factor: f64,
 }
 
 /// How far a calibration can be trusted.
@@ -903,6 +934,7 @@ mod tests {
             effects: None,
             model_tests: None,
             pose_accuracy: None,
+            covariance_kind: None,
             weak_directions: vec![WeakDirectionRecord {
                 relative_information: 1e-3,
                 parameters: vec![DirectionShare {

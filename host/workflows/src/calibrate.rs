@@ -16,6 +16,7 @@ mod newton_stop_tests;
 pub mod noise_choice;
 #[cfg(test)]
 mod sandwich;
+pub mod sandwich_fit;
 #[cfg(test)]
 mod sandwich_montecarlo;
 #[cfg(test)]
@@ -654,6 +655,7 @@ impl Calibration {
             effects: None,
             model_tests: None,
             pose_accuracy: None,
+            covariance_kind: None,
             weak_directions: calibration
                 .weak_directions
                 .iter()

@@ -193,6 +193,60 @@ impl Problem<'_> {
         Ok(cost)
     }
 
+    /// The gradient Jᵀr at θ of the rows of each time window
+    /// `[edges[w], edges[w+1])`, passed to `emit(w, g)` in order (g of
+    /// length nc + n_active + n_E, the priors left out): the IMU samples
+    /// whose time t_i lies in the window (GLS rows whitened with the
+    /// samples before them, as in [`Self::linearize`]) and the joint
+    /// samples in it. Summed over windows covering every sample, the
+    /// gradient of [`Self::linearize`] less the priors'. The score
+    /// contributions of a sandwich covariance (docs/model.md §4.6).
+    ///
+    /// # Panics
+    /// If `edges` is not increasing.
+    pub fn window_gradients(
+        &self,
+        theta: &[f64],
+        edges: &[f64],
+        mut emit: impl FnMut(usize, &[f64]),
+    ) -> Result<(), ProblemError> {
+        assert!(
+            edges.windows(2).all(|e| e[0] < e[1]),
+            "edges not increasing"
+        );
+        let x = self.x_of(theta);
+        let models = self.models(&x)?;
+        let spline = self.spline_of(theta);
+        // A is accumulated but never read: only g is wanted
+        let mut a = self.new_matrix();
+        let mut g = vec![0.0; a.dims().0 + self.active.len() + self.n_effect_params()];
+        // the samples of [lo, hi) within `range` of times `t` (sorted)
+        let within = |t: &[f64], range: Range<usize>, lo: f64, hi: f64| {
+            let s = &t[range.clone()];
+            let a = s.partition_point(|&v| v < lo);
+            let b = s.partition_point(|&v| v < hi);
+            range.start + a..range.start + b
+        };
+        for (w, e) in edges.windows(2).enumerate() {
+            g.fill(0.0);
+            let mut lin = Linearization {
+                a: &mut a,
+                g: &mut g,
+            };
+            for (st, model) in self.streams.iter().zip(&models) {
+                let range = within(st.t, st.imu_range.clone(), e[0], e[1]);
+                if !range.is_empty() {
+                    let ev = self.stream_at(st, model, &spline, &x, theta);
+                    self.imu_terms(ev, range, Some(&mut lin))?;
+                }
+            }
+            let joints = within(&self.data.joint_t, 0..self.data.joint_t.len(), e[0], e[1]);
+            self.joint_terms(&spline, joints, Some(&mut g));
+            emit(w, &g);
+        }
+        Ok(())
+    }
+
     /// One-IMU models of every stream at the full x.
     fn models(&self, x: &[f64]) -> Result<Vec<MeasurementModel>, ProblemError> {
         (0..self.streams.len())

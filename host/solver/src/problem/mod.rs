@@ -118,6 +118,8 @@ mod multi_tests;
 mod select_tests;
 #[cfg(test)]
 mod thin_tests;
+#[cfg(test)]
+mod window_tests;
 
 use std::ops::Range;
 

@@ -57,9 +57,9 @@ use robimu_model::{
     Basis, JointState, Knots, MeasurementJacobians, MeasurementModel, ParamLayout, Robot, Spline,
 };
 use robimu_solver::problem::Problem;
-use robimu_solver::LeastSquares;
 
 use super::fit::Fit;
+use super::sandwich_fit::{bartlett, influence_rows};
 use super::{CalibrateError, CalibrateOptions};
 
 /// The sandwich covariance of a white fit's x.
@@ -146,30 +146,6 @@ pub fn sandwich(
         sigma[k] = b[(c, c)].max(0.0).sqrt();
     }
     Ok(Sandwich { sigma })
-}
-
-/// R = [A⁻¹]_{x,·} (active × all unknowns) of the normal matrix A at θ:
-/// row a is A⁻¹ e_{nc+a} (A symmetric).
-fn influence_rows(problem: &mut Problem, theta: &[f64]) -> Result<Mat<f64>, CalibrateError> {
-    problem.begin_iteration(theta)?;
-    let (nc, na) = (problem.n_coeffs(), problem.active().len());
-    let mut a = problem.new_matrix();
-    let mut g = vec![0.0; nc + na];
-    problem.linearize(theta, &mut a, &mut g)?;
-    let factor = a
-        .factor()
-        .map_err(|e| CalibrateError::Input(format!("the normal matrix: {e}")))?;
-    let mut r = Mat::<f64>::zeros(na, nc + na);
-    let mut col = vec![0.0; nc + na];
-    for i in 0..na {
-        col.fill(0.0);
-        col[nc + i] = 1.0;
-        factor.solve_in_place(&mut col);
-        for (j, v) in col.iter().enumerate() {
-            r[(i, j)] = *v;
-        }
-    }
-    Ok(r)
 }
 
 /// The influence ψ = R g of each sample's gradient g on x, at the fit.
@@ -301,49 +277,6 @@ impl Influence<'_> {
             }
         }
     }
-}
-
-/// Σ_{t,s} w(t − s) ψ_t ψ_sᵀ over the rows ψ_t of `psi`, w the Bartlett
-/// kernel 1 − |l|/(L+1) for |l| ≤ L: Ψᵀ (box ∗ box ∗ Ψ) / (L + 1).
-fn bartlett(psi: &Mat<f64>, l: usize) -> Mat<f64> {
-    let (len, na) = (psi.nrows(), psi.ncols());
-    let mut v = Mat::<f64>::zeros(len, na);
-    // u runs L past the end, where it still sums the last ψ
-    let ext = len + l;
-    let mut u = vec![0.0; ext];
-    for c in 0..na {
-        // u_t = Σ_{k=0..L} ψ_{t−k} (ψ = 0 outside the series)
-        let mut run = 0.0;
-        for t in 0..ext {
-            if t < len {
-                run += psi[(t, c)];
-            }
-            if t > l {
-                run -= psi[(t - l - 1, c)];
-            }
-            u[t] = run;
-        }
-        // v_t = Σ_{k=0..L} u_{t+k} = Σ_d (L + 1 − |d|) ψ_{t+d}
-        let mut run: f64 = u[len..].iter().sum();
-        for t in (0..len).rev() {
-            run += u[t];
-            if t + l + 1 < ext {
-                run -= u[t + l + 1];
-            }
-            v[(t, c)] = run;
-        }
-    }
-    let mut b = psi.transpose() * &v;
-    let scale = 1.0 / (l + 1) as f64;
-    for p in 0..na {
-        for q in 0..p {
-            let s = 0.5 * (b[(p, q)] + b[(q, p)]) * scale;
-            b[(p, q)] = s;
-            b[(q, p)] = s;
-        }
-        b[(p, p)] *= scale;
-    }
-    b
 }
 
 #[cfg(test)]

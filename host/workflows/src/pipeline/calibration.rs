@@ -20,6 +20,7 @@ use robimu_solver::IterationRecord;
 use robimu_model::effects::CatalogueSetup;
 use robimu_session::result::{ModelTestsRecord, VerdictRecord};
 
+use super::covariance_kind;
 use super::model_choice::{effect_records, selection_tests, test_model, ModelChoice, MODEL_ALPHA};
 use super::next_steps::next_steps;
 use super::noise_spec::{noise_choice, NoiseFileArg};
@@ -382,7 +383,7 @@ impl Prepared {
     /// is `noise.white_test`).
     fn fitted(
         &self,
-        cal: Calibration,
+        mut cal: Calibration,
         noise: NoiseOutcome,
         fit: Fit,
         selection: Option<Diagnosis>,
@@ -404,7 +405,7 @@ impl Prepared {
                 .collect();
         let setup = selection.as_ref().map_or(&self.setup, |d| &d.setup);
         let stats = residual_stats(&self.robot, &self.data, setup, &fit);
-        let verdict = self.verdict(VerdictInput {
+        let mut verdict = self.verdict(VerdictInput {
             robot: &self.robot,
             calibration: &cal,
             noise: Some(&noise),
@@ -415,7 +416,21 @@ impl Prepared {
             residual_stats: Some(&stats),
             effects: effects.as_deref(),
         });
+        // a model the structure check finds inadequate: its σ widened to
+        // the sandwich of the written fit (docs/model.md §4.6, §8.5);
+        // `--model paper` writes the paper's fit as it is
+        let kind = match self.model {
+            ModelChoice::Paper if effects.is_none() => None,
+            _ => covariance_kind::widen(
+                (&self.robot, &self.data, &self.opts),
+                setup,
+                &fit,
+                &mut verdict,
+                &mut cal,
+            ),
+        };
         let mut result = result_record(&cal, &self.layout, &self.session, self.opts.use_prior);
+        result.covariance_kind = kind;
         result.noise_warning = noise.warning.clone();
         result.verdict = Some(verdict);
         result.effects = effects;

@@ -35,6 +35,9 @@
 
 mod batch;
 mod calibration;
+mod covariance_kind;
+#[cfg(test)]
+mod covariance_kind_montecarlo;
 mod diagnosis;
 mod input;
 mod model_choice;

@@ -204,6 +204,7 @@ fn pose_result(dir: &Path, cal: &PoseCalibration) -> CalibrationResult {
         effects: None,
         model_tests: None,
         pose_accuracy: None,
+        covariance_kind: None,
     }
 }
 
