@@ -69,5 +69,5 @@ pub use lm::{
 };
 
 pub use crate::dense::DenseError;
-pub use crate::pose_problem::{PoseData, PoseProblem, PoseProblemError};
+pub use crate::pose_problem::{ExtraSums, PoseData, PoseProblem, PoseProblemError};
 pub use crate::problem::ImuResiduals;

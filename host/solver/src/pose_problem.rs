@@ -454,5 +454,8 @@ impl LeastSquares for PoseProblem {
     }
 }
 
+mod extra;
+pub use extra::ExtraSums;
+
 #[cfg(test)]
 mod tests;

@@ -9,7 +9,10 @@
 //! of a constant τ over the recording (`tau_drift.rs`, [`TauDrift`]).
 //! [`simulate`] makes sessions with known truth.
 
+pub mod diagnose;
+pub mod inject;
 pub(crate) mod memo;
+pub mod score;
 pub mod simulate;
 pub(crate) mod startup;
 pub(crate) mod tau_drift;
@@ -187,9 +190,30 @@ pub fn calibrate_poses(
 pub fn calibrate_poses_with(
     data: &PoseMeasurements,
     opts: &PoseCalibrationOptions,
-    mut stage: impl FnMut(&str),
+    stage: impl FnMut(&str),
     iteration: impl FnMut(&IterationRecord),
 ) -> Result<PoseCalibration, PoseCalibrationError> {
+    Ok(fit_poses(data, opts, stage, iteration)?.0)
+}
+
+/// The solved problem behind a [`PoseCalibration`] (for the score tests
+/// of [`diagnose`]).
+pub(crate) struct PoseFit {
+    /// The problem, its selection that of `theta`.
+    pub problem: PoseProblem,
+    /// The MAP estimate θ.
+    pub theta: Vec<f64>,
+    /// The undamped Gauss–Newton matrix at θ, factored.
+    pub factor: robimu_solver::ArrowFactor,
+}
+
+/// [`calibrate_poses_with`] and the solved problem.
+pub(crate) fn fit_poses(
+    data: &PoseMeasurements,
+    opts: &PoseCalibrationOptions,
+    mut stage: impl FnMut(&str),
+    iteration: impl FnMut(&IterationRecord),
+) -> Result<(PoseCalibration, PoseFit), PoseCalibrationError> {
     let pose_r = checked(data)?;
     let n = data.pose_t.len();
     let spacing = opts
@@ -225,7 +249,6 @@ pub fn calibrate_poses_with(
         prior_mean: specs.iter().map(|s| s.nominal).collect(),
         prior_sigma: specs.iter().map(|s| s.sigma).collect(),
     };
-    let (base, pdata_all) = (spline.clone(), pdata.clone());
     let mut problem = PoseProblem::new(spline, pdata)?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
@@ -239,14 +262,8 @@ pub fn calibrate_poses_with(
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();
     let (imu_rms, pose_rms) = residual_rms(&problem, &sol.theta, data)?;
-    let drift = tau_drift::tau_drift(
-        &base,
-        &pdata_all,
-        problem.selected(),
-        &sol.theta,
-        &sol.factor,
-    )?;
-    Ok(PoseCalibration {
+    let drift = tau_drift::tau_drift(&problem, &sol.theta, &sol.factor)?;
+    let cal = PoseCalibration {
         names: specs.iter().map(|s| s.name.clone()).collect(),
         units: specs.iter().map(|s| s.unit).collect(),
         sigma: (0..POSE_PARAMS)
@@ -268,7 +285,13 @@ pub fn calibrate_poses_with(
         knot_spacing: spacing,
         startup: st,
         tau_drift: drift,
-    })
+    };
+    let fit = PoseFit {
+        problem,
+        theta: sol.theta,
+        factor: sol.factor,
+    };
+    Ok((cal, fit))
 }
 
 /// Residual RMS per IMU channel and of the pose samples at θ.
