@@ -24,6 +24,7 @@ use robimu_session::{
 use super::pose_flange::flange_session;
 use super::simulate::check_rates;
 use super::PipelineError;
+use crate::pose_calibrate::inject::{inject_pose_effects, parse_pose_effect};
 use crate::pose_calibrate::{
     draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming, PoseNoise,
 };
@@ -48,6 +49,9 @@ pub struct PoseSessionSpec {
     pub robot: Option<Robot>,
     /// Arrival jitter and lag drift of the IMU stamps.
     pub imu_timing: ImuTiming,
+    /// IMU-side catalogue effects injected, `NAME=MAGNITUDE`
+    /// ([`crate::pose_calibrate::inject`]; the hand-held motion only).
+    pub effects: Vec<String>,
 }
 
 /// A written pose session.
@@ -103,13 +107,25 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
         )));
     }
     let fit = |e: crate::PoseCalibrationError| PipelineError::fit(e.into());
+    let injected = spec
+        .effects
+        .iter()
+        .map(|s| parse_pose_effect(s))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| PipelineError::input(e.into()))?;
+    if spec.robot.is_some() && !injected.is_empty() {
+        return Err(PipelineError::input(anyhow::anyhow!(
+            "--effect with --robot: not available yet (effects are injected into the hand-held \
+             motion's pose session)"
+        )));
+    }
     let mut noise = PoseNoise::default();
     let (truth, mut data) = match &spec.robot {
         None => {
             let truth = draw_pose_truth(spec.seed);
             let motion =
                 random_pose_motion(spec.duration, spec.seed.wrapping_add(1)).map_err(fit)?;
-            let data = simulate_pose_session(
+            let mut data = simulate_pose_session(
                 &truth,
                 &motion,
                 spec.pose_rate,
@@ -119,6 +135,8 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
                 spec.seed.wrapping_add(2),
             )
             .map_err(fit)?;
+            inject_pose_effects(&mut data, &truth, &motion, &injected)
+                .map_err(|e| PipelineError::input(e.into()))?;
             (truth, data)
         }
         Some(robot) => {
@@ -150,7 +168,7 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
         }),
         notes: Some(format!(
             "simulated by robimu simulate --source poses (seed {}, {}, poses at {} Hz with \
-             jitter {} s, IMU at {} Hz, IMU stamps' arrival jitter {} s and lag drift {} s)",
+             jitter {} s, IMU at {} Hz, IMU stamps' arrival jitter {} s and lag drift {} s{})",
             spec.seed,
             spec.robot
                 .as_ref()
@@ -162,7 +180,12 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             spec.pose_jitter,
             spec.imu_rate,
             spec.imu_timing.jitter,
-            spec.imu_timing.drift
+            spec.imu_timing.drift,
+            if spec.effects.is_empty() {
+                String::new()
+            } else {
+                format!(", effects injected: {}", spec.effects.join(", "))
+            }
         )),
         ..Default::default()
     };

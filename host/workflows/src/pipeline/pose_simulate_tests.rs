@@ -52,6 +52,7 @@ fn spec(robot: Option<&str>, jitter: f64, drift: f64, seed: u64) -> PoseSessionS
         imu_rate: 100.0,
         robot: robot.map(|n| Robot::builtin(n).unwrap()),
         imu_timing: ImuTiming { jitter, drift },
+        effects: Vec::new(),
     }
 }
 
@@ -150,6 +151,7 @@ fn the_flange_sessions_imu_csv_is_the_joint_sessions_and_its_truth_maps() {
         imu_rate: 100.0,
         robot: Some(Robot::aubo_i5()),
         imu_timing: ImuTiming::default(),
+        effects: Vec::new(),
     })
     .unwrap();
     let read = |d: &PathBuf| std::fs::read(d.join("imu.csv")).unwrap();
