@@ -14,19 +14,17 @@
 //!   columns ([`robimu_solver::PoseProblem::extra_sums`]) gives their
 //!   efficient information V and score u ([`Information`]); a set E's
 //!   statistic is S(E) = u_Eᵀ V_E⁻¹ u_E.
-//! * **Search**: the joint path's false-alarm control (Bonferroni α/K over
-//!   the K candidates offered) and rules, on conditional scores instead of
-//!   refits: in each round a candidate b is scored given the effects E
-//!   found so far, S(b | E) = S(E ∪ b) − S(E) ~ χ²_{k_b} (the score test
-//!   of b in the model with E, to first order the score after refitting
-//!   E); the best one below α/K is added unless its parameters are not
-//!   determined apart from E (ρ²_max > [`MAX_ALIASING`], the joint path's
-//!   [`crate::diagnose::determination`] rule), with the other significant
-//!   candidates compared to it ([`Alternative`], the ambiguity rule).
-//! * **Not done**: the refit with θ_e appended to x. The effects' values
-//!   given are the one-step (Gauss–Newton) estimates −V_E⁻¹ u_E from the
-//!   baseline fit with their σ, and the LR statistic, ΔBIC and residuals
-//!   after are not computed (`null` in diagnosis.json).
+//! * **Search**: the joint path's (docs/model.md §4.9), on the same
+//!   rules: in each round every candidate b is scored given the effects E
+//!   found so far, S(b | E) = S(E ∪ b) − S(E) ~ χ²_{k_b} at the fit with
+//!   E; the best one below the Bonferroni threshold α/K (K candidates
+//!   offered) is rejected if its parameters are not determined apart from
+//!   E (ρ²_max > [`MAX_ALIASING`], [`crate::diagnose::determination`]'s
+//!   rule on V), else refitted ([`super::refit`]: θ_E appended to x) and
+//!   added when the refit's likelihood ratio confirms it (p < α/K), else
+//!   the search ends. The other candidates significant in the round are
+//!   compared with it ([`Alternative`](crate::diagnose::Alternative), the
+//!   ambiguity rule).
 
 use faer::Mat;
 use robimu_model::effects::{self, CatalogueSetup, Effect, MassModel, SessionSpan};
@@ -35,10 +33,13 @@ use robimu_model::pose_measurement::G0;
 use robimu_model::PoseMeasurements;
 use serde::Serialize;
 
+use super::refit::{EffectFit, Stacked};
 use super::score::Information;
-use super::{fit_poses, PoseCalibration, PoseCalibrationError, PoseCalibrationOptions, PoseFit};
+use super::{PoseCalibration, PoseCalibrationError, PoseCalibrationOptions};
 use crate::diagnose::ranking::{aliasing, compare};
-use crate::diagnose::{AddedParameter, AliasedWith, FoundEffect, Rejected, Score, MAX_ALIASING};
+use crate::diagnose::{
+    AddedParameter, AliasedWith, FoundEffect, ParameterMove, Rejected, Score, MAX_ALIASING,
+};
 
 /// Settings of [`diagnose_poses`].
 #[derive(Debug, Clone)]
@@ -72,6 +73,9 @@ pub struct NotApplicable {
 pub struct PoseDiagnosis {
     /// The baseline: the pose calibration.
     pub calibration: PoseCalibration,
+    /// The calibration of the final model (with the effects found, their
+    /// terms taken out of the IMU samples); `None` when none was found.
+    pub final_calibration: Option<PoseCalibration>,
     /// Effects in the order they were chosen.
     pub found: Vec<FoundEffect>,
     /// Significant candidates not chosen (not determined apart from those found).
@@ -172,23 +176,36 @@ pub fn diagnose_poses(
     };
     let setup = CatalogueSetup::new(SessionSpan { t0, t1 }, MassModel::none(), G0, None);
     let (cands, skipped) = offered(&setup, &dopts.candidates)?;
-    let (calibration, fit) = fit_poses(data, opts, &mut stage, |_| {})?;
+    let columns = |sample: &PoseImuSample<'_>, cols: &mut [[f64; 6]]| {
+        for c in &cands {
+            c.effect.imu_columns(sample, &mut cols[c.range.clone()]);
+        }
+    };
+    let stacked = Stacked {
+        columns: &columns,
+        prior: (cands.iter().flat_map(|c| c.effect.params()))
+            .map(|p| p.prior_sigma.powi(-2))
+            .collect(),
+    };
+    stage("calibrating the pose session (the baseline)");
+    let baseline = stacked.fit(data, opts, vec![0.0; stacked.len()], None)?;
+    let threshold = dopts.alpha / cands.len().max(1) as f64;
+    let problem = Problem {
+        data,
+        opts,
+        cands: &cands,
+        stacked: &stacked,
+        threshold,
+    };
     stage(&format!(
         "scoring {} IMU-side effects of the catalogue",
         cands.len()
     ));
-    let info = information(&fit, &cands)?;
-    let threshold = dopts.alpha / cands.len().max(1) as f64;
-    let search = search(&info, &cands, threshold);
-    let rms_before: [f64; 6] = std::array::from_fn(|c| calibration.imu_rms[c] / opts.sigma_z[c]);
-    let found = search
-        .found
-        .into_iter()
-        .map(|f| found_record(f, &cands, rms_before))
-        .collect();
+    let search = search(&problem, &baseline, &mut stage)?;
     Ok(PoseDiagnosis {
-        calibration,
-        found,
+        calibration: baseline.cal,
+        final_calibration: search.fit.map(|f| f.cal),
+        found: search.found,
         rejected: search.rejected,
         last_scores: search.last_scores,
         threshold,
@@ -198,41 +215,20 @@ pub fn diagnose_poses(
     })
 }
 
-/// Every candidate's columns stacked, their V and u at the fit.
-fn information(fit: &PoseFit, cands: &[Candidate]) -> Result<Information, PoseCalibrationError> {
-    let k = cands.last().map_or(0, |c| c.range.end);
-    let sums = fit
-        .problem
-        .extra_sums(&fit.theta, k, |_, sample: &PoseImuSample<'_>, cols| {
-            for c in cands {
-                c.effect.imu_columns(sample, &mut cols[c.range.clone()]);
-            }
-        })?;
-    let prior: Vec<f64> = cands
-        .iter()
-        .flat_map(|c| c.effect.params())
-        .map(|p| p.prior_sigma.powi(-2))
-        .collect();
-    Ok(Information::new(&sums, &prior, &fit.factor))
-}
-
-/// One effect chosen by [`search`].
-struct Chosen {
-    /// Index into the candidates.
-    cand: usize,
-    score: Score,
-    /// The round's scores, best first.
-    scores: Vec<Score>,
-    alternatives: Vec<crate::diagnose::Alternative>,
-    /// ρ²_max against the effects before it.
-    aliasing: f64,
-    /// One-step estimates and σ of its parameters with those before it.
-    step: Vec<(f64, f64)>,
+/// What a search runs on.
+struct Problem<'a> {
+    data: &'a PoseMeasurements,
+    opts: &'a PoseCalibrationOptions,
+    cands: &'a [Candidate],
+    stacked: &'a Stacked<'a>,
+    threshold: f64,
 }
 
 /// What the search ends with.
 struct Search {
-    found: Vec<Chosen>,
+    /// The final fit (`None`: the baseline).
+    fit: Option<EffectFit>,
+    found: Vec<FoundEffect>,
     rejected: Vec<Rejected>,
     last_scores: Vec<Score>,
 }
@@ -251,99 +247,136 @@ fn statistic(info: &Information, cands: &[Candidate], set: &[usize]) -> f64 {
         .map_or(f64::NAN, |t| t.statistic)
 }
 
-/// The forward search of the module doc.
-fn search(info: &Information, cands: &[Candidate], threshold: f64) -> Search {
+/// Every candidate not in `chosen` nor rejected scored given `chosen` at
+/// `info`, best first.
+fn round_scores(
+    info: &Information,
+    cands: &[Candidate],
+    chosen: &[usize],
+    rejected: &[Rejected],
+) -> Vec<(usize, Score)> {
+    let base = statistic(info, cands, chosen);
+    let mut scores: Vec<(usize, Score)> = (0..cands.len())
+        .filter(|c| !chosen.contains(c) && !rejected.iter().any(|r| r.name == cands[*c].name()))
+        .map(|c| {
+            let with: Vec<usize> = chosen.iter().copied().chain([c]).collect();
+            let stat = (statistic(info, cands, &with) - base).max(0.0);
+            let dof = cands[c].range.len();
+            let p_value = if stat.is_finite() {
+                crate::stats::chi2_sf(stat, dof as f64)
+            } else {
+                1.0
+            };
+            let name = cands[c].name().into();
+            (
+                c,
+                Score {
+                    name,
+                    statistic: stat,
+                    dof,
+                    p_value,
+                },
+            )
+        })
+        .collect();
+    scores.sort_by(|a, b| {
+        (a.1.p_value)
+            .total_cmp(&b.1.p_value)
+            .then(b.1.statistic.total_cmp(&a.1.statistic))
+    });
+    scores
+}
+
+/// The forward search of the module doc from the fit `baseline`.
+fn search(
+    p: &Problem<'_>,
+    baseline: &EffectFit,
+    stage: &mut impl FnMut(&str),
+) -> Result<Search, PoseCalibrationError> {
+    let cands = p.cands;
     let mut s = Search {
+        fit: None,
         found: Vec::new(),
         rejected: Vec::new(),
         last_scores: Vec::new(),
     };
     let mut chosen: Vec<usize> = Vec::new();
     loop {
-        let base = statistic(info, cands, &chosen);
-        let mut scores: Vec<(usize, Score)> = (0..cands.len())
-            .filter(|c| {
-                !chosen.contains(c) && !s.rejected.iter().any(|r| r.name == cands[*c].name())
-            })
-            .map(|c| {
-                let with: Vec<usize> = chosen.iter().copied().chain([c]).collect();
-                let stat = (statistic(info, cands, &with) - base).max(0.0);
-                let dof = cands[c].range.len();
-                let p_value = if stat.is_finite() {
-                    crate::stats::chi2_sf(stat, dof as f64)
-                } else {
-                    1.0
-                };
-                (
-                    c,
-                    Score {
-                        name: cands[c].name().into(),
-                        statistic: stat,
-                        dof,
-                        p_value,
-                    },
-                )
-            })
-            .collect();
-        scores.sort_by(|a, b| {
-            (a.1.p_value)
-                .total_cmp(&b.1.p_value)
-                .then(b.1.statistic.total_cmp(&a.1.statistic))
-        });
+        let cur = s.fit.as_ref().unwrap_or(baseline);
+        let scores = round_scores(&cur.info, cands, &chosen, &s.rejected);
         let plain: Vec<Score> = scores.iter().map(|(_, s)| s.clone()).collect();
         let Some((best, score)) = scores.first().cloned() else {
-            return s;
+            return Ok(s);
         };
-        if !(score.p_value < threshold) {
+        if !(score.p_value < p.threshold) {
             s.last_scores = plain;
-            return s;
+            return Ok(s);
         }
-        let with: Vec<usize> = chosen.iter().copied().chain([best]).collect();
-        let rho2 = determination(info, cands, &chosen, best);
-        if rho2.0 > MAX_ALIASING {
+        let (rho2, most) = determination(&cur.info, cands, &chosen, best);
+        if rho2 > MAX_ALIASING {
             s.rejected.push(Rejected {
                 name: score.name.clone(),
                 statistic: score.statistic,
                 dof: score.dof,
                 p_value: score.p_value,
                 lr_statistic: f64::NAN,
-                aliasing: rho2.0,
-                aliased_with: rho2.1,
+                aliasing: rho2,
+                aliased_with: most,
                 reason: format!(
-                    "not determined apart from the effects found (ρ²_max {:.3} > {MAX_ALIASING})",
-                    rho2.0
+                    "not determined apart from the effects found (ρ²_max {rho2:.3} > {MAX_ALIASING})"
                 ),
             });
             continue;
         }
+        let with: Vec<usize> = chosen.iter().copied().chain([best]).collect();
+        stage(&format!("refitting with {}", score.name));
+        let next = p
+            .stacked
+            .refit(p.data, p.opts, &columns_of(cands, &with), cur)?;
+        let lr = 2.0 * (cur.cost - next.cost);
+        let lr_p = crate::stats::chi2_sf(lr.max(0.0), score.dof as f64);
+        if lr_p >= p.threshold {
+            s.last_scores = plain;
+            return Ok(s);
+        }
+        let base = statistic(&cur.info, cands, &chosen);
         let alternatives = scores[1..]
             .iter()
-            .filter(|(_, b)| b.p_value < threshold)
+            .filter(|(_, b)| b.p_value < p.threshold)
             .map(|(c, b)| {
                 let both: Vec<usize> = with.iter().copied().chain([*c]).collect();
-                let joint = (statistic(info, cands, &both) - base).max(0.0);
-                compare(&score, b, joint, threshold)
+                let joint = (statistic(&cur.info, cands, &both) - base).max(0.0);
+                compare(&score, b, joint, p.threshold)
             })
             .collect();
-        let step = info
-            .test(&columns_of(cands, &with))
-            .map(|t| {
-                let n = t.step.len() - score.dof;
-                (n..t.step.len())
-                    .map(|i| (t.step[i], t.step_sigma[i]))
-                    .collect()
-            })
-            .unwrap_or_default();
-        chosen.push(best);
-        s.found.push(Chosen {
+        let found = Chosen {
             cand: best,
             score,
             scores: plain,
             alternatives,
-            aliasing: rho2.0,
-            step,
-        });
+            aliasing: rho2,
+            lr,
+            lr_p,
+        };
+        s.found.push(found_record(found, p, cur, &next));
+        chosen.push(best);
+        s.fit = Some(next);
     }
+}
+
+/// One effect chosen by [`search`].
+struct Chosen {
+    /// Index into the candidates.
+    cand: usize,
+    score: Score,
+    /// The round's scores, best first.
+    scores: Vec<Score>,
+    alternatives: Vec<crate::diagnose::Alternative>,
+    /// ρ²_max against the effects before it.
+    aliasing: f64,
+    /// The refit's likelihood ratio and its p-value.
+    lr: f64,
+    lr_p: f64,
 }
 
 /// ρ²_max of candidate `b`'s parameters against the effects `known`, and
@@ -388,15 +421,46 @@ fn inverse(m: &Mat<f64>) -> Option<Mat<f64>> {
     m.llt(faer::Side::Lower).ok().map(|l| l.inverse())
 }
 
-/// The joint path's record of an effect found; what only a refit gives
-/// (LR, ΔBIC, residuals after, baseline moves) is NaN (`null`).
-fn found_record(f: Chosen, cands: &[Candidate], rms_before: [f64; 6]) -> FoundEffect {
-    let params = cands[f.cand].effect.params();
-    let ambiguous_with = f
-        .alternatives
-        .iter()
-        .filter(|a| a.ambiguous)
-        .map(|a| a.name.clone())
+/// The joint path's record of an effect found at the fit `before`,
+/// refitted into `after`.
+fn found_record(f: Chosen, p: &Problem<'_>, before: &EffectFit, after: &EffectFit) -> FoundEffect {
+    let cand = &p.cands[f.cand];
+    // σ of θ_e with every other unknown (θ_E included) estimated
+    let all: Vec<usize> = (0..p.cands.len())
+        .filter(|c| {
+            after.theta_e[p.cands[*c].range.clone()]
+                .iter()
+                .any(|v| *v != 0.0)
+        })
+        .flat_map(|c| p.cands[c].range.clone())
+        .collect();
+    let sig: Vec<f64> = match inverse(&Mat::from_fn(all.len(), all.len(), |i, j| {
+        after.info.v[(all[i], all[j])]
+    })) {
+        Some(cov) => cand
+            .range
+            .clone()
+            .map(|c| {
+                all.iter()
+                    .position(|&a| a == c)
+                    .map_or(f64::NAN, |i| cov[(i, i)].max(0.0).sqrt())
+            })
+            .collect(),
+        None => vec![f64::NAN; cand.range.len()],
+    };
+    let rms = |e: &EffectFit| -> [f64; 6] {
+        std::array::from_fn(|c| e.cal.imu_rms[c] / p.opts.sigma_z[c])
+    };
+    let n_res = 6.0 * before.cal.imu_used as f64;
+    let (b, a) = (&before.cal, &after.cal);
+    let baseline_moves = (0..b.x.len())
+        .filter(|&k| (a.x[k] - b.x[k]).abs() > a.sigma[k])
+        .map(|k| ParameterMove {
+            name: a.names[k].clone(),
+            before: b.x[k],
+            after: a.x[k],
+            sigma: a.sigma[k],
+        })
         .collect();
     FoundEffect {
         name: f.score.name.clone(),
@@ -404,26 +468,27 @@ fn found_record(f: Chosen, cands: &[Candidate], rms_before: [f64; 6]) -> FoundEf
         statistic: f.score.statistic,
         dof: f.score.dof,
         p_value: f.score.p_value,
-        lr_statistic: f64::NAN,
-        lr_p_value: f64::NAN,
-        delta_bic: f64::NAN,
-        rms_before,
-        rms_after: [f64::NAN; 6],
-        parameters: params
-            .iter()
-            .zip(&f.step)
-            .map(|(p, &(value, sigma))| AddedParameter {
-                name: p.name.clone(),
-                unit: p.unit.into(),
-                value,
+        lr_statistic: f.lr,
+        lr_p_value: f.lr_p,
+        delta_bic: -f.lr + f.score.dof as f64 * n_res.ln(),
+        rms_before: rms(before),
+        rms_after: rms(after),
+        parameters: (cand.effect.params().iter().zip(cand.range.clone()).zip(sig))
+            .map(|((par, c), sigma)| AddedParameter {
+                name: par.name.clone(),
+                unit: par.unit.into(),
+                value: after.theta_e[c],
                 sigma,
             })
             .collect(),
-        baseline_moves: Vec::new(),
+        baseline_moves,
         scores: f.scores,
         resolution: None,
+        ambiguous_with: (f.alternatives.iter())
+            .filter(|a| a.ambiguous)
+            .map(|a| a.name.clone())
+            .collect(),
         alternatives: f.alternatives,
-        ambiguous_with,
         aliasing: f.aliasing,
     }
 }

@@ -12,6 +12,7 @@
 pub mod diagnose;
 pub mod inject;
 pub(crate) mod memo;
+pub(crate) mod refit;
 pub mod score;
 pub mod simulate;
 pub(crate) mod startup;
