@@ -72,7 +72,7 @@ fn refuse_joint_flags(s: &DiagnoseSettings) -> anyhow::Result<()> {
 }
 
 /// The diagnosis.json document of a pose diagnosis.
-pub fn pose_diagnosis_json(d: &PoseDiagnosis) -> serde_json::Value {
+fn pose_diagnosis_json(d: &PoseDiagnosis) -> serde_json::Value {
     let c = &d.calibration;
     let f = d.final_calibration.as_ref().unwrap_or(c);
     let model = |c: &crate::pose_calibrate::PoseCalibration| {

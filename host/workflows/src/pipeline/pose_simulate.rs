@@ -85,6 +85,21 @@ impl fmt::Display for PoseSimulated {
     }
 }
 
+/// The effects `spec` injects, `(name, magnitude)` (the hand-held motion only).
+fn injected_effects(spec: &PoseSessionSpec) -> Result<Vec<(String, f64)>, PipelineError> {
+    let injected = (spec.effects.iter())
+        .map(|s| parse_pose_effect(s))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| PipelineError::input(e.into()))?;
+    if spec.robot.is_some() && !injected.is_empty() {
+        return Err(PipelineError::input(anyhow::anyhow!(
+            "--effect with --robot: not available yet (effects are injected into the hand-held \
+             motion's pose session)"
+        )));
+    }
+    Ok(injected)
+}
+
 /// Simulate the pose session `spec` describes and write it.
 pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, PipelineError> {
     check_rates(spec.duration, spec.imu_rate, None).map_err(PipelineError::input)?;
@@ -107,18 +122,7 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
         )));
     }
     let fit = |e: crate::PoseCalibrationError| PipelineError::fit(e.into());
-    let injected = spec
-        .effects
-        .iter()
-        .map(|s| parse_pose_effect(s))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| PipelineError::input(e.into()))?;
-    if spec.robot.is_some() && !injected.is_empty() {
-        return Err(PipelineError::input(anyhow::anyhow!(
-            "--effect with --robot: not available yet (effects are injected into the hand-held \
-             motion's pose session)"
-        )));
-    }
+    let injected = injected_effects(spec)?;
     let mut noise = PoseNoise::default();
     let (truth, mut data) = match &spec.robot {
         None => {

@@ -308,7 +308,7 @@ fn search(
         let Some((best, score)) = scores.first().cloned() else {
             return Ok(s);
         };
-        if !(score.p_value < p.threshold) {
+        if score.p_value.is_nan() || score.p_value >= p.threshold {
             s.last_scores = plain;
             return Ok(s);
         }

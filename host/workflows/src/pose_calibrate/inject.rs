@@ -15,7 +15,7 @@ use robimu_model::{PoseMeasurements, PoseSpline};
 use super::PoseCalibrationError;
 
 /// Parse `NAME=MAGNITUDE` of an IMU-side effect.
-pub fn parse_pose_effect(spec: &str) -> Result<(String, f64), PoseCalibrationError> {
+pub(crate) fn parse_pose_effect(spec: &str) -> Result<(String, f64), PoseCalibrationError> {
     let bad = |m: String| Err(PoseCalibrationError::Input(m));
     let Some((name, m)) = spec.split_once('=') else {
         return bad(format!("--effect `{spec}`: expected NAME=MAGNITUDE"));
@@ -32,7 +32,7 @@ pub fn parse_pose_effect(spec: &str) -> Result<(String, f64), PoseCalibrationErr
 /// Add the effects `injected` (name, magnitude in the effect's
 /// [`Effect::magnitude_unit`]) to `data`'s IMU samples, simulated from
 /// `truth` on `motion` (before any change of their stamps).
-pub fn inject_pose_effects(
+pub(crate) fn inject_pose_effects(
     data: &mut PoseMeasurements,
     truth: &[f64],
     motion: &PoseSpline,

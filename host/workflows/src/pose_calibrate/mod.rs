@@ -10,10 +10,10 @@
 //! [`simulate`] makes sessions with known truth.
 
 pub mod diagnose;
-pub mod inject;
+pub(crate) mod inject;
 pub(crate) mod memo;
 pub(crate) mod refit;
-pub mod score;
+pub(crate) mod score;
 pub mod simulate;
 pub(crate) mod startup;
 pub(crate) mod tau_drift;

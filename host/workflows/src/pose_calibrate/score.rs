@@ -15,7 +15,7 @@ use crate::stats::chi2_sf;
 
 /// A score test's outcome.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ScoreTest {
+pub(crate) struct ScoreTest {
     /// S (χ²_k when the extra parameters are zero).
     pub statistic: f64,
     /// Degrees of freedom k.
@@ -30,7 +30,7 @@ pub struct ScoreTest {
 
 /// The efficient information of the extra parameters and their score.
 #[derive(Debug, Clone)]
-pub struct Information {
+pub(crate) struct Information {
     /// u (k).
     pub u: Vec<f64>,
     /// V = D + P − Bᵀ A⁻¹ B (k × k).
@@ -41,7 +41,7 @@ impl Information {
     /// V of the sums `s` with the extra parameters' prior information
     /// `prior_info` (1/σ², 0 for none), `factor` the undamped Gauss–Newton
     /// matrix at θ.
-    pub fn new(s: &ExtraSums, prior_info: &[f64], factor: &ArrowFactor) -> Self {
+    pub(crate) fn new(s: &ExtraSums, prior_info: &[f64], factor: &ArrowFactor) -> Self {
         let k = s.u.len();
         let solved: Vec<Vec<f64>> =
             s.b.iter()
@@ -60,7 +60,7 @@ impl Information {
 
     /// The test of the parameters `idx` alone (the others held at zero).
     /// `None` when their V is not positive definite.
-    pub fn test(&self, idx: &[usize]) -> Option<ScoreTest> {
+    pub(crate) fn test(&self, idx: &[usize]) -> Option<ScoreTest> {
         let k = idx.len();
         let v = faer::Mat::from_fn(k, k, |a, b| self.v[(idx[a], idx[b])]);
         let v_inv = v.llt(faer::Side::Lower).ok()?.inverse();
@@ -80,7 +80,11 @@ impl Information {
 }
 
 /// The test of all the sums' parameters ([`Information::test`]).
-pub fn score_test(s: &ExtraSums, prior_info: &[f64], factor: &ArrowFactor) -> Option<ScoreTest> {
+pub(crate) fn score_test(
+    s: &ExtraSums,
+    prior_info: &[f64],
+    factor: &ArrowFactor,
+) -> Option<ScoreTest> {
     let all: Vec<usize> = (0..s.u.len()).collect();
     Information::new(s, prior_info, factor).test(&all)
 }
