@@ -190,3 +190,33 @@ fn a_robots_flange_session_has_the_joint_sessions_imu_samples() {
     assert_eq!(tp.get("p_imu_y"), tj.get("eps_6_2"));
     assert_eq!(tp.get("tau"), tj.get("tau"));
 }
+
+/// `simulate --source poses --effect sensor_delay=5` then `diagnose`: the
+/// delay is named in the summary and in diagnosis.json (docs/model.md
+/// §7.9); a joint-side candidate is refused with its reason.
+#[test]
+fn diagnose_names_an_injected_imu_effect_of_a_pose_session() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("s");
+    robimu_ok([
+        "simulate",
+        "--source",
+        "poses",
+        "--duration",
+        "30",
+        "--effect",
+        "sensor_delay=5",
+        "--out",
+        s(&dir),
+    ]);
+    let out = tmp.path().join("d");
+    let run = robimu_ok(["diagnose", s(&dir), "--out", s(&out)]);
+    assert!(run.text().contains("found sensor_delay"), "{}", run.text());
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["source"], "poses");
+    assert_eq!(json["effects_found"][0]["name"], "sensor_delay");
+    let run = robimu(["diagnose", s(&dir), "--candidates", "resonance"]);
+    run.assert_fails(&["resonance", "does not apply to a pose session"]);
+}

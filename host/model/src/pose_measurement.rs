@@ -261,6 +261,7 @@ pub(crate) fn predict_jacobians(
     Ok(out)
 }
 
+pub mod inertial;
 pub mod rows;
 #[cfg(test)]
 mod tests;

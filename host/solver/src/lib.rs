@@ -70,6 +70,6 @@ pub use lm::{
 
 pub use crate::dense::DenseError;
 pub use crate::pose_problem::{
-    ChannelFit, PoseData, PoseImuData, PoseProblem, PoseProblemError, PoseSigma,
+    ChannelFit, ExtraSums, PoseData, PoseImuData, PoseProblem, PoseProblemError, PoseSigma,
 };
 pub use crate::problem::ImuResiduals;

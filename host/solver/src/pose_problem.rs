@@ -543,7 +543,10 @@ impl LeastSquares for PoseProblem {
     }
 }
 
+mod extra;
 mod leverage;
+pub use extra::ExtraSums;
+
 #[cfg(test)]
 mod tests;
 

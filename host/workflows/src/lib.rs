@@ -134,6 +134,9 @@ pub use crate::plan::PlanError;
 pub use crate::pose_calibrate::calibrate_pose_imus_with;
 pub use crate::pose_calibrate::calibrate_poses;
 pub use crate::pose_calibrate::calibrate_poses_with;
+pub use crate::pose_calibrate::diagnose::{
+    diagnose_poses, NotApplicable, PoseDiagnoseOptions, PoseDiagnosis,
+};
 pub use crate::pose_calibrate::draw_pose_imus_truth;
 pub use crate::pose_calibrate::draw_pose_truth;
 pub use crate::pose_calibrate::random_pose_motion;

@@ -4,6 +4,12 @@
 
 use std::path::PathBuf;
 
+use std::path::Path;
+
+use robimu_session::SessionSource;
+use robimu_workflows::pipeline::pose_diagnosis::{
+    diagnose_pose_session, write_pose_diagnosis, PoseDiagnosisSummary,
+};
 use robimu_workflows::DiagnoseSettings;
 
 /// Diagnose model discrepancies of a session.
@@ -67,6 +73,15 @@ impl DiagnoseCmd {
     /// Diagnose, print and write.
     pub fn run(self) -> anyhow::Result<()> {
         let settings = self.settings();
+        if let Ok(SessionSource::Poses) = SessionSource::of_dir(&self.session) {
+            if self.report.is_some() {
+                anyhow::bail!(
+                    "--report: not available for a pose session yet (diagnosis.json has its \
+                     scores)"
+                );
+            }
+            return diagnose_poses(&self.session, &settings);
+        }
         let d = crate::flows::diagnose::run(&self.session, &settings)?;
         if let Some(dir) = &self.report {
             let page = crate::flows::calibrate::diagnosis_report(&self.session, dir, d)?;
@@ -91,4 +106,22 @@ impl DiagnoseCmd {
             noise_model: self.noise_model.clone(),
         }
     }
+}
+
+/// `robimu diagnose` of a pose session (docs/model.md §7.9): the summary
+/// and DIR/diagnosis.json.
+fn diagnose_poses(dir: &Path, settings: &DiagnoseSettings) -> anyhow::Result<()> {
+    let progress = crate::input::Progress::start("calibrating the pose session");
+    let d = diagnose_pose_session(
+        dir,
+        settings,
+        |w| eprintln!("warning: {w}"),
+        |m| progress.set_message(m.to_string()),
+    );
+    progress.finish();
+    let d = d?;
+    print!("{}", PoseDiagnosisSummary(&d));
+    let path = write_pose_diagnosis(&d, &settings.out)?;
+    println!("wrote {}", path.display());
+    Ok(())
 }

@@ -95,7 +95,9 @@ pub struct SimulateCmd {
     /// deg/(kN*m), encoder_scale ppm, resonance mrad/(rad/s^2),
     /// temperature_bias mg/K (needs --temperature; the gyroscope's 0.015 deg/s/K
     /// per mg/K) (each a fixed pattern scaled by the magnitude; see
-    /// `robimu_model::effects`). Recorded in session.toml's notes.
+    /// `robimu_model::effects`). Recorded in session.toml's notes. With
+    /// `--source poses` the IMU-side ones (g_sensitivity, size_effect,
+    /// clock_drift, sensor_delay, bias_drift) on the hand-held motion.
     #[arg(long, value_name = "NAME=MAGNITUDE")]
     pub effect: Vec<String>,
     /// Add a seeded random-walk (Brownian) bias to every IMU channel,
@@ -185,7 +187,7 @@ impl SimulateCmd {
             bail!(
                 "{}: not for --source poses (a pose session has no joints; it takes --out, \
                  --duration, --seed, --rate, --robot, --imus, --pose-rate, --pose-jitter, \
-                 --imu-jitter and --imu-drift)",
+                 --imu-jitter, --imu-drift and --effect of an IMU-side effect)",
                 joint_only.join(", ")
             );
         }
@@ -206,6 +208,7 @@ impl SimulateCmd {
                 drift: self.imu_drift.unwrap_or(0.0),
             },
             imus: self.imus,
+            effects: self.effect.clone(),
         })?)
     }
 
@@ -223,7 +226,6 @@ impl SimulateCmd {
             (self.truth.is_some(), "--truth"),
             (self.tracker, "--tracker"),
             (!self.nominal.is_empty(), "--nominal"),
-            (!self.effect.is_empty(), "--effect"),
             (self.bias_walk.is_some(), "--bias-walk"),
             (self.temperature.is_some(), "--temperature"),
             (

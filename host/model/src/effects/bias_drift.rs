@@ -21,7 +21,7 @@
 //! drift whose change over the session is A·(1, −0.7, 0.5) °/s on
 //! (gx, gy, gz), exact at every M.
 
-use super::{Effect, EffectConstant, EffectParam, SampleContext, SessionSpan};
+use super::{Effect, EffectConstant, EffectParam, ImuContext, SampleContext, SessionSpan};
 use crate::IMU_CHANNELS;
 
 /// Segments when none is given (a linear drift).
@@ -110,14 +110,18 @@ impl Effect for BiasDrift {
         out
     }
     fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
+        self.imu_columns(ctx, cols);
+    }
+    fn imu_columns(&self, ctx: &dyn ImuContext, cols: &mut [[f64; 6]]) -> bool {
         let m = self.segments;
         let mut b = [0.0; MAX_SEGMENTS];
-        self.basis(ctx.t, &mut b);
+        self.basis(ctx.t(), &mut b);
         for c in 0..6 {
             for k in 0..m {
                 cols[m * c + k][c] = b[k];
             }
         }
+        true
     }
     fn constants(&self) -> Vec<EffectConstant> {
         let c = |name: &str, value| EffectConstant {

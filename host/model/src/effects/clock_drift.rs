@@ -10,7 +10,10 @@
 //! One parameter κ, dimensionless (displayed in ppm). The simulator uses the
 //! exact warped time. `simulate --effect clock_drift=M` injects κ = M ppm.
 
-use super::{Effect, EffectConstant, EffectParam, ExactContext, SampleContext, SessionSpan};
+use super::{
+    Effect, EffectConstant, EffectParam, ExactContext, ImuContext, ImuExactContext, SampleContext,
+    SessionSpan,
+};
 use crate::ParamLayout;
 
 /// See the module doc.
@@ -22,6 +25,11 @@ impl ClockDrift {
     /// Clock drift about the middle of `span`.
     pub fn new(span: SessionSpan) -> Self {
         Self { span }
+    }
+
+    /// The exact z: the baseline `z_at` the warped time.
+    fn warped(&self, t: f64, tau: f64, kappa: f64, z_at: &dyn Fn(f64) -> [f64; 6]) -> [f64; 6] {
+        z_at(t + tau + kappa * (t - self.span.mid()))
     }
 }
 
@@ -41,12 +49,19 @@ impl Effect for ClockDrift {
         }]
     }
     fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
-        let dt = ctx.t - self.span.mid();
+        self.imu_columns(ctx, cols);
+    }
+    fn imu_columns(&self, ctx: &dyn ImuContext, cols: &mut [[f64; 6]]) -> bool {
+        let dt = ctx.t() - self.span.mid();
         cols[0] = ctx.dz_dt().map(|v| v * dt);
+        true
     }
     fn exact(&self, ctx: &ExactContext<'_>, theta: &[f64], _: &ParamLayout) -> [f64; 6] {
-        let t = ctx.t + ctx.tau + theta[0] * (ctx.t - self.span.mid());
-        ctx.model.predict(&(ctx.trajectory)(t))
+        let z_at = |t| ctx.model.predict(&(ctx.trajectory)(t));
+        self.warped(ctx.t, ctx.tau, theta[0], &z_at)
+    }
+    fn imu_exact(&self, ctx: &ImuExactContext<'_>, theta: &[f64]) -> Option<[f64; 6]> {
+        Some(self.warped(ctx.t, ctx.tau, theta[0], ctx.z_at))
     }
     fn constants(&self) -> Vec<EffectConstant> {
         vec![EffectConstant {

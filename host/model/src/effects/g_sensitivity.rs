@@ -9,7 +9,7 @@
 //! g_sensitivity=M` injects G = M·P with M in (°/s)/g and the fixed pattern
 //! P = [[1, 0.5, −0.3], [−0.4, 1, 0.2], [0.3, −0.6, 1]].
 
-use super::{Effect, EffectParam, SampleContext};
+use super::{Effect, EffectParam, ImuContext, SampleContext};
 
 /// See the module doc.
 pub struct GSensitivity;
@@ -41,12 +41,16 @@ impl Effect for GSensitivity {
         out
     }
     fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
+        self.imu_columns(ctx, cols);
+    }
+    fn imu_columns(&self, ctx: &dyn ImuContext, cols: &mut [[f64; 6]]) -> bool {
         let (_, s) = ctx.omega_and_force();
         for r in 0..3 {
             for c in 0..3 {
                 cols[3 * r + c][3 + r] = s[c];
             }
         }
+        true
     }
     fn magnitude_unit(&self) -> &'static str {
         "(deg/s)/g"

@@ -85,6 +85,12 @@ impl MassModel {
         }
     }
 
+    /// No links: the catalogue of a session without a robot (a pose
+    /// session, docs/model.md §7.9), whose joint-side effects do not apply.
+    pub fn none() -> Self {
+        Self::of_links(&[], Vec::new(), Vec::new())
+    }
+
     /// From masses (kg) and centres of mass (m, link DH frames).
     pub fn new(robot: &Robot, mass: Vec<f64>, com: Vec<V3>) -> Result<Self, MassError> {
         let n = robot.dof();

@@ -45,7 +45,7 @@ pub mod temperature_bias;
 use std::cell::OnceCell;
 use std::sync::Arc;
 
-use crate::geom::{cross, V3};
+use crate::geom::{cross, M3, V3};
 use crate::{JointState, MeasurementJacobians, MeasurementModel, ParamLayout, Spline};
 
 pub use mass::MassModel;
@@ -104,6 +104,39 @@ pub struct Inertial {
     pub omega_dot: V3,
     /// s, m/s².
     pub s: V3,
+}
+
+/// What an IMU-side effect sees at one sample: the IMU's own quantities,
+/// which a joint-angle session ([`SampleContext`]) and a pose session
+/// ([`crate::pose_measurement::inertial::PoseImuSample`]) both give
+/// (docs/model.md §7.9). An effect whose columns need only these
+/// implements [`Effect::imu_columns`]; the joint-side ones (acting through
+/// the joint angles or the links) cannot.
+pub trait ImuContext {
+    /// IMU sample time t_i on the session clock, s.
+    fn t(&self) -> f64;
+    /// ω and s in the IMU frame.
+    fn omega_and_force(&self) -> (V3, V3);
+    /// ω, ω̇ and s in the IMU frame.
+    fn inertial(&self) -> Inertial;
+    /// dz/dt along the trajectory (∂z/∂τ).
+    fn dz_dt(&self) -> [f64; 6];
+    /// The accelerometer's M_a = K_a Γ_a R_a (paper eq. (6)).
+    fn accel_matrix(&self) -> M3;
+}
+
+/// What the exact (simulator) form of an IMU-side effect sees: the sample,
+/// τ, the baseline z at any trajectory time and the IMU's quantities at
+/// t_i + τ.
+pub struct ImuExactContext<'a> {
+    /// IMU sample time t_i on the session clock, s.
+    pub t: f64,
+    /// τ, s.
+    pub tau: f64,
+    /// Baseline z at a trajectory time (session time + τ).
+    pub z_at: &'a dyn Fn(f64) -> [f64; 6],
+    /// The IMU's quantities at t_i + τ.
+    pub imu: &'a dyn ImuContext,
 }
 
 /// Step of the central differences in time, s.
@@ -183,6 +216,24 @@ impl<'a> SampleContext<'a> {
     }
 }
 
+impl ImuContext for SampleContext<'_> {
+    fn t(&self) -> f64 {
+        self.t
+    }
+    fn omega_and_force(&self) -> (V3, V3) {
+        SampleContext::omega_and_force(self)
+    }
+    fn inertial(&self) -> Inertial {
+        *SampleContext::inertial(self)
+    }
+    fn dz_dt(&self) -> [f64; 6] {
+        SampleContext::dz_dt(self)
+    }
+    fn accel_matrix(&self) -> M3 {
+        self.model.params().accel.matrix()
+    }
+}
+
 /// What the exact (simulator) form of an effect sees: the true trajectory at
 /// any time and the baseline model.
 pub struct ExactContext<'a> {
@@ -238,6 +289,28 @@ pub trait Effect: Send + Sync {
     fn params(&self) -> Vec<EffectParam>;
     /// ∂z/∂θ_e at one sample: one 6-column per parameter into `cols`.
     fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]);
+    /// [`Self::columns`] from the IMU's own quantities alone ([`ImuContext`]),
+    /// for an effect that needs no joint state; `false` (the default, `cols`
+    /// untouched) for one that does: it does not apply to a pose session.
+    fn imu_columns(&self, _ctx: &dyn ImuContext, _cols: &mut [[f64; 6]]) -> bool {
+        false
+    }
+    /// The exact (simulator) z of an IMU-side effect at θ_e in a session
+    /// whose baseline z is `ctx.z_at` (a pose session's); `None` for a
+    /// joint-side effect. Default: baseline plus the linear term.
+    fn imu_exact(&self, ctx: &ImuExactContext<'_>, theta: &[f64]) -> Option<[f64; 6]> {
+        let mut cols = vec![[0.0; 6]; theta.len()];
+        if !self.imu_columns(ctx.imu, &mut cols) {
+            return None;
+        }
+        let mut z = (ctx.z_at)(ctx.t + ctx.tau);
+        for (col, th) in cols.iter().zip(theta) {
+            for c in 0..6 {
+                z[c] += col[c] * th;
+            }
+        }
+        Some(z)
+    }
     /// The exact (simulator) z with the effect at θ_e. Default: baseline
     /// plus the linear term (exact for effects additive in z).
     fn exact(&self, ctx: &ExactContext<'_>, theta: &[f64], layout: &ParamLayout) -> [f64; 6] {

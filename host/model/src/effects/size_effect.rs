@@ -12,7 +12,7 @@
 //! `simulate --effect size_effect=M` (M in mm) injects
 //! r_y = M·(0.8, −0.5, 0.3) mm and r_z = M·(−0.4, 0.7, 0.6) mm.
 
-use super::{lever_acceleration, Effect, EffectParam, SampleContext};
+use super::{lever_acceleration, Effect, EffectParam, ImuContext, SampleContext};
 use crate::geom::dot;
 
 /// See the module doc.
@@ -42,8 +42,11 @@ impl Effect for SizeEffect {
         out
     }
     fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
-        let inertial = ctx.inertial();
-        let m = ctx.model.params().accel.matrix();
+        self.imu_columns(ctx, cols);
+    }
+    fn imu_columns(&self, ctx: &dyn ImuContext, cols: &mut [[f64; 6]]) -> bool {
+        let inertial = &ctx.inertial();
+        let m = ctx.accel_matrix();
         for (a, row) in [1usize, 2].into_iter().enumerate() {
             for c in 0..3 {
                 let mut e = [0.0; 3];
@@ -52,6 +55,7 @@ impl Effect for SizeEffect {
                 cols[3 * a + c][row] = dot(m[row], acc);
             }
         }
+        true
     }
     fn magnitude_unit(&self) -> &'static str {
         "mm"

@@ -23,7 +23,7 @@
 
 use std::sync::Arc;
 
-use super::{Effect, EffectConstant, EffectParam, SampleContext};
+use super::{Effect, EffectConstant, EffectParam, ImuContext, SampleContext};
 use crate::{JointState, Knots, Spline, IMU_CHANNELS};
 
 /// What a session needs for the effect (the message of an unavailable one).
@@ -175,10 +175,14 @@ impl Effect for TemperatureBias {
             .collect()
     }
     fn columns(&self, ctx: &SampleContext<'_>, cols: &mut [[f64; 6]]) {
-        let dt = self.track.at(ctx.t) - self.track.reference();
+        self.imu_columns(ctx, cols);
+    }
+    fn imu_columns(&self, ctx: &dyn ImuContext, cols: &mut [[f64; 6]]) -> bool {
+        let dt = self.track.at(ctx.t()) - self.track.reference();
         for (c, col) in cols.iter_mut().enumerate().take(6) {
             col[c] = dt;
         }
+        true
     }
     fn constants(&self) -> Vec<EffectConstant> {
         vec![

@@ -10,7 +10,7 @@
 //! AR order capped at [`NOISE_MAX_ORDER`]), and the structure left
 //! ([`unexplained`]).
 
-mod ranking;
+pub(crate) mod ranking;
 mod residuals;
 pub mod resolution;
 mod score;

@@ -106,24 +106,29 @@ pub(super) fn alternatives(
             Some(q) => q?,
             None => quadratic_score(robot, data, opts, setup, &names, at)?,
         };
-        let joint = (joint - base).max(0.0);
-        let given_winner = (joint - a.statistic).max(0.0);
-        let winner_given_it = (joint - b.statistic).max(0.0);
-        let given_winner_p = chi2_sf(given_winner, b.dof as f64);
-        let winner_given_it_p = chi2_sf(winner_given_it, a.dof as f64);
-        out.push(Alternative {
-            name: b.name.clone(),
-            statistic: b.statistic,
-            dof: b.dof,
-            given_winner,
-            given_winner_p,
-            winner_given_it,
-            winner_given_it_p,
-            shared: 1.0 - given_winner / b.statistic.max(f64::MIN_POSITIVE),
-            ambiguous: given_winner_p >= threshold && winner_given_it_p >= threshold,
-        });
+        out.push(compare(a, b, (joint - base).max(0.0), threshold));
     }
     Ok(out)
+}
+
+/// The [`Alternative`] of `b` against the winner `a` from their scores
+/// alone and S(a∪b) `joint` (all against the same model; the module doc).
+pub(crate) fn compare(a: &Score, b: &Score, joint: f64, threshold: f64) -> Alternative {
+    let given_winner = (joint - a.statistic).max(0.0);
+    let winner_given_it = (joint - b.statistic).max(0.0);
+    let given_winner_p = chi2_sf(given_winner, b.dof as f64);
+    let winner_given_it_p = chi2_sf(winner_given_it, a.dof as f64);
+    Alternative {
+        name: b.name.clone(),
+        statistic: b.statistic,
+        dof: b.dof,
+        given_winner,
+        given_winner_p,
+        winner_given_it,
+        winner_given_it_p,
+        shared: 1.0 - given_winner / b.statistic.max(f64::MIN_POSITIVE),
+        ambiguous: given_winner_p >= threshold && winner_given_it_p >= threshold,
+    }
 }
 
 /// How well the last effect of a fit is determined apart from the effects
@@ -177,7 +182,7 @@ pub fn determination(setup: &CatalogueSetup, f: &Fit) -> Result<Determination, D
 /// blocks, from the information `info` over all parameters and its
 /// inverse `cov` (the module doc); None when a matrix is not positive
 /// definite.
-fn aliasing(
+pub(crate) fn aliasing(
     info: &Mat<f64>,
     cov: &Mat<f64>,
     known: &[Range<usize>],

@@ -43,6 +43,7 @@ mod input;
 mod model_choice;
 mod next_steps;
 pub mod noise_spec;
+pub mod pose_diagnosis;
 mod pose_flange;
 pub mod pose_simulate;
 pub mod poses;

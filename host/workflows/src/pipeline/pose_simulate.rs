@@ -27,6 +27,7 @@ use robimu_session::{
 use super::pose_flange::flange_session;
 use super::simulate::check_rates;
 use super::PipelineError;
+use crate::pose_calibrate::inject::{inject_pose_effects, parse_pose_effect};
 use crate::pose_calibrate::{
     draw_pose_imus_truth, random_pose_motion, simulate_pose_imus, ImuSamples, ImuTiming, PoseNoise,
 };
@@ -53,6 +54,9 @@ pub struct PoseSessionSpec {
     pub imu_timing: ImuTiming,
     /// Number of IMUs K on the body (docs/model.md §9; > 1 without a robot).
     pub imus: usize,
+    /// IMU-side catalogue effects injected, `NAME=MAGNITUDE`
+    /// ([`crate::pose_calibrate::inject`]; the hand-held motion only).
+    pub effects: Vec<String>,
 }
 
 /// A written pose session.
@@ -92,6 +96,21 @@ impl fmt::Display for PoseSimulated {
     }
 }
 
+/// The effects `spec` injects, `(name, magnitude)` (the hand-held motion only).
+fn injected_effects(spec: &PoseSessionSpec) -> Result<Vec<(String, f64)>, PipelineError> {
+    let injected = (spec.effects.iter())
+        .map(|s| parse_pose_effect(s))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| PipelineError::input(e.into()))?;
+    if spec.robot.is_some() && !injected.is_empty() {
+        return Err(PipelineError::input(anyhow::anyhow!(
+            "--effect with --robot: not available yet (effects are injected into the hand-held \
+             motion's pose session)"
+        )));
+    }
+    Ok(injected)
+}
+
 /// Simulate the pose session `spec` describes and write it.
 pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, PipelineError> {
     check_rates(spec.duration, spec.imu_rate, None).map_err(PipelineError::input)?;
@@ -121,13 +140,20 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
         )));
     }
     let fit = |e: crate::PoseCalibrationError| PipelineError::fit(e.into());
+    let injected = injected_effects(spec)?;
+    if spec.imus > 1 && !injected.is_empty() {
+        return Err(PipelineError::input(anyhow::anyhow!(
+            "--effect is for one IMU: it cannot be combined with --imus {}",
+            spec.imus
+        )));
+    }
     let mut noise = PoseNoise::default();
     let (truth, mut data, mut more) = match &spec.robot {
         None => {
             let truth = draw_pose_imus_truth(spec.seed, spec.imus);
             let motion =
                 random_pose_motion(spec.duration, spec.seed.wrapping_add(1)).map_err(fit)?;
-            let (data, more) = simulate_pose_imus(
+            let (mut data, more) = simulate_pose_imus(
                 &truth,
                 spec.imus,
                 &motion,
@@ -137,6 +163,8 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
                 spec.seed.wrapping_add(2),
             )
             .map_err(fit)?;
+            inject_pose_effects(&mut data, &truth, &motion, &injected)
+                .map_err(|e| PipelineError::input(e.into()))?;
             (truth, data, more)
         }
         Some(robot) => {
@@ -171,7 +199,7 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
         }),
         notes: Some(format!(
             "simulated by robimu simulate --source poses (seed {}, {}, poses at {} Hz with \
-             jitter {} s, IMU at {} Hz, IMU stamps' arrival jitter {} s and lag drift {} s)",
+             jitter {} s, IMU at {} Hz, IMU stamps' arrival jitter {} s and lag drift {} s{})",
             spec.seed,
             spec.robot
                 .as_ref()
@@ -183,7 +211,12 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             spec.pose_jitter,
             spec.imu_rate,
             spec.imu_timing.jitter,
-            spec.imu_timing.drift
+            spec.imu_timing.drift,
+            if spec.effects.is_empty() {
+                String::new()
+            } else {
+                format!(", effects injected: {}", spec.effects.join(", "))
+            }
         )),
         ..Default::default()
     };

@@ -53,6 +53,7 @@ fn spec(robot: Option<&str>, jitter: f64, drift: f64, seed: u64) -> PoseSessionS
         robot: robot.map(|n| Robot::builtin(n).unwrap()),
         imu_timing: ImuTiming { jitter, drift },
         imus: 1,
+        effects: Vec::new(),
     }
 }
 
@@ -152,6 +153,7 @@ fn the_flange_sessions_imu_csv_is_the_joint_sessions_and_its_truth_maps() {
         robot: Some(Robot::aubo_i5()),
         imu_timing: ImuTiming::default(),
         imus: 1,
+        effects: Vec::new(),
     })
     .unwrap();
     let read = |d: &PathBuf| std::fs::read(d.join("imu.csv")).unwrap();

@@ -11,9 +11,13 @@
 //! (MODEL.md §9): [`calibrate_pose_imus_with`], one spline and g for all,
 //! each IMU's start-up and τ test its own (`imus.rs`).
 
+pub mod diagnose;
 pub(crate) mod imus;
+pub(crate) mod inject;
 pub(crate) mod memo;
 pub mod noise;
+pub(crate) mod refit;
+pub(crate) mod score;
 pub mod simulate;
 pub(crate) mod startup;
 pub(crate) mod tau_drift;
@@ -203,9 +207,31 @@ pub fn calibrate_pose_imus_with(
     data: &PoseMeasurements,
     more: &[ImuSamples],
     opts: &PoseCalibrationOptions,
-    mut stage: impl FnMut(&str),
+    stage: impl FnMut(&str),
     iteration: impl FnMut(&IterationRecord),
 ) -> Result<PoseCalibration, PoseCalibrationError> {
+    Ok(fit_poses(data, more, opts, stage, iteration)?.0)
+}
+
+/// The solved problem behind a [`PoseCalibration`] (for the score tests
+/// of [`diagnose`]).
+pub(crate) struct PoseFit {
+    /// The problem, its selection that of `theta`.
+    pub problem: PoseProblem,
+    /// The MAP estimate θ.
+    pub theta: Vec<f64>,
+    /// The undamped Gauss–Newton matrix at θ, factored.
+    pub factor: robimu_solver::ArrowFactor,
+}
+
+/// [`calibrate_poses_with`] and the solved problem.
+pub(crate) fn fit_poses(
+    data: &PoseMeasurements,
+    more: &[ImuSamples],
+    opts: &PoseCalibrationOptions,
+    mut stage: impl FnMut(&str),
+    iteration: impl FnMut(&IterationRecord),
+) -> Result<(PoseCalibration, PoseFit), PoseCalibrationError> {
     let pose_r = checked(data)?;
     for (j, m) in more.iter().enumerate() {
         imus::check_imu(&m.t, &m.z, &format!("IMU {}", j + 1))?;
@@ -255,7 +281,6 @@ pub fn calibrate_pose_imus_with(
         prior_mean: specs.iter().map(|s| s.nominal).collect(),
         prior_sigma: specs.iter().map(|s| s.sigma).collect(),
     };
-    let (base, mut pdata_all) = (spline.clone(), pdata.clone());
     let mut problem = PoseProblem::with_imus(spline, pdata, more_data)?;
     let mut theta = vec![0.0; problem.n_band()];
     theta.extend(x0);
@@ -272,25 +297,10 @@ pub fn calibrate_pose_imus_with(
         iteration,
     )?;
     problem.begin_iteration(&sol.theta)?;
-    (pdata_all.sigma_z, pdata_all.sigma_p, pdata_all.sigma_r) = (
-        noise.used.sigma_z[0],
-        noise.used.sigma_p,
-        noise.used.sigma_r,
-    );
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();
     let (imu_rms, pose_rms) = (noise.imu_rms(0), noise.pose_rms());
-    let more_data: Vec<PoseImuData> = (1..problem.n_imus())
-        .map(|j| PoseImuData {
-            imu_t: more[j - 1].t.clone(),
-            imu_z: more[j - 1].z.clone(),
-            sigma_z: noise.used.sigma_z[j],
-        })
-        .collect();
-    let drift = |j: usize| {
-        let (d, m) = ((&base, &pdata_all), more_data.as_slice());
-        tau_drift::tau_drift(d, m, j, problem.selected_of(j), &sol.theta, &sol.factor)
-    };
+    let drift = |j: usize| tau_drift::tau_drift(&problem, j, &sol.theta, &sol.factor);
     let tau_drift0 = drift(0)?;
     let mut fits = Vec::with_capacity(more.len());
     for (j, st) in (1..).zip(starts.drain(1..)) {
@@ -302,7 +312,7 @@ pub fn calibrate_pose_imus_with(
         });
     }
     let st = starts.remove(0);
-    Ok(PoseCalibration {
+    let cal = PoseCalibration {
         names: specs.iter().map(|s| s.name.clone()).collect(),
         units: specs.iter().map(|s| s.unit).collect(),
         sigma: (0..nx).map(|k| cov[(k, k)].max(0.0).sqrt()).collect(),
@@ -324,5 +334,11 @@ pub fn calibrate_pose_imus_with(
         tau_drift: tau_drift0,
         noise,
         more: fits,
-    })
+    };
+    let fit = PoseFit {
+        problem,
+        theta: sol.theta,
+        factor: sol.factor,
+    };
+    Ok((cal, fit))
 }

@@ -3,27 +3,20 @@
 //!
 //! The alternative: the IMU samples of segment k (the used samples cut
 //! into [`SEGMENTS`] runs of equal count) read at t_i + τ + δ_k, δ_0 = 0.
-//! Their residuals' Jacobian is ∂r_i/∂δ_k = ∂r_i/∂τ on segment k, so the
-//! score and information blocks are those of τ restricted to the segment:
-//! linearising the problem with only segment k's IMU samples (and no pose
-//! samples, which do not depend on τ) gives its score g_k (the gradient's
-//! τ entry) and c_k (the τ column of its Gauss–Newton matrix), each less
-//! τ's prior: three quarters of one linearisation's IMU work. The efficient
-//! information V = diag(d_k) − Cᵀ A⁻¹ C projects out every parameter of the
-//! fit (spline, p_I, g, τ and the 24 sensor parameters) with the fit's own
+//! Their residuals' Jacobian is ∂r_i/∂δ_k = ∂r_i/∂τ = dz/dt on segment k:
+//! K − 1 extra columns, tested by [`super::score`] (one pass over the IMU
+//! samples, [`robimu_solver::PoseProblem::extra_sums`]). The efficient
+//! information V = D − Bᵀ A⁻¹ B projects out every parameter of the fit
+//! (spline, p_I, g, τ and the 24 sensor parameters) with the fit's own
 //! Gauss–Newton matrix A; at the MAP estimate the full gradient is zero, so
 //! S = gᵀ V⁻¹ g ~ χ²_{K−1} when τ is constant. A lag that wanders (a drifting
 //! clock, arrival stamps) makes it large even where the other parameters
 //! absorb most of the drift, which refitting τ alone per half misses.
 
-use robimu_model::pose_measurement::{imu_indices, n_pose_params, TAU};
-use robimu_model::PoseSpline;
-use robimu_solver::{
-    ArrowFactor, LeastSquares, PoseData, PoseImuData, PoseProblem, PoseProblemError,
-};
+use robimu_model::effects::ImuContext;
+use robimu_solver::{ArrowFactor, PoseProblem, PoseProblemError};
 
-use crate::stats::chi2_sf;
-use faer::linalg::solvers::DenseSolveCore;
+use super::score::score_test;
 
 /// Number of segments K.
 pub(crate) const SEGMENTS: usize = 4;
@@ -44,140 +37,37 @@ pub struct TauDrift {
     pub delta_sigma: Vec<f64>,
 }
 
-/// The score test of IMU `imu`'s τ (its `selected` samples) at the
-/// solution θ of the problem of the full data `data` (its spline `base`)
-/// and `more` (IMU j ≥ 1), with `factor` the undamped Gauss–Newton matrix
-/// at θ. `None` when there are too few IMU samples to cut or V is singular.
+/// The segment k ≥ 1 of the m-th of `n` selected samples (`None`: the first).
+fn segment_of(m: usize, n: usize) -> Option<usize> {
+    (1..SEGMENTS).rev().find(|&k| m >= n * k / SEGMENTS)
+}
+
+/// The score test of IMU `imu`'s τ at the solution θ of `problem` (its
+/// selection that of θ), with `factor` the undamped Gauss–Newton matrix at
+/// θ: the extra columns of δ_k are dz/dt on segment k ([`super::score`]).
+/// `None` when there are too few IMU samples to cut or V is singular.
 pub(crate) fn tau_drift(
-    (base, data): (&PoseSpline, &PoseData),
-    more: &[PoseImuData],
+    problem: &PoseProblem,
     imu: usize,
-    selected: &[usize],
     theta: &[f64],
     factor: &ArrowFactor,
 ) -> Result<Option<TauDrift>, PoseProblemError> {
-    let m = SEGMENTS - 1;
-    if selected.len() < 10 * SEGMENTS {
+    let (m, n) = (SEGMENTS - 1, problem.selected_of(imu).len());
+    if n < 10 * SEGMENTS {
         return Ok(None);
     }
-    let n = theta.len();
-    let tau = imu_indices(imu)[TAU];
-    // τ's index in θ (after the band)
-    let i_tau = n - n_pose_params(1 + more.len()) + tau;
-    let (w_tau, e_tau) = (
-        data.prior_sigma[tau].powi(-2),
-        theta[i_tau] - data.prior_mean[tau],
-    );
-    // segment k's τ column of the information and gradient entry; the
-    // segments are independent, each on its own thread
-    let segment = |k: usize| -> Result<(f64, Vec<f64>), PoseProblemError> {
-        let range = selected.len() * k / SEGMENTS..selected.len() * (k + 1) / SEGMENTS;
-        let (seg, seg_more) = segment_data(data, more, imu, &selected[range]);
-        let mut p = PoseProblem::with_imus(base.clone(), seg, seg_more)?;
-        p.begin_iteration(theta)?;
-        let mut a = p.new_matrix();
-        let mut gk = vec![0.0; n];
-        p.linearize(theta, &mut a, &mut gk)?;
-        let mut c: Vec<f64> = (0..n).map(|i| a.get(i, i_tau)).collect();
-        c[i_tau] -= w_tau;
-        Ok((gk[i_tau] - w_tau * e_tau, c))
-    };
-    let parts: Vec<Result<(f64, Vec<f64>), PoseProblemError>> = std::thread::scope(|s| {
-        let handles: Vec<_> = (2..SEGMENTS).map(|k| s.spawn(move || segment(k))).collect();
-        let first = segment(1);
-        std::iter::once(first)
-            .chain(
-                handles
-                    .into_iter()
-                    .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e))),
-            )
-            .collect()
-    });
-    let mut g = Vec::with_capacity(m);
-    let mut cols: Vec<Vec<f64>> = Vec::with_capacity(m);
-    for part in parts {
-        let (gk, c) = part?;
-        g.push(gk);
-        cols.push(c);
-    }
-    let d: Vec<f64> = cols.iter().map(|c| c[i_tau]).collect();
-    // V = diag(d) − Cᵀ A⁻¹ C
-    let solved: Vec<Vec<f64>> = cols
-        .iter()
-        .map(|c| {
-            let mut s = c.clone();
-            factor.solve_in_place(&mut s);
-            s
-        })
-        .collect();
-    let v = faer::Mat::from_fn(m, m, |a, b| {
-        let cross: f64 = cols[a].iter().zip(&solved[b]).map(|(x, y)| x * y).sum();
-        if a == b {
-            d[a] - cross
-        } else {
-            -cross
+    let sums = problem.extra_sums(theta, imu, m, |i, sample, cols| {
+        if let Some(k) = segment_of(i, n) {
+            cols[k - 1] = sample.dz_dt();
         }
-    });
-    let Ok(llt) = v.llt(faer::Side::Lower) else {
-        return Ok(None);
-    };
-    let v_inv = llt.inverse();
-    let delta: Vec<f64> = (0..m)
-        .map(|a| -(0..m).map(|b| v_inv[(a, b)] * g[b]).sum::<f64>())
-        .collect();
-    let statistic: f64 = (0..m)
-        .map(|a| g[a] * (0..m).map(|b| v_inv[(a, b)] * g[b]).sum::<f64>())
-        .sum();
-    Ok(Some(TauDrift {
-        statistic,
-        dof: m,
-        p_value: chi2_sf(statistic, m as f64),
-        delta,
-        delta_sigma: (0..m).map(|a| v_inv[(a, a)].max(0.0).sqrt()).collect(),
+    })?;
+    Ok(score_test(&sums, &vec![0.0; m], factor).map(|t| TauDrift {
+        statistic: t.statistic,
+        dof: t.dof,
+        p_value: t.p_value,
+        delta: t.step,
+        delta_sigma: t.step_sigma,
     }))
-}
-
-/// The problem data of one segment: IMU `imu`'s samples `picked` alone
-/// (no pose samples: they do not touch τ's column or gradient entry; nor
-/// the other IMUs' samples), the full prior.
-fn segment_data(
-    data: &PoseData,
-    more: &[PoseImuData],
-    imu: usize,
-    picked: &[usize],
-) -> (PoseData, Vec<PoseImuData>) {
-    let mut seg = PoseData {
-        pose_t: Vec::new(),
-        pose_p: Vec::new(),
-        pose_r: Vec::new(),
-        imu_t: Vec::new(),
-        imu_z: Vec::new(),
-        prior_mean: data.prior_mean.clone(),
-        prior_sigma: data.prior_sigma.clone(),
-        ..*data
-    };
-    let mut seg_more: Vec<PoseImuData> = more
-        .iter()
-        .map(|m| PoseImuData {
-            imu_t: Vec::new(),
-            imu_z: Vec::new(),
-            ..*m
-        })
-        .collect();
-    let (src_t, src_z) = match imu {
-        0 => (&data.imu_t, &data.imu_z),
-        j => (&more[j - 1].imu_t, &more[j - 1].imu_z),
-    };
-    let (t, z) = match imu {
-        0 => (&mut seg.imu_t, &mut seg.imu_z),
-        j => {
-            let m = &mut seg_more[j - 1];
-            (&mut m.imu_t, &mut m.imu_z)
-        }
-    };
-    t.extend(picked.iter().map(|&i| src_t[i]));
-    z.extend(picked.iter().map(|&i| src_z[i]));
-    (seg, seg_more)
 }
 
 /// Below this p-value the verdict doubts a constant τ.
