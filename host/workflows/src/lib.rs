@@ -144,6 +144,7 @@ pub use crate::pose_calibrate::simulate_pose_imus;
 pub use crate::pose_calibrate::simulate_pose_session;
 pub use crate::pose_calibrate::ImuSamples;
 pub use crate::pose_calibrate::ImuTiming;
+pub use crate::pose_calibrate::NoiseLevels;
 pub use crate::pose_calibrate::PoseCalibration;
 pub use crate::pose_calibrate::PoseCalibrationError;
 pub use crate::pose_calibrate::PoseCalibrationOptions;

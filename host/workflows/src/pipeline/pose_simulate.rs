@@ -111,8 +111,8 @@ fn injected_effects(spec: &PoseSessionSpec) -> Result<Vec<(String, f64)>, Pipeli
     Ok(injected)
 }
 
-/// Simulate the pose session `spec` describes and write it.
-pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, PipelineError> {
+/// The flags of `spec` checked; the effects to inject.
+fn checked_spec(spec: &PoseSessionSpec) -> Result<Vec<(String, f64)>, PipelineError> {
     check_rates(spec.duration, spec.imu_rate, None).map_err(PipelineError::input)?;
     check_rates(spec.duration, spec.pose_rate, None)
         .map_err(|e| PipelineError::input(anyhow::anyhow!("--pose-rate: {e}")))?;
@@ -139,7 +139,6 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             spec.imus
         )));
     }
-    let fit = |e: crate::PoseCalibrationError| PipelineError::fit(e.into());
     let injected = injected_effects(spec)?;
     if spec.imus > 1 && !injected.is_empty() {
         return Err(PipelineError::input(anyhow::anyhow!(
@@ -147,6 +146,38 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             spec.imus
         )));
     }
+    Ok(injected)
+}
+
+/// session.toml's note on how the session was simulated.
+fn notes(spec: &PoseSessionSpec) -> String {
+    format!(
+        "simulated by robimu simulate --source poses (seed {}, {}, poses at {} Hz with \
+             jitter {} s, IMU at {} Hz, IMU stamps' arrival jitter {} s and lag drift {} s{})",
+        spec.seed,
+        spec.robot
+            .as_ref()
+            .map_or("a hand-held motion".to_string(), |r| format!(
+                "the flange of {}",
+                r.name()
+            )),
+        spec.pose_rate,
+        spec.pose_jitter,
+        spec.imu_rate,
+        spec.imu_timing.jitter,
+        spec.imu_timing.drift,
+        if spec.effects.is_empty() {
+            String::new()
+        } else {
+            format!(", effects injected: {}", spec.effects.join(", "))
+        }
+    )
+}
+
+/// Simulate the pose session `spec` describes and write it.
+pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, PipelineError> {
+    let injected = checked_spec(spec)?;
+    let fit = |e: crate::PoseCalibrationError| PipelineError::fit(e.into());
     let mut noise = PoseNoise::default();
     let (truth, mut data, mut more) = match &spec.robot {
         None => {
@@ -197,27 +228,7 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             sigma_z: Some(noise.sigma_z),
             sigma_q: None,
         }),
-        notes: Some(format!(
-            "simulated by robimu simulate --source poses (seed {}, {}, poses at {} Hz with \
-             jitter {} s, IMU at {} Hz, IMU stamps' arrival jitter {} s and lag drift {} s{})",
-            spec.seed,
-            spec.robot
-                .as_ref()
-                .map_or("a hand-held motion".to_string(), |r| format!(
-                    "the flange of {}",
-                    r.name()
-                )),
-            spec.pose_rate,
-            spec.pose_jitter,
-            spec.imu_rate,
-            spec.imu_timing.jitter,
-            spec.imu_timing.drift,
-            if spec.effects.is_empty() {
-                String::new()
-            } else {
-                format!(", effects injected: {}", spec.effects.join(", "))
-            }
-        )),
+        notes: Some(notes(spec)),
         ..Default::default()
     };
     let write = |e: robimu_session::SessionError| PipelineError::write(e.into());
