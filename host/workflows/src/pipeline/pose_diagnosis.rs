@@ -24,6 +24,12 @@ pub fn diagnose_pose_session(
     refuse_joint_flags(settings).map_err(PipelineError::input)?;
     let session = load_pose_session(dir, &mut warn)?;
     let opts = pose_options(&session.meta, &mut warn);
+    if session.n_imus() > 1 {
+        warn(format!(
+            "diagnosing IMU 0 of {} (a pose session's further IMUs are not diagnosed)",
+            session.n_imus()
+        ));
+    }
     std::fs::create_dir_all(&settings.out)
         .with_context(|| {
             format!(
