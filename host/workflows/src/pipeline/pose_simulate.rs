@@ -194,8 +194,11 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
                 spec.seed.wrapping_add(2),
             )
             .map_err(fit)?;
-            inject_pose_effects(&mut data, &truth, &motion, &injected)
-                .map_err(|e| PipelineError::input(e.into()))?;
+            if !injected.is_empty() {
+                // one IMU (checked_spec): the truth is its 30
+                inject_pose_effects(&mut data, &truth, &motion, &injected)
+                    .map_err(|e| PipelineError::input(e.into()))?;
+            }
             (truth, data, more)
         }
         Some(robot) => {
