@@ -344,15 +344,18 @@ impl<const C: usize> Gram<C> {
     }
 
     /// Add the three `rows` weighted by `w`, their whitened residuals `wr`.
+    /// (w_r² times each row's outer product, without a whitened copy of
+    /// the rows.)
     fn add(&mut self, rows: &[[f64; C]; 3], w: &[f64], wr: &[f64]) {
-        let a: [[f64; C]; 3] = std::array::from_fn(|r| rows[r].map(|v| v * w[r]));
+        let [r0, r1, r2] = rows;
+        let w2 = [w[0] * w[0], w[1] * w[1], w[2] * w[2]];
         for p in 0..C {
-            let (x0, x1, x2) = (a[0][p], a[1][p], a[2][p]);
+            let (y0, y1, y2) = (r0[p] * w2[0], r1[p] * w2[1], r2[p] * w2[2]);
             let row = &mut self.m[p];
             for q in 0..C {
-                row[q] += x0 * a[0][q] + x1 * a[1][q] + x2 * a[2][q];
+                row[q] += y0 * r0[q] + y1 * r1[q] + y2 * r2[q];
             }
-            self.g[p] += x0 * wr[0] + x1 * wr[1] + x2 * wr[2];
+            self.g[p] += r0[p] * w[0] * wr[0] + r1[p] * w[1] * wr[1] + r2[p] * w[2] * wr[2];
         }
     }
 

@@ -87,17 +87,18 @@ impl ArrowFactor {
         }
         let corner = self.covariance_x();
         let zm = MatRef::from_row_major_slice(&z, nc, nx);
-        let y = zm * &corner;
+        let ym = zm * &corner;
+        let y: Vec<f64> = (0..nc * nx)
+            .map(|e| ym[(e / nx.max(1), e % nx.max(1))])
+            .collect();
         // band of Y Zᵀ
         for i in 0..nc {
+            let yi = &y[i * nx..(i + 1) * nx];
             for j in i.saturating_sub(bw)..=i {
-                let yz: f64 = (0..nx).map(|k| y[(i, k)] * z[j * nx + k]).sum();
-                band[i * r + (j + bw - i)] += yz;
+                band[i * r + (j + bw - i)] += dot(yi, &z[j * nx..(j + 1) * nx]);
             }
         }
-        let cross = (0..nc * nx)
-            .map(|e| -y[(e / nx.max(1), e % nx.max(1))])
-            .collect();
+        let cross = y.iter().map(|v| -v).collect();
         SelectedInverse {
             nc,
             bw,

@@ -27,7 +27,7 @@ mod tests;
 use robimu_model::geom::matrix_from_quat;
 use robimu_model::{PoseMeasurements, PoseSplineError};
 use robimu_solver::{
-    IterationRecord, LeastSquares, LmOptions, PoseData, PoseImuData, PoseProblem, PoseProblemError,
+    IterationRecord, LmOptions, PoseData, PoseImuData, PoseProblem, PoseProblemError,
 };
 
 pub use imus::{draw_pose_imus_truth, simulate_pose_imus, ImuSamples, PoseImuFit};
@@ -288,27 +288,32 @@ pub(crate) fn fit_poses(
         "solving: tau = {:.4} s from the start-up (correlation {:.3})",
         starts[0].tau, starts[0].correlation
     ));
-    let (sol, noise) = noise::solve_identified(
+    // every IMU's τ score test, beside the noise identification
+    let tau_tests = |p: &PoseProblem, theta: &[f64], f: &robimu_solver::ArrowFactor| {
+        (0..p.n_imus())
+            .map(|j| tau_drift::tau_drift(p, j, theta, f))
+            .collect::<Result<Vec<_>, _>>()
+    };
+    let (sol, noise, drifts) = noise::solve_identified(
         &mut problem,
         theta,
-        &opts.lm,
-        opts.identify_noise,
+        (&opts.lm, opts.identify_noise),
         &mut stage,
         iteration,
+        tau_tests,
     )?;
-    problem.begin_iteration(&sol.theta)?;
+    let mut drifts = drifts?.into_iter();
     let cov = sol.factor.covariance_x();
     let x = problem.x(&sol.theta).to_vec();
     let (imu_rms, pose_rms) = (noise.imu_rms(0), noise.pose_rms());
-    let drift = |j: usize| tau_drift::tau_drift(&problem, j, &sol.theta, &sol.factor);
-    let tau_drift0 = drift(0)?;
+    let tau_drift0 = drifts.next().flatten();
     let mut fits = Vec::with_capacity(more.len());
-    for (j, st) in (1..).zip(starts.drain(1..)) {
+    for ((j, st), drift) in (1..).zip(starts.drain(1..)).zip(drifts) {
         fits.push(PoseImuFit {
             startup: st,
             imu_rms: noise.imu_rms(j),
             imu_used: problem.selected_of(j).len(),
-            tau_drift: drift(j)?,
+            tau_drift: drift,
         });
     }
     let st = starts.remove(0);

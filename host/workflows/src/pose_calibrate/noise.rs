@@ -9,8 +9,8 @@
 //! a level is identified, not a correlation.
 
 use robimu_solver::{
-    solve_from, ChannelFit, IterationRecord, LeastSquares, LmOptions, LmSolution, PoseProblem,
-    PoseSigma,
+    solve_from, ArrowFactor, ChannelFit, IterationRecord, LeastSquares, LmOptions, LmSolution,
+    PoseProblem, PoseSigma,
 };
 
 use super::PoseCalibrationError;
@@ -32,7 +32,7 @@ fn tolerance(fit: &ChannelFit, c: usize) -> f64 {
 
 /// The IMU rows' leverage from every this many samples
 /// ([`PoseProblem::channel_fit`]).
-const STRIDE: usize = 8;
+const STRIDE: usize = 16;
 
 /// Most refits with identified σ.
 pub const MAX_REFITS: usize = 4;
@@ -87,20 +87,32 @@ fn solver_error<E: std::fmt::Display>(e: E) -> PoseCalibrationError {
 
 /// Solve `problem` from `theta` and, with `identify`, identify its σ and
 /// refit until they settle (module doc); `stage` hears of each refit.
-pub(crate) fn solve_identified(
+/// `beside(problem, θ, factor)` runs on a second thread while each
+/// solution's levels are identified; the final solution's value is
+/// returned (the τ score tests: independent of the identification when it
+/// settles without a refit, as it mostly does).
+pub(crate) fn solve_identified<T: Send>(
     problem: &mut PoseProblem,
     theta: Vec<f64>,
-    lm: &LmOptions,
-    identify: bool,
+    (lm, identify): (&LmOptions, bool),
     mut stage: impl FnMut(&str),
     mut iteration: impl FnMut(&IterationRecord),
-) -> Result<(LmSolution, NoiseLevels), PoseCalibrationError> {
+    beside: impl Fn(&PoseProblem, &[f64], &ArrowFactor) -> T + Sync,
+) -> Result<(LmSolution, NoiseLevels, T), PoseCalibrationError> {
     let given = problem.sigma();
     let mut sol = solve_from(problem, theta, None, lm, &mut iteration).map_err(solver_error)?;
     let mut refits = 0;
     loop {
         problem.begin_iteration(&sol.theta)?;
-        let fit = problem.channel_fit(&sol.theta, &sol.factor.selected_inverse(), STRIDE)?;
+        let (p, s) = (&*problem, &sol);
+        let (fit, side) = std::thread::scope(|scope| {
+            let fit =
+                scope.spawn(move || p.channel_fit(&s.theta, &s.factor.selected_inverse(), STRIDE));
+            let side = beside(p, &s.theta, &s.factor);
+            let fit = fit.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+            (fit, side)
+        });
+        let fit = fit?;
         let factor: Vec<f64> = (fit.sigma_ratio().iter())
             .map(|r| r.unwrap_or(1.0))
             .collect();
@@ -114,7 +126,7 @@ pub(crate) fn solve_identified(
                 settled,
                 fit,
             };
-            return Ok((sol, levels));
+            return Ok((sol, levels, side));
         }
         let next = problem.sigma().scaled(&factor);
         problem.set_sigma(&next)?;
