@@ -3,6 +3,7 @@
 
 use super::*;
 use robimu_model::geom::{mul_mtv, sub};
+use robimu_model::effects::ImuContext;
 use robimu_model::PoseSpline;
 use robimu_model::pose_measurement::{imu_indices, TAU};
 
@@ -33,6 +34,49 @@ fn omega_rms(s: &PoseSpline, motion: &PoseSpline, t0: f64, t1: f64) -> (f64, f64
     ((sw / n / 3.0).sqrt(), (sa / n / 3.0).sqrt())
 }
 
+/// S/(K − 1) of the score test of τ constant over `segs` segments of
+/// IMU `imu`.
+fn scatter(fit: &PoseFit, imu: usize, segs: usize) -> f64 {
+    let n = fit.problem.selected_of(imu).len();
+    let sums = fit
+        .problem
+        .extra_sums(&fit.theta, imu, segs - 1, |i, sample, cols| {
+            if let Some(k) = (1..segs).rev().find(|&k| i >= n * k / segs) {
+                cols[k - 1] = sample.dz_dt();
+            }
+        })
+        .unwrap();
+    let t = super::score::score_test(&sums, &vec![0.0; segs - 1], &fit.factor).unwrap();
+    t.statistic / (segs - 1) as f64
+}
+
+/// [`random_pose_motion`] with its knots over a span `shift` s wider at
+/// each end (so they do not nest with the fit's).
+fn motion(duration: f64, seed: u64, shift: f64) -> PoseSpline {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    use robimu_model::geom::{exp_so3, mul_mm, M3, V3};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let pad = super::simulate::MOTION_PAD;
+    let knots = robimu_model::Knots::uniform(-pad - shift, duration + pad + shift, 0.5, 3).unwrap();
+    let m = knots.num_coeffs();
+    let mut nrm = |s: f64| Normal::new(0.0, s).unwrap().sample(&mut rng);
+    let pos: Vec<V3> = (0..m).map(|_| std::array::from_fn(|_| nrm(0.15))).collect();
+    let mut r = super::simulate::uniform_rotation(&mut rand::rngs::StdRng::seed_from_u64(seed + 7));
+    let rot: Vec<M3> = (0..m)
+        .map(|_| {
+            let mut d: V3 = std::array::from_fn(|_| nrm(0.8));
+            let n = d.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if n > 2.0 {
+                d = d.map(|v| v * 2.0 / n);
+            }
+            r = mul_mm(&r, &exp_so3(d));
+            r
+        })
+        .collect();
+    PoseSpline::new(knots, &pos, &rot).unwrap()
+}
+
 /// Noise scale EXP_NOISE (0: noise-free data, σ given, not identified),
 /// knot spacings EXP_KNOTS, EXP_RUNS seeds from 100; 1 and 2 IMUs.
 #[test]
@@ -42,6 +86,7 @@ fn experiment_tau_bias() {
     let ns = env_f("EXP_NOISE", 0.0);
     let knots = env_list("EXP_KNOTS", "0.1");
     let imus = env_list("EXP_IMUS", "1,2");
+    let segs = env_f("EXP_SEGS", 16.0) as usize;
     let mut noise = PoseNoise::default();
     noise.sigma_p *= ns;
     noise.sigma_r *= ns;
@@ -51,9 +96,11 @@ fn experiment_tau_bias() {
             let k = k as usize;
             let mut zs: Vec<Vec<f64>> = vec![Vec::new(); k];
             let mut om = Vec::new();
+            let mut phis: Vec<Vec<f64>> = vec![Vec::new(); k];
+            let (mut ms, mut sig) = (Vec::new(), Vec::new());
             for s in 100..100 + runs {
                 let truth = draw_pose_imus_truth(1000 + s, 2);
-                let motion = random_pose_motion(60.0, 2000 + s).unwrap();
+                let motion = motion(60.0, 2000 + s, env_f("EXP_SHIFT", 0.0));
                 let (data, more) =
                     simulate_pose_imus(&truth, 2, &motion, (15.0, 0.003), 100.0, &noise, 3000 + s)
                         .unwrap();
@@ -62,10 +109,23 @@ fn experiment_tau_bias() {
                     identify_noise: ns > 0.0,
                     ..Default::default()
                 };
-                let (cal, fit) = fit_poses(&data, &more[..k - 1], &opts, |_| {}, |_| {}).unwrap();
+                let (cal, fit) = match fit_poses(&data, &more[..k - 1], &opts, |_| {}, |_| {}) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        println!("  seed {s}: {e}");
+                        continue;
+                    }
+                };
                 for j in 0..k {
                     let t = imu_indices(j)[TAU];
                     zs[j].push((cal.x[t] - truth[t]) / cal.sigma[t]);
+                    if j == 0 {
+                        ms.push((cal.x[t] - truth[t]) * 1e3);
+                        sig.push(cal.sigma[t] * 1e3);
+                    }
+                }
+                for j in 0..k {
+                    phis[j].push(scatter(&fit, j, segs));
                 }
                 let sp = fit.problem.spline(&fit.theta).unwrap();
                 om.push(omega_rms(&sp, &motion, 0.0, 60.0));
@@ -74,6 +134,9 @@ fn experiment_tau_bias() {
             let m = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
             let w: Vec<f64> = om.iter().map(|a| a.0).collect();
             let a: Vec<f64> = om.iter().map(|a| a.1).collect();
+            let pl: Vec<String> = phis.iter().map(|v| format!("{:.2}", m(v))).collect();
+            println!("  tau error (ms) rms {:.4} mean {:+.4}, sigma mean {:.4} ms", rms(&ms), m(&ms), m(&sig));
+            println!("  mean S/(K-1) over {segs} segments: {}", pl.join(" "));
             let zl: Vec<String> = zs.iter().map(|v| format!("rms {:.2} mean {:+.2}", rms(v), m(v))).collect();
             let corr = if k == 2 {
                 let c = zs[0].iter().zip(&zs[1]).map(|(a, b)| a * b).sum::<f64>()
