@@ -155,6 +155,33 @@ fn two_imus_default_knots_keep_tau_unbiased() {
     assert!(fine < 0.35 && coarse > 0.5, "{fine:.2}, {coarse:.2}");
 }
 
+/// Poses that cannot carry the finer knots of several IMUs (a 0.3 s gap:
+/// the pose-only fit at 1.125 / rate is singular, at 1.5 / rate not) are
+/// fitted at one IMU's knots.
+#[test]
+fn a_pose_gap_falls_back_to_one_imus_knots() {
+    let (_, mut data, more) = session(2, 9, 20.0);
+    let keep: Vec<bool> = data
+        .pose_t
+        .iter()
+        .map(|t| !(10.0..10.3).contains(t))
+        .collect();
+    let mut k = keep.iter();
+    data.pose_t.retain(|_| *k.next().unwrap());
+    let mut k = keep.iter();
+    data.pose_p.retain(|_| *k.next().unwrap());
+    let mut k = keep.iter();
+    data.pose_q.retain(|_| *k.next().unwrap());
+    let (h1, h2) = (
+        crate::pose_calibrate::default_knot_spacing(&data.pose_t),
+        crate::pose_calibrate::default_knot_spacing_for(&data.pose_t, 2),
+    );
+    let fit = |h| robimu_model::PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, h);
+    assert!(fit(h2).is_err() && fit(h1).is_ok(), "{h1} {h2}");
+    let cal = calibrate(&data, &more);
+    assert_eq!(cal.knot_spacing, h1);
+}
+
 #[test]
 fn a_bad_second_imu_is_a_clear_error() {
     let (_, data, mut more) = session(2, 8, 10.0);
