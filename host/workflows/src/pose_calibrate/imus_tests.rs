@@ -138,8 +138,7 @@ fn two_imus_default_knots_keep_tau_unbiased() {
             let truth = draw_pose_imus_truth(seed, 2);
             let motion = random_pose_motion(60.0, seed).unwrap();
             let (data, more) =
-                simulate_pose_imus(&truth, 2, &motion, (15.0, 0.003), 100.0, &free, seed)
-                    .unwrap();
+                simulate_pose_imus(&truth, 2, &motion, (15.0, 0.003), 100.0, &free, seed).unwrap();
             let cal = calibrate_pose_imus_with(&data, &more, &opts(h), |_| {}, |_| {}).unwrap();
             z2 += normalised(&cal, &truth, 2)[..]
                 .iter()

@@ -22,8 +22,6 @@ pub mod simulate;
 pub(crate) mod startup;
 pub(crate) mod tau_drift;
 #[cfg(test)]
-mod spline_bias_tests;
-#[cfg(test)]
 mod tests;
 
 use robimu_model::geom::matrix_from_quat;
