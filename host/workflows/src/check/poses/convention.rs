@@ -12,7 +12,9 @@ use robimu_session::{files, PoseSession};
 use crate::check::{Finding, Severity};
 use crate::pose_calibrate::memo::{self, fit};
 use crate::pose_calibrate::startup::{find_tau, gyro_alignment_rms};
-use crate::pose_calibrate::{default_knot_spacing, PoseCalibrationOptions};
+use crate::pose_calibrate::{
+    default_knot_spacing, default_knot_spacing_for, PoseCalibrationOptions,
+};
 
 /// The world-frame rates' alignment RMS under this part of the body
 /// rates' names the inverse convention. The body rates of a body turning
@@ -28,8 +30,11 @@ pub(crate) fn inverse_rotation(session: &PoseSession) -> Option<Finding> {
     if data.pose_t.len() < 8 || data.imu_t.len() < 20 {
         return None;
     }
-    let spacing = default_knot_spacing(&data.pose_t);
-    let spline = fit(&data.pose_t, &data.pose_p, &data.pose_q, spacing).ok()?;
+    // the calibration's knots (and fallback), so that it reuses this fit
+    let fit_at = |h| fit(&data.pose_t, &data.pose_p, &data.pose_q, h);
+    let spline = fit_at(default_knot_spacing_for(&data.pose_t, session.n_imus()))
+        .or_else(|_| fit_at(default_knot_spacing(&data.pose_t)))
+        .ok()?;
     // τ searched as the calibration's start-up does
     let search = PoseCalibrationOptions::default().tau_search;
     let (tau, _) = memo::find_tau(&spline, &data.imu_t, &data.imu_z, search, || {
