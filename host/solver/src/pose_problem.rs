@@ -15,6 +15,8 @@
 //! the 4 control points at its time, so the Gauss–Newton matrix is an
 //! [`ArrowMatrix`] of half-bandwidth 23 bordered by x.
 
+use std::ops::Range;
+
 use faer::Mat;
 use robimu_model::geom::{mul_mm, M3, V3};
 use robimu_model::pose_measurement::rows::{
@@ -445,6 +447,11 @@ fn through_right_jacobians(rows: &mut PoseRows, jr: &[M3]) {
     }
 }
 
+/// `0..n` in two halves.
+fn halves(n: usize) -> [Range<usize>; 2] {
+    [0..n / 2, n / 2..n]
+}
+
 /// Add a pose block's JᵀJ and Jᵀr (band columns only).
 fn accumulate_pose(a: &mut ArrowMatrix, g: &mut [f64], b: &Block, local: &mut Mat<f64>) {
     let c0 = PER_CONTROL * b.first;
@@ -458,12 +465,13 @@ fn accumulate_pose(a: &mut ArrowMatrix, g: &mut [f64], b: &Block, local: &mut Ma
 }
 
 impl PoseProblem {
-    /// Add IMU `j`'s selected samples' normal equations at `sp`, x (segment
+    /// Add IMU `j`'s selected samples `part` (positions in its selection)
+    /// normal equations at `sp`, x (segment
     /// by segment, [`Segment`]; its 30-vector's columns at
     /// [`imu_indices`]); their cost.
     fn linearize_imu(
         &self,
-        j: usize,
+        (j, part): (usize, Range<usize>),
         sp: &PoseSpline,
         jr: &[M3],
         x: &[f64],
@@ -474,7 +482,7 @@ impl PoseProblem {
         let ctx = RowContext::new(&imu_view(x, j))?;
         let w: [f64; 6] = imu.sigma_z.map(|s| 1.0 / s);
         let (mut seg, mut seeds, mut cost) = (Segment::new(), SegmentCache::default(), 0.0);
-        for &i in &self.selected[j] {
+        for &i in &self.selected[j][part] {
             let mut rows = prediction_rows(sp, imu.t[i], &ctx, &mut seeds)?;
             through_right_jacobians(&mut rows, jr);
             if rows.first != seg.first {
@@ -502,6 +510,8 @@ impl LeastSquares for PoseProblem {
         Ok(0.5 * self.residuals(theta)?.iter().map(|r| r * r).sum::<f64>())
     }
 
+    /// The samples in two halves, one per thread ([`robimu_model::pair`]),
+    /// as the joint-angle problem's linearisation.
     fn linearize(
         &self,
         theta: &[f64],
@@ -510,23 +520,30 @@ impl LeastSquares for PoseProblem {
     ) -> Result<f64, Self::Error> {
         a.clear();
         g.fill(0.0);
-        let (sp, jr, nc) = (
-            self.spline(theta)?,
-            self.right_jacobians(theta),
-            self.n_band(),
-        );
+        let (sp, jr) = (self.spline(theta)?, self.right_jacobians(theta));
         let x = self.x(theta);
-        let mut local = Mat::zeros(CTRL, CTRL);
-        let mut cost = 0.0;
-        for k in 0..self.data.pose_t.len() {
-            let b = self.pose_block(&sp, &jr, k)?;
-            cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
-            accumulate_pose(a, g, &b, &mut local);
+        let (mut a2, mut g2) = (self.new_matrix(), vec![0.0; g.len()]);
+        let half = |h: usize, a: &mut ArrowMatrix, g: &mut [f64]| {
+            let mut local = Mat::zeros(CTRL, CTRL);
+            let mut cost = 0.0;
+            for k in halves(self.data.pose_t.len())[h].clone() {
+                let b = self.pose_block(&sp, &jr, k)?;
+                cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
+                accumulate_pose(a, g, &b, &mut local);
+            }
+            for j in 0..self.n_imus() {
+                let part = halves(self.selected[j].len())[h].clone();
+                cost += self.linearize_imu((j, part), &sp, &jr, x, a, g)?;
+            }
+            Ok::<_, PoseProblemError>(cost)
+        };
+        let (c1, c2) = robimu_model::pair::join(|| half(0, a, g), || half(1, &mut a2, &mut g2));
+        let mut cost = c1? + c2?;
+        a.add_assign(&a2);
+        for (u, v) in g.iter_mut().zip(&g2) {
+            *u += v;
         }
-        for j in 0..self.n_imus() {
-            cost += self.linearize_imu(j, &sp, &jr, x, a, g)?;
-        }
-        let d = &self.data;
+        let (d, nc) = (&self.data, self.n_band());
         for k in 0..x.len() {
             let w = 1.0 / (d.prior_sigma[k] * d.prior_sigma[k]);
             let e = x[k] - d.prior_mean[k];
