@@ -123,6 +123,30 @@ struct Block {
     r: [f64; 6],
 }
 
+/// Where the compact columns of IMU j's sample rows ([`pm::rows`]) go in
+/// θ: local column l < 24 is the band unknown 6·first + l (the 4 control
+/// points from `first`), l ≥ 24 is x's entry `x_index[l − 24]` (IMU j's
+/// 30-vector, [`imu_indices`]), at nc + that in θ.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Columns {
+    /// Band unknowns (θ's x starts here).
+    nc: usize,
+    /// x's index of each entry of the IMU's 30-vector.
+    x_index: [usize; POSE_PARAMS],
+}
+
+impl Columns {
+    /// θ's index of local column `l` of a row whose first control point is
+    /// `first`.
+    pub(crate) fn theta(&self, first: usize, l: usize) -> usize {
+        if l < CTRL {
+            PER_CONTROL * first + l
+        } else {
+            self.nc + self.x_index[l - CTRL]
+        }
+    }
+}
+
 impl PoseProblem {
     /// A problem about the initial spline `base` (θ's c = 0 is `base`).
     pub fn new(base: PoseSpline, data: PoseData) -> Result<Self, PoseProblemError> {
@@ -179,6 +203,14 @@ impl PoseProblem {
     /// Number of parameters x (2 + 28·K).
     pub fn n_x(&self) -> usize {
         pm::n_pose_params(self.n_imus())
+    }
+
+    /// The column map of IMU `j`'s rows.
+    pub(crate) fn columns(&self, j: usize) -> Columns {
+        Columns {
+            nc: self.n_band(),
+            x_index: imu_indices(j),
+        }
     }
 
     fn imu(&self, j: usize) -> ImuRef<'_> {
@@ -384,19 +416,11 @@ impl Segment {
         self.gyro.add(&rows.gyro, &w[3..], &wr[3..]);
     }
 
-    /// Add the sums to `a`, `g` (the x columns at `x_index`) and start
-    /// empty.
-    fn flush(
-        &mut self,
-        a: &mut ArrowMatrix,
-        g: &mut [f64],
-        nc: usize,
-        x_index: &[usize; POSE_PARAMS],
-    ) {
+    /// Add the sums to `a`, `g` (the columns at `cols`) and start empty.
+    fn flush(&mut self, a: &mut ArrowMatrix, g: &mut [f64], cols: &Columns) {
         if self.first == usize::MAX {
             return;
         }
-        let n = CTRL + POSE_PARAMS;
         self.local.fill(0.0);
         let mut grad = [0.0; CTRL + POSE_PARAMS];
         for p in 0..ACCEL_COLS {
@@ -415,15 +439,11 @@ impl Segment {
             }
             grad[lp] += self.gyro.g[p];
         }
-        let c0 = PER_CONTROL * self.first;
-        for p in 0..n {
-            if p < CTRL {
-                g[c0 + p] += grad[p];
-            } else {
-                g[nc + x_index[p - CTRL]] += grad[p];
-            }
+        for (p, v) in grad.iter().enumerate() {
+            g[cols.theta(self.first, p)] += v;
         }
-        a.add_local(c0, CTRL, x_index, self.local.as_ref());
+        let c0 = PER_CONTROL * self.first;
+        a.add_local(c0, CTRL, &cols.x_index, self.local.as_ref());
         self.accel.clear();
         self.gyro.clear();
         self.first = usize::MAX;
@@ -478,7 +498,7 @@ impl PoseProblem {
         a: &mut ArrowMatrix,
         g: &mut [f64],
     ) -> Result<f64, PoseProblemError> {
-        let (imu, x_index) = (self.imu(j), imu_indices(j));
+        let (imu, cols) = (self.imu(j), self.columns(j));
         let ctx = RowContext::new(&imu_view(x, j))?;
         let w: [f64; 6] = imu.sigma_z.map(|s| 1.0 / s);
         let (mut seg, mut seeds, mut cost) = (Segment::new(), SegmentCache::default(), 0.0);
@@ -486,14 +506,14 @@ impl PoseProblem {
             let mut rows = prediction_rows(sp, imu.t[i], &ctx, &mut seeds)?;
             through_right_jacobians(&mut rows, jr);
             if rows.first != seg.first {
-                seg.flush(a, g, self.n_band(), &x_index);
+                seg.flush(a, g, &cols);
                 seg.first = rows.first;
             }
             let wr: [f64; 6] = std::array::from_fn(|c| (rows.z[c] - imu.z[i][c]) * w[c]);
             cost += 0.5 * wr.iter().map(|r| r * r).sum::<f64>();
             seg.add(&rows, &w, &wr);
         }
-        seg.flush(a, g, self.n_band(), &x_index);
+        seg.flush(a, g, &cols);
         Ok(cost)
     }
 }
