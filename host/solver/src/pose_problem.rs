@@ -316,6 +316,23 @@ impl PoseProblem {
         Ok(out)
     }
 
+    /// IMU `j`'s selected samples at θ: (t_i, z_i − ẑ_i), measured minus
+    /// predicted, not whitened (m/s², rad/s).
+    pub fn imu_residuals(
+        &self,
+        theta: &[f64],
+        j: usize,
+    ) -> Result<Vec<(f64, [f64; 6])>, PoseProblemError> {
+        let (sp, imu) = (self.spline(theta)?, self.imu(j));
+        let xj = imu_view(self.x(theta), j);
+        (self.selected[j].iter())
+            .map(|&i| {
+                let z = pm::predict(&sp, imu.t[i], &xj)?;
+                Ok((imu.t[i], std::array::from_fn(|c| imu.z[i][c] - z[c])))
+            })
+            .collect()
+    }
+
     /// Right Jacobians J_r(φ_k) of the rotation unknowns (∂δ/∂φ).
     fn right_jacobians(&self, theta: &[f64]) -> Vec<M3> {
         (0..self.base.num_control_points())

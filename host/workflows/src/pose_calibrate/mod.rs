@@ -141,6 +141,9 @@ pub struct PoseCalibration {
     pub converged: bool,
     /// Final cost ½‖r‖².
     pub cost: f64,
+    /// The final solve's run (after a refit with identified σ, the
+    /// refit's: the one `iterations`, `termination` and `cost` describe).
+    pub summary: robimu_solver::LmSummary,
     /// Knot spacing used (s).
     pub knot_spacing: f64,
     /// What the start-up found (IMU 0).
@@ -334,6 +337,7 @@ pub(crate) fn fit_poses(
         termination: sol.summary.termination.to_string(),
         converged: sol.summary.termination.converged(),
         cost: sol.summary.final_cost,
+        summary: sol.summary.clone(),
         knot_spacing: spacing,
         startup: st,
         tau_drift: tau_drift0,
