@@ -370,7 +370,7 @@ pub fn calibration_report_imus(
 /// fit's pose spline when `series` has them (`robimu calibrate --report`,
 /// [`SessionSeries::of_pose_fit`]; a result file alone does not: the
 /// spline is not in it). No joint trajectory.
-pub fn pose_calibration_report(
+pub(crate) fn pose_calibration_report(
     dir: &Path,
     result: &CalibrationResult,
     truth: Option<&Truth>,
