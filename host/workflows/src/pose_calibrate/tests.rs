@@ -1,6 +1,7 @@
 //! Pose calibration on simulated sessions: the start-up (τ, rotations),
 //! one 60 s session within 4σ, a Monte Carlo of the normalised errors, bad input.
 
+use super::simulate::test_support::{simulated, SessionSpec};
 use super::simulate::uniform_rotation;
 use super::startup::euler_zyx;
 use super::*;
@@ -38,21 +39,6 @@ fn errors(x: &[f64], truth: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// A 60 s session: poses 15 Hz with 3 ms jitter, IMU 100 Hz.
-fn session(truth: &[f64], seed: u64, duration: f64) -> PoseMeasurements {
-    let motion = random_pose_motion(duration, seed).unwrap();
-    simulate_pose_session(
-        truth,
-        &motion,
-        15.0,
-        0.003,
-        100.0,
-        &PoseNoise::default(),
-        seed + 1,
-    )
-    .unwrap()
-}
-
 #[test]
 fn startup_recovers_a_uniform_rotation_and_tau() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(11);
@@ -61,7 +47,7 @@ fn startup_recovers_a_uniform_rotation_and_tau() {
     let q = euler_zyx(&uniform_rotation(&mut rng));
     truth[GYRO + ROT..GYRO + ROT + 3].copy_from_slice(&q);
     truth[ACCEL + ROT..ACCEL + ROT + 3].copy_from_slice(&q);
-    let data = session(&truth, 21, 30.0);
+    let data = simulated(&truth, 30.0, 21, 22, &SessionSpec::default()).data;
     let spline =
         robimu_model::PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, 2.0 / 15.0)
             .unwrap();
@@ -78,7 +64,14 @@ fn startup_recovers_a_uniform_rotation_and_tau() {
 /// Normalised errors of one simulated calibration.
 fn run(seed: u64) -> (Vec<f64>, PoseCalibration) {
     let truth = draw_pose_truth(1000 + seed);
-    let data = session(&truth, 2000 + seed, 60.0);
+    let data = simulated(
+        &truth,
+        60.0,
+        2000 + seed,
+        2001 + seed,
+        &SessionSpec::default(),
+    )
+    .data;
     // POSE_MC_GIVEN=f: the σ given are wrong, the IMU's f× too small and
     // the poses' f× too large (the noise identification must find them)
     let given: f64 = std::env::var("POSE_MC_GIVEN")
