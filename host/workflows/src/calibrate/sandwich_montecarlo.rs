@@ -71,8 +71,9 @@ fn run(runs: u64) -> Runs {
     out
 }
 
-/// Per parameter: rms over the runs of the error over the mean predicted σ.
-fn ratios(e: &[Vec<f64>], s: &[Vec<f64>]) -> Vec<f64> {
+/// Per parameter: rms over the runs of the error over the mean predicted σ
+/// (one row of `e` and of `s` a run).
+pub(crate) fn ratios(e: &[Vec<f64>], s: &[Vec<f64>]) -> Vec<f64> {
     let n = e.len() as f64;
     (0..e[0].len())
         .map(|k| {
@@ -83,7 +84,8 @@ fn ratios(e: &[Vec<f64>], s: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-fn median(v: &[f64]) -> f64 {
+/// The median (the upper one of an even count).
+pub(crate) fn median(v: &[f64]) -> f64 {
     let mut v = v.to_vec();
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
