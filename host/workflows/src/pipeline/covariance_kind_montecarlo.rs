@@ -8,12 +8,11 @@
 //! cover it.
 
 use robimu_model::effects::resonance::Mode;
-use robimu_model::noise::NoiseModel;
 use robimu_model::{JointState, Robot};
 
 use crate::calibrate::fit::{fit, FitSpec, Start};
 use crate::calibrate::sandwich_fit::fit_sandwich;
-use crate::calibrate::sandwich_montecarlo::{median, ratios};
+use crate::calibrate::sandwich_montecarlo::{ar1_accel_noise, median, ratios};
 use crate::calibrate::CalibrateOptions;
 use crate::diagnose::{effect_set, setup_with};
 use crate::simulate::{random_session, SimulateOptions};
@@ -31,9 +30,7 @@ struct Runs {
 fn run(runs: u64, misfit: f64) -> Runs {
     let robot = Robot::aubo_i5();
     let sz = robot.sigma_z();
-    let rate = 120.0;
-    let phi = (-1.0f64 / (rate * 0.050)).exp();
-    let model = NoiseModel::ar1(sz, [Some(phi), None], [0.0; 2]).unwrap();
+    let model = ar1_accel_noise(&robot);
     let sim = SimulateOptions {
         noise_model: Some(model.clone()),
         ..SimulateOptions::paper(&robot)
