@@ -2,11 +2,13 @@
 //! `robimu simulate --source poses --imus 2` writes imu1.csv and a truth of
 //! 58 names; `robimu calibrate` estimates all 58 (IMU 1's as `imu1/…`, g
 //! shared) within 4σ of the truth (60 s: at 40 s, seed 5, IMU 0's
-//! gamma_a_zx is 4.0σ off even when IMU 0 is calibrated alone).
+//! gamma_a_zx is 4.0σ off even when IMU 0 is calibrated alone); its
+//! exports are a joint result's (Kalibr's IMU list with each IMU's T_i_b
+//! relative to IMU 0, one file per IMU, or IMU J alone with `--imu J`).
 
 mod common;
 
-use common::{robimu, robimu_ok, s};
+use common::{robimu_ok, s};
 use robimu_session::result::{CalibrationResult, Trust};
 use robimu_session::Truth;
 
@@ -70,6 +72,7 @@ fn two_imus_simulate_and_calibrate_within_4_sigma() {
         }
     }
     exports_take_one_imu_at_a_time(tmp.path(), &out, &result);
+    kalibr_list_of_two_imus(tmp.path(), &out, &result);
     assert!(
         worst.0 < 4.0,
         "{} is {:.2}σ from its truth",
@@ -78,9 +81,100 @@ fn two_imus_simulate_and_calibrate_within_4_sigma() {
     );
 }
 
-/// Kalibr's imu.yaml and the correction file of a two-IMU pose result: one
-/// IMU per file (`--imu J`; without it an error naming the IMUs), IMU 1's
-/// from its `imu1/` parameters; `correct` of imu1.csv uses IMU 1's.
+/// R = Rz(r_z)·Ry(r_y)·Rx(r_x) (docs/model.md §3) of the sensor rotation
+/// `prefix` (`r_a_`, `imu1/r_a_`) of `r`, written out element by element.
+fn rotation_zyx(r: &CalibrationResult, prefix: &str) -> [[f64; 3]; 3] {
+    let v = |axis: &str| r.parameter(&format!("{prefix}{axis}")).unwrap().value;
+    let (z, y, x) = (v("z"), v("y"), v("x"));
+    let (cz, sz, cy, sy, cx, sx) = (z.cos(), z.sin(), y.cos(), y.sin(), x.cos(), x.sin());
+    [
+        [cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx],
+        [sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx],
+        [-sy, cy * sx, cy * cx],
+    ]
+}
+
+/// Kalibr's files of a two-IMU pose result without `--imu`: the IMU list
+/// (`imu0:`, `imu1:`) at --out and list0.yaml, list1.yaml beside it; IMU 1's
+/// T_i_b is [C | C·(p_0 − p_1)] with C IMU 1's accelerometer rotation and
+/// p_j the positions p_imu on the body, its time_offset τ_1 − τ_0, all
+/// computed here from the result's parameters.
+fn kalibr_list_of_two_imus(tmp: &std::path::Path, out: &std::path::Path, r: &CalibrationResult) {
+    let yaml = tmp.join("list.yaml");
+    let run = robimu_ok([
+        "export",
+        "--calibration",
+        s(out),
+        "--format",
+        "kalibr",
+        "--out",
+        s(&yaml),
+    ]);
+    for f in ["list.yaml", "list0.yaml", "list1.yaml"] {
+        assert!(run.stdout.contains(f), "{f} not written: {}", run.stdout);
+    }
+    let read = |f: &str| -> serde_yaml::Value {
+        serde_yaml::from_str(&std::fs::read_to_string(tmp.join(f)).unwrap()).unwrap()
+    };
+    let list = read("list.yaml");
+    assert!(list["imu2"].is_null());
+    let value = |n: &str| r.parameter(n).unwrap().value;
+    for (j, prefix) in [(0usize, ""), (1, "imu1/")] {
+        let c = rotation_zyx(r, &format!("{prefix}r_a_"));
+        let d: Vec<f64> = ["x", "y", "z"]
+            .iter()
+            .map(|a| value(&format!("p_imu_{a}")) - value(&format!("{prefix}p_imu_{a}")))
+            .collect();
+        let dt = value(&format!("{prefix}tau")) - value("tau");
+        // the list's entry and the file Kalibr's --imu reads carry the same
+        for entry in [&list[format!("imu{j}")], &read(&format!("list{j}.yaml"))] {
+            let t: Vec<Vec<f64>> = serde_yaml::from_value(entry["T_i_b"].clone()).unwrap();
+            for row in 0..3 {
+                let want_t: f64 = (0..3).map(|k| c[row][k] * d[k]).sum();
+                assert!(
+                    (t[row][3] - want_t).abs() < 1e-12,
+                    "imu{j} T_i_b[{row}][3]: {t:?}"
+                );
+                for col in 0..3 {
+                    assert!(
+                        (t[row][col] - c[row][col]).abs() < 1e-12,
+                        "imu{j} C_i_b: {t:?}"
+                    );
+                }
+            }
+            let offset = entry["time_offset"].as_f64().unwrap();
+            assert!(
+                (offset - dt).abs() < 1e-15,
+                "imu{j} time_offset {offset} vs {dt}"
+            );
+            assert_eq!(
+                entry["rostopic"].as_str(),
+                Some(format!("/imu{j}").as_str())
+            );
+        }
+    }
+    // IMU 1 really sits elsewhere: its translation is not zero
+    let t1: Vec<Vec<f64>> = serde_yaml::from_value(list["imu1"]["T_i_b"].clone()).unwrap();
+    assert!((0..3).any(|row| t1[row][3].abs() > 1e-3), "{t1:?}");
+    // the correction: one file per IMU, IMU 1's with its own bias
+    let corr = tmp.join("corr.toml");
+    robimu_ok([
+        "export",
+        "--calibration",
+        s(out),
+        "--format",
+        "correction",
+        "--out",
+        s(&corr),
+    ]);
+    let c1 = std::fs::read_to_string(tmp.join("corr1.toml")).unwrap();
+    assert!(c1.contains(&format!("{}", value("imu1/b_a_x"))), "{c1}");
+    assert!(tmp.join("corr0.toml").is_file() && !corr.exists());
+}
+
+/// Kalibr's imu.yaml and the correction file of one IMU of a two-IMU pose
+/// result (`--imu J`), IMU 1's from its `imu1/` parameters; `correct` of
+/// imu1.csv uses IMU 1's.
 fn exports_take_one_imu_at_a_time(
     tmp: &std::path::Path,
     out: &std::path::Path,
@@ -100,10 +194,14 @@ fn exports_take_one_imu_at_a_time(
         a.extend_from_slice(extra);
         a.iter().map(|v| v.to_string()).collect::<Vec<String>>()
     };
-    robimu(args(&[])).assert_fails(&["the result has 2 IMUs", "--imu J"]);
     robimu_ok(args(&["--imu", "1"]));
+    // IMU 1 alone in the form Kalibr's --imu reads (the keys at the top)
     let text = std::fs::read_to_string(&yaml).unwrap();
-    assert!(text.contains("imu0:"), "{text}");
+    assert!(text.contains("IMU 1 alone"), "{text}");
+    let y: serde_yaml::Value = serde_yaml::from_str(&text).unwrap();
+    assert_eq!(y["rostopic"].as_str(), Some("/imu1"), "{text}");
+    let t_i_b: Vec<Vec<f64>> = serde_yaml::from_value(y["T_i_b"].clone()).unwrap();
+    assert_eq!(t_i_b.len(), 4);
     let corr = tmp.join("c.toml");
     robimu_ok([
         "export",
