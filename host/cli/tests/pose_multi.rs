@@ -234,3 +234,61 @@ fn exports_take_one_imu_at_a_time(
     ]);
     assert!(corrected.is_file());
 }
+
+/// `[imu1.mount]` in a two-IMU pose session's session.toml is IMU 1's
+/// prior (docs/model.md §7.9, §9): a position 1 cm off the truth with
+/// σ = 1 µm pins `imu1/p_imu_*` there, while IMU 0's keep §10's prior; a
+/// rotation mean with its σ reaches the result as `imu1/r_a_*`'s prior.
+#[test]
+fn imu1_mount_prior_reaches_the_calibration() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("s");
+    robimu_ok([
+        "simulate",
+        "--source",
+        "poses",
+        "--imus",
+        "2",
+        "--duration",
+        "30",
+        "--seed",
+        "3",
+        "--out",
+        s(&dir),
+    ]);
+    let truth = Truth::read(&dir.join("truth.toml")).unwrap();
+    let t = |n: &str| truth.get(n).unwrap();
+    let pinned = [
+        t("imu1/p_imu_x") + 0.01,
+        t("imu1/p_imu_y"),
+        t("imu1/p_imu_z"),
+    ];
+    let r_a = [t("imu1/r_a_z"), t("imu1/r_a_y"), t("imu1/r_a_x")];
+    let toml_path = dir.join("session.toml");
+    let mut text = std::fs::read_to_string(&toml_path).unwrap();
+    text.push_str(&format!(
+        "\n[imu1.mount]\nposition = {pinned:?}\nposition_sigma = 1e-6\nr_a = {r_a:?}\nrotation_sigma = 0.02\n"
+    ));
+    std::fs::write(&toml_path, text).unwrap();
+    let out = tmp.path().join("r.json");
+    robimu_ok(["calibrate", s(&dir), "--out", s(&out)]);
+    let r = CalibrationResult::read(&out).unwrap();
+    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+        let p = r.parameter(&format!("imu1/p_imu_{axis}")).unwrap();
+        assert_eq!((p.prior, p.prior_sigma), (pinned[k], 1e-6), "{p:?}");
+        assert!((p.value - pinned[k]).abs() < 5e-6, "{p:?} not pinned");
+        assert!(p.sigma <= 1e-6, "{p:?}");
+        let p0 = r.parameter(&format!("p_imu_{axis}")).unwrap();
+        assert_eq!((p0.prior, p0.prior_sigma), (0.0, 0.2), "{p0:?}");
+    }
+    // IMU 0's position, under §10's prior, is still found from the data
+    let p0 = r.parameter("p_imu_x").unwrap();
+    assert!((p0.value - t("p_imu_x")).abs() < 4.0 * p0.sigma, "{p0:?}");
+    for (k, axis) in ["z", "y", "x"].iter().enumerate() {
+        let p = r.parameter(&format!("imu1/r_a_{axis}")).unwrap();
+        assert_eq!((p.prior, p.prior_sigma), (r_a[k], 0.02), "{p:?}");
+        assert!(p.sigma < 0.02, "{p:?}");
+        let p0 = r.parameter(&format!("r_a_{axis}")).unwrap();
+        assert_eq!(p0.prior_sigma, std::f64::consts::PI, "{p0:?}");
+    }
+}
