@@ -120,9 +120,10 @@ pub fn load_pose_session(
     Ok(session)
 }
 
-/// The calibration's options from `session.toml`: `[poses]` σ_p, σ_r and
-/// `[noise]` σ_z where given, else [`PoseCalibrationOptions::default`]; what
-/// the pose calibration does not use is said through `warn`.
+/// The calibration's options from `session.toml`: `[poses]` σ_p, σ_r,
+/// `[noise]` σ_z and the mount priors `[imu.mount]`, `[imu<j>.mount]` where
+/// given, else [`PoseCalibrationOptions::default`]; what the pose
+/// calibration does not use is said through `warn`.
 pub fn pose_options(
     meta: &PoseSessionMeta,
     mut warn: impl FnMut(String),
@@ -135,6 +136,7 @@ pub fn pose_options(
     if let Some(z) = meta.noise.as_ref().and_then(|n| n.sigma_z) {
         opts.sigma_z = z;
     }
+    opts.mounts = meta.mounts.clone();
     if meta.noise_shape.as_ref().is_some_and(|s| s.ar_z.is_some()) {
         warn("[noise] ar_z is not used: the pose calibration assumes white IMU noise".into());
     }

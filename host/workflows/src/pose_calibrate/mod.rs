@@ -15,6 +15,7 @@ pub mod diagnose;
 pub(crate) mod imus;
 pub(crate) mod inject;
 pub(crate) mod memo;
+pub(crate) mod mount;
 pub mod noise;
 pub(crate) mod refit;
 pub(crate) mod score;
@@ -87,6 +88,9 @@ pub struct PoseCalibrationOptions {
     pub identify_noise: bool,
     /// Levenberg–Marquardt settings.
     pub lm: LmOptions,
+    /// The session's mount priors by IMU (`[imu.mount]`, `[imu<j>.mount]`)
+    /// over MODEL.md §10's ([`mount`]).
+    pub mounts: std::collections::BTreeMap<usize, robimu_session::MountPrior>,
 }
 
 impl Default for PoseCalibrationOptions {
@@ -105,6 +109,7 @@ impl Default for PoseCalibrationOptions {
                 sigma_tolerance: SIGMA_TOLERANCE,
                 ..LmOptions::default()
             },
+            mounts: Default::default(),
         }
     }
 }
@@ -262,7 +267,7 @@ pub(crate) fn fit_poses(
     for m in more {
         starts.push(startup::startup(&spline, &m.t, &m.z, opts.tau_search)?);
     }
-    let (specs, x0) = imus::specs_and_start(&starts);
+    let (specs, x0) = imus::specs_and_start(&starts, &opts.mounts);
     let nx = specs.len();
     let more_data: Vec<PoseImuData> = more
         .iter()
