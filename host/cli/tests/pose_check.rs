@@ -28,6 +28,10 @@ struct Faults {
     burst: bool,
     /// gz at +250 °/s over 60 samples.
     saturated: bool,
+    /// A second IMU, imu1.csv (the first's samples), with a 2 s gap over
+    /// 30..32 s, gz at +250 °/s over 60 samples from 40 s and gx stuck over
+    /// 1.5 s from 10 s.
+    imu1: bool,
 }
 
 /// p(t) on a slow curve, R(t) = Exp(0.4 t · axis) as [w, x, y, z].
@@ -84,6 +88,15 @@ fn write_session(dir: &Path, faults: Faults) {
             z[5] = 250f64.to_radians();
         }
         w.imu(t, &z).unwrap();
+        if faults.imu1 && !(t > 30.0025 && t < 32.0) {
+            if (8000..8060).contains(&i) {
+                z[5] = 250f64.to_radians();
+            }
+            if (2000..2300).contains(&i) {
+                z[3] = 0.125;
+            }
+            w.imu_of(1, t, &z).unwrap();
+        }
     }
     w.finish().unwrap();
 }
@@ -136,6 +149,7 @@ fn each_fault_of_a_pose_session_is_named_with_its_number() {
         millimetres: true,
         burst: true,
         saturated: true,
+        imu1: false,
     };
     write_session(tmp.path(), all);
     let (run, f) = check(tmp.path());
@@ -186,6 +200,72 @@ fn each_fault_of_a_pose_session_is_named_with_its_number() {
 
     // the run fails naming the fatal finding
     run.assert_fails(&["poses in mm?"]);
+}
+
+/// A second IMU's faults (docs/model.md §9): the gap, the saturated gyro
+/// and the stuck channel of imu1.csv are named with imu1.csv and their
+/// numbers; imu.csv, clean, has none.
+#[test]
+fn the_faults_of_imu1_csv_are_named_with_its_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let faults = Faults {
+        imu1: true,
+        ..Faults::default()
+    };
+    write_session(tmp.path(), faults);
+    let (run, f) = check(tmp.path());
+    let of = |kind: &str| -> Vec<&serde_json::Value> {
+        f.iter().filter(|g| g["kind"] == kind).collect()
+    };
+    let rates = of("rate");
+    assert_eq!(rates.len(), 3, "poses, imu.csv, imu1.csv: {f:#?}");
+    assert!(rates.iter().any(|r| r["subject"] == "imu1.csv"), "{f:#?}");
+    let gap = of("gap");
+    assert_eq!(gap.len(), 1, "{f:#?}");
+    assert_eq!(gap[0]["subject"], "imu1.csv");
+    assert!((value(gap[0]) - 2.0).abs() < 1e-6, "{:#}", gap[0]);
+    assert!(
+        message(gap[0]).contains("imu1.csv: largest gap 2.000 s at t = 30.000 s"),
+        "{}",
+        message(gap[0])
+    );
+    let sat = of("saturation");
+    assert_eq!(sat.len(), 1, "{f:#?}");
+    assert_eq!(
+        (sat[0]["subject"].as_str(), value(sat[0])),
+        (Some("gz"), 60.0)
+    );
+    assert!(
+        message(sat[0]).starts_with("imu1.csv: gz saturated"),
+        "{}",
+        message(sat[0])
+    );
+    let stuck = of("stuck");
+    assert_eq!(stuck.len(), 1, "{f:#?}");
+    assert_eq!(stuck[0]["subject"], "gx");
+    assert!((value(stuck[0]) - 1.495).abs() < 1e-9, "{:#}", stuck[0]);
+    assert!(
+        message(stuck[0]).starts_with("imu1.csv: gx repeats 0.125 for ")
+            && message(stuck[0]).contains("(300 rows from t = 10.000 s"),
+        "{}",
+        message(stuck[0])
+    );
+    assert!(run.stdout.contains("imu1.csv"), "{}", run.stdout);
+    // with the range recorded in [imu1], counted against it and named
+    let toml = tmp.path().join("session.toml");
+    let text = std::fs::read_to_string(&toml).unwrap();
+    std::fs::write(&toml, format!("{text}\n[imu1]\ngyro_range = \"Dps250\"\n")).unwrap();
+    let (_, f) = check(tmp.path());
+    let sat = finding(&f, "saturation");
+    assert_eq!(
+        (sat["subject"].as_str(), value(sat)),
+        (Some("gyroscope"), 60.0)
+    );
+    assert!(
+        message(sat).starts_with("imu1.csv: gyroscope: 60 rows"),
+        "{}",
+        message(sat)
+    );
 }
 
 #[test]

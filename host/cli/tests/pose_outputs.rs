@@ -12,7 +12,7 @@ use std::path::Path;
 
 use common::{robimu, robimu_ok, s};
 use robimu_model::ImuIntrinsics;
-use robimu_session::result::CalibrationResult;
+use robimu_session::result::{CalibrationResult, NoiseModelRecord};
 use robimu_session::{read_table, Columns, PoseSession, IMU_COLUMNS};
 
 /// A simulated, calibrated pose session: (session dir, result.json).
@@ -30,7 +30,20 @@ fn calibrated(tmp: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
         s(&dir),
     ]);
     let result = tmp.join("result.json");
-    robimu_ok(["calibrate", s(&dir), "--out", s(&result)]);
+    let report = tmp.join("fit-report");
+    let run = robimu_ok([
+        "calibrate",
+        s(&dir),
+        "--out",
+        s(&result),
+        "--report",
+        s(&report),
+    ]);
+    assert!(
+        run.stdout.contains("result.convergence.csv"),
+        "{}",
+        run.stdout
+    );
     (dir, result)
 }
 
@@ -75,9 +88,30 @@ fn report_kalibr_export_and_correct_work_on_a_pose_result() {
         html.contains(&format!("gz {:.2}", rms[5])),
         "residual RMS not on the page"
     );
-    assert!(html.contains("A pose session has no residual figure"));
+    assert!(html.contains("No residual figure from the result file alone"));
     assert!(!html.contains("Joint trajectory"));
     assert!(report_dir.join("posterior_sigma.svg").is_file());
+    // the convergence log `calibrate` wrote beside the result
+    assert!(report_dir.join("convergence.svg").is_file());
+
+    // `calibrate --report`: the residuals along the fit's own pose spline,
+    // their RMS in the figure that of the result (whitened RMS × σ used)
+    let fit_report = d.join("fit-report");
+    let html = std::fs::read_to_string(fit_report.join("report.html")).unwrap();
+    assert!(
+        html.contains("the pose spline of the fit"),
+        "no residual caption"
+    );
+    assert!(!html.contains("No residual figure"));
+    let svg = std::fs::read_to_string(fit_report.join("residuals.svg")).unwrap();
+    // the band is the fit's σ_z: session.toml's, or the identified ones
+    // the result's noise model records
+    let sigma_ax = match result.noise_model.as_ref().unwrap() {
+        NoiseModelRecord::Ar { channels } => channels[0].sigma,
+        _ => 0.38,
+    };
+    let want = format!("noise σ {sigma_ax:.3} m/s^2");
+    assert!(svg.contains(&want), "{want} not in the residual figure");
 
     // Kalibr: Kalibr's equations (scale-misalignment model) with the
     // exported matrices reproduce the sensor model of the result's own

@@ -198,6 +198,8 @@ pub struct SessionSeries {
     pub noise_source: String,
     /// The time offset τ of `x`, s.
     pub tau: f64,
+    /// The trajectory the residuals are along (for the caption).
+    pub trajectory: String,
 }
 
 /// Keep at most `max` evenly spaced points.
@@ -271,15 +273,51 @@ impl SessionSeries {
                 sigma[c].push((t, shown(noise.sigma_at(c, qdd2))));
             }
         }
-        let thin = |v: Vec<Vec<(f64, f64)>>| v.into_iter().map(|s| decimate(s, 1500)).collect();
         Ok(Self {
             joints: thin(joints),
             residuals: thin(residuals),
             sigma: thin(sigma),
             noise_source: noise.source.clone(),
             tau,
+            trajectory: "the trajectory refitted to the joint samples".into(),
         })
     }
+
+    /// The series of a pose calibration's IMU (docs/model.md §7.9) from
+    /// its fit: `residuals` (t, measured minus predicted, m/s² and rad/s)
+    /// along the fit's own pose spline, the white σ `sigma_z` of the fit
+    /// (`noise_source` says which), τ; no joint samples.
+    pub fn of_pose_fit(
+        residuals: &[(f64, [f64; 6])],
+        sigma_z: &[f64; 6],
+        noise_source: &str,
+        tau: f64,
+    ) -> Self {
+        let shown = |c: usize, v: f64| if c < 3 { v } else { v.to_degrees() };
+        let per_channel = |of: fn(usize, &[f64; 6], &[f64; 6]) -> f64| {
+            (0..6)
+                .map(|c| {
+                    (residuals
+                        .iter()
+                        .map(|(t, e)| (*t, shown(c, of(c, e, sigma_z)))))
+                    .collect()
+                })
+                .collect()
+        };
+        Self {
+            joints: Vec::new(),
+            residuals: thin(per_channel(|c, e, _| e[c])),
+            sigma: thin(per_channel(|c, _, s| s[c])),
+            noise_source: noise_source.into(),
+            tau,
+            trajectory: "the pose spline of the fit".into(),
+        }
+    }
+}
+
+/// Each series down to at most 1500 evenly spaced points.
+fn thin(v: Vec<Vec<(f64, f64)>>) -> Vec<Vec<(f64, f64)>> {
+    v.into_iter().map(|s| decimate(s, 1500)).collect()
 }
 
 /// What the report knows of the solver's iterations.
@@ -328,29 +366,36 @@ pub fn calibration_report_imus(
 
 /// Write `dir/report.html` for a pose session's result (docs/model.md
 /// §7.9): the overview with the verdict, the parameters against their
-/// priors (and `truth`), convergence; no joint trajectory, and the
-/// residuals as the verdict's RMS only (a pose spline refitted to the pose
-/// samples alone does not resolve the motion to the IMU's noise).
+/// priors (and `truth`), convergence, and each IMU's residuals along the
+/// fit's pose spline when `series` has them (`robimu calibrate --report`,
+/// [`SessionSeries::of_pose_fit`]; a result file alone does not: the
+/// spline is not in it). No joint trajectory.
 pub(crate) fn pose_calibration_report(
     dir: &Path,
     result: &CalibrationResult,
     truth: Option<&Truth>,
     convergence: Convergence<'_>,
+    series: &[SessionSeries],
 ) -> Result<PathBuf, ReportError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut page = HtmlPage::new("robimu calibration report");
     overview_section(&mut page, result);
     parameters_section(&mut page, dir, result, truth)?;
     convergence_section(&mut page, dir, result, convergence)?;
-    page.heading("Residuals");
-    page.paragraph(
-        "A pose session has no residual figure: its trajectory is estimated together with the \
-         IMU's parameters, and a pose spline refitted to the pose samples alone (a controller's \
-         or tracker's rate and noise) does not resolve the motion's rates and accelerations to \
-         the IMU's noise, so its residuals would be several times σ_z whatever the fit. The \
-         calibration's own residual RMS per IMU channel over σ_z, and of the poses over σ_p and \
-         σ_r, are the verdict's residuals check above.",
-    );
+    if series.is_empty() {
+        page.heading("Residuals");
+        page.paragraph(
+            "No residual figure from the result file alone: a pose session's trajectory is \
+             estimated together with the IMU's parameters and is not in the result, and a pose \
+             spline refitted to the pose samples alone (a controller's or tracker's rate and \
+             noise) does not resolve the motion's rates and accelerations to the IMU's noise. \
+             `robimu calibrate --report DIR` draws them from the fit. The calibration's residual \
+             RMS per IMU channel over σ_z, and of the poses over σ_p and σ_r, are the verdict's \
+             residuals check above.",
+        );
+    } else {
+        residual_sections(&mut page, dir, series)?;
+    }
     let path = dir.join("report.html");
     page.write(&path)?;
     Ok(path)
@@ -590,23 +635,34 @@ fn series_sections(
             .collect();
         let files = line_panels(&dir.join("trajectory"), "Joint trajectory", &panels, 3)?;
         page.figure(&files[1], "The joint samples of the session.")?;
-        page.heading("Residuals");
-        for (j, s) in series.iter().enumerate() {
-            let (stem, who) = if series.len() == 1 {
-                ("residuals".to_string(), String::new())
-            } else {
-                (format!("residuals_imu{j}"), format!("IMU {j}: "))
-            };
-            let files = residual_figure(&dir.join(stem), &s.residuals, &s.sigma, s.tau)?;
-            page.figure(
-                &files[1],
-                &format!(
-                    "{who}Measured minus predicted IMU output over time (the trajectory refitted to the joint samples, τ = {:.2} ms), with the ±1σ band of {}: residuals that fit the noise model stay mostly inside it.",
-                    1e3 * s.tau,
-                    s.noise_source
-                ),
-            )?;
-        }
+        residual_sections(page, dir, series)?;
+    }
+    Ok(())
+}
+
+/// Each IMU's residuals over time with the noise model's band.
+fn residual_sections(
+    page: &mut HtmlPage,
+    dir: &Path,
+    series: &[SessionSeries],
+) -> Result<(), ReportError> {
+    page.heading("Residuals");
+    for (j, s) in series.iter().enumerate() {
+        let (stem, who) = if series.len() == 1 {
+            ("residuals".to_string(), String::new())
+        } else {
+            (format!("residuals_imu{j}"), format!("IMU {j}: "))
+        };
+        let files = residual_figure(&dir.join(stem), &s.residuals, &s.sigma, s.tau)?;
+        page.figure(
+            &files[1],
+            &format!(
+                "{who}Measured minus predicted IMU output over time ({}, τ = {:.2} ms), with the ±1σ band of {}: residuals that fit the noise model stay mostly inside it.",
+                s.trajectory,
+                1e3 * s.tau,
+                s.noise_source
+            ),
+        )?;
     }
     Ok(())
 }

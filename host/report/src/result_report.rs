@@ -11,6 +11,7 @@ use robimu_session::result::CalibrationResult;
 use robimu_session::{PoseSession, Session};
 use robimu_workflows::calibrate::choose_knots;
 use robimu_workflows::export::is_pose_result;
+use robimu_workflows::pipeline::poses::PoseFitted;
 use robimu_workflows::pipeline::{load_session, session_robot};
 
 use crate::convergence::{convergence_path, ConvergenceLog};
@@ -88,7 +89,48 @@ fn pose_result_report(
         Err(why) => Convergence::Unavailable(why),
     };
     let truth = session.as_ref().and_then(|s| s.truth.as_ref());
-    Ok(pose_calibration_report(dir, result, truth, convergence)?)
+    Ok(pose_calibration_report(
+        dir,
+        result,
+        truth,
+        convergence,
+        &[],
+    )?)
+}
+
+/// Write the report of a pose calibration just made (`robimu calibrate
+/// --report DIR` on a pose session, docs/model.md §7.9) into `dir`: the
+/// result with the final solve's convergence and each IMU's residuals
+/// along the fit's pose spline ([`SessionSeries::of_pose_fit`]), the σ
+/// band the fit's white σ_z; the page's path.
+pub fn write_pose_fit_report(dir: &Path, fitted: &PoseFitted) -> anyhow::Result<PathBuf> {
+    let cal = &fitted.cal;
+    let source = if cal.noise.identified {
+        "the white noise levels identified from the residuals"
+    } else {
+        "the white noise σ_z given"
+    };
+    let series = (0..cal.noise.used.sigma_z.len())
+        .map(|j| {
+            let tau_name = match j {
+                0 => "tau".to_string(),
+                _ => format!("imu{j}/tau"),
+            };
+            let tau = (cal.names.iter().position(|n| *n == tau_name)).map_or(0.0, |k| cal.x[k]);
+            let residuals = fitted.imu_residuals(j)?;
+            let sigma = &cal.noise.used.sigma_z[j];
+            Ok(SessionSeries::of_pose_fit(&residuals, sigma, source, tau))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let costs = ConvergenceLog::from_summary(&cal.summary).costs();
+    let truth = fitted.session.truth.as_ref();
+    Ok(pose_calibration_report(
+        dir,
+        &fitted.result,
+        truth,
+        Convergence::Costs(&costs),
+        &series,
+    )?)
 }
 
 /// The series of `data` under parameters `x` for the report: the IMU

@@ -90,7 +90,8 @@ pub struct ParameterTable {
 /// A heading of a [`ParameterTable`] and the rows under it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TableSection {
-    /// `shared: robot errors and gravity`, `IMU 1 (imu1.csv)`, …
+    /// `shared: robot errors and gravity` (a pose session's result, which
+    /// has no robot: `shared: gravity`), `IMU 1 (imu1.csv)`, …
     pub title: String,
     /// Indices into [`ParameterTable::rows`], in file order.
     pub rows: Vec<usize>,
@@ -106,8 +107,13 @@ impl TableSection {
         if sets.len() < 2 {
             return Vec::new();
         }
+        let shared = if result.source.as_deref() == Some(robimu_session::SOURCE_POSES) {
+            "shared: gravity"
+        } else {
+            "shared: robot errors and gravity"
+        };
         let mut out = vec![Self {
-            title: "shared: robot errors and gravity".into(),
+            title: shared.into(),
             rows: sets.shared.clone(),
         }];
         for (j, rows) in sets.imus.iter().enumerate() {
@@ -593,5 +599,40 @@ mod tests {
                 k - 1
             )));
         }
+    }
+
+    /// A pose session's result of two IMUs (docs/model.md §7.9): no
+    /// robot, so its shared section is gravity's alone.
+    #[test]
+    fn a_pose_results_shared_section_is_gravity() {
+        let names = robimu_session::pose_parameter_names(2);
+        let params = names
+            .iter()
+            .map(|n| param(n, "1", 0.5, 0.1, false))
+            .collect();
+        let cov = (0..58)
+            .map(|a| (0..58).map(|b| if a == b { 0.01 } else { 0.0 }).collect())
+            .collect();
+        let mut r = result(params, cov);
+        r.source = Some(robimu_session::SOURCE_POSES.into());
+        let table = ParameterTable::new(&r, None);
+        let titles: Vec<&str> = table.sections.iter().map(|s| s.title.as_str()).collect();
+        assert_eq!(
+            titles,
+            ["shared: gravity", "IMU 0 (imu.csv)", "IMU 1 (imu1.csv)"]
+        );
+        let shared: Vec<&str> = table.sections[0]
+            .rows
+            .iter()
+            .map(|&i| table.rows[i].name.as_str())
+            .collect();
+        assert_eq!(shared, ["g_x", "g_y"]);
+        let text = table.to_string();
+        assert!(text.contains("-- shared: gravity"), "{text}");
+        assert!(!text.contains("robot"), "{text}");
+        // a joint result of two IMUs keeps its robot errors' title
+        let (joint, _) = fixture(2);
+        let title = &ParameterTable::new(&joint, None).sections[0].title;
+        assert_eq!(title, "shared: robot errors and gravity");
     }
 }

@@ -20,6 +20,7 @@
 //! ```
 //! Unknown keys are kept out of the way (ignored), as the contract allows.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use robimu_model::noise::{ArNoise, ChannelNoise, NoiseModel, NoiseModelError};
@@ -70,6 +71,51 @@ pub struct SessionMeta {
     /// (docs/model.md §9). Read from those tables (which keep them).
     #[serde(skip)]
     pub mounts: std::collections::BTreeMap<usize, MountPrior>,
+}
+
+/// The `[imu<j>]` tables of a `session.toml` document `doc`, a joint or a
+/// pose session's (docs/model.md §9): the description of IMU j ≥ 1; each must
+/// be a table. `path` names the file in errors.
+pub(crate) fn imu_tables(
+    doc: &toml::Table,
+    path: &Path,
+) -> Result<BTreeMap<usize, toml::Table>, SessionError> {
+    let mut tables = BTreeMap::new();
+    for (key, value) in doc {
+        let Some(j) = crate::files::imu_number(key) else {
+            continue;
+        };
+        let toml::Value::Table(t) = value else {
+            return Err(SessionError::file(
+                path,
+                format!("`{key}` must be a table ([{key}]) describing IMU {j}"),
+            ));
+        };
+        tables.insert(j, t.clone());
+    }
+    Ok(tables)
+}
+
+/// The `mount` sub-tables of `[imu]` (`imu`, IMU 0) and of the `[imu<j>]`
+/// `tables` as [`MountPrior`]s by IMU, a joint or a pose session's
+/// (docs/model.md §9); an unknown key is refused naming the table.
+pub(crate) fn mount_priors(
+    imu: Option<&toml::Table>,
+    tables: &BTreeMap<usize, toml::Table>,
+    path: &Path,
+) -> Result<BTreeMap<usize, MountPrior>, SessionError> {
+    let named = imu.map(|t| (0, "imu".to_string(), t));
+    let named = named
+        .into_iter()
+        .chain(tables.iter().map(|(j, t)| (*j, format!("imu{j}"), t)));
+    let mut mounts = BTreeMap::new();
+    for (j, name, t) in named {
+        let Some(m) = t.get("mount") else { continue };
+        let m = MountPrior::deserialize(m.clone())
+            .map_err(|e| SessionError::file(path, format!("[{name}.mount]: {}", e.message())))?;
+        mounts.insert(j, m);
+    }
+    Ok(mounts)
 }
 
 /// An IMU's mount prior in `session.toml` (`[imu.mount]`, `[imu<j>.mount]`,
@@ -464,37 +510,8 @@ impl SessionMeta {
             noise.validate(path)?;
         }
         meta.noise_shape = NoiseShape::parse(text, path)?;
-        for (key, value) in doc {
-            let Some(j) = crate::files::imu_number(&key) else {
-                continue;
-            };
-            match value {
-                toml::Value::Table(t) => {
-                    meta.imu_tables.insert(j, t);
-                }
-                _ => {
-                    return Err(SessionError::file(
-                        path,
-                        format!("`{key}` must be a table ([{key}]) describing IMU {j}"),
-                    ))
-                }
-            }
-        }
-        let tables = meta.imu.iter().map(|t| (0, "imu".to_string(), t));
-        let tables = tables.chain(
-            meta.imu_tables
-                .iter()
-                .map(|(j, t)| (*j, format!("imu{j}"), t)),
-        );
-        let mut mounts = std::collections::BTreeMap::new();
-        for (j, name, t) in tables {
-            let Some(m) = t.get("mount") else { continue };
-            let m = MountPrior::deserialize(m.clone()).map_err(|e| {
-                SessionError::file(path, format!("[{name}.mount]: {}", e.message()))
-            })?;
-            mounts.insert(j, m);
-        }
-        meta.mounts = mounts;
+        meta.imu_tables = imu_tables(&doc, path)?;
+        meta.mounts = mount_priors(meta.imu.as_ref(), &meta.imu_tables, path)?;
         Ok(meta)
     }
 

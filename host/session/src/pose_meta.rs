@@ -12,7 +12,19 @@
 //! sigma_z = [0.38, 0.21, 0.19, 0.0056, 0.0082, 0.0099]   # m/s² ×3, rad/s ×3
 //! ar_z = [[0.9], [0.9], [0.9], [], [], []]   # optional, AR(p) φ per IMU channel
 //! [imu]                      # optional, free-form description of the device
+//! [imu.mount]                # optional, IMU 0's prior (keys of §9's mount table)
+//! position = [0.02, 0.0, 0.05]   # m, p_imu on the posed body
+//! position_sigma = 0.005     # m
+//! r_a = [0.0, 0.0, 3.14159]  # rad, the sensor rotations' prior means
+//! r_w = [0.0, 0.0, 3.14159]
+//! rotation_sigma = 0.05      # rad
+//! [imu1]                     # optional, IMU 1's description; [imu1.mount] its prior
 //! ```
+//!
+//! The mount tables are read by the joint session's reader
+//! ([`crate::meta`]); a missing key keeps MODEL.md §10's prior (IMU 0:
+//! p_imu 0 ± 0.2 m, the sensor rotations found from the data with no
+//! informative prior) or IMU 0's key (IMU j ≥ 1), as in a joint session.
 //!
 //! Unknown top-level keys are ignored, as in a joint session; the keys of
 //! `[poses]` are checked (a typo there would silently change the weights).
@@ -23,7 +35,11 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::error::toml_error;
-use super::{NoiseOverride, NoiseShape, SessionError, SessionSource, SESSION_FORMAT, SOURCE_POSES};
+use super::meta::{imu_tables, mount_priors};
+use super::{
+    MountPrior, NoiseOverride, NoiseShape, SessionError, SessionSource, SESSION_FORMAT,
+    SOURCE_POSES,
+};
 
 /// The `[poses]` table: the pose noise of docs/model.md §7.9, as standard
 /// deviations.
@@ -68,6 +84,11 @@ pub struct PoseSessionMeta {
     /// The `[imu<j>]` tables of IMU j ≥ 1 (docs/model.md §9).
     #[serde(skip)]
     pub imu_tables: BTreeMap<usize, toml::Table>,
+    /// The `mount` sub-tables of `[imu]` (IMU 0) and `[imu<j>]`: each IMU's
+    /// prior where it differs from MODEL.md §10's. Read from those tables
+    /// (which keep them).
+    #[serde(skip)]
+    pub mounts: BTreeMap<usize, MountPrior>,
 }
 
 impl Default for PoseSessionMeta {
@@ -82,6 +103,7 @@ impl Default for PoseSessionMeta {
             notes: None,
             noise_shape: None,
             imu_tables: BTreeMap::new(),
+            mounts: BTreeMap::new(),
         }
     }
 }
@@ -132,23 +154,53 @@ impl PoseSessionMeta {
                  session has no joints (leave it out)",
             ));
         }
-        for (key, value) in doc {
-            let Some(j) = crate::files::imu_number(&key) else {
-                continue;
+        meta.imu_tables = imu_tables(&doc, path)?;
+        meta.mounts = mount_priors(meta.imu.as_ref(), &meta.imu_tables, path)?;
+        meta.validate_mounts(path)?;
+        Ok(meta)
+    }
+
+    /// Every mount prior's numbers finite and its σ positive; a
+    /// `rotation_sigma` only beside prior means of the rotations (its own
+    /// `r_a` or `r_w`, or IMU 0's): a pose session finds the rotations from
+    /// the data, and a σ around those would count the data twice.
+    fn validate_mounts(&self, path: &Path) -> Result<(), SessionError> {
+        let base = self.mounts.get(&0).copied().unwrap_or_default();
+        for (&j, m) in &self.mounts {
+            let name = if j == 0 {
+                "imu".into()
+            } else {
+                format!("imu{j}")
             };
-            match value {
-                toml::Value::Table(t) => {
-                    meta.imu_tables.insert(j, t);
-                }
-                _ => {
-                    return Err(SessionError::file(
-                        path,
-                        format!("`{key}` must be a table ([{key}]) describing IMU {j}"),
-                    ))
+            let bad =
+                |what: String| Err(SessionError::file(path, format!("[{name}.mount] {what}")));
+            let vectors = [("position", m.position), ("r_a", m.r_a), ("r_w", m.r_w)];
+            for (key, v) in vectors {
+                if let Some(v) = v.filter(|v| v.iter().any(|x| !x.is_finite())) {
+                    return bad(format!(
+                        "{key} = {v:?}: every component must be a finite number"
+                    ));
                 }
             }
+            for (key, v) in [
+                ("position_sigma", m.position_sigma),
+                ("rotation_sigma", m.rotation_sigma),
+            ] {
+                if let Some(v) = v.filter(|v| !(v.is_finite() && *v > 0.0)) {
+                    return bad(format!("{key} = {v} must be a positive number"));
+                }
+            }
+            let given = m.or(&base);
+            if m.rotation_sigma.is_some() && given.r_a.is_none() && given.r_w.is_none() {
+                return bad(
+                    "rotation_sigma without r_a or r_w: a pose session finds the sensor \
+                     rotations from the data (docs/model.md §7.9); give their prior means too, \
+                     or leave rotation_sigma out"
+                        .into(),
+                );
+            }
         }
-        Ok(meta)
+        Ok(())
     }
 
     /// Every number a positive one; no joint noise.
@@ -271,5 +323,52 @@ mod tests {
         assert!(e.to_string().contains("ar_z"), "{e}");
         let e = parse(&format!("{HEAD}gravity = 0\n")).unwrap_err();
         assert!(e.to_string().contains("gravity = 0"), "{e}");
+    }
+
+    #[test]
+    fn mount_priors_are_read_per_imu_by_the_joint_reader() {
+        let text = format!(
+            "{HEAD}[imu]\nmodel = \"a\"\n[imu.mount]\nposition = [0.01, 0.02, 0.03]\n\
+             r_a = [0.1, 0.2, 0.3]\nrotation_sigma = 0.05\n\
+             [imu1]\n[imu1.mount]\nposition_sigma = 0.001\nrotation_sigma = 0.02\n"
+        );
+        let m = parse(&text).unwrap();
+        assert_eq!(m.mounts.len(), 2);
+        assert_eq!(m.mounts[&0].position, Some([0.01, 0.02, 0.03]));
+        assert_eq!(m.mounts[&0].r_a, Some([0.1, 0.2, 0.3]));
+        assert_eq!(m.mounts[&1].position_sigma, Some(0.001));
+        assert_eq!(m.mounts[&1].position, None);
+        // the tables keep them: written and read again, the same priors
+        assert_eq!(parse(&m.to_toml()).unwrap().mounts, m.mounts);
+        // the same tables read by the joint reader give the same priors
+        let joint = crate::SessionMeta::parse(
+            &text.replace("source = \"poses\"", "robot = \"aubo_i5\""),
+            Path::new("j.toml"),
+        )
+        .unwrap();
+        assert_eq!(joint.mounts, m.mounts);
+    }
+
+    #[test]
+    fn bad_mount_priors_name_the_table_and_key() {
+        let bad = |t: &str| parse(&format!("{HEAD}{t}")).unwrap_err().to_string();
+        let e = bad("[imu1.mount]\nposition_sigma = 0\n");
+        assert!(e.contains("[imu1.mount] position_sigma = 0"), "{e}");
+        let e = bad("[imu.mount]\nr_w = [0, nan, 0]\n");
+        assert!(e.contains("[imu.mount] r_w") && e.contains("finite"), "{e}");
+        let e = bad("[imu.mount]\nposition = [0, 0]\n");
+        assert!(e.contains("[imu.mount]"), "{e}");
+        let e = bad("[imu.mount]\nsigma = 1\n");
+        assert!(e.contains("[imu.mount]") && e.contains("sigma"), "{e}");
+        let e = bad("[imu2.mount]\nrotation_sigma = 0.1\n");
+        assert!(
+            e.contains("[imu2.mount] rotation_sigma without r_a or r_w"),
+            "{e}"
+        );
+        // IMU 0's rotation means make IMU j's σ meaningful
+        parse(&format!(
+            "{HEAD}[imu.mount]\nr_w = [0, 0, 1]\n[imu2.mount]\nrotation_sigma = 0.1\n"
+        ))
+        .unwrap();
     }
 }

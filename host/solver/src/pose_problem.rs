@@ -15,6 +15,8 @@
 //! the 4 control points at its time, so the Gauss–Newton matrix is an
 //! [`ArrowMatrix`] of half-bandwidth 23 bordered by x.
 
+use std::ops::Range;
+
 use faer::Mat;
 use robimu_model::geom::{mul_mm, M3, V3};
 use robimu_model::pose_measurement::rows::{
@@ -121,6 +123,30 @@ struct Block {
     r: [f64; 6],
 }
 
+/// Where the compact columns of IMU j's sample rows ([`pm::rows`]) go in
+/// θ: local column l < 24 is the band unknown 6·first + l (the 4 control
+/// points from `first`), l ≥ 24 is x's entry `x_index[l − 24]` (IMU j's
+/// 30-vector, [`imu_indices`]), at nc + that in θ.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Columns {
+    /// Band unknowns (θ's x starts here).
+    nc: usize,
+    /// x's index of each entry of the IMU's 30-vector.
+    x_index: [usize; POSE_PARAMS],
+}
+
+impl Columns {
+    /// θ's index of local column `l` of a row whose first control point is
+    /// `first`.
+    pub(crate) fn theta(&self, first: usize, l: usize) -> usize {
+        if l < CTRL {
+            PER_CONTROL * first + l
+        } else {
+            self.nc + self.x_index[l - CTRL]
+        }
+    }
+}
+
 impl PoseProblem {
     /// A problem about the initial spline `base` (θ's c = 0 is `base`).
     pub fn new(base: PoseSpline, data: PoseData) -> Result<Self, PoseProblemError> {
@@ -177,6 +203,14 @@ impl PoseProblem {
     /// Number of parameters x (2 + 28·K).
     pub fn n_x(&self) -> usize {
         pm::n_pose_params(self.n_imus())
+    }
+
+    /// The column map of IMU `j`'s rows.
+    pub(crate) fn columns(&self, j: usize) -> Columns {
+        Columns {
+            nc: self.n_band(),
+            x_index: imu_indices(j),
+        }
     }
 
     fn imu(&self, j: usize) -> ImuRef<'_> {
@@ -282,6 +316,23 @@ impl PoseProblem {
         Ok(out)
     }
 
+    /// IMU `j`'s selected samples at θ: (t_i, z_i − ẑ_i), measured minus
+    /// predicted, not whitened (m/s², rad/s).
+    pub fn imu_residuals(
+        &self,
+        theta: &[f64],
+        j: usize,
+    ) -> Result<Vec<(f64, [f64; 6])>, PoseProblemError> {
+        let (sp, imu) = (self.spline(theta)?, self.imu(j));
+        let xj = imu_view(self.x(theta), j);
+        (self.selected[j].iter())
+            .map(|&i| {
+                let z = pm::predict(&sp, imu.t[i], &xj)?;
+                Ok((imu.t[i], std::array::from_fn(|c| imu.z[i][c] - z[c])))
+            })
+            .collect()
+    }
+
     /// Right Jacobians J_r(φ_k) of the rotation unknowns (∂δ/∂φ).
     fn right_jacobians(&self, theta: &[f64]) -> Vec<M3> {
         (0..self.base.num_control_points())
@@ -382,19 +433,11 @@ impl Segment {
         self.gyro.add(&rows.gyro, &w[3..], &wr[3..]);
     }
 
-    /// Add the sums to `a`, `g` (the x columns at `x_index`) and start
-    /// empty.
-    fn flush(
-        &mut self,
-        a: &mut ArrowMatrix,
-        g: &mut [f64],
-        nc: usize,
-        x_index: &[usize; POSE_PARAMS],
-    ) {
+    /// Add the sums to `a`, `g` (the columns at `cols`) and start empty.
+    fn flush(&mut self, a: &mut ArrowMatrix, g: &mut [f64], cols: &Columns) {
         if self.first == usize::MAX {
             return;
         }
-        let n = CTRL + POSE_PARAMS;
         self.local.fill(0.0);
         let mut grad = [0.0; CTRL + POSE_PARAMS];
         for p in 0..ACCEL_COLS {
@@ -413,15 +456,11 @@ impl Segment {
             }
             grad[lp] += self.gyro.g[p];
         }
-        let c0 = PER_CONTROL * self.first;
-        for p in 0..n {
-            if p < CTRL {
-                g[c0 + p] += grad[p];
-            } else {
-                g[nc + x_index[p - CTRL]] += grad[p];
-            }
+        for (p, v) in grad.iter().enumerate() {
+            g[cols.theta(self.first, p)] += v;
         }
-        a.add_local(c0, CTRL, x_index, self.local.as_ref());
+        let c0 = PER_CONTROL * self.first;
+        a.add_local(c0, CTRL, &cols.x_index, self.local.as_ref());
         self.accel.clear();
         self.gyro.clear();
         self.first = usize::MAX;
@@ -445,6 +484,11 @@ fn through_right_jacobians(rows: &mut PoseRows, jr: &[M3]) {
     }
 }
 
+/// `0..n` in two halves.
+fn halves(n: usize) -> [Range<usize>; 2] {
+    [0..n / 2, n / 2..n]
+}
+
 /// Add a pose block's JᵀJ and Jᵀr (band columns only).
 fn accumulate_pose(a: &mut ArrowMatrix, g: &mut [f64], b: &Block, local: &mut Mat<f64>) {
     let c0 = PER_CONTROL * b.first;
@@ -458,34 +502,35 @@ fn accumulate_pose(a: &mut ArrowMatrix, g: &mut [f64], b: &Block, local: &mut Ma
 }
 
 impl PoseProblem {
-    /// Add IMU `j`'s selected samples' normal equations at `sp`, x (segment
+    /// Add IMU `j`'s selected samples `part` (positions in its selection)
+    /// normal equations at `sp`, x (segment
     /// by segment, [`Segment`]; its 30-vector's columns at
     /// [`imu_indices`]); their cost.
     fn linearize_imu(
         &self,
-        j: usize,
+        (j, part): (usize, Range<usize>),
         sp: &PoseSpline,
         jr: &[M3],
         x: &[f64],
         a: &mut ArrowMatrix,
         g: &mut [f64],
     ) -> Result<f64, PoseProblemError> {
-        let (imu, x_index) = (self.imu(j), imu_indices(j));
+        let (imu, cols) = (self.imu(j), self.columns(j));
         let ctx = RowContext::new(&imu_view(x, j))?;
         let w: [f64; 6] = imu.sigma_z.map(|s| 1.0 / s);
         let (mut seg, mut seeds, mut cost) = (Segment::new(), SegmentCache::default(), 0.0);
-        for &i in &self.selected[j] {
+        for &i in &self.selected[j][part] {
             let mut rows = prediction_rows(sp, imu.t[i], &ctx, &mut seeds)?;
             through_right_jacobians(&mut rows, jr);
             if rows.first != seg.first {
-                seg.flush(a, g, self.n_band(), &x_index);
+                seg.flush(a, g, &cols);
                 seg.first = rows.first;
             }
             let wr: [f64; 6] = std::array::from_fn(|c| (rows.z[c] - imu.z[i][c]) * w[c]);
             cost += 0.5 * wr.iter().map(|r| r * r).sum::<f64>();
             seg.add(&rows, &w, &wr);
         }
-        seg.flush(a, g, self.n_band(), &x_index);
+        seg.flush(a, g, &cols);
         Ok(cost)
     }
 }
@@ -502,6 +547,8 @@ impl LeastSquares for PoseProblem {
         Ok(0.5 * self.residuals(theta)?.iter().map(|r| r * r).sum::<f64>())
     }
 
+    /// The samples in two halves, one per thread ([`robimu_model::pair`]),
+    /// as the joint-angle problem's linearisation.
     fn linearize(
         &self,
         theta: &[f64],
@@ -510,23 +557,30 @@ impl LeastSquares for PoseProblem {
     ) -> Result<f64, Self::Error> {
         a.clear();
         g.fill(0.0);
-        let (sp, jr, nc) = (
-            self.spline(theta)?,
-            self.right_jacobians(theta),
-            self.n_band(),
-        );
+        let (sp, jr) = (self.spline(theta)?, self.right_jacobians(theta));
         let x = self.x(theta);
-        let mut local = Mat::zeros(CTRL, CTRL);
-        let mut cost = 0.0;
-        for k in 0..self.data.pose_t.len() {
-            let b = self.pose_block(&sp, &jr, k)?;
-            cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
-            accumulate_pose(a, g, &b, &mut local);
+        let (mut a2, mut g2) = (self.new_matrix(), vec![0.0; g.len()]);
+        let half = |h: usize, a: &mut ArrowMatrix, g: &mut [f64]| {
+            let mut local = Mat::zeros(CTRL, CTRL);
+            let mut cost = 0.0;
+            for k in halves(self.data.pose_t.len())[h].clone() {
+                let b = self.pose_block(&sp, &jr, k)?;
+                cost += 0.5 * b.r.iter().map(|r| r * r).sum::<f64>();
+                accumulate_pose(a, g, &b, &mut local);
+            }
+            for j in 0..self.n_imus() {
+                let part = halves(self.selected[j].len())[h].clone();
+                cost += self.linearize_imu((j, part), &sp, &jr, x, a, g)?;
+            }
+            Ok::<_, PoseProblemError>(cost)
+        };
+        let (c1, c2) = robimu_model::pair::join(|| half(0, a, g), || half(1, &mut a2, &mut g2));
+        let mut cost = c1? + c2?;
+        a.add_assign(&a2);
+        for (u, v) in g.iter_mut().zip(&g2) {
+            *u += v;
         }
-        for j in 0..self.n_imus() {
-            cost += self.linearize_imu(j, &sp, &jr, x, a, g)?;
-        }
-        let d = &self.data;
+        let (d, nc) = (&self.data, self.n_band());
         for k in 0..x.len() {
             let w = 1.0 / (d.prior_sigma[k] * d.prior_sigma[k]);
             let e = x[k] - d.prior_mean[k];

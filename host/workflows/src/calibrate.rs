@@ -18,7 +18,7 @@ pub mod noise_choice;
 mod sandwich;
 pub mod sandwich_fit;
 #[cfg(test)]
-mod sandwich_montecarlo;
+pub(crate) mod sandwich_montecarlo;
 #[cfg(test)]
 mod tau_search_tests;
 

@@ -7,8 +7,9 @@
 //! builds the files from the result and the resolved robot and writes them,
 //! telling its caller what it wrote and what it noted ([`Notice`]). A pose
 //! session's result (docs/model.md §7.9: no robot) exports its IMU through
-//! [`export_poses`]: the same Kalibr and correction files; the robot
-//! formats are refused naming why.
+//! [`export_poses`]: the same Kalibr and correction files, through the same
+//! code (`export_imus`, one IMU or several); the robot formats are refused
+//! naming why.
 
 use std::path::{Path, PathBuf};
 
@@ -129,70 +130,29 @@ pub fn export(
     if let Some(note) = result.effects_not_carried(format) {
         notify(Notice::Note(note));
     }
-    let k = result.imu_count();
-    if let Some(j) = req.imu {
-        ex.view(j)?;
+    if matches!(req.format, ExportFormat::Kalibr | ExportFormat::Correction) {
+        let session = match req.format {
+            ExportFormat::Kalibr => result
+                .session
+                .as_deref()
+                .and_then(|d| Session::load(Path::new(d)).ok()),
+            _ => None,
+        };
+        let imus = JointImus {
+            ex,
+            session: session.as_ref(),
+        };
+        return export_imus(req, result.imu_count(), &imus, notify);
     }
-    let chosen: Vec<usize> = match req.imu {
-        Some(j) => vec![j],
-        None => (0..k).collect(),
-    };
-    let rostopics = rostopics(req, k)?;
-    let session = match req.format {
-        ExportFormat::Kalibr => result
-            .session
-            .as_deref()
-            .and_then(|d| Session::load(Path::new(d)).ok()),
-        _ => None,
-    };
-    let session = session.as_ref();
-    let text = match req.format {
-        ExportFormat::Kalibr if k > 1 => {
-            let mut views = Vec::new();
-            for (j, topic) in rostopics.iter().enumerate() {
-                let (view, params) = ex.imu_params(j)?;
-                let opts = ex.kalibr_options(&view, session, j, topic, notify)?;
-                views.push((params, opts));
-            }
-            let imus: Vec<KalibrImu<'_>> = views
-                .iter()
-                .map(|(p, o)| KalibrImu {
-                    params: p,
-                    opts: o,
-                    placement: KalibrPlacement::relative(&views[0].0, p),
-                })
-                .collect();
-            if let Some(j) = req.imu {
-                kalibr_imu_input_yaml(j, &imus)
-            } else {
-                for j in 0..k {
-                    let path = per_imu_path(&req.out, j);
-                    write_file(&path, &kalibr_imu_input_yaml(j, &imus), notify)?;
-                }
-                kalibr_imu_list_yaml(&imus)
-            }
-        }
-        ExportFormat::Correction if chosen.len() > 1 => {
-            for &j in &chosen {
-                let (_, params) = ex.imu_params(j)?;
-                let text = Correction::new(&params)
-                    .with_context(|| format!("IMU {j}"))?
-                    .to_toml()?;
-                write_file(&per_imu_path(&req.out, j), &text, notify)?;
-            }
-            return Ok(());
-        }
-        format => {
-            let j = req.imu.unwrap_or(0);
-            if k > 1 && req.imu.is_none() {
-                notify(Notice::Note(format!(
-                    "the result has {k} IMUs: the robot carries IMU 0's position (--imu J for another)"
-                )));
-            }
-            let (view, params) = ex.imu_params(j)?;
-            ex.one(format, &view, &params, session, &rostopics[j], notify)?
-        }
-    };
+    let k = result.imu_count();
+    let j = req.imu.unwrap_or(0);
+    if k > 1 && req.imu.is_none() {
+        notify(Notice::Note(format!(
+            "the result has {k} IMUs: the robot carries IMU 0's position (--imu J for another)"
+        )));
+    }
+    let (_, params) = ex.imu_params(j)?;
+    let text = ex.robot_file(req.format, &params, notify)?;
     write_file(&req.out, &text, notify)
 }
 
@@ -293,14 +253,11 @@ impl Exporter<'_> {
         Ok((view, params))
     }
 
-    /// The export of one IMU's parameters (`view`, `params`).
-    fn one(
+    /// The calibrated robot in a robot `format` with one IMU's `params`.
+    fn robot_file(
         &self,
         format: ExportFormat,
-        view: &CalibrationResult,
         params: &ModelParams,
-        session: Option<&Session>,
-        rostopic: &str,
         notify: &mut dyn FnMut(Notice),
     ) -> anyhow::Result<String> {
         let (req, spec) = (self.req, self.req.spec.as_str());
@@ -319,7 +276,6 @@ impl Exporter<'_> {
                 }
                 text
             }
-            ExportFormat::Correction => Correction::new(params)?.to_toml()?,
             ExportFormat::Ros2Control => ros2_control(self.robot, params, notify)?,
             ExportFormat::Urdf => {
                 let path = match &req.spec_base {
@@ -345,13 +301,20 @@ impl Exporter<'_> {
                     corrected_urdf(&robot_to_urdf(self.robot), &UrdfOptions::default(), params)?
                 }
             }
-            ExportFormat::Kalibr => {
-                let j = req.imu.unwrap_or(0);
-                let opts = self.kalibr_options(view, session, j, rostopic, notify)?;
-                kalibr_imu_yaml(params, &opts)
+            ExportFormat::Kalibr | ExportFormat::Correction => {
+                bail!("not a robot format: the IMU formats are export_imus'")
             }
         })
     }
+}
+
+/// The IMUs of a result as the IMU formats (Kalibr, correction) take them:
+/// a joint session's through its robot ([`JointImus`]), a pose session's
+/// without one ([`PoseImus`]).
+trait ImuSource {
+    /// IMU `j`'s one-IMU view of the result (docs/model.md §9) and its
+    /// parameters.
+    fn imu_params(&self, j: usize) -> anyhow::Result<(CalibrationResult, ModelParams)>;
 
     /// The Kalibr options of IMU `j` (its one-IMU view `view`): the sample
     /// rate from the request or the session's `imu.csv` / `imu<j>.csv`, the
@@ -359,31 +322,165 @@ impl Exporter<'_> {
     fn kalibr_options(
         &self,
         view: &CalibrationResult,
-        session: Option<&Session>,
+        j: usize,
+        rostopic: &str,
+        notify: &mut dyn FnMut(Notice),
+    ) -> anyhow::Result<KalibrOptions>;
+}
+
+/// A joint session's IMUs: parameters through the robot, rate and noise
+/// from the session (when readable) or the robot.
+struct JointImus<'a> {
+    ex: Exporter<'a>,
+    session: Option<&'a Session>,
+}
+
+impl ImuSource for JointImus<'_> {
+    fn imu_params(&self, j: usize) -> anyhow::Result<(CalibrationResult, ModelParams)> {
+        self.ex.imu_params(j)
+    }
+
+    fn kalibr_options(
+        &self,
+        view: &CalibrationResult,
         j: usize,
         rostopic: &str,
         notify: &mut dyn FnMut(Notice),
     ) -> anyhow::Result<KalibrOptions> {
-        let rate = sample_rate(self.req.rate, session, j)?;
-        let (sigma_z, noise_source) = match session {
+        let (req, robot) = (self.ex.req, self.ex.robot);
+        let imu_table = self.session.map(|s| {
+            if j == 0 {
+                Some(&s.imu)
+            } else {
+                s.extra_imus.get(j - 1).map(|t| &t.samples)
+            }
+        });
+        let rate = sample_rate(req.rate, imu_table, j)?;
+        let (sigma_z, noise_source) = match self.session {
+            Some(s) => (s.noise(robot)?.0, "session's noise"),
+            None => (robot.sigma_z(), "robot's noise"),
+        };
+        let noise_source = format!("largest per-sample σ of the {noise_source} / √rate");
+        kalibr_options(req, view, rate, (sigma_z, noise_source), rostopic, notify)
+    }
+}
+
+/// A pose session's IMUs (docs/model.md §7.9): parameters without a robot
+/// ([`pose_params`]), rate and noise from the pose session (when readable)
+/// or the pose calibration's defaults.
+struct PoseImus<'a> {
+    req: &'a ExportRequest,
+    result: &'a CalibrationResult,
+    session: Option<PoseSession>,
+}
+
+impl ImuSource for PoseImus<'_> {
+    fn imu_params(&self, j: usize) -> anyhow::Result<(CalibrationResult, ModelParams)> {
+        let shown = self.req.calibration.display();
+        let view = self
+            .result
+            .imu(j)
+            .map_err(|e| anyhow::anyhow!("{shown}: {e}"))?;
+        let params = pose_params(&view).with_context(|| format!("{shown}: not a pose result"))?;
+        Ok((view, params))
+    }
+
+    fn kalibr_options(
+        &self,
+        view: &CalibrationResult,
+        j: usize,
+        rostopic: &str,
+        notify: &mut dyn FnMut(Notice),
+    ) -> anyhow::Result<KalibrOptions> {
+        let session = self.session.as_ref();
+        let imu_table = session.map(|s| s.imus.get(j).map(|t| &t.samples));
+        let rate = sample_rate(self.req.rate, imu_table, j)?;
+        let (sigma_z, source) = match session {
             Some(s) => (
-                s.noise(self.robot)?.0,
-                "largest per-sample σ of the session's noise / √rate".to_string(),
+                crate::pipeline::poses::pose_options(&s.meta, |_| {}).sigma_z,
+                "largest per-sample σ of the session's noise / √rate",
             ),
             None => (
-                self.robot.sigma_z(),
-                "largest per-sample σ of the robot's noise / √rate".to_string(),
+                crate::pose_calibrate::PoseCalibrationOptions::default().sigma_z,
+                "largest per-sample σ of the pose calibration's default noise / √rate",
             ),
         };
         kalibr_options(
             self.req,
             view,
             rate,
-            (sigma_z, noise_source),
+            (sigma_z, source.into()),
             rostopic,
             notify,
         )
     }
+}
+
+/// The IMU formats of a result of `k` IMUs (docs/model.md §9), a joint or a
+/// pose session's alike: `--imu J` writes IMU J's file to `req.out`; else
+/// one IMU writes its file, several write Kalibr's IMU list to `req.out`
+/// and one file per IMU beside it ([`per_imu_path`]; the correction: the
+/// per-IMU files alone).
+fn export_imus(
+    req: &ExportRequest,
+    k: usize,
+    imus: &dyn ImuSource,
+    notify: &mut dyn FnMut(Notice),
+) -> anyhow::Result<()> {
+    let rostopics = rostopics(req, k)?;
+    if let Some(j) = req.imu {
+        imus.imu_params(j)?;
+    }
+    let text = match req.format {
+        ExportFormat::Kalibr if k > 1 => {
+            let mut views = Vec::new();
+            for (j, topic) in rostopics.iter().enumerate() {
+                let (view, params) = imus.imu_params(j)?;
+                let opts = imus.kalibr_options(&view, j, topic, notify)?;
+                views.push((params, opts));
+            }
+            let list: Vec<KalibrImu<'_>> = views
+                .iter()
+                .map(|(p, o)| KalibrImu {
+                    params: p,
+                    opts: o,
+                    placement: KalibrPlacement::relative(&views[0].0, p),
+                })
+                .collect();
+            if let Some(j) = req.imu {
+                kalibr_imu_input_yaml(j, &list)
+            } else {
+                for j in 0..k {
+                    let path = per_imu_path(&req.out, j);
+                    write_file(&path, &kalibr_imu_input_yaml(j, &list), notify)?;
+                }
+                kalibr_imu_list_yaml(&list)
+            }
+        }
+        ExportFormat::Correction if k > 1 && req.imu.is_none() => {
+            for j in 0..k {
+                let (_, params) = imus.imu_params(j)?;
+                let text = Correction::new(&params)
+                    .with_context(|| format!("IMU {j}"))?
+                    .to_toml()?;
+                write_file(&per_imu_path(&req.out, j), &text, notify)?;
+            }
+            return Ok(());
+        }
+        format => {
+            let j = req.imu.unwrap_or(0);
+            let (view, params) = imus.imu_params(j)?;
+            match format {
+                ExportFormat::Kalibr => {
+                    let opts = imus.kalibr_options(&view, j, &rostopics[j], notify)?;
+                    kalibr_imu_yaml(&params, &opts)
+                }
+                ExportFormat::Correction => Correction::new(&params)?.to_toml()?,
+                _ => bail!("not an IMU format: the robot formats need a robot"),
+            }
+        }
+    };
+    write_file(&req.out, &text, notify)
 }
 
 /// The Kalibr options of one IMU (its one-IMU view `view`) sampled at
@@ -453,7 +550,8 @@ pub fn is_pose_result(result: &CalibrationResult) -> bool {
 /// 24 sensor parameters as a joint session's; the robot formats are
 /// refused (a pose session has no robot). The sample rate and noise come
 /// from the request or the result's pose session. A result of several
-/// IMUs exports the one `--imu J` names (without it: an error saying so).
+/// IMUs is exported as a joint session's is ([`export_imus`]: Kalibr's IMU
+/// list and one file per IMU, or the one `--imu J` names).
 pub fn export_poses(
     req: &ExportRequest,
     result: &CalibrationResult,
@@ -480,45 +578,18 @@ pub fn export_poses(
     }) {
         notify(Notice::Note(note));
     }
-    let k = result.imu_count();
-    if k > 1 && req.imu.is_none() {
-        bail!(
-            "{}: the result has {k} IMUs (docs/model.md §9): --imu J exports IMU J's \
-             (0 to {}), one file per IMU",
-            req.calibration.display(),
-            k - 1
-        );
-    }
-    let j = req.imu.unwrap_or(0);
-    let view = result
-        .imu(j)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", req.calibration.display()))?;
-    let params = pose_params(&view)
-        .with_context(|| format!("{}: not a pose result", req.calibration.display()))?;
-    let text = match req.format {
-        ExportFormat::Correction => Correction::new(&params)?.to_toml()?,
-        _ => {
-            let topic = rostopics(req, result.imu_count())?[j].clone();
-            let session = result
+    let imus = PoseImus {
+        req,
+        result,
+        session: match req.format {
+            ExportFormat::Kalibr => result
                 .session
                 .as_deref()
-                .and_then(|d| PoseSession::read(Path::new(d)).ok());
-            let rate = pose_sample_rate(req.rate, session.as_ref(), j)?;
-            let (sigma_z, source) = match &session {
-                Some(s) => (
-                    crate::pipeline::poses::pose_options(&s.meta, |_| {}).sigma_z,
-                    "largest per-sample σ of the session's noise / √rate",
-                ),
-                None => (
-                    crate::pose_calibrate::PoseCalibrationOptions::default().sigma_z,
-                    "largest per-sample σ of the pose calibration's default noise / √rate",
-                ),
-            };
-            let opts = kalibr_options(req, &view, rate, (sigma_z, source.into()), &topic, notify)?;
-            kalibr_imu_yaml(&params, &opts)
-        }
+                .and_then(|d| PoseSession::read(Path::new(d)).ok()),
+            _ => None,
+        },
     };
-    write_file(&req.out, &text, notify)
+    export_imus(req, result.imu_count(), &imus, notify)
 }
 
 /// A pose result's IMU parameters as [`ModelParams`] of no robot: the 24
@@ -547,50 +618,21 @@ fn pose_params(view: &CalibrationResult) -> anyhow::Result<ModelParams> {
     })
 }
 
-/// IMU `j`'s sample rate for a pose result: `given`, else the median rate
-/// of the pose session's `imu.csv` / `imu<j>.csv`.
-fn pose_sample_rate(
+/// IMU `j`'s sample rate: `given`, else the median rate of its samples
+/// (`imu_table`: `None` when the result's session is not readable, `Some(None)`
+/// when it has no `imu.csv` / `imu<j>.csv`).
+fn sample_rate(
     given: Option<f64>,
-    session: Option<&PoseSession>,
+    imu_table: Option<Option<&robimu_session::Table>>,
     j: usize,
 ) -> anyhow::Result<f64> {
     let file = robimu_session::files::imu_csv(j);
-    let rate = match (given, session.map(|s| s.imus.get(j))) {
+    let rate = match (given, imu_table) {
         (Some(r), _) => r,
         (None, Some(Some(t))) => t
-            .samples
             .median_rate()
             .with_context(|| format!("the session's {file} has no sample interval: give --rate"))?,
         (None, Some(None)) => bail!("the result's session has no {file}: give --rate"),
-        (None, None) => bail!(
-            "the IMU sample rate is unknown (the result's pose session is not readable): give --rate"
-        ),
-    };
-    if !(rate.is_finite() && rate > 0.0) {
-        bail!("--rate {rate}: must be a positive number of Hz");
-    }
-    Ok(rate)
-}
-
-/// IMU `j`'s sample rate: `given`, else the median rate of the session's
-/// `imu.csv` / `imu<j>.csv`.
-fn sample_rate(given: Option<f64>, session: Option<&Session>, j: usize) -> anyhow::Result<f64> {
-    let file = robimu_session::files::imu_csv(j);
-    let imu_table = session.and_then(|s| {
-        if j == 0 {
-            Some(&s.imu)
-        } else {
-            s.extra_imus.get(j - 1).map(|t| &t.samples)
-        }
-    });
-    let rate = match (given, imu_table) {
-        (Some(r), _) => r,
-        (None, Some(t)) => t
-            .median_rate()
-            .with_context(|| format!("the session's {file} has no sample interval: give --rate"))?,
-        (None, None) if session.is_some() => {
-            bail!("the result's session has no {file}: give --rate")
-        }
         (None, None) => bail!(
             "the IMU sample rate is unknown (the result's session is not readable): give --rate"
         ),

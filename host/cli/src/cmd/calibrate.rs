@@ -52,7 +52,7 @@ impl CalibrateCmd {
                 self.out.as_deref(),
                 &self.fit,
                 self.windows.is_some(),
-                self.report.is_some(),
+                self.report.as_deref(),
             )
             .map(drop);
         }

@@ -126,9 +126,10 @@ pub struct SimulateCmd {
     /// Number of IMUs K on the flange (docs/model.md §9): one robot motion,
     /// each IMU j its own 28 truths (position, tau, intrinsics) drawn from
     /// the priors, written to imu.csv, imu1.csv, … and truth.toml
-    /// (`imu1/tau`, …). With --source poses (hand-held motion only) each
-    /// IMU j has its own p_imu, tau, mount rotation and intrinsics, g
-    /// shared.
+    /// (`imu1/tau`, …). With --source poses each IMU j has its own p_imu,
+    /// tau, sensor rotations and intrinsics, g shared: hand-held, its mount
+    /// rotation drawn uniformly; with --robot, the robot's IMU j on the
+    /// flange as here (--imu-position places it).
     #[arg(long, default_value_t = 1, value_name = "K")]
     pub imus: usize,
     /// `J=X,Y,Z`: IMU J mounted at (X, Y, Z) m on the flange (a plate of
@@ -186,13 +187,17 @@ impl SimulateCmd {
         if !joint_only.is_empty() {
             bail!(
                 "{}: not for --source poses (a pose session has no joints; it takes --out, \
-                 --duration, --seed, --rate, --robot, --imus, --pose-rate, --pose-jitter, \
+                 --duration, --seed, --rate, --robot, --imus, --imu-position with --robot, \
+                 --pose-rate, --pose-jitter, \
                  --imu-jitter, --imu-drift and --effect of an IMU-side effect)",
                 joint_only.join(", ")
             );
         }
         let robot = match &self.robot {
-            Some(name) => Some(resolve_robot_with(name, None, &self.links)?.0),
+            Some(name) => {
+                let robot = resolve_robot_with(name, None, &self.links)?.0;
+                Some(place_imus(robot, self.imus.max(1), &self.imu_position)?)
+            }
             None => None,
         };
         Ok(simulate_pose_dir(&PoseSessionSpec {
@@ -234,7 +239,10 @@ impl SimulateCmd {
                 "--resonance-hz/--resonance-zeta",
             ),
             (self.noise_model.is_some(), "--noise-model"),
-            (!self.imu_position.is_empty(), "--imu-position"),
+            (
+                !self.imu_position.is_empty() && self.robot.is_none(),
+                "--imu-position without --robot",
+            ),
         ]
         .into_iter()
         .filter_map(|(given, name)| given.then_some(name))

@@ -18,12 +18,12 @@ use crate::args::CalibrateFlags;
 use crate::input::{output_path, Progress};
 
 /// The flags of `robimu calibrate` that a pose session does not take,
-/// given with other than their defaults (`--knot-spacing` it takes).
-pub fn joint_only_flags(flags: &CalibrateFlags, windows: bool, report: bool) -> Vec<&'static str> {
+/// given with other than their defaults (`--knot-spacing` and `--report`
+/// it takes).
+pub fn joint_only_flags(flags: &CalibrateFlags, windows: bool) -> Vec<&'static str> {
     let d = CalibrateFlags::default();
     [
         (windows, "--windows"),
-        (report, "--report"),
         (!flags.freeze.is_empty(), "--freeze"),
         (flags.no_prior, "--no-prior"),
         (flags.noise.is_some(), "--noise"),
@@ -45,15 +45,17 @@ pub fn joint_only_flags(flags: &CalibrateFlags, windows: bool, report: bool) -> 
 }
 
 /// Calibrate the pose session in `dir`, print the verdict and the table,
-/// write the result file (`out`, default result.json in `dir`).
+/// write the result file (`out`, default result.json in `dir`), its
+/// convergence log and, with `report`, the HTML report into that
+/// directory.
 pub fn calibrate_pose_dir(
     dir: &Path,
     out: Option<&Path>,
     flags: &CalibrateFlags,
     windows: bool,
-    report: bool,
+    report: Option<&Path>,
 ) -> anyhow::Result<PoseFitted> {
-    let refused = joint_only_flags(flags, windows, report);
+    let refused = joint_only_flags(flags, windows);
     if !refused.is_empty() {
         bail!(
             "{}: {} a pose session (source = \"poses\", docs/model.md §7.9), which takes \
@@ -90,8 +92,13 @@ pub fn calibrate_pose_dir(
     progress.finish();
     let fitted = fitted?;
     print_fit(&mut stdout, &fitted)?;
-    fitted.write(&path)?;
+    let history = fitted.write(&path)?;
     writeln!(stdout, "wrote {}", path.display())?;
+    writeln!(stdout, "wrote {}", history.display())?;
+    if let Some(dir) = report {
+        let page = robimu_report::result_report::write_pose_fit_report(dir, &fitted)?;
+        writeln!(stdout, "wrote {}", page.display())?;
+    }
     Ok(fitted)
 }
 

@@ -10,13 +10,13 @@
 //! [`PoseProblem::linearize`]). The test projects every unknown of θ out
 //! with the fit's Gauss–Newton matrix A: V = D + P − Bᵀ A⁻¹ B.
 
+use robimu_model::pose_measurement::imu_view;
 use robimu_model::pose_measurement::inertial::{dz_dt_of, PoseImuSample};
 use robimu_model::pose_measurement::rows::{
     prediction_rows, RowContext, SegmentCache, ACCEL_COLS, GYRO_LOCAL,
 };
-use robimu_model::pose_measurement::{imu_indices, imu_view, CTRL};
 
-use super::{through_right_jacobians, PoseData, PoseProblem, PoseProblemError, PER_CONTROL};
+use super::{through_right_jacobians, PoseData, PoseProblem, PoseProblemError};
 
 /// The sums of the module doc.
 #[derive(Debug, Clone, PartialEq)]
@@ -52,16 +52,8 @@ impl PoseProblem {
         k: usize,
         mut columns: impl FnMut(usize, &PoseImuSample<'_>, &mut [[f64; 6]]),
     ) -> Result<ExtraSums, PoseProblemError> {
-        let (sp, jr, nc) = (
-            self.spline(theta)?,
-            self.right_jacobians(theta),
-            self.n_band(),
-        );
-        let (d, xj, x_index) = (
-            self.imu(imu),
-            imu_view(self.x(theta), imu),
-            imu_indices(imu),
-        );
+        let (sp, jr) = (self.spline(theta)?, self.right_jacobians(theta));
+        let (d, xj) = (self.imu(imu), imu_view(self.x(theta), imu));
         let ctx = RowContext::new(&xj)?;
         let w2: [f64; 6] = d.sigma_z.map(|s| 1.0 / (s * s));
         let mut out = ExtraSums {
@@ -71,13 +63,7 @@ impl PoseProblem {
         };
         let mut seeds = SegmentCache::default();
         let mut cols = vec![[0.0; 6]; k];
-        let theta_index = |first: usize, local: usize| {
-            if local < CTRL {
-                PER_CONTROL * first + local
-            } else {
-                nc + x_index[local - CTRL]
-            }
-        };
+        let map = self.columns(imu);
         for (m, &i) in self.selected[imu].iter().enumerate() {
             let mut rows = prediction_rows(&sp, d.t[i], &ctx, &mut seeds)?;
             let sample = PoseImuSample::new(&sp, d.t[i], &xj, dz_dt_of(&rows));
@@ -99,13 +85,13 @@ impl PoseProblem {
             }
             for r in 0..3 {
                 for p in 0..ACCEL_COLS {
-                    let (at, v) = (theta_index(rows.first, p), rows.accel[r][p]);
+                    let (at, v) = (map.theta(rows.first, p), rows.accel[r][p]);
                     for (bj, wj) in out.b.iter_mut().zip(&wc) {
                         bj[at] += v * wj[r];
                     }
                 }
                 for (p, &l) in GYRO_LOCAL.iter().enumerate() {
-                    let (at, v) = (theta_index(rows.first, l), rows.gyro[r][p]);
+                    let (at, v) = (map.theta(rows.first, l), rows.gyro[r][p]);
                     for (bj, wj) in out.b.iter_mut().zip(&wc) {
                         bj[at] += v * wj[3 + r];
                     }

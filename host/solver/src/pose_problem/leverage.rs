@@ -18,10 +18,10 @@ use robimu_model::geom::M3;
 use robimu_model::pose_measurement::rows::{
     prediction_rows, RowContext, SegmentCache, ACCEL_COLS, GYRO_COLS, GYRO_LOCAL,
 };
-use robimu_model::pose_measurement::{self as pm, imu_indices, imu_view, CTRL, POSE_PARAMS};
+use robimu_model::pose_measurement::{self as pm, imu_view, CTRL};
 use robimu_model::PoseSpline;
 
-use super::{through_right_jacobians, PoseProblem, PoseProblemError, PER_CONTROL};
+use super::{through_right_jacobians, Columns, PoseProblem, PoseProblemError, PER_CONTROL};
 use crate::arrow::SelectedInverse;
 
 /// RSS, rows and leverage per channel ([`PoseProblem::channel_fit`]; the
@@ -167,11 +167,7 @@ impl PoseProblem {
         inv: &SelectedInverse,
         stride: usize,
     ) -> Result<ChannelFit, PoseProblemError> {
-        let (sp, jr, nc) = (
-            self.spline(theta)?,
-            self.right_jacobians(theta),
-            self.n_band(),
-        );
+        let (sp, jr) = (self.spline(theta)?, self.right_jacobians(theta));
         let k_imus = self.n_imus();
         let mut fit = ChannelFit::zeros(k_imus);
         let (cp, cr) = (6 * k_imus, 6 * k_imus + 1);
@@ -191,8 +187,8 @@ impl PoseProblem {
             let (imu, xj) = (self.imu(j), imu_view(x, j));
             let w: [f64; 6] = imu.sigma_z.map(|s| 1.0 / s);
             let stride = stride.max(1);
-            let x_index = imu_indices(j).map(|i| nc + i);
-            let mut lev = Leverage::new(RowContext::new(&xj)?, x_index, w, stride as f64);
+            let cols = self.columns(j);
+            let mut lev = Leverage::new(RowContext::new(&xj)?, cols, w, stride as f64);
             let mut out = [0.0; 6];
             for (n, &i) in self.selected[j].iter().enumerate() {
                 let z = if n % stride == 0 {
@@ -219,8 +215,8 @@ impl PoseProblem {
 struct Leverage {
     ctx: RowContext,
     seeds: SegmentCache,
-    /// The θ index of each of the IMU's 30-vector's entries.
-    x_index: [usize; POSE_PARAMS],
+    /// Where the rows' compact columns go in θ.
+    cols: Columns,
     w: [f64; 6],
     weight: f64,
     seg: Option<Seg>,
@@ -235,11 +231,11 @@ type Seg = (
 );
 
 impl Leverage {
-    fn new(ctx: RowContext, x_index: [usize; POSE_PARAMS], w: [f64; 6], weight: f64) -> Self {
+    fn new(ctx: RowContext, cols: Columns, w: [f64; 6], weight: f64) -> Self {
         Self {
             ctx,
             seeds: SegmentCache::default(),
-            x_index,
+            cols,
             w,
             weight,
             seg: None,
@@ -259,8 +255,8 @@ impl Leverage {
         let mut rows = prediction_rows(sp, t, &self.ctx, &mut self.seeds)?;
         through_right_jacobians(&mut rows, jr);
         if self.seg.as_ref().is_none_or(|s| s.0 != rows.first) {
-            let (c0, xi) = (PER_CONTROL * rows.first, &self.x_index);
-            let local = |l: usize| if l < CTRL { c0 + l } else { xi[l - CTRL] };
+            let (first, cols) = (rows.first, &self.cols);
+            let local = |l: usize| cols.theta(first, l);
             let a_idx: [usize; ACCEL_COLS] = std::array::from_fn(local);
             let g_idx: [usize; GYRO_COLS] = GYRO_LOCAL.map(local);
             self.seg = Some((rows.first, gather(inv, &a_idx)?, gather(inv, &g_idx)?));

@@ -144,6 +144,29 @@ fn two_imus_residuals_are_each_imus_own() {
     assert_eq!(r.len(), np + 6 * (n0 + n1) + 58);
 }
 
+/// Each IMU's unwhitened residuals (measured minus predicted, at its
+/// selected samples' times) are −σ_z times its whitened residuals in
+/// [`PoseProblem::residuals`].
+#[test]
+fn imu_residuals_are_the_whitened_ones_unwhitened() {
+    let (mut p, theta) = two_imu_problem();
+    p.begin_iteration(&theta).unwrap();
+    let r = p.residuals(&theta).unwrap();
+    let mut at = 6 * p.data.pose_t.len();
+    for j in 0..2 {
+        let (imu, got) = (p.imu(j), p.imu_residuals(&theta, j).unwrap());
+        assert_eq!(got.len(), p.selected_of(j).len());
+        for ((t, e), &i) in got.iter().zip(p.selected_of(j)) {
+            assert_eq!(*t, imu.t[i]);
+            for c in 0..6 {
+                let want = -r[at + c] * imu.sigma_z[c];
+                assert!((e[c] - want).abs() < 1e-12 * (1.0 + want.abs()), "{j} {c}");
+            }
+            at += 6;
+        }
+    }
+}
+
 fn check_derivatives((mut p, theta): (PoseProblem, Vec<f64>)) {
     p.begin_iteration(&theta).unwrap();
     let n = p.n_unknowns();

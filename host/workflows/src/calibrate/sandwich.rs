@@ -56,10 +56,9 @@ use robimu_model::observations::Measurements;
 use robimu_model::{
     Basis, JointState, Knots, MeasurementJacobians, MeasurementModel, ParamLayout, Robot, Spline,
 };
-use robimu_solver::problem::Problem;
 
 use super::fit::Fit;
-use super::sandwich_fit::{bartlett, influence_rows};
+use super::sandwich_fit::{bartlett, problem_of_fit, sigma_of};
 use super::{CalibrateError, CalibrateOptions};
 
 /// The sandwich covariance of a white fit's x.
@@ -100,21 +99,8 @@ pub fn sandwich(
         ));
     }
     let layout = ParamLayout::new(robot);
-    let mut problem = Problem::new(
-        robot,
-        &layout,
-        data,
-        f.trajectory.knots().clone(),
-        f.x.clone(),
-        &CalibrateOptions {
-            noise: None,
-            ..opts.clone()
-        }
-        .problem_options(),
-        EffectSet::none(),
-    )?;
+    let (problem, r) = problem_of_fit((robot, &layout, data), opts, EffectSet::none(), f)?;
     let theta = &f.theta;
-    let r = influence_rows(&mut problem, theta)?;
     let x = problem.x_of(theta);
     let inf = Influence {
         r: &r,
@@ -141,11 +127,9 @@ pub fn sandwich(
     if opts.use_prior {
         inf.add_prior(&layout, &mut b);
     }
-    let mut sigma = vec![0.0; layout.len()];
-    for (c, &k) in inf.active.iter().enumerate() {
-        sigma[k] = b[(c, c)].max(0.0).sqrt();
-    }
-    Ok(Sandwich { sigma })
+    Ok(Sandwich {
+        sigma: sigma_of(&b, &inf.active, layout.len()),
+    })
 }
 
 /// The influence ψ = R g of each sample's gradient g on x, at the fit.

@@ -74,21 +74,8 @@ pub fn fit_sandwich(
         )));
     }
     let layout = ParamLayout::new(robot);
-    let opts = CalibrateOptions {
-        noise: (!f.noise.is_white()).then(|| f.noise.clone()),
-        ..opts.clone()
-    };
-    let mut problem = Problem::new(
-        robot,
-        &layout,
-        data,
-        f.trajectory.knots().clone(),
-        f.x.clone(),
-        &opts.problem_options(),
-        set,
-    )?;
+    let (problem, r) = problem_of_fit((robot, &layout, data), opts, set, f)?;
     let theta = &f.theta;
-    let r = influence_rows(&mut problem, theta)?;
     let na = problem.active().len();
     let edges = window_edges(data, window)?;
     let mut psi = Mat::<f64>::zeros(edges.len() - 1, na);
@@ -107,12 +94,8 @@ pub fn fit_sandwich(
     if opts.use_prior {
         add_prior(&r, &problem, &layout, set, &mut b);
     }
-    let mut sigma = vec![0.0; layout.len()];
-    for (c, &k) in problem.active().iter().enumerate() {
-        sigma[k] = b[(c, c)].max(0.0).sqrt();
-    }
     Ok(FitSandwich {
-        sigma,
+        sigma: sigma_of(&b, problem.active(), layout.len()),
         covariance: b,
         window,
         lags,
@@ -166,6 +149,42 @@ fn add_prior(
             }
         }
     }
+}
+
+/// The problem of the fit `f` of `data` as it was solved — its knots, x,
+/// effects `set` and noise model (white: `opts`' σ) — and its influence
+/// rows R at f's θ ([`influence_rows`]).
+pub(super) fn problem_of_fit<'a>(
+    (robot, layout, data): (&'a Robot, &'a ParamLayout, &'a Measurements),
+    opts: &CalibrateOptions,
+    set: &'a EffectSet,
+    f: &Fit,
+) -> Result<(Problem<'a>, Mat<f64>), CalibrateError> {
+    let opts = CalibrateOptions {
+        noise: (!f.noise.is_white()).then(|| f.noise.clone()),
+        ..opts.clone()
+    };
+    let mut problem = Problem::new(
+        robot,
+        layout,
+        data,
+        f.trajectory.knots().clone(),
+        f.x.clone(),
+        &opts.problem_options(),
+        set,
+    )?;
+    let r = influence_rows(&mut problem, &f.theta)?;
+    Ok((problem, r))
+}
+
+/// √diag of Σ_x (`b`, over the `active` entries) per entry of an x of
+/// `len` entries, 0 where frozen.
+pub(super) fn sigma_of(b: &Mat<f64>, active: &[usize], len: usize) -> Vec<f64> {
+    let mut sigma = vec![0.0; len];
+    for (c, &k) in active.iter().enumerate() {
+        sigma[k] = b[(c, c)].max(0.0).sqrt();
+    }
+    sigma
 }
 
 /// R = [A⁻¹]_{x,·} (active × all unknowns [c, x_a, θ_E]) of the normal

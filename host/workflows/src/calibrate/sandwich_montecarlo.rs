@@ -28,12 +28,19 @@ struct Runs {
     active: Vec<usize>,
 }
 
+/// The sessions' IMU rate, Hz.
+pub(crate) const RATE: f64 = 120.0;
+
+/// The Monte Carlos' IMU noise: the accelerometer's AR(1) of 50 ms
+/// correlation at [`RATE`], the gyroscope's white, σ `robot`'s.
+pub(crate) fn ar1_accel_noise(robot: &Robot) -> NoiseModel {
+    let phi = (-1.0f64 / (RATE * 0.050)).exp();
+    NoiseModel::ar1(robot.sigma_z(), [Some(phi), None], [0.0; 2]).unwrap()
+}
+
 fn run(runs: u64) -> Runs {
     let robot = Robot::aubo_i5();
-    let sz = robot.sigma_z();
-    let rate = 120.0;
-    let phi = (-1.0f64 / (rate * 0.050)).exp();
-    let model = NoiseModel::ar1(sz, [Some(phi), None], [0.0; 2]).unwrap();
+    let model = ar1_accel_noise(&robot);
     let sim = SimulateOptions {
         noise_model: Some(model),
         ..SimulateOptions::paper(&robot)
@@ -53,7 +60,7 @@ fn run(runs: u64) -> Runs {
         let f = fit(&FitSpec::baseline(&robot, &s.data), &opts, |_| {}).unwrap();
         let white = calibration_of(&robot, &opts, &f).unwrap();
         let id = residual_identification(&robot, &s.data, &white, &IdOptions::default()).unwrap();
-        let l = bandwidth(&id.model, 1.0 / rate, f.residuals.len());
+        let l = bandwidth(&id.model, 1.0 / RATE, f.residuals.len());
         let sw = sandwich(&robot, &s.data, &opts, &f, l).unwrap();
         let (auto, outcome) =
             calibrate_with_noise(&robot, &s.data, &opts, &NoiseChoice::Auto, |_| {}).unwrap();
@@ -71,8 +78,9 @@ fn run(runs: u64) -> Runs {
     out
 }
 
-/// Per parameter: rms over the runs of the error over the mean predicted σ.
-fn ratios(e: &[Vec<f64>], s: &[Vec<f64>]) -> Vec<f64> {
+/// Per parameter: rms over the runs of the error over the mean predicted σ
+/// (one row of `e` and of `s` a run).
+pub(crate) fn ratios(e: &[Vec<f64>], s: &[Vec<f64>]) -> Vec<f64> {
     let n = e.len() as f64;
     (0..e[0].len())
         .map(|k| {
@@ -83,7 +91,8 @@ fn ratios(e: &[Vec<f64>], s: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-fn median(v: &[f64]) -> f64 {
+/// The median (the upper one of an even count).
+pub(crate) fn median(v: &[f64]) -> f64 {
     let mut v = v.to_vec();
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]

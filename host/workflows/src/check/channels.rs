@@ -19,40 +19,44 @@ pub(crate) const G_STANDARD: f64 = 9.80665;
 
 /// The channel findings of `session`.
 pub fn check(session: &Session) -> Vec<Finding> {
-    let mut out = Vec::new();
-    let all_zero = (0..6).all(|c| column(&session.imu, c).all(|v| v == 0.0));
-    if all_zero {
-        out.push(Finding::new(
-            "stuck",
-            Severity::Fatal,
-            files::IMU,
-            session.imu.len() as f64,
-            format!(
-                "imu.csv: all six channels are 0 in all {} rows",
-                session.imu.len()
-            ),
-            "the sensor was not read (not connected, not enabled, or the topic held no data): record again",
-        ));
-    } else {
-        for (c, name) in IMU_COLUMNS.iter().enumerate() {
-            out.extend(stuck(&session.imu, c, name, true));
-        }
-    }
+    let mut out = imu_channels(files::IMU, &session.imu);
     for (j, name) in session.joints.columns.iter().enumerate() {
-        out.extend(stuck(&session.joints, j, name, false));
+        out.extend(stuck(files::JOINTS, &session.joints, j, name, false));
     }
     out.extend(saturation(session));
     out
+}
+
+/// The stuck channels of the IMU table `imu` read from `file` (`imu.csv`,
+/// `imu<j>.csv`; a joint or a pose session's): all six 0, or one channel
+/// constant or repeating a value.
+pub(crate) fn imu_channels(file: &str, imu: &Table) -> Vec<Finding> {
+    let all_zero = (0..6).all(|c| column(imu, c).all(|v| v == 0.0));
+    if !all_zero {
+        let channels = IMU_COLUMNS.iter().enumerate();
+        return channels
+            .filter_map(|(c, name)| stuck(file, imu, c, name, true))
+            .collect();
+    }
+    vec![Finding::new(
+        "stuck",
+        Severity::Fatal,
+        file,
+        imu.len() as f64,
+        format!("{file}: all six channels are 0 in all {} rows", imu.len()),
+        "the sensor was not read (not connected, not enabled, or the topic held no data): record again",
+    )]
 }
 
 fn column(t: &Table, c: usize) -> impl Iterator<Item = f64> + '_ {
     t.values.iter().skip(c).step_by(t.width()).copied()
 }
 
-/// The longest run of identical values of column `c`: constant, or stuck.
-/// A joint that does not move is a warning (its parameters stay at the
-/// prior: the excitation finding names them), an IMU channel fatal.
-fn stuck(t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
+/// The longest run of identical values of column `c` of `t` (read from
+/// `file`): constant, or stuck. A joint that does not move is a warning
+/// (its parameters stay at the prior: the excitation finding names them),
+/// an IMU channel fatal.
+fn stuck(file: &str, t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
     let (w, len) = (t.width(), t.len());
     let v = |i: usize| t.values[i * w + c];
     let (mut best, mut start, mut run_start) = (1usize, 0usize, 0usize);
@@ -68,7 +72,6 @@ fn stuck(t: &Table, c: usize, name: &str, imu: bool) -> Option<Finding> {
     }
     let end = start + best - 1;
     let seconds = t.t[end] - t.t[start];
-    let file = if imu { files::IMU } else { files::JOINTS };
     if best == len && len > 1 {
         let severity = if imu {
             Severity::Fatal
@@ -149,12 +152,18 @@ pub(crate) fn saturation_severity(share: f64) -> Severity {
 /// Samples at the device's range, per sensor.
 fn saturation(session: &Session) -> Vec<Finding> {
     let (accel, gyro) = ranges(session);
-    saturation_of(&session.imu, accel, gyro)
+    saturation_of(files::IMU, &session.imu, accel, gyro)
 }
 
-/// The rows of the IMU table `imu` at the range `accel` (m/s²) or `gyro`
-/// (rad/s), per sensor (a sensor without a range is not checked).
-pub(crate) fn saturation_of(imu: &Table, accel: Option<f64>, gyro: Option<f64>) -> Vec<Finding> {
+/// The rows of the IMU table `imu` (read from `file`) at the range `accel`
+/// (m/s²) or `gyro` (rad/s), per sensor (a sensor without a range is not
+/// checked).
+pub(crate) fn saturation_of(
+    file: &str,
+    imu: &Table,
+    accel: Option<f64>,
+    gyro: Option<f64>,
+) -> Vec<Finding> {
     let mut out = Vec::new();
     for (range, cols, sensor, unit) in [
         (accel, 0..3, "accelerometer", "m/s²"),
@@ -179,7 +188,7 @@ pub(crate) fn saturation_of(imu: &Table, accel: Option<f64>, gyro: Option<f64>) 
             sensor,
             count as f64,
             format!(
-                "{sensor}: {count} rows ({:.2} %) at its range ±{range:.3} {unit}",
+                "{file}: {sensor}: {count} rows ({:.2} %) at its range ±{range:.3} {unit}",
                 100.0 * share
             ),
             "choose a larger range, or a slower motion (robimu plan's limits)",

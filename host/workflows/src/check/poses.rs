@@ -3,8 +3,11 @@
 //! gaps with their time and length, repeated stamps, time units, the
 //! overlap of `poses.csv` and each IMU's span), the timing jitter of each
 //! stream and a start-up burst of late-stamped IMU samples
-//! ([`super::timing`]), saturated IMU channels ([`super::clipping`], or
-//! against the `[imu]` range when recorded), and the poses themselves:
+//! ([`super::timing`]), stuck IMU channels ([`super::channels`]: all six
+//! 0, or one constant or repeating a value), saturated IMU channels
+//! ([`super::clipping`], or against the `[imu]` / `[imu<j>]` range when
+//! recorded) — each IMU's (`imu.csv`, `imu<j>.csv`), each finding naming
+//! its file — and the poses themselves:
 //!
 //! * quaternion sign flips (q·q' < 0 between consecutive rows: q and −q
 //!   are the same rotation; information);
@@ -56,6 +59,7 @@ pub fn check_pose_session(session: &PoseSession) -> CheckReport {
         findings.extend(stream(&name, &imu.samples, nominal_rate(table)));
         findings.extend(timing::jitter(&name, &imu.samples.t));
         findings.extend(timing::startup_burst(&name, &imu.samples.t));
+        findings.extend(super::channels::imu_channels(&name, &imu.samples));
         findings.extend(saturation(&name, &imu.samples, table));
         findings.extend(overlap(
             (files::POSES, &session.poses),
@@ -72,7 +76,7 @@ fn saturation(name: &str, imu: &Table, table: Option<&toml::Table>) -> Vec<Findi
     if accel.is_none() && gyro.is_none() {
         return clipping::check(name, imu);
     }
-    super::channels::saturation_of(imu, accel, gyro)
+    super::channels::saturation_of(name, imu, accel, gyro)
 }
 
 /// Consecutive quaternions of opposite sign (q·q' < 0): counted, the first

@@ -8,11 +8,11 @@
 //! cover it.
 
 use robimu_model::effects::resonance::Mode;
-use robimu_model::noise::NoiseModel;
 use robimu_model::{JointState, Robot};
 
 use crate::calibrate::fit::{fit, FitSpec, Start};
 use crate::calibrate::sandwich_fit::fit_sandwich;
+use crate::calibrate::sandwich_montecarlo::{ar1_accel_noise, median, ratios};
 use crate::calibrate::CalibrateOptions;
 use crate::diagnose::{effect_set, setup_with};
 use crate::simulate::{random_session, SimulateOptions};
@@ -30,9 +30,7 @@ struct Runs {
 fn run(runs: u64, misfit: f64) -> Runs {
     let robot = Robot::aubo_i5();
     let sz = robot.sigma_z();
-    let rate = 120.0;
-    let phi = (-1.0f64 / (rate * 0.050)).exp();
-    let model = NoiseModel::ar1(sz, [Some(phi), None], [0.0; 2]).unwrap();
+    let model = ar1_accel_noise(&robot);
     let sim = SimulateOptions {
         noise_model: Some(model.clone()),
         ..SimulateOptions::paper(&robot)
@@ -74,23 +72,6 @@ fn run(runs: u64, misfit: f64) -> Runs {
         out.s_sandwich.push(pick(&sw.sigma));
     }
     out
-}
-
-/// Per parameter: rms over the runs of the error over the mean σ.
-fn ratios(e: &[Vec<f64>], s: &[Vec<f64>]) -> Vec<f64> {
-    let n = e.len() as f64;
-    (0..e[0].len())
-        .map(|k| {
-            let rms = (e.iter().map(|r| r[k] * r[k]).sum::<f64>() / n).sqrt();
-            rms / (s.iter().map(|r| r[k]).sum::<f64>() / n)
-        })
-        .collect()
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut v = v.to_vec();
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 fn range(v: &[f64]) -> (f64, f64) {

@@ -11,6 +11,11 @@
 //! identity), so p_imu = (ε_n1, ε_n2, ε_n3), and g_x, g_y, τ and the 24
 //! sensor parameters are the robot truth's own (same W, same τ: the IMU
 //! sample stamped t_i reads the motion at t_i + τ).
+//!
+//! Several IMUs (docs/model.md §9): the robot's K IMUs on the flange as
+//! `robimu simulate --imus K` simulates them (each its own position ε_n1..3
+//! at its mount, τ and sensor parameters, one motion); IMU j's pose
+//! parameters are its own 28 (p_imu its ε_n1..3) after IMU 0's 30.
 
 use std::path::PathBuf;
 
@@ -20,24 +25,28 @@ use robimu_model::geom::{exp_so3, mul_mm, mul_mv, quat_from_matrix, V3};
 use robimu_model::{JointState, MeasurementModel, PoseMeasurements, Robot};
 
 use super::simulate::{simulate_motion, SessionSpec};
-use crate::pose_calibrate::PoseNoise;
+use crate::pose_calibrate::{ImuSamples, PoseNoise};
 
 /// A simulated flange pose session.
 pub(crate) struct FlangeSession {
-    /// The 30 pose parameters (module doc).
+    /// The 2 + 28·K pose parameters (module doc).
     pub truth: Vec<f64>,
-    /// Poses of the flange and the IMU samples.
+    /// Poses of the flange and IMU 0's samples.
     pub data: PoseMeasurements,
+    /// IMU j ≥ 1's samples at `more[j − 1]`.
+    pub more: Vec<ImuSamples>,
     /// The IMU noise σ the samples have (the robot's).
     pub sigma_z: [f64; 6],
 }
 
-/// The flange of `robot` on the motion of `robimu simulate --robot` with
-/// `seed`, `duration` and IMU rate `imu_rate`; poses at `pose_rate` Hz with
-/// times jittered by N(0, `pose_jitter`²) (stamped exactly), noise σ_p, σ_r
-/// of `noise`.
+/// The flange of `robot` carrying `imus` IMUs on the motion of `robimu
+/// simulate --robot` with `seed`, `duration` and IMU rate `imu_rate`; poses
+/// at `pose_rate` Hz with times jittered by N(0, `pose_jitter`²) (stamped
+/// exactly), noise σ_p, σ_r of `noise`.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn flange_session(
     robot: Robot,
+    imus: usize,
     duration: f64,
     imu_rate: f64,
     seed: u64,
@@ -48,13 +57,20 @@ pub(crate) fn flange_session(
     // the motion alone: no session is written, no tracker poses drawn
     let spec = SessionSpec {
         poses: 0,
+        imus,
         ..SessionSpec::plain(robot, duration, imu_rate, seed, PathBuf::new())
     };
     let m = simulate_motion(&spec)?;
     let robot = &spec.robot;
-    let params = m.layout.unpack(&m.x_true)?;
-    let p_imu: V3 = std::array::from_fn(|c| params.eps[robot.dof() - 1][c]);
-    let model = MeasurementModel::new(robot, &m.layout, &m.x_true)?;
+    let one = m.layout.imu_layout();
+    // IMU j's one-IMU truth and its position on the flange
+    let imu_truth = |j: usize| -> anyhow::Result<(Vec<f64>, V3)> {
+        let xj = m.layout.imu_x(j, &m.x_true);
+        let eps = one.unpack(&xj)?.eps[robot.dof() - 1];
+        Ok((xj, [eps[0], eps[1], eps[2]]))
+    };
+    let (x0, p_imu) = imu_truth(0)?;
+    let model = MeasurementModel::new(robot, one, &x0)?;
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0F1A_4E9E_5E55);
     let mut normal = |s: f64| -> f64 {
         let z: f64 = StandardNormal.sample(&mut rng);
@@ -82,11 +98,22 @@ pub(crate) fn flange_session(
     }
     out.imu_t = m.data.imu_t;
     out.imu_z = m.data.imu_z;
+    let g_xy = one.offsets().g_xy;
     let mut truth = p_imu.to_vec();
-    truth.extend_from_slice(&m.x_true[m.layout.offsets().g_xy..]);
+    truth.extend_from_slice(&x0[g_xy..]);
+    for j in 1..imus {
+        // its own 28: p_imu, then τ and the sensor parameters (g is shared)
+        let (xj, pj) = imu_truth(j)?;
+        truth.extend(pj);
+        truth.extend_from_slice(&xj[g_xy + 2..]);
+    }
+    let more = (m.data.extra_imus.into_iter())
+        .map(|s| ImuSamples { t: s.t, z: s.z })
+        .collect();
     Ok(FlangeSession {
         truth,
         data: out,
+        more,
         sigma_z: m.opts.sigma_z,
     })
 }

@@ -21,6 +21,7 @@ fn both_ways(duration: f64, seed: u64) -> (Vec<String>, [Vec<f64>; 4]) {
     let joint = calibrate(&robot, &m.data, &CalibrateOptions::new(&robot), |_| {}).unwrap();
     let f = flange_session(
         robot.clone(),
+        1,
         duration,
         100.0,
         seed,

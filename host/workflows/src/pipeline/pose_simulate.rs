@@ -11,9 +11,11 @@
 //! the body is its flange on the motion of `robimu simulate --robot`
 //! (`pipeline/pose_flange.rs`). Either way the IMU stamps may then carry
 //! arrival jitter and a drifting lag ([`ImuTiming`]). With `imus` K > 1
-//! (hand-held motion only) IMU j ≥ 1 is written to `imu<j>.csv` with its
-//! own truth, mount rotation and noise ([`simulate_pose_imus`],
-//! docs/model.md §9) and the truth lists all 2 + 28·K parameters.
+//! IMU j ≥ 1 is written to `imu<j>.csv` with its own truth and noise
+//! (docs/model.md §9: hand-held, its own mount rotation,
+//! [`simulate_pose_imus`]; on a robot's flange, the robot's IMU j as
+//! `robimu simulate --imus K` places it) and the truth lists all 2 + 28·K
+//! parameters.
 
 use std::fmt;
 use std::path::PathBuf;
@@ -52,7 +54,7 @@ pub struct PoseSessionSpec {
     pub robot: Option<Robot>,
     /// Arrival jitter and lag drift of the IMU stamps.
     pub imu_timing: ImuTiming,
-    /// Number of IMUs K on the body (docs/model.md §9; > 1 without a robot).
+    /// Number of IMUs K on the body (docs/model.md §9).
     pub imus: usize,
     /// IMU-side catalogue effects injected, `NAME=MAGNITUDE`
     /// ([`crate::pose_calibrate::inject`]; the hand-held motion only).
@@ -132,10 +134,9 @@ fn checked_spec(spec: &PoseSessionSpec) -> Result<Vec<(String, f64)>, PipelineEr
             "--imu-jitter must be ≥ 0 and --imu-drift finite (got {jitter} s and {drift} s)"
         )));
     }
-    if !(1..=64).contains(&spec.imus) || (spec.imus > 1 && spec.robot.is_some()) {
+    if !(1..=64).contains(&spec.imus) {
         return Err(PipelineError::input(anyhow::anyhow!(
-            "--imus must be between 1 and 64, and above 1 only for the hand-held motion \
-             (without --robot; got {})",
+            "--imus must be between 1 and 64 (got {})",
             spec.imus
         )));
     }
@@ -204,6 +205,7 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
         Some(robot) => {
             let f = flange_session(
                 robot.clone(),
+                spec.imus,
                 spec.duration,
                 spec.imu_rate,
                 spec.seed,
@@ -213,7 +215,7 @@ pub fn simulate_pose_dir(spec: &PoseSessionSpec) -> Result<PoseSimulated, Pipeli
             )
             .map_err(PipelineError::fit)?;
             noise.sigma_z = f.sigma_z;
-            (f.truth, f.data, Vec::new())
+            (f.truth, f.data, f.more)
         }
     };
     spec.imu_timing

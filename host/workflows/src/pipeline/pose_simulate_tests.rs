@@ -75,6 +75,44 @@ fn a_messy_session_is_not_good_and_a_clean_one_is() {
     assert!(why.contains("time offset: τ changes"), "{why}");
 }
 
+/// The fit's residual series (the report's figure) are the residuals the
+/// noise identification summed: per channel their RMS is the result's
+/// (computed apart, from the channels' RSS); one per sample in the fit;
+/// an IMU the fit does not have is an error. The convergence log written
+/// beside the result starts at the final solve's first cost and ends at
+/// the result's final cost.
+#[test]
+fn the_fits_residual_series_and_convergence_log_match_the_result() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut sp = spec(None, 0.0, 0.0, 5);
+    (sp.duration, sp.out) = (30.0, tmp.path().join("s"));
+    simulate_pose_dir(&sp).unwrap();
+    let session = load_pose_session(&sp.out, |_| {}).unwrap();
+    let opts = pose_options(&session.meta, |_| {});
+    let f = calibrate_pose_session(session, opts, |_| {}).unwrap();
+    let r = f.imu_residuals(0).unwrap();
+    assert_eq!(r.len(), f.cal.imu_used);
+    assert!(r.windows(2).all(|w| w[1].0 > w[0].0));
+    for c in 0..6 {
+        let rms = (r.iter().map(|(_, e)| e[c] * e[c]).sum::<f64>() / r.len() as f64).sqrt();
+        let want = f.cal.imu_rms[c];
+        assert!(
+            (rms - want).abs() < 1e-9 * want,
+            "channel {c}: {rms} vs {want}"
+        );
+    }
+    assert!(f.imu_residuals(1).is_err());
+    let path = tmp.path().join("result.json");
+    let history = f.write(&path).unwrap();
+    let costs = crate::convergence::ConvergenceLog::read(&history)
+        .unwrap()
+        .costs();
+    assert_eq!(costs[0], f.cal.summary.initial_cost);
+    let last = *costs.last().unwrap();
+    assert!((last - f.result.final_cost.unwrap()).abs() <= 1e-9 * last);
+    assert_eq!(costs.len(), f.cal.iterations + 1);
+}
+
 /// `MC_RUNS` (default 20) sessions from seed `MC_SEED0` (default 1) of
 /// `MC_ROBOT`'s flange (unset: hand-held) with IMU stamps' jitter
 /// `MC_JITTER` and lag drift `MC_DRIFT` (s, default 0): the share judged

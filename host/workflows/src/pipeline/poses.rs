@@ -29,7 +29,9 @@
 //! one pose spline and g for all, each IMU's own 28 parameters
 //! (`imu<j>/<name>`).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+use robimu_solver::PoseProblem;
 
 use robimu_session::result::{
     CalibrationResult, ChannelNoiseRecord, CovarianceMatrix, ImuNoiseModelRecord, NoiseModelRecord,
@@ -39,9 +41,7 @@ use robimu_session::{PoseSession, PoseSessionMeta, SOURCE_POSES};
 
 use super::{fatal_findings, FitEvent, PipelineError};
 use crate::check::{check_pose_session, Severity};
-use crate::pose_calibrate::{
-    calibrate_pose_imus_with, ImuSamples, PoseCalibration, PoseCalibrationOptions,
-};
+use crate::pose_calibrate::{fit_poses, ImuSamples, PoseCalibration, PoseCalibrationOptions};
 use crate::verdict::{IMPLAUSIBLE, RMS_RANGE, UNDETERMINED};
 
 /// A prior σ at or above this (rad) is no information: the sensor
@@ -66,14 +66,37 @@ pub struct PoseFitted {
     pub cal: PoseCalibration,
     /// The result file's contents.
     pub result: CalibrationResult,
+    /// The solved problem and its MAP estimate θ (the residuals' series).
+    problem: PoseProblem,
+    theta: Vec<f64>,
 }
 
 impl PoseFitted {
-    /// Write the result file (docs/model.md §8) to `path`.
-    pub fn write(&self, path: &Path) -> Result<(), PipelineError> {
-        self.result
-            .write(path)
-            .map_err(|e| PipelineError::write(e.into()))
+    /// Write the result file (docs/model.md §8) to `path` and the solver's
+    /// iteration history next to it (NAME.convergence.csv, of the final
+    /// solve: [`PoseCalibration::summary`]); returns the history's path.
+    pub fn write(&self, path: &Path) -> Result<PathBuf, PipelineError> {
+        let history = crate::convergence::convergence_path(path);
+        (|| -> anyhow::Result<()> {
+            self.result.write(path)?;
+            crate::convergence::ConvergenceLog::from_summary(&self.cal.summary).write(&history)?;
+            Ok(())
+        })()
+        .map_err(PipelineError::write)?;
+        Ok(history)
+    }
+
+    /// IMU `j`'s residuals in the fit, measured minus predicted at its
+    /// samples in the fit: (t_i, z_i − ẑ_i) in m/s² and rad/s, with the
+    /// final pose spline and x (docs/model.md §7.9).
+    pub fn imu_residuals(&self, j: usize) -> Result<Vec<(f64, [f64; 6])>, PipelineError> {
+        if j >= self.problem.n_imus() {
+            return Err(PipelineError::input(anyhow::anyhow!(
+                "IMU {j}: the fit has {} IMU(s)",
+                self.problem.n_imus()
+            )));
+        }
+        (self.problem.imu_residuals(&self.theta, j)).map_err(|e| PipelineError::fit(e.into()))
     }
 }
 
@@ -97,9 +120,10 @@ pub fn load_pose_session(
     Ok(session)
 }
 
-/// The calibration's options from `session.toml`: `[poses]` σ_p, σ_r and
-/// `[noise]` σ_z where given, else [`PoseCalibrationOptions::default`]; what
-/// the pose calibration does not use is said through `warn`.
+/// The calibration's options from `session.toml`: `[poses]` σ_p, σ_r,
+/// `[noise]` σ_z and the mount priors `[imu.mount]`, `[imu<j>.mount]` where
+/// given, else [`PoseCalibrationOptions::default`]; what the pose
+/// calibration does not use is said through `warn`.
 pub fn pose_options(
     meta: &PoseSessionMeta,
     mut warn: impl FnMut(String),
@@ -112,6 +136,7 @@ pub fn pose_options(
     if let Some(z) = meta.noise.as_ref().and_then(|n| n.sigma_z) {
         opts.sigma_z = z;
     }
+    opts.mounts = meta.mounts.clone();
     if meta.noise_shape.as_ref().is_some_and(|s| s.ar_z.is_some()) {
         warn("[noise] ar_z is not used: the pose calibration assumes white IMU noise".into());
     }
@@ -140,7 +165,7 @@ pub fn calibrate_pose_session(
         })
         .collect();
     let report = std::cell::RefCell::new(report);
-    let cal = calibrate_pose_imus_with(
+    let (cal, fit) = fit_poses(
         &data,
         &more,
         &options,
@@ -154,6 +179,8 @@ pub fn calibrate_pose_session(
         options,
         cal,
         result,
+        problem: fit.problem,
+        theta: fit.theta,
     })
 }
 

@@ -5,24 +5,14 @@
 
 use super::*;
 use crate::pose_calibrate::inject::inject_pose_effects;
-use crate::pose_calibrate::{
-    draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise,
-};
+use crate::pose_calibrate::simulate::test_support::{simulated, SessionSpec};
+use crate::pose_calibrate::{draw_pose_truth, random_pose_motion};
 
 /// A 60 s hand-held session (15 Hz poses, 100 Hz IMU) with `injected`.
 fn session(seed: u64, injected: &[(String, f64)]) -> PoseMeasurements {
     let truth = draw_pose_truth(700 + seed);
-    let motion = random_pose_motion(60.0, 800 + seed).unwrap();
-    let mut data = simulate_pose_session(
-        &truth,
-        &motion,
-        15.0,
-        0.003,
-        100.0,
-        &PoseNoise::default(),
-        seed,
-    )
-    .unwrap();
+    let s = simulated(&truth, 60.0, 800 + seed, seed, &SessionSpec::default());
+    let (motion, mut data) = (s.motion, s.data);
     inject_pose_effects(&mut data, &truth, &motion, injected).unwrap();
     data
 }

@@ -3,8 +3,12 @@
 //! shared); each IMU's start-up, x and prior in that layout
 //! ([`robimu_model::pose_measurement::imu_indices`]), and its fit.
 
+use std::collections::BTreeMap;
+
 use robimu_model::params::ParamSpec;
 use robimu_model::pose_measurement::{self as pm, imu_view, pose_param_specs, G_XY, POSE_PARAMS};
+
+use robimu_session::MountPrior;
 
 use super::{PoseCalibrationError, Startup, TauDrift};
 
@@ -48,12 +52,17 @@ fn own(k: usize) -> bool {
     !(G_XY..G_XY + 2).contains(&k)
 }
 
-/// The specs and start of x for IMUs with start-ups `st` (IMU 0 first):
-/// IMU 0's 30, then each further IMU's own 28 named `imu<j>/<name>`.
-pub(crate) fn specs_and_start(st: &[Startup]) -> (Vec<ParamSpec>, Vec<f64>) {
+/// The specs and start of x for IMUs with start-ups `st` (IMU 0 first) and
+/// the session's `mounts` ([`super::mount`]): IMU 0's 30, then each further
+/// IMU's own 28 named `imu<j>/<name>`.
+pub(crate) fn specs_and_start(
+    st: &[Startup],
+    mounts: &BTreeMap<usize, MountPrior>,
+) -> (Vec<ParamSpec>, Vec<f64>) {
     let (mut specs, mut x0) = (Vec::new(), Vec::new());
     for (j, s) in st.iter().enumerate() {
-        let (sj, xj) = (pose_param_specs(s.accel.r, s.gyro.r), start_x(s));
+        let (mut sj, mut xj) = (pose_param_specs(s.accel.r, s.gyro.r), start_x(s));
+        super::mount::apply(&super::mount::mount_of(mounts, j), &mut sj, &mut xj);
         for (k, (mut spec, v)) in sj.into_iter().zip(xj).enumerate() {
             if j == 0 || own(k) {
                 if j > 0 {

@@ -3,6 +3,7 @@
 //! all 58 parameters.
 
 use super::*;
+use crate::pose_calibrate::tests::{env, ZStatistics};
 use crate::pose_calibrate::{
     calibrate_pose_imus_with, calibrate_poses, random_pose_motion, PoseCalibration,
     PoseCalibrationOptions, PoseNoise,
@@ -36,9 +37,7 @@ fn session(
 /// set).
 fn calibrate(data: &robimu_model::PoseMeasurements, more: &[ImuSamples]) -> PoseCalibration {
     let opts = PoseCalibrationOptions {
-        knot_spacing: std::env::var("POSE_MC_KNOTS")
-            .ok()
-            .and_then(|s| s.parse().ok()),
+        knot_spacing: env("POSE_MC_KNOTS"),
         ..Default::default()
     };
     calibrate_pose_imus_with(data, more, &opts, |_| {}, |_| {}).unwrap()
@@ -204,16 +203,6 @@ fn a_bad_second_imu_is_a_clear_error() {
     assert!(e.to_string().contains("need 58 parameters"), "{e}");
 }
 
-/// Mean and sample standard deviation.
-fn mean_std(v: &[f64]) -> (f64, f64) {
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
-    (
-        mean,
-        (v.iter().map(|a| (a - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt(),
-    )
-}
-
 /// Monte Carlo of `MC_RUNS` (default 50) two-IMU calibrations of 60 s
 /// sessions (seeds from `MC_SEED0`, default 100; `MC_IMUS=1` calibrates
 /// their IMU 0 alone): per parameter of the 58
@@ -223,15 +212,9 @@ fn mean_std(v: &[f64]) -> (f64, f64) {
 #[test]
 #[ignore = "Monte Carlo of ≥ 50 two-IMU calibrations: run in release"]
 fn monte_carlo_two_imus_normalised_errors_are_standard() {
-    let env = |k: &str, d: u64| {
-        std::env::var(k)
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(d)
-    };
-    let (runs, seed0) = (env("MC_RUNS", 50), env("MC_SEED0", 100));
+    let (runs, seed0) = (env("MC_RUNS").unwrap_or(50), env("MC_SEED0").unwrap_or(100));
     // MC_IMUS=1: IMU 0 of the same sessions alone, for comparison
-    let k = env("MC_IMUS", 2) as usize;
+    let k: usize = env("MC_IMUS").unwrap_or(2);
     let taus: Vec<usize> = (0..k).map(|j| imu_indices(j)[TAU]).collect();
     let mut names = Vec::new();
     let zs: Vec<Vec<f64>> = (0..runs)
@@ -249,30 +232,10 @@ fn monte_carlo_two_imus_normalised_errors_are_standard() {
             z
         })
         .collect();
-    let (ms, ss) = (
-        3.3 / (runs as f64).sqrt(),
-        3.3 / (2.0 * (runs as f64 - 1.0)).sqrt(),
-    );
-    let mut bad = Vec::new();
-    let (mut worst_std, mut worst_mean) = (0.0f64, 0.0f64);
-    for (k, name) in names.iter().enumerate() {
-        let v: Vec<f64> = zs.iter().map(|z| z[k]).collect();
-        let (mean, std) = mean_std(&v);
-        println!("{name:16} mean {mean:+.2} std {std:.2}");
-        worst_std = worst_std.max((std - 1.0).abs());
-        worst_mean = worst_mean.max(mean.abs());
-        if (std - 1.0).abs() > ss || mean.abs() > ms {
-            bad.push(name.clone());
-        }
-    }
-    let all: Vec<f64> = zs.iter().flatten().copied().collect();
-    let (mean, std) = mean_std(&all);
-    println!(
-        "pooled: mean {mean:+.3} std {std:.3}; worst |std − 1| {worst_std:.2}, |mean| {worst_mean:.2}"
-    );
+    let stats = ZStatistics::of(&names, &zs);
     assert!(
         zs.iter().all(|z| taus.iter().all(|&t| z[t].abs() < 4.0)),
         "τ beyond 4σ in a run"
     );
-    assert!(bad.is_empty(), "off: {bad:?}");
+    stats.assert_per_parameter_standard();
 }

@@ -15,6 +15,7 @@ pub mod diagnose;
 pub(crate) mod imus;
 pub(crate) mod inject;
 pub(crate) mod memo;
+pub(crate) mod mount;
 pub mod noise;
 pub(crate) mod refit;
 pub(crate) mod score;
@@ -88,6 +89,9 @@ pub struct PoseCalibrationOptions {
     pub identify_noise: bool,
     /// Levenberg–Marquardt settings.
     pub lm: LmOptions,
+    /// The session's mount priors by IMU (`[imu.mount]`, `[imu<j>.mount]`)
+    /// over MODEL.md §10's ([`mount`]).
+    pub mounts: std::collections::BTreeMap<usize, robimu_session::MountPrior>,
 }
 
 impl Default for PoseCalibrationOptions {
@@ -106,6 +110,7 @@ impl Default for PoseCalibrationOptions {
                 sigma_tolerance: SIGMA_TOLERANCE,
                 ..LmOptions::default()
             },
+            mounts: Default::default(),
         }
     }
 }
@@ -142,6 +147,9 @@ pub struct PoseCalibration {
     pub converged: bool,
     /// Final cost ½‖r‖².
     pub cost: f64,
+    /// The final solve's run (after a refit with identified σ, the
+    /// refit's: the one `iterations`, `termination` and `cost` describe).
+    pub summary: robimu_solver::LmSummary,
     /// Knot spacing used (s).
     pub knot_spacing: f64,
     /// What the start-up found (IMU 0).
@@ -294,7 +302,7 @@ pub(crate) fn fit_poses(
     for m in more {
         starts.push(startup::startup(&spline, &m.t, &m.z, opts.tau_search)?);
     }
-    let (specs, x0) = imus::specs_and_start(&starts);
+    let (specs, x0) = imus::specs_and_start(&starts, &opts.mounts);
     let nx = specs.len();
     let more_data: Vec<PoseImuData> = more
         .iter()
@@ -369,6 +377,7 @@ pub(crate) fn fit_poses(
         termination: sol.summary.termination.to_string(),
         converged: sol.summary.termination.converged(),
         cost: sol.summary.final_cost,
+        summary: sol.summary.clone(),
         knot_spacing: spacing,
         startup: st,
         tau_drift: tau_drift0,

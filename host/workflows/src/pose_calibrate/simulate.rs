@@ -12,6 +12,10 @@ use robimu_model::{ImuIntrinsics, Knots, PoseMeasurements, PoseSpline};
 use super::startup::euler_zyx;
 use super::PoseCalibrationError;
 
+#[cfg(test)]
+#[path = "test_support.rs"]
+pub(crate) mod test_support;
+
 /// Time the random motion extends beyond the session at each end (s), so
 /// that t_i + τ stays on it for |τ| < this.
 pub(crate) const MOTION_PAD: f64 = 6.0;

@@ -6,26 +6,16 @@
 //! drift for noise).
 
 use super::*;
-use crate::pose_calibrate::{
-    calibrate_poses, draw_pose_truth, random_pose_motion, simulate_pose_session, ImuTiming,
-    PoseCalibrationOptions, PoseNoise,
-};
+use crate::pose_calibrate::simulate::test_support::{simulated, SessionSpec};
+use crate::pose_calibrate::{calibrate_poses, draw_pose_truth, ImuTiming, PoseCalibrationOptions};
 use faer::linalg::solvers::DenseSolveCore;
 
 fn drift_of(seed: u64, timing: ImuTiming, identify_noise: bool) -> TauDrift {
-    let truth = draw_pose_truth(500 + seed);
-    let motion = random_pose_motion(60.0, 600 + seed).unwrap();
-    let mut data = simulate_pose_session(
-        &truth,
-        &motion,
-        15.0,
-        0.003,
-        100.0,
-        &PoseNoise::default(),
-        seed,
-    )
-    .unwrap();
-    timing.apply(&mut data, seed).unwrap();
+    let spec = SessionSpec {
+        timing,
+        ..Default::default()
+    };
+    let data = simulated(&draw_pose_truth(500 + seed), 60.0, 600 + seed, seed, &spec).data;
     let opts = PoseCalibrationOptions {
         identify_noise,
         ..Default::default()
@@ -122,21 +112,11 @@ fn by_segment_linearisation(
 #[test]
 fn the_extra_column_sums_give_the_segment_linearisations_numbers() {
     for drift in [0.0, 0.030] {
-        let truth = draw_pose_truth(503);
-        let motion = random_pose_motion(30.0, 603).unwrap();
-        let mut data = simulate_pose_session(
-            &truth,
-            &motion,
-            15.0,
-            0.003,
-            100.0,
-            &PoseNoise::default(),
-            3,
-        )
-        .unwrap();
-        ImuTiming { jitter: 0.0, drift }
-            .apply(&mut data, 3)
-            .unwrap();
+        let spec = SessionSpec {
+            timing: ImuTiming { jitter: 0.0, drift },
+            ..Default::default()
+        };
+        let data = simulated(&draw_pose_truth(503), 30.0, 603, 3, &spec).data;
         let (cal, fit) = crate::pose_calibrate::fit_poses(
             &data,
             &[],

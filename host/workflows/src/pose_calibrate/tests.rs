@@ -1,12 +1,13 @@
 //! Pose calibration on simulated sessions: the start-up (τ, rotations),
 //! one 60 s session within 4σ, a Monte Carlo of the normalised errors, bad input.
 
+use super::simulate::test_support::{simulated, SessionSpec};
 use super::simulate::uniform_rotation;
 use super::startup::euler_zyx;
 use super::*;
 use rand::SeedableRng;
 use robimu_model::geom::{log_so3, mul_mm, transpose};
-use robimu_model::pose_measurement::{ACCEL, GYRO, POSE_PARAMS, ROT, TAU};
+use robimu_model::pose_measurement::{ACCEL, GYRO, ROT, TAU};
 use robimu_model::ImuIntrinsics;
 
 /// The angle between the Z–Y–X rotations of two Euler triples (rad).
@@ -38,21 +39,6 @@ fn errors(x: &[f64], truth: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// A 60 s session: poses 15 Hz with 3 ms jitter, IMU 100 Hz.
-fn session(truth: &[f64], seed: u64, duration: f64) -> PoseMeasurements {
-    let motion = random_pose_motion(duration, seed).unwrap();
-    simulate_pose_session(
-        truth,
-        &motion,
-        15.0,
-        0.003,
-        100.0,
-        &PoseNoise::default(),
-        seed + 1,
-    )
-    .unwrap()
-}
-
 #[test]
 fn startup_recovers_a_uniform_rotation_and_tau() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(11);
@@ -61,7 +47,7 @@ fn startup_recovers_a_uniform_rotation_and_tau() {
     let q = euler_zyx(&uniform_rotation(&mut rng));
     truth[GYRO + ROT..GYRO + ROT + 3].copy_from_slice(&q);
     truth[ACCEL + ROT..ACCEL + ROT + 3].copy_from_slice(&q);
-    let data = session(&truth, 21, 30.0);
+    let data = simulated(&truth, 30.0, 21, 22, &SessionSpec::default()).data;
     let spline =
         robimu_model::PoseSpline::fit(&data.pose_t, &data.pose_p, &data.pose_q, 2.0 / 15.0)
             .unwrap();
@@ -78,18 +64,20 @@ fn startup_recovers_a_uniform_rotation_and_tau() {
 /// Normalised errors of one simulated calibration.
 fn run(seed: u64) -> (Vec<f64>, PoseCalibration) {
     let truth = draw_pose_truth(1000 + seed);
-    let data = session(&truth, 2000 + seed, 60.0);
+    let data = simulated(
+        &truth,
+        60.0,
+        2000 + seed,
+        2001 + seed,
+        &SessionSpec::default(),
+    )
+    .data;
     // POSE_MC_GIVEN=f: the σ given are wrong, the IMU's f× too small and
     // the poses' f× too large (the noise identification must find them)
-    let given: f64 = std::env::var("POSE_MC_GIVEN")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1.0);
+    let given: f64 = env("POSE_MC_GIVEN").unwrap_or(1.0);
     let d = PoseCalibrationOptions::default();
     let opts = PoseCalibrationOptions {
-        knot_spacing: std::env::var("POSE_MC_KNOTS")
-            .ok()
-            .and_then(|s| s.parse().ok()),
+        knot_spacing: env("POSE_MC_KNOTS"),
         sigma_z: d.sigma_z.map(|s| s / given),
         sigma_p: d.sigma_p * given,
         sigma_r: d.sigma_r * given,
@@ -122,6 +110,11 @@ fn a_60_s_session_recovers_every_parameter_within_4_sigma() {
     }
 }
 
+/// The value of the environment variable `key`, when set and parsed.
+pub(super) fn env<T: std::str::FromStr>(key: &str) -> Option<T> {
+    std::env::var(key).ok().and_then(|s| s.parse().ok())
+}
+
 /// Mean and sample standard deviation.
 fn mean_std(v: &[f64]) -> (f64, f64) {
     let n = v.len() as f64;
@@ -130,6 +123,70 @@ fn mean_std(v: &[f64]) -> (f64, f64) {
         mean,
         (v.iter().map(|a| (a - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt(),
     )
+}
+
+/// A Monte Carlo's normalised errors z = (x̂ − x)/σ over n runs: per
+/// parameter (mean, std), pooled over all parameters (mean, std).
+pub(super) struct ZStatistics {
+    /// Parameter names.
+    pub names: Vec<String>,
+    /// Per parameter (mean, sample std) of its z over the runs.
+    pub per_parameter: Vec<(f64, f64)>,
+    /// (mean, sample std) of every z of every run.
+    pub pooled: (f64, f64),
+    /// Number of runs n.
+    pub runs: usize,
+}
+
+impl ZStatistics {
+    /// The statistics of `zs` (one z-vector a run, indexed as `names`),
+    /// printed a line per parameter and the pooled line.
+    pub(super) fn of(names: &[String], zs: &[Vec<f64>]) -> Self {
+        let per_parameter: Vec<(f64, f64)> = (0..names.len())
+            .map(|k| mean_std(&zs.iter().map(|z| z[k]).collect::<Vec<_>>()))
+            .collect();
+        let width = names.iter().map(|s| s.chars().count()).max().unwrap_or(0) + 2;
+        for (name, (mean, std)) in names.iter().zip(&per_parameter) {
+            println!("{name:width$} mean {mean:+.2} std {std:.2}");
+        }
+        let all: Vec<f64> = zs.iter().flatten().copied().collect();
+        let pooled = mean_std(&all);
+        let (worst_std, worst_mean) = per_parameter.iter().fold((0.0f64, 0.0f64), |w, (m, s)| {
+            (w.0.max((s - 1.0).abs()), w.1.max(m.abs()))
+        });
+        println!(
+            "pooled: mean {:+.3} std {:.3}; worst |std − 1| {worst_std:.2}, |mean| {worst_mean:.2}",
+            pooled.0, pooled.1
+        );
+        Self {
+            names: names.to_vec(),
+            per_parameter,
+            pooled,
+            runs: zs.len(),
+        }
+    }
+
+    /// Assert each parameter's z standard within its n-run scatter's
+    /// 3.3σ: |mean| ≤ 3.3/√n, |std − 1| ≤ 3.3/√(2(n − 1)); the failure
+    /// lists the offenders with their figures.
+    #[track_caller]
+    pub(super) fn assert_per_parameter_standard(&self) {
+        let n = self.runs as f64;
+        let (ms, ss) = (3.3 / n.sqrt(), 3.3 / (2.0 * (n - 1.0)).sqrt());
+        let off: Vec<String> = self
+            .names
+            .iter()
+            .zip(&self.per_parameter)
+            .filter(|(_, (mean, std))| (std - 1.0).abs() > ss || mean.abs() > ms)
+            .map(|(name, (mean, std))| format!("{name} (mean {mean:+.2}, std {std:.2})"))
+            .collect();
+        assert!(
+            off.is_empty(),
+            "off over {} runs (bounds |mean| ≤ {ms:.2}, |std − 1| ≤ {ss:.2}): {}",
+            self.runs,
+            off.join(", ")
+        );
+    }
 }
 
 /// Monte Carlo of `MC_RUNS` (default 30) calibrations of 60 s sessions
@@ -142,13 +199,7 @@ fn mean_std(v: &[f64]) -> (f64, f64) {
 #[test]
 #[ignore = "Monte Carlo of ≥ 30 calibrations (~1 min): run in release"]
 fn monte_carlo_normalised_errors_are_standard() {
-    let env = |k: &str, d: u64| {
-        std::env::var(k)
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(d)
-    };
-    let (runs, seed0) = (env("MC_RUNS", 30), env("MC_SEED0", 100));
+    let (runs, seed0) = (env("MC_RUNS").unwrap_or(30), env("MC_SEED0").unwrap_or(100));
     let t = std::time::Instant::now();
     let zs: Vec<Vec<f64>> = (0..runs)
         .map(|s| {
@@ -172,22 +223,8 @@ fn monte_carlo_normalised_errors_are_standard() {
         t.elapsed().as_secs_f64() / runs as f64
     );
     let names = robimu_model::pose_measurement::pose_param_names();
-    let (ms, ss) = (
-        3.3 / (runs as f64).sqrt(),
-        3.3 / (2.0 * (runs as f64 - 1.0)).sqrt(),
-    );
-    let mut bad = Vec::new();
-    for k in 0..POSE_PARAMS {
-        let v: Vec<f64> = zs.iter().map(|z| z[k]).collect();
-        let (mean, std) = mean_std(&v);
-        println!("{:12} mean {mean:+.2} std {std:.2}", names[k]);
-        if (std - 1.0).abs() > ss || mean.abs() > ms {
-            bad.push(names[k].clone());
-        }
-    }
-    let all: Vec<f64> = zs.iter().flatten().copied().collect();
-    let (mean, std) = mean_std(&all);
-    println!("pooled: mean {mean:+.3} std {std:.3}");
+    let stats = ZStatistics::of(&names, &zs);
+    let (mean, std) = stats.pooled;
     assert!(
         zs.iter().all(|z| z[TAU].abs() < 4.0),
         "τ beyond 4σ in a run"
@@ -196,7 +233,7 @@ fn monte_carlo_normalised_errors_are_standard() {
         (0.9..=1.1).contains(&std) && mean.abs() < 0.1,
         "pooled mean {mean}, std {std}"
     );
-    assert!(bad.is_empty(), "off: {bad:?}");
+    stats.assert_per_parameter_standard();
 }
 
 #[test]

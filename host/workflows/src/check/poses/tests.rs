@@ -259,20 +259,16 @@ fn degenerate_sessions_do_not_panic() {
 /// A session of the pose simulator (consistent poses and IMU samples:
 /// a hand-held-like motion about varying axes), 20 s, 15 Hz poses.
 fn simulated(seed: u64) -> PoseSession {
-    use crate::pose_calibrate::{
-        draw_pose_truth, random_pose_motion, simulate_pose_session, PoseNoise,
-    };
-    let motion = random_pose_motion(20.0, seed).unwrap();
-    let m = simulate_pose_session(
+    use crate::pose_calibrate::draw_pose_truth;
+    use crate::pose_calibrate::simulate::test_support as sim;
+    let m = sim::simulated(
         &draw_pose_truth(seed),
-        &motion,
-        15.0,
-        0.003,
-        100.0,
-        &PoseNoise::default(),
+        20.0,
         seed,
+        seed,
+        &Default::default(),
     )
-    .unwrap();
+    .data;
     let pv = (0..m.pose_t.len())
         .flat_map(|k| m.pose_p[k].into_iter().chain(m.pose_q[k]))
         .collect();
