@@ -159,17 +159,12 @@ fn two_imus_default_knots_keep_tau_unbiased() {
 #[test]
 fn a_pose_gap_falls_back_to_one_imus_knots() {
     let (_, mut data, more) = session(2, 9, 20.0);
-    let keep: Vec<bool> = data
-        .pose_t
-        .iter()
-        .map(|t| !(10.0..10.3).contains(t))
+    let kept: Vec<usize> = (0..data.pose_t.len())
+        .filter(|&i| !(10.0..10.3).contains(&data.pose_t[i]))
         .collect();
-    let mut k = keep.iter();
-    data.pose_t.retain(|_| *k.next().unwrap());
-    let mut k = keep.iter();
-    data.pose_p.retain(|_| *k.next().unwrap());
-    let mut k = keep.iter();
-    data.pose_q.retain(|_| *k.next().unwrap());
+    data.pose_t = kept.iter().map(|&i| data.pose_t[i]).collect();
+    data.pose_p = kept.iter().map(|&i| data.pose_p[i]).collect();
+    data.pose_q = kept.iter().map(|&i| data.pose_q[i]).collect();
     let (h1, h2) = (
         crate::pose_calibrate::default_knot_spacing(&data.pose_t),
         crate::pose_calibrate::default_knot_spacing_for(&data.pose_t, 2),

@@ -78,9 +78,10 @@ pub struct PoseCalibrationOptions {
     pub sigma_z: [f64; 6],
     /// Knot spacing of the pose spline (s); default max(1.5 / pose rate,
     /// 0.05 s) for one IMU, max(1.125 / pose rate, 0.05 s) for several
-    /// (`default_knot_spacing_for`): fine enough that the spline's approximation of a hand-held
-    /// motion stays below the IMU noise (at 2 / pose rate, 15 Hz poses and
-    /// rates of hundreds of °/s, it biased τ by a few σ in simulation).
+    /// (`default_knot_spacing_for`): fine enough that the spline's
+    /// approximation of a hand-held motion stays below the IMU noise (at
+    /// 2 / pose rate, 15 Hz poses and rates of hundreds of °/s, it biased τ
+    /// by a few σ in simulation).
     pub knot_spacing: Option<f64>,
     /// τ is searched within ±this (s).
     pub tau_search: f64,
