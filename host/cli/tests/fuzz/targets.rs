@@ -667,7 +667,27 @@ fn pose_csv_seed() -> Seed {
             100.0 * t.sin()
         ));
     }
+    // an IMU whose every channel moves (a pose session's check refuses a
+    // constant one): the body turns at 0.3 rad/s about y
+    let mut imu = String::from(
+        "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n",
+    );
+    for k in 0..1000i64 {
+        let t = k as f64 * 0.01;
+        let wiggle = |f: f64| 0.01 * (f * t).sin();
+        imu.push_str(&format!(
+            "{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}\n",
+            t0 + k * 10_000_000,
+            wiggle(37.0),
+            0.3 + wiggle(23.0),
+            wiggle(41.0),
+            0.1 + wiggle(29.0),
+            0.2 + wiggle(31.0),
+            9.81 + wiggle(43.0)
+        ));
+    }
     seed.label = "pose CSV and EuRoC IMU".into();
+    seed.files[0] = ("imu.csv".into(), imu.into());
     seed.files[1] = ("poses.csv".into(), poses.into());
     seed
 }
