@@ -205,8 +205,9 @@ pub(crate) fn default_knot_spacing_for(pose_t: &[f64], n_imus: usize) -> f64 {
 
 /// The pose spline at `opts`' knot spacing, else the default for
 /// `n_imus`; a default for several IMUs that the poses cannot carry (a
-/// knot interval without enough poses) falls back to one IMU's.
-fn fit_spline(
+/// knot interval without enough poses) falls back to one IMU's (`check`'s
+/// convention test fits the same, [`memo`]).
+pub(crate) fn fit_spline(
     data: &PoseMeasurements,
     opts: &PoseCalibrationOptions,
     n_imus: usize,

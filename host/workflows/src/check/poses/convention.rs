@@ -10,11 +10,9 @@
 use robimu_session::{files, PoseSession};
 
 use crate::check::{Finding, Severity};
-use crate::pose_calibrate::memo::{self, fit};
+use crate::pose_calibrate::memo;
 use crate::pose_calibrate::startup::{find_tau, gyro_alignment_rms};
-use crate::pose_calibrate::{
-    default_knot_spacing, default_knot_spacing_for, PoseCalibrationOptions,
-};
+use crate::pose_calibrate::{fit_spline, PoseCalibrationOptions};
 
 /// The world-frame rates' alignment RMS under this part of the body
 /// rates' names the inverse convention. The body rates of a body turning
@@ -30,13 +28,11 @@ pub(crate) fn inverse_rotation(session: &PoseSession) -> Option<Finding> {
     if data.pose_t.len() < 8 || data.imu_t.len() < 20 {
         return None;
     }
-    // the calibration's knots (and fallback), so that it reuses this fit
-    let fit_at = |h| fit(&data.pose_t, &data.pose_p, &data.pose_q, h);
-    let spline = fit_at(default_knot_spacing_for(&data.pose_t, session.n_imus()))
-        .or_else(|_| fit_at(default_knot_spacing(&data.pose_t)))
-        .ok()?;
-    // τ searched as the calibration's start-up does
-    let search = PoseCalibrationOptions::default().tau_search;
+    // the calibration's spline (its default knots and fallback), so that
+    // it reuses this fit; τ searched as its start-up does
+    let opts = PoseCalibrationOptions::default();
+    let (spline, _) = fit_spline(&data, &opts, session.n_imus(), &mut |_| {}).ok()?;
+    let search = opts.tau_search;
     let (tau, _) = memo::find_tau(&spline, &data.imu_t, &data.imu_z, search, || {
         find_tau(&spline, &data.imu_t, &data.imu_z, search)
     })
