@@ -308,10 +308,9 @@ impl Session {
             s.extra_imus.clear();
             s.meta.imu = s.meta.imu_tables.remove(&j);
             s.meta.imu_tables.clear();
-            if let Some(m) = s.meta.mounts.remove(&j) {
+            if s.meta.mounts.contains_key(&j) {
                 // IMU j's keys over IMU 0's (docs/model.md §9), as IMU 0's
-                let base = s.meta.mounts.get(&0).copied().unwrap_or_default();
-                s.meta.mounts = [(0, m.or(&base))].into();
+                s.meta.mounts = [(0, MountPrior::of_imu(&s.meta.mounts, j))].into();
             } else {
                 s.meta.mounts.retain(|&i, _| i == 0);
             }

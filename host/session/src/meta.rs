@@ -140,6 +140,16 @@ pub struct MountPrior {
 }
 
 impl MountPrior {
+    /// IMU `j`'s prior in a session's `mounts` (by IMU): its own keys over
+    /// IMU 0's (docs/model.md §9).
+    pub fn of_imu(mounts: &std::collections::BTreeMap<usize, MountPrior>, j: usize) -> Self {
+        let base = mounts.get(&0).copied().unwrap_or_default();
+        match mounts.get(&j) {
+            Some(m) if j > 0 => m.or(&base),
+            _ => base,
+        }
+    }
+
     /// These keys, the missing ones from `base`.
     pub fn or(&self, base: &MountPrior) -> MountPrior {
         MountPrior {

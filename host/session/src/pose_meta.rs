@@ -165,7 +165,6 @@ impl PoseSessionMeta {
     /// `r_a` or `r_w`, or IMU 0's): a pose session finds the rotations from
     /// the data, and a σ around those would count the data twice.
     fn validate_mounts(&self, path: &Path) -> Result<(), SessionError> {
-        let base = self.mounts.get(&0).copied().unwrap_or_default();
         for (&j, m) in &self.mounts {
             let name = if j == 0 {
                 "imu".into()
@@ -190,7 +189,7 @@ impl PoseSessionMeta {
                     return bad(format!("{key} = {v} must be a positive number"));
                 }
             }
-            let given = m.or(&base);
+            let given = MountPrior::of_imu(&self.mounts, j);
             if m.rotation_sigma.is_some() && given.r_a.is_none() && given.r_w.is_none() {
                 return bad(
                     "rotation_sigma without r_a or r_w: a pose session finds the sensor \

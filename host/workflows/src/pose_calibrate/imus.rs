@@ -62,7 +62,7 @@ pub(crate) fn specs_and_start(
     let (mut specs, mut x0) = (Vec::new(), Vec::new());
     for (j, s) in st.iter().enumerate() {
         let (mut sj, mut xj) = (pose_param_specs(s.accel.r, s.gyro.r), start_x(s));
-        super::mount::apply(&super::mount::mount_of(mounts, j), &mut sj, &mut xj);
+        super::mount::apply(&MountPrior::of_imu(mounts, j), &mut sj, &mut xj);
         for (k, (mut spec, v)) in sj.into_iter().zip(xj).enumerate() {
             if j == 0 || own(k) {
                 if j > 0 {

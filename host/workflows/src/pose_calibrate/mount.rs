@@ -5,7 +5,6 @@
 //! rotations found from the data with σ = π). Given rotation means with no
 //! `rotation_sigma` take [`ROTATION_SIGMA`].
 
-use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
 use robimu_model::params::ParamSpec;
@@ -15,15 +14,6 @@ use robimu_session::MountPrior;
 /// The σ (rad) of given rotation means without `rotation_sigma`: a robot
 /// description's default `[imu_mount]` σ, 5°.
 pub(crate) const ROTATION_SIGMA: f64 = 5.0 * PI / 180.0;
-
-/// IMU `j`'s prior from the session's `mounts`: its own keys over IMU 0's.
-pub(crate) fn mount_of(mounts: &BTreeMap<usize, MountPrior>, j: usize) -> MountPrior {
-    let base = mounts.get(&0).copied().unwrap_or_default();
-    match mounts.get(&j) {
-        Some(m) if j > 0 => m.or(&base),
-        _ => base,
-    }
-}
 
 /// Put `mount` into one IMU's §10 30-vector of `specs` (prior means and σ)
 /// and `x0` (its start): p_imu's mean and σ where given; a given rotation's
@@ -70,6 +60,8 @@ pub(crate) fn nearest_zyx(angles: [f64; 3], mean: [f64; 3]) -> [f64; 3] {
 
 #[cfg(test)]
 mod tests {
+    use std::collections::BTreeMap;
+
     use super::*;
     use robimu_model::imu::ImuIntrinsics;
 
@@ -113,12 +105,15 @@ mod tests {
             ..Default::default()
         };
         let mounts = BTreeMap::from([(0, m0), (2, m2)]);
-        assert_eq!(mount_of(&mounts, 0), m0);
-        assert_eq!(mount_of(&mounts, 1), m0);
-        let two = mount_of(&mounts, 2);
+        assert_eq!(MountPrior::of_imu(&mounts, 0), m0);
+        assert_eq!(MountPrior::of_imu(&mounts, 1), m0);
+        let two = MountPrior::of_imu(&mounts, 2);
         assert_eq!(two.position, Some([0.2, 0.0, 0.0]));
         assert_eq!(two.r_a, Some([1.0, 0.0, 0.0]));
-        assert_eq!(mount_of(&BTreeMap::new(), 3), MountPrior::default());
+        assert_eq!(
+            MountPrior::of_imu(&BTreeMap::new(), 3),
+            MountPrior::default()
+        );
 
         let mut specs = robimu_model::pose_measurement::pose_param_specs([0.0; 3], [0.0; 3]);
         let mut x0 = vec![0.0; POSE_PARAMS];
